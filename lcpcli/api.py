@@ -1,0 +1,68 @@
+"""``lcpcli.solve``: one entry point for every method, with timing and certification."""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import numpy as np
+
+from lcpcli.certificate import certify, matrix_norm_inf
+from lcpcli.errors import OptionError
+from lcpcli.problem import Problem
+from lcpcli.result import NO_SOLUTION, SOLVED, UNSOLVED, Outcome, Result
+from lcpcli.solvers import get_method
+
+DEFAULT_METHOD = "lemke"
+
+
+def solve(problem: Problem, method: str = DEFAULT_METHOD, *, tol: float | None = None,
+          **options: Any) -> Result:
+    """Solve ``problem`` with ``method`` and certify the answer.
+
+    ``tol`` bounds the certificate's scaled ``error`` (default: the method's own, 1e-8 for
+    pivoting methods).  Method-specific ``options`` (e.g. ``covering=``, ``max_iter=``) are
+    checked against the method's declared options; unknown ones raise :class:`OptionError`.
+
+    The verdict is ``solved`` only if the recomputed certificate passes; ``no_solution`` only
+    when the method proved it (the proof is in ``message``); ``unsolved`` otherwise.
+    ``seconds`` times the method alone (no file reading, no certification).
+    """
+    spec = get_method(method)
+    if problem.kind not in spec.kinds:
+        raise OptionError(f"method '{spec.name}' does not handle {problem.kind.upper()} problems "
+                          f"(it handles: {', '.join(k.upper() for k in spec.kinds)})")
+    opts = spec.parse_options(options)
+    tol = spec.default_tol if tol is None else float(tol)
+    if not (np.isfinite(tol) and tol > 0):
+        raise OptionError(f"tolerance must be positive and finite, got {tol}")
+    if spec.prepare is not None:
+        spec.prepare()
+    start = time.perf_counter()
+    outcome: Outcome = spec.run(problem, tol=tol, **opts)
+    seconds = time.perf_counter() - start
+    return certify_outcome(problem, outcome, spec.name, seconds, tol)
+
+
+def certify_outcome(problem: Problem, outcome: Outcome, method: str, seconds: float,
+                    tol: float) -> Result:
+    """Turn a method's raw :class:`Outcome` into a verdict by checking its answer."""
+    z = np.asarray(outcome.z, dtype=np.float64)
+    w = problem.w(z) if np.all(np.isfinite(z)) else np.full(problem.n, np.nan)
+    cert = certify(problem, z, tol, w=w, norm_M=matrix_norm_inf(problem.M))
+    message = outcome.message
+    if cert.passed:
+        status = SOLVED
+        if outcome.termination != "converged":
+            message = f"{message}; the returned point passes the certificate anyway"
+    elif outcome.proven_infeasible:
+        status = NO_SOLUTION
+    else:
+        status = UNSOLVED
+        if outcome.termination == "converged":
+            message = (f"{message}, but the certificate failed: error {cert.error:.3g} > "
+                       f"tol {tol:.3g}")
+    return Result(status=status, method=method, z=z, w=w, iterations=outcome.iterations,
+                  seconds=seconds, certificate=cert, message=message,
+                  termination=outcome.termination, problem_name=problem.name,
+                  trace=outcome.trace, info=dict(outcome.info))

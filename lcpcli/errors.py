@@ -1,0 +1,36 @@
+"""Exceptions and the process exit codes they map to.
+
+Exit codes (documented in ``lcpcli --help`` and the README):
+
+* 0 - every problem solved (certificate checked);
+* 1 - a problem was not solved (``no_solution`` or ``unsolved``);
+* 2 - bad usage or bad input (malformed file, wrong shapes, NaN/Inf, unknown option, ...).
+"""
+
+from __future__ import annotations
+
+EXIT_SOLVED = 0
+EXIT_NOT_SOLVED = 1
+EXIT_BAD_INPUT = 2
+
+
+class LcpError(Exception):
+    """Base class of the package's own errors."""
+
+
+class ProblemError(LcpError, ValueError):
+    """Invalid or unreadable problem data; the message is one line meant for users."""
+
+    def __init__(self, message: str, source: str | None = None) -> None:
+        self.source = source
+        super().__init__(f"{source}: {message}" if source else message)
+
+    def with_source(self, source: str) -> ProblemError:
+        """Return the same error prefixed by ``source`` (unless it already has one)."""
+        if self.source:
+            return self
+        return ProblemError(str(self), source)
+
+
+class OptionError(LcpError, ValueError):
+    """Invalid solver option (unknown name, wrong type, out of range)."""

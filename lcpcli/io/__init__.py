@@ -1,0 +1,152 @@
+"""Problem files: read and write JSON, NPZ, HDF5 and Siconos ``.dat``.
+
+``load(path)`` returns a validated :class:`~lcpcli.problem.Problem`; every failure (missing
+file, unknown extension, malformed content, wrong shapes, NaN/Inf, pickled NPZ, truncated HDF5,
+absurd sizes) raises :class:`~lcpcli.errors.ProblemError` with a one-line message that names
+the file.  ``save(problem, path)`` writes atomically: a temporary file in the same folder is
+renamed over the target only once it is complete, so a failed write leaves no partial file and
+never damages an existing one.
+
+Formats (chosen by extension, or ``fmt=``):
+
+* ``.json``  ``{"M": [[...]], "q": [...]}`` plus optional ``name``, ``description``, ``n_eq``,
+  ``lower``/``upper`` (``null`` = infinite), ``meta``; a sparse M is
+  ``{"format": "csr"|"coo", "shape": [n, n], ...}``.  ``-`` reads JSON from stdin.
+* ``.npz``   arrays ``M``, ``q`` (or sparse ``M_format``, ``M_shape``, ``M_data``, ...);
+  loaded with ``allow_pickle=False``.
+* ``.h5``/``.hdf5``  datasets ``M``, ``q`` at the root, or one group per problem; a sparse M is
+  a group with ``format``/``shape`` attributes and ``data``/``indices``/``indptr`` (or
+  ``row``/``col``) datasets.
+* ``.dat``   Siconos numerics LCP/MLCP text files (M stored column-major).
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import tempfile
+from collections.abc import Callable
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+from lcpcli.errors import ProblemError
+from lcpcli.problem import Problem
+
+FORMATS = {
+    ".json": "json",
+    ".npz": "npz",
+    ".h5": "hdf5",
+    ".hdf5": "hdf5",
+    ".hdf": "hdf5",
+    ".dat": "dat",
+}
+
+
+def detect_format(path: str | os.PathLike[str], fmt: str | None = None) -> str:
+    """The format name for ``path`` (``fmt`` overrides the extension)."""
+    if fmt:
+        fmt = fmt.lower().lstrip(".")
+        if fmt in ("h5", "hdf"):
+            fmt = "hdf5"
+        if fmt not in set(FORMATS.values()):
+            raise ProblemError(f"unknown format '{fmt}' (expected json, npz, hdf5, dat)")
+        return fmt
+    if str(path) == "-":
+        return "json"
+    ext = Path(path).suffix.lower()
+    if ext not in FORMATS:
+        shown = ext or "(none)"
+        raise ProblemError(f"unknown file type {shown} (expected .json, .npz, .h5/.hdf5, .dat)")
+    return FORMATS[ext]
+
+
+def _module(fmt: str) -> Any:
+    if fmt == "json":
+        from lcpcli.io import json_format as mod
+    elif fmt == "npz":
+        from lcpcli.io import npz_format as mod
+    elif fmt == "hdf5":
+        from lcpcli.io import hdf5_format as mod
+    else:
+        from lcpcli.io import siconos_dat as mod
+    return mod
+
+
+def load(path: str | os.PathLike[str], problem: str | None = None, *,
+         fmt: str | None = None) -> Problem:
+    """Read one problem from ``path`` (``-`` = JSON on stdin); ``problem`` picks an HDF5 group."""
+    source = str(path)
+    try:
+        kind = detect_format(path, fmt)
+        if source == "-":
+            from lcpcli.io import json_format
+
+            return json_format.read_text(sys.stdin.read(), default_name="stdin")
+        p = Path(path)
+        if not p.exists():
+            raise ProblemError("no such file")
+        if p.is_dir():
+            raise ProblemError("is a directory, not a problem file")
+        if problem is not None and kind != "hdf5":
+            raise ProblemError("--problem applies to HDF5 files only")
+        return _module(kind).read(p, problem) if kind == "hdf5" else _module(kind).read(p)
+    except ProblemError as exc:
+        raise exc.with_source(source) from None
+    except PermissionError:
+        raise ProblemError("permission denied", source) from None
+    except MemoryError:
+        raise ProblemError("not enough memory to read the problem", source) from None
+
+
+def list_problems(path: str | os.PathLike[str]) -> list[str]:
+    """Names of the problems a file holds (HDF5: the groups; other formats: one name)."""
+    kind = detect_format(path)
+    if kind == "hdf5":
+        from lcpcli.io import hdf5_format
+
+        try:
+            return hdf5_format.list_problems(Path(path))
+        except ProblemError as exc:
+            raise exc.with_source(str(path)) from None
+    return [Path(path).stem]
+
+
+def save(problem: Problem, path: str | os.PathLike[str], *, fmt: str | None = None) -> None:
+    """Write ``problem`` to ``path`` atomically (``-`` writes JSON to stdout)."""
+    kind = detect_format(path, fmt)
+    if str(path) == "-":
+        from lcpcli.io import json_format
+
+        sys.stdout.write(json_format.dumps(problem) + "\n")
+        return
+    writer = _module(kind).write
+    with atomic_path(Path(path)) as tmp:
+        writer(problem, tmp)
+
+
+@contextmanager
+def atomic_path(target: Path) -> Any:
+    """Yield a temporary path beside ``target``; rename it over ``target`` on success only."""
+    target = Path(target)
+    folder = target.parent if str(target.parent) else Path(".")
+    if not folder.is_dir():
+        raise ProblemError(f"folder {folder} does not exist", str(target))
+    fd, name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=folder)
+    os.close(fd)
+    tmp = Path(name)
+    try:
+        yield tmp
+        os.replace(tmp, target)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+
+
+def write_atomic_text(target: Path, text: str) -> None:
+    """Write a text file atomically (used by the CLI for result files)."""
+    with atomic_path(target) as tmp:
+        tmp.write_text(text)
+
+
+Reader = Callable[..., Problem]
