@@ -1,0 +1,112 @@
+"""The ``lcpcli`` command line: a thin skin over the library.
+
+Each subcommand lives in its own module of this package (``<name>_cmd.py``) and exposes
+``register(app)``; the modules import numpy, scipy and h5py only inside the command bodies so
+that ``lcpcli --help`` stays fast.  Errors become one line on stderr and an exit code:
+
+* 0  solved (every problem solved, certificate checked)
+* 1  not solved (``no_solution`` or ``unsolved``)
+* 2  bad usage or bad input (malformed or missing file, wrong shapes, NaN/Inf, unknown option)
+* 3  internal error (a bug: please report it; ``LCPCLI_DEBUG=1`` shows the traceback)
+"""
+
+from __future__ import annotations
+
+import importlib
+import os
+import sys
+
+import typer
+import typer.core
+
+from lcpcli import __version__
+from lcpcli.errors import EXIT_BAD_INPUT, LcpError
+
+EXIT_INTERNAL = 3
+
+
+
+def _click_exceptions():  # type: ignore[no-untyped-def]
+    """typer >= 0.2x vendors click as ``typer._click``; older versions use click itself."""
+    try:
+        return importlib.import_module("typer._click.exceptions")
+    except ImportError:
+        return importlib.import_module("click.exceptions")
+
+
+click_exc = _click_exceptions()
+
+EXIT_CODES_HELP = (
+    "Exit codes: 0 solved; 1 not solved (no_solution or unsolved); "
+    "2 bad usage or bad input; 3 internal error."
+)
+
+#: Subcommand modules, in the order ``--help`` lists them.
+COMMAND_MODULES = ["solve_cmd", "convert_cmd", "methods_cmd"]
+
+app = typer.Typer(
+    name="lcpcli",
+    help="Linear complementarity problems: find z >= 0 with w = M z + q >= 0 and z^T w = 0 "
+         "(and the mixed and box forms).",
+    epilog=EXIT_CODES_HELP,
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+    rich_markup_mode=None,
+    context_settings={"help_option_names": ["-h", "--help"]},
+)
+
+
+def _version(value: bool) -> None:
+    if value:
+        typer.echo(f"lcpcli {__version__}")
+        raise typer.Exit(0)
+
+
+@app.callback()
+def _root(
+    version: bool = typer.Option(False, "--version", callback=_version, is_eager=True,
+                                 help="Print the version and exit."),
+) -> None:
+    """Linear complementarity problems from the shell."""
+
+
+for _name in COMMAND_MODULES:
+    importlib.import_module(f"{__name__}.{_name}").register(app)
+
+
+def error_line(message: str) -> None:
+    """Print one error line on stderr."""
+    text = " ".join(str(message).split())
+    sys.stderr.write(f"lcpcli: error: {text}\n")
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Entry point: run the app, map every failure to one stderr line and an exit code."""
+    try:
+        code = app(args=argv, standalone_mode=False, prog_name="lcpcli")
+    except click_exc.UsageError as exc:
+        hint = f" (see '{exc.ctx.command_path} --help')" if exc.ctx else ""
+        error_line(f"{exc.format_message()}{hint}")
+        code = EXIT_BAD_INPUT
+    except click_exc.ClickException as exc:
+        error_line(exc.format_message())
+        code = EXIT_BAD_INPUT
+    except typer.Abort:
+        error_line("interrupted")
+        code = 130
+    except LcpError as exc:
+        error_line(str(exc))
+        code = EXIT_BAD_INPUT
+    except KeyboardInterrupt:
+        error_line("interrupted")
+        code = 130
+    except BrokenPipeError:
+        code = 0
+    except Exception as exc:  # noqa: BLE001 - last line of defence: no tracebacks for users
+        if os.environ.get("LCPCLI_DEBUG"):
+            raise
+        error_line(f"internal error: {type(exc).__name__}: {exc} "
+                   f"(set LCPCLI_DEBUG=1 for the traceback)")
+        code = EXIT_INTERNAL
+    sys.exit(code if isinstance(code, int) else 0)

@@ -1,0 +1,52 @@
+"""``lcpcli convert``: rewrite a problem file in another format."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+
+def convert(
+    source: str = typer.Argument(..., metavar="IN", help="Problem file ('-' = JSON on stdin)."),
+    target: str = typer.Argument(..., metavar="OUT",
+                                 help="Output file; the extension picks the format "
+                                      "(.json, .npz, .h5, .dat); '-' writes JSON to stdout."),
+    problem: str = typer.Option(None, "--problem", "-p",
+                                help="Problem (group) of an HDF5 input; without it every "
+                                     "problem of a multi-problem file goes to an HDF5 OUT."),
+    force: bool = typer.Option(False, "--force", "-f", help="Overwrite an existing OUT."),
+) -> int:
+    """Convert between JSON, NPZ, HDF5 and Siconos .dat problem files.
+
+    The output is written atomically and only after the input was read and validated, so a
+    bad input never leaves a partial or damaged OUT. Exit codes: 0 done; 2 bad usage or bad
+    input.
+    """
+    from lcpcli.errors import ProblemError
+    from lcpcli.io import atomic_path, detect_format, list_problems, load, save
+
+    out_fmt = detect_format(target)
+    if target != "-" and Path(target).exists() and not force:
+        raise ProblemError("exists already (use --force to overwrite)", target)
+    in_fmt = detect_format(source)
+    if in_fmt == "hdf5" and problem is None and source != "-":
+        names = list_problems(source)
+        if len(names) > 1:
+            if out_fmt != "hdf5":
+                raise ProblemError(f"holds {len(names)} problems ({', '.join(names[:20])}); "
+                                   f"pick one with --problem NAME or convert to .h5", source)
+            from lcpcli.io.hdf5_format import write_many
+
+            problems = [load(source, name) for name in names]
+            for name, p in zip(names, problems):
+                p.name = name
+            with atomic_path(Path(target)) as tmp:
+                write_many(problems, tmp)
+            return 0
+    save(load(source, problem), target)
+    return 0
+
+
+def register(app: typer.Typer) -> None:
+    app.command("convert")(convert)

@@ -1,0 +1,32 @@
+"""``lcpcli methods``: list the registered solver methods."""
+
+from __future__ import annotations
+
+import typer
+
+
+def methods_command(
+    as_json: bool = typer.Option(False, "--json", help="Machine-readable list on stdout."),
+) -> int:
+    """List the solver methods, the matrix classes they handle and their options."""
+    from lcpcli.solvers import methods
+
+    registry = methods()
+    if as_json:
+        from lcpcli.cli.common import write_json_line
+
+        write_json_line([{"name": m.name, "aliases": list(m.aliases), "summary": m.summary,
+                          "classes": m.matrix_classes, "kinds": list(m.kinds),
+                          "default_tol": m.default_tol,
+                          "options": {k: o.help for k, o in m.options.items()}}
+                         for m in registry.values()])
+        return 0
+    from lcpcli.cli.common import stdout_console
+    from lcpcli.render import render_methods
+
+    stdout_console().print(render_methods(registry))
+    return 0
+
+
+def register(app: typer.Typer) -> None:
+    app.command("methods")(methods_command)
