@@ -137,10 +137,21 @@ def atomic_path(target: Path) -> Any:
     tmp = Path(name)
     try:
         yield tmp
+        os.chmod(tmp, _target_mode(target))
         os.replace(tmp, target)
     finally:
         if tmp.exists():
             tmp.unlink()
+
+
+def _target_mode(target: Path) -> int:
+    """The existing file's mode, else what a plain ``open(..., "w")`` would give (umask)."""
+    try:
+        return target.stat().st_mode & 0o777
+    except OSError:
+        umask = os.umask(0)
+        os.umask(umask)
+        return 0o666 & ~umask
 
 
 def write_atomic_text(target: Path, text: str) -> None:
