@@ -64,10 +64,10 @@ def certify(problem: Any, z: np.ndarray, tol: float = DEFAULT_TOL, *,
     ``passed`` is true when everything is finite and ``error <= tol``.
     """
     z = np.asarray(z, dtype=np.float64)
-    if w is None:
+    if w is None and np.all(np.isfinite(z)):
         w = problem.w(z)
     lo, up = problem.bounds()
-    if not (np.all(np.isfinite(z)) and np.all(np.isfinite(w))):
+    if w is None or not (np.all(np.isfinite(z)) and np.all(np.isfinite(w))):
         inf = float("inf")
         return Certificate(inf, inf, inf, inf, inf, inf, tol, False)
     mu = matrix_norm_inf(problem.M) if norm_M is None else norm_M

@@ -3,11 +3,15 @@
 Sign convention (one for all forms, stated once): ``w = M z + q``.
 
 * **LCP**: ``0 <= z  _|_  w >= 0``.
-* **MLCP** (Siconos form): the first ``n_eq`` variables are free and their rows are equalities,
-  ``M = [[A, C], [D, B]]``, ``q = [a; b]``: ``A u + C v + a = 0`` and ``0 <= v _|_ D u + B v + b >= 0``.
+* **MLCP** (Siconos form): the first ``n_eq`` variables are free and their rows are
+  equalities, ``M = [[A, C], [D, B]]``, ``q = [a; b]``: ``A u + C v + a = 0`` and
+  ``0 <= v _|_ D u + B v + b >= 0``.
 * **Box LCP**: ``lower <= z <= upper`` and ``-w`` lies in the normal cone of the box at ``z``:
-  ``w >= 0`` where ``z_i = lower_i``, ``w <= 0`` where ``z_i = upper_i``, ``w = 0`` strictly between.
-  Seed 002 writes ``-y in N_[l,u](lambda)`` with ``y = W lambda + b``: the same thing with ``w = y``.
+  ``w >= 0`` where ``z_i = lower_i``, ``w <= 0`` where ``z_i = upper_i``, ``w = 0`` strictly
+  between.
+  Seed 002 writes ``-y in N_[l,u](lambda)`` with ``y = W lambda + b``: the same thing with
+  ``w = y``, ``z = lambda``, ``M = W``, ``q = b`` (files using ``y = -W lambda + b`` are
+  converted on input by negating W).
 
 All three are the mixed complementarity problem over the box ``[l, u]`` returned by
 :meth:`Problem.bounds` (LCP: ``[0, inf)``; free MLCP variables: ``(-inf, inf)``), which is how the

@@ -39,7 +39,7 @@ def convert(
             from lcpcli.io.hdf5_format import write_many
 
             problems = [load(source, name) for name in names]
-            for name, p in zip(names, problems):
+            for name, p in zip(names, problems, strict=True):
                 p.name = name
             with atomic_path(Path(target)) as tmp:
                 write_many(problems, tmp)

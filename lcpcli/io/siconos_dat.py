@@ -17,6 +17,7 @@ Trailing numbers (old reference solutions) are ignored.
 from __future__ import annotations
 
 from pathlib import Path
+
 import numpy as np
 
 from lcpcli.errors import ProblemError
@@ -153,7 +154,7 @@ def _read_mlcp(tok: _Tokens, name: str) -> Problem:
             raise ProblemError(f"M is {M.shape[0]} x {M.shape[1]}; an MLCP with n = {n}, "
                                f"m = {m} needs a square {size} x {size} matrix")
         q = tok.floats(size, "q")
-        eq_rows = sum(b - a for a, b, f in zip(bounds, bounds[1:], flags) if f == 0)
+        eq_rows = sum(b - a for a, b, f in zip(bounds, bounds[1:], flags, strict=False) if f == 0)
         if eq_rows != n:
             raise ProblemError(f"block flags give {eq_rows} equality rows, header says {n}")
         return Problem.create(M, q, n_eq=n, name=name, description=desc)

@@ -52,7 +52,8 @@ class Method:
             key_norm = key.replace("-", "_")
             if key_norm not in self.options:
                 known = ", ".join(sorted(self.options)) or "none"
-                raise OptionError(f"method '{self.name}' has no option '{key}' (its options: {known})")
+                raise OptionError(f"method '{self.name}' has no option '{key}' "
+                                  f"(its options: {known})")
             if value is None:
                 continue
             try:

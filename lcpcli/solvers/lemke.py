@@ -72,9 +72,7 @@ def default_max_iter(n: int) -> int:
 
 def prepare() -> None:
     """Load (or compile once and cache) the kernel outside the timed region."""
-    from lcpcli.solvers._lemke_kernel import lemke_kernel
-
-    from lcpcli.solvers._lemke_kernel import polish_kernel
+    from lcpcli.solvers._lemke_kernel import lemke_kernel, polish_kernel
 
     one = np.array([[1.0]])
     out = lemke_kernel(one, np.array([-1.0]), np.array([1.0]), 10, PIVOT_TOL, TIE_TOL, NO_RECORD)

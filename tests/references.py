@@ -1,0 +1,109 @@
+"""Independent references for the tests (deliberately simple, slow and exact where possible)."""
+
+from __future__ import annotations
+
+import itertools
+from fractions import Fraction
+
+import numpy as np
+
+
+def brute_force_solutions(M: np.ndarray, q: np.ndarray, tol: float = 1e-9) -> list[np.ndarray]:
+    """All solutions found by trying every support set (n <= 10): z_S = -M_SS^-1 q_S."""
+    n = len(q)
+    found: list[np.ndarray] = []
+    for k in range(n + 1):
+        for S in itertools.combinations(range(n), k):
+            z = np.zeros(n)
+            if S:
+                idx = list(S)
+                A = M[np.ix_(idx, idx)]
+                if abs(np.linalg.det(A)) < 1e-12:
+                    continue
+                z[idx] = np.linalg.solve(A, -q[idx])
+            w = M @ z + q
+            scale = 1 + np.abs(q).max()
+            feasible = z.min() >= -tol * scale and w.min() >= -tol * scale
+            if feasible and not any(np.allclose(z, f, atol=1e-7 * scale) for f in found):
+                found.append(z)
+    return found
+
+
+def exact_lemke_sequence(M: np.ndarray, q: np.ndarray, max_pivots: int = 5000):
+    """Lexicographic Lemke (covering vector ones) in exact rational arithmetic.
+
+    Returns (status, [(entering, leaving, row), ...], z) with the kernel's variable codes:
+    0..n-1 = w, n..2n-1 = z, 2n = z0.  Same rule as the kernel: initial pivot on the largest
+    index among the most negative q_i; z0 leaves whenever it ties; otherwise the lexicographic
+    minimum of (rows of the basis inverse) / pivot element.
+    """
+    n = len(q)
+    T = [[Fraction(int(M[i, j])) for j in range(n)] + [Fraction(1)] for i in range(n)]
+    qb = [Fraction(int(x)) for x in q]
+    basic = list(range(n))
+    where = {i: i for i in range(n)}
+    for j in range(n + 1):
+        where[n + j] = -(j + 1)
+
+    def pivot(r: int, c: int) -> None:
+        p = T[r][c]
+        rowr = [-x / p for x in T[r]]
+        rowr[c] = 1 / p
+        qr = -qb[r] / p
+        for i in range(n):
+            if i == r or T[i][c] == 0:
+                continue
+            f = T[i][c]
+            qb[i] += f * qr
+            for j in range(n + 1):
+                T[i][j] += f * rowr[j]
+            T[i][c] = f / p
+        T[r] = rowr
+        qb[r] = qr
+
+    def key(i: int, k: int) -> Fraction:
+        loc = where[k]
+        if loc >= 0:
+            return Fraction(1 if loc == i else 0)
+        return -T[i][-loc - 1]
+
+    seq = []
+    best = min(qb)
+    if best >= 0:
+        return "trivial", seq, np.zeros(n)
+    r = max(i for i in range(n) if qb[i] == best)
+    entering, c = 2 * n, n
+    leaving = basic[r]
+    pivot(r, c)
+    basic[r], where[entering], where[leaving] = entering, r, -(c + 1)
+    seq.append((entering, leaving, r))
+    while len(seq) < max_pivots:
+        entering = leaving + n if leaving < n else leaving - n
+        c = -where[entering] - 1
+        cand = [i for i in range(n) if T[i][c] < 0]
+        if not cand:
+            return "ray", seq, None
+        tmin = min(qb[i] / -T[i][c] for i in cand)
+        cand = [i for i in cand if qb[i] / -T[i][c] == tmin]
+        z0_rows = [i for i in cand if basic[i] == 2 * n]
+        if z0_rows:
+            r = z0_rows[0]
+        else:
+            k = 0
+            while len(cand) > 1:
+                vals = {i: key(i, k) / -T[i][c] for i in cand}
+                m = min(vals.values())
+                cand = [i for i in cand if vals[i] == m]
+                k += 1
+            r = cand[0]
+        leaving = basic[r]
+        pivot(r, c)
+        basic[r], where[entering], where[leaving] = entering, r, -(c + 1)
+        seq.append((entering, leaving, r))
+        if leaving == 2 * n:
+            z = np.zeros(n)
+            for i, b in enumerate(basic):
+                if n <= b < 2 * n:
+                    z[b - n] = float(qb[i])
+            return "ok", seq, z
+    return "max_pivots", seq, None

@@ -1,0 +1,208 @@
+"""Problem files: round trips, every format, sparse storage, validation errors."""
+
+from __future__ import annotations
+
+import json
+
+import h5py
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+import lcpcli
+from lcpcli.errors import ProblemError
+from lcpcli.io import list_problems, load, save
+from lcpcli.io.hdf5_format import write_many
+from lcpcli.problem import MAX_DENSE_ENTRIES, Problem
+
+
+def same(a: Problem, b: Problem) -> None:
+    Ma = a.M.toarray() if a.sparse else a.M
+    Mb = b.M.toarray() if b.sparse else b.M
+    np.testing.assert_array_equal(Ma, Mb)
+    np.testing.assert_array_equal(a.q, b.q)
+    assert (a.n_eq, a.name, a.description, a.meta, a.sparse) == \
+        (b.n_eq, b.name, b.description, b.meta, b.sparse)
+    for x, y in ((a.lower, b.lower), (a.upper, b.upper)):
+        if x is None:
+            assert y is None
+        else:
+            np.testing.assert_array_equal(x, y)
+
+
+PROBLEMS = {
+    "dense": lambda: Problem.create(np.array([[2.0, 1 / 3], [1e-300, 2e10]]), [-5.5, 1e-17],
+                                    name="dense", description="ünïcode ok", meta={"k": [1, 2]}),
+    "sparse": lambda: Problem.create(sp.random(30, 30, density=0.1, random_state=1,
+                                               format="csr") + sp.eye(30),
+                                     np.linspace(-1, 1, 30), name="sparse"),
+    "mlcp": lambda: Problem.create(np.eye(3) + 0.5, [1.0, -2.0, 0.5], n_eq=1, name="mlcp"),
+    "box": lambda: Problem.create(np.eye(3) * 2, [1.0, -2.0, 0.5], lower=[-1, 0, -np.inf],
+                                  upper=[1, np.inf, 4], name="box"),
+}
+
+
+@pytest.mark.parametrize("kind", sorted(PROBLEMS))
+def test_round_trip_json_npz_hdf5_json(tmp_path, kind):
+    p0 = PROBLEMS[kind]()
+    save(p0, tmp_path / "a.json")
+    p1 = load(tmp_path / "a.json")
+    save(p1, tmp_path / "b.npz")
+    p2 = load(tmp_path / "b.npz")
+    save(p2, tmp_path / "c.h5")
+    p3 = load(tmp_path / "c.h5")
+    save(p3, tmp_path / "d.json")
+    p4 = load(tmp_path / "d.json")
+    for p in (p1, p2, p3, p4):
+        same(p0, p)
+
+
+@pytest.mark.parametrize("kind", ["dense", "mlcp"])
+def test_round_trip_siconos_dat(tmp_path, kind):
+    p0 = PROBLEMS[kind]()
+    save(p0, tmp_path / f"{kind}.dat")
+    p1 = load(tmp_path / f"{kind}.dat")
+    np.testing.assert_array_equal(p0.M, p1.M)
+    np.testing.assert_array_equal(p0.q, p1.q)
+    assert p1.n_eq == p0.n_eq
+
+
+def test_box_problem_cannot_be_written_as_dat(tmp_path):
+    with pytest.raises(ProblemError, match="box"):
+        save(PROBLEMS["box"](), tmp_path / "x.dat")
+    assert not list(tmp_path.iterdir())  # no partial file left behind
+
+
+def test_siconos_block_files_equal_their_dense_copies(siconos):
+    for name in ("deudeu", "ortiz", "trivial"):
+        dense = load(siconos / "lcp" / f"lcp_{name}.dat")
+        block = load(siconos / "lcp" / f"lcp_{name}_block.dat")
+        np.testing.assert_array_equal(dense.M, block.M)
+        np.testing.assert_array_equal(dense.q, block.q)
+
+
+def test_siconos_dat_is_column_major(siconos):
+    p = load(siconos / "lcp" / "lcp_exp_murty.dat")
+    # upper triangular, 1 on the diagonal, 2 above
+    assert np.allclose(np.tril(p.M, -1), 0) and np.allclose(np.diag(p.M), 1)
+    assert np.allclose(p.M[np.triu_indices(6, 1)], 2)
+
+
+def test_siconos_mlcp_files_both_storages_agree(siconos):
+    for f in sorted((siconos / "mlcp").glob("*.dat")):
+        if f.name == "Rectangular_mlcp.dat":
+            with pytest.raises(ProblemError, match="square"):
+                load(f)
+            continue
+        p = load(f)
+        assert p.kind == "mlcp" and 0 < p.n_eq < p.n
+
+
+def test_npz_sparse_coo_and_csr(tmp_path):
+    M = sp.random(20, 20, density=0.2, random_state=3, format="coo") + sp.eye(20)
+    M = M.tocoo()
+    q = np.ones(20)
+    np.savez(tmp_path / "coo.npz", M_format="coo", M_shape=np.array(M.shape), M_data=M.data,
+             M_row=M.row, M_col=M.col, q=q)
+    p = load(tmp_path / "coo.npz")
+    assert p.sparse
+    np.testing.assert_allclose(p.M.toarray(), M.toarray())
+    csr = M.tocsr()
+    np.savez(tmp_path / "csr.npz", M_format="csr", M_shape=np.array(M.shape), M_data=csr.data,
+             M_indices=csr.indices, M_indptr=csr.indptr, q=q)
+    np.testing.assert_allclose(load(tmp_path / "csr.npz").M.toarray(), M.toarray())
+
+
+def test_hdf5_sparse_group(tmp_path):
+    M = (sp.random(15, 15, density=0.2, random_state=2) + sp.eye(15)).tocsr()
+    with h5py.File(tmp_path / "s.h5", "w") as f:
+        g = f.create_group("M")
+        g.attrs["format"] = "csr"
+        g.attrs["shape"] = [15, 15]
+        g["data"], g["indices"], g["indptr"] = M.data, M.indices, M.indptr
+        f["q"] = -np.ones(15)
+    p = load(tmp_path / "s.h5")
+    assert p.sparse and lcpcli.solve(p).solved
+
+
+def test_hdf5_multi_problem_and_missing_name(tmp_path):
+    probs = [Problem.create(np.eye(2) * (k + 1), [-1.0, -2.0], name=f"p{k}") for k in range(3)]
+    write_many(probs, tmp_path / "many.h5")
+    assert list_problems(tmp_path / "many.h5") == ["p0", "p1", "p2"]
+    assert load(tmp_path / "many.h5", "p2").M[0, 0] == 3
+    with pytest.raises(ProblemError, match="pick one with --problem") as exc:
+        load(tmp_path / "many.h5")
+    assert "p0, p1, p2" in str(exc.value)
+    with pytest.raises(ProblemError, match="no problem named 'zz'.*p0, p1, p2"):
+        load(tmp_path / "many.h5", "zz")
+
+
+BAD_JSON = {
+    "not json": "{M: ]",
+    "not an object": "[1, 2]",
+    "missing q": '{"M": [[1]]}',
+    "unknown key": '{"M": [[1]], "q": [1], "Q": 3}',
+    "ragged": '{"M": [[1, 2], [3]], "q": [1, 2]}',
+    "not square": '{"M": [[1, 2]], "q": [1]}',
+    "q length": '{"M": [[1, 0], [0, 1]], "q": [1]}',
+    "nan": '{"M": [[NaN]], "q": [1]}',
+    "inf": '{"M": [[1]], "q": [Infinity]}',
+    "strings": '{"M": [["a"]], "q": [1]}',
+    "bad n_eq": '{"M": [[1]], "q": [1], "n_eq": 5}',
+    "bounds crossed": '{"M": [[1]], "q": [1], "lower": [2], "upper": [1]}',
+    "both forms": '{"M": [[1, 0], [0, 1]], "q": [1, 1], "n_eq": 1, "lower": [0, 0]}',
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD_JSON))
+def test_bad_json_is_one_clear_problem_error(tmp_path, case):
+    f = tmp_path / "bad.json"
+    f.write_text(BAD_JSON[case])
+    with pytest.raises(ProblemError) as exc:
+        load(f)
+    msg = str(exc.value)
+    assert msg.startswith(str(f)) and "\n" not in msg
+
+
+def test_bad_files(tmp_path):
+    (tmp_path / "x.txt").write_text("1")
+    (tmp_path / "t.h5").write_bytes(b"\x89HDF\r\n\x1a\n" + b"\0" * 10)
+    (tmp_path / "t.npz").write_bytes(b"PK\x03\x04garbage")
+    np.savez(tmp_path / "obj.npz", M=np.array([[1.0]]), q=np.array([None, 1], dtype=object))
+    (tmp_path / "short.dat").write_text("3\n0\n3\n3\n3 3\n1 2 3\n")
+    cases = {"x.txt": "unknown file type", "missing.json": "no such file",
+             "t.h5": "HDF5", "t.npz": "NPZ", "obj.npz": "pickled", "short.dat": "ends early"}
+    for name, text in cases.items():
+        with pytest.raises(ProblemError, match=text):
+            load(tmp_path / name)
+
+
+def test_huge_sizes_refused_before_allocation(tmp_path):
+    n = int(MAX_DENSE_ENTRIES ** 0.5) + 10
+    (tmp_path / "huge.dat").write_text(f"{n}\n0\n{n}\n{n}\n{n} {n}\n")
+    with pytest.raises(ProblemError, match="GiB"):
+        load(tmp_path / "huge.dat")
+    with h5py.File(tmp_path / "huge.h5", "w") as f:  # a lazily allocated 10^6 x 10^6 dataset
+        f.create_dataset("M", shape=(10**6, 10**6), dtype="f8")
+        f.create_dataset("q", shape=(10**6,), dtype="f8")
+    with pytest.raises(ProblemError, match="too large|GiB"):
+        load(tmp_path / "huge.h5")
+
+
+def test_save_is_atomic_and_keeps_existing_file_on_failure(tmp_path):
+    target = tmp_path / "out.json"
+    target.write_text("precious")
+    with pytest.raises(ProblemError):
+        save(PROBLEMS["box"](), tmp_path / "out.dat")
+    assert target.read_text() == "precious"
+    save(PROBLEMS["dense"](), target)
+    assert json.loads(target.read_text())["name"] == "dense"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out.json"]
+
+
+def test_json_bounds_null_means_infinite(tmp_path):
+    f = tmp_path / "b.json"
+    f.write_text('{"M": [[1, 0], [0, 1]], "q": [1, 1], "lower": [null, 0], '
+                 '"upper": [2, null]}')
+    p = load(f)
+    assert p.kind == "box" and p.lower[0] == -np.inf and p.upper[1] == np.inf
