@@ -10,8 +10,8 @@ Sign convention (one for all forms, stated once): ``w = M z + q``.
   ``w >= 0`` where ``z_i = lower_i``, ``w <= 0`` where ``z_i = upper_i``, ``w = 0`` strictly
   between.
   Seed 002 writes ``-y in N_[l,u](lambda)`` with ``y = W lambda + b``: the same thing with
-  ``w = y``, ``z = lambda``, ``M = W``, ``q = b`` (files using ``y = -W lambda + b`` are
-  converted on input by negating W).
+  ``w = y``, ``z = lambda``, ``M = W``, ``q = b`` (data written as ``y = -W lambda + b`` must
+  be given with ``M = -W``).
 
 All three are the mixed complementarity problem over the box ``[l, u]`` returned by
 :meth:`Problem.bounds` (LCP: ``[0, inf)``; free MLCP variables: ``(-inf, inf)``), which is how the
