@@ -1,0 +1,80 @@
+"""Helpers shared by the iterative solver methods (not a method module: no ``METHODS``).
+
+Conventions: ``w = M z + q``, the box ``[lo, up]`` from :meth:`Problem.bounds`.  The scaled error
+computed here is the certificate's formula (:mod:`lcpcli.certificate`), evaluated cheaply inside
+the iterations to decide when to stop; the verdict is always given by the shared certificate.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from lcpcli.errors import OptionError
+
+#: Termination reason of a method that does not apply to the given matrix (e.g. zero diagonal).
+NOT_APPLICABLE = "not_applicable"
+
+
+def vector_option(value: Any) -> np.ndarray | None:
+    """A float vector from a list/array or a string ``'1,2 3'`` (None stays None)."""
+    if value is None:
+        return None
+    if isinstance(value, str):
+        value = [float(x) for x in value.replace(",", " ").split()]
+    arr = np.asarray(value, dtype=np.float64).ravel()
+    if not np.all(np.isfinite(arr)):
+        raise ValueError("contains NaN or Inf")
+    return arr
+
+
+def positive_int(value: Any) -> int:
+    """A positive integer option (``max_iter``)."""
+    if isinstance(value, float) and not value.is_integer():
+        raise ValueError(f"must be a positive integer, got {value}")
+    v = int(value)
+    if v < 1:
+        raise ValueError("must be a positive integer")
+    return v
+
+
+def omega_option(value: Any) -> float:
+    """The relaxation parameter: finite, ``0 < omega < 2`` (outside, PSOR need not converge)."""
+    v = float(value)
+    if not (np.isfinite(v) and 0.0 < v < 2.0):
+        raise ValueError(f"omega must satisfy 0 < omega < 2, got {value}")
+    return v
+
+
+def start_point(problem: Any, z0: np.ndarray | None, default: float = 0.0) -> np.ndarray:
+    """The warm start ``z0`` checked against ``problem`` (OptionError on a length mismatch)."""
+    n = problem.n
+    if z0 is None:
+        return np.full(n, default)
+    z = np.asarray(z0, dtype=np.float64).ravel()
+    if z.shape[0] != n:
+        raise OptionError(f"warm start z0 has length {z.shape[0]}, the problem has n = {n}")
+    if not np.all(np.isfinite(z)):
+        raise OptionError("warm start z0 contains NaN or Inf")
+    return z.copy()
+
+
+def scaled_error(z: np.ndarray, w: np.ndarray, lo: np.ndarray, up: np.ndarray, mu: float,
+                 qnorm: float) -> float:
+    """The certificate's scaled error of ``(z, w)`` (``mu = ||M||_inf``, ``qnorm = ||q||_inf``)."""
+    mu = mu if mu > 0 else 1.0
+    with np.errstate(invalid="ignore", over="ignore"):
+        r = np.maximum(mu * (z - up), np.minimum(mu * (z - lo), w))
+    num = float(np.max(np.abs(r))) if r.size else 0.0
+    if num == 0.0:
+        return 0.0
+    denom = mu * (float(np.max(np.abs(z))) if z.size else 0.0) + qnorm
+    if not np.isfinite(num):
+        return float("inf")
+    return num / denom if denom > 0 else float("inf")
+
+
+def diagonal(M: Any) -> np.ndarray:
+    """The diagonal of a dense or scipy.sparse matrix, as a float array."""
+    return np.asarray(M.diagonal(), dtype=np.float64).ravel()
