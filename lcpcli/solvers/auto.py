@@ -1,0 +1,252 @@
+"""``auto``: classify M cheaply, pick a method, fall back to the next suitable one.
+
+Problem: any kind (LCP, MLCP, box LCP), ``w = M z + q``.  The class report comes from
+:func:`lcpcli.classify.classify` (symmetric?, PD/PSD by eigenvalues or Cholesky, Z-matrix,
+P-matrix by a sufficient test: PD, strictly diagonally dominant or H-matrix with positive
+diagonal, exact principal minors for n <= 10; sparse?, size).  :func:`plan` turns it into an
+ordered list of methods with a reason each; every attempt is certified with
+:func:`lcpcli.certificate.certify` and the first that passes is returned.  A method's *proof* that
+no solution exists (Lemke's secondary ray on a copositive-plus M, or a Farkas certificate) ends
+the search with ``no_solution``.  ``message`` names the classification, the method that
+succeeded and every failed attempt; ``info["attempts"]`` has the details.
+
+Matrix classes: any; the guarantees are those of the methods it picks (see docs/methods.md).
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import numpy as np
+
+from lcpcli.result import CONVERGED, ITERATION_LIMIT, Outcome
+from lcpcli.solvers import Method, Option
+from lcpcli.solvers._common import positive_int, vector_option
+
+#: Dense problems up to this size are given to the pivoting methods first.
+PIVOT_MAX_N = 1500
+#: Dense problems above this size are never given to the O(n^3)-per-solve pivoting methods.
+PIVOT_HARD_MAX_N = 5000
+#: Sweep / iteration caps auto uses when the user gave no --max-iter (a fallback should fail fast).
+AUTO_CAPS = {"pgs": 3000, "psor": 3000, "newton": 100, "newton-min": 50, "ip": 100}
+
+
+def _describe(c: dict[str, Any]) -> str:
+    """A short phrase for the class report."""
+    parts = ["sparse" if c["sparse"] else "dense", f"n={c['n']}"]
+    parts.append("symmetric" if c["symmetric"] else "non-symmetric")
+    if c["definiteness"] is not None:
+        parts.append({"pd": "PD", "psd": "PSD", "indefinite": "indefinite"}[c["definiteness"]])
+    if c["p_matrix"]:
+        parts.append("P-matrix")
+    if c["z_matrix"]:
+        parts.append("Z-matrix")
+    if c["zero_diagonal"]:
+        parts.append(f"{c['zero_diagonal']} zero diagonal entries")
+    return ", ".join(parts)
+
+
+def _resolve(name: str, available: dict[str, Any]) -> str | None:
+    """The registered name of ``name`` (which may be an alias), or None if absent."""
+    if name in available:
+        return name
+    for key, m in available.items():
+        if name in m.aliases:
+            return key
+    return None
+
+
+def plan(problem: Any, c: dict[str, Any], available: dict[str, Any]) -> list[tuple[str, str]]:
+    """The ordered (method, reason) list for ``problem`` with class report ``c``.
+
+    Only methods present in ``available`` (the registry) and handling ``problem.kind`` are kept.
+    """
+    n = c["n"]
+    kind = problem.kind
+    dense_small = n <= PIVOT_MAX_N
+    pivot_ok = n <= PIVOT_HARD_MAX_N
+    sym, pd, psd, p = c["symmetric"], c["pd"], c["psd"], c["p_matrix"]
+    posdiag, hplus = c["positive_diagonal"], c["h_matrix_positive_diagonal"]
+    steps: list[tuple[str, str]] = []
+
+    def add(name: str, why: str) -> None:
+        name = _resolve(name, available)
+        if name and kind in available[name].kinds and name not in [s[0] for s in steps]:
+            steps.append((name, why))
+
+    if kind == "mlcp":
+        for name, m in available.items():
+            if "mlcp" in m.kinds and name not in ("auto", "newton", "newton-min") \
+                    and not name.startswith("enum"):
+                add(name, "a method for the mixed form")
+        add("newton", "semismooth Newton handles free rows as plain equations")
+        add("newton-min", "min-map Newton, fallback")
+        return steps
+    if kind == "box":
+        if sym and psd:
+            add("dantzig", "symmetric PSD box LCP: principal pivoting (Cottle-Dantzig)")
+        if posdiag and ((sym and psd) or hplus):
+            add("pgs", "symmetric PSD (or H-matrix) with positive diagonal: PGS converges")
+        add("newton", "semismooth Newton on the box (Billups) function")
+        add("newton-min", "Newton on the mid function, fallback")
+        if posdiag:
+            add("psor", "projected SOR, last resort")
+        return steps
+    # ---- LCP
+    if dense_small:
+        if sym and pd:
+            add("dantzig", "symmetric PD: principal pivoting")
+            add("lemke", "P-matrix: Lemke is finite")
+            add("murty", "P-matrix: Murty's method is finite")
+        elif p:
+            add("lemke", f"P-matrix ({c['p_matrix_reason']}): Lemke is finite")
+            add("murty", "P-matrix: Murty's method is finite")
+        elif psd:
+            if sym:
+                add("dantzig", "symmetric PSD: principal pivoting")
+            add("lemke", "PSD (copositive-plus): Lemke finds a solution or proves none exists")
+            add("ip", "monotone LCP: interior point")
+        else:
+            add("lemke", "no class known: Lemke first (solves many problems; proofs only "
+                         "for copositive-plus)")
+        add("newton", "semismooth Newton (Fischer-Burmeister), general fallback")
+        if psd:
+            add("ip", "monotone LCP: interior point")
+        add("newton-min", "min-map Newton, fallback")
+        add("ip", "interior point (no guarantee outside monotone problems)")
+        if posdiag and sym:
+            add("pgs", "projected Gauss-Seidel, last resort")
+        return steps
+    # large problems: iterative methods first
+    if posdiag and ((sym and psd) or hplus):
+        add("pgs", "large, symmetric PSD (or H-matrix) with positive diagonal: PGS converges")
+    if psd:
+        add("newton", "large: semismooth Newton with sparse LU")
+        add("ip", "large monotone LCP: interior point")
+    else:
+        add("newton", "large: semismooth Newton with sparse LU")
+    add("newton-min", "min-map Newton, fallback")
+    if pivot_ok:
+        add("lemke", "pivoting fallback (dense O(n^2) per pivot)")
+        if p:
+            add("murty", "P-matrix: Murty's method is finite")
+    if psd:
+        add("ip", "monotone LCP: interior point")
+    return steps
+
+
+def prepare() -> None:
+    """Warm up the compiled kernels of the methods auto may call (outside the timed region)."""
+    from lcpcli.solvers import methods
+
+    for m in methods().values():
+        if m.name != "auto" and m.prepare is not None:
+            m.prepare()
+
+
+def run(problem: Any, *, tol: float, max_iter: int | None = None,
+        z0: np.ndarray | None = None, order: str | None = None) -> Outcome:
+    """Classify, plan and try methods until one's answer passes the certificate."""
+    from lcpcli.certificate import certify, matrix_norm_inf
+    from lcpcli.classify import classify
+    from lcpcli.errors import OptionError
+    from lcpcli.solvers import methods
+
+    n = problem.n
+    lo, _ = problem.bounds()
+    if problem.kind == "lcp" and (n == 0 or np.min(problem.q) >= 0):
+        return Outcome(np.zeros(n), 0, CONVERGED, "auto: q >= 0, so z = 0 solves the problem",
+                       info={"chosen": None, "attempts": []})
+    t0 = time.perf_counter()
+    c = classify(problem)
+    t_class = time.perf_counter() - t0
+    registry = {k: v for k, v in methods().items() if k != "auto"}
+    if order:
+        steps = []
+        for name in order.replace(",", " ").split():
+            key = _resolve(name, registry)
+            spec = registry.get(key) if key else None
+            if spec is None or problem.kind not in spec.kinds:
+                raise OptionError(f"auto: method '{name}' in order= is unknown or does not "
+                                  f"handle {problem.kind.upper()} problems")
+            steps.append((spec.name, "given by order="))
+    else:
+        steps = plan(problem, c, registry)
+    desc = _describe(c)
+    norm_M = matrix_norm_inf(problem.M)
+    attempts: list[dict[str, Any]] = []
+    best: tuple[float, np.ndarray, str] | None = None
+    total_it = 0
+    for name, why in steps:
+        spec = registry[name]
+        opts: dict[str, Any] = {}
+        if "max_iter" in spec.options:
+            if max_iter is not None:
+                opts["max_iter"] = max_iter
+            elif name in AUTO_CAPS:
+                opts["max_iter"] = AUTO_CAPS[name]
+        if z0 is not None and "z0" in spec.options:
+            opts["z0"] = z0
+        t1 = time.perf_counter()
+        try:
+            out: Outcome = spec.run(problem, tol=tol, **spec.parse_options(opts))
+        except (np.linalg.LinAlgError, MemoryError, ValueError, RuntimeError) as exc:
+            if isinstance(exc, OptionError):
+                raise
+            attempts.append({"method": name, "reason": why, "status": "error",
+                             "message": f"{type(exc).__name__}: {exc}",
+                             "seconds": time.perf_counter() - t1})
+            continue
+        secs = time.perf_counter() - t1
+        total_it += int(out.iterations)
+        z = np.asarray(out.z, dtype=np.float64)
+        cert = certify(problem, z, tol, norm_M=norm_M)
+        rec = {"method": name, "reason": why, "termination": out.termination,
+               "iterations": int(out.iterations), "error": cert.error, "seconds": secs,
+               "message": out.message}
+        if cert.passed:
+            rec["status"] = "solved"
+            attempts.append(rec)
+            failed = "".join(f"; {a['method']} failed first ({a['message']})"
+                             for a in attempts[:-1])
+            return Outcome(z, total_it, CONVERGED,
+                           f"auto [{desc}]: solved by {name} ({why}){failed}",
+                           info={"chosen": name, "attempts": attempts, "classification": c,
+                                 "classify_seconds": t_class})
+        if out.proven_infeasible:
+            rec["status"] = "no_solution"
+            attempts.append(rec)
+            return Outcome(z, total_it, out.termination,
+                           f"auto [{desc}]: {name} proved that no solution exists: "
+                           f"{out.message}", proven_infeasible=True,
+                           info={"chosen": name, "attempts": attempts, "classification": c,
+                                 "classify_seconds": t_class})
+        rec["status"] = "unsolved"
+        attempts.append(rec)
+        if best is None or cert.error < best[0]:
+            best = (cert.error, z, out.termination)
+    tried = "; ".join(f"{a['method']}: {a['message']}" for a in attempts) or "no method applies"
+    z = best[1] if best else np.clip(np.zeros(n), lo, None)
+    return Outcome(z, total_it, best[2] if best else ITERATION_LIMIT,
+                   f"auto [{desc}]: every suitable method failed ({tried})",
+                   info={"chosen": None, "attempts": attempts, "classification": c,
+                         "classify_seconds": t_class})
+
+
+METHODS = [
+    Method(
+        name="auto",
+        run=run,
+        summary="classify M, pick a method, fall back to the next suitable one (the default)",
+        matrix_classes="any (the guarantees of the method it picks; see 'lcpcli info FILE')",
+        kinds=("lcp", "mlcp", "box"),
+        options={
+            "max_iter": Option(positive_int, None,
+                               "iteration / pivot limit passed to each method tried"),
+            "z0": Option(vector_option, None, "warm start passed to the methods that take one"),
+            "order": Option(str, None, "comma-separated methods to try instead of the plan"),
+        },
+        prepare=prepare,
+    ),
+]
