@@ -13,7 +13,7 @@ from lcpcli.problem import Problem
 from lcpcli.result import NO_SOLUTION, SOLVED, UNSOLVED, Outcome, Result
 from lcpcli.solvers import get_method
 
-DEFAULT_METHOD = "lemke"
+DEFAULT_METHOD = "auto"
 
 
 def solve(problem: Problem, method: str = DEFAULT_METHOD, *, tol: float | None = None,

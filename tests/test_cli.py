@@ -42,7 +42,7 @@ def test_exit_code_1_when_not_solved(cli, siconos):
     assert r.returncode == 1
     out = json.loads(r.stdout)
     assert out["status"] == "no_solution" and "Farkas" in out["message"]
-    r = cli("solve", str(siconos / "lcp" / "lcp_CPS_3.dat"), "--json")
+    r = cli("solve", str(siconos / "lcp" / "lcp_CPS_3.dat"), "--method", "lemke", "--json")
     assert r.returncode == 1 and json.loads(r.stdout)["status"] == "unsolved"
 
 

@@ -13,7 +13,7 @@ def solve(
     file: str = typer.Argument(..., metavar="FILE",
                                help="Problem file (.json, .npz, .h5, .dat); '-' reads JSON "
                                     "from stdin."),
-    method: str = typer.Option("lemke", "--method", "-m", help="Solver method (listed below)."),
+    method: str = typer.Option("auto", "--method", "-m", help="Solver method (listed below)."),
     tol: float = typer.Option(None, "--tol",
                               help="Tolerance on the scaled error for the verdict 'solved' "
                                    "[default: the method's, 1e-8 for pivoting]."),
@@ -21,6 +21,12 @@ def solve(
     covering: str = typer.Option(None, "--covering",
                                  help="Lemke covering vector d > 0, e.g. '1,2,1' "
                                       "[default: all ones]."),
+    omega: float = typer.Option(None, "--omega",
+                                help="Relaxation parameter of psor, 0 < omega < 2."),
+    z0: Path = typer.Option(None, "--z0", metavar="FILE",
+                            help="Warm start z: a JSON list, a result JSON with \"z\", or an "
+                                 "NPZ/NPY array (methods pgs, psor, newton, newton-min, murty, "
+                                 "auto)."),
     option: list[str] = typer.Option(None, "--option", "-O", metavar="KEY=VALUE",
                                      help="Other method option (repeatable)."),
     problem: str = typer.Option(None, "--problem", "-p",
@@ -48,6 +54,12 @@ def solve(
         opts["max_iter"] = max_iter
     if covering is not None:
         opts["covering"] = covering
+    if omega is not None:
+        opts["omega"] = omega
+    if z0 is not None:
+        from lcpcli.warmstart import load_z0
+
+        opts["z0"] = load_z0(z0)
     prob = load(file, problem)
     result = solve_problem(prob, method, tol=tol, **opts)
     payload = result.to_dict(file=file)

@@ -152,9 +152,12 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None,
     from lcpcli.classify import classify
     from lcpcli.errors import OptionError
     from lcpcli.solvers import methods
+    from lcpcli.solvers._common import start_point
 
     n = problem.n
     lo, _ = problem.bounds()
+    if z0 is not None:
+        z0 = start_point(problem, z0)  # length check before any method runs
     if problem.kind == "lcp" and (n == 0 or np.min(problem.q) >= 0):
         return Outcome(np.zeros(n), 0, CONVERGED, "auto: q >= 0, so z = 0 solves the problem",
                        info={"chosen": None, "attempts": []})
@@ -250,3 +253,100 @@ METHODS = [
         prepare=prepare,
     ),
 ]
+
+
+def applicability(problem: Any, c: dict[str, Any],
+                  available: dict[str, Any] | None = None) -> list[dict[str, Any]]:
+    """For each registered method: does it apply to ``problem`` (class report ``c``), and why.
+
+    ``applies`` is ``"yes"`` (the problem is in the method's convergence class), ``"maybe"`` (it
+    may work, without a guarantee) or ``"no"`` (wrong problem kind, or the method cannot start,
+    e.g. PGS with a zero diagonal entry).  ``auto_rank`` is the 1-based position in auto's plan.
+    """
+    from lcpcli.solvers import methods
+
+    reg = available if available is not None else methods()
+    steps = plan(problem, c, {k: v for k, v in reg.items() if k != "auto"})
+    rank = {name: i + 1 for i, (name, _) in enumerate(steps)}
+    kind = problem.kind
+    sym, psd, p = c["symmetric"], c["psd"], c["p_matrix"]
+    posdiag, hplus = c["positive_diagonal"], c["h_matrix_positive_diagonal"]
+    rows = []
+    for name, m in reg.items():
+        if kind not in m.kinds:
+            applies, why = "no", (f"handles {'/'.join(k.upper() for k in m.kinds)} problems, "
+                                  f"not {kind.upper()}")
+        elif name == "auto":
+            applies, why = "yes", "picks a method from the classification"
+        elif name == "lemke-tableau":
+            if p:
+                applies, why = "yes", "P-matrix: finite, unique solution"
+            elif psd:
+                applies, why = "yes", "PSD (copositive-plus): a solution or a proof of none"
+            else:
+                applies, why = "maybe", "not known copositive-plus: a ray would prove nothing"
+        elif name == "murty":
+            if p:
+                applies, why = "yes", "P-matrix: finite (possibly 2^n pivots)"
+            elif p is False:
+                applies, why = "maybe", f"not a P-matrix ({c['p_matrix_reason']}): may stop " \
+                                        "on a non-positive pivot"
+            else:
+                applies, why = "maybe", "P-matrix property unknown"
+        elif name in ("pgs", "psor"):
+            if not posdiag:
+                applies, why = "no", (f"{c['zero_diagonal']} zero / non-positive diagonal "
+                                      f"entries: the update is undefined")
+            elif sym and psd:
+                applies, why = "yes", "symmetric PSD with positive diagonal"
+            elif hplus:
+                applies, why = "yes", "H-matrix with positive diagonal"
+            else:
+                applies, why = "maybe", "not symmetric PSD nor H-matrix: may not converge"
+        elif name == "newton":
+            if p or psd:
+                applies, why = "yes", ("P-matrix" if p else "monotone (PSD)") + \
+                    ": globally convergent on the FB merit"
+            else:
+                applies, why = "maybe", "no class guarantee (may stop at a stationary point)"
+        elif name == "newton-min":
+            applies, why = "maybe", ("P-matrix: locally fast, not globally convergent" if p
+                                     else "not globally convergent: may stall")
+        elif name == "ip":
+            if psd:
+                applies, why = "yes", "monotone (PSD) LCP"
+            elif psd is None:
+                applies, why = "maybe", "monotonicity not tested (too large)"
+            else:
+                applies, why = "maybe", "not monotone: no guarantee"
+        elif name == "dantzig":
+            if sym and psd:
+                applies, why = "yes", "symmetric PSD"
+            else:
+                applies, why = "maybe", "its class is symmetric PSD; this M is not"
+        else:
+            applies, why = "maybe", f"stated classes: {m.matrix_classes}"
+        rows.append({"method": name, "applies": applies, "why": why,
+                     "auto_rank": rank.get(name)})
+    return rows
+
+
+def info_report(problem: Any, file: str | None = None) -> dict[str, Any]:
+    """The ``lcpcli info`` report: class report, per-method applicability, auto's plan (JSON-safe).
+
+    Schema: ``{"file", "problem", "summary", "classification": {...}, "methods": [{"method",
+    "applies", "why", "auto_rank"}], "auto_plan": [[method, reason], ...], "seconds"}``.
+    """
+    from lcpcli.classify import classify
+    from lcpcli.solvers import methods
+
+    t0 = time.perf_counter()
+    c = classify(problem)
+    secs = time.perf_counter() - t0
+    reg = methods()
+    steps = plan(problem, c, {k: v for k, v in reg.items() if k != "auto"})
+    clean = {k: (None if isinstance(v, float) and not np.isfinite(v) else v)
+             for k, v in c.items()}
+    return {"file": file, "problem": problem.name, "summary": problem.summary(),
+            "classification": clean, "methods": applicability(problem, c, reg),
+            "auto_plan": [[name, why] for name, why in steps], "seconds": secs}
