@@ -15,8 +15,9 @@ generalized (B-/Clarke) Jacobian ``H = diag(a) + diag(b) M``:
   residual of the certificate.
 
 Globalisation: Armijo backtracking on the merit ``Psi = ||Phi||^2 / 2``; when the Newton system
-is singular or its solution is not a sufficient descent direction, a step along ``-grad Psi =
--H^T Phi`` is taken instead (De Luca, Facchinei and Kanzow's scheme).  Sparse M: the Newton
+is singular or its solution is not a sufficient descent direction, a Levenberg-Marquardt step
+``(H^T H + lam I) d = -H^T Phi`` (``lam`` proportional to ``||Phi||``) is tried, and failing that a
+step along ``-grad Psi = -H^T Phi`` (De Luca, Facchinei and Kanzow's scheme).  Sparse M: the Newton
 systems are solved by sparse LU (``scipy.sparse.linalg.splu``), never densified.  After the
 iterations an active-set re-solve is tried (see :func:`._common.active_set_polish`).
 
@@ -150,6 +151,37 @@ def _newton_direction(M: Any, sparse: bool, a: np.ndarray, b: np.ndarray,
     return d if np.all(np.isfinite(d)) else None
 
 
+def _lm_direction(M: Any, sparse: bool, a: np.ndarray, b: np.ndarray, phi: np.ndarray,
+                  grad: np.ndarray, lam: float) -> np.ndarray | None:
+    """Levenberg-Marquardt direction ``(H^T H + lam I) d = -H^T phi`` (singular H, e.g. a
+    rank-deficient PSD M at a degenerate point); None if it fails."""
+    import warnings
+
+    n = phi.shape[0]
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            if sparse:
+                import scipy.sparse as sp
+                import scipy.sparse.linalg as spla
+
+                H = (sp.diags(b) @ M + sp.diags(a)).tocsr()
+                K = (H.T @ H + lam * sp.identity(n)).tocsc()
+                d = spla.splu(K).solve(-grad)
+            else:
+                import scipy.linalg as sla
+
+                H = b[:, None] * M
+                H[np.diag_indices(n)] += a
+                K = H.T @ H
+                K[np.diag_indices(n)] += lam
+                d = sla.cho_solve(sla.cho_factor(K, check_finite=False), -grad,
+                                  check_finite=False)
+    except (np.linalg.LinAlgError, ValueError, RuntimeError):
+        return None
+    return d if np.all(np.isfinite(d)) else None
+
+
 def run_newton(problem: Any, *, tol: float, variant: str = "fb", max_iter: int | None = None,
                z0: np.ndarray | None = None) -> Outcome:
     """Semismooth Newton with Armijo line search; ``variant`` is ``"fb"`` or ``"min"``."""
@@ -181,6 +213,7 @@ def run_newton(problem: Any, *, tol: float, variant: str = "fb", max_iter: int |
     phi, a, b = resid(z, w)
     merit = 0.5 * float(phi @ phi)
     grad_steps = 0
+    lm_steps = 0
     it = 0
     termination, why = ITERATION_LIMIT, f"iteration limit {limit} reached"
     best_z, best_err = z.copy(), scaled_error(z, w, lo, up, mu, qn)
@@ -196,6 +229,14 @@ def run_newton(problem: Any, *, tol: float, variant: str = "fb", max_iter: int |
         d = _newton_direction(M, sparse, a, b, phi)
         slope = float(grad @ d) if d is not None else 0.0
         if d is None or slope > -RHO * float(np.linalg.norm(d)) ** P_EXP:
+            lam = min(1.0, float(np.sqrt(2.0 * merit))) * max(1.0, mu) ** 2 * 1e-3
+            d = _lm_direction(M, sparse, a, b, phi, grad, max(lam, 1e-14))
+            slope = float(grad @ d) if d is not None else 0.0
+            if d is not None and slope < -RHO * float(np.linalg.norm(d)) ** P_EXP:
+                lm_steps += 1
+            else:
+                d = None
+        if d is None:
             d = -grad
             slope = -float(grad @ grad)
             grad_steps += 1
@@ -237,10 +278,11 @@ def run_newton(problem: Any, *, tol: float, variant: str = "fb", max_iter: int |
                     termination = CONVERGED
         except (np.linalg.LinAlgError, ValueError, MemoryError):
             pass
-    extra = f", {grad_steps} gradient steps" if grad_steps else ""
+    extra = f", {lm_steps} Levenberg-Marquardt steps" if lm_steps else ""
+    extra += f", {grad_steps} gradient steps" if grad_steps else ""
     return Outcome(z_out, it, termination,
                    f"{name}: {why} after {it} iterations{extra} (scaled error {err_out:.2e})",
-                   info={"gradient_steps": grad_steps})
+                   info={"gradient_steps": grad_steps, "lm_steps": lm_steps})
 
 
 def run_fb(problem: Any, *, tol: float, max_iter: int | None = None,
