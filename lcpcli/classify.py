@@ -229,11 +229,12 @@ def is_p_matrix_exact(M: np.ndarray) -> bool:
     return True
 
 
-def classify(problem) -> dict:  # type: ignore[no-untyped-def]
+def classify(problem, thorough: bool = True) -> dict:  # type: ignore[no-untyped-def]
     """A cheap class report of ``problem.M`` (keys documented in docs/methods.md).
 
     Every test is a sufficient one unless said otherwise; ``None`` means "not tested"
-    (too large) and the ``p_matrix_reason`` / ``definiteness_test`` say how each was decided.
+    (too large, or with ``thorough=False`` not needed: the H-matrix test is skipped when M is
+    already known PD) and ``p_matrix_reason`` / ``definiteness_test`` say how each was decided.
     """
     M = problem.M
     n = problem.n
@@ -265,11 +266,15 @@ def classify(problem) -> dict:  # type: ignore[no-untyped-def]
     out["z_matrix"] = bool(np.all(offvals <= 0))
     out["diagonally_dominant"] = bool(n == 0 or (out["positive_diagonal"]
                                                  and np.all(2 * d > absrow)))
+    kind, lam, how = definiteness(M)
     if out["diagonally_dominant"]:
         out["h_matrix_positive_diagonal"] = True
+    elif not out["positive_diagonal"]:
+        out["h_matrix_positive_diagonal"] = False
+    elif not thorough and kind == "pd":
+        out["h_matrix_positive_diagonal"] = None
     else:
         out["h_matrix_positive_diagonal"] = h_matrix_positive_diagonal(M)
-    kind, lam, how = definiteness(M)
     out["definiteness"] = kind
     out["min_eig_sym"] = lam
     out["definiteness_test"] = how

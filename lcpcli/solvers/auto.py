@@ -28,6 +28,8 @@ from lcpcli.solvers._common import positive_int, vector_option
 PIVOT_MAX_N = 1500
 #: Dense problems above this size are never given to the O(n^3)-per-solve pivoting methods.
 PIVOT_HARD_MAX_N = 5000
+#: Sparse problems up to this size are treated like small dense ones (pivoting first).
+SMALL_SPARSE_N = 200
 #: Sweep / iteration caps auto uses when the user gave no --max-iter (a fallback should fail fast).
 AUTO_CAPS = {"pgs": 3000, "psor": 3000, "newton": 100, "newton-min": 50, "ip": 100}
 
@@ -64,7 +66,7 @@ def plan(problem: Any, c: dict[str, Any], available: dict[str, Any]) -> list[tup
     """
     n = c["n"]
     kind = problem.kind
-    dense_small = n <= PIVOT_MAX_N
+    dense_small = n <= PIVOT_MAX_N and (not c["sparse"] or n <= SMALL_SPARSE_N)
     pivot_ok = n <= PIVOT_HARD_MAX_N
     sym, pd, psd, p = c["symmetric"], c["pd"], c["psd"], c["p_matrix"]
     posdiag, hplus = c["positive_diagonal"], c["h_matrix_positive_diagonal"]
@@ -118,9 +120,12 @@ def plan(problem: Any, c: dict[str, Any], available: dict[str, Any]) -> list[tup
         if posdiag and sym:
             add("pgs", "projected Gauss-Seidel, last resort")
         return steps
-    # large problems: iterative methods first
-    if posdiag and ((sym and psd) or hplus):
-        add("pgs", "large, symmetric PSD (or H-matrix) with positive diagonal: PGS converges")
+    # sparse or large problems: iterative methods first
+    size = "sparse" if c["sparse"] else "large"
+    if posdiag and sym and psd:
+        add("psor", f"{size}, symmetric PSD with positive diagonal: projected SOR converges")
+    if posdiag and hplus:
+        add("pgs", f"{size}, H-matrix with positive diagonal: PGS converges")
     if psd:
         add("newton", "large: semismooth Newton with sparse LU")
         add("ip", "large monotone LCP: interior point")
@@ -162,7 +167,7 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None,
         return Outcome(np.zeros(n), 0, CONVERGED, "auto: q >= 0, so z = 0 solves the problem",
                        info={"chosen": None, "attempts": []})
     t0 = time.perf_counter()
-    c = classify(problem)
+    c = classify(problem, thorough=False)
     t_class = time.perf_counter() - t0
     registry = {k: v for k, v in methods().items() if k != "auto"}
     if order:
