@@ -101,10 +101,11 @@ FAMILIES = {"pd": gen_pd, "psd": gen_psd, "p": gen_p, "contact": gen_contact}
 
 
 # ---------------------------------------------------------------------------- running
-def run_ours(p: Problem, method: str, repeat: int) -> dict:
+def run_ours(p: Problem, method: str, repeat: int, caps: dict[str, int]) -> dict:
     times, r = [], None
+    opts = {"max_iter": caps[method]} if method in caps else {}
     for _ in range(repeat):
-        r = solve(p, method)
+        r = solve(p, method, **opts)
         times.append(r.seconds)
     assert r is not None
     out = {"status": r.status, "seconds": statistics.median(times), "error": r.error,
@@ -159,11 +160,15 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--budget", type=float, default=None,
                     help="skip a method at larger sizes once it took this long (s)")
     ap.add_argument("--methods", default=",".join(METHODS))
+    ap.add_argument("--max-sweeps", type=int, default=2000,
+                    help="PGS/PSOR sweep limit in the default and quick runs (default 2000)")
     ap.add_argument("--out", default=str(ROOT / "benchmarks" / "results" / "methods.json"))
     args = ap.parse_args(argv)
     budget = args.budget or (2.0 if args.quick else 6.0 if not args.full else 30.0)
     methods = [m.strip() for m in args.methods.split(",") if m.strip()]
     peer_max_n = 1000 if not args.full else 2000
+    # iteration caps so that a slowly converging method ends (as unsolved) within the run
+    caps = {} if args.full else {"pgs": args.max_sweeps, "psor": args.max_sweeps}
     from lcpcli.solvers import get_method
 
     for m in methods:  # compile / load kernels outside every timed region
@@ -186,12 +191,12 @@ def main(argv: list[str] | None = None) -> int:
                     rows.append({"family": fam, "n": n, "method": m, "status": "skip"})
                     continue
                 t0 = time.perf_counter()
-                res = run_ours(p, m, repeat)
+                res = run_ours(p, m, repeat, caps)
                 if time.perf_counter() - t0 > budget * repeat:
                     slow.add(m)
                 row = {"family": fam, "n": n, "method": m, **res}
                 if not args.no_peers and m in PEERS and not p.sparse and n <= peer_max_n:
-                    peer = run_peer(p, PEERS[m], max(1, repeat), timeout=budget * 10)
+                    peer = run_peer(p, PEERS[m], max(1, repeat), timeout=max(10.0, 2 * budget))
                     if peer is not None:
                         row["peer"] = {"solver": "siconos " + PEERS[m], **peer}
                         if peer.get("seconds") and res["seconds"]:

@@ -288,7 +288,7 @@ def classify(problem, thorough: bool = True) -> dict:  # type: ignore[no-untyped
                         if out["diagonally_dominant"] else "H-matrix with positive diagonal")
     elif not out["positive_diagonal"]:
         p, why = False, "a diagonal entry (a 1 x 1 principal minor) is <= 0"
-    elif n <= EXACT_P_MAX_N:
+    elif n <= EXACT_P_MAX_N and (thorough or not out["psd"]):
         p = is_p_matrix_exact(problem.dense_M())
         why = "all principal minors checked" + ("" if p else ": one is <= 0")
     else:
