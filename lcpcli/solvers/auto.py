@@ -31,7 +31,7 @@ PIVOT_HARD_MAX_N = 5000
 #: Sparse problems up to this size are treated like small dense ones (pivoting first).
 SMALL_SPARSE_N = 200
 #: Sweep / iteration caps auto uses when the user gave no --max-iter (a fallback should fail fast).
-AUTO_CAPS = {"pgs": 3000, "psor": 3000, "newton": 100, "newton-min": 50, "ip": 100}
+AUTO_CAPS = {"pgs": 1000, "psor": 1000, "newton": 100, "newton-min": 50, "ip": 100}
 
 
 def _describe(c: dict[str, Any]) -> str:
@@ -122,22 +122,22 @@ def plan(problem: Any, c: dict[str, Any], available: dict[str, Any]) -> list[tup
         return steps
     # sparse or large problems: iterative methods first
     size = "sparse" if c["sparse"] else "large"
-    if posdiag and sym and psd:
-        add("psor", f"{size}, symmetric PSD with positive diagonal: projected SOR converges")
+    sor_first = posdiag and sym and psd and (c["sparse"] or pd)
+    if sor_first:
+        add("psor", f"{size}, symmetric {'PD' if pd else 'PSD'} with positive diagonal: "
+                    f"projected SOR converges (cheap sweeps)")
     if posdiag and hplus:
         add("pgs", f"{size}, H-matrix with positive diagonal: PGS converges")
     if psd:
-        add("newton", "large: semismooth Newton with sparse LU")
-        add("ip", "large monotone LCP: interior point")
-    else:
-        add("newton", "large: semismooth Newton with sparse LU")
+        add("ip", f"{size} monotone LCP: interior point (few factorisations)")
+    add("newton", f"{size}: semismooth Newton (Fischer-Burmeister)")
+    if posdiag and sym and psd:
+        add("psor", "symmetric PSD with positive diagonal: projected SOR (slow if singular)")
     add("newton-min", "min-map Newton, fallback")
     if pivot_ok:
         add("lemke", "pivoting fallback (dense O(n^2) per pivot)")
         if p:
             add("murty", "P-matrix: Murty's method is finite")
-    if psd:
-        add("ip", "monotone LCP: interior point")
     return steps
 
 
