@@ -384,6 +384,8 @@ def test_cli_default_method_is_auto(cli, samples):
     r = cli("solve", str(samples / "seed004.json"), "--json")
     out = json.loads(r.stdout)
     assert r.returncode == 0 and out["method"] == "auto" and "solved by" in out["message"]
+    r = cli("solve", str(samples / "seed004.json"), env={"NO_COLOR": "1", "COLUMNS": "200"})
+    assert r.returncode == 0 and "auto (dense, n=2, symmetric, PD" in r.stdout  # no markup
 
 
 # ---------------------------------------------------------------------------- info

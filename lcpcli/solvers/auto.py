@@ -219,14 +219,14 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None,
             failed = "".join(f"; {a['method']} failed first ({a['message']})"
                              for a in attempts[:-1])
             return Outcome(z, total_it, CONVERGED,
-                           f"auto [{desc}]: solved by {name} ({why}){failed}",
+                           f"auto ({desc}): solved by {name} ({why}){failed}",
                            info={"chosen": name, "attempts": attempts, "classification": c,
                                  "classify_seconds": t_class})
         if out.proven_infeasible:
             rec["status"] = "no_solution"
             attempts.append(rec)
             return Outcome(z, total_it, out.termination,
-                           f"auto [{desc}]: {name} proved that no solution exists: "
+                           f"auto ({desc}): {name} proved that no solution exists: "
                            f"{out.message}", proven_infeasible=True,
                            info={"chosen": name, "attempts": attempts, "classification": c,
                                  "classify_seconds": t_class})
@@ -237,7 +237,7 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None,
     tried = "; ".join(f"{a['method']}: {a['message']}" for a in attempts) or "no method applies"
     z = best[1] if best else np.clip(np.zeros(n), lo, None)
     return Outcome(z, total_it, best[2] if best else ITERATION_LIMIT,
-                   f"auto [{desc}]: every suitable method failed ({tried})",
+                   f"auto ({desc}): every suitable method failed ({tried})",
                    info={"chosen": None, "attempts": attempts, "classification": c,
                          "classify_seconds": t_class})
 
