@@ -84,11 +84,13 @@ def gen_p(n: int, rng: np.random.Generator):
 
 
 def gen_contact(n: int, rng: np.random.Generator):
-    """Sparse M = J W J^T + 1e-6 I (each contact couples two of n/2 bodies), q = J v - 0.1."""
+    """Sparse M = J W J^T + 1e-6 I, q = J v - 0.1: each contact couples a body with one of its
+    next three neighbours along a chain of n/2 bodies (local contacts, as in a pile or a chain;
+    random far-away couplings would make sparse LU fill in like a dense matrix)."""
     n_bodies = max(2, n // 2)
     dof = 3 * n_bodies
     a = rng.integers(0, n_bodies, n)
-    b = (a + 1 + rng.integers(0, n_bodies - 1, n)) % n_bodies
+    b = (a + 1 + rng.integers(0, 3, n)) % n_bodies
     rows = np.repeat(np.arange(n), 6)
     cols = np.concatenate([3 * a[:, None] + np.arange(3), 3 * b[:, None] + np.arange(3)],
                           axis=1).ravel()

@@ -94,9 +94,15 @@ def _is_symmetric_any(M, tol: float = CLASS_TOL) -> bool:  # type: ignore[no-unt
     return is_symmetric(M, tol)
 
 
+#: Fill of the last sparse factorisation in :func:`definiteness` (nnz(L + U) / nnz(S)).
+_LAST_FILL: list[float] = []
+
+
 def _sparse_definite(S, shift: float) -> bool | None:  # type: ignore[no-untyped-def]
     """Is the symmetric sparse ``S + shift I`` positive definite?  (LU without pivoting in a
-    symmetric fill-reducing order: all pivots positive iff PD.)  None if the test failed."""
+    symmetric fill-reducing order: all pivots positive iff PD.)  None if the test failed.
+    The fill ratio of the factorisation is recorded (it predicts the cost of sparse LU in the
+    Newton and interior-point methods)."""
     import warnings
 
     import scipy.sparse as sp
@@ -113,6 +119,7 @@ def _sparse_definite(S, shift: float) -> bool | None:  # type: ignore[no-untyped
         return False
     except MemoryError:
         return None
+    _LAST_FILL.append((lu.L.nnz + lu.U.nnz) / max(K.nnz, 1))
     if not np.array_equal(lu.perm_r, lu.perm_c):
         return None
     d = lu.U.diagonal()
@@ -266,7 +273,9 @@ def classify(problem, thorough: bool = True) -> dict:  # type: ignore[no-untyped
     out["z_matrix"] = bool(np.all(offvals <= 0))
     out["diagonally_dominant"] = bool(n == 0 or (out["positive_diagonal"]
                                                  and np.all(2 * d > absrow)))
+    _LAST_FILL.clear()
     kind, lam, how = definiteness(M)
+    out["factor_fill"] = float(_LAST_FILL[-1]) if (sparse and _LAST_FILL) else None
     if out["diagonally_dominant"]:
         out["h_matrix_positive_diagonal"] = True
     elif not out["positive_diagonal"]:

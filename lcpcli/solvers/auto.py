@@ -30,6 +30,8 @@ PIVOT_MAX_N = 1500
 PIVOT_HARD_MAX_N = 5000
 #: Sparse problems up to this size are treated like small dense ones (pivoting first).
 SMALL_SPARSE_N = 200
+#: Sparse LU fill ratio (nnz(L+U) / nnz(M)) under which Newton goes before PSOR.
+LOW_FILL = 30.0
 #: Sweep / iteration caps auto uses when the user gave no --max-iter (a fallback should fail fast).
 AUTO_CAPS = {"pgs": 1000, "psor": 1000, "newton": 100, "newton-min": 50, "ip": 100}
 
@@ -122,6 +124,10 @@ def plan(problem: Any, c: dict[str, Any], available: dict[str, Any]) -> list[tup
         return steps
     # sparse or large problems: iterative methods first
     size = "sparse" if c["sparse"] else "large"
+    fill = c.get("factor_fill")
+    if c["sparse"] and psd and fill is not None and fill <= LOW_FILL:
+        add("newton", f"sparse monotone LCP whose factorisation fills in little "
+                      f"(x{fill:.1f}): semismooth Newton with sparse LU")
     sor_first = posdiag and sym and psd and (c["sparse"] or pd)
     if sor_first:
         add("psor", f"{size}, symmetric {'PD' if pd else 'PSD'} with positive diagonal: "
