@@ -14,7 +14,9 @@ generalized (B-/Clarke) Jacobian ``H = diag(a) + diag(b) M``:
 * ``newton-min``: ``Phi = max(z - u, min(z - l, w))`` = ``z - mid(l, u, z - w)``, the natural
   residual of the certificate.
 
-Globalisation: Armijo backtracking on the merit ``Psi = ||Phi||^2 / 2``; when the Newton system
+Globalisation: Armijo backtracking on the merit ``Psi = ||Phi||^2 / 2`` (a full Newton step is
+accepted against the largest of the last 5 merits, Grippo-Lampariello-Lucidi's non-monotone
+rule; shortened steps must decrease the current merit); when the Newton system
 is singular or its solution is not a sufficient descent direction, a Levenberg-Marquardt step
 ``(H^T H + lam I) d = -H^T Phi`` (``lam`` proportional to ``||Phi||``) is tried, and failing that a
 step along ``-grad Psi = -H^T Phi`` (De Luca, Facchinei and Kanzow's scheme).  Sparse M: the Newton
@@ -51,6 +53,8 @@ DEFAULT_MAX_ITER = 200
 SIGMA, BETA, MIN_STEP = 1e-4, 0.5, 1e-12
 #: Descent test for the Newton direction: grad . d <= -RHO ||d||^P.
 RHO, P_EXP = 1e-10, 2.1
+#: Length of the merit history of the non-monotone test (full steps only; 1 = monotone Armijo).
+NONMONOTONE = 5
 #: Value of psi's partial derivatives at the kink (0, 0) (an element of the generalized Jacobian).
 KINK = 1.0 - 1.0 / np.sqrt(2.0)
 
@@ -212,6 +216,7 @@ def run_newton(problem: Any, *, tol: float, variant: str = "fb", max_iter: int |
     w = matvec(z) + problem.q
     phi, a, b = resid(z, w)
     merit = 0.5 * float(phi @ phi)
+    history = [merit]
     grad_steps = 0
     lm_steps = 0
     it = 0
@@ -251,7 +256,8 @@ def run_newton(problem: Any, *, tol: float, variant: str = "fb", max_iter: int |
             wt = w + t * dw
             phit, at, bt = resid(zt, wt)
             merit_t = 0.5 * float(phit @ phit)
-            if np.isfinite(merit_t) and merit_t <= merit + SIGMA * t * slope:
+            ref = max(history) if t == 1.0 else merit  # non-monotone test for the full step
+            if np.isfinite(merit_t) and merit_t <= ref + SIGMA * t * slope:
                 break
             t *= BETA
             if t < MIN_STEP:
@@ -263,6 +269,8 @@ def run_newton(problem: Any, *, tol: float, variant: str = "fb", max_iter: int |
         w = matvec(z) + problem.q  # fresh product: no drift from the w + t dw updates
         phi, a, b = resid(z, w)
         merit = 0.5 * float(phi @ phi)
+        history.append(merit)
+        del history[:-NONMONOTONE]
         err = scaled_error(z, w, lo, up, mu, qn)
         if err < best_err:
             best_z, best_err = z.copy(), err
