@@ -254,6 +254,11 @@ def infeasible_psd(n: int, seed: int = 4) -> Case:
     ``M y = 0 = M^T y``, so for every z >= 0, ``y^T (M z + q) = q^T y < 0``: some w_i < 0, no
     feasible point, no solution.  ``y`` is the Farkas certificate (``Case.farkas``).  M is
     PSD hence copositive-plus, so Lemke's ray also proves it.
+
+    Ill-posed on purpose: a relative perturbation of M at roundoff level makes it feasible, so a
+    huge z (||z|| ~ 1e14) can pass the scaled certificate (error ~ 1e-16) with w_min ~ -0.1;
+    Siconos' Lemke returns such a z (and reports failure).  :func:`infeasible_robust` is the
+    well-posed counterpart.
     """
     rng = np.random.default_rng(seed)
     y = rng.uniform(0.5, 1.5, n)
@@ -265,6 +270,24 @@ def infeasible_psd(n: int, seed: int = 4) -> Case:
     q -= (q @ y + 1.0) / (y @ y) * y  # now q^T y = -1
     return _case(M, q, f"infeasible-psd-{n}",
                  "PSD, q^T y < 0 with M y = 0, y > 0: no feasible z (Farkas)",
+                 expected=INFEASIBLE, farkas=y)
+
+
+def infeasible_robust(n: int, seed: int = 5) -> Case:
+    """Nonmonotone ``M`` with ``M^T y = -c`` (``y, c > 0``) and ``q^T y = -1``: robustly infeasible.
+
+    For every z >= 0, ``y^T w = -c^T z - 1 <= -1``, so min(w) <= -1 / sum(y) whatever z is and
+    the certificate cannot be fooled by a large z.  ``y`` is the Farkas certificate.
+    """
+    rng = np.random.default_rng(seed)
+    y = rng.uniform(0.5, 1.5, n)
+    c = rng.uniform(0.5, 1.5, n)
+    A = rng.standard_normal((n, n))
+    M = A - np.outer(y, A.T @ y + c) / (y @ y)
+    q = rng.standard_normal(n)
+    q -= (q @ y + 1.0) / (y @ y) * y
+    return _case(M, q, f"infeasible-robust-{n}",
+                 "nonmonotone, M^T y < 0 and q^T y < 0 with y > 0: robustly infeasible",
                  expected=INFEASIBLE, farkas=y)
 
 
@@ -335,6 +358,7 @@ def hard_suite(n: int | None = None, seed: int = 0) -> list[Case]:
              cube_contact(8, spin=True)]
     cases += [illcond_pd(4 * n, c, seed + 2) for c in CONDITION_NUMBERS]
     cases += [bimatrix_cps(), bimatrix_ray(2 * n, seed + 3), infeasible_psd(2 * n, seed + 4),
+              infeasible_robust(2 * n, seed + 5),
               newton_min_cycle(3), newton_min_cycle(3 * n)]
     return cases
 
