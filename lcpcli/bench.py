@@ -113,7 +113,8 @@ class BenchReport:
 def cases_from_paths(paths: Iterable[str]) -> list[Case]:
     """Load files, folders (recursively, known extensions) and every problem of HDF5 files.
 
-    The expected outcome of a file is ``unknown`` unless the problem's ``meta`` has
+    Problems are named after their file (``stem``, or ``stem/group`` inside a multi-problem
+    HDF5 file).  The expected outcome of a file is ``unknown`` unless the problem's ``meta`` has
     ``expected`` (``solvable``/``infeasible``).  Loading happens here, outside any timing.
     """
     from lcpcli.io import FORMATS, list_problems, load
@@ -134,7 +135,7 @@ def cases_from_paths(paths: Iterable[str]) -> list[Case]:
             many = len(names) > 1
             for name in names:
                 prob = load(f, name if many else None)
-                prob.name = f"{f.stem}/{name}" if many else (prob.name or f.stem)
+                prob.name = f"{f.stem}/{name}" if many else f.stem
                 exp = str(prob.meta.get("expected", UNKNOWN))
                 cases.append(Case(problem=prob, expected=exp if exp in (SOLVABLE, INFEASIBLE)
                                   else UNKNOWN, note=str(f), source=str(f)))
