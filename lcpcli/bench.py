@@ -49,6 +49,9 @@ DEFAULT_REPEAT = 5
 DEFAULT_BUDGET = 1.0
 UNKNOWN = "unknown"
 ERROR = "error"  # status when a method raised instead of returning
+TIMEOUT = "timeout"  # status when an isolated run was killed
+#: Default wall-clock limit of one (problem, method, tol) run, warm-up and repeats included.
+DEFAULT_TIMEOUT = 60.0
 
 
 @dataclass
@@ -242,11 +245,64 @@ def run_one(case: Case, method: str, tol: float, *, repeat: int = DEFAULT_REPEAT
         z_error=_z_error(case, first.z), repeats=len(times), message=first.message)
 
 
+def run_isolated(case: Case, method: str, tol: float, *, timeout: float,
+                 repeat: int = DEFAULT_REPEAT, budget: float = DEFAULT_BUDGET,
+                 solve_fn: SolveFn | None = None) -> Record:
+    """:func:`run_one` in a forked child process killed after ``timeout`` seconds.
+
+    The method's ``prepare()`` hook (JIT loading) runs in the parent first, so every child
+    inherits the compiled kernels.  A child that times out or dies gives a record with status
+    ``timeout`` or ``error`` (a failure, not a defect).  Timing is unchanged: it is measured
+    inside the child by :func:`lcpcli.api.solve`.
+    """
+    import multiprocessing as mp
+
+    from lcpcli.solvers import get_method
+
+    try:
+        spec = get_method(method)
+        if spec.prepare is not None:
+            spec.prepare()
+    except OptionError:
+        pass
+    ctx = mp.get_context("fork")
+    recv, send = ctx.Pipe(duplex=False)
+    proc = ctx.Process(target=_child, args=(send, case, method, tol, repeat, budget, solve_fn),
+                       daemon=True)
+    proc.start()
+    send.close()
+    status, message = ERROR, ""
+    try:
+        if recv.poll(timeout):
+            return recv.recv()
+        status, message = TIMEOUT, f"killed after {timeout:g} s"
+    except EOFError:
+        message = f"worker process died (exit code {proc.exitcode})"
+    finally:
+        if proc.is_alive():
+            proc.kill()
+        proc.join()
+        recv.close()
+    prob = case.problem
+    success, defect, reason, _ = judge(case, status, None, tol)
+    return Record(prob.name, prob.n, method, status, None, None, None, case.expected, defect, tol,
+                  prob.kind, success, reason, message=message or
+                  f"worker process died (exit code {proc.exitcode})")
+
+
+def _child(conn: Any, case: Case, method: str, tol: float, repeat: int, budget: float,
+           solve_fn: SolveFn | None) -> None:
+    try:
+        conn.send(run_one(case, method, tol, repeat=repeat, budget=budget, solve_fn=solve_fn))
+    finally:
+        conn.close()
+
+
 def run_peer(case: Case, peer: Any, tol: float, *, repeat: int = DEFAULT_REPEAT,
-             budget: float = DEFAULT_BUDGET) -> list[Record]:
+             budget: float = DEFAULT_BUDGET, timeout: float | None = None) -> list[Record]:
     """Run every solver of a peer family on ``case``; certify each z like our own methods."""
     prob = case.problem
-    runs = peer.run_many(prob, tol, repeat, budget)
+    runs = peer.run_many(prob, tol, repeat, budget, timeout=timeout)
     out = []
     for name, run in runs.items():
         status = "unsolved"
@@ -270,9 +326,12 @@ def run_peer(case: Case, peer: Any, tol: float, *, repeat: int = DEFAULT_REPEAT,
 def run_bench(cases: list[Case], methods: list[str], tols: Iterable[float] = DEFAULT_TOLS, *,
               repeat: int = DEFAULT_REPEAT, budget: float = DEFAULT_BUDGET,
               peers: list[Any] | None = None, missing_peers: dict[str, str] | None = None,
-              solve_fn: SolveFn | None = None,
+              solve_fn: SolveFn | None = None, timeout: float | None = None,
               on_record: Callable[[Record], None] | None = None) -> BenchReport:
     """Run every method (and peer) on every case at every tolerance; see the module docstring.
+
+    With ``timeout`` (seconds) each (problem, method, tol) runs in a forked child process that is
+    killed after that long (:func:`run_isolated`); without it, everything runs in this process.
 
     A method that does not handle a problem's kind (e.g. an LCP-only method on an MLCP) is
     skipped and listed in ``report.skipped``.  ``on_record`` is called as each row completes.
@@ -298,8 +357,12 @@ def run_bench(cases: list[Case], methods: list[str], tols: Iterable[float] = DEF
                                                f"{method} does not handle "
                                                f"{case.problem.kind.upper()}"))
                     continue
-                rec = run_one(case, method, tol, repeat=repeat, budget=budget,
-                              solve_fn=solve_fn)
+                if timeout:
+                    rec = run_isolated(case, method, tol, timeout=timeout, repeat=repeat,
+                                       budget=budget, solve_fn=solve_fn)
+                else:
+                    rec = run_one(case, method, tol, repeat=repeat, budget=budget,
+                                  solve_fn=solve_fn)
                 report.records.append(rec)
                 if on_record:
                     on_record(rec)
@@ -309,7 +372,8 @@ def run_bench(cases: list[Case], methods: list[str], tols: Iterable[float] = DEF
                         report.skipped.append((case.name, peer.family,
                                                f"peer does not handle {case.problem.kind.upper()}"))
                     continue
-                for rec in run_peer(case, peer, tol, repeat=repeat, budget=budget):
+                for rec in run_peer(case, peer, tol, repeat=repeat, budget=budget,
+                                    timeout=timeout):
                     report.records.append(rec)
                     if on_record:
                         on_record(rec)

@@ -36,7 +36,7 @@ SICONOS_SOLVERS = {
     "siconos-newton-fb": "LCP_NEWTON_FB_FBLSA",
     "siconos-pgs": "LCP_PGS",
 }
-#: Seconds before a Siconos worker is killed (per problem, all its solvers).
+#: Seconds before a Siconos worker is killed, per solver (default when no timeout is given).
 SICONOS_TIMEOUT = 300.0
 WORKER = Path(__file__).with_name("_siconos_worker.py")
 MARK = "@@PEER@@"
@@ -58,7 +58,7 @@ class PeerRun:
 class Peer:
     """One peer solver: a name (``siconos-lemke``), its family and a batch runner.
 
-    ``run_many(problem, tol, repeat, budget)`` returns ``{peer name: PeerRun}`` for every
+    ``run_many(problem, tol, repeat, budget, timeout=None)`` returns ``{peer name: PeerRun}`` for every
     solver of the family in one go (one child process for Siconos).
     """
 
@@ -139,23 +139,24 @@ def _lemkelcp_peer() -> tuple[Peer | None, str]:
 
 # ---------------------------------------------------------------------- runners
 def run_siconos(problem: Any, tol: float, repeat: int, budget: float,
-                names: list[str] | None = None) -> dict[str, PeerRun]:
+                names: list[str] | None = None, timeout: float | None = None) -> dict[str, PeerRun]:
     """Run the Siconos solvers on ``problem`` (dense copy) in one child process.
 
     If the child dies (a solver that aborts), each solver is retried alone so one crash costs
     only its own result.
     """
     names = list(SICONOS_SOLVERS) if names is None else names
-    out = _siconos_batch(problem, tol, repeat, budget, names)
+    limit = timeout or SICONOS_TIMEOUT
+    out = _siconos_batch(problem, tol, repeat, budget, names, limit * len(names))
     if len(names) > 1 and any(out[n].message.startswith("worker") for n in names):
         for name in names:
             if out[name].message.startswith("worker"):
-                out.update(_siconos_batch(problem, tol, repeat, budget, [name]))
+                out.update(_siconos_batch(problem, tol, repeat, budget, [name], limit))
     return out
 
 
 def _siconos_batch(problem: Any, tol: float, repeat: int, budget: float,
-                   names: list[str]) -> dict[str, PeerRun]:
+                   names: list[str], limit: float) -> dict[str, PeerRun]:
     req = {"solvers": {n: SICONOS_SOLVERS[n] for n in names}, "tol": tol, "repeat": repeat,
            "budget": budget, "max_iter": None}
     with tempfile.TemporaryDirectory(prefix="lcpcli_peer_") as tmp:
@@ -163,11 +164,11 @@ def _siconos_batch(problem: Any, tol: float, repeat: int, budget: float,
         np.savez(path, M=np.asarray(problem.dense_M(), dtype=float), q=problem.q)
         try:
             proc = subprocess.run([_siconos_python(), str(WORKER), str(path), json.dumps(req)],
-                                  capture_output=True, text=True, timeout=SICONOS_TIMEOUT)
+                                  capture_output=True, text=True, timeout=limit)
             stdout, why = proc.stdout, f"exit code {proc.returncode}"
         except subprocess.TimeoutExpired as exc:
             stdout = exc.stdout.decode() if isinstance(exc.stdout, bytes) else (exc.stdout or "")
-            why = f"timeout after {SICONOS_TIMEOUT:g} s"
+            why = f"timeout after {limit:g} s"
     got: dict[str, PeerRun] = {}
     for line in stdout.splitlines():
         if not line.startswith(MARK):
@@ -185,8 +186,12 @@ def _siconos_batch(problem: Any, tol: float, repeat: int, budget: float,
 
 
 def run_lemkelcp(problem: Any, tol: float, repeat: int, budget: float,
-                 names: list[str] | None = None) -> dict[str, PeerRun]:
-    """``lemkelcp.lemkelcp(M, q, maxIter)`` in process (pivot limit max(1000, 100 n))."""
+                 names: list[str] | None = None, timeout: float | None = None
+                 ) -> dict[str, PeerRun]:
+    """``lemkelcp.lemkelcp(M, q, maxIter)`` in process (pivot limit max(1000, 100 n)).
+
+    ``timeout`` is not enforced (in process); the pivot limit bounds the work.
+    """
     from lemkelcp.lemkelcp import lemkelcp as lemke_fn
 
     M = np.asarray(problem.dense_M(), dtype=float)

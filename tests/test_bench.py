@@ -233,6 +233,28 @@ def test_defect_detection_with_lying_methods() -> None:
     assert not rep.defects and rep.records[0].success
 
 
+def test_isolated_runs_time_out_and_survive_crashes() -> None:
+    import os
+    import time
+
+    def sleepy(problem, method, tol=1e-8):
+        time.sleep(30)
+
+    def crashing(problem, method, tol=1e-8):
+        os._exit(7)
+
+    case = suites.kostreva()
+    t0 = time.perf_counter()
+    rep = bench.run_bench([case], ["sleepy"], repeat=0, solve_fn=sleepy, timeout=0.5)
+    assert time.perf_counter() - t0 < 10
+    (rec,) = rep.records
+    assert rec.status == "timeout" and not rec.success and not rec.defect
+    (rec,) = bench.run_bench([case], ["crash"], repeat=0, solve_fn=crashing, timeout=5).records
+    assert rec.status == "error" and "exit code 7" in rec.message
+    rec = bench.run_isolated(case, "lemke-tableau", 1e-8, timeout=30, repeat=2)
+    assert rec.status == "solved" and rec.success and rec.repeats == 2
+
+
 def test_no_solution_on_infeasible_is_success_not_defect() -> None:
     case = suites.infeasible_psd(8)
     rec = bench.run_one(case, "lemke-tableau", 1e-8, repeat=1)

@@ -43,6 +43,10 @@ def bench(
     budget: float = typer.Option(1.0, "--budget",
                                  help="Stop repeating once the timed runs of a (problem, method) "
                                       "add up to this many seconds."),
+    timeout: float = typer.Option(60.0, "--timeout",
+                                  help="Wall-clock limit in seconds of one (problem, method, "
+                                       "tol), warm-up and repeats included; each runs in a "
+                                       "forked child process. 0 = no limit, in process."),
     peers: bool = typer.Option(True, "--peers/--no-peers",
                                help="Run the peers found (Siconos via /usr/bin/python3, "
                                     "lemkelcp) side by side."),
@@ -72,6 +76,8 @@ def bench(
         raise OptionError("--repeat must be >= 0")
     if budget <= 0:
         raise OptionError("--budget must be positive")
+    if timeout < 0:
+        raise OptionError("--timeout must be >= 0")
     method_list = B.resolve_methods(None if methods is None else methods.split(","))
     if plot is not None:
         from lcpcli.render_bench import plot_available
@@ -109,7 +115,7 @@ def bench(
             write_json_line(rec.to_json())
 
     report = B.run_bench(cases, method_list, tols, repeat=repeat, budget=budget, peers=found,
-                         missing_peers=missing, on_record=on_record)
+                         missing_peers=missing, timeout=timeout or None, on_record=on_record)
     title = ", ".join(titles)
     if not as_json:
         from lcpcli.render_bench import render_report
