@@ -73,7 +73,8 @@ def summary_table(rows: list[MethodSummary]) -> Table:
     table = Table(title=f"per method (shifted geometric mean: shift {SHIFT * 1e3:g} ms, a "
                         f"failure counts {PENALTY:g}x the slowest time on its problem)",
                   title_justify="left")
-    for name, just in (("method", "left"), ("tol", "right"), ("success", "right"),
+    table.add_column("method", no_wrap=True)
+    for name, just in (("tol", "right"), ("success", "right"),
                        ("sgm ms", "right"), ("median ms", "right"),
                        ("median error", "right"), ("worst error", "right"),
                        ("defects", "right")):
