@@ -62,7 +62,7 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
 
     runs = [("hard", 5 if args.quick else 8), ("siconos", None),
-            ("random", 200 if args.quick else 1000)]
+            ("random", 200 if args.quick else 2000)]
     repeat = 2 if args.quick else 5
     methods = bench.resolve_methods(None)
     found, missing = ([], {}) if args.no_peers else peers.discover()

@@ -259,6 +259,8 @@ def run_isolated(case: Case, method: str, tol: float, *, timeout: float,
 
     from lcpcli.solvers import get_method
 
+    if "fork" not in mp.get_all_start_methods():  # e.g. Windows: no isolation, no limit
+        return run_one(case, method, tol, repeat=repeat, budget=budget, solve_fn=solve_fn)
     try:
         spec = get_method(method)
         if spec.prepare is not None:

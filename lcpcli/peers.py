@@ -58,8 +58,8 @@ class PeerRun:
 class Peer:
     """One peer solver: a name (``siconos-lemke``), its family and a batch runner.
 
-    ``run_many(problem, tol, repeat, budget, timeout=None)`` returns ``{peer name: PeerRun}`` for every
-    solver of the family in one go (one child process for Siconos).
+    ``run_many(problem, tol, repeat, budget, timeout=None)`` returns ``{peer name: PeerRun}``
+    for every solver of the family in one go (one child process for Siconos).
     """
 
     family: str

@@ -23,7 +23,7 @@ def _floats(text: str, label: str) -> list[float]:
 
 
 def bench(
-    problems: list[str] = typer.Argument(None, metavar="[PROBLEMS]...",  # noqa: B008
+    problems: list[str] = typer.Argument(None, metavar="PROBLEMS",  # noqa: B008
                                          help="Problem files, folders (searched recursively) "
                                               "or HDF5 files holding many problems."),
     methods: str = typer.Option(None, "--methods", "-m",
