@@ -273,23 +273,24 @@ def run_isolated(case: Case, method: str, tol: float, *, timeout: float,
                        daemon=True)
     proc.start()
     send.close()
-    status, message = ERROR, ""
+    status = ERROR
     try:
         if recv.poll(timeout):
             return recv.recv()
-        status, message = TIMEOUT, f"killed after {timeout:g} s"
+        status = TIMEOUT
     except EOFError:
-        message = f"worker process died (exit code {proc.exitcode})"
+        pass
     finally:
         if proc.is_alive():
             proc.kill()
         proc.join()
         recv.close()
+    message = (f"killed after {timeout:g} s" if status == TIMEOUT
+               else f"worker process died (exit code {proc.exitcode})")
     prob = case.problem
     success, defect, reason, _ = judge(case, status, None, tol)
     return Record(prob.name, prob.n, method, status, None, None, None, case.expected, defect, tol,
-                  prob.kind, success, reason, message=message or
-                  f"worker process died (exit code {proc.exitcode})")
+                  prob.kind, success, reason, message=message)
 
 
 def _child(conn: Any, case: Case, method: str, tol: float, repeat: int, budget: float,
