@@ -12,7 +12,7 @@ from lcpcli.cli.common import MethodListCommand
 def contact_matrix(
     scene_file: str = typer.Argument(..., metavar="SCENE",
                                      help="Scene file (.json or .h5/.hdf5), see docs/contact.md."),
-    output: Path = typer.Option(None, "--output", "-o", metavar="OUT",
+    output: Path = typer.Option(None, "--output", "-o", metavar="OUT",  # noqa: B008
                                 help="Write the LCP (M, q, contact metadata) to OUT "
                                      "(.json, .npz, .h5, .dat; atomically)."),
     do_solve: bool = typer.Option(False, "--solve",

@@ -79,7 +79,7 @@ def body_columns(scene: Scene) -> tuple[np.ndarray, np.ndarray, list[str]]:
 
 
 def cross(r: np.ndarray, d: np.ndarray) -> np.ndarray:
-    """Row-wise ``r x d``: ``(m, 3)`` in 3-D; in 2-D the scalar ``r_x d_y - r_y d_x`` as ``(m, 1)``."""
+    """Row-wise ``r x d``: ``(m, 3)``; in 2-D the scalar ``r_x d_y - r_y d_x`` as ``(m, 1)``."""
     if r.shape[1] == 3:
         return np.cross(r, d)
     return (r[:, 0] * d[:, 1] - r[:, 1] * d[:, 0])[:, None]

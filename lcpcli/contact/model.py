@@ -15,8 +15,12 @@ import numpy as np
 
 from lcpcli.contact.assembly import Assembly, assemble, choose_storage
 from lcpcli.contact.friction import check_directions, friction_blocks
-from lcpcli.contact.impact import (energy_increased, kinetic_energy, normal_velocities,
-                                   post_velocities)
+from lcpcli.contact.impact import (
+    energy_increased,
+    kinetic_energy,
+    normal_velocities,
+    post_velocities,
+)
 from lcpcli.contact.scene import Scene
 from lcpcli.problem import Problem, is_sparse
 

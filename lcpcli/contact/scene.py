@@ -92,7 +92,7 @@ class Scene:
 
 # ---------------------------------------------------------------------- rotations
 def quat_to_matrix(qs: np.ndarray) -> np.ndarray:
-    """Rotation matrices ``(k, 3, 3)`` from unit quaternions ``(k, 4)`` in ``[w, x, y, z]`` order."""
+    """Rotation matrices ``(k, 3, 3)`` from unit quaternions ``(k, 4)``, ``[w, x, y, z]``."""
     w, x, y, z = qs[:, 0], qs[:, 1], qs[:, 2], qs[:, 3]
     R = np.empty((qs.shape[0], 3, 3))
     R[:, 0, 0] = 1 - 2 * (y * y + z * z)
@@ -147,7 +147,8 @@ def scene_from_dict(data: Any, default_name: str = "") -> Scene:
         raise ProblemError("a scene is a JSON object with 'bodies' and 'contacts'")
     unknown = sorted(set(data) - SCENE_KEYS)
     if unknown:
-        raise ProblemError(f"unknown scene key {unknown[0]!r} (known: {', '.join(sorted(SCENE_KEYS))})")
+        raise ProblemError(f"unknown scene key {unknown[0]!r} "
+                           f"(known: {', '.join(sorted(SCENE_KEYS))})")
     dim = _dimension(data.get("dimension", 3))
     bodies = data.get("bodies")
     contacts = data.get("contacts")
@@ -173,7 +174,8 @@ def scene_from_dict(data: Any, default_name: str = "") -> Scene:
             raise ProblemError(f"{where}: expected an object")
         bad = sorted(set(b) - BODY_KEYS)
         if bad:
-            raise ProblemError(f"{where}: unknown key {bad[0]!r} (known: {', '.join(sorted(BODY_KEYS))})")
+            raise ProblemError(f"{where}: unknown key {bad[0]!r} "
+                               f"(known: {', '.join(sorted(BODY_KEYS))})")
         name = b.get("name", f"body{i + 1}")
         if not isinstance(name, str) or not name:
             raise ProblemError(f"{where}: 'name' must be a non-empty string")
@@ -548,9 +550,10 @@ def write_scene_hdf5(scene: Scene, path: str | Path) -> None:
                           dtype=h5py.string_dtype())
         gb.create_dataset("static", data=scene.static)
         gb.create_dataset("mass", data=np.where(scene.static, np.nan, scene.mass))
-        I = scene.inertia.copy()
-        I[scene.static] = np.nan
-        gb.create_dataset("inertia", data=I.reshape(nb) if scene.dimension == 2 else I)
+        inertia = scene.inertia.copy()
+        inertia[scene.static] = np.nan
+        gb.create_dataset("inertia",
+                          data=inertia.reshape(nb) if scene.dimension == 2 else inertia)
         gb.create_dataset("position", data=scene.position)
         gb.create_dataset("velocity", data=scene.velocity)
         gb.create_dataset("angular_velocity",
