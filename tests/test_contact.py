@@ -502,3 +502,25 @@ def test_nan_and_bad_files_exit_2(cli, capsys, tmp_path) -> None:
     assert code == 2 and "must be >= 3 in 3-D" in err
     code, _, err = run_inprocess(capsys, "contact-matrix", str(ok), "--solve", "--method", "x")
     assert code == 2 and "unknown method" in err
+
+
+def test_jammed_ball_with_inconsistent_restitution_exits_1(capsys, tmp_path) -> None:
+    """A ball between two parallel walls: Newton's law asks v+ >= e2 and v+ <= -e1 (e1 < e2)."""
+    data = {"bodies": [{"name": "left", "static": True}, {"name": "right", "static": True},
+                       {"name": "ball", "mass": 1, "inertia": [1, 1, 1], "position": [0, 0, 0],
+                        "velocity": [1.0, 0, 0]}],
+            "contacts": [
+                {"a": "ball", "b": "left", "point": [-1, 0, 0], "normal": [1, 0, 0],
+                 "restitution": 0.2},
+                {"a": "ball", "b": "right", "point": [1, 0, 0], "normal": [-1, 0, 0],
+                 "restitution": 0.8}]}
+    impact = solve(build(scene_from_dict(data)))
+    assert impact.result.status == "no_solution"
+    f = tmp_path / "jam.json"
+    f.write_text(json.dumps(data))
+    code, out, _ = run_inprocess(capsys, "contact-matrix", str(f), "--solve", "--json")
+    assert code == 1 and json.loads(out)["status"] == "no_solution"
+    data["contacts"][0]["restitution"] = 0.8  # consistent: solvable
+    impact = solve(build(scene_from_dict(data)))
+    assert impact.result.solved
+    assert impact.velocity[2] == pytest.approx([-0.8, 0, 0])
