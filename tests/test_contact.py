@@ -524,3 +524,49 @@ def test_jammed_ball_with_inconsistent_restitution_exits_1(capsys, tmp_path) -> 
     impact = solve(build(scene_from_dict(data)))
     assert impact.result.solved
     assert impact.velocity[2] == pytest.approx([-0.8, 0, 0])
+
+
+def test_same_physics_as_siconos_lemke(samples, tmp_path) -> None:
+    """Siconos' Lemke (independent peer) on the written LCP gives the same post-impact state.
+
+    Frictional LCPs have many solutions (opposite tangent impulses can both be active while the
+    contact sticks), so the physical outcome is compared, not z.
+    """
+    import subprocess
+    from pathlib import Path
+
+    from lcpcli.contact.model import impact_from
+
+    peer = Path("/work/shared/peers/siconos_peer.py")
+    if not peer.exists() or not Path("/usr/bin/python3").exists():
+        pytest.skip("Siconos peer runner not available")
+    for name, k in (("scene_two_balls.json", 4), ("scene_2d_boxes.json", 2)):
+        clcp = build(load_scene(samples / name), friction=k)
+        out = tmp_path / "p.json"
+        from lcpcli.io import save
+
+        save(clcp.problem, out)
+        proc = subprocess.run(["/usr/bin/python3", str(peer), str(out), "--solver", "Lemke"],
+                              capture_output=True, text=True, timeout=120)
+        if proc.returncode != 0 or not proc.stdout.strip():
+            pytest.skip(f"Siconos peer did not run: {proc.stderr.strip()[-200:]}")
+        z_peer = np.array(json.loads(proc.stdout)["z"])
+        ours, theirs = solve(clcp), impact_from(clcp, z_peer)
+        assert ours.result.solved
+        assert np.allclose(ours.velocity, theirs.velocity, atol=1e-9)
+        assert np.allclose(ours.omega, theirs.omega, atol=1e-9)
+        assert np.allclose(ours.normal_impulses, theirs.normal_impulses, atol=1e-9)
+
+
+def test_sparse_lcp_json_and_dense_method_guard(monkeypatch) -> None:
+    import lcpcli.contact.model as model
+    from lcpcli.contact import to_json
+
+    scene = random_scene(60, 50, seed=13)
+    clcp = build(scene, storage="sparse")
+    d = to_json(clcp)
+    assert d["storage"] == "sparse" and d["M"]["format"] == "csr"
+    assert np.allclose(solve(clcp).result.z, solve(build(scene, storage="dense")).result.z)
+    monkeypatch.setattr(model, "MAX_DENSE_SOLVE_ENTRIES", 100)
+    with pytest.raises(OptionError, match="dense 50 x 50 tableau"):
+        solve(clcp)

@@ -41,6 +41,7 @@ def contact_matrix(
 
     from lcpcli.cli.common import exit_code_for, write_json_line
     from lcpcli.contact import build, load_scene, solve, to_json
+    from lcpcli.contact.model import check_method
     from lcpcli.errors import OptionError
 
     if friction < 0:
@@ -49,6 +50,8 @@ def contact_matrix(
     for w in scene.warnings:
         sys.stderr.write(f"lcpcli: warning: {scene_file}: {w}\n")
     clcp = build(scene, friction=friction, storage=storage)
+    if do_solve:
+        check_method(clcp, method)  # before anything is written
     if output is not None:
         from lcpcli.io import save
 

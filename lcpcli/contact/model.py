@@ -22,11 +22,15 @@ from lcpcli.contact.impact import (
     post_velocities,
 )
 from lcpcli.contact.scene import Scene
+from lcpcli.errors import OptionError
 from lcpcli.problem import Problem, is_sparse
 
 #: Default method for contact LCPs: Lemke handles the symmetric PSD (often singular) M and
 #: the non-symmetric frictional matrix.
 DEFAULT_METHOD = "lemke"
+#: Methods known to densify M; refused on sparse LCPs above MAX_DENSE_SOLVE_ENTRIES entries.
+DENSE_METHODS = {"lemke-tableau"}
+MAX_DENSE_SOLVE_ENTRIES = 10_000 ** 2
 CONVENTION = ("w = M z + q, 0 <= z _|_ w >= 0; z = impulses; normals point from B to A; "
               "q_n = (1 + eps) v_rel^- (approaching: q < 0); w_n = v_rel^+ + eps v_rel^-")
 
@@ -133,8 +137,22 @@ def solve(clcp: ContactLCP, method: str = DEFAULT_METHOD, tol: float | None = No
     """Solve the contact LCP with :func:`lcpcli.solve` and map the impulses back."""
     from lcpcli.api import solve as solve_problem
 
+    check_method(clcp, method)
     result = solve_problem(clcp.problem, method, tol=tol, **options)
     return impact_from(clcp, result.z, result)
+
+
+def check_method(clcp: ContactLCP, method: str) -> None:
+    """OptionError for an unknown method, or a dense-tableau method on a huge sparse LCP."""
+    from lcpcli.solvers import get_method
+
+    n = clcp.problem.n
+    if (get_method(method).name in DENSE_METHODS and clcp.problem.sparse
+            and n * n > MAX_DENSE_SOLVE_ENTRIES):
+        raise OptionError(f"method '{method}' works on a dense {n} x {n} tableau "
+                          f"({n * n * 8 / 2**30:.1f} GiB) but this contact LCP is sparse "
+                          f"(nnz={clcp.problem.M.nnz}); choose a method for large sparse "
+                          f"problems with --method (see 'lcpcli methods')")
 
 
 def impact_from(clcp: ContactLCP, z: np.ndarray, result: Any = None) -> Impact:
