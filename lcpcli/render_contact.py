@@ -61,6 +61,8 @@ def render_scene(clcp: Any, file: str | None = None, out: str | None = None) -> 
         bt.add_row(scene.body_names[i], mass, _vec(scene.velocity[i]), _vec(scene.omega[i]),
                    asm.reasons[i])
     parts += [bt, Text("")]
+    if scene.n_contacts == 0:
+        return Group(*parts, Text("no contacts: nothing to model"))
     ct = Table(title="contacts (normal from B to A)", title_justify="left")
     for col in ("#", "contact", "A", "B", "eps", "mu", "v_rel-", "q", "n^T K n", "m_eff"):
         ct.add_column(col, justify="left" if col in ("contact", "A", "B") else "right")
@@ -105,6 +107,8 @@ def render_impact(clcp: Any, impact: Any) -> Group:
     head.add_row("residual", f"{res.certificate.residual:.3e}  ||min(z, w)||_inf, "
                              f"error {res.certificate.error:.3e}")
     parts: list[Any] = [Text(""), head, Text("")]
+    if scene.n_contacts == 0:
+        return Group(*parts, Text("no contacts: no impulse, no velocity changes"))
     it = Table(title="impulses and normal velocities", title_justify="left")
     cols = ["#", "contact", "normal impulse", "v_rel-", "v_rel+", "-eps v_rel-"]
     if clcp.friction:

@@ -574,3 +574,39 @@ def test_sparse_lcp_json_and_dense_method_guard(monkeypatch) -> None:
     monkeypatch.setattr(model, "MAX_DENSE_SOLVE_ENTRIES", 100)
     with pytest.raises(OptionError, match="dense 50 x 50 tableau"):
         solve(clcp)
+
+
+def test_bad_hdf5_scenes_exit_2(samples, capsys, tmp_path) -> None:
+    import h5py
+
+    good = tmp_path / "good.h5"
+    write_scene_hdf5(load_scene(samples / "scene_two_balls.json"), good)
+
+    def variant(name: str, edit) -> str:
+        path = tmp_path / f"{name}.h5"
+        path.write_bytes(good.read_bytes())
+        with h5py.File(path, "r+") as f:
+            edit(f)
+        return str(path)
+
+    def replace(group: str, key: str, data):
+        def edit(f) -> None:
+            del f[group][key]
+            f[group].create_dataset(key, data=data)
+        return edit
+
+    cases = {
+        "unknown body 'nobody'": replace("contacts", "a", np.array([b"upper", b"nobody"])),
+        "has shape": replace("contacts", "point", np.zeros((3, 3))),
+        "'inertia' is required": lambda f: f["bodies"].__delitem__("inertia"),
+        "out of range": replace("contacts", "b", np.array([2, 9])),
+        "negative mass": replace("bodies", "mass", np.array([np.nan, 1.0, -2.0, 1.0])),
+    }
+    for word, edit in cases.items():
+        code, _, err = run_inprocess(capsys, "contact-matrix", variant("bad", edit))
+        assert code == 2 and word in err, (word, err)
+    # names as body references work too
+    ok = variant("names", replace("contacts", "a", np.array([b"upper", b"lower"])))
+    code, out, err = run_inprocess(capsys, "contact-matrix", ok, "--json")
+    assert code == 0, err
+    assert json.loads(out)["contacts"][1]["a"] == "lower"

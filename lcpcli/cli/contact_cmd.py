@@ -50,6 +50,8 @@ def contact_matrix(
     for w in scene.warnings:
         sys.stderr.write(f"lcpcli: warning: {scene_file}: {w}\n")
     clcp = build(scene, friction=friction, storage=storage)
+    for note in clcp.notes:
+        sys.stderr.write(f"lcpcli: note: {note}\n")
     if do_solve:
         check_method(clcp, method)  # before anything is written
     if output is not None:

@@ -8,7 +8,7 @@ velocities and kinetic energies.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -47,6 +47,7 @@ class ContactLCP:
     tangent_dirs: np.ndarray       # (nf, K, d)
     HA: Any                        # csr (n_impulses, dof * nm): A W for all impulse rows
     unknowns: list[str]            # names of the LCP unknowns, in order
+    notes: list[str] = field(default_factory=list)  # what the user should know (stderr)
 
     @property
     def n_impulses(self) -> int:
@@ -95,6 +96,12 @@ def build(scene: Scene, friction: int = 0, storage: str = "auto") -> ContactLCP:
     else:
         fc, dirs, kk = np.zeros(0, dtype=np.int64), np.zeros((0, 0, scene.dimension)), 0
         M, q, HA = asm.M, asm.q, asm.H
+    notes = []
+    if k and fc.size == 0:
+        notes.append(f"--friction {k}: no contact has a friction coefficient mu > 0, so the LCP "
+                     f"is frictionless")
+    if scene.n_contacts == 0:
+        notes.append("the scene has no contacts: the LCP is empty and no velocity changes")
     meta = {"contact": contact_meta(scene, asm, kk, fc, names)}
     problem = Problem.create(M, q, name=scene.name or "contact",
                              description=f"contact LCP of scene {scene.name!r}: "
@@ -103,7 +110,8 @@ def build(scene: Scene, friction: int = 0, storage: str = "auto") -> ContactLCP:
                                          + (f", friction K={kk}" if kk else ", frictionless"),
                              meta=meta)
     return ContactLCP(scene=scene, assembly=asm, problem=problem, friction=kk,
-                      friction_contacts=fc, tangent_dirs=dirs, HA=HA, unknowns=names)
+                      friction_contacts=fc, tangent_dirs=dirs, HA=HA, unknowns=names,
+                      notes=notes)
 
 
 def contact_meta(scene: Scene, asm: Assembly, k: int, fc: np.ndarray,
@@ -213,7 +221,7 @@ def to_json(clcp: ContactLCP, impact: Impact | None = None) -> dict[str, Any]:
         "M": matrix_json(clcp.problem.M), "q": clcp.problem.q.tolist(),
         "unknowns": clcp.unknowns, "storage": "sparse" if clcp.problem.sparse else "dense",
         "friction_directions": clcp.friction,
-        "bodies": bodies, "contacts": contacts, "warnings": list(scene.warnings),
+        "bodies": bodies, "contacts": contacts, "warnings": list(scene.warnings) + list(clcp.notes),
     }
     if impact is not None:
         res = impact.result

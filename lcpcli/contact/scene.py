@@ -472,6 +472,10 @@ def read_scene_hdf5(path: Path) -> Scene:
         bad = np.flatnonzero(~static & np.isnan(mass))
         if bad.size:
             raise ProblemError(f"body {names[bad[0]]!r}: 'mass' is required for a moving body")
+        bad = np.flatnonzero(~static & np.isnan(inertia).all(axis=(1, 2)))
+        if bad.size:
+            raise ProblemError(f"body {names[bad[0]]!r}: 'inertia' is required for a moving "
+                               f"body")
         if quat is not None:
             quat = np.where(np.isnan(quat), np.array([1.0, 0, 0, 0]), quat)
         return build_scene(dim, names, static, mass, inertia, quat, pos, vel,
