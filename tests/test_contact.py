@@ -610,3 +610,52 @@ def test_bad_hdf5_scenes_exit_2(samples, capsys, tmp_path) -> None:
     code, out, err = run_inprocess(capsys, "contact-matrix", ok, "--json")
     assert code == 0, err
     assert json.loads(out)["contacts"][1]["a"] == "lower"
+
+
+def box_stack(n: int, seed: int, tilt: float = 0.0):
+    """n unit boxes stacked on the ground, 4 corner contacts each (rank-deficient M)."""
+    rng = np.random.default_rng(seed)
+    names, static, mass = ["ground"], [True], [np.nan]
+    inertia, pos = [np.full((3, 3), np.nan)], [[0.0, 0.0, 0.0]]
+    vel, om = [[0.0, 0.0, 0.0]], [[0.0, 0.0, 0.0]]
+    ca, cb, pt, nm = [], [], [], []
+    for i in range(n):
+        k = len(names)
+        m = rng.uniform(0.5, 2)
+        names.append(f"box{i}")
+        static.append(False)
+        mass.append(m)
+        inertia.append(np.eye(3) * m / 6)
+        x = [rng.normal() * 0.05, rng.normal() * 0.05, 0.5 + i]
+        pos.append(x)
+        vel.append(list(rng.normal(size=3) * [0.5, 0.5, 1.0] - [0, 0, 0.5]))
+        om.append(list(rng.normal(size=3) * 0.3))
+        for sx in (-0.5, 0.5):
+            for sy in (-0.5, 0.5):
+                ca.append(k)
+                cb.append(k - 1)
+                pt.append([x[0] + sx, x[1] + sy, x[2] - 0.5])
+                nrm = np.array([tilt * rng.normal(), tilt * rng.normal(), 1.0])
+                nm.append(nrm / np.linalg.norm(nrm))
+    nc = len(ca)
+    return build_scene(3, names, np.array(static), np.array(mass), np.array(inertia), None,
+                       np.array(pos), np.array(vel), np.array(om), np.array(ca), np.array(cb),
+                       np.array(pt), np.array(nm), rng.uniform(0, 0.8, nc),
+                       rng.uniform(0.1, 1.0, nc))
+
+
+@pytest.mark.parametrize("k", [4, 8])
+def test_box_stacks_with_friction_solve(k: int) -> None:
+    for seed in range(8):
+        scene = box_stack(6, seed, tilt=0.05 if seed % 2 else 0.0)
+        clcp = build(scene, friction=k)
+        if seed % 2 == 0:  # flat: each layer of 4 coplanar corners loses one rank
+            assert np.linalg.matrix_rank(build(scene).problem.M) == scene.n_contacts - 6
+        impact = solve(clcp)
+        assert impact.result.solved, impact.result.message
+        fc = clcp.friction_contacts
+        assert np.all(impact.tangent_impulses.sum(axis=1)
+                      <= scene.mu[fc] * impact.normal_impulses[fc] + 1e-9)
+        # no contact ends up approaching faster than Newton's law allows
+        assert np.all(impact.normal_velocity + scene.restitution * clcp.assembly.v_rel >= -1e-9)
+        assert impact.energy_after <= impact.energy_before * (1 + 1e-9) or impact.energy_increase
