@@ -117,6 +117,7 @@ def build(scene: Scene, friction: int = 0, storage: str = "auto") -> ContactLCP:
 def contact_meta(scene: Scene, asm: Assembly, k: int, fc: np.ndarray,
                  names: list[str]) -> dict[str, Any]:
     """What a saved LCP carries so that a solution can be mapped back onto the scene."""
+    names_b = scene.body_names
     return {
         "version": 1,
         "scene": scene.name,
@@ -128,15 +129,15 @@ def contact_meta(scene: Scene, asm: Assembly, k: int, fc: np.ndarray,
         "friction_directions": k,
         "friction_contacts": [int(f) for f in fc],
         "unknowns": names,
-        "contacts": [{"name": scene.contact_names[c],
-                      "a": scene.body_names[int(scene.contact_a[c])],
-                      "b": scene.body_names[int(scene.contact_b[c])],
-                      "restitution": float(scene.restitution[c]),
-                      "mu": None if np.isnan(scene.mu[c]) else float(scene.mu[c])}
-                     for c in range(scene.n_contacts)],
-        "bodies": [{"name": nm, "static": bool(scene.static[i]),
-                    "column_block": int(asm.columns[i]) if asm.columns[i] >= 0 else None}
-                   for i, nm in enumerate(scene.body_names)],
+        "contacts": [{"name": nm, "a": names_b[a], "b": names_b[b], "restitution": e,
+                      "mu": None if m != m else m}
+                     for nm, a, b, e, m in zip(scene.contact_names, scene.contact_a.tolist(),
+                                               scene.contact_b.tolist(),
+                                               scene.restitution.tolist(), scene.mu.tolist(),
+                                               strict=True)],
+        "bodies": [{"name": nm, "static": st, "column_block": col if col >= 0 else None}
+                   for nm, st, col in zip(names_b, scene.static.tolist(),
+                                          asm.columns.tolist(), strict=True)],
     }
 
 
