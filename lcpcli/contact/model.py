@@ -97,6 +97,9 @@ def build(scene: Scene, friction: int = 0, storage: str = "auto") -> ContactLCP:
         fc, dirs, kk = np.zeros(0, dtype=np.int64), np.zeros((0, 0, scene.dimension)), 0
         M, q, HA = asm.M, asm.q, asm.H
     notes = []
+    if scene.dimension == 2 and int(friction) not in (0, 2):
+        notes.append(f"--friction {friction} in a 2-D scene: the tangent line has two "
+                     f"directions (+t, -t), so K = 2 is used")
     if k and fc.size == 0:
         notes.append(f"--friction {k}: no contact has a friction coefficient mu > 0, so the LCP "
                      f"is frictionless")

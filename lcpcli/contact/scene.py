@@ -237,8 +237,6 @@ def scene_from_dict(data: Any, default_name: str = "") -> Scene:
                 if ref not in index:
                     raise ProblemError(f"{where}: unknown body {ref!r}")
                 arr[k] = index[ref]
-            elif isinstance(ref, int) and not isinstance(ref, bool) and 0 <= ref < nb:
-                arr[k] = ref
             else:
                 raise ProblemError(f"{where}: body {side} must be a body name, got {ref!r}")
         for key in ("point", "normal"):
