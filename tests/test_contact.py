@@ -268,6 +268,13 @@ def test_sparse_and_dense_assembly_agree_on_large_scene() -> None:
     diff = np.abs(sparse.M.toarray() - dense).max()
     assert diff <= 1e-12 * np.abs(dense).max()
     assert sparse.M.nnz == np.count_nonzero(dense)
+    # exact zeros wherever two contacts share no moving body
+    moving = ~scene.static
+    rows = np.r_[np.flatnonzero(moving[scene.contact_a]), np.flatnonzero(moving[scene.contact_b])]
+    bods = np.r_[scene.contact_a[moving[scene.contact_a]], scene.contact_b[moving[scene.contact_b]]]
+    inc = sp.csr_matrix((np.ones(rows.size), (rows, bods)), shape=(2500, scene.n_bodies))
+    shares = (inc @ inc.T).toarray() > 0
+    assert not np.any(dense[~shares]) and np.all(sparse.M.toarray()[~shares] == 0.0)
     # the diagonal is the seed's n^T K n
     assert np.allclose(sparse.M.diagonal(), sparse.inv_eff_mass, rtol=1e-12)
     # q identical whichever storage
