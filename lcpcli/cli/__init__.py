@@ -42,7 +42,13 @@ EXIT_CODES_HELP = (
 )
 
 #: Subcommand modules, in the order ``--help`` lists them.
-COMMAND_MODULES = ["solve_cmd", "convert_cmd", "methods_cmd", "bench_cmd"]
+COMMAND_MODULES = [
+    "solve_cmd",
+    "convert_cmd",
+    "methods_cmd",
+    "contact_cmd",
+    "bench_cmd",
+]
 
 app = typer.Typer(
     name="lcpcli",
