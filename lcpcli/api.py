@@ -44,6 +44,18 @@ def solve(problem: Problem, method: str = DEFAULT_METHOD, *, tol: float | None =
     return certify_outcome(problem, outcome, spec.name, seconds, tol)
 
 
+#: Above this ratio ``||M|| ||z|| / ||q||`` a certified answer carries a warning.
+LARGE_SOLUTION = 1e10
+
+
+def _growth(problem: Problem, z: np.ndarray) -> float:
+    nq = float(np.max(np.abs(problem.q))) if problem.n else 0.0
+    nz = float(np.max(np.abs(z))) if problem.n else 0.0
+    if nz == 0.0:
+        return 0.0
+    return 0.0 if nq == 0.0 else matrix_norm_inf(problem.M) * nz / nq
+
+
 def certify_outcome(problem: Problem, outcome: Outcome, method: str, seconds: float,
                     tol: float) -> Result:
     """Turn a method's raw :class:`Outcome` into a verdict by checking its answer."""
@@ -55,6 +67,11 @@ def certify_outcome(problem: Problem, outcome: Outcome, method: str, seconds: fl
         status = SOLVED
         if outcome.termination != "converged":
             message = f"{message}; the returned point passes the certificate anyway"
+        growth = _growth(problem, z)
+        if growth > LARGE_SOLUTION:
+            message = (f"{message}; warning: ||M|| ||z|| / ||q|| = {growth:.1e}: the solution is "
+                       f"huge compared with the data, so the problem is close to having none "
+                       f"(the error is a backward error: z solves a nearby problem)")
     elif outcome.proven_infeasible:
         status = NO_SOLUTION
     else:
