@@ -125,7 +125,7 @@ def render_trace(trace: list[dict[str, Any]], n: int) -> Group:
         out.append(Text(f"basis: ({', '.join(step['basis'])})"))
         if step.get("tableau") is not None:
             out.append(_tableau("tableau after the pivot", step["basis"], step["q_prime"],
-                                step["nonbasic"], step["tableau"]))
+                                step["nonbasic"], step["tableau"], "q'"))
         else:
             out.append(Text(f"q' = {_vec(step['q_prime'])}"))
             if step.get("driving_column") is not None:
