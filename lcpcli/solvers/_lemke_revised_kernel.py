@@ -79,17 +79,19 @@ def _q_prime(Maug, q, alpha, beta, m, B, Ct, basic, where, n, qb, xb, tmp):
 
 @njit(cache=True)
 def _column(Maug, alpha, beta, apos, m, B, Ct, basic, where, n, e, col, xb, tmp):
-    """Column of M' for the entering code ``e`` in row order (eqs 5-6 or 7-8); xb = its beta part."""
+    """Column of M' for entering code ``e``, row order (eqs 5-6 or 7-8); xb = its beta part."""
     if e < n:
         p = apos[e]
         for s in range(m):
             xb[s] = B[s, p]
     else:
         j = e - n
+        for p in range(m):
+            tmp[p] = Maug[alpha[p], j]
         for s in range(m):
             acc = 0.0
             for p in range(m):
-                acc += B[s, p] * Maug[alpha[p], j]
+                acc += B[s, p] * tmp[p]
             xb[s] = -acc
     for i in range(n):
         tmp[i] = 0.0
@@ -104,6 +106,18 @@ def _column(Maug, alpha, beta, apos, m, B, Ct, basic, where, n, e, col, xb, tmp)
             col[r] = tmp[b] + (Maug[b, e - n] if e >= n else 0.0)
     for s in range(m):
         col[where[n + beta[s]]] = xb[s]
+
+
+@njit(cache=True)
+def _row_times_B(Ct, B, m, i, out):
+    """out[:m] = Maug[i, beta] @ B (row access of B only)."""
+    for p in range(m):
+        out[p] = 0.0
+    for s in range(m):
+        c = Ct[s, i]
+        if c != 0.0:
+            for p in range(m):
+                out[p] += c * B[s, p]
 
 
 @njit(cache=True)
@@ -273,11 +287,7 @@ def lemke_revised_kernel(M, q, d, max_iter, piv_tol, tie_tol, record, refactor_e
             j = entering - n
             i_out = leaving
             # Bu = -xb ; vB[p] = sum_s Maug[i, beta[s]] B[s, p]
-            for p in range(m):
-                acc = 0.0
-                for s in range(m):
-                    acc += Ct[s, i_out] * B[s, p]
-                w1[p] = acc
+            _row_times_B(Ct, B, m, i_out, w1)
             inv = 1.0 / piv
             for s in range(m):
                 bu = -xb[s]
@@ -317,20 +327,16 @@ def lemke_revised_kernel(M, q, d, max_iter, piv_tol, tie_tol, record, refactor_e
             k = entering
             i_out = leaving
             p0 = apos[k]
-            for p in range(m):
-                acc = 0.0
-                for s in range(m):
-                    acc += Ct[s, i_out] * B[s, p]
-                w1[p] = acc
+            _row_times_B(Ct, B, m, i_out, w1)
             x0 = w1[p0]
             for s in range(m):
                 B[s, p0] /= x0
+            w1[p0] = 0.0
             for s in range(m):
                 bsp = B[s, p0]
                 if bsp != 0.0:
                     for p in range(m):
-                        if p != p0:
-                            B[s, p] -= w1[p] * bsp
+                        B[s, p] -= w1[p] * bsp
             alpha[p0] = i_out
             apos[k] = -1
             apos[i_out] = p0
@@ -385,10 +391,8 @@ def lemke_revised_kernel(M, q, d, max_iter, piv_tol, tie_tol, record, refactor_e
             refactors += 1
             since = 0
 
-    if status == OK and m > 0:
-        # the final values by eqs (2)-(3) from a fresh factorisation (polished again later)
-        if _refactor(Maug, alpha, beta, m, B):
-            _q_prime(Maug, q, alpha, beta, m, B, Ct, basic, where, n, qb, xb, tmp)
+    if status == OK:  # final values by eqs (2)-(3) (the caller polishes them by LU)
+        _q_prime(Maug, q, alpha, beta, m, B, Ct, basic, where, n, qb, xb, tmp)
     z0 = 0.0
     for i in range(n):
         b = basic[i]
