@@ -204,7 +204,11 @@ class _Factor:
 
         if not np.all(np.isfinite(A)):
             raise ProblemError("M^{alpha beta} contains NaN or Inf")
-        self.lu = sla.lu_factor(A, check_finite=False)
+        import warnings
+
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            self.lu = sla.lu_factor(A, check_finite=False)
         diag = np.abs(np.diag(self.lu[0]))
         scale = max(float(np.max(np.abs(A))), np.finfo(float).tiny)
         if diag.min() <= RCOND_MIN * scale * self.m:

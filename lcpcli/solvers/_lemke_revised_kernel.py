@@ -33,6 +33,8 @@ SINGULAR = 4
 
 #: A pivot smaller than this fraction of its column's largest entry triggers a refactorisation.
 SMALL_PIVOT = 1e-7
+#: At a refactorisation, q' entries that moved less than this (relative) keep their value.
+DRIFT_TOL = 1e-9
 
 
 @njit(cache=True)
@@ -387,7 +389,18 @@ def lemke_revised_kernel(M, q, d, max_iter, piv_tol, tie_tol, record, refactor_e
             if not _refactor(Maug, alpha, beta, m, B):
                 status = SINGULAR
                 break
+            # fresh q' by eqs (2)-(3); entries that moved only at roundoff level keep their
+            # updated value, so that degenerate zeros stay exact zeros (the lexicographic
+            # rule then sees the same degeneracy as before, as the tableau method does)
+            for i in range(n):
+                w2[i] = qb[i]
             _q_prime(Maug, q, alpha, beta, m, B, Ct, basic, where, n, qb, xb, tmp)
+            scale = 0.0
+            for i in range(n):
+                scale = max(scale, abs(w2[i]), abs(q[i]))
+            for i in range(n):
+                if abs(qb[i] - w2[i]) <= DRIFT_TOL * scale:
+                    qb[i] = w2[i]
             refactors += 1
             since = 0
 

@@ -28,6 +28,7 @@ from lcpcli.solvers.lemke import (
     NO_RECORD,
     PIVOT_TOL,
     TIE_TOL,
+    _bool_option,
     _max_iter,
     _vector_option,
     covering_vector,
@@ -61,8 +62,19 @@ def prepare() -> None:
 
 
 def run(problem: Any, *, tol: float, covering: np.ndarray | None = None,
-        max_iter: int | None = None, refactor_every: int | None = None) -> Outcome:
-    """Solve ``problem`` (an LCP) by the revised Lemke method; see the module docstring."""
+        max_iter: int | None = None, refactor_every: int | None = None,
+        trace: bool = False) -> Outcome:
+    """Solve ``problem`` (an LCP) by the revised Lemke method; see the module docstring.
+
+    ``trace=True`` records the pivots with the tableau method's step-by-step replica: the
+    same pivot rule, hence the same pivots on non-degenerate problems.
+    """
+    if trace:
+        from lcpcli.solvers.lemke import run as run_tableau
+
+        out = run_tableau(problem, tol=tol, covering=covering, max_iter=max_iter, trace=True)
+        out.info["trace_engine"] = "tableau replica (same pivot rule)"
+        return out
     from lcpcli.solvers._lemke_revised_kernel import (
         MAX_ITER,
         OK,
@@ -112,6 +124,8 @@ METHODS = [
             "max_iter": Option(_max_iter, None, "pivot limit (default max(1000, 100 n))"),
             "refactor_every": Option(_refactor_every, None,
                                      "pivots between refactorisations (default max(50, n))"),
+            "trace": Option(_bool_option, False, "record every pivot (tableau replica, same "
+                                                 "pivot rule)"),
         },
         prepare=prepare,
     ),
