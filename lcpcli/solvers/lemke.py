@@ -185,6 +185,5 @@ METHODS = [
                                                  "kernel, same pivots; slow for large n)"),
         },
         prepare=prepare,
-        aliases=("lemke",),
     ),
 ]

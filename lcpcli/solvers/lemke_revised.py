@@ -128,5 +128,7 @@ METHODS = [
                                                  "pivot rule)"),
         },
         prepare=prepare,
+        # the faster of the two on benchmarks/bench_lemke.py (CPU time, n = 10..1000)
+        aliases=("lemke",),
     ),
 ]
