@@ -129,7 +129,8 @@ def render_trace(trace: list[dict[str, Any]], n: int) -> Group:
         else:
             out.append(Text(f"q' = {_vec(step['q_prime'])}"))
             if step.get("driving_column") is not None:
-                out.append(Text(f"next driving column ({step.get('next_entering')}) = "
+                out.append(Text(f"column of the next entering variable "
+                                f"{step.get('next_entering')} = "
                                 f"{_vec(step['driving_column'])}"))
         out.append(Text(""))
     return Group(*out)

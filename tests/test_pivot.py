@@ -348,10 +348,19 @@ def test_trace_large_n_has_columns_not_tableau():
     rng = np.random.default_rng(5)
     n = 12
     A = rng.standard_normal((n, n))
-    res = solve(Problem.create(A @ A.T + np.eye(n), rng.standard_normal(n) - 1), "lemke",
-                trace=True)
+    M, q = A @ A.T + np.eye(n), rng.standard_normal(n) - 1
+    res = solve(Problem.create(M, q), "lemke", trace=True)
     assert res.solved and len(res.trace) == res.iterations
-    assert all(s["tableau"] is None and len(s["driving_column"]) == n for s in res.trace)
+    assert all(s["tableau"] is None for s in res.trace)
+    assert all(len(s["driving_column"]) == n for s in res.trace[:-1])
+    assert res.trace[-1]["leaving"] == "z0" and res.trace[-1]["driving_column"] is None
+    # the driving column is the seed 000 transform's column for the next entering variable
+    for s in res.trace[:-1]:
+        t = principal_pivot(augment(M), q, parse_tuple(s["basis"], n),
+                            parse_tuple(s["nonbasic"], n),
+                            driving=parse_var(s["next_entering"], n))
+        np.testing.assert_allclose(t.driving_column, s["driving_column"], atol=1e-9)
+        np.testing.assert_allclose(t.q_prime, s["q_prime"], atol=1e-9)
 
 
 # --------------------------------------------------------------------------- revised Lemke
@@ -412,6 +421,21 @@ def test_revised_solves_what_tableau_solves(siconos):
                 b.message.split(";")[0].split(" (")[0]
         if a.solved:
             assert b.error <= 1e-8
+
+
+def test_revised_column_residual_detects_a_drifted_inverse():
+    from lcpcli.solvers._lemke_revised_kernel import RESID_TOL, _column_residual
+
+    Maug = np.array([[2.0, 1.0, 1.0], [1.0, 3.0, 1.0]])
+    alpha = np.array([0, 1])
+    beta = np.array([0, 2])  # z1 and the artificial column
+    apos = np.array([0, 1])
+    A = Maug[np.ix_(alpha, beta)]
+    xb = -np.linalg.solve(A, Maug[alpha, 1])  # z2 enters: A xb = -g^alpha
+    assert _column_residual(Maug, alpha, beta, apos, 2, 2 + 1, 2, xb) < 1e-15
+    assert _column_residual(Maug, alpha, beta, apos, 2, 2 + 1, 2, xb * (1 + 1e-6)) > RESID_TOL
+    xw = np.linalg.solve(A, np.array([0.0, 1.0]))  # w2 enters: A xb = e_2
+    assert _column_residual(Maug, alpha, beta, apos, 2, 1, 2, xw) < 1e-15
 
 
 def test_revised_cli_and_bad_option(cli, samples):

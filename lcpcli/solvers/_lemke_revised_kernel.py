@@ -15,6 +15,10 @@ O(n m); ``q'`` is updated along the ray of the pivot and recomputed by eqs (2)-(
 refactorisation.  ``B`` is recomputed from scratch (``inv(A)``) every ``refactor_every`` pivots
 and whenever a pivot is small relative to its column (an unstable update).
 
+Instability is detected a posteriori: every ``CHECK_EVERY`` pivots the entering column's
+beta part is substituted back into ``M^{alpha beta} x = rhs``; a relative residual above
+``RESID_TOL`` triggers a refactorisation before the column is used.
+
 The pivot rule is the tableau kernel's (:mod:`lcpcli.solvers._lemke_kernel`): same initial
 pivot, same lexicographic minimum-ratio test with the same tolerances, ``z0`` preferred on ties.
 Variable codes: ``0..n-1`` = ``w_1..w_n``, ``n..2n-1`` = ``z_1..z_n``, ``2n`` = ``z0``.
@@ -35,6 +39,10 @@ SINGULAR = 4
 SMALL_PIVOT = 1e-7
 #: At a refactorisation, q' entries that moved less than this (relative) keep their value.
 DRIFT_TOL = 1e-9
+#: Every CHECK_EVERY pivots the entering column is checked against M^{alpha beta} ...
+CHECK_EVERY = 8
+#: ... and a relative residual above RESID_TOL triggers a refactorisation.
+RESID_TOL = 1e-9
 
 
 @njit(cache=True)
@@ -105,6 +113,43 @@ def _column(Maug, alpha, beta, apos, m, B, Ct, basic, where, n, e, col, xb, tmp)
             col[r] = tmp[b] + (Maug[b, e - n] if e >= n else 0.0)
     for s in range(m):
         col[where[n + beta[s]]] = xb[s]
+
+
+@njit(cache=True)
+def _fresh_q_prime(Maug, q, alpha, beta, m, B, Ct, basic, where, n, qb, xb, tmp, old):
+    """q' by eqs (2)-(3) after a refactorisation; entries that moved only at roundoff level
+    keep their updated value, so degenerate zeros stay exact zeros (the lexicographic rule then
+    sees the same degeneracy as before, as the tableau method does)."""
+    for i in range(n):
+        old[i] = qb[i]
+    _q_prime(Maug, q, alpha, beta, m, B, Ct, basic, where, n, qb, xb, tmp)
+    scale = 0.0
+    for i in range(n):
+        scale = max(scale, abs(old[i]), abs(q[i]))
+    for i in range(n):
+        if abs(qb[i] - old[i]) <= DRIFT_TOL * scale:
+            qb[i] = old[i]
+
+
+@njit(cache=True)
+def _column_residual(Maug, alpha, beta, apos, m, e, n, xb):
+    """Relative residual of the beta part of the entering column: ``A xb = rhs`` with
+    ``A = Maug[alpha, beta]`` and rhs ``e_gamma`` (w enters) or ``-g^alpha`` (z enters)."""
+    worst = 0.0
+    for p in range(m):
+        i = alpha[p]
+        rhs = (1.0 if apos[e] == p else 0.0) if e < n else -Maug[i, e - n]
+        acc = -rhs
+        size = abs(rhs)
+        for s in range(m):
+            t = Maug[i, beta[s]] * xb[s]
+            acc += t
+            size += abs(t)
+        if size > 0.0:
+            rel = abs(acc) / size
+            if rel > worst:
+                worst = rel
+    return worst
 
 
 @njit(cache=True)
@@ -223,6 +268,16 @@ def lemke_revised_kernel(M, q, d, max_iter, piv_tol, tie_tol, record, refactor_e
     while pivots < max_iter:
         entering = leaving + n if leaving < n else leaving - n
         _column(Maug, alpha, beta, apos, m, B, Ct, basic, where, n, entering, col, xb, tmp)
+        if pivots % CHECK_EVERY == 0 and _column_residual(Maug, alpha, beta, apos, m, entering,
+                                                          n, xb) > RESID_TOL:
+            # the updated inverse has drifted: refactorise before using the column
+            if not _refactor(Maug, alpha, beta, m, B):
+                status = SINGULAR
+                break
+            _fresh_q_prime(Maug, q, alpha, beta, m, B, Ct, basic, where, n, qb, xb, tmp, w2)
+            refactors += 1
+            since = 0
+            _column(Maug, alpha, beta, apos, m, B, Ct, basic, where, n, entering, col, xb, tmp)
         colmax = 0.0
         for i in range(n):
             a = abs(col[i])
@@ -406,18 +461,7 @@ def lemke_revised_kernel(M, q, d, max_iter, piv_tol, tie_tol, record, refactor_e
             if not _refactor(Maug, alpha, beta, m, B):
                 status = SINGULAR
                 break
-            # fresh q' by eqs (2)-(3); entries that moved only at roundoff level keep their
-            # updated value, so that degenerate zeros stay exact zeros (the lexicographic
-            # rule then sees the same degeneracy as before, as the tableau method does)
-            for i in range(n):
-                w2[i] = qb[i]
-            _q_prime(Maug, q, alpha, beta, m, B, Ct, basic, where, n, qb, xb, tmp)
-            scale = 0.0
-            for i in range(n):
-                scale = max(scale, abs(w2[i]), abs(q[i]))
-            for i in range(n):
-                if abs(qb[i] - w2[i]) <= DRIFT_TOL * scale:
-                    qb[i] = w2[i]
+            _fresh_q_prime(Maug, q, alpha, beta, m, B, Ct, basic, where, n, qb, xb, tmp, w2)
             refactors += 1
             since = 0
 

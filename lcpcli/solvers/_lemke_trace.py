@@ -77,13 +77,15 @@ def lemke_traced(M: np.ndarray, q: np.ndarray, d: np.ndarray, max_iter: int, piv
         return code_name(int(code), n)
 
     def record(pivot: int, entering: int, leaving: int, r: int, cands: list[dict[str, Any]],
-               rule: str, reason: str, column: np.ndarray) -> None:
+               rule: str, reason: str) -> None:
+        nxt = None if leaving == nz else (leaving + n if leaving < n else leaving - n)
         step: dict[str, Any] = {
             "pivot": pivot, "entering": name(entering), "leaving": name(leaving),
             "row": r + 1, "basis": [name(b) for b in basic], "q_prime": qb.tolist(),
             "rule": rule, "reason": reason, "candidates": cands,
             "nonbasic": [name(v) for v in nonbasic],
-            "driving_column": column.tolist(),
+            "next_entering": None if nxt is None else name(nxt),
+            "driving_column": None if nxt is None else T[:, -where[nxt] - 1].tolist(),
         }
         step["tableau"] = T.tolist() if n <= TABLEAU_MAX_N else None
         trace.append(step)
@@ -100,14 +102,13 @@ def lemke_traced(M: np.ndarray, q: np.ndarray, d: np.ndarray, max_iter: int, piv
     ntie = sum(1 for x in cands if x["tied"])
     reason = (f"initial pivot: z0 enters at level max(-q_i/d_i) = {-best:.6g}; row {r + 1} "
               f"has the most negative q_i/d_i" +
-              (f" ({ntie} tie, the last row wins: lexicographic rule for q + eps-vector)"
+              (f" ({ntie} rows tie, the last one wins: lexicographic rule for q + eps-vector)"
                if ntie > 1 else ""))
-    column = T[:, c].copy()
     _pivot(T, qb, r, c)
     basic[r], nonbasic[c] = entering, leaving
     where[entering], where[leaving] = r, -(c + 1)
     pivots = 1
-    record(1, entering, leaving, r, cands, "initial", reason, column)
+    record(1, entering, leaving, r, cands, "initial", reason)
     status = MAX_ITER
     while pivots < max_iter:
         entering = leaving + n if leaving < n else leaving - n
@@ -161,12 +162,11 @@ def lemke_traced(M: np.ndarray, q: np.ndarray, d: np.ndarray, max_iter: int, piv
                       + (f"decided at column {decided + 1} (variable {name(decided)})"
                          if decided >= 0 else "left a tie: the first row wins"))
         leaving = int(basic[r])
-        column = T[:, c].copy()
         _pivot(T, qb, r, c)
         basic[r], nonbasic[c] = entering, leaving
         where[entering], where[leaving] = r, -(c + 1)
         pivots += 1
-        record(pivots, entering, leaving, r, cands, rule, reason, column)
+        record(pivots, entering, leaving, r, cands, rule, reason)
         if leaving == nz:
             status = OK
             break
