@@ -431,11 +431,19 @@ def test_revised_column_residual_detects_a_drifted_inverse():
     beta = np.array([0, 2])  # z1 and the artificial column
     apos = np.array([0, 1])
     A = Maug[np.ix_(alpha, beta)]
-    xb = -np.linalg.solve(A, Maug[alpha, 1])  # z2 enters: A xb = -g^alpha
-    assert _column_residual(Maug, alpha, beta, apos, 2, 2 + 1, 2, xb) < 1e-15
-    assert _column_residual(Maug, alpha, beta, apos, 2, 2 + 1, 2, xb * (1 + 1e-6)) > RESID_TOL
-    xw = np.linalg.solve(A, np.array([0.0, 1.0]))  # w2 enters: A xb = e_2
-    assert _column_residual(Maug, alpha, beta, apos, 2, 1, 2, xw) < 1e-15
+    MT = np.ascontiguousarray(Maug.T)
+    Ct = np.ascontiguousarray(Maug[:, beta].T)
+    work = np.empty(2), np.empty(2)
+
+    def resid(e, x):
+        return _column_residual(MT, Ct, alpha, apos, 2, e, 2, x, *work)
+
+    xb = -np.linalg.solve(A, Maug[alpha, 1])  # z2 (code n + 1) enters: A xb = -g^alpha
+    assert resid(2 + 1, xb) < 1e-15
+    assert resid(2 + 1, xb * (1 + 1e-6)) > RESID_TOL
+    xw = np.linalg.solve(A, np.array([0.0, 1.0]))  # w2 (code 1) enters: A xb = e_2
+    assert resid(1, xw) < 1e-15
+    assert resid(1, xw + 1e-7) > RESID_TOL
 
 
 def test_revised_cli_and_bad_option(cli, samples):

@@ -46,14 +46,14 @@ RESID_TOL = 1e-9
 
 
 @njit(cache=True)
-def _refactor(Maug, alpha, beta, m, B):
+def _refactor(MT, alpha, beta, m, B):
     """B[:m, :m] = inv(Maug[alpha, beta]); False when singular or non-finite."""
     if m == 0:
         return True
     A = np.empty((m, m))
     for p in range(m):
         for s in range(m):
-            A[p, s] = Maug[alpha[p], beta[s]]
+            A[p, s] = MT[beta[s], alpha[p]]
     Ainv = np.linalg.inv(A)
     for s in range(m):
         for p in range(m):
@@ -65,7 +65,7 @@ def _refactor(Maug, alpha, beta, m, B):
 
 
 @njit(cache=True)
-def _q_prime(Maug, q, alpha, beta, m, B, Ct, basic, where, n, qb, xb, tmp):
+def _q_prime(MT, q, alpha, beta, m, B, Ct, basic, where, n, qb, xb, tmp):
     """q' by seed eqs (2)-(3), in row order."""
     for s in range(m):
         acc = 0.0
@@ -88,7 +88,7 @@ def _q_prime(Maug, q, alpha, beta, m, B, Ct, basic, where, n, qb, xb, tmp):
 
 
 @njit(cache=True)
-def _column(Maug, alpha, beta, apos, m, B, Ct, basic, where, n, e, col, xb, tmp):
+def _column(MT, alpha, beta, apos, m, B, Ct, basic, where, n, e, col, xb, tmp):
     """Column of M' for entering code ``e``, row order (eqs 5-6 or 7-8); xb = its beta part."""
     if e < n:
         p = apos[e]
@@ -97,7 +97,7 @@ def _column(Maug, alpha, beta, apos, m, B, Ct, basic, where, n, e, col, xb, tmp)
     else:
         j = e - n
         for p in range(m):
-            tmp[p] = Maug[alpha[p], j]
+            tmp[p] = MT[j, alpha[p]]
         for s in range(m):
             xb[s] = -_dot(B, s, tmp, m)
     for i in range(n):
@@ -110,19 +110,19 @@ def _column(Maug, alpha, beta, apos, m, B, Ct, basic, where, n, e, col, xb, tmp)
     for r in range(n):
         b = basic[r]
         if b < n:
-            col[r] = tmp[b] + (Maug[b, e - n] if e >= n else 0.0)
+            col[r] = tmp[b] + (MT[e - n, b] if e >= n else 0.0)
     for s in range(m):
         col[where[n + beta[s]]] = xb[s]
 
 
 @njit(cache=True)
-def _fresh_q_prime(Maug, q, alpha, beta, m, B, Ct, basic, where, n, qb, xb, tmp, old):
+def _fresh_q_prime(MT, q, alpha, beta, m, B, Ct, basic, where, n, qb, xb, tmp, old):
     """q' by eqs (2)-(3) after a refactorisation; entries that moved only at roundoff level
     keep their updated value, so degenerate zeros stay exact zeros (the lexicographic rule then
     sees the same degeneracy as before, as the tableau method does)."""
     for i in range(n):
         old[i] = qb[i]
-    _q_prime(Maug, q, alpha, beta, m, B, Ct, basic, where, n, qb, xb, tmp)
+    _q_prime(MT, q, alpha, beta, m, B, Ct, basic, where, n, qb, xb, tmp)
     scale = 0.0
     for i in range(n):
         scale = max(scale, abs(old[i]), abs(q[i]))
@@ -132,21 +132,24 @@ def _fresh_q_prime(Maug, q, alpha, beta, m, B, Ct, basic, where, n, qb, xb, tmp,
 
 
 @njit(cache=True)
-def _column_residual(Maug, alpha, beta, apos, m, e, n, xb):
+def _column_residual(MT, Ct, alpha, apos, m, e, n, xb, acc, size):
     """Relative residual of the beta part of the entering column: ``A xb = rhs`` with
-    ``A = Maug[alpha, beta]`` and rhs ``e_gamma`` (w enters) or ``-g^alpha`` (z enters)."""
+    ``A = Maug[alpha, beta]`` and rhs ``e_gamma`` (w enters) or ``-g^alpha`` (z enters).
+    ``acc`` and ``size`` are work vectors of length >= m."""
+    for p in range(m):
+        rhs = (1.0 if apos[e] == p else 0.0) if e < n else -MT[e - n, alpha[p]]
+        acc[p] = -rhs
+        size[p] = abs(rhs)
+    for s in range(m):
+        x = xb[s]
+        for p in range(m):
+            t = Ct[s, alpha[p]] * x
+            acc[p] += t
+            size[p] += abs(t)
     worst = 0.0
     for p in range(m):
-        i = alpha[p]
-        rhs = (1.0 if apos[e] == p else 0.0) if e < n else -Maug[i, e - n]
-        acc = -rhs
-        size = abs(rhs)
-        for s in range(m):
-            t = Maug[i, beta[s]] * xb[s]
-            acc += t
-            size += abs(t)
-        if size > 0.0:
-            rel = abs(acc) / size
+        if size[p] > 0.0:
+            rel = abs(acc[p]) / size[p]
             if rel > worst:
                 worst = rel
     return worst
@@ -205,11 +208,16 @@ def lemke_revised_kernel(M, q, d, max_iter, piv_tol, tie_tol, record, refactor_e
     """
     n = q.shape[0]
     nz = 2 * n
-    Maug = np.empty((n, n + 1))
+    # MT = [M, d]^T, so that a column of [M, d] is a contiguous row (blocked transpose)
+    MT = np.empty((n + 1, n))
+    blk = 32
+    for i0 in range(0, n, blk):
+        for j0 in range(0, n, blk):
+            for i in range(i0, min(i0 + blk, n)):
+                for j in range(j0, min(j0 + blk, n)):
+                    MT[j, i] = M[i, j]
     for i in range(n):
-        for j in range(n):
-            Maug[i, j] = M[i, j]
-        Maug[i, n] = d[i]
+        MT[n, i] = d[i]
     basic = np.arange(n)
     where = np.full(2 * n + 1, -1, dtype=np.int64)
     for i in range(n):
@@ -255,7 +263,7 @@ def lemke_revised_kernel(M, q, d, max_iter, piv_tol, tie_tol, record, refactor_e
     basic[r] = nz
     where[nz] = r
     where[r] = -1
-    _q_prime(Maug, q, alpha, beta, m, B, Ct, basic, where, n, qb, xb, tmp)
+    _q_prime(MT, q, alpha, beta, m, B, Ct, basic, where, n, qb, xb, tmp)
     pivots = 1
     since = 0
     if record.shape[0] > 0:
@@ -267,17 +275,17 @@ def lemke_revised_kernel(M, q, d, max_iter, piv_tol, tie_tol, record, refactor_e
     status = MAX_ITER
     while pivots < max_iter:
         entering = leaving + n if leaving < n else leaving - n
-        _column(Maug, alpha, beta, apos, m, B, Ct, basic, where, n, entering, col, xb, tmp)
-        if pivots % CHECK_EVERY == 0 and _column_residual(Maug, alpha, beta, apos, m, entering,
-                                                          n, xb) > RESID_TOL:
+        _column(MT, alpha, beta, apos, m, B, Ct, basic, where, n, entering, col, xb, tmp)
+        if pivots % CHECK_EVERY == 0 and _column_residual(MT, Ct, alpha, apos, m, entering,
+                                                          n, xb, w1, w2) > RESID_TOL:
             # the updated inverse has drifted: refactorise before using the column
-            if not _refactor(Maug, alpha, beta, m, B):
+            if not _refactor(MT, alpha, beta, m, B):
                 status = SINGULAR
                 break
-            _fresh_q_prime(Maug, q, alpha, beta, m, B, Ct, basic, where, n, qb, xb, tmp, w2)
+            _fresh_q_prime(MT, q, alpha, beta, m, B, Ct, basic, where, n, qb, xb, tmp, w2)
             refactors += 1
             since = 0
-            _column(Maug, alpha, beta, apos, m, B, Ct, basic, where, n, entering, col, xb, tmp)
+            _column(MT, alpha, beta, apos, m, B, Ct, basic, where, n, entering, col, xb, tmp)
         colmax = 0.0
         for i in range(n):
             a = abs(col[i])
@@ -377,7 +385,7 @@ def lemke_revised_kernel(M, q, d, max_iter, piv_tol, tie_tol, record, refactor_e
             beta[m] = j
             bpos[j] = m
             for i in range(n):
-                Ct[m, i] = Maug[i, j]
+                Ct[m, i] = MT[j, i]
             m += 1
         elif entering >= n:  # z_j in, z_l out: replace column
             j = entering - n
@@ -396,7 +404,7 @@ def lemke_revised_kernel(M, q, d, max_iter, piv_tol, tie_tol, record, refactor_e
             bpos[l_out] = -1
             bpos[j] = s0
             for i in range(n):
-                Ct[s0, i] = Maug[i, j]
+                Ct[s0, i] = MT[j, i]
         elif leaving < n:  # w_k in, w_i out: replace row
             k = entering
             i_out = leaving
@@ -458,15 +466,15 @@ def lemke_revised_kernel(M, q, d, max_iter, piv_tol, tie_tol, record, refactor_e
             status = OK
             break
         if since >= refactor_every or abs(piv) < SMALL_PIVOT * colmax:
-            if not _refactor(Maug, alpha, beta, m, B):
+            if not _refactor(MT, alpha, beta, m, B):
                 status = SINGULAR
                 break
-            _fresh_q_prime(Maug, q, alpha, beta, m, B, Ct, basic, where, n, qb, xb, tmp, w2)
+            _fresh_q_prime(MT, q, alpha, beta, m, B, Ct, basic, where, n, qb, xb, tmp, w2)
             refactors += 1
             since = 0
 
     if status == OK:  # final values by eqs (2)-(3) (the caller polishes them by LU)
-        _q_prime(Maug, q, alpha, beta, m, B, Ct, basic, where, n, qb, xb, tmp)
+        _q_prime(MT, q, alpha, beta, m, B, Ct, basic, where, n, qb, xb, tmp)
     z0 = 0.0
     for i in range(n):
         b = basic[i]
