@@ -47,6 +47,7 @@ COMMAND_MODULES = [
     "convert_cmd",
     "methods_cmd",
     "contact_cmd",
+    "pivot_cmd",
     "bench_cmd",
 ]
 

@@ -29,6 +29,9 @@ def solve(
                                  help="Print one JSON object on stdout and nothing else."),
     output: Path = typer.Option(None, "--output", "-o",
                                 help="Also write the JSON result to this file (atomically)."),
+    trace: bool = typer.Option(False, "--trace",
+                               help="Print every pivot (Lemke methods); with --json the "
+                                    "pivots are a list under \"trace\"."),
 ) -> int:
     """Solve an LCP: find z >= 0 with w = M z + q >= 0 and z^T w = 0.
 
@@ -48,6 +51,8 @@ def solve(
         opts["max_iter"] = max_iter
     if covering is not None:
         opts["covering"] = covering
+    if trace:
+        opts["trace"] = True
     prob = load(file, problem)
     result = solve_problem(prob, method, tol=tol, **opts)
     payload = result.to_dict(file=file)
@@ -59,7 +64,12 @@ def solve(
         from lcpcli.cli.common import stdout_console
         from lcpcli.render import render_result
 
-        stdout_console().print(render_result(result, prob, file))
+        console = stdout_console()
+        if result.trace is not None:
+            from lcpcli.render_pivot import render_trace
+
+            console.print(render_trace(result.trace, prob.n))
+        console.print(render_result(result, prob, file))
     return exit_code_for([result.status])
 
 
