@@ -14,6 +14,17 @@ from lcpcli.result import NO_SOLUTION, SOLVED, UNSOLVED, Outcome, Result
 from lcpcli.solvers import get_method
 
 DEFAULT_METHOD = "lemke"
+#: A method that densifies M is refused on a sparse problem with more entries than this.
+MAX_DENSIFY_ENTRIES = 10_000 ** 2
+
+
+def check_dense_ok(problem: Problem, spec: Any) -> None:
+    """OptionError when ``spec`` would densify a huge sparse M (checked before any work)."""
+    n = problem.n
+    if problem.sparse and not spec.sparse and n * n > MAX_DENSIFY_ENTRIES:
+        raise OptionError(f"method '{spec.name}' works on a dense {n} x {n} matrix "
+                          f"({n * n * 8 / 2**30:.1f} GiB) but M is sparse (nnz={problem.M.nnz}); "
+                          f"choose a method for large sparse problems (see 'lcpcli methods')")
 
 
 def solve(problem: Problem, method: str = DEFAULT_METHOD, *, tol: float | None = None,
@@ -32,6 +43,7 @@ def solve(problem: Problem, method: str = DEFAULT_METHOD, *, tol: float | None =
     if problem.kind not in spec.kinds:
         raise OptionError(f"method '{spec.name}' does not handle {problem.kind.upper()} problems "
                           f"(it handles: {', '.join(k.upper() for k in spec.kinds)})")
+    check_dense_ok(problem, spec)
     opts = spec.parse_options(options)
     tol = spec.default_tol if tol is None else float(tol)
     if not (np.isfinite(tol) and tol > 0):

@@ -288,7 +288,7 @@ REQUIRED = {"problem": str, "n": int, "method": str, "status": str, "seconds": f
 
 
 def test_cli_json_schema(cli) -> None:
-    proc = cli("bench", "--suite", "hard", "--n", "3", "--methods", "lemke", "--no-peers",
+    proc = cli("bench", "--suite", "hard", "--n", "3", "--methods", "lemke-tableau", "--no-peers",
                "--repeat", "1", "--json")
     assert proc.returncode == 0, proc.stderr
     lines = proc.stdout.splitlines()
@@ -346,7 +346,7 @@ def test_cli_bad_input(cli, args, needle) -> None:
 def test_cli_plot_and_markdown(cli, tmp_path) -> None:
     pytest.importorskip("matplotlib")
     png, md = tmp_path / "p.png", tmp_path / "r.md"
-    proc = cli("bench", "--suite", "hard", "--n", "3", "-m", "lemke", "--no-peers",
+    proc = cli("bench", "--suite", "hard", "--n", "3", "-m", "lemke-tableau", "--no-peers",
                "--repeat", "0", "--plot", str(png), "--markdown", str(md))
     assert proc.returncode == 0, proc.stderr
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

@@ -566,7 +566,6 @@ def test_same_physics_as_siconos_lemke(samples, tmp_path) -> None:
 
 
 def test_sparse_lcp_json_and_dense_method_guard(monkeypatch) -> None:
-    import lcpcli.contact.model as model
     from lcpcli.contact import to_json
 
     scene = random_scene(60, 50, seed=13)
@@ -578,8 +577,10 @@ def test_sparse_lcp_json_and_dense_method_guard(monkeypatch) -> None:
     assert a.result.solved and b.result.solved
     assert np.allclose(a.velocity, b.velocity, atol=1e-8)
     assert np.allclose(a.omega, b.omega, atol=1e-8)
-    monkeypatch.setattr(model, "MAX_DENSE_SOLVE_ENTRIES", 100)
-    with pytest.raises(OptionError, match="dense 50 x 50 tableau"):
+    import lcpcli.api
+
+    monkeypatch.setattr(lcpcli.api, "MAX_DENSIFY_ENTRIES", 100)
+    with pytest.raises(OptionError, match="dense 50 x 50 matrix"):
         solve(clcp)
 
 

@@ -22,15 +22,11 @@ from lcpcli.contact.impact import (
     post_velocities,
 )
 from lcpcli.contact.scene import Scene
-from lcpcli.errors import OptionError
 from lcpcli.problem import Problem, is_sparse
 
 #: Default method for contact LCPs: Lemke handles the symmetric PSD (often singular) M and
 #: the non-symmetric frictional matrix.
 DEFAULT_METHOD = "lemke"
-#: Methods known to densify M; refused on sparse LCPs above MAX_DENSE_SOLVE_ENTRIES entries.
-DENSE_METHODS = {"lemke-tableau"}
-MAX_DENSE_SOLVE_ENTRIES = 10_000 ** 2
 CONVENTION = ("w = M z + q, 0 <= z _|_ w >= 0; z = impulses; normals point from B to A; "
               "q_n = (1 + eps) v_rel^- (approaching: q < 0); w_n = v_rel^+ + eps v_rel^-")
 
@@ -155,16 +151,11 @@ def solve(clcp: ContactLCP, method: str = DEFAULT_METHOD, tol: float | None = No
 
 
 def check_method(clcp: ContactLCP, method: str) -> None:
-    """OptionError for an unknown method, or a dense-tableau method on a huge sparse LCP."""
+    """OptionError for an unknown method, or a densifying method on a huge sparse LCP."""
+    from lcpcli.api import check_dense_ok
     from lcpcli.solvers import get_method
 
-    n = clcp.problem.n
-    if (get_method(method).name in DENSE_METHODS and clcp.problem.sparse
-            and n * n > MAX_DENSE_SOLVE_ENTRIES):
-        raise OptionError(f"method '{method}' works on a dense {n} x {n} tableau "
-                          f"({n * n * 8 / 2**30:.1f} GiB) but this contact LCP is sparse "
-                          f"(nnz={clcp.problem.M.nnz}); choose a method for large sparse "
-                          f"problems with --method (see 'lcpcli methods')")
+    check_dense_ok(clcp.problem, get_method(method))
 
 
 def impact_from(clcp: ContactLCP, z: np.ndarray, result: Any = None) -> Impact:
