@@ -14,6 +14,8 @@ from lcpcli.result import NO_SOLUTION, SOLVED, UNSOLVED, Outcome, Result
 from lcpcli.solvers import get_method
 
 DEFAULT_METHOD = "lemke"
+#: Methods whose ``prepare`` hook (kernel loading) already ran in this process.
+_PREPARED: set[str] = set()
 #: A method that densifies M is refused on a sparse problem with more entries than this.
 MAX_DENSIFY_ENTRIES = 10_000 ** 2
 
@@ -48,8 +50,9 @@ def solve(problem: Problem, method: str = DEFAULT_METHOD, *, tol: float | None =
     tol = spec.default_tol if tol is None else float(tol)
     if not (np.isfinite(tol) and tol > 0):
         raise OptionError(f"tolerance must be positive and finite, got {tol}")
-    if spec.prepare is not None:
+    if spec.prepare is not None and spec.name not in _PREPARED:
         spec.prepare()
+        _PREPARED.add(spec.name)
     start = time.perf_counter()
     outcome: Outcome = spec.run(problem, tol=tol, **opts)
     seconds = time.perf_counter() - start
