@@ -156,3 +156,34 @@ def write_many(problems: list[Problem], path: Path) -> None:
     with h5py.File(path, "w") as f:
         for p in problems:
             write_group(f.create_group(p.name), p)
+
+
+def read_many(path: Path, names: list[str]) -> Any:
+    """Yield ``(name, Problem or ProblemError)`` for ``names``, opening the file once.
+
+    A name that is not a problem group falls back to the root problem when M and q sit at the
+    root (the name :func:`list_problems` gives it).  Used by batch runs; errors are yielded,
+    not raised, so one damaged group does not stop the others.
+    """
+    try:
+        f = _open(path)
+    except ProblemError as exc:
+        for name in names:
+            yield name, exc
+        return
+    with f:
+        root = _is_problem(f)
+        for name in names:
+            try:
+                node = f.get(name)
+                if node is not None and _is_problem(node):
+                    yield name, _read_group(node, name)
+                elif root:
+                    yield name, _read_group(f, path.stem)
+                else:
+                    yield name, ProblemError(f"no problem named '{name}'")
+            except ProblemError as exc:
+                yield name, exc
+            except (OSError, KeyError, RuntimeError, ValueError) as exc:
+                yield name, ProblemError(
+                    f"damaged HDF5 data ({str(exc).splitlines()[0][:100]})")
