@@ -268,6 +268,7 @@ def prepare_method(method: str) -> None:
 def _worker_main(conn: Any, opts: SolveOptions) -> None:
     """Worker process: receive chunks, send one message per solved problem."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent decides when to stop
+    _die_with_parent()
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     with contextlib.suppress(Exception):  # the problems will report the error one by one
         prepare_method(opts.method)
@@ -283,6 +284,17 @@ def _worker_main(conn: Any, opts: SolveOptions) -> None:
         for row, timing in solve_tasks(tasks, opts):
             conn.send(("row", chunk_id, row, timing))
         conn.send(("done", chunk_id))
+
+
+def _die_with_parent() -> None:
+    """Linux: have the kernel kill this worker when the parent dies (even by ``kill -9``)."""
+    if not sys.platform.startswith("linux"):
+        return
+    with contextlib.suppress(Exception):
+        import ctypes
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(1, int(signal.SIGKILL))  # PR_SET_PDEATHSIG
 
 
 class _Worker:

@@ -13,6 +13,9 @@ def solve(
     file: str = typer.Argument(..., metavar="FILE",
                                help="Problem file (.json, .npz, .h5, .dat); '-' reads JSON "
                                     "from stdin."),
+    more_files: list[str] = typer.Argument(None, metavar="[FILE]...", show_default=False,
+                                           help="More files, folders or globs: a batch "
+                                                "(see docs/batch.md)."),
     method: str = typer.Option("lemke", "--method", "-m", help="Solver method (listed below)."),
     tol: float = typer.Option(None, "--tol",
                               help="Tolerance on the scaled error for the verdict 'solved' "
@@ -28,7 +31,22 @@ def solve(
     as_json: bool = typer.Option(False, "--json",
                                  help="Print one JSON object on stdout and nothing else."),
     output: Path = typer.Option(None, "--output", "-o",
-                                help="Also write the JSON result to this file (atomically)."),
+                                help="Also write the JSON result to this file (atomically). "
+                                     "Batch: .jsonl, .csv or .h5 result file, written "
+                                     "incrementally."),
+    recursive: bool = typer.Option(False, "--recursive", "-r",
+                                   help="Batch: look for problem files in sub-folders too."),
+    jobs: int = typer.Option(None, "--jobs", "-j", min=1,
+                             help="Batch: worker processes [default: number of cores]."),
+    resume: bool = typer.Option(False, "--resume",
+                                help="Batch: skip problems already in --output."),
+    timeout: float = typer.Option(None, "--timeout",
+                                  help="Batch: seconds per problem; a problem that runs over "
+                                       "is stopped and recorded as unsolved (timeout)."),
+    quiet: bool = typer.Option(False, "--quiet", "-q", help="Batch: no progress bar."),
+    scheduler: str = typer.Option(None, "--scheduler",
+                                  help="Batch: run on the Dask cluster at this address "
+                                       "(e.g. tcp://host:8786; needs lcpcli[dask])."),
 ) -> int:
     """Solve an LCP: find z >= 0 with w = M z + q >= 0 and z^T w = 0.
 
@@ -48,6 +66,14 @@ def solve(
         opts["max_iter"] = max_iter
     if covering is not None:
         opts["covering"] = covering
+    from lcpcli.cli.batch_run import run_batch_command, wants_batch
+
+    files = [file, *(more_files or [])]
+    batch = {"recursive": recursive, "jobs": jobs, "resume": resume, "timeout": timeout,
+             "quiet": quiet, "scheduler": scheduler}
+    if wants_batch(files, output, **batch):
+        return run_batch_command(files, method=method, tol=tol, opts=opts, problem=problem,
+                                 as_json=as_json, output=output, **batch)
     prob = load(file, problem)
     result = solve_problem(prob, method, tol=tol, **opts)
     payload = result.to_dict(file=file)
