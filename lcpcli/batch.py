@@ -478,7 +478,7 @@ def iter_dask(tasks: list[Task], opts: SolveOptions, address: Any, *,
     if not tasks:
         return
     try:
-        from distributed import Client, as_completed
+        from distributed import Client
     except ImportError:
         from lcpcli.errors import OptionError
 
@@ -497,34 +497,49 @@ def iter_dask(tasks: list[Task], opts: SolveOptions, address: Any, *,
     else:
         client = address
     try:
-        n_workers = max(1, len(client.scheduler_info().get("workers", {})) or 1)
-        if chunk_size:
-            chunks = [tasks[i:i + chunk_size] for i in range(0, len(tasks), chunk_size)]
-        else:
-            chunks = make_chunks(tasks, n_workers, max_chunk=1024)
-        futures = [client.submit(_dask_chunk, chunk, opts, pure=False) for chunk in chunks]
-        index = {f.key: chunk for f, chunk in zip(futures, chunks, strict=True)}
-        try:
-            for fut in as_completed(futures):
-                try:
-                    rows, timing = fut.result()
-                except Exception as exc:  # noqa: BLE001 - a lost chunk is recorded, not fatal
-                    msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-                    rows = [error_row(t.source, t.problem,
-                                      f"{t.source}: Dask task failed: {msg}", opts.method)
-                            for t in index[fut.key]]
-                    timing = {}
-                if on_timing and timing:
-                    on_timing(timing)
-                yield from rows
-                fut.release()
-        finally:
-            for f in futures:
-                if not f.done():
-                    f.cancel()
+        with client.as_current():
+            yield from _dask_rows(client, tasks, opts, on_timing, chunk_size)
     finally:
         if own:
             client.close()
+
+
+def _dask_rows(client: Any, tasks: list[Task], opts: SolveOptions,
+               on_timing: Callable[[dict[str, float]], None] | None,
+               chunk_size: int | None) -> Iterator[dict[str, Any]]:
+    from distributed import as_completed
+
+    n_workers = max(1, len(client.scheduler_info().get("workers", {})) or 1)
+    # Workers resolve paths in their own working directory: send absolute paths, and give
+    # the rows back the paths as the user wrote them.
+    given = {os.path.abspath(t.source): t.source for t in tasks}
+    tasks = [Task(os.path.abspath(t.source), t.problem, t.hdf5) for t in tasks]
+    if chunk_size:
+        chunks = [tasks[i:i + chunk_size] for i in range(0, len(tasks), chunk_size)]
+    else:
+        chunks = make_chunks(tasks, n_workers, max_chunk=1024)
+    futures = [client.submit(_dask_chunk, chunk, opts, pure=False) for chunk in chunks]
+    index = {f.key: chunk for f, chunk in zip(futures, chunks, strict=True)}
+    try:
+        for fut in as_completed(futures):
+            try:
+                rows, timing = fut.result()
+            except Exception as exc:  # noqa: BLE001 - a lost chunk is recorded, not fatal
+                msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+                rows = [error_row(t.source, t.problem,
+                                  f"{t.source}: Dask task failed: {msg}", opts.method)
+                        for t in index[fut.key]]
+                timing = {}
+            if on_timing and timing:
+                on_timing(timing)
+            for row in rows:
+                row["source"] = row["file"] = given.get(row["source"], row["source"])
+                yield row
+            fut.release()
+    finally:
+        for f in futures:
+            if not f.done():
+                f.cancel()
 
 
 # ----------------------------------------------------------------------------- orchestration
@@ -631,7 +646,11 @@ def run_batch(inputs: Iterable[str], opts: SolveOptions, *, recursive: bool = Fa
                           "stop a running problem); bound the work with --max-iter instead")
     jobs = jobs or os.cpu_count() or 1
     start = time.perf_counter()
-    prepare_method(opts.method)  # unknown method: OptionError before any work
+    from lcpcli.solvers import get_method
+
+    canonical = get_method(opts.method).name  # unknown method: OptionError before any work
+    opts = SolveOptions(canonical, opts.tol, dict(opts.options))
+    prepare_method(canonical)
     tasks, bad_inputs = expand_inputs(inputs, recursive=recursive)
     tally, stats = Tally(), BatchStats()
     report = BatchReport(tally=tally, stats=stats, total=len(tasks) + len(bad_inputs),
