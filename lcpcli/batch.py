@@ -533,7 +533,10 @@ def _dask_rows(client: Any, tasks: list[Task], opts: SolveOptions,
             if on_timing and timing:
                 on_timing(timing)
             for row in rows:
-                row["source"] = row["file"] = given.get(row["source"], row["source"])
+                absolute = row["source"]
+                row["source"] = row["file"] = given.get(absolute, absolute)
+                if row["source"] != absolute and row["message"].startswith(absolute):
+                    row["message"] = row["source"] + row["message"][len(absolute):]
                 yield row
             fut.release()
     finally:
@@ -543,6 +546,27 @@ def _dask_rows(client: Any, tasks: list[Task], opts: SolveOptions,
 
 
 # ----------------------------------------------------------------------------- orchestration
+@contextlib.contextmanager
+def signals_deferred() -> Iterator[None]:
+    """Hold SIGINT and SIGTERM while a result is being written (delivered right after).
+
+    A write is then never cut in the middle by Ctrl-C or ``kill``: the journal line and the
+    HDF5 group of a row are written together or not at all.
+    """
+    import threading
+
+    if not hasattr(signal, "pthread_sigmask") or \
+            threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    held = {signal.SIGINT, signal.SIGTERM}
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, held)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
 @dataclass
 class Tally:
     """Counts and extremes of a batch, kept small whatever the number of problems."""
@@ -680,7 +704,8 @@ def run_batch(inputs: Iterable[str], opts: SolveOptions, *, recursive: bool = Fa
     def emit(row: dict[str, Any]) -> None:
         if writer is not None:
             t0 = time.perf_counter()
-            writer.write([row])
+            with signals_deferred():
+                writer.write([row])
             stats.write_seconds += time.perf_counter() - t0
         tally.add(row)
         report.new += 1
@@ -705,7 +730,8 @@ def run_batch(inputs: Iterable[str], opts: SolveOptions, *, recursive: bool = Fa
     finally:
         if writer is not None:
             t0 = time.perf_counter()
-            writer.close()
+            with signals_deferred():
+                writer.close()
             stats.write_seconds += time.perf_counter() - t0
         report.wall_seconds = time.perf_counter() - start
     return report
