@@ -632,6 +632,7 @@ class BatchReport:
     skipped: int = 0      # already in the output (--resume)
     new: int = 0          # rows produced by this run
     wall_seconds: float = 0.0
+    setup_seconds: float = 0.0  # part of wall_seconds: listing inputs, loading the kernel
     output: str | None = None
     interrupted: bool = False
 
@@ -641,7 +642,8 @@ class BatchReport:
 
     def as_dict(self) -> dict[str, Any]:
         return {"total": self.total, "skipped": self.skipped, "new": self.new,
-                "wall_seconds": self.wall_seconds, "output": self.output,
+                "wall_seconds": self.wall_seconds, "setup_seconds": self.setup_seconds,
+                "output": self.output,
                 "interrupted": self.interrupted, "exit_code": self.exit_code,
                 "summary": self.tally.as_dict(), "timings": self.stats.as_dict()}
 
@@ -698,6 +700,7 @@ def run_batch(inputs: Iterable[str], opts: SolveOptions, *, recursive: bool = Fa
             tasks = [t for t in tasks if (t.source, t.problem) not in done]
             bad_inputs = [r for r in bad_inputs if key(r) not in done]
         writer = batch_output.open_writer(output, resume=resume)
+    report.setup_seconds = time.perf_counter() - start
     if on_start:
         on_start(report.total, report.skipped)
 
