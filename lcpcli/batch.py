@@ -139,7 +139,9 @@ def expand_inputs(inputs: Iterable[str], *, recursive: bool = False,
             errors.append(error_row(path, Path(path).stem, f"{path}: no such file"))
             return
         try:
-            names = list_problems(path)
+            names = _hdf5_problem_names(path)
+            if names is None:
+                names = list_problems(path)
         except (ProblemError, OSError) as exc:
             msg = str(exc) if isinstance(exc, ProblemError) else f"{path}: {exc}"
             errors.append(error_row(path, Path(path).stem, msg))
@@ -169,6 +171,35 @@ def expand_inputs(inputs: Iterable[str], *, recursive: bool = False,
         else:
             add_file(item)
     return tasks, errors
+
+
+def _hdf5_problem_names(path: str) -> list[str] | None:
+    """The problem groups of an HDF5 file in one pass over its links (fast for 10^4+ groups).
+
+    Same answer as :func:`lcpcli.io.list_problems` (groups holding ``M`` and ``q``, in the
+    file's order); None when the file has a root problem or anything goes wrong, and the
+    caller then asks ``list_problems``.
+    """
+    try:
+        import h5py
+
+        children: list[bytes] = []
+        parts: dict[bytes, set[bytes]] = {}
+
+        def visit(name: bytes) -> None:
+            head, sep, tail = name.partition(b"/")
+            if not sep:
+                children.append(head)
+            elif tail in (b"M", b"q"):
+                parts.setdefault(head, set()).add(tail)
+
+        with h5py.File(path, "r") as f:
+            f.id.links.visit(visit)
+        if b"M" in children and b"q" in children:
+            return None  # a root problem: let list_problems name it
+        return [c.decode() for c in children if len(parts.get(c, ())) == 2]
+    except Exception:  # noqa: BLE001 - the general lister reports the error properly
+        return None
 
 
 def make_chunks(tasks: list[Task], jobs: int, *, max_chunk: int = 256) -> list[list[Task]]:

@@ -355,3 +355,28 @@ def test_dask_local_cluster(cli, folder, tmp_path):
         check_by_substitution(rows[(src, Path(src).stem)], p)
     if local is not None:
         assert {k: strip(v) for k, v in rows.items()} == {k: strip(v) for k, v in local.items()}
+
+
+def test_worker_crash_costs_one_problem(folder, monkeypatch):
+    """A worker that dies (segfault, OOM kill) is replaced; only its problem is lost."""
+    import lcpcli.batch as batch
+
+    base, problems = folder
+    real = batch.solve_tasks
+
+    def crashing(tasks, opts):
+        for task in tasks:
+            if task.problem == "p03":
+                os._exit(7)  # as abrupt as a segfault: no cleanup, no message
+            yield from real([task], opts)
+
+    monkeypatch.setattr(batch, "solve_tasks", crashing)  # forked workers inherit the patch
+    tasks, bad = batch.expand_inputs([str(base / "probs")])
+    rows = by_key(list(batch.iter_local(tasks, batch.SolveOptions(), jobs=2)))
+    assert len(rows) == 9 and not bad
+    crashed = rows[(str(base / "probs" / "p03.json"), "p03")]
+    assert crashed["status"] == "error" and "exit code 7" in crashed["message"]
+    for src, p in problems.items():
+        if "p03" not in src and "sub" not in src:
+            row = rows[(str(base / src), Path(src).stem)]
+            check_by_substitution(row, p)
