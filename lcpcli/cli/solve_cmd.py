@@ -13,7 +13,7 @@ def solve(
     file: str = typer.Argument(..., metavar="FILE",
                                help="Problem file (.json, .npz, .h5, .dat); '-' reads JSON "
                                     "from stdin."),
-    more_files: list[str] = typer.Argument(None, metavar="[FILE]...", show_default=False,
+    more_files: list[str] = typer.Argument(None, metavar="FILE", show_default=False,  # noqa: B008
                                            help="More files, folders or globs: a batch "
                                                 "(see docs/batch.md)."),
     method: str = typer.Option("lemke", "--method", "-m", help="Solver method (listed below)."),
@@ -29,7 +29,9 @@ def solve(
     problem: str = typer.Option(None, "--problem", "-p",
                                 help="Problem (group) name inside an HDF5 file."),
     as_json: bool = typer.Option(False, "--json",
-                                 help="Print one JSON object on stdout and nothing else."),
+                                 help="Print one JSON object on stdout and nothing else. "
+                                      "Batch: one object per problem per line (with "
+                                      "--output: one summary object)."),
     output: Path = typer.Option(None, "--output", "-o",
                                 help="Also write the JSON result to this file (atomically). "
                                      "Batch: .jsonl, .csv or .h5 result file, written "
