@@ -380,3 +380,25 @@ def test_worker_crash_costs_one_problem(folder, monkeypatch):
         if "p03" not in src and "sub" not in src:
             row = rows[(str(base / src), Path(src).stem)]
             check_by_substitution(row, p)
+
+
+def test_hdf5_groups_read_like_single_loads(tmp_path):
+    """The batch's fast HDF5 reader gives the same problems as ``load(path, group)``."""
+    from lcpcli.io import load
+
+    rng = np.random.default_rng(9)
+    plain = spd_problem(rng, 5, "plain")
+    mlcp = Problem.create(plain.M, plain.q, n_eq=2, name="mixed")
+    box = Problem.create(plain.M, plain.q, lower=-np.ones(5), upper=np.ones(5), name="box")
+    ints = Problem.create(np.eye(3, dtype=int), np.array([-1, 2, -3]), name="ints")
+    write_many([plain, mlcp, box, ints], tmp_path / "kinds.h5")
+    report = lib([tmp_path / "kinds.h5"], jobs=1, output=tmp_path / "k.jsonl")
+    rows = by_key(read_rows(tmp_path / "k.jsonl"))
+    src = str(tmp_path / "kinds.h5")
+    assert report.total == 4
+    for name in ("mixed", "box"):  # lemke handles LCPs only: the kind must survive the read
+        assert rows[(src, name)]["status"] == "error"
+        assert load(src, name).kind.upper() in rows[(src, name)]["message"]
+    for p in (plain, ints):
+        check_by_substitution(rows[(src, p.name)], load(src, p.name))
+    assert rows[(src, "ints")]["z"] == [1.0, 0.0, 3.0]
