@@ -465,7 +465,8 @@ def iter_local(tasks: list[Task], opts: SolveOptions, *, jobs: int = 1,
                                         f"this problem (exit code {w.proc.exitcode})",
                                         opts.method)
                     replace.append((w, row))
-                elif timeout and w.busy and time.monotonic() - w.last > timeout:
+                elif timeout and w.busy and time.monotonic() - w.last > timeout \
+                        and not w.conn.poll():  # unread rows: it is not stuck, we were busy
                     task = w.current()
                     row = timeout_row(task, timeout, opts.method) if task else None
                     replace.append((w, row))
