@@ -710,6 +710,10 @@ def run_batch(inputs: Iterable[str], opts: SolveOptions, *, recursive: bool = Fa
     opts = SolveOptions(canonical, opts.tol, dict(opts.options))
     prepare_method(canonical)
     tasks, bad_inputs = expand_inputs(inputs, recursive=recursive)
+    if output is not None:  # never read our own result file back as an input
+        own = os.path.realpath(output)
+        tasks = [t for t in tasks if os.path.realpath(t.source) != own]
+        bad_inputs = [r for r in bad_inputs if os.path.realpath(r["source"]) != own]
     tally, stats = Tally(), BatchStats()
     report = BatchReport(tally=tally, stats=stats, total=len(tasks) + len(bad_inputs),
                          output=None if output is None else str(output))

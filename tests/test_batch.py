@@ -402,3 +402,13 @@ def test_hdf5_groups_read_like_single_loads(tmp_path):
     for p in (plain, ints):
         check_by_substitution(rows[(src, p.name)], load(src, p.name))
     assert rows[(src, "ints")]["z"] == [1.0, 0.0, 3.0]
+
+
+def test_output_inside_input_folder_is_not_an_input(tmp_path):
+    rng = np.random.default_rng(4)
+    for i in range(3):
+        save(spd_problem(rng, 4, f"x{i}"), tmp_path / f"x{i}.json")
+    out = tmp_path / "results.h5"
+    first = lib([tmp_path], jobs=1, output=out)
+    again = lib([tmp_path], jobs=1, output=out, resume=True)
+    assert first.total == again.total == again.skipped == 3 and again.exit_code == 0
