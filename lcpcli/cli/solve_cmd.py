@@ -64,8 +64,8 @@ def solve(
 
     from lcpcli.api import solve as solve_problem
     from lcpcli.cli.common import exit_code_for, parse_key_values, write_json_line
-    from lcpcli.io import load, write_atomic_text
     from lcpcli.errors import OptionError
+    from lcpcli.io import load, write_atomic_text
 
     opts: dict[str, object] = parse_key_values(option)
     if max_iter is not None:
