@@ -66,6 +66,11 @@ class Cone:
     continuum: bool = False
 
     @property
+    def r(self) -> int:
+        """1-based cone number in the seed's order: (w1, w2), (w1, z2), (z1, w2), (z1, z2)."""
+        return 1 + sum(1 << (self.n - 1 - j) for j in range(self.n) if (self.code >> j) & 1)
+
+    @property
     def z_basic(self) -> list[int]:
         """0-based indices j with z_j basic."""
         return [j for j in range(self.n) if (self.code >> j) & 1]
@@ -75,7 +80,7 @@ class Cone:
         return [("z" if (self.code >> j) & 1 else "w") + str(j + 1) for j in range(self.n)]
 
     def to_dict(self) -> dict[str, Any]:
-        return {"basis": self.basis_names(), "feasible": bool(self.feasible),
+        return {"r": self.r, "basis": self.basis_names(), "feasible": bool(self.feasible),
                 "singular": bool(self.singular), "continuum": bool(self.continuum),
                 "det": _jfloat(self.det), "rank": self.rank, "y": _jvec(self.y)}
 
@@ -183,8 +188,11 @@ def prepare() -> None:
     M = np.array([[2.0, 1.0], [1.0, 2.0]])
     q = np.array([-5.0, -6.0])
     masks = np.zeros(2, dtype=np.int64)
-    classify_chunk(M, q, 0, 4, masks, masks, 1e-12, RTOL, 3.0, 6.0, 0.0,
-                   np.zeros(4, dtype=np.uint8))
+    from lcpcli.solvers._enum_kernel import SERIAL_BELOW
+
+    for count in (4, SERIAL_BELOW):
+        classify_chunk(M, q, 0, count, masks, masks, 1e-12, RTOL, 3.0, 6.0, 0.0,
+                       np.zeros(count, dtype=np.uint8))
 
 
 def sign_masks(M: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -261,13 +269,14 @@ def _same(a: np.ndarray, b: np.ndarray) -> bool:
 def enumerate_cones(problem: Any, *, stop_at_first: bool = False, all_cones: bool = False,
                     max_n: int = DEFAULT_MAX_N, tol: float = DEFAULT_TOL, rtol: float = RTOL,
                     progress: Callable[[int, int], None] | None = None,
-                    chunk: int = 1 << 18) -> Enumeration:
+                    chunk: int = 1 << 18, keep_cones: int = 100_000) -> Enumeration:
     """Visit the ``2^n`` complementary cones of ``problem`` (an LCP) and collect the solutions.
 
     ``stop_at_first``: stop at the first certified solution (verdict ``found``).
     ``all_cones``: return every cone (with ``y``, ``det`` and ``rank``) instead of the feasible
     ones only; meant for small n (memory grows as 2^n n).
-    ``progress(done, total)`` is called after each chunk of cones.
+    ``progress(done, total)`` is called after each chunk of cones.  At most ``keep_cones``
+    feasible cones are kept in ``cones`` (the counts stay exact).
     """
     from lcpcli.solvers._enum_kernel import (
         FEASIBLE,
@@ -316,19 +325,20 @@ def enumerate_cones(problem: Any, *, stop_at_first: bool = False, all_cones: boo
                 z, w = _y_to_zw(M, q, code, y)
                 cone = Cone(code, n, True, True, y, z, w, continuum=continuum)
                 counts["singular_with_q"] += 1
-            cert = certify(problem, z, tol, w=M @ z + q, norm_M=mu)
-            if not cert.passed:
-                counts["uncertified"] += 1
-                continue
-            counts["feasible"] += 1
-            feasible_cones.append(cone)
             for sol in solutions:
                 if _same(sol.z, z):
                     sol.cones.append(code)
                     sol.continuum = sol.continuum or continuum
                     break
             else:
+                cert = certify(problem, z, tol, w=M @ z + q, norm_M=mu)
+                if not cert.passed:
+                    counts["uncertified"] += 1
+                    continue
                 solutions.append(Solution(z, M @ z + q, cert, [code], continuum))
+            counts["feasible"] += 1
+            if len(feasible_cones) < keep_cones:
+                feasible_cones.append(cone)
             if stop_at_first:
                 stopped = True
                 done = code + 1
@@ -352,6 +362,7 @@ def enumerate_cones(problem: Any, *, stop_at_first: bool = False, all_cones: boo
         verdict = FINITE
     seconds = time.perf_counter() - start_time
     cones = all_cone_details(M, q, feasible_cones) if all_cones else _add_det(M, feasible_cones)
+    cones.sort(key=lambda c: c.r)
     return Enumeration(n=n, verdict=verdict, solutions=solutions, cones=cones, examined=done,
                        total=total, counts=counts, seconds=seconds, complete=not stopped)
 

@@ -42,7 +42,7 @@ EXIT_CODES_HELP = (
 )
 
 #: Subcommand modules, in the order ``--help`` lists them.
-COMMAND_MODULES = ["solve_cmd", "convert_cmd", "methods_cmd"]
+COMMAND_MODULES = ["solve_cmd", "convert_cmd", "methods_cmd", "enumerate_cmd"]
 
 app = typer.Typer(
     name="lcpcli",

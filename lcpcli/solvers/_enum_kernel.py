@@ -49,7 +49,7 @@ def _complete_pivot_consistent(A, b, k, piv_tol, cons_tol):
                     bi = i
                     bj = j
         if best <= piv_tol:
-            for i in range(p, k):
+            for i in range(p, k):  # noqa: SIM110 (numba: plain loop)
                 if abs(b[i]) > cons_tol:
                     return False
             return True
@@ -162,19 +162,40 @@ def _one_cone(M, q, code, pos_mask, neg_mask, piv_tol, feas_rel, mu, qnorm, prun
     return FEASIBLE
 
 
+@njit(cache=True)
+def _classify_range(M, q, start, lo, hi, pos_mask, neg_mask, piv_tol, feas_rel, mu, qnorm,
+                    prune_tol, out):
+    n = q.shape[0]
+    idx = np.empty(n, dtype=np.int64)
+    A = np.empty((n, n))
+    b = np.empty(n)
+    z = np.empty(n)
+    for t in range(lo, hi):
+        out[t] = _one_cone(M, q, start + t, pos_mask, neg_mask, piv_tol, feas_rel, mu,
+                           qnorm, prune_tol, idx, A, b, z)
+
+
 @njit(cache=True, parallel=True)
+def _classify_parallel(M, q, start, count, pos_mask, neg_mask, piv_tol, feas_rel, mu, qnorm,
+                       prune_tol, out):
+    nblocks = (count + BLOCK - 1) // BLOCK
+    for blk in prange(nblocks):
+        lo = blk * BLOCK
+        hi = min(count, lo + BLOCK)
+        _classify_range(M, q, start, lo, hi, pos_mask, neg_mask, piv_tol, feas_rel, mu,
+                        qnorm, prune_tol, out)
+
+
+#: Below this many cones one thread does the work (thread start-up costs milliseconds).
+SERIAL_BELOW = 8192
+
+
 def classify_chunk(M, q, start, count, pos_mask, neg_mask, piv_tol, feas_rel, mu, qnorm,
                    prune_tol, out):
     """Status of the cones ``start .. start + count - 1`` into ``out[0:count]`` (uint8)."""
-    n = q.shape[0]
-    nblocks = (count + BLOCK - 1) // BLOCK
-    for blk in prange(nblocks):
-        idx = np.empty(n, dtype=np.int64)
-        A = np.empty((n, n))
-        b = np.empty(n)
-        z = np.empty(n)
-        lo = blk * BLOCK
-        hi = min(count, lo + BLOCK)
-        for t in range(lo, hi):
-            out[t] = _one_cone(M, q, start + t, pos_mask, neg_mask, piv_tol, feas_rel, mu,
-                               qnorm, prune_tol, idx, A, b, z)
+    if count < SERIAL_BELOW:
+        _classify_range(M, q, start, 0, count, pos_mask, neg_mask, piv_tol, feas_rel, mu,
+                        qnorm, prune_tol, out)
+    else:
+        _classify_parallel(M, q, start, count, pos_mask, neg_mask, piv_tol, feas_rel, mu,
+                           qnorm, prune_tol, out)
