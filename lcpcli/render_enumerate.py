@@ -63,18 +63,18 @@ def cone_table(res: Enumeration, M: np.ndarray, all_cones: bool) -> Table:
     what = "all" if all_cones else "feasible"
     table = Table(title=f"complementary cones ({what}: {len(res.cones)} of 2^{n} = "
                         f"{res.total:,})", title_justify="left", show_lines=n <= MATRIX_MAX_N)
-    table.add_column("#", justify="right")
-    table.add_column("basic variables y")
+    table.add_column("r", justify="right")
+    table.add_column("basic y")
     if n <= MATRIX_MAX_N:
-        table.add_column("complementary matrix A_r")
-    table.add_column("det A_r", justify="right")
+        table.add_column("A_r (I_j or -M_j)", no_wrap=True)
+    table.add_column("det A_r", justify="right", no_wrap=True)
     table.add_column("rank", justify="right")
-    table.add_column("q in cone")
+    table.add_column("q in cone", no_wrap=True)
     if n <= Y_MAX_N:
-        table.add_column("y (A_r y = q)")
+        table.add_column("y (A_r y = q)", no_wrap=n <= MATRIX_MAX_N)
     shown = res.cones[:MAX_ROWS]
     for c in shown:
-        row: list[Any] = [str(c.r), "(" + ", ".join(c.basis_names()) + ")"]
+        row: list[Any] = [str(c.r), " ".join(c.basis_names())]
         if n <= MATRIX_MAX_N:
             row.append(_matrix_text(complementary_matrix(M, c.code)))
         row.append(fmt(c.det) if c.det is not None else "-")
@@ -85,7 +85,13 @@ def cone_table(res: Enumeration, M: np.ndarray, all_cones: bool) -> Table:
         else:
             row.append(Text("no", style="dim"))
         if n <= Y_MAX_N:
-            row.append(_vec(c.y) if not (c.singular and not c.feasible) else "-")
+            if c.y is None or (c.singular and not c.feasible):
+                row.append("-")
+            elif n <= MATRIX_MAX_N:  # a column beside A_r
+                row.append("\n".join(f"{name} = {fmt(v)}"
+                                      for name, v in zip(c.basis_names(), c.y, strict=True)))
+            else:
+                row.append(_vec(c.y))
         table.add_row(*row)
     if len(res.cones) > len(shown):
         table.caption = f"{len(res.cones) - len(shown):,} more rows not shown: use --json"
