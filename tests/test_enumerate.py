@@ -90,7 +90,7 @@ def test_seed004_table_and_solution(samples):
 def test_seed004_cli_text(cli, samples):
     out = cli("enumerate", str(samples / "seed004.json"))
     assert out.returncode == 0, out.stderr
-    assert "z1 z2" in out.stdout and "w1 w2" not in out.stdout  # feasible cones only
+    assert "z1 = 1.33333" in out.stdout and "w1 = -5" not in out.stdout  # feasible cones only
     assert "unique solution" in out.stdout
     assert "K(M) = R^2" in out.stdout
     assert "1.33333" in out.stdout and "2.33333" in out.stdout
@@ -98,7 +98,7 @@ def test_seed004_cli_text(cli, samples):
     assert out.returncode == 0
     for basis in ("w1 w2", "w1 z2", "z1 w2", "z1 z2"):
         assert basis in out.stdout
-    assert "[-2 -1]" in out.stdout and "[-1 -2]" in out.stdout
+    assert "[-2 -1]" in out.stdout and "[-1 -2]" in out.stdout and "w1 = -5" in out.stdout
 
 
 def test_json_schema(cli, samples):
