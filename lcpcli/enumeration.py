@@ -42,6 +42,8 @@ HARD_MAX_N = 62
 RTOL = 1e-9
 #: Relative pivot tolerance (times ||M||_max and the block size) under which a block is singular.
 PIVOT_RTOL = 1e-12
+#: Smallest n for which the fast (depth-first pivoting) kernel is used.
+FAST_MIN_N = 6
 
 UNIQUE = "unique"
 FINITE = "finite"
@@ -188,11 +190,18 @@ def prepare() -> None:
     M = np.array([[2.0, 1.0], [1.0, 2.0]])
     q = np.array([-5.0, -6.0])
     masks = np.zeros(2, dtype=np.int64)
-    from lcpcli.solvers._enum_kernel import SERIAL_BELOW
+    from lcpcli.solvers._enum_kernel import SERIAL_BELOW, TASK_BITS, classify_chunk_fast
 
     for count in (4, SERIAL_BELOW):
         classify_chunk(M, q, 0, count, masks, masks, 1e-12, RTOL, 3.0, 6.0, 0.0,
                        np.zeros(count, dtype=np.uint8))
+    n = TASK_BITS + 1
+    M = np.eye(n) + 0.1
+    q = -np.ones(n)
+    masks = np.zeros(n, dtype=np.int64)
+    for count in (4, 1 << n):
+        classify_chunk_fast(M, q, 0, count, masks, masks, 1e-12, RTOL, 2.0, 1.0, 0.0,
+                            np.zeros(count, dtype=np.uint8))
 
 
 def sign_masks(M: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -269,21 +278,26 @@ def _same(a: np.ndarray, b: np.ndarray) -> bool:
 def enumerate_cones(problem: Any, *, stop_at_first: bool = False, all_cones: bool = False,
                     max_n: int = DEFAULT_MAX_N, tol: float = DEFAULT_TOL, rtol: float = RTOL,
                     progress: Callable[[int, int], None] | None = None,
-                    chunk: int = 1 << 18, keep_cones: int = 100_000) -> Enumeration:
+                    chunk: int = 1 << 18, keep_cones: int = 100_000,
+                    fast: bool = True) -> Enumeration:
     """Visit the ``2^n`` complementary cones of ``problem`` (an LCP) and collect the solutions.
 
     ``stop_at_first``: stop at the first certified solution (verdict ``found``).
     ``all_cones``: return every cone (with ``y``, ``det`` and ``rank``) instead of the feasible
     ones only; meant for small n (memory grows as 2^n n).
     ``progress(done, total)`` is called after each chunk of cones.  At most ``keep_cones``
-    feasible cones are kept in ``cones`` (the counts stay exact).
+    feasible cones are kept in ``cones`` (the counts stay exact).  ``fast``: use the
+    depth-first principal-pivoting kernel (candidates re-checked by the direct LU kernel,
+    unsafe pivots sent to it); ``fast=False`` uses the direct kernel for every cone.
     """
     from lcpcli.solvers._enum_kernel import (
+        CANDIDATE,
         FEASIBLE,
         PRUNED,
         SINGULAR_CONSISTENT,
         SINGULAR_EMPTY,
         classify_chunk,
+        classify_chunk_fast,
     )
 
     M = check_problem(problem, max_n)
@@ -303,12 +317,23 @@ def enumerate_cones(problem: Any, *, stop_at_first: bool = False, all_cones: boo
     counts = {"feasible": 0, "singular": 0, "singular_with_q": 0, "pruned": 0,
               "uncertified": 0}
     done = 0
-    size = 256 if stop_at_first else min(chunk, total)
+    size = min(256, total) if stop_at_first else min(chunk, total)
     stopped = False
     while done < total and not stopped:
         count = min(size, total - done)
         status = np.empty(count, dtype=np.uint8)
-        classify_chunk(M, q, done, count, pos, neg, piv_tol, rtol, mu, qnorm, prune_tol, status)
+        aligned = count & (count - 1) == 0 and done % count == 0
+        if fast and aligned and n >= FAST_MIN_N:
+            classify_chunk_fast(M, q, done, count, pos, neg, piv_tol, rtol, mu, qnorm,
+                                prune_tol, status)
+            one = np.empty(1, dtype=np.uint8)
+            for t in np.flatnonzero(status == CANDIDATE):  # the direct path decides
+                classify_chunk(M, q, done + int(t), 1, pos, neg, piv_tol, rtol, mu, qnorm,
+                               prune_tol, one)
+                status[t] = one[0]
+        else:
+            classify_chunk(M, q, done, count, pos, neg, piv_tol, rtol, mu, qnorm, prune_tol,
+                           status)
         counts["pruned"] += int(np.count_nonzero(status == PRUNED))
         counts["singular"] += int(np.count_nonzero((status == SINGULAR_CONSISTENT)
                                                    | (status == SINGULAR_EMPTY)))
@@ -348,7 +373,7 @@ def enumerate_cones(problem: Any, *, stop_at_first: bool = False, all_cones: boo
         if progress is not None:
             progress(done, total)
         if stop_at_first:
-            size = min(size * 4, chunk)
+            size = min(done, chunk, total - done) if done >= 256 else size  # aligned blocks
 
     if stopped:
         verdict = FOUND

@@ -126,9 +126,9 @@ def render_enumeration(res: Enumeration, problem: Any, file: str | None, *,
     head.add_row("problem", f"{file or ''}{' : ' + problem.name if problem.name else ''}")
     head.add_row("size", f"{problem.summary()}, 2^{res.n} = {res.total:,} complementary cones")
     c = res.counts
+    pruned = f", {c['pruned']:,} excluded by sign tests" if c["pruned"] else ""
     head.add_row("cones", f"{c['feasible']:,} contain q, {c['singular']:,} singular "
-                          f"({c['singular_with_q']:,} of them contain q), {c['pruned']:,} "
-                          f"excluded by sign tests")
+                          f"({c['singular_with_q']:,} of them contain q){pruned}")
     head.add_row("time", f"{res.seconds * 1e3:.3f} ms")
     parts: list[Any] = [head, Text("")]
     if res.cones or all_cones:
