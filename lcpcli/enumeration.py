@@ -42,6 +42,8 @@ HARD_MAX_N = 62
 RTOL = 1e-9
 #: Relative pivot tolerance (times ||M||_max and the block size) under which a block is singular.
 PIVOT_RTOL = 1e-12
+#: First block of cones when stopping at the first solution (then doubling, aligned).
+FIRST_CHUNK = 4096
 #: Smallest n for which the fast (depth-first pivoting) kernel is used.
 FAST_MIN_N = 6
 
@@ -317,7 +319,7 @@ def enumerate_cones(problem: Any, *, stop_at_first: bool = False, all_cones: boo
     counts = {"feasible": 0, "singular": 0, "singular_with_q": 0, "pruned": 0,
               "uncertified": 0}
     done = 0
-    size = min(256, total) if stop_at_first else min(chunk, total)
+    size = min(FIRST_CHUNK, total) if stop_at_first else min(chunk, total)
     stopped = False
     while done < total and not stopped:
         count = min(size, total - done)
@@ -373,7 +375,7 @@ def enumerate_cones(problem: Any, *, stop_at_first: bool = False, all_cones: boo
         if progress is not None:
             progress(done, total)
         if stop_at_first:
-            size = min(done, chunk, total - done) if done >= 256 else size  # aligned blocks
+            size = min(done, chunk, total - done) if done >= FIRST_CHUNK else size  # aligned
 
     if stopped:
         verdict = FOUND
