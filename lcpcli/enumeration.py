@@ -52,6 +52,11 @@ FINITE = "finite"
 CONTINUUM = "continuum"
 NONE = "none"
 FOUND = "found"  # stop_at_first: one solution found, the rest not examined
+INCOMPLETE = "incomplete"  # solutions found, but some singular cones left unresolved
+UNKNOWN = "unknown"  # no solution found, but some singular cones left unresolved
+
+#: At most this many singular cones are resolved by LP (each costs about 3 LPs).
+MAX_LPS = 2000
 
 
 @dataclass
@@ -110,7 +115,9 @@ class Enumeration:
     """What :func:`enumerate_cones` found.
 
     ``verdict``: ``unique``, ``finite``, ``continuum``, ``none`` (a proof that the LCP has no
-    solution, up to the tolerances) or ``found`` (``stop_at_first``: the rest not examined).
+    solution, up to the tolerances) or ``found`` (``stop_at_first``: the rest not examined);
+    ``incomplete`` / ``unknown`` when more than ``max_lp`` singular cones containing q would
+    need an LP (solutions found / none found: nothing is proven then).
     ``cones``: the feasible cones (all cones when asked for), in code order.
     """
 
@@ -126,7 +133,9 @@ class Enumeration:
 
     @property
     def status(self) -> str:
-        return "solved" if self.solutions else "no_solution"
+        if self.solutions:
+            return "solved"
+        return "unsolved" if self.verdict == UNKNOWN else "no_solution"
 
     def to_dict(self) -> dict[str, Any]:
         return {"n": self.n, "status": self.status, "verdict": self.verdict,
@@ -281,7 +290,7 @@ def enumerate_cones(problem: Any, *, stop_at_first: bool = False, all_cones: boo
                     max_n: int = DEFAULT_MAX_N, tol: float = DEFAULT_TOL, rtol: float = RTOL,
                     progress: Callable[[int, int], None] | None = None,
                     chunk: int = 1 << 18, keep_cones: int = 100_000,
-                    fast: bool = True) -> Enumeration:
+                    fast: bool = True, max_lp: int = MAX_LPS) -> Enumeration:
     """Visit the ``2^n`` complementary cones of ``problem`` (an LCP) and collect the solutions.
 
     ``stop_at_first``: stop at the first certified solution (verdict ``found``).
@@ -317,7 +326,9 @@ def enumerate_cones(problem: Any, *, stop_at_first: bool = False, all_cones: boo
     solutions: list[Solution] = []
     feasible_cones: list[Cone] = []
     counts = {"feasible": 0, "singular": 0, "singular_with_q": 0, "pruned": 0,
-              "uncertified": 0}
+              "uncertified": 0, "singular_unresolved": 0}
+    lps = 0
+    continuum_seen = False
     done = 0
     size = min(FIRST_CHUNK, total) if stop_at_first else min(chunk, total)
     stopped = False
@@ -346,7 +357,13 @@ def enumerate_cones(problem: Any, *, stop_at_first: bool = False, all_cones: boo
                 cone = Cone(code, n, True, False, cone_y(code, z, w), z, w)
                 continuum = False
             else:
+                # once a continuum is known the verdict cannot change: skip further LPs
+                if continuum_seen or lps >= max_lp:
+                    counts["singular_unresolved"] += 1
+                    continue
+                lps += 1
                 y, continuum = singular_cone_lp(M, q, code)
+                continuum_seen = continuum_seen or continuum
                 if y is None:
                     continue
                 z, w = _y_to_zw(M, q, code, y)
@@ -379,10 +396,12 @@ def enumerate_cones(problem: Any, *, stop_at_first: bool = False, all_cones: boo
 
     if stopped:
         verdict = FOUND
-    elif not solutions:
-        verdict = NONE
     elif any(s.continuum for s in solutions):
         verdict = CONTINUUM
+    elif counts["singular_unresolved"]:
+        verdict = INCOMPLETE if solutions else UNKNOWN
+    elif not solutions:
+        verdict = NONE
     elif len(solutions) == 1:
         verdict = UNIQUE
     else:

@@ -19,8 +19,10 @@ from lcpcli.enumeration import (
     CONTINUUM,
     FINITE,
     FOUND,
+    INCOMPLETE,
     NONE,
     UNIQUE,
+    UNKNOWN,
     Enumeration,
     complementary_matrix,
     generators_2d,
@@ -42,6 +44,10 @@ VERDICT_TEXT = {
     NONE: ("no solution: no complementary cone contains q (proof by exhaustion)",
            "bold yellow"),
     FOUND: ("a solution (stopped at the first one)", "bold green"),
+    INCOMPLETE: ("solutions found; some singular cones containing q were not resolved "
+                 "(LP limit), so there may be more", "bold green"),
+    UNKNOWN: ("undecided: no solution found, but some singular cones containing q were not "
+              "resolved (LP limit)", "bold red"),
 }
 
 
@@ -127,6 +133,8 @@ def render_enumeration(res: Enumeration, problem: Any, file: str | None, *,
     head.add_row("size", f"{problem.summary()}, 2^{res.n} = {res.total:,} complementary cones")
     c = res.counts
     pruned = f", {c['pruned']:,} excluded by sign tests" if c["pruned"] else ""
+    if c.get("singular_unresolved"):
+        pruned += f", {c['singular_unresolved']:,} singular ones not resolved"
     head.add_row("cones", f"{c['feasible']:,} contain q, {c['singular']:,} singular "
                           f"({c['singular_with_q']:,} of them contain q){pruned}")
     head.add_row("time", f"{res.seconds * 1e3:.3f} ms")

@@ -254,6 +254,21 @@ def test_fast_kernel_agrees_with_direct_kernel():
                 assert is_solution(M, q, s.z)
 
 
+def test_lp_limit_and_zero_matrix(siconos):
+    # M = 0, q = 0: every z >= 0 solves it; 1023 singular cones, but once the continuum is
+    # known no more LPs are needed
+    res = enumerate_cones(Problem.create(np.zeros((10, 10)), np.zeros(10)))
+    assert res.verdict == "continuum" and res.counts["singular_unresolved"] == 1022
+    # with no LP allowed, the degenerate cones stay unresolved and nothing is claimed
+    p = load(siconos / "lcp" / "lcp_CPS_1.dat")
+    res = enumerate_cones(p, max_lp=0)
+    assert res.verdict == "incomplete" and res.status == "solved"
+    p = Problem.create([[0.0, 0.0], [0.0, 1.0]], [0.0, -1.0])  # z = (t, 1), t >= 0
+    assert enumerate_cones(p).verdict == "continuum"
+    p = Problem.create([[0.0]], [0.0])
+    assert enumerate_cones(p).verdict == "continuum"
+
+
 def test_q_zero_degenerate_all_cones_one_solution():
     M = np.array([[2.0, 1.0, 0.0], [1.0, 2.0, 1.0], [0.0, 1.0, 2.0]])
     res = enumerate_cones(Problem.create(M, np.zeros(3)))

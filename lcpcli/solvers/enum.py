@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from lcpcli.result import CONVERGED, INFEASIBLE, Outcome
+from lcpcli.result import CONVERGED, INFEASIBLE, NUMERICAL, Outcome
 from lcpcli.solvers import Method, Option
 
 
@@ -53,6 +53,11 @@ def run(problem: Any, *, tol: float, max_n: int = 24, all: bool = False) -> Outc
     n = res.n
     info = {"verdict": res.verdict, "cones_examined": res.examined, "cones_total": res.total,
             "solutions": len(res.solutions), **res.counts}
+    if not res.solutions and res.verdict != "none":
+        return Outcome(np.zeros(n), res.examined, NUMERICAL,
+                       f"no solution found, but {res.counts['singular_unresolved']:,} singular "
+                       f"cones containing q were not resolved (LP limit): nothing is proven",
+                       info=info)
     if not res.solutions:
         return Outcome(np.zeros(n), res.examined, INFEASIBLE,
                        f"none of the 2^{n} = {res.total:,} complementary cones contains q "
