@@ -70,30 +70,32 @@ def cone_table(res: Enumeration, M: np.ndarray, all_cones: bool) -> Table:
     table = Table(title=f"complementary cones ({what}: {len(res.cones)} of 2^{n} = "
                         f"{res.total:,})", title_justify="left", show_lines=n <= MATRIX_MAX_N)
     table.add_column("r", justify="right")
-    table.add_column("basic y")
-    if n <= MATRIX_MAX_N:
+    small = n <= MATRIX_MAX_N
+    if small:  # the y column names the basic variables
         table.add_column("A_r (I_j or -M_j)", no_wrap=True)
-    table.add_column("det A_r", justify="right", no_wrap=True)
-    table.add_column("rank", justify="right")
+    else:
+        table.add_column("basic y")
+    table.add_column("det A_r, rank", justify="right", no_wrap=True)
     table.add_column("q in cone", no_wrap=True)
     if n <= Y_MAX_N:
-        table.add_column("y (A_r y = q)", no_wrap=n <= MATRIX_MAX_N)
+        table.add_column("y (A_r y = q)", no_wrap=small)
     shown = res.cones[:MAX_ROWS]
     for c in shown:
-        row: list[Any] = [str(c.r), " ".join(c.basis_names())]
-        if n <= MATRIX_MAX_N:
-            row.append(_matrix_text(complementary_matrix(M, c.code)))
-        row.append(fmt(c.det) if c.det is not None else "-")
+        row: list[Any] = [str(c.r)]
+        row.append(_matrix_text(complementary_matrix(M, c.code)) if small
+                   else " ".join(c.basis_names()))
+        det = fmt(c.det) if c.det is not None else "-"
         rank = "-" if c.rank is None else str(c.rank)
-        row.append(Text(f"{rank} singular", style="yellow") if c.singular else rank)
+        row.append(Text(f"{det}, {rank} singular", style="yellow") if c.singular
+                   else f"{det}, {rank}")
         if c.feasible:
-            row.append(Text("yes, a continuum" if c.continuum else "yes", style="green"))
+            row.append(Text("yes (continuum)" if c.continuum else "yes", style="green"))
         else:
             row.append(Text("no", style="dim"))
         if n <= Y_MAX_N:
             if c.y is None or (c.singular and not c.feasible):
                 row.append("-")
-            elif n <= MATRIX_MAX_N:  # a column beside A_r
+            elif small:  # a column beside A_r
                 row.append("\n".join(f"{name} = {fmt(v)}"
                                       for name, v in zip(c.basis_names(), c.y, strict=True)))
             else:
