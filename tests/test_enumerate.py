@@ -97,9 +97,13 @@ def test_seed004_cli_text(cli, samples):
     assert "1.33333" in out.stdout and "2.33333" in out.stdout
     out = cli("enumerate", str(samples / "seed004.json"), "--all-cones")
     assert out.returncode == 0
-    for basis in ("w1 w2", "w1 z2", "z1 w2", "z1 z2"):
-        assert basis in out.stdout
-    assert "[-2 -1]" in out.stdout and "[-1 -2]" in out.stdout and "w1 = -5" in out.stdout
+    # the seed's four complementary matrices and y = A_r^-1 q in each cone
+    for row in ("[1 0]", "[0 1]", "[ 1 -1]", "[ 0 -2]", "[-2  0]", "[-1  1]", "[-2 -1]",
+                "[-1 -2]"):
+        assert row in out.stdout
+    for value in ("w1 = -5", "w2 = -6", "w1 = -2", "z2 = 3", "z1 = 2.5", "w2 = -3.5",
+                  "z1 = 1.33333", "z2 = 2.33333"):
+        assert value in out.stdout
 
 
 def test_json_schema(cli, samples):
