@@ -48,6 +48,7 @@ COMMAND_MODULES = [
     "methods_cmd",
     "contact_cmd",
     "pivot_cmd",
+    "enumerate_cmd",
     "bench_cmd",
 ]
 
