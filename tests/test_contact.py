@@ -543,8 +543,9 @@ def test_same_physics_as_siconos_lemke(samples, tmp_path) -> None:
     from pathlib import Path
 
     from lcpcli.contact.model import impact_from
+    from tests.conftest import SHARED
 
-    peer = Path("/work/shared/peers/siconos_peer.py")
+    peer = SHARED / "peers" / "siconos_peer.py"
     if not peer.exists() or not Path("/usr/bin/python3").exists():
         pytest.skip("Siconos peer runner not available")
     for name, k in (("scene_two_balls.json", 4), ("scene_2d_boxes.json", 2)):

@@ -49,19 +49,6 @@ def brute_force_solutions(M, q):
     return sols
 
 
-@pytest.fixture(scope="module")
-def siconos(request):
-    """The Siconos data: beside the checkout (conftest) or in /work/shared."""
-    from pathlib import Path
-
-    from tests.conftest import SICONOS
-
-    for folder in (SICONOS, Path("/work/shared/data/siconos")):
-        if folder.is_dir():
-            return folder
-    pytest.skip("Siconos test data not found")
-
-
 # ------------------------------------------------------------------------ seed 004
 def test_seed004_table_and_solution(samples):
     p = load(samples / "seed004.json")
