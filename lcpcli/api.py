@@ -14,6 +14,8 @@ from lcpcli.result import NO_SOLUTION, SOLVED, UNSOLVED, Outcome, Result
 from lcpcli.solvers import get_method
 
 DEFAULT_METHOD = "lemke"
+#: Method used instead of the default one for problem kinds that it does not handle.
+KIND_DEFAULTS = {"mlcp": "mlcp-lemke", "box": "dantzig"}
 
 
 def solve(problem: Problem, method: str = DEFAULT_METHOD, *, tol: float | None = None,
@@ -29,6 +31,9 @@ def solve(problem: Problem, method: str = DEFAULT_METHOD, *, tol: float | None =
     ``seconds`` times the method alone (no file reading, no certification).
     """
     spec = get_method(method)
+    if method == DEFAULT_METHOD and problem.kind not in spec.kinds \
+            and problem.kind in KIND_DEFAULTS:
+        spec = get_method(KIND_DEFAULTS[problem.kind])
     if problem.kind not in spec.kinds:
         raise OptionError(f"method '{spec.name}' does not handle {problem.kind.upper()} problems "
                           f"(it handles: {', '.join(k.upper() for k in spec.kinds)})")
