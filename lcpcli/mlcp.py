@@ -213,47 +213,69 @@ def schur(problem: Any, cond_max: float = COND_MAX) -> Reduction:
 
 
 def choose_pivot_set(M: np.ndarray, n_eq: int, cond_max: float = COND_MAX,
-                     max_add: int | None = None) -> tuple[np.ndarray, float]:
+                     max_add: int | None = None, shortlist: int = 4) -> tuple[np.ndarray, float]:
     """A set ``J`` of complementarity indices making ``M[eq+J, eq+J]`` well conditioned.
 
-    Greedy: starting from ``J`` empty, while the block is singular or its condition estimate
-    exceeds ``cond_max``, add the index that lowers it most (rank deficiency first, judged by an
-    SVD of the block).  Returns ``(J, cond)``; ``cond`` may still exceed ``cond_max`` when no
-    index helps (the caller then decides).
+    Greedy: starting from ``J`` empty, while the (equilibrated) block is singular or its
+    condition exceeds ``cond_max``, add one index.  Candidates are ranked by how well they
+    border the block's near-null spaces (``||U0^T M[S, j]|| * ||M[j, S] V0||``, from one SVD),
+    and the best ``shortlist`` of them are compared by the (rank deficiency, condition) of the
+    enlarged block.  Returns ``(J, cond)``; ``cond`` is inf when the block stays singular and
+    may exceed ``cond_max`` when no index helps (the caller then decides).
     """
     N = M.shape[0]
     m = N - n_eq
     J: list[int] = []
     eq = list(range(n_eq))
 
-    def score(idx: list[int]) -> tuple[int, float]:
+    def analyse(idx: list[int], with_vectors: bool = False) -> tuple[int, float, Any]:
         S = eq + [n_eq + j for j in idx]
         if not S:
-            return 0, 1.0
+            return 0, 1.0, None
         K = M[np.ix_(S, S)]
         r, c = equilibrate(K)
-        s = np.linalg.svd(K * r[:, None] * c[None, :], compute_uv=False)
+        Ks = K * r[:, None] * c[None, :]
+        if with_vectors:
+            U, s, Vt = np.linalg.svd(Ks)
+        else:
+            s = np.linalg.svd(Ks, compute_uv=False)
         if s[0] == 0.0:
-            return len(S), float("inf")
-        rank = int(np.sum(s > s[0] * 1e-13 * len(S)))
-        cond = s[0] / s[-1] if s[-1] > 0 else float("inf")
-        return len(S) - rank, cond
+            deficiency, cond = len(S), float("inf")
+        else:
+            rank = int(np.sum(s > s[0] * 1e-13 * len(S)))
+            deficiency = len(S) - rank
+            cond = s[0] / s[-1] if s[-1] > 0 else float("inf")
+        if not with_vectors:
+            return deficiency, cond, None
+        small = s <= max(s[0], 1e-300) / cond_max
+        small[-1] = True
+        return deficiency, cond, (S, r, c, U[:, small], Vt[small].T)
 
-    deficiency, cond = score(J)
+    deficiency, cond, vec = analyse(J, True)
     limit = m if max_add is None else max_add
     while (deficiency > 0 or cond > cond_max) and len(J) < limit:
+        S, r, c, U0, V0 = vec
+        rest = np.array([j for j in range(m) if j not in J], dtype=np.int64)
+        if rest.size == 0:
+            break
+        cols = (M[np.ix_(S, n_eq + rest)] * r[:, None])          # new columns, row-scaled
+        rows = (M[np.ix_(n_eq + rest, S)] * c[None, :])          # new rows, column-scaled
+        cn = np.maximum(np.max(np.abs(cols), axis=0), 1e-300)
+        rn = np.maximum(np.max(np.abs(rows), axis=1), 1e-300)
+        sc = (np.linalg.norm(U0.T @ cols, axis=0) / cn) * (np.linalg.norm(rows @ V0, axis=1) / rn)
+        sc += 1e-3 * (np.linalg.norm(U0.T @ cols, axis=0) / cn + np.linalg.norm(rows @ V0, axis=1)
+                      / rn)
+        order = rest[np.argsort(-sc, kind="stable")][:shortlist]
         best: tuple[int, float] | None = None
         best_j = -1
-        for j in range(m):
-            if j in J:
-                continue
-            sc = score(J + [j])
-            if best is None or sc < best:
-                best, best_j = sc, j
+        for j in order:
+            d, cnd, _ = analyse(J + [int(j)])
+            if best is None or (d, cnd) < best:
+                best, best_j = (d, cnd), int(j)
         if best is None or best >= (deficiency, cond):
             break
         J.append(best_j)
-        deficiency, cond = best
+        deficiency, cond, vec = analyse(J, True)
     if deficiency > 0:
         cond = float("inf")
     return np.asarray(sorted(J), dtype=np.int64), float(cond)
@@ -265,10 +287,8 @@ def polish(problem: Any, z: np.ndarray, *, rel_gap: float = 1e-9) -> np.ndarray:
     Variables strictly inside their bounds (free ones always) are basic: ``w_S = 0`` gives
     ``M_SS z_S = -(q_S + M_SN z_N)`` with the others at their bounds.  Solved by LU (least
     squares if singular) with one refinement step; the better of the candidate and the
-    re-solve by the project's certificate is returned.
+    re-solve by the certificate's natural residual is returned.
     """
-    from lcpcli.certificate import certify
-
     z = np.asarray(z, dtype=np.float64)
     if not np.all(np.isfinite(z)):
         return z
@@ -296,6 +316,13 @@ def polish(problem: Any, z: np.ndarray, *, rel_gap: float = 1e-9) -> np.ndarray:
         zc[S] = zs
     if not np.all(np.isfinite(zc)) or n == 0:
         return z
-    c_old = certify(problem, z)
-    c_new = certify(problem, zc)
-    return zc if c_new.error <= c_old.error else z
+    M = problem.M
+    return zc if _natural(M, problem.q, lo, up, zc) <= _natural(M, problem.q, lo, up, z) else z
+
+
+def _natural(M: Any, q: np.ndarray, lo: np.ndarray, up: np.ndarray, z: np.ndarray) -> float:
+    """``||mid(z - l, z - u, w)||_inf`` (the certificate's natural residual, unscaled)."""
+    w = np.asarray(M @ z).ravel() + q
+    with np.errstate(invalid="ignore"):
+        r = np.maximum(z - up, np.minimum(z - lo, w))
+    return float(np.max(np.abs(r))) if r.size else 0.0

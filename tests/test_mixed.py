@@ -348,21 +348,29 @@ def test_cli_human_output_mentions_equalities(cli, samples):
     assert "equality residual" in res.stdout and "mid(" in res.stdout
 
 
-def test_cli_wrong_kind_and_bad_options(cli, samples, tmp_path):
-    cases = [
-        ("solve", str(samples / "box_small.json"), "-m", "mlcp-schur"),
-        ("solve", str(samples / "mlcp_small.json"), "-m", "dantzig"),
-        ("solve", str(samples / "mlcp_small.json"), "-m", "mlcp-schur", "-O", "inner=nope"),
-        ("solve", str(samples / "mlcp_small.json"), "-m", "mlcp-lemke", "-O", "cond_max=-1"),
-    ]
+def test_cli_wrong_kind_and_bad_input(cli, samples, tmp_path):
     bad = tmp_path / "bad_box.json"
     bad.write_text(json.dumps({"M": [[1]], "q": [1], "lower": [2], "upper": [1]}))
-    cases.append(("solve", str(bad), "-m", "dantzig"))
-    for args in cases:
+    for args in (("solve", str(samples / "box_small.json"), "-m", "mlcp-schur"),
+                 ("solve", str(bad), "-m", "dantzig")):
         res = cli(*args)
         assert res.returncode == 2, args
         assert "Traceback" not in res.stderr + res.stdout
         assert res.stdout == ""
+
+
+def test_wrong_kind_and_bad_options_raise_option_error(samples):
+    from lcpcli.errors import OptionError
+
+    mlcp = load(samples / "mlcp_small.json")
+    box = load(samples / "box_small.json")
+    for problem, method, opts in ((mlcp, "dantzig", {}), (box, "mlcp-lemke", {}),
+                                  (mlcp, "mlcp-schur", {"inner": "nope"}),
+                                  (mlcp, "mlcp-schur", {"inner": "mlcp-lemke"}),
+                                  (mlcp, "mlcp-lemke", {"cond_max": "-1"}),
+                                  (box, "dantzig", {"max_iter": "0"})):
+        with pytest.raises(OptionError):
+            solve(problem, method, **opts)
 
 
 def test_methods_are_registered_with_kinds():

@@ -34,14 +34,19 @@ def _add(Binv, C, k, M, j):
     """Border the inverse of M[C, C] (size k) with index j; return False if singular."""
     x = np.zeros(k)
     y = np.zeros(k)
+    col = np.empty(k)
+    for b in range(k):
+        col[b] = M[C[b], j]
     for a in range(k):
         sx = 0.0
-        sy = 0.0
         for b in range(k):
-            sx += Binv[a, b] * M[C[b], j]
-            sy += M[j, C[b]] * Binv[b, a]
+            sx += Binv[a, b] * col[b]
         x[a] = sx
-        y[a] = sy
+    for b in range(k):  # y = M[j, C] Binv, row by row of Binv (contiguous)
+        mb = M[j, C[b]]
+        if mb != 0.0:
+            for a in range(k):
+                y[a] += mb * Binv[b, a]
     s = M[j, j]
     big = abs(M[j, j])
     for a in range(k):
@@ -129,6 +134,7 @@ def dantzig_kernel(M, q, lo, up, order, max_piv):
     dz = np.zeros(n)
     dw = np.zeros(n)
     rhs = np.zeros(n)
+    col = np.zeros(n)
     status = OK
     for t in range(n):
         i = order[t]
@@ -164,13 +170,15 @@ def dantzig_kernel(M, q, lo, up, order, max_piv):
                 break
             direc = 1.0 if wi < 0.0 else -1.0
             # dz_C = -M_CC^-1 M_Ci dir, with one refinement step
+            for b in range(k):
+                col[b] = M[C[b], i]
             for a in range(k):
                 s = 0.0
                 for b in range(k):
-                    s += Binv[a, b] * M[C[b], i]
+                    s += Binv[a, b] * col[b]
                 dz[a] = -s * direc
             for a in range(k):
-                s = M[C[a], i] * direc
+                s = col[a] * direc
                 for b in range(k):
                     s += M[C[a], C[b]] * dz[b]
                 rhs[a] = s
