@@ -147,6 +147,32 @@ def test_block_pivot_is_equivalent_to_the_mlcp():
         check_mlcp_solution(Problem.create(M, q, n_eq=n_eq), z)
 
 
+def test_mlcp_lemke_on_monotone_mlcps_with_singular_a():
+    """Random monotone MLCPs (M + M^T PSD) with A of rank 1 and a planted solution."""
+    rng = np.random.default_rng(3)
+    solved = 0
+    for trial in range(8):
+        n_eq, m = 3, 5
+        a = rng.standard_normal(n_eq)
+        A = np.outer(a, a)                               # rank 1, PSD
+        C = rng.standard_normal((n_eq, m))
+        Bh = rng.standard_normal((m, m))
+        B = Bh @ Bh.T / m + 0.1 * np.eye(m)
+        M = np.block([[A, C], [-C.T, B]])                # monotone
+        u = rng.standard_normal(n_eq)
+        v = np.where(rng.random(m) < 0.5, rng.uniform(0.5, 2.0, m), 0.0)
+        w = np.r_[np.zeros(n_eq), np.where(v > 0, 0.0, rng.uniform(0.5, 2.0, m))]
+        q = w - M @ np.r_[u, v]
+        p = Problem.create(M, q, n_eq=n_eq)
+        r = solve(p, "mlcp-lemke")
+        assert r.status == "solved", r.message          # a solution exists; M is monotone
+        check_mlcp_solution(p, r.z)
+        solved += 1
+        rs = solve(p, "mlcp-schur")
+        assert rs.status == "unsolved" and "mlcp-lemke" in rs.message
+    assert solved == 8
+
+
 def test_equilibrated_condition_estimate_on_buck():
     """Buck converter: cond(A) 2.6e12 from bad row scaling only; equilibrated it is modest."""
     if not (MLCP_DIR / "Buck2_mlcp.dat").exists():

@@ -95,6 +95,5 @@ METHODS = [
         kinds=("lcp", "box"),
         options={"max_iter": Option(_max_iter, None, "pivot limit (default max(1000, 50 n))")},
         prepare=prepare,
-        aliases=("bpp",),
     ),
 ]
