@@ -106,8 +106,12 @@ def _refactor(Binv, C, k, M):
 
 
 @njit(cache=True)
-def dantzig_kernel(M, q, lo, up, order, max_piv):
-    """Run the method; return (status, z, pivots, state)."""
+def dantzig_kernel(M, q, lo, up, order, max_piv, refactor_period=0):
+    """Run the method; return (status, z, pivots, state).
+
+    ``refactor_period`` 0: refactorise the block inverse every ``64 + k`` updates (default);
+    p > 0: every p updates (1 = refactorisation after every change, for comparison).
+    """
     n = q.shape[0]
     mscale = 0.0
     for a in range(n):
@@ -305,7 +309,8 @@ def dantzig_kernel(M, q, lo, up, order, max_piv):
                 updates += 1
                 state[j] = CLAMPED
                 w[j] = 0.0
-            if updates >= 64 + k:
+            period = refactor_period if refactor_period > 0 else 64 + k
+            if updates >= period:
                 _refactor(Binv, C, k, M)
                 updates = 0
             if pivots >= max_piv:
