@@ -218,9 +218,10 @@ def choose_pivot_set(M: np.ndarray, n_eq: int, cond_max: float = COND_MAX,
 
     Greedy: starting from ``J`` empty, while the (equilibrated) block is singular or its
     condition exceeds ``cond_max``, add one index.  Candidates are ranked by how well they
-    border the block's near-null spaces (``||U0^T M[S, j]|| * ||M[j, S] V0||``, from one SVD),
-    and the best ``shortlist`` of them are compared by the (rank deficiency, condition) of the
-    enlarged block.  Returns ``(J, cond)``; ``cond`` is inf when the block stays singular and
+    border the block's near-null spaces (``||U0^T M[S, j]|| * ||M[j, S] V0||``, from one SVD);
+    the first of the best ``shortlist`` that lowers the rank deficiency is taken, otherwise
+    (conditioning phase) the one giving the best (deficiency, condition) of the enlarged
+    block.  Returns ``(J, cond)``; ``cond`` is inf when the block stays singular and
     may exceed ``cond_max`` when no index helps (the caller then decides).
     """
     N = M.shape[0]
@@ -272,6 +273,8 @@ def choose_pivot_set(M: np.ndarray, n_eq: int, cond_max: float = COND_MAX,
             d, cnd, _ = analyse(J + [int(j)])
             if best is None or (d, cnd) < best:
                 best, best_j = (d, cnd), int(j)
+            if (d == 0 and cnd <= cond_max) or 0 < d < deficiency:
+                break  # progress on the best-ranked candidate: skip the rest of the shortlist
         if best is None or best >= (deficiency, cond):
             break
         J.append(best_j)

@@ -151,7 +151,7 @@ def test_mlcp_lemke_on_monotone_mlcps_with_singular_a():
     """Random monotone MLCPs (M + M^T PSD) with A of rank 1 and a planted solution."""
     rng = np.random.default_rng(3)
     solved = 0
-    for trial in range(8):
+    for _trial in range(8):
         n_eq, m = 3, 5
         a = rng.standard_normal(n_eq)
         A = np.outer(a, a)                               # rank 1, PSD

@@ -9,8 +9,8 @@ free (its row is an equality ``w_i = 0``) and is processed first; ``lower_i = up
 Method: the indices are added one at a time; the driving index moves its ``z`` until its ``w``
 is zero or ``z`` reaches a bound, while the clamped block ``C`` (``w_C = 0``) follows and
 clamped/bounded indices change sides at the first blocking event.  The inverse of ``M[C, C]``
-is updated by bordering/downdating in O(k^2) per pivot, with one refinement step per
-direction and a periodic refactorisation; the final active set is re-solved on the original
+is updated by bordering/downdating in O(k^2) per pivot, with a periodic
+refactorisation; the final active set is re-solved on the original
 problem.  O(n) pivots in practice, O(n^2) work each.
 
 Matrix classes: symmetric positive semidefinite (incl. PD) and P-matrices (all principal
