@@ -173,6 +173,15 @@ def test_mlcp_lemke_on_monotone_mlcps_with_singular_a():
     assert solved == 8
 
 
+def test_infeasible_mlcp_is_proven():
+    """u + 2 = 0 and 0 <= v _|_ 0 u + 0 v - 1 >= 0: no v gives w >= 0 (Farkas: y = e_1)."""
+    p = Problem.create([[1.0, 0.0], [0.0, 0.0]], [2.0, -1.0], n_eq=1)
+    for method in ("mlcp-schur", "mlcp-lemke"):
+        r = solve(p, method)
+        assert r.status == "no_solution", r.message
+        assert "Farkas" in r.message
+
+
 def test_equilibrated_condition_estimate_on_buck():
     """Buck converter: cond(A) 2.6e12 from bad row scaling only; equilibrated it is modest."""
     if not (MLCP_DIR / "Buck2_mlcp.dat").exists():

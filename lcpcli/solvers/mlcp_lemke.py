@@ -26,7 +26,13 @@ import numpy as np
 
 from lcpcli.result import NUMERICAL, Outcome
 from lcpcli.solvers import Method, Option
-from lcpcli.solvers.mlcp_schur import _max_iter, _positive, prepare, solve_reduced
+from lcpcli.solvers.mlcp_schur import (
+    PROOF_COND_MAX,
+    _max_iter,
+    _positive,
+    prepare,
+    solve_reduced,
+)
 
 
 def run(problem: Any, *, tol: float, cond_max: float = 1e12,
@@ -50,10 +56,14 @@ def run(problem: Any, *, tol: float, cond_max: float = 1e12,
            f"(pivot block cond ~ {red.cond:.2e})" if len(J) else
            f"free variables pivoted in (Schur complement, cond(A) ~ {red.cond:.2e})")
     msg = f"{how}; Lemke: {out.message}"
-    if out.proven_infeasible:
+    proven = bool(out.proven_infeasible) and red.cond <= PROOF_COND_MAX
+    if proven:
         msg += " (the pivoted LCP is equivalent to the MLCP, so the proof carries over)"
+    elif out.proven_infeasible:
+        msg += (f" (not carried over to the MLCP: the pivot block's condition {red.cond:.1e} "
+                f"is too large for a proof)")
     return Outcome(z, int(out.iterations) + int(red.S.size), out.termination, msg,
-                   proven_infeasible=bool(out.proven_infeasible),
+                   proven_infeasible=proven,
                    info={"swapped": [int(j) + problem.n_eq for j in J],
                          "pivot_cond": red.cond})
 

@@ -22,6 +22,10 @@ import numpy as np
 from lcpcli.result import CONVERGED, NUMERICAL, Outcome
 from lcpcli.solvers import Method, Option
 
+#: Largest pivot-block condition under which an infeasibility proof on the reduced LCP is
+#: reported as a proof for the MLCP (above it, roundoff in the reduction could fake one).
+PROOF_COND_MAX = 1e8
+
 
 def _positive(value: Any) -> float:
     v = float(value)
@@ -86,9 +90,12 @@ def run(problem: Any, *, tol: float, inner: str = "lemke", cond_max: float = 1e1
     z, out = solve_reduced(problem, red, inner, tol, max_iter)
     msg = (f"Schur complement (cond(A) ~ {red.cond:.2e}), inner {inner}: {out.message}")
     term = out.termination
-    proven = bool(out.proven_infeasible)
+    proven = bool(out.proven_infeasible) and red.cond <= PROOF_COND_MAX
     if proven:
         msg += " (the reduced LCP is equivalent to the MLCP, so the proof carries over)"
+    elif out.proven_infeasible:
+        msg += (f" (not carried over to the MLCP: the reduction's condition {red.cond:.1e} "
+                f"is too large for a proof)")
     return Outcome(z, int(out.iterations), term if term else CONVERGED, msg,
                    proven_infeasible=proven, info={"cond_A": red.cond})
 
