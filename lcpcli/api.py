@@ -14,6 +14,23 @@ from lcpcli.result import NO_SOLUTION, SOLVED, UNSOLVED, Outcome, Result
 from lcpcli.solvers import get_method
 
 DEFAULT_METHOD = "auto"
+#: Methods whose ``prepare`` hook (kernel loading) already ran in this process.
+_PREPARED: set[str] = set()
+#: A method that densifies M is refused on a sparse problem with more entries than this.
+MAX_DENSIFY_ENTRIES = 10_000 ** 2
+
+
+def check_dense_ok(problem: Problem, spec: Any) -> None:
+    """OptionError when ``spec`` would densify a huge sparse M (checked before any work)."""
+    n = problem.n
+    if problem.sparse and not spec.sparse and n * n > MAX_DENSIFY_ENTRIES:
+        raise OptionError(f"method '{spec.name}' works on a dense {n} x {n} matrix "
+                          f"({n * n * 8 / 2**30:.1f} GiB) but M is sparse (nnz={problem.M.nnz}); "
+                          f"choose a method for large sparse problems (see 'lcpcli methods')")
+
+
+#: Method used instead of the default one for problem kinds that it does not handle.
+KIND_DEFAULTS = {"mlcp": "mlcp-lemke", "box": "dantzig"}
 
 
 def solve(problem: Problem, method: str = DEFAULT_METHOD, *, tol: float | None = None,
@@ -29,19 +46,36 @@ def solve(problem: Problem, method: str = DEFAULT_METHOD, *, tol: float | None =
     ``seconds`` times the method alone (no file reading, no certification).
     """
     spec = get_method(method)
+    if method == DEFAULT_METHOD and problem.kind not in spec.kinds \
+            and problem.kind in KIND_DEFAULTS:
+        spec = get_method(KIND_DEFAULTS[problem.kind])
     if problem.kind not in spec.kinds:
         raise OptionError(f"method '{spec.name}' does not handle {problem.kind.upper()} problems "
                           f"(it handles: {', '.join(k.upper() for k in spec.kinds)})")
+    check_dense_ok(problem, spec)
     opts = spec.parse_options(options)
     tol = spec.default_tol if tol is None else float(tol)
     if not (np.isfinite(tol) and tol > 0):
         raise OptionError(f"tolerance must be positive and finite, got {tol}")
-    if spec.prepare is not None:
+    if spec.prepare is not None and spec.name not in _PREPARED:
         spec.prepare()
+        _PREPARED.add(spec.name)
     start = time.perf_counter()
     outcome: Outcome = spec.run(problem, tol=tol, **opts)
     seconds = time.perf_counter() - start
     return certify_outcome(problem, outcome, spec.name, seconds, tol)
+
+
+#: Above this ratio ``||M|| ||z|| / ||q||`` a certified answer carries a warning.
+LARGE_SOLUTION = 1e10
+
+
+def _growth(problem: Problem, z: np.ndarray) -> float:
+    nq = float(np.max(np.abs(problem.q))) if problem.n else 0.0
+    nz = float(np.max(np.abs(z))) if problem.n else 0.0
+    if nz == 0.0:
+        return 0.0
+    return 0.0 if nq == 0.0 else matrix_norm_inf(problem.M) * nz / nq
 
 
 def certify_outcome(problem: Problem, outcome: Outcome, method: str, seconds: float,
@@ -55,6 +89,11 @@ def certify_outcome(problem: Problem, outcome: Outcome, method: str, seconds: fl
         status = SOLVED
         if outcome.termination != "converged":
             message = f"{message}; the returned point passes the certificate anyway"
+        growth = _growth(problem, z)
+        if growth > LARGE_SOLUTION:
+            message = (f"{message}; warning: ||M|| ||z|| / ||q|| = {growth:.1e}: the solution is "
+                       f"huge compared with the data, so the problem is close to having none "
+                       f"(the error is a backward error: z solves a nearby problem)")
     elif outcome.proven_infeasible:
         status = NO_SOLUTION
     else:

@@ -35,7 +35,8 @@ def render_result(result: Any, problem: Any, file: str | None = None) -> Group:
     cert = result.certificate
     head.add_row("pivots/iterations", str(result.iterations))
     head.add_row("time", f"{result.seconds * 1e3:.3f} ms (method only)")
-    head.add_row("residual", f"{cert.residual:.3e}  ||min(z, w)||_inf")
+    natural = "||min(z, w)||_inf" if problem.kind == "lcp" else "||mid(z-l, z-u, w)||_inf"
+    head.add_row("residual", f"{cert.residual:.3e}  {natural}")
     head.add_row("error", f"{cert.error:.3e}  scaled (tol {cert.tol:.1e})")
     if problem.kind != "lcp":
         head.add_row("bounds / equalities",

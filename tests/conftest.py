@@ -13,10 +13,13 @@ from pathlib import Path
 
 import pytest
 
+from lcpcli.suites import siconos_root  # noqa: E402  (one definition of where the data is)
+
 ROOT = Path(__file__).resolve().parents[1]
 SAMPLES = ROOT / "samples"
-SHARED = ROOT.parent / "shared"
-SICONOS = SHARED / "data" / "siconos"
+_found = siconos_root()
+SICONOS = _found if _found is not None else ROOT.parent / "shared" / "data" / "siconos"
+SHARED = SICONOS.parent.parent
 
 
 @pytest.fixture(scope="session")
@@ -32,7 +35,8 @@ def samples() -> Path:
 @pytest.fixture(scope="session")
 def siconos() -> Path:
     if not SICONOS.is_dir():
-        pytest.skip("../shared/data/siconos is not beside this checkout")
+        pytest.skip("../shared/data/siconos is not beside this checkout "
+                    "(or set LCPCLI_SICONOS_DATA)")
     return SICONOS
 
 

@@ -66,3 +66,18 @@ def test_mlcp_equality_rows_and_box_bounds():
     assert certify(box, np.array([1.0, -1.0])).passed
     c = certify(box, np.array([1.5, -1.0]))
     assert not c.passed and c.bound_violation == pytest.approx(0.5)
+
+
+def test_huge_solution_gets_a_warning():
+    # a z of 1e14 passes the backward-error test on a nearly infeasible PSD problem, but the
+    # verdict says how large it is compared with the data
+    from lcpcli.api import certify_outcome
+    from lcpcli.result import Outcome
+
+    p = Problem.create([[1, -1], [-1, 1]], [-1, -1])
+    r = certify_outcome(p, Outcome(np.array([1.5e14, 1.5e14 + 0.5]), 1, "converged", "x"),
+                        "m", 0.0, 1e-8)
+    assert "huge compared with the data" in r.message
+    ok = certify_outcome(Problem.create([[2, 1], [1, 2]], [-5, -6]),
+                         Outcome(np.array([4 / 3, 7 / 3]), 3, "converged", "x"), "m", 0.0, 1e-8)
+    assert ok.solved and "warning" not in ok.message

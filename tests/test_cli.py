@@ -12,7 +12,7 @@ SCHEMA = {"file", "status", "method", "n", "z", "w", "iterations", "seconds", "r
 
 
 def test_solve_sample_prints_table(cli):
-    r = cli("solve", "samples/seed004.json", env={"NO_COLOR": "1"})
+    r = cli("solve", "samples/seed004.json", "--method", "lemke", env={"NO_COLOR": "1"})
     assert r.returncode == 0, r.stderr
     for text in ("solved", "lemke", "residual", "error", "1.33333", "2.33333"):
         assert text in r.stdout

@@ -293,7 +293,7 @@ def test_auto_falls_back_on_cps_3_where_lemke_ends_on_a_ray(sico):
     r = solve(p, "auto")
     assert r.solved
     attempts = r.info["attempts"]
-    assert attempts[0]["method"] == "lemke-tableau" and attempts[0]["status"] == "unsolved"
+    assert attempts[0]["method"].startswith("lemke") and attempts[0]["status"] == "unsolved"
     assert attempts[-1]["status"] == "solved" and "failed first" in r.message
 
 
@@ -401,7 +401,7 @@ def test_info_json_and_table(cli, sico):
     by = {m["method"]: m for m in rep["methods"]}
     assert by["pgs"]["applies"] == "no" and "diagonal" in by["pgs"]["why"]
     assert by["auto"]["applies"] == "yes"
-    assert rep["auto_plan"][0][0] == "lemke-tableau"
+    assert rep["auto_plan"][0][0].startswith("lemke")
     r = cli("info", str(sico / "lcp" / "lcp_mmc.dat"), env={"NO_COLOR": "1"})
     assert r.returncode == 0
     for text in ("P-matrix", "positive definite", "auto would try"):

@@ -42,7 +42,16 @@ EXIT_CODES_HELP = (
 )
 
 #: Subcommand modules, in the order ``--help`` lists them.
-COMMAND_MODULES = ["solve_cmd", "convert_cmd", "methods_cmd", "info_cmd"]
+COMMAND_MODULES = [
+    "solve_cmd",
+    "convert_cmd",
+    "methods_cmd",
+    "contact_cmd",
+    "pivot_cmd",
+    "enumerate_cmd",
+    "bench_cmd",
+    "info_cmd",
+]
 
 app = typer.Typer(
     name="lcpcli",

@@ -13,6 +13,9 @@ def solve(
     file: str = typer.Argument(..., metavar="FILE",
                                help="Problem file (.json, .npz, .h5, .dat); '-' reads JSON "
                                     "from stdin."),
+    more_files: list[str] = typer.Argument(None, metavar="FILE", show_default=False,  # noqa: B008
+                                           help="More files, folders or globs: a batch "
+                                                "(see docs/batch.md)."),
     method: str = typer.Option("auto", "--method", "-m", help="Solver method (listed below)."),
     tol: float = typer.Option(None, "--tol",
                               help="Tolerance on the scaled error for the verdict 'solved' "
@@ -32,9 +35,29 @@ def solve(
     problem: str = typer.Option(None, "--problem", "-p",
                                 help="Problem (group) name inside an HDF5 file."),
     as_json: bool = typer.Option(False, "--json",
-                                 help="Print one JSON object on stdout and nothing else."),
+                                 help="Print one JSON object on stdout and nothing else. "
+                                      "Batch: one object per problem per line (with "
+                                      "--output: one summary object)."),
     output: Path = typer.Option(None, "--output", "-o",
-                                help="Also write the JSON result to this file (atomically)."),
+                                help="Also write the JSON result to this file (atomically). "
+                                     "Batch: .jsonl, .csv or .h5 result file, written "
+                                     "incrementally."),
+    recursive: bool = typer.Option(False, "--recursive", "-r",
+                                   help="Batch: look for problem files in sub-folders too."),
+    jobs: int = typer.Option(None, "--jobs", "-j", min=1,
+                             help="Batch: worker processes [default: number of cores]."),
+    resume: bool = typer.Option(False, "--resume",
+                                help="Batch: skip problems already in --output."),
+    timeout: float = typer.Option(None, "--timeout",
+                                  help="Batch: seconds per problem; a problem that runs over "
+                                       "is stopped and recorded as unsolved (timeout)."),
+    quiet: bool = typer.Option(False, "--quiet", "-q", help="Batch: no progress bar."),
+    scheduler: str = typer.Option(None, "--scheduler",
+                                  help="Batch: run on the Dask cluster at this address "
+                                       "(e.g. tcp://host:8786; needs lcpcli[dask])."),
+    trace: bool = typer.Option(False, "--trace",
+                               help="Print every pivot (Lemke methods); with --json the "
+                                    "pivots are a list under \"trace\". One problem only."),
 ) -> int:
     """Solve an LCP: find z >= 0 with w = M z + q >= 0 and z^T w = 0.
 
@@ -47,6 +70,7 @@ def solve(
 
     from lcpcli.api import solve as solve_problem
     from lcpcli.cli.common import exit_code_for, parse_key_values, write_json_line
+    from lcpcli.errors import OptionError
     from lcpcli.io import load, write_atomic_text
 
     opts: dict[str, object] = parse_key_values(option)
@@ -60,6 +84,20 @@ def solve(
         from lcpcli.warmstart import load_z0
 
         opts["z0"] = load_z0(z0)
+    from lcpcli.cli.batch_run import run_batch_command, wants_batch
+
+    files = [file, *(more_files or [])]
+    batch = {"recursive": recursive, "jobs": jobs, "resume": resume, "timeout": timeout,
+             "quiet": quiet, "scheduler": scheduler}
+    if wants_batch(files, output, **batch):
+        if trace:
+            raise OptionError("--trace shows one problem's pivots; it does not apply to a batch")
+        return run_batch_command(files, method=method, tol=tol, opts=opts, problem=problem,
+                                 as_json=as_json, output=output, **batch)
+    if trace:
+        opts["trace"] = True
+        if method == "auto":  # the pivot trace is a Lemke feature: auto would refuse it
+            method = "lemke"
     prob = load(file, problem)
     result = solve_problem(prob, method, tol=tol, **opts)
     payload = result.to_dict(file=file)
@@ -71,7 +109,12 @@ def solve(
         from lcpcli.cli.common import stdout_console
         from lcpcli.render import render_result
 
-        stdout_console().print(render_result(result, prob, file))
+        console = stdout_console()
+        if result.trace is not None:
+            from lcpcli.render_pivot import render_trace
+
+            console.print(render_trace(result.trace, prob.n))
+        console.print(render_result(result, prob, file))
     return exit_code_for([result.status])
 
 

@@ -44,6 +44,8 @@ class Method:
     default_tol: float = 1e-8
     prepare: Callable[[], None] | None = None
     aliases: tuple[str, ...] = ()
+    #: True when the method works on a scipy.sparse M without densifying it.
+    sparse: bool = False
 
     def parse_options(self, given: Mapping[str, Any]) -> dict[str, Any]:
         """Defaults merged with ``given``; unknown names or bad values raise OptionError."""

@@ -28,6 +28,8 @@ from lcpcli.solvers._common import positive_int, vector_option
 PIVOT_MAX_N = 1500
 #: Dense problems above this size are never given to the O(n^3)-per-solve pivoting methods.
 PIVOT_HARD_MAX_N = 5000
+#: A method that densifies M is not tried on a sparse problem with more entries than this.
+MAX_DENSIFY_ENTRIES = 10_000 ** 2
 #: Sparse problems up to this size are treated like small dense ones (pivoting first).
 SMALL_SPARSE_N = 200
 #: Sparse LU fill ratio (nnz(L+U) / nnz(M)) under which Newton goes before PSOR.
@@ -80,10 +82,11 @@ def plan(problem: Any, c: dict[str, Any], available: dict[str, Any]) -> list[tup
             steps.append((name, why))
 
     if kind == "mlcp":
-        for name, m in available.items():
-            if "mlcp" in m.kinds and name not in ("auto", "newton", "newton-min") \
-                    and not name.startswith("enum"):
-                add(name, "a method for the mixed form")
+        mixed = [name for name, m in available.items()
+                 if "mlcp" in m.kinds and name not in ("auto", "newton", "newton-min")
+                 and not name.startswith("enum")]
+        for name in sorted(mixed, key=lambda k: (0 if "schur" in k else 1, k)):
+            add(name, "a method for the mixed form")
         add("newton", "semismooth Newton handles free rows as plain equations")
         add("newton-min", "min-map Newton, fallback")
         return steps
@@ -148,12 +151,17 @@ def plan(problem: Any, c: dict[str, Any], available: dict[str, Any]) -> list[tup
 
 
 def prepare() -> None:
-    """Warm up the compiled kernels of the methods auto may call (outside the timed region)."""
-    from lcpcli.solvers import methods
+    """Warm up the compiled kernels of the LCP methods auto tries most (outside the timed
+    region); other methods' hooks run inside ``run`` when they are tried (cached, cheap)."""
+    from lcpcli.solvers import get_method
 
-    for m in methods().values():
-        if m.name != "auto" and m.prepare is not None:
-            m.prepare()
+    for name in ("lemke", "murty", "pgs", "dantzig"):
+        try:
+            spec = get_method(name)
+        except Exception:  # noqa: BLE001 - a method absent from this build
+            continue
+        if spec.prepare is not None:
+            spec.prepare()
 
 
 def run(problem: Any, *, tol: float, max_iter: int | None = None,
@@ -202,6 +210,10 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None,
                 opts["max_iter"] = AUTO_CAPS[name]
         if z0 is not None and "z0" in spec.options:
             opts["z0"] = z0
+        if problem.sparse and not spec.sparse and n * n > MAX_DENSIFY_ENTRIES:
+            continue  # it would densify a huge sparse M (api.check_dense_ok refuses that too)
+        if spec.prepare is not None:
+            spec.prepare()
         t1 = time.perf_counter()
         try:
             out: Outcome = spec.run(problem, tol=tol, **spec.parse_options(opts))
@@ -255,6 +267,7 @@ METHODS = [
         summary="classify M, pick a method, fall back to the next suitable one (the default)",
         matrix_classes="any (the guarantees of the method it picks; see 'lcpcli info FILE')",
         kinds=("lcp", "mlcp", "box"),
+        sparse=True,
         options={
             "max_iter": Option(positive_int, None,
                                "iteration / pivot limit passed to each method tried"),
@@ -289,7 +302,7 @@ def applicability(problem: Any, c: dict[str, Any],
                                   f"not {kind.upper()}")
         elif name == "auto":
             applies, why = "yes", "picks a method from the classification"
-        elif name == "lemke-tableau":
+        elif name.startswith("lemke"):
             if p:
                 applies, why = "yes", "P-matrix: finite, unique solution"
             elif psd:
@@ -335,6 +348,9 @@ def applicability(problem: Any, c: dict[str, Any],
                 applies, why = "yes", "symmetric PSD"
             else:
                 applies, why = "maybe", "its class is symmetric PSD; this M is not"
+        elif name.startswith("enum"):
+            applies, why = ("yes" if c["n"] <= 20 else "no"), \
+                f"enumerates 2^n complementary cones (n = {c['n']})"
         else:
             applies, why = "maybe", f"stated classes: {m.matrix_classes}"
         rows.append({"method": name, "applies": applies, "why": why,

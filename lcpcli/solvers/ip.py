@@ -176,6 +176,7 @@ METHODS = [
                 "rounding (dense or sparse)",
         matrix_classes="monotone LCPs (M positive semidefinite, symmetric or not)",
         kinds=("lcp",),
+        sparse=True,
         options={
             "max_iter": Option(positive_int, None,
                                f"iteration limit (default {DEFAULT_MAX_ITER})"),

@@ -79,18 +79,51 @@ def prepare() -> None:
     polish_kernel(one, np.array([-1.0]), out[1], out[3])
 
 
+def _bool_option(value: Any) -> bool:
+    if isinstance(value, str):
+        low = value.strip().lower()
+        if low in ("1", "true", "yes", "on"):
+            return True
+        if low in ("0", "false", "no", "off", ""):
+            return False
+        raise ValueError(f"expected true/false, got {value!r}")
+    return bool(value)
+
+
 def run(problem: Any, *, tol: float, covering: np.ndarray | None = None,
-        max_iter: int | None = None) -> Outcome:
-    """Solve ``problem`` (an LCP) by Lemke's method; see the module docstring."""
-    from lcpcli.solvers._lemke_kernel import MAX_ITER, OK, TRIVIAL, lemke_kernel
+        max_iter: int | None = None, trace: bool = False) -> Outcome:
+    """Solve ``problem`` (an LCP) by Lemke's method; see the module docstring.
+
+    ``trace=True`` runs the numpy replica of the kernel (same pivots) and records each pivot
+    in ``Outcome.trace`` (see :mod:`lcpcli.solvers._lemke_trace`).
+    """
+    from lcpcli.solvers._lemke_kernel import lemke_kernel
 
     n = problem.n
     M = np.ascontiguousarray(problem.dense_M(), dtype=np.float64)
     q = problem.q
     d = covering_vector(n, covering)
     limit = max_iter or default_max_iter(n)
-    status, z, pivots, basic, ray_dz, ray_dz0, z0 = lemke_kernel(M, q, d, limit, PIVOT_TOL,
-                                                                 TIE_TOL, NO_RECORD)
+    steps = None
+    if trace:
+        from lcpcli.solvers._lemke_trace import lemke_traced
+
+        status, z, pivots, basic, ray_dz, ray_dz0, z0, steps = lemke_traced(
+            M, q, d, limit, PIVOT_TOL, TIE_TOL)
+    else:
+        status, z, pivots, basic, ray_dz, ray_dz0, z0 = lemke_kernel(M, q, d, limit, PIVOT_TOL,
+                                                                     TIE_TOL, NO_RECORD)
+    out = finish(problem, M, q, status, z, int(pivots), basic, ray_dz, float(z0), limit)
+    out.trace = steps
+    return out
+
+
+def finish(problem: Any, M: np.ndarray, q: np.ndarray, status: int, z: np.ndarray, pivots: int,
+           basic: np.ndarray, ray_dz: np.ndarray, z0: float, limit: int) -> Outcome:
+    """Turn a Lemke kernel's status into an :class:`Outcome` (polish, ray classification)."""
+    from lcpcli.solvers._lemke_kernel import MAX_ITER, OK, TRIVIAL
+
+    n = problem.n
     if status == TRIVIAL:
         return Outcome(np.zeros(n), 0, CONVERGED, "q >= 0: z = 0 solves the problem")
     if status == OK:
@@ -148,8 +181,9 @@ METHODS = [
         options={
             "covering": Option(_vector_option, None, "covering vector d > 0 (default all ones)"),
             "max_iter": Option(_max_iter, None, "pivot limit (default max(1000, 100 n))"),
+            "trace": Option(_bool_option, False, "record every pivot (numpy replica of the "
+                                                 "kernel, same pivots; slow for large n)"),
         },
         prepare=prepare,
-        aliases=("lemke",),
     ),
 ]

@@ -319,6 +319,7 @@ METHODS = [
         matrix_classes="P-matrices and monotone (PSD) problems (global, via the smooth merit); "
                        "non-symmetric, zero diagonal, MLCP free rows and box bounds handled",
         kinds=("lcp", "mlcp", "box"),
+        sparse=True,
         options=dict(_OPTIONS),
         aliases=("newton-fb",),
     ),
@@ -329,6 +330,7 @@ METHODS = [
         matrix_classes="P-matrices near the solution (locally fast); not globally convergent: "
                        "may stall on degenerate or singular problems",
         kinds=("lcp", "mlcp", "box"),
+        sparse=True,
         options=dict(_OPTIONS),
     ),
 ]

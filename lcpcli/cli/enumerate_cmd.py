@@ -1,0 +1,144 @@
+"""``lcpcli enumerate``: the complementary cones of an LCP, all its solutions, the verdict."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+#: Above this n, ``--all-cones`` is refused for the terminal table.
+ALL_CONES_TABLE_MAX_N = 12
+#: Above this n, ``--all-cones`` is refused even with ``--json``.
+ALL_CONES_JSON_MAX_N = 16
+
+
+def enumerate_command(
+    file: str = typer.Argument(..., metavar="FILE",
+                               help="Problem file (.json, .npz, .h5, .dat); '-' reads JSON "
+                                    "from stdin."),
+    as_json: bool = typer.Option(False, "--json",
+                                 help="Print one JSON object on stdout and nothing else."),
+    all_cones: bool = typer.Option(False, "--all-cones",
+                                   help="List all 2^n cones, not only those containing q "
+                                        f"(table: n <= {ALL_CONES_TABLE_MAX_N}; JSON: "
+                                        f"n <= {ALL_CONES_JSON_MAX_N})."),
+    max_n: int = typer.Option(24, "--max-n", metavar="N",
+                              help="Refuse problems with more than N variables (2^N cones)."),
+    plot: str = typer.Option(None, "--plot", metavar="FILE.png",
+                              help="n = 2: draw the complementary cones and q with matplotlib "
+                                   "(optional extra 'plot')."),
+    problem: str = typer.Option(None, "--problem", "-p",
+                                help="Problem (group) name inside an HDF5 file."),
+    output: str = typer.Option(None, "--output", "-o",
+                                help="Also write the JSON result to this file (atomically)."),
+) -> int:
+    """Enumerate the 2^n complementary cones of an LCP (seed 004) and find ALL its solutions.
+
+    Each choice of basic variables y_j in {w_j, z_j} gives the complementary matrix A_r
+    (column I_j for w_j, -M_j for z_j); q lies in the cone Pos(A_r) when A_r y = q has a
+    solution y >= 0, and that y is a solution of the LCP (w = M z + q). The verdict is: unique
+    solution, finitely many, a continuum (a singular cone holding more than one point), or
+    none, which is then a proof that the LCP has no solution. For n = 2 it also says whether
+    the cones cover the plane (K(M) = R^2) and draws them. Exit codes: 0 a solution exists;
+    1 no solution; 2 bad usage or bad input; 3 internal error.
+    """
+    import json
+    import sys
+
+    from lcpcli.cli.common import write_json_line
+    from lcpcli.enumeration import check_problem, covers_plane, enumerate_cones, prepare
+    from lcpcli.errors import OptionError
+    from lcpcli.io import load, write_atomic_text
+
+    plot_path = Path(plot) if plot is not None else None
+    output_path = Path(output) if output is not None else None
+    prob = load(file, problem)
+    M = check_problem(prob, max_n)
+    n = prob.n
+    if all_cones:
+        if n > ALL_CONES_JSON_MAX_N:
+            raise OptionError(f"--all-cones lists 2^n = {2**n:,} cones, too many for n = {n} "
+                              f"(limit n = {ALL_CONES_JSON_MAX_N}); leave it out to list the "
+                              f"cones that contain q")
+        if n > ALL_CONES_TABLE_MAX_N and not as_json:
+            raise OptionError(f"--all-cones would print 2^{n} = {2**n:,} table rows (limit "
+                              f"n = {ALL_CONES_TABLE_MAX_N}); use --json for the full list")
+    if plot_path is not None:
+        if n != 2:
+            raise OptionError(f"--plot draws the cones of 2 x 2 problems only (n = {n})")
+        try:
+            import matplotlib  # noqa: F401
+        except ImportError:
+            raise OptionError("--plot needs matplotlib: pip install matplotlib "
+                              "(or the 'plot' extra of lcpcli)") from None
+        if not plot_path.parent.is_dir():
+            raise OptionError(f"--plot: folder {plot_path.parent} does not exist")
+
+    prepare()
+    with _progress_bar() as progress:
+        res = enumerate_cones(prob, all_cones=all_cones, max_n=max_n, progress=progress)
+    covers = covers_plane(M) if n == 2 else None
+    if plot_path is not None:
+        from lcpcli.render_enumerate import plot_cones
+
+        plot_cones(M, prob.q, plot_path, title=prob.name or "")
+    payload = res.to_dict()
+    payload = {"file": file, **payload}
+    if covers is not None:
+        payload["covers_plane"] = covers
+    if output_path is not None:
+        write_atomic_text(output_path, json.dumps(payload, allow_nan=False) + "\n")
+    if as_json:
+        write_json_line(payload)
+    else:
+        from lcpcli.cli.common import stdout_console
+        from lcpcli.render_enumerate import draw_cones_text, render_enumeration
+
+        drawing = draw_cones_text(M, prob.q) if n == 2 else None
+        stdout_console().print(render_enumeration(res, prob, file, all_cones=all_cones,
+                                                  covers=covers, drawing=drawing))
+        if plot_path is not None:
+            sys.stderr.write(f"lcpcli: wrote {plot_path}\n")
+    return 0 if res.solutions else 1
+
+
+class _progress_bar:
+    """A rich progress bar on stderr, shown only on a TTY and only after about a second."""
+
+    def __init__(self) -> None:
+        self._bar = None
+        self._task = None
+        self._start = 0.0
+
+    def __enter__(self):  # type: ignore[no-untyped-def]
+        import sys
+        import time
+
+        self._start = time.perf_counter()
+        return self._update if sys.stderr.isatty() else None
+
+    def _update(self, done: int, total: int) -> None:
+        import time
+
+        if self._bar is None:
+            if time.perf_counter() - self._start < 1.0 or done >= total:
+                return
+            from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+
+            from lcpcli.cli.common import stderr_console
+
+            self._bar = Progress(TextColumn("cones"), BarColumn(),
+                                 TextColumn("{task.completed:,}/{task.total:,}"),
+                                 TimeRemainingColumn(), console=stderr_console(),
+                                 transient=True)
+            self._bar.start()
+            self._task = self._bar.add_task("cones", total=total)
+        self._bar.update(self._task, completed=done)
+
+    def __exit__(self, *exc: object) -> None:
+        if self._bar is not None:
+            self._bar.stop()
+
+
+def register(app: typer.Typer) -> None:
+    app.command("enumerate")(enumerate_command)

@@ -1,0 +1,66 @@
+"""Post-impact state from contact impulses: velocities, normal velocities, kinetic energy.
+
+With ``A`` the stacked Jacobian rows of the LCP's impulse unknowns (normal rows, then tangent
+rows) and ``x`` those impulses, the velocity jump of the modelled bodies is
+``v^+ - v^- = W A^T x`` (computed as ``(A W)^T x``, never forming ``W`` densely).  Bodies without
+columns (static, or in no contact) keep their velocities.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from lcpcli.contact.assembly import relative_velocity
+from lcpcli.contact.scene import Scene
+
+#: Relative margin above which kinetic energy after the impact counts as an increase.
+ENERGY_TOL = 1e-9
+
+
+def post_velocities(scene: Scene, modelled: np.ndarray, HA: Any,
+                    x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Linear ``(nb, d)`` and angular ``(nb, r)`` velocities after applying impulses ``x``.
+
+    ``HA`` is ``A W`` (sparse, one row per impulse unknown); ``x`` the impulses.
+    """
+    d, dof = scene.dimension, scene.dof
+    jump = np.asarray(HA.T @ x).ravel().reshape(modelled.size, dof)
+    v = scene.velocity.copy()
+    w = scene.omega.copy()
+    v[modelled] += jump[:, :d]
+    w[modelled] += jump[:, d:]
+    return v, w
+
+
+def normal_velocities(scene: Scene, velocity: np.ndarray, omega: np.ndarray) -> np.ndarray:
+    """Normal relative velocity ``n . (pdot_a - pdot_b)`` at every contact for given velocities."""
+    return relative_velocity(scene, np.arange(scene.n_contacts), scene.normal, velocity, omega)
+
+
+def kinetic_energy(scene: Scene, velocity: np.ndarray, omega: np.ndarray) -> float:
+    """``sum over moving bodies of (m |v|^2 + omega^T I_world omega) / 2``."""
+    mv = ~scene.static
+    lin = np.sum(scene.mass[mv] * np.sum(velocity[mv] ** 2, axis=1))
+    ang = np.einsum("bi,bij,bj->", omega[mv], scene.inertia[mv], omega[mv])
+    return 0.5 * float(lin + ang)
+
+
+def energy_increased(before: float, after: float) -> bool:
+    """True when ``after`` exceeds ``before`` by more than rounding (relative ENERGY_TOL)."""
+    return after > before + ENERGY_TOL * max(abs(before), abs(after), 1e-300)
+
+
+def momentum(scene: Scene, velocity: np.ndarray, omega: np.ndarray) -> tuple[np.ndarray, Any]:
+    """Total linear momentum and angular momentum about the origin of the moving bodies."""
+    mv = ~scene.static
+    p = np.sum(scene.mass[mv][:, None] * velocity[mv], axis=0)
+    Iw = np.einsum("bij,bj->bi", scene.inertia[mv], omega[mv])
+    if scene.dimension == 3:
+        L = np.sum(np.cross(scene.position[mv], scene.mass[mv][:, None] * velocity[mv]) + Iw,
+                   axis=0)
+    else:
+        x, mvv = scene.position[mv], scene.mass[mv][:, None] * velocity[mv]
+        L = float(np.sum(x[:, 0] * mvv[:, 1] - x[:, 1] * mvv[:, 0] + Iw[:, 0]))
+    return p, L

@@ -1,0 +1,604 @@
+"""Rigid-body scenes for contact LCPs: parsing and validation (JSON and HDF5).
+
+Conventions (seed 004):
+
+* each contact joins body ``A`` and body ``B``; its unit normal ``n`` points **from B to A**;
+  the normal impulse ``j n`` (``j >= 0``) acts on A and ``-j n`` on B;
+* positions, velocities and the contact point are in world coordinates; ``r_a = p - x_a``;
+* a quaternion is ``[w, x, y, z]`` (scalar first); the world inertia is ``R I R^T`` where ``I``
+  is the body-frame tensor;
+* ``static: true`` bodies (ground, walls) have inverse mass and inverse inertia zero: they get no
+  unknowns, but a velocity given to them (a conveyor, a moving platform) enters the relative
+  velocity of their contacts;
+* 2-D scenes (``"dimension": 2``) have 3 DOF per body: positions/velocities ``(x, y)``, a scalar
+  angular velocity and a scalar moment of inertia (about the axis out of the plane).
+
+The scene is held as arrays (one row per body / per contact) so that assembling scenes with
+thousands of bodies is vectorised.  Every bad input raises :class:`ProblemError` with one line.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from lcpcli.errors import ProblemError
+
+BODY_KEYS = {"name", "mass", "inertia", "orientation", "position", "velocity",
+             "angular_velocity", "static"}
+CONTACT_KEYS = {"a", "b", "body_a", "body_b", "point", "normal", "restitution", "mu", "name"}
+SCENE_KEYS = {"name", "description", "dimension", "bodies", "contacts"}
+#: A normal whose length differs from 1 by more than this is normalised with a warning.
+UNIT_TOL = 1e-6
+#: Relative tolerance of the inertia symmetry test.
+SYM_TOL = 1e-9
+#: Largest scene accepted (bodies or contacts).
+MAX_ITEMS = 10_000_000
+
+
+@dataclass
+class Scene:
+    """A validated scene, as arrays (``nb`` bodies, ``nc`` contacts, ``d`` = dimension).
+
+    ``inertia`` / ``inv_inertia`` are the **world** tensors, shape ``(nb, r, r)`` with
+    ``r = 3`` in 3-D and ``r = 1`` in 2-D; for static bodies ``inv_mass`` and ``inv_inertia``
+    are zero and ``mass``/``inertia`` are ``inf``/zero (unused).
+    """
+
+    dimension: int
+    body_names: list[str]
+    static: np.ndarray            # (nb,) bool
+    mass: np.ndarray              # (nb,)
+    inv_mass: np.ndarray          # (nb,)
+    inertia: np.ndarray           # (nb, r, r) world frame
+    inv_inertia: np.ndarray       # (nb, r, r) world frame
+    position: np.ndarray          # (nb, d)
+    velocity: np.ndarray          # (nb, d)
+    omega: np.ndarray             # (nb, r)
+    contact_a: np.ndarray         # (nc,) int
+    contact_b: np.ndarray         # (nc,) int
+    point: np.ndarray             # (nc, d)
+    normal: np.ndarray            # (nc, d) unit, from B to A
+    restitution: np.ndarray       # (nc,)
+    mu: np.ndarray                # (nc,) NaN where not given
+    contact_names: list[str] = field(default_factory=list)
+    name: str = ""
+    description: str = ""
+    warnings: list[str] = field(default_factory=list)
+
+    @property
+    def n_bodies(self) -> int:
+        return len(self.body_names)
+
+    @property
+    def n_contacts(self) -> int:
+        return int(self.contact_a.shape[0])
+
+    @property
+    def rot_dim(self) -> int:
+        """Angular coordinates per body: 3 in 3-D, 1 in 2-D."""
+        return 3 if self.dimension == 3 else 1
+
+    @property
+    def dof(self) -> int:
+        """Velocity coordinates per body: 6 in 3-D, 3 in 2-D."""
+        return self.dimension + self.rot_dim
+
+
+# ---------------------------------------------------------------------- rotations
+def quat_to_matrix(qs: np.ndarray) -> np.ndarray:
+    """Rotation matrices ``(k, 3, 3)`` from unit quaternions ``(k, 4)``, ``[w, x, y, z]``."""
+    w, x, y, z = qs[:, 0], qs[:, 1], qs[:, 2], qs[:, 3]
+    R = np.empty((qs.shape[0], 3, 3))
+    R[:, 0, 0] = 1 - 2 * (y * y + z * z)
+    R[:, 0, 1] = 2 * (x * y - w * z)
+    R[:, 0, 2] = 2 * (x * z + w * y)
+    R[:, 1, 0] = 2 * (x * y + w * z)
+    R[:, 1, 1] = 1 - 2 * (x * x + z * z)
+    R[:, 1, 2] = 2 * (y * z - w * x)
+    R[:, 2, 0] = 2 * (x * z - w * y)
+    R[:, 2, 1] = 2 * (y * z + w * x)
+    R[:, 2, 2] = 1 - 2 * (x * x + y * y)
+    return R
+
+
+# ---------------------------------------------------------------------- loading
+def load_scene(path: str | Path) -> Scene:
+    """Read a scene from ``.json`` or ``.h5``/``.hdf5``; errors name the file."""
+    source = str(path)
+    p = Path(path)
+    try:
+        if not p.exists():
+            raise ProblemError("no such file")
+        if p.is_dir():
+            raise ProblemError("is a directory, not a scene file")
+        ext = p.suffix.lower()
+        if ext == ".json":
+            try:
+                data = json.loads(p.read_text(encoding="utf-8"),
+                                  parse_constant=_reject_constant)
+            except UnicodeDecodeError:
+                raise ProblemError("not a UTF-8 text file") from None
+            except json.JSONDecodeError as exc:
+                raise ProblemError(f"invalid JSON: {exc.msg} at line {exc.lineno} "
+                                   f"column {exc.colno}") from None
+            return scene_from_dict(data, default_name=p.stem)
+        if ext in (".h5", ".hdf5", ".hdf"):
+            return read_scene_hdf5(p)
+        raise ProblemError(f"unknown scene file type {ext or '(none)'} (expected .json, .h5)")
+    except ProblemError as exc:
+        raise exc.with_source(source) from None
+    except PermissionError:
+        raise ProblemError("permission denied", source) from None
+
+
+def _reject_constant(name: str) -> float:
+    raise ProblemError(f"{name} is not allowed in a scene (numbers must be finite)")
+
+
+def scene_from_dict(data: Any, default_name: str = "") -> Scene:
+    """Build and validate a scene from its decoded JSON object."""
+    if not isinstance(data, dict):
+        raise ProblemError("a scene is a JSON object with 'bodies' and 'contacts'")
+    unknown = sorted(set(data) - SCENE_KEYS)
+    if unknown:
+        raise ProblemError(f"unknown scene key {unknown[0]!r} "
+                           f"(known: {', '.join(sorted(SCENE_KEYS))})")
+    dim = _dimension(data.get("dimension", 3))
+    bodies = data.get("bodies")
+    contacts = data.get("contacts")
+    if not isinstance(bodies, list) or not bodies:
+        raise ProblemError("'bodies' must be a non-empty list")
+    if not isinstance(contacts, list):
+        raise ProblemError("'contacts' must be a list")
+    if len(bodies) > MAX_ITEMS or len(contacts) > MAX_ITEMS:
+        raise ProblemError("scene too large")
+    r = 3 if dim == 3 else 1
+    nb = len(bodies)
+    names: list[str] = []
+    static = np.zeros(nb, dtype=bool)
+    mass = np.full(nb, np.nan)
+    inertia = np.full((nb, r, r), np.nan)
+    quat = np.tile([1.0, 0.0, 0.0, 0.0], (nb, 1))
+    pos = np.zeros((nb, dim))
+    vel = np.zeros((nb, dim))
+    omega = np.zeros((nb, r))
+    for i, b in enumerate(bodies):
+        where = f"body {i + 1}"
+        if not isinstance(b, dict):
+            raise ProblemError(f"{where}: expected an object")
+        bad = sorted(set(b) - BODY_KEYS)
+        if bad:
+            raise ProblemError(f"{where}: unknown key {bad[0]!r} "
+                               f"(known: {', '.join(sorted(BODY_KEYS))})")
+        name = b.get("name", f"body{i + 1}")
+        if not isinstance(name, str) or not name:
+            raise ProblemError(f"{where}: 'name' must be a non-empty string")
+        where = f"body {name!r}"
+        names.append(name)
+        st = b.get("static", False)
+        if not isinstance(st, bool):
+            raise ProblemError(f"{where}: 'static' must be true or false")
+        static[i] = st
+        if "mass" in b and b["mass"] is not None:
+            mass[i] = _scalar(b["mass"], where, "mass")
+        elif not st:
+            raise ProblemError(f"{where}: 'mass' is required for a moving body")
+        if "inertia" in b and b["inertia"] is not None:
+            inertia[i] = _inertia(b["inertia"], dim, where)
+        elif not st:
+            raise ProblemError(f"{where}: 'inertia' is required for a moving body")
+        if "position" in b:
+            pos[i] = _vec(b["position"], dim, where, "position")
+        elif not st:
+            raise ProblemError(f"{where}: 'position' is required for a moving body")
+        if "velocity" in b:
+            vel[i] = _vec(b["velocity"], dim, where, "velocity")
+        if "angular_velocity" in b:
+            omega[i] = _vec(b["angular_velocity"], r, where, "angular_velocity")
+        if "orientation" in b:
+            if dim == 3:
+                quat[i] = _vec(b["orientation"], 4, where, "orientation")
+            else:
+                _scalar(b["orientation"], where, "orientation")  # an angle: inertia is scalar
+    nc = len(contacts)
+    ca = np.zeros(nc, dtype=np.int64)
+    cb = np.zeros(nc, dtype=np.int64)
+    point = np.zeros((nc, dim))
+    normal = np.zeros((nc, dim))
+    eps = np.zeros(nc)
+    mu = np.full(nc, np.nan)
+    index = {}
+    for i, nm in enumerate(names):
+        if nm in index:
+            raise ProblemError(f"two bodies are named {nm!r}")
+        index[nm] = i
+    cnames: list[str] = []
+    for k, c in enumerate(contacts):
+        where = f"contact {k + 1}"
+        if not isinstance(c, dict):
+            raise ProblemError(f"{where}: expected an object")
+        bad = sorted(set(c) - CONTACT_KEYS)
+        if bad:
+            raise ProblemError(f"{where}: unknown key {bad[0]!r} "
+                               f"(known: a, b, point, normal, restitution, mu, name)")
+        cnames.append(str(c.get("name", f"c{k + 1}")))
+        for side, keys, arr in (("A", ("a", "body_a"), ca), ("B", ("b", "body_b"), cb)):
+            given = [key for key in keys if key in c]
+            if not given:
+                raise ProblemError(f"{where}: body {side} missing (key '{keys[0]}')")
+            ref = c[given[0]]
+            if isinstance(ref, str):
+                if ref not in index:
+                    raise ProblemError(f"{where}: unknown body {ref!r}")
+                arr[k] = index[ref]
+            else:
+                raise ProblemError(f"{where}: body {side} must be a body name, got {ref!r}")
+        for key in ("point", "normal"):
+            if key not in c:
+                raise ProblemError(f"{where}: '{key}' is required")
+        point[k] = _vec(c["point"], dim, where, "point")
+        normal[k] = _vec(c["normal"], dim, where, "normal")
+        if "restitution" in c:
+            eps[k] = _scalar(c["restitution"], where, "restitution")
+        if "mu" in c and c["mu"] is not None:
+            mu[k] = _scalar(c["mu"], where, "mu")
+    return build_scene(dim, names, static, mass, inertia, quat, pos, vel, omega, ca, cb, point,
+                       normal, eps, mu, contact_names=cnames,
+                       name=str(data.get("name") or default_name),
+                       description=str(data.get("description") or ""))
+
+
+def build_scene(dim: int, names: list[str], static: np.ndarray, mass: np.ndarray,
+                inertia: np.ndarray, quat: np.ndarray | None, pos: np.ndarray, vel: np.ndarray,
+                omega: np.ndarray, ca: np.ndarray, cb: np.ndarray, point: np.ndarray,
+                normal: np.ndarray, eps: np.ndarray, mu: np.ndarray, *,
+                contact_names: list[str] | None = None, name: str = "",
+                description: str = "") -> Scene:
+    """Validate array data and derive world inertias (shared by the JSON and HDF5 readers).
+
+    ``inertia`` is ``(nb, r, r)`` in the body frame (NaN rows allowed for static bodies);
+    ``quat`` is ``(nb, 4)`` ``[w, x, y, z]`` or None (identity; ignored in 2-D).
+    """
+    dim = _dimension(dim)
+    r = 3 if dim == 3 else 1
+    nb, nc = len(names), int(np.asarray(ca).shape[0])
+    warnings: list[str] = []
+    static = np.asarray(static, dtype=bool).reshape(nb)
+    mass = np.asarray(mass, dtype=np.float64).reshape(nb)
+    inertia = np.asarray(inertia, dtype=np.float64).reshape(nb, r, r)
+    pos = np.asarray(pos, dtype=np.float64).reshape(nb, dim)
+    vel = np.asarray(vel, dtype=np.float64).reshape(nb, dim)
+    omega = np.asarray(omega, dtype=np.float64).reshape(nb, r)
+    ca = np.asarray(ca, dtype=np.int64).reshape(nc)
+    cb = np.asarray(cb, dtype=np.int64).reshape(nc)
+    point = np.asarray(point, dtype=np.float64).reshape(nc, dim)
+    normal = np.asarray(normal, dtype=np.float64).reshape(nc, dim)
+    eps = np.asarray(eps, dtype=np.float64).reshape(nc)
+    mu = np.asarray(mu, dtype=np.float64).reshape(nc)
+    moving = ~static
+
+    def body(i: int) -> str:
+        return f"body {names[int(i)]!r}"
+
+    for arr, label in ((pos, "position"), (vel, "velocity"), (omega, "angular_velocity")):
+        bad = np.flatnonzero(~np.all(np.isfinite(arr.reshape(nb, -1)), axis=1))
+        if bad.size:
+            raise ProblemError(f"{body(bad[0])}: {label} contains NaN or Inf")
+    bad = np.flatnonzero(mass < 0)
+    if bad.size:
+        raise ProblemError(f"{body(bad[0])}: negative mass {mass[bad[0]]:g}")
+    bad = np.flatnonzero(moving & ~(np.isfinite(mass) & (mass > 0)))
+    if bad.size:
+        raise ProblemError(f"{body(bad[0])}: a moving body needs a finite positive mass, got "
+                           f"{mass[bad[0]]:g} (mark immovable bodies 'static': true)")
+    bad = np.flatnonzero(moving & ~np.all(np.isfinite(inertia.reshape(nb, -1)), axis=1))
+    if bad.size:
+        raise ProblemError(f"{body(bad[0])}: inertia contains NaN or Inf")
+    # symmetry and positive definiteness (moving bodies)
+    idx = np.flatnonzero(moving)
+    Ib = inertia[idx]
+    scale = np.max(np.abs(Ib.reshape(idx.size, -1)), axis=1) if idx.size else np.zeros(0)
+    asym = np.max(np.abs(Ib - np.swapaxes(Ib, 1, 2)).reshape(idx.size, -1), axis=1) \
+        if idx.size else np.zeros(0)
+    bad = np.flatnonzero(asym > SYM_TOL * np.maximum(scale, 1e-300))
+    if bad.size:
+        raise ProblemError(f"{body(idx[bad[0]])}: inertia tensor is not symmetric")
+    if idx.size:
+        ev = np.linalg.eigvalsh(0.5 * (Ib + np.swapaxes(Ib, 1, 2)))
+        bad = np.flatnonzero(ev[:, 0] <= 1e-14 * np.maximum(ev[:, -1], 1e-300))
+        if bad.size:
+            raise ProblemError(f"{body(idx[bad[0]])}: inertia tensor is not positive definite "
+                               f"(smallest eigenvalue {ev[bad[0], 0]:g})")
+    # world inertia R I R^T
+    inv_mass = np.zeros(nb)
+    inv_mass[moving] = 1.0 / mass[moving]
+    mass = np.where(moving, mass, np.inf)
+    I_world = np.zeros((nb, r, r))
+    I_inv = np.zeros((nb, r, r))
+    if idx.size:
+        if dim == 3 and quat is not None:
+            quat = np.asarray(quat, dtype=np.float64).reshape(nb, 4)
+            qm = quat[idx]
+            if not np.all(np.isfinite(qm)):
+                bad = np.flatnonzero(~np.all(np.isfinite(qm), axis=1))
+                raise ProblemError(f"{body(idx[bad[0]])}: orientation contains NaN or Inf")
+            qn = np.linalg.norm(qm, axis=1)
+            bad = np.flatnonzero(qn < 1e-12)
+            if bad.size:
+                raise ProblemError(f"{body(idx[bad[0]])}: orientation quaternion is zero")
+            off = np.flatnonzero(np.abs(qn - 1.0) > UNIT_TOL)
+            if off.size:
+                warnings.append(f"{body(idx[off[0]])}: orientation quaternion of length "
+                                f"{qn[off[0]]:.6g} normalised"
+                                + (f" (and {off.size - 1} more)" if off.size > 1 else ""))
+            R = quat_to_matrix(qm / qn[:, None])
+            Iw = R @ Ib @ np.swapaxes(R, 1, 2)
+            Iinv_body = np.linalg.inv(Ib)
+            Iinv = R @ Iinv_body @ np.swapaxes(R, 1, 2)
+        else:
+            Iw = Ib
+            Iinv = np.linalg.inv(Ib)
+        I_world[idx] = 0.5 * (Iw + np.swapaxes(Iw, 1, 2))
+        I_inv[idx] = 0.5 * (Iinv + np.swapaxes(Iinv, 1, 2))
+    # contacts
+    for arr, label in ((point, "point"), (normal, "normal")):
+        bad = np.flatnonzero(~np.all(np.isfinite(arr), axis=1))
+        if bad.size:
+            raise ProblemError(f"contact {bad[0] + 1}: {label} contains NaN or Inf")
+    bad = np.flatnonzero((ca < 0) | (ca >= nb) | (cb < 0) | (cb >= nb))
+    if bad.size:
+        raise ProblemError(f"contact {bad[0] + 1}: body index out of range 0..{nb - 1}")
+    bad = np.flatnonzero(ca == cb)
+    if bad.size:
+        raise ProblemError(f"contact {bad[0] + 1}: bodies A and B are the same body "
+                           f"{names[int(ca[bad[0]])]!r}")
+    bad = np.flatnonzero(static[ca] & static[cb])
+    if bad.size:
+        k = int(bad[0])
+        raise ProblemError(f"contact {k + 1}: both bodies ({names[int(ca[k])]!r}, "
+                           f"{names[int(cb[k])]!r}) are static: no impulse can act")
+    norms = np.linalg.norm(normal, axis=1)
+    bad = np.flatnonzero(norms < 1e-12)
+    if bad.size:
+        raise ProblemError(f"contact {bad[0] + 1}: the normal is zero")
+    off = np.flatnonzero(np.abs(norms - 1.0) > UNIT_TOL)
+    if off.size:
+        warnings.append(f"contact {off[0] + 1}: normal of length {norms[off[0]]:.6g} normalised"
+                        + (f" (and {off.size - 1} more contacts)" if off.size > 1 else ""))
+    normal = normal / norms[:, None]
+    bad = np.flatnonzero(~(np.isfinite(eps) & (eps >= 0) & (eps <= 1)))
+    if bad.size:
+        raise ProblemError(f"contact {bad[0] + 1}: restitution {eps[bad[0]]:g} is outside [0, 1]")
+    bad = np.flatnonzero(~np.isnan(mu) & ~(np.isfinite(mu) & (mu >= 0)))
+    if bad.size:
+        raise ProblemError(f"contact {bad[0] + 1}: friction coefficient mu = {mu[bad[0]]:g} "
+                           f"must be finite and >= 0")
+    if contact_names is None or len(contact_names) != nc:
+        contact_names = [f"c{k + 1}" for k in range(nc)]
+    return Scene(dimension=dim, body_names=list(names), static=static, mass=mass,
+                 inv_mass=inv_mass, inertia=I_world, inv_inertia=I_inv, position=pos,
+                 velocity=vel, omega=omega, contact_a=ca, contact_b=cb, point=point,
+                 normal=normal, restitution=eps, mu=mu, contact_names=list(contact_names),
+                 name=name, description=description, warnings=warnings)
+
+
+# ---------------------------------------------------------------------- HDF5
+def read_scene_hdf5(path: Path) -> Scene:
+    """HDF5 scene: groups ``bodies`` and ``contacts`` of column datasets (see docs/contact.md)."""
+    try:
+        import h5py
+    except ImportError:  # pragma: no cover
+        raise ProblemError("h5py is not installed") from None
+    try:
+        f = h5py.File(path, "r")
+    except OSError as exc:
+        raise ProblemError(f"not a readable HDF5 file ({str(exc).splitlines()[0][:80]})") from None
+    with f:
+        dim = _dimension(_attr(f.attrs.get("dimension", 3)))
+        r = 3 if dim == 3 else 1
+        if "bodies" not in f or "contacts" not in f:
+            raise ProblemError("an HDF5 scene needs groups 'bodies' and 'contacts'")
+        gb, gc = f["bodies"], f["contacts"]
+
+        def ds(g: Any, key: str, shape_tail: tuple[int, ...], n: int | None,
+               default: float | None = None, required: bool = True) -> np.ndarray:
+            if key not in g:
+                if required and default is None:
+                    raise ProblemError(f"dataset '{g.name.strip('/')}/{key}' is missing")
+                fill = np.nan if default is None else default
+                return np.full((n if n is not None else 0, *shape_tail), fill)
+            obj = g[key]
+            if not isinstance(obj, h5py.Dataset):
+                raise ProblemError(f"'{g.name.strip('/')}/{key}' is not a dataset")
+            if obj.size > MAX_ITEMS * 9:
+                raise ProblemError(f"dataset '{key}' is too large")
+            try:
+                arr = np.asarray(obj[()], dtype=np.float64)
+            except (TypeError, ValueError):
+                raise ProblemError(f"dataset '{g.name.strip('/')}/{key}' is not numeric") \
+                    from None
+            return arr
+
+        if "name" in gb:
+            raw = gb["name"][()]
+            names = [x.decode() if isinstance(x, bytes) else str(x) for x in np.ravel(raw)]
+        else:
+            n_guess = int(np.asarray(gb["mass"]).shape[0]) if "mass" in gb else 0
+            names = [f"body{i + 1}" for i in range(n_guess)]
+        nb = len(names)
+        if nb == 0:
+            raise ProblemError("the scene has no bodies")
+        if len(set(names)) != nb:
+            raise ProblemError("two bodies have the same name")
+        static = np.zeros(nb, dtype=bool)
+        if "static" in gb:
+            static = np.asarray(gb["static"][()]).astype(bool).reshape(-1)
+        mass = ds(gb, "mass", (), nb, default=np.nan, required=False)
+        inertia = ds(gb, "inertia", (), nb, default=np.nan, required=False)
+        inertia = _inertia_array(inertia, nb, dim)
+        quat = ds(gb, "orientation", (4,), nb, default=None, required=False) if dim == 3 \
+            else None
+        if quat is not None and np.isnan(quat).all() and "orientation" not in gb:
+            quat = None
+        pos = ds(gb, "position", (dim,), nb, default=0.0)
+        vel = ds(gb, "velocity", (dim,), nb, default=0.0)
+        omega = ds(gb, "angular_velocity", (r,), nb, default=0.0)
+        ca = _body_refs(gc, "a", names)
+        cb = _body_refs(gc, "b", names)
+        nc = ca.shape[0]
+        point = ds(gc, "point", (dim,), nc)
+        normal = ds(gc, "normal", (dim,), nc)
+        eps = ds(gc, "restitution", (), nc, default=0.0)
+        mu = ds(gc, "mu", (), nc, default=np.nan, required=False)
+        _shape(static, (nb,), "bodies/static")
+        for arr, shp, label in ((mass, (nb,), "bodies/mass"), (pos, (nb, dim), "bodies/position"),
+                                (vel, (nb, dim), "bodies/velocity"),
+                                (omega.reshape(nb, -1) if omega.size == nb * r else omega,
+                                 (nb, r), "bodies/angular_velocity"),
+                                (point, (nc, dim), "contacts/point"),
+                                (normal, (nc, dim), "contacts/normal"),
+                                (eps, (nc,), "contacts/restitution"), (mu, (nc,), "contacts/mu")):
+            _shape(arr, shp, label)
+        if quat is not None:
+            _shape(quat, (nb, 4), "bodies/orientation")
+        bad = np.flatnonzero(~static & np.isnan(mass))
+        if bad.size:
+            raise ProblemError(f"body {names[bad[0]]!r}: 'mass' is required for a moving body")
+        bad = np.flatnonzero(~static & np.isnan(inertia).all(axis=(1, 2)))
+        if bad.size:
+            raise ProblemError(f"body {names[bad[0]]!r}: 'inertia' is required for a moving "
+                               f"body")
+        if quat is not None:
+            quat = np.where(np.isnan(quat), np.array([1.0, 0, 0, 0]), quat)
+        return build_scene(dim, names, static, mass, inertia, quat, pos, vel,
+                           omega.reshape(nb, r), ca, cb, point, normal, eps, mu,
+                           name=_attr(f.attrs.get("name", path.stem)),
+                           description=_attr(f.attrs.get("description", "")))
+
+
+def _attr(x: Any) -> Any:
+    if isinstance(x, bytes):
+        return x.decode()
+    if isinstance(x, np.generic):
+        return x.item()
+    return x
+
+
+def _shape(arr: np.ndarray, shape: tuple[int, ...], label: str) -> None:
+    if tuple(arr.shape) != shape:
+        raise ProblemError(f"dataset '{label}' has shape {tuple(arr.shape)}, expected {shape}")
+
+
+def _inertia_array(arr: np.ndarray, nb: int, dim: int) -> np.ndarray:
+    if dim == 2:
+        if arr.shape not in ((nb,), (nb, 1), (nb, 1, 1)):
+            raise ProblemError(f"dataset 'bodies/inertia' has shape {arr.shape}, expected ({nb},)")
+        return arr.reshape(nb, 1, 1)
+    if arr.shape == (nb,) and np.isnan(arr).all():
+        return np.full((nb, 3, 3), np.nan)
+    if arr.shape == (nb, 3):
+        out = np.zeros((nb, 3, 3))
+        out[:, [0, 1, 2], [0, 1, 2]] = arr
+        out[np.isnan(arr).any(axis=1)] = np.nan
+        return out
+    if arr.shape == (nb, 3, 3):
+        return arr
+    raise ProblemError(f"dataset 'bodies/inertia' has shape {arr.shape}, expected ({nb}, 3) "
+                       f"or ({nb}, 3, 3)")
+
+
+def _body_refs(g: Any, key: str, names: list[str]) -> np.ndarray:
+    if key not in g:
+        raise ProblemError(f"dataset 'contacts/{key}' is missing")
+    raw = np.ravel(g[key][()])
+    if raw.size and raw.dtype.kind in "SUO":
+        index = {nm: i for i, nm in enumerate(names)}
+        out = np.empty(raw.size, dtype=np.int64)
+        for k, x in enumerate(raw):
+            s = x.decode() if isinstance(x, bytes) else str(x)
+            if s not in index:
+                raise ProblemError(f"contact {k + 1}: unknown body {s!r}")
+            out[k] = index[s]
+        return out
+    if raw.size and raw.dtype.kind not in "iu":
+        raise ProblemError(f"dataset 'contacts/{key}' must hold body names or 0-based indices")
+    out = raw.astype(np.int64)
+    bad = np.flatnonzero((out < 0) | (out >= len(names)))
+    if bad.size:
+        raise ProblemError(f"contact {bad[0] + 1}: body index {out[bad[0]]} out of range "
+                           f"0..{len(names) - 1}")
+    return out
+
+
+def write_scene_hdf5(scene: Scene, path: str | Path) -> None:
+    """Write ``scene`` as an HDF5 scene (world inertias, identity orientations), atomically."""
+    import h5py
+
+    from lcpcli.io import atomic_path
+
+    nb = scene.n_bodies
+    with atomic_path(Path(path)) as tmp, h5py.File(tmp, "w") as f:
+        f.attrs["dimension"] = scene.dimension
+        if scene.name:
+            f.attrs["name"] = scene.name
+        gb = f.create_group("bodies")
+        gb.create_dataset("name", data=np.array(scene.body_names, dtype=object),
+                          dtype=h5py.string_dtype())
+        gb.create_dataset("static", data=scene.static)
+        gb.create_dataset("mass", data=np.where(scene.static, np.nan, scene.mass))
+        inertia = scene.inertia.copy()
+        inertia[scene.static] = np.nan
+        gb.create_dataset("inertia",
+                          data=inertia.reshape(nb) if scene.dimension == 2 else inertia)
+        gb.create_dataset("position", data=scene.position)
+        gb.create_dataset("velocity", data=scene.velocity)
+        gb.create_dataset("angular_velocity",
+                          data=scene.omega.reshape(nb) if scene.dimension == 2 else scene.omega)
+        gc = f.create_group("contacts")
+        gc.create_dataset("a", data=scene.contact_a)
+        gc.create_dataset("b", data=scene.contact_b)
+        gc.create_dataset("point", data=scene.point)
+        gc.create_dataset("normal", data=scene.normal)
+        gc.create_dataset("restitution", data=scene.restitution)
+        gc.create_dataset("mu", data=scene.mu)
+
+
+# ---------------------------------------------------------------------- JSON helpers
+def _dimension(x: Any) -> int:
+    if isinstance(x, bool) or x not in (2, 3):
+        raise ProblemError(f"'dimension' must be 2 or 3, got {x!r}")
+    return int(x)
+
+
+def _scalar(x: Any, where: str, label: str) -> float:
+    if isinstance(x, bool) or not isinstance(x, (int, float)):
+        raise ProblemError(f"{where}: '{label}' must be a number, got {x!r}")
+    v = float(x)
+    if not math.isfinite(v):
+        raise ProblemError(f"{where}: '{label}' is NaN or Inf")
+    return v
+
+
+def _vec(x: Any, n: int, where: str, label: str) -> np.ndarray:
+    if n == 1 and isinstance(x, (int, float)) and not isinstance(x, bool):
+        x = [x]
+    if not isinstance(x, list) or len(x) != n:
+        raise ProblemError(f"{where}: '{label}' must be a list of {n} numbers")
+    return np.array([_scalar(v, where, label) for v in x])
+
+
+def _inertia(x: Any, dim: int, where: str) -> np.ndarray:
+    if dim == 2:
+        v = _scalar(x[0] if isinstance(x, list) and len(x) == 1 else x, where, "inertia")
+        return np.array([[v]])
+    if isinstance(x, list) and len(x) == 3 and all(not isinstance(v, list) for v in x):
+        return np.diag(_vec(x, 3, where, "inertia"))
+    if isinstance(x, list) and len(x) == 3 and all(isinstance(v, list) for v in x):
+        return np.array([_vec(row, 3, where, "inertia") for row in x])
+    raise ProblemError(f"{where}: 'inertia' must be 3 numbers (diagonal) or a 3x3 matrix")

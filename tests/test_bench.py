@@ -1,0 +1,366 @@
+"""Tests of the benchmark suites, the runner's verdicts and the ``lcpcli bench`` command.
+
+Suite facts are checked against independent references (small re-implementations of Murty's
+least-index method and plain Newton-min, enumeration, Farkas inequalities), never timings.
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+
+import numpy as np
+import pytest
+
+from lcpcli import bench, suites
+from lcpcli.api import solve
+from lcpcli.certificate import certify
+from lcpcli.result import Result
+
+
+@pytest.fixture(scope="module")
+def siconos_data():
+    root = suites.siconos_root()
+    if root is None:
+        pytest.skip("Siconos data folder not found")
+    return root
+
+
+# ---------------------------------------------------------------------- references
+def least_index_pivots(M: np.ndarray, q: np.ndarray, limit: int = 10**5) -> tuple[int, np.ndarray]:
+    """Murty's least-index principal pivoting from z = 0: (pivots, solution)."""
+    n = q.size
+    in_z = np.zeros(n, dtype=bool)
+    for pivots in range(limit):
+        S = np.flatnonzero(in_z)
+        z = np.zeros(n)
+        if S.size:
+            z[S] = np.linalg.solve(M[np.ix_(S, S)], -q[S])
+        w = M @ z + q
+        basic = np.where(in_z, z, w)
+        neg = np.flatnonzero(basic < -1e-12)
+        if neg.size == 0:
+            return pivots, z
+        in_z[neg[0]] = ~in_z[neg[0]]
+    raise AssertionError("no convergence")
+
+
+def plain_newton_min(M: np.ndarray, q: np.ndarray, iters: int = 50) -> tuple[str, int]:
+    """Plain Newton-min from z = 0: ('solved', k) or ('cycle', k) when an index set repeats."""
+    n = q.size
+    z = np.zeros(n)
+    seen = []
+    for k in range(iters):
+        w = M @ z + q
+        if np.max(np.abs(np.minimum(z, w))) < 1e-12:
+            return "solved", k
+        assert not np.any(np.isclose(z, w) & (np.abs(z) > 0)), "a tie z_i = w_i"
+        active = tuple(w < z)  # rows where w is the smaller: w_i = 0, z_i free
+        if active in seen:
+            return "cycle", k
+        seen.append(active)
+        S = np.flatnonzero(active)
+        z = np.zeros(n)
+        if S.size:
+            z[S] = np.linalg.solve(M[np.ix_(S, S)], -q[S])
+    return "limit", iters
+
+
+def is_p_matrix(M: np.ndarray) -> bool:
+    n = M.shape[0]
+    return all(np.linalg.det(M[np.ix_(s, s)]) > 0 for k in range(1, n + 1)
+               for s in itertools.combinations(range(n), k))
+
+
+# ---------------------------------------------------------------------- suite facts
+@pytest.mark.parametrize("n", range(2, 9))
+def test_murty_lemke_takes_exactly_2_to_the_n_pivots(n: int) -> None:
+    case = suites.murty_lemke(n)
+    r = solve(case.problem, "lemke")
+    assert r.status == "solved"
+    assert r.iterations == 2 ** n == case.facts["lemke_pivots"]
+    assert np.array_equal(r.z, case.solution)
+    w = case.problem.w(case.solution)
+    assert np.allclose(w[:-1], 2.0 ** np.arange(1, n)) and w[-1] == 0
+
+
+@pytest.mark.parametrize("n", range(2, 9))
+def test_least_index_family_takes_2_to_the_n_minus_1_pivots(n: int) -> None:
+    case = suites.murty_least_index(n)
+    pivots, z = least_index_pivots(case.problem.dense_M(), case.problem.q)
+    assert pivots == 2 ** n - 1 == case.facts["murty_pivots"]
+    assert np.allclose(z, case.solution)
+
+
+def test_murty_family_matches_siconos_files(siconos_data) -> None:
+    from lcpcli.io import load
+
+    for fname, case in (("lcp_exp_murty2.dat", suites.murty_lemke(6)),
+                        ("lcp_exp_murty.dat", suites.murty_least_index(6)),
+                        ("lcp_CPS_3.dat", suites.bimatrix_cps())):
+        p = load(siconos_data / "lcp" / fname)
+        assert np.array_equal(p.dense_M(), case.problem.dense_M()), fname
+        assert np.array_equal(p.q, case.problem.q), fname
+
+
+def test_planted_and_known_solutions_certify() -> None:
+    cases = suites.hard_suite(4) + suites.random_suite(50)
+    with_solution = [c for c in cases if c.solution is not None]
+    assert len(with_solution) >= 20
+    for c in with_solution:
+        cert = certify(c.problem, c.solution, 1e-12)
+        assert cert.passed, (c.name, cert.error)
+    for c in cases:  # unique solutions: Lemke must find the same point on the well-posed ones
+        if c.unique and c.solution is not None and "illcond" not in c.name:
+            r = solve(c.problem, "lemke")
+            assert r.status == "solved", c.name
+            assert np.allclose(r.z, c.solution, atol=1e-8 * max(1, c.solution.max())), c.name
+
+
+def test_unique_solutions_are_the_only_ones_small_cases() -> None:
+    for c in (suites.kostreva(), suites.newton_min_cycle(3), suites.murty_lemke(4)):
+        sols = suites.enumerate_solutions(c.problem.dense_M(), c.problem.q)
+        assert len(sols) == 1 and np.allclose(sols[0], c.solution), c.name
+
+
+def test_infeasible_cases_carry_a_farkas_certificate() -> None:
+    for c in (suites.infeasible_psd(12), suites.infeasible_robust(12)):
+        assert c.expected == suites.INFEASIBLE
+        M, q, y = c.problem.dense_M(), c.problem.q, c.farkas
+        assert np.all(y > 0)
+        assert np.max(M.T @ y) <= 1e-12 * np.abs(M).max() * y.sum()
+        assert q @ y < -0.5
+    robust = suites.infeasible_robust(12)
+    assert np.max(robust.problem.dense_M().T @ robust.farkas) < -0.1  # strictly: well posed
+    assert np.linalg.eigvalsh(suites.infeasible_psd(12).problem.dense_M()).min() > -1e-10
+    r = solve(suites.infeasible_psd(12).problem, "lemke")
+    assert r.status == "no_solution"
+
+
+def test_newton_min_case_is_p_and_plain_newton_min_cycles() -> None:
+    assert is_p_matrix(suites.NEWTON_MIN_M)
+    for n in (3, 9):
+        c = suites.newton_min_cycle(n)
+        status, _ = plain_newton_min(c.problem.dense_M(), c.problem.q)
+        assert status == "cycle", n
+        assert certify(c.problem, c.solution, 1e-12).passed
+
+
+def test_kostreva_is_fully_degenerate_and_p() -> None:
+    c = suites.kostreva()
+    M, q = c.problem.dense_M(), c.problem.q
+    assert is_p_matrix(M)
+    assert np.all(q == q[0])  # every ratio of the first Lemke step ties
+    assert np.allclose(c.problem.w(c.solution), 0.0)
+
+
+def test_bimatrix_lemke_ray_though_solvable() -> None:
+    for c in (suites.bimatrix_cps(), suites.bimatrix_ray(10)):
+        M = c.problem.dense_M()
+        assert np.all(M >= 0)  # copositive
+        e1 = np.eye(M.shape[0])[0]
+        assert e1 @ M @ e1 == 0 and np.any((M + M.T) @ e1 != 0)  # not copositive-plus
+        r = solve(c.problem, "lemke")
+        assert r.status == "unsolved" and r.termination == "ray_termination"
+        assert certify(c.problem, c.solution, 1e-12).passed
+
+
+def test_cube_contacts_are_singular_psd() -> None:
+    for k in (4, 8):
+        c = suites.cube_contact(k)
+        M = c.problem.dense_M()
+        ev = np.linalg.eigvalsh(M)
+        assert ev.min() > -1e-12 and np.linalg.matrix_rank(M) == 3 < k
+        assert np.allclose(M, M.T)
+        assert certify(c.problem, c.solution, 1e-14).passed
+
+
+def test_illcond_family_hits_its_condition_numbers() -> None:
+    for cond in (1e2, 1e8, 1e12):
+        c = suites.illcond_pd(16, cond)
+        assert np.linalg.cond(c.problem.dense_M()) == pytest.approx(cond, rel=0.05)
+
+
+def test_suites_are_deterministic_and_sized() -> None:
+    a, b = suites.suite("hard", 5), suites.suite("hard", 5)
+    assert [c.name for c in a] == [c.name for c in b]
+    for x, y in zip(a, b, strict=True):
+        assert np.array_equal(x.problem.dense_M(), y.problem.dense_M())
+        assert np.array_equal(x.problem.q, y.problem.q)
+    rnd = suites.suite("random", 50)
+    assert sorted({c.n for c in rnd}) == [10, 50]
+    assert any(c.problem.sparse for c in rnd)
+    with pytest.raises(Exception, match="unknown suite"):
+        suites.suite("nope")
+
+
+def test_siconos_suite_expectations(siconos_data) -> None:
+    cases = suites.siconos_suite()
+    names = {c.name for c in cases}
+    assert "Rectangular_mlcp" not in names and "lcp_deudeu" in names
+    infeasible = [c.name for c in cases if c.expected == suites.INFEASIBLE]
+    assert infeasible == ["lcp_Pang_isolated_sol_perturbed"]
+    for c in cases:
+        if c.solution is not None:
+            assert certify(c.problem, c.solution, 1e-9).passed, c.name
+
+
+# ---------------------------------------------------------------------- runner verdicts
+def _fake_solve(behaviour: str):
+    """A solve function that lies (or not) in a chosen way."""
+
+    def fake(problem, method, tol=1e-8):
+        n = problem.n
+        z = np.zeros(n)
+        status = {"lie_solved": "solved", "lie_infeasible": "no_solution",
+                  "honest": "unsolved"}[behaviour]
+        cert = certify(problem, z, tol)
+        return Result(status=status, method=method, z=z, w=problem.w(z), iterations=1,
+                      seconds=1e-4, certificate=cert, message="fake", termination="converged")
+
+    return fake
+
+
+def test_defect_detection_with_lying_methods() -> None:
+    case = suites.murty_lemke(4)  # z = 0 is not a solution (q < 0)
+    for behaviour, defect in (("lie_solved", True), ("lie_infeasible", True), ("honest", False)):
+        rep = bench.run_bench([case], [behaviour], repeat=1, solve_fn=_fake_solve(behaviour))
+        (rec,) = rep.records
+        assert rec.defect is defect, behaviour
+        assert rec.success is False
+        assert bool(rep.defects) is defect
+    rep = bench.run_bench([case], ["lemke-tableau"], repeat=1)
+    assert not rep.defects and rep.records[0].success
+
+
+def test_isolated_runs_time_out_and_survive_crashes() -> None:
+    import os
+    import time
+
+    def sleepy(problem, method, tol=1e-8):
+        time.sleep(30)
+
+    def crashing(problem, method, tol=1e-8):
+        os._exit(7)
+
+    case = suites.kostreva()
+    t0 = time.perf_counter()
+    rep = bench.run_bench([case], ["sleepy"], repeat=0, solve_fn=sleepy, timeout=0.5)
+    assert time.perf_counter() - t0 < 10
+    (rec,) = rep.records
+    assert rec.status == "timeout" and not rec.success and not rec.defect
+    (rec,) = bench.run_bench([case], ["crash"], repeat=0, solve_fn=crashing, timeout=5).records
+    assert rec.status == "error" and "exit code 7" in rec.message
+    rec = bench.run_isolated(case, "lemke-tableau", 1e-8, timeout=30, repeat=2)
+    assert rec.status == "solved" and rec.success and rec.repeats == 2
+
+
+def test_no_solution_on_infeasible_is_success_not_defect() -> None:
+    case = suites.infeasible_psd(8)
+    rec = bench.run_one(case, "lemke-tableau", 1e-8, repeat=1)
+    assert rec.status == "no_solution" and rec.success and not rec.defect
+
+
+def test_statistics_shifted_geomean_and_profile() -> None:
+    assert bench.shifted_geomean([0.0, 0.0]) == pytest.approx(0.0, abs=1e-15)
+    assert bench.shifted_geomean([0.01, 0.03], shift=0.01) == pytest.approx(
+        np.sqrt(0.02 * 0.04) - 0.01)
+    R = bench.Record
+    recs = [R("p1", 2, "a", "solved", 1.0, 1, 0.0, "solvable", False, 1e-8, success=True),
+            R("p1", 2, "b", "solved", 2.0, 1, 0.0, "solvable", False, 1e-8, success=True),
+            R("p2", 2, "a", "unsolved", 1.0, 1, 1.0, "solvable", False, 1e-8),
+            R("p2", 2, "b", "solved", 4.0, 1, 0.0, "solvable", False, 1e-8, success=True)]
+    rep = bench.BenchReport(recs, ["a", "b"], [1e-8],
+                            [("p1", 2, "lcp", "solvable"), ("p2", 2, "lcp", "solvable")])
+    prof = bench.performance_profile(rep)
+    assert prof["ratios"] == {"a": [1.0, None], "b": [2.0, 1.0]}
+    assert prof["tau"] == [1.0, 2.0]
+    assert prof["rho"] == {"a": [0.5, 0.5], "b": [0.5, 1.0]}
+    summ = {s.method: s for s in bench.summarize(rep)}
+    # the failure of a on p2 is charged 10 x the slowest time on p2 (4 s)
+    assert summ["a"].sgm_seconds == pytest.approx(np.sqrt(1.01 * 40.01) - 0.01)
+    assert summ["a"].successes == 1 and summ["b"].successes == 2
+
+
+# ---------------------------------------------------------------------- CLI
+REQUIRED = {"problem": str, "n": int, "method": str, "status": str, "seconds": float,
+            "iterations": int, "error": float, "expected": str, "defect": bool}
+
+
+def test_cli_json_schema(cli) -> None:
+    proc = cli("bench", "--suite", "hard", "--n", "3", "--methods", "lemke-tableau", "--no-peers",
+               "--repeat", "1", "--json")
+    assert proc.returncode == 0, proc.stderr
+    lines = proc.stdout.splitlines()
+    assert len(lines) == len(suites.hard_suite(3))
+    names = set()
+    for line in lines:
+        d = json.loads(line)
+        for key, typ in REQUIRED.items():
+            assert key in d, key
+            assert d[key] is None or isinstance(d[key], typ) or (typ is float and
+                                                                  isinstance(d[key], int)), key
+        assert d["method"] == "lemke-tableau" and d["expected"] in ("solvable", "infeasible")
+        assert d["defect"] is False
+        names.add(d["problem"])
+    assert "murty-lemke-3" in names and "infeasible-psd-6" in names
+
+
+def test_cli_table_files_folder_hdf5(cli, tmp_path) -> None:
+    import h5py
+
+    from lcpcli.io import save
+
+    save(suites.kostreva().problem, tmp_path / "k.json")
+    save(suites.murty_lemke(3).problem, tmp_path / "sub_m.npz")
+    with h5py.File(tmp_path / "many.h5", "w") as f:
+        for c in (suites.cube_contact(4), suites.murty_lemke(4)):
+            g = f.create_group(c.name)
+            g["M"] = c.problem.dense_M()
+            g["q"] = c.problem.q
+    cases = bench.cases_from_paths([str(tmp_path)])
+    assert sorted(c.name for c in cases) == ["k", "many/cube-4", "many/murty-lemke-4", "sub_m"]
+    assert {c.expected for c in cases} == {"unknown"}
+    proc = cli("bench", str(tmp_path / "many.h5"), str(tmp_path / "k.json"), "-m", "lemke",
+               "--no-peers", "--repeat", "1", "--tol", "1e-6,1e-10")
+    assert proc.returncode == 0, proc.stderr
+    assert "per method" in proc.stdout and "many/murty-lemke-4" in proc.stdout
+    assert "time to reach each tolerance" in proc.stdout
+
+
+@pytest.mark.parametrize("args, needle", [
+    (["--suite", "hard", "-m", "nosuch"], "unknown method"),
+    ([], "give problem files"),
+    (["--suite", "nosuch"], "unknown suite"),
+    (["--suite", "hard", "--tol", "abc"], "--tol"),
+    (["--suite", "hard", "--tol", "-1"], "positive"),
+    (["/nonexistent/file.json"], "no such file"),
+])
+def test_cli_bad_input(cli, args, needle) -> None:
+    proc = cli("bench", "--no-peers", *args)
+    assert proc.returncode == 2
+    assert "Traceback" not in proc.stderr + proc.stdout
+    assert needle in proc.stderr
+
+
+def test_cli_plot_and_markdown(cli, tmp_path) -> None:
+    pytest.importorskip("matplotlib")
+    png, md = tmp_path / "p.png", tmp_path / "r.md"
+    proc = cli("bench", "--suite", "hard", "--n", "3", "-m", "lemke-tableau", "--no-peers",
+               "--repeat", "0", "--plot", str(png), "--markdown", str(md))
+    assert proc.returncode == 0, proc.stderr
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert "| lemke-tableau | 1e-08 |" in md.read_text()
+
+
+def test_siconos_peer_is_certified_like_our_methods() -> None:
+    from lcpcli import peers
+
+    found, missing = peers.discover(["siconos"])
+    if not found:
+        pytest.skip(f"Siconos peer not available: {missing}")
+    case = suites.murty_lemke(5)
+    recs = bench.run_peer(case, found[0], 1e-8, repeat=1)
+    lemke = next(r for r in recs if r.method == "siconos-lemke")
+    assert lemke.success and lemke.peer == "siconos" and lemke.error is not None
+    assert lemke.iterations == 2 ** 5 - 1  # Siconos counts the complementary pivots only
