@@ -153,20 +153,23 @@ def plan(problem: Any, c: dict[str, Any], available: dict[str, Any]) -> list[tup
 def prepare() -> None:
     """Warm up the compiled kernels of the LCP methods auto tries most (outside the timed
     region); other methods' hooks run inside ``run`` when they are tried (cached, cheap)."""
+    from lcpcli.api import _PREPARED
     from lcpcli.solvers import get_method
 
-    for name in ("lemke", "murty", "pgs", "dantzig"):
+    for name in ("lemke", "murty", "pgs", "dantzig", "mlcp-schur", "mlcp-lemke"):
         try:
             spec = get_method(name)
         except Exception:  # noqa: BLE001 - a method absent from this build
             continue
-        if spec.prepare is not None:
+        if spec.prepare is not None and spec.name not in _PREPARED:
             spec.prepare()
+            _PREPARED.add(spec.name)
 
 
 def run(problem: Any, *, tol: float, max_iter: int | None = None,
         z0: np.ndarray | None = None, order: str | None = None) -> Outcome:
     """Classify, plan and try methods until one's answer passes the certificate."""
+    from lcpcli.api import _PREPARED
     from lcpcli.certificate import certify, matrix_norm_inf
     from lcpcli.classify import classify
     from lcpcli.errors import OptionError
@@ -212,8 +215,9 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None,
             opts["z0"] = z0
         if problem.sparse and not spec.sparse and n * n > MAX_DENSIFY_ENTRIES:
             continue  # it would densify a huge sparse M (api.check_dense_ok refuses that too)
-        if spec.prepare is not None:
-            spec.prepare()
+        if spec.prepare is not None and spec.name not in _PREPARED:
+            spec.prepare()  # once per process, as lcpcli.api.solve does
+            _PREPARED.add(spec.name)
         t1 = time.perf_counter()
         try:
             out: Outcome = spec.run(problem, tol=tol, **spec.parse_options(opts))
