@@ -164,6 +164,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--budget", type=float, default=None,
                     help="skip a method at larger sizes once it took this long (s)")
     ap.add_argument("--methods", default=",".join(METHODS))
+    ap.add_argument("--families", default=",".join(FAMILIES),
+                    help="comma-separated subset of pd, psd, p, contact")
     ap.add_argument("--max-sweeps", type=int, default=1000,
                     help="PGS/PSOR sweep limit in the default and quick runs (default 1000)")
     ap.add_argument("--out", default=str(ROOT / "benchmarks" / "results" / "methods.json"))
@@ -181,7 +183,10 @@ def main(argv: list[str] | None = None) -> int:
             spec.prepare()
     rows = []
     t_start = time.perf_counter()
+    wanted = {f.strip() for f in args.families.split(",")}
     for fam, sizes in sizes_for(args).items():
+        if fam not in wanted:
+            continue
         slow: set[str] = set()
         for n in sizes:
             rng = np.random.default_rng(1000 + n)
