@@ -427,3 +427,18 @@ def test_pgs_zero_diagonal_message_names_the_entry():
     r = solve(Problem.create([[0, 1], [1, 1]], [-1, -1]), "pgs")
     assert r.status == "unsolved" and r.termination == "not_applicable"
     assert "M[1,1] = 0" in r.message
+
+
+def test_auto_solves_every_siconos_mlcp_file(sico):
+    files = sorted(f for f in (sico / "mlcp").glob("*.dat") if not f.name.startswith("Rect"))
+    assert len(files) == 17
+    for f in files:
+        p = lcpcli.load(f)
+        r = solve(p)
+        assert r.solved and r.method == "auto", (f.name, r.message)
+        w = p.w(r.z)
+        ne = p.n_eq
+        scale = 1e-7 * (np.max(np.abs(p.q)) + np.max(np.abs(p.dense_M())) * np.max(np.abs(r.z)))
+        assert np.max(np.abs(w[:ne]), initial=0) <= scale  # equality rows
+        assert np.all(r.z[ne:] >= -scale) and np.all(w[ne:] >= -scale)
+        assert np.max(np.abs(np.minimum(r.z[ne:], w[ne:]))) <= scale
