@@ -102,17 +102,17 @@ def plan(problem: Any, c: dict[str, Any], available: dict[str, Any]) -> list[tup
         return steps
     # ---- LCP
     if dense_small:
-        if sym and pd:
+        if sym and pd:  # Lemke measured faster than dantzig here (benchmarks/bench_methods.py)
+            add("lemke", "symmetric PD (a P-matrix): Lemke is finite")
             add("dantzig", "symmetric PD: principal pivoting")
-            add("lemke", "P-matrix: Lemke is finite")
             add("murty", "P-matrix: Murty's method is finite")
         elif p:
             add("lemke", f"P-matrix ({c['p_matrix_reason']}): Lemke is finite")
             add("murty", "P-matrix: Murty's method is finite")
         elif psd:
+            add("lemke", "PSD (copositive-plus): Lemke finds a solution or proves none exists")
             if sym:
                 add("dantzig", "symmetric PSD: principal pivoting")
-            add("lemke", "PSD (copositive-plus): Lemke finds a solution or proves none exists")
             add("ip", "monotone LCP: interior point")
         else:
             add("lemke", "no class known: Lemke first (solves many problems; proofs only "
