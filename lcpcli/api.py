@@ -13,7 +13,7 @@ from lcpcli.problem import Problem
 from lcpcli.result import NO_SOLUTION, SOLVED, UNSOLVED, Outcome, Result
 from lcpcli.solvers import get_method
 
-DEFAULT_METHOD = "lemke"
+DEFAULT_METHOD = "auto"
 #: Methods whose ``prepare`` hook (kernel loading) already ran in this process.
 _PREPARED: set[str] = set()
 #: A method that densifies M is refused on a sparse problem with more entries than this.

@@ -59,7 +59,7 @@ class Task:
 class SolveOptions:
     """What every problem of a batch is solved with (picklable, sent to the workers)."""
 
-    method: str = "lemke"
+    method: str = "auto"  # = lcpcli.api.DEFAULT_METHOD
     tol: float | None = None
     options: dict[str, Any] = field(default_factory=dict)
 

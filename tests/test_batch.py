@@ -50,7 +50,8 @@ def lib(inputs: list, **kw):
     """The library entry point, in this process (faster than the CLI for most checks)."""
     from lcpcli.batch import SolveOptions, run_batch
 
-    opts = SolveOptions(options={"max_iter": kw.pop("max_iter")} if "max_iter" in kw else {})
+    opts = SolveOptions(method=kw.pop("method", "auto"),
+                        options={"max_iter": kw.pop("max_iter")} if "max_iter" in kw else {})
     return run_batch([str(i) for i in inputs], opts, **kw)
 
 
@@ -203,8 +204,8 @@ def slow_folder(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 def test_resume_after_kill_9(cli, slow_folder, tmp_path):
     out = tmp_path / "r.jsonl"
-    proc = _popen(["solve", str(slow_folder), "-j", "1", "--timeout", "300", "--max-iter",
-                   "1000000000", "-o", str(out), "-q"], tmp_path)
+    proc = _popen(["solve", str(slow_folder), "-m", "lemke", "-j", "1", "--timeout", "300",
+                   "--max-iter", "1000000000", "-o", str(out), "-q"], tmp_path)
     _wait_lines(out, 12, proc)
     proc.kill()  # kill -9: no chance to clean up
     proc.wait()
@@ -212,8 +213,8 @@ def test_resume_after_kill_9(cli, slow_folder, tmp_path):
         f.write(b'{"file": "x", "status": "sol')
     before = out.read_bytes().splitlines()[:-1]
     assert len(read_rows(out)) == len(before) >= 12  # the torn line is ignored
-    r = cli("solve", str(slow_folder), "-j", "2", "--max-iter", "2000", "-o", str(out),
-            "--resume", "--json", cwd=tmp_path)
+    r = cli("solve", str(slow_folder), "-m", "lemke", "-j", "2", "--max-iter", "2000",
+            "-o", str(out), "--resume", "--json", cwd=tmp_path)
     assert r.returncode == 1, r.stderr  # murty23 within 2000 pivots: unsolved
     summary = json.loads(r.stdout)
     assert summary["skipped"] == len(before) and summary["new"] == 30 - len(before)
@@ -230,8 +231,8 @@ def test_resume_after_kill_9(cli, slow_folder, tmp_path):
 
 def test_sigterm_leaves_valid_hdf5_and_resume(cli, slow_folder, tmp_path):
     out = tmp_path / "r.h5"
-    proc = _popen(["solve", str(slow_folder), "-j", "1", "--timeout", "300", "--max-iter",
-                   "1000000000", "-o", str(out), "-q"], tmp_path)
+    proc = _popen(["solve", str(slow_folder), "-m", "lemke", "-j", "1", "--timeout", "300",
+                   "--max-iter", "1000000000", "-o", str(out), "-q"], tmp_path)
     _wait_lines(journal_path(out), 12, proc)
     proc.send_signal(signal.SIGTERM)
     _, err = proc.communicate(timeout=30)
@@ -239,7 +240,8 @@ def test_sigterm_leaves_valid_hdf5_and_resume(cli, slow_folder, tmp_path):
     assert not journal_path(out).exists()
     first = by_key(read_rows(out))
     assert len(first) >= 12
-    r = cli("solve", str(slow_folder), "--max-iter", "2000", "-o", str(out), "--resume", "-q",
+    r = cli("solve", str(slow_folder), "-m", "lemke", "--max-iter", "2000", "-o", str(out),
+            "--resume", "-q",
             cwd=tmp_path)
     assert r.returncode == 1
     rows = by_key(read_rows(out))
@@ -392,7 +394,7 @@ def test_hdf5_groups_read_like_single_loads(tmp_path):
     box = Problem.create(plain.M, plain.q, lower=-np.ones(5), upper=np.ones(5), name="box")
     ints = Problem.create(np.eye(3, dtype=int), np.array([-1, 2, -3]), name="ints")
     write_many([plain, mlcp, box, ints], tmp_path / "kinds.h5")
-    report = lib([tmp_path / "kinds.h5"], jobs=1, output=tmp_path / "k.jsonl")
+    report = lib([tmp_path / "kinds.h5"], jobs=1, output=tmp_path / "k.jsonl", method="lemke")
     rows = by_key(read_rows(tmp_path / "k.jsonl"))
     src = str(tmp_path / "kinds.h5")
     assert report.total == 4

@@ -12,7 +12,7 @@ SCHEMA = {"file", "status", "method", "n", "z", "w", "iterations", "seconds", "r
 
 
 def test_solve_sample_prints_table(cli):
-    r = cli("solve", "samples/seed004.json", env={"NO_COLOR": "1"})
+    r = cli("solve", "samples/seed004.json", "--method", "lemke", env={"NO_COLOR": "1"})
     assert r.returncode == 0, r.stderr
     for text in ("solved", "lemke", "residual", "error", "1.33333", "2.33333"):
         assert text in r.stdout
@@ -42,7 +42,7 @@ def test_exit_code_1_when_not_solved(cli, siconos):
     assert r.returncode == 1
     out = json.loads(r.stdout)
     assert out["status"] == "no_solution" and "Farkas" in out["message"]
-    r = cli("solve", str(siconos / "lcp" / "lcp_CPS_3.dat"), "--json")
+    r = cli("solve", str(siconos / "lcp" / "lcp_CPS_3.dat"), "--method", "lemke", "--json")
     assert r.returncode == 1 and json.loads(r.stdout)["status"] == "unsolved"
 
 

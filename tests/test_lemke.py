@@ -111,7 +111,7 @@ def test_ray_on_psd_matrix_is_proven_infeasible():
 
 def test_pivot_limit_is_reported_unsolved(siconos):
     p = lcpcli.load(siconos / "lcp" / "lcp_exp_murty2.dat")
-    r = lcpcli.solve(p, max_iter=10)
+    r = lcpcli.solve(p, "lemke", max_iter=10)
     assert r.status == "unsolved" and r.termination == "iteration_limit"
     assert "pivot limit" in r.message
 

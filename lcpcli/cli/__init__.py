@@ -50,6 +50,7 @@ COMMAND_MODULES = [
     "pivot_cmd",
     "enumerate_cmd",
     "bench_cmd",
+    "info_cmd",
 ]
 
 app = typer.Typer(

@@ -16,7 +16,7 @@ def solve(
     more_files: list[str] = typer.Argument(None, metavar="FILE", show_default=False,  # noqa: B008
                                            help="More files, folders or globs: a batch "
                                                 "(see docs/batch.md)."),
-    method: str = typer.Option("lemke", "--method", "-m", help="Solver method (listed below)."),
+    method: str = typer.Option("auto", "--method", "-m", help="Solver method (listed below)."),
     tol: float = typer.Option(None, "--tol",
                               help="Tolerance on the scaled error for the verdict 'solved' "
                                    "[default: the method's, 1e-8 for pivoting]."),
@@ -24,6 +24,12 @@ def solve(
     covering: str = typer.Option(None, "--covering",
                                  help="Lemke covering vector d > 0, e.g. '1,2,1' "
                                       "[default: all ones]."),
+    omega: float = typer.Option(None, "--omega",
+                                help="Relaxation parameter of psor, 0 < omega < 2."),
+    z0: Path = typer.Option(None, "--z0", metavar="FILE",
+                            help="Warm start z: a JSON list, a result JSON with \"z\", or an "
+                                 "NPZ/NPY array (methods pgs, psor, newton, newton-min, murty, "
+                                 "auto)."),
     option: list[str] = typer.Option(None, "--option", "-O", metavar="KEY=VALUE",
                                      help="Other method option (repeatable)."),
     problem: str = typer.Option(None, "--problem", "-p",
@@ -72,6 +78,12 @@ def solve(
         opts["max_iter"] = max_iter
     if covering is not None:
         opts["covering"] = covering
+    if omega is not None:
+        opts["omega"] = omega
+    if z0 is not None:
+        from lcpcli.warmstart import load_z0
+
+        opts["z0"] = load_z0(z0)
     from lcpcli.cli.batch_run import run_batch_command, wants_batch
 
     files = [file, *(more_files or [])]
@@ -84,6 +96,8 @@ def solve(
                                  as_json=as_json, output=output, **batch)
     if trace:
         opts["trace"] = True
+        if method == "auto":  # the pivot trace is a Lemke feature: auto would refuse it
+            method = "lemke"
     prob = load(file, problem)
     result = solve_problem(prob, method, tol=tol, **opts)
     payload = result.to_dict(file=file)

@@ -1,0 +1,39 @@
+"""``lcpcli info``: classify a problem's matrix and say which methods apply, and why."""
+
+from __future__ import annotations
+
+import typer
+
+
+def info(
+    file: str = typer.Argument(..., metavar="FILE",
+                               help="Problem file (.json, .npz, .h5, .dat); '-' reads JSON "
+                                    "from stdin."),
+    problem: str = typer.Option(None, "--problem", "-p",
+                                help="Problem (group) name inside an HDF5 file."),
+    as_json: bool = typer.Option(False, "--json",
+                                 help="Print one JSON object on stdout and nothing else."),
+) -> int:
+    """Classify M (symmetric? PSD/PD? Z? P-matrix by a sufficient test? sparse? size?) and list
+    each solver method with whether it applies and why, and the order 'auto' would try.
+    Exit codes: 0 done; 2 bad usage or bad input; 3 internal error.
+    """
+    from lcpcli.io import load
+    from lcpcli.solvers.auto import info_report
+
+    prob = load(file, problem)
+    report = info_report(prob, file)
+    if as_json:
+        from lcpcli.cli.common import write_json_line
+
+        write_json_line(report)
+    else:
+        from lcpcli.cli.common import stdout_console
+        from lcpcli.render_info import render_info
+
+        stdout_console().print(render_info(report))
+    return 0
+
+
+def register(app: typer.Typer) -> None:
+    app.command("info")(info)

@@ -1,0 +1,59 @@
+"""Rich rendering of ``lcpcli info``: the class report and the methods that apply."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from rich.console import Group
+from rich.table import Table
+from rich.text import Text
+
+APPLIES_STYLE = {"yes": "bold green", "maybe": "yellow", "no": "red"}
+
+#: Class-report keys shown, with their labels.
+FIELDS = [
+    ("kind", "problem kind"), ("n", "n"), ("n_eq", "equality rows (MLCP)"),
+    ("sparse", "sparse storage"), ("nnz", "nonzeros"), ("density", "density"),
+    ("q_nonnegative", "q >= 0 (z = 0 solves)"), ("symmetric", "symmetric"),
+    ("definiteness", "definiteness of (M + M^T)/2"), ("min_eig_sym", "smallest eigenvalue"),
+    ("definiteness_test", "definiteness test"), ("factor_fill", "sparse LU fill ratio"),
+    ("positive_diagonal", "positive diagonal"),
+    ("zero_diagonal", "zero diagonal entries"), ("z_matrix", "Z-matrix (off-diagonal <= 0)"),
+    ("nonnegative", "nonnegative matrix"),
+    ("diagonally_dominant", "strictly diagonally dominant"),
+    ("h_matrix_positive_diagonal", "H-matrix with positive diagonal"),
+    ("p_matrix", "P-matrix"), ("p_matrix_reason", "P-matrix test"),
+]
+
+
+def _fmt(v: Any) -> str:
+    if v is None:
+        return "not tested"
+    if isinstance(v, bool):
+        return "yes" if v else "no"
+    if isinstance(v, float):
+        return f"{v:.4g}"
+    return str(v)
+
+
+def render_info(report: dict[str, Any]) -> Group:
+    """The classification grid and the method table of an ``info`` report."""
+    head = Table.grid(padding=(0, 2))
+    head.add_column(style="bold")
+    head.add_column()
+    head.add_row("file", str(report.get("file") or ""))
+    head.add_row("problem", report["summary"])
+    c = report["classification"]
+    for key, label in FIELDS:
+        if key in c and not (key == "n_eq" and not c[key]):
+            head.add_row(label, _fmt(c[key]))
+    table = Table(title="methods", title_justify="left")
+    for col in ("method", "applies", "why", "auto order"):
+        table.add_column(col)
+    for row in report["methods"]:
+        table.add_row(row["method"], Text(row["applies"], style=APPLIES_STYLE[row["applies"]]),
+                      row["why"], str(row["auto_rank"] or "-"))
+    plan = report["auto_plan"]
+    lines = [f"{i + 1}. {name}: {why}" for i, (name, why) in enumerate(plan)]
+    return Group(head, Text(""), table, Text(""),
+                 Text("auto would try: " + ("\n  " + "\n  ".join(lines) if lines else "nothing")))
