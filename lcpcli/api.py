@@ -29,10 +29,6 @@ def check_dense_ok(problem: Problem, spec: Any) -> None:
                           f"choose a method for large sparse problems (see 'lcpcli methods')")
 
 
-#: Method used instead of the default one for problem kinds that it does not handle.
-KIND_DEFAULTS = {"mlcp": "mlcp-lemke", "box": "dantzig"}
-
-
 def solve(problem: Problem, method: str = DEFAULT_METHOD, *, tol: float | None = None,
           **options: Any) -> Result:
     """Solve ``problem`` with ``method`` and certify the answer.
@@ -46,9 +42,6 @@ def solve(problem: Problem, method: str = DEFAULT_METHOD, *, tol: float | None =
     ``seconds`` times the method alone (no file reading, no certification).
     """
     spec = get_method(method)
-    if method == DEFAULT_METHOD and problem.kind not in spec.kinds \
-            and problem.kind in KIND_DEFAULTS:
-        spec = get_method(KIND_DEFAULTS[problem.kind])
     if problem.kind not in spec.kinds:
         raise OptionError(f"method '{spec.name}' does not handle {problem.kind.upper()} problems "
                           f"(it handles: {', '.join(k.upper() for k in spec.kinds)})")

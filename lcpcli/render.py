@@ -27,11 +27,12 @@ def render_result(result: Any, problem: Any, file: str | None = None) -> Group:
     head = Table.grid(padding=(0, 2))
     head.add_column(style="bold")
     head.add_column()
-    head.add_row("problem", f"{file or ''}{' : ' + problem.name if problem.name else ''}")
+    # user text (file names, messages) is never read as rich markup
+    head.add_row("problem", Text(f"{file or ''}{' : ' + problem.name if problem.name else ''}"))
     head.add_row("size", problem.summary())
     head.add_row("method", result.method)
     head.add_row("status", Text(result.status, style=STATUS_STYLE.get(result.status, "")))
-    head.add_row("message", result.message)
+    head.add_row("message", Text(result.message))
     cert = result.certificate
     head.add_row("pivots/iterations", str(result.iterations))
     head.add_row("time", f"{result.seconds * 1e3:.3f} ms (method only)")
