@@ -39,6 +39,18 @@ def positive_int(value: Any) -> int:
     return v
 
 
+def bool_option(value: Any) -> bool:
+    """A true/false option: bools, or the strings 1/0, true/false, yes/no, on/off."""
+    if isinstance(value, bool):
+        return value
+    low = str(value).strip().lower()
+    if low in ("1", "true", "yes", "on"):
+        return True
+    if low in ("0", "false", "no", "off", ""):
+        return False
+    raise ValueError(f"expected true/false, got {value!r}")
+
+
 def omega_option(value: Any) -> float:
     """The relaxation parameter: finite, ``0 < omega < 2`` (outside, PSOR need not converge)."""
     v = float(value)

@@ -27,13 +27,7 @@ import numpy as np
 
 from lcpcli.result import CONVERGED, ITERATION_LIMIT, NUMERICAL, RAY, Outcome
 from lcpcli.solvers import Method, Option
-
-
-def _max_iter(value: Any) -> int:
-    v = int(value)
-    if v < 1:
-        raise ValueError("must be a positive integer")
-    return v
+from lcpcli.solvers._common import positive_int
 
 
 def prepare() -> None:
@@ -93,7 +87,7 @@ METHODS = [
         matrix_classes="symmetric PSD (incl. PD) and P-matrices; box bounds, infinite sides, "
                        "free variables",
         kinds=("lcp", "box"),
-        options={"max_iter": Option(_max_iter, None, "pivot limit (default max(1000, 50 n))")},
+        options={"max_iter": Option(positive_int, None, "pivot limit (default max(1000, 50 n))")},
         prepare=prepare,
     ),
 ]

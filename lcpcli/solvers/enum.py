@@ -19,17 +19,7 @@ import numpy as np
 
 from lcpcli.result import CONVERGED, INFEASIBLE, NUMERICAL, Outcome
 from lcpcli.solvers import Method, Option
-
-
-def _bool(value: Any) -> bool:
-    if isinstance(value, bool):
-        return value
-    s = str(value).strip().lower()
-    if s in ("1", "true", "yes", "on"):
-        return True
-    if s in ("0", "false", "no", "off"):
-        return False
-    raise ValueError(f"expected true/false, got {value!r}")
+from lcpcli.solvers._common import bool_option
 
 
 def _max_n(value: Any) -> int:
@@ -86,7 +76,7 @@ METHODS = [
         kinds=("lcp",),
         options={
             "max_n": Option(_max_n, 24, "refuse problems with more variables (default 24)"),
-            "all": Option(_bool, False, "visit every cone and count the distinct solutions"),
+            "all": Option(bool_option, False, "visit every cone and count the distinct solutions"),
         },
         prepare=prepare,
         aliases=("enumerate", "enumeration"),

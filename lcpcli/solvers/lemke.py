@@ -23,6 +23,7 @@ import numpy as np
 
 from lcpcli.result import CONVERGED, ITERATION_LIMIT, RAY, Outcome
 from lcpcli.solvers import Method, Option
+from lcpcli.solvers._common import bool_option, positive_int, vector_option
 
 #: Relative pivot tolerance: entries below this fraction of the column's largest are not pivots.
 PIVOT_TOL = 1e-11
@@ -30,21 +31,6 @@ PIVOT_TOL = 1e-11
 TIE_TOL = 1e-9
 #: Empty pivot record (the kernel records nothing).
 NO_RECORD = np.zeros((0, 3), dtype=np.int64)
-
-
-def _vector_option(value: Any) -> np.ndarray | None:
-    if value is None:
-        return None
-    if isinstance(value, str):
-        value = [float(x) for x in value.replace(",", " ").split()]
-    return np.asarray(value, dtype=np.float64).ravel()
-
-
-def _max_iter(value: Any) -> int:
-    v = int(value)
-    if v < 1:
-        raise ValueError("must be a positive integer")
-    return v
 
 
 def covering_vector(n: int, covering: np.ndarray | None) -> np.ndarray:
@@ -77,17 +63,6 @@ def prepare() -> None:
     one = np.array([[1.0]])
     out = lemke_kernel(one, np.array([-1.0]), np.array([1.0]), 10, PIVOT_TOL, TIE_TOL, NO_RECORD)
     polish_kernel(one, np.array([-1.0]), out[1], out[3])
-
-
-def _bool_option(value: Any) -> bool:
-    if isinstance(value, str):
-        low = value.strip().lower()
-        if low in ("1", "true", "yes", "on"):
-            return True
-        if low in ("0", "false", "no", "off", ""):
-            return False
-        raise ValueError(f"expected true/false, got {value!r}")
-    return bool(value)
 
 
 def run(problem: Any, *, tol: float, covering: np.ndarray | None = None,
@@ -179,9 +154,9 @@ METHODS = [
         matrix_classes="P-matrices; copositive-plus (incl. PSD): solution or proof of none",
         kinds=("lcp",),
         options={
-            "covering": Option(_vector_option, None, "covering vector d > 0 (default all ones)"),
-            "max_iter": Option(_max_iter, None, "pivot limit (default max(1000, 100 n))"),
-            "trace": Option(_bool_option, False, "record every pivot (numpy replica of the "
+            "covering": Option(vector_option, None, "covering vector d > 0 (default all ones)"),
+            "max_iter": Option(positive_int, None, "pivot limit (default max(1000, 100 n))"),
+            "trace": Option(bool_option, False, "record every pivot (numpy replica of the "
                                                  "kernel, same pivots; slow for large n)"),
         },
         prepare=prepare,

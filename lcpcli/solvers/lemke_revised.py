@@ -24,13 +24,11 @@ import numpy as np
 
 from lcpcli.result import CONVERGED, ITERATION_LIMIT, NUMERICAL, Outcome
 from lcpcli.solvers import Method, Option
+from lcpcli.solvers._common import bool_option, positive_int, vector_option
 from lcpcli.solvers.lemke import (
     NO_RECORD,
     PIVOT_TOL,
     TIE_TOL,
-    _bool_option,
-    _max_iter,
-    _vector_option,
     covering_vector,
     default_max_iter,
     polish,
@@ -120,11 +118,11 @@ METHODS = [
         matrix_classes="P-matrices; copositive-plus (incl. PSD): solution or proof of none",
         kinds=("lcp",),
         options={
-            "covering": Option(_vector_option, None, "covering vector d > 0 (default all ones)"),
-            "max_iter": Option(_max_iter, None, "pivot limit (default max(1000, 100 n))"),
+            "covering": Option(vector_option, None, "covering vector d > 0 (default all ones)"),
+            "max_iter": Option(positive_int, None, "pivot limit (default max(1000, 100 n))"),
             "refactor_every": Option(_refactor_every, None,
                                      "pivots between refactorisations (default max(50, n))"),
-            "trace": Option(_bool_option, False, "record every pivot (tableau replica, same "
+            "trace": Option(bool_option, False, "record every pivot (tableau replica, same "
                                                  "pivot rule)"),
         },
         prepare=prepare,

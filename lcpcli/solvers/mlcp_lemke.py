@@ -26,9 +26,9 @@ import numpy as np
 
 from lcpcli.result import NUMERICAL, Outcome
 from lcpcli.solvers import Method, Option
+from lcpcli.solvers._common import positive_int
 from lcpcli.solvers.mlcp_schur import (
     PROOF_COND_MAX,
-    _max_iter,
     _positive,
     prepare,
     solve_reduced,
@@ -79,7 +79,7 @@ METHODS = [
         kinds=("mlcp",),
         options={
             "cond_max": Option(_positive, 1e12, "largest accepted condition of the pivot block"),
-            "max_iter": Option(_max_iter, None, "Lemke pivot limit"),
+            "max_iter": Option(positive_int, None, "Lemke pivot limit"),
         },
         prepare=prepare,
     ),

@@ -21,6 +21,7 @@ import numpy as np
 
 from lcpcli.result import CONVERGED, NUMERICAL, Outcome
 from lcpcli.solvers import Method, Option
+from lcpcli.solvers._common import positive_int
 
 #: Largest pivot-block condition under which an infeasibility proof on the reduced LCP is
 #: reported as a proof for the MLCP (above it, roundoff in the reduction could fake one).
@@ -31,13 +32,6 @@ def _positive(value: Any) -> float:
     v = float(value)
     if not (np.isfinite(v) and v > 1):
         raise ValueError("must be a finite number > 1")
-    return v
-
-
-def _max_iter(value: Any) -> int:
-    v = int(value)
-    if v < 1:
-        raise ValueError("must be a positive integer")
     return v
 
 
@@ -112,7 +106,7 @@ METHODS = [
         options={
             "inner": Option(str, "lemke", "inner LCP method for the Schur complement"),
             "cond_max": Option(_positive, 1e12, "largest accepted condition estimate of A"),
-            "max_iter": Option(_max_iter, None, "iteration limit of the inner method"),
+            "max_iter": Option(positive_int, None, "iteration limit of the inner method"),
         },
         prepare=prepare,
     ),
