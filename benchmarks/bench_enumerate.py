@@ -37,9 +37,8 @@ from lcpcli.certificate import certify  # noqa: E402
 from lcpcli.enumeration import enumerate_cones, prepare  # noqa: E402
 from lcpcli.problem import Problem  # noqa: E402
 
-PEER = Path("/work/shared/peers/siconos_peer.py")
-if not PEER.exists():
-    PEER = ROOT.parent / "shared" / "peers" / "siconos_peer.py"
+#: The shared Siconos runner, beside the checkout (``../shared``).
+PEER = ROOT.parent / "shared" / "peers" / "siconos_peer.py"
 SICONOS_PYTHON = "/usr/bin/python3"
 
 

@@ -49,9 +49,8 @@ METHODS = ["lemke", "murty", "pgs", "psor", "newton", "newton-min", "ip", "auto"
 #: Our method -> the Siconos solver that implements the same algorithm.
 PEERS = {"lemke": "LCP_LEMKE", "murty": "LCP_MURTY", "pgs": "LCP_PGS", "psor": "LCP_PSOR",
          "newton": "LCP_NEWTON_FB_FBLSA", "newton-min": "LCP_NEWTONMIN"}
-PEER_SCRIPT = Path("/work/shared/peers/siconos_peer.py")
-if not PEER_SCRIPT.exists():
-    PEER_SCRIPT = ROOT.parent / "shared" / "peers" / "siconos_peer.py"
+#: The shared Siconos runner, beside the checkout (``../shared``).
+PEER_SCRIPT = ROOT.parent / "shared" / "peers" / "siconos_peer.py"
 #: Largest n given to the dense pivoting methods (they densify a sparse M).
 PIVOT_MAX_N = 5000
 #: Methods that are not meant for a class (they would only burn the budget); not run there.

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import itertools
 import json
-import os
 from pathlib import Path
 
 import numpy as np
@@ -25,14 +24,9 @@ LCP_METHODS = ["murty", "pgs", "psor", "newton", "newton-min", "ip", "auto"]
 
 
 @pytest.fixture(scope="module")
-def sico() -> Path:
-    """The Siconos data: beside the checkout (conftest), else $LCPCLI_SICONOS or /work/shared."""
-    beside = Path(__file__).resolve().parents[2] / "shared" / "data" / "siconos"
-    for cand in (beside, Path(os.environ.get("LCPCLI_SICONOS", "/nonexistent")),
-                 Path("/work/shared/data/siconos")):
-        if cand.is_dir():
-            return cand
-    pytest.skip("Siconos data not found")
+def sico(siconos) -> Path:
+    """The Siconos data (conftest's ``siconos`` fixture: one lookup for every test file)."""
+    return siconos
 
 
 # ---------------------------------------------------------------------------- generators
