@@ -32,6 +32,7 @@ import json
 import math
 import os
 import time
+from abc import ABC, abstractmethod
 from pathlib import Path
 from typing import Any
 
@@ -183,7 +184,7 @@ def _truncate_torn_tail(path: Path) -> None:
             os.fsync(f.fileno())
 
 
-class _LineWriter:
+class _LineWriter(ABC):
     """Append-only text file: write + flush per row, fsync at most every FSYNC_SECONDS."""
 
     def __init__(self, path: Path, resume: bool, header: str = "") -> None:
@@ -197,8 +198,9 @@ class _LineWriter:
         self.file = open(path, "a", encoding="utf-8", newline="")  # noqa: SIM115
         self.last_sync = time.monotonic()
 
+    @abstractmethod
     def _line(self, row: dict[str, Any]) -> str:
-        raise NotImplementedError
+        """One row as a line of text (the subclass's format)."""
 
     def write(self, rows: list[dict[str, Any]]) -> None:
         self.file.write("".join(self._line(r) for r in rows))
