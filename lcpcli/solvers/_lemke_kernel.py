@@ -59,6 +59,85 @@ def _lex_key(T, basic, where, i, k, n):
 
 
 @njit(cache=True)
+def ratio_candidates(col, qb, basic, nz, piv_tol, tie_tol, cand):
+    """The minimum-ratio test on the entering column ``col`` (basic = qb + col * t).
+
+    Rows with ``col[i] < -piv_tol * max|col|`` block; ``qb`` entries below ``1e-13 max(qb)`` count
+    as zero; ratios within ``tie_tol`` (relative) of the minimum tie.  Fills ``cand[:nc]`` with
+    the tied rows and returns ``(nc, z0_row, max|col|)``: ``nc = 0`` means no blocking row (a
+    ray), ``z0_row >= 0`` is the row of the artificial variable (code ``nz``) when it ties.
+    """
+    n = qb.shape[0]
+    colmax = 0.0
+    qmax = 0.0
+    for i in range(n):
+        a = abs(col[i])
+        if a > colmax:
+            colmax = a
+        if qb[i] > qmax:
+            qmax = qb[i]
+    ptol = piv_tol * colmax
+    ztol = 1e-13 * qmax
+    tmin = np.inf
+    for i in range(n):
+        a = col[i]
+        if a < -ptol:
+            v = qb[i] if qb[i] > ztol else 0.0
+            t = v / (-a)
+            if t < tmin:
+                tmin = t
+    nc = 0
+    z0_row = -1
+    if tmin == np.inf:
+        return nc, z0_row, colmax
+    for i in range(n):
+        a = col[i]
+        if a < -ptol:
+            v = qb[i] if qb[i] > ztol else 0.0
+            t = v / (-a)
+            if t <= tmin + tie_tol * tmin:
+                cand[nc] = i
+                nc += 1
+                if basic[i] == nz:
+                    z0_row = i
+    return nc, z0_row, colmax
+
+
+@njit(cache=True)
+def lex_unit(col, cand, nc):
+    """Scale of an identity entry of the basis inverse over the tied rows: 1 / largest pivot."""
+    amax = 0.0
+    for s in range(nc):
+        a = -col[cand[s]]
+        if a > amax:
+            amax = a
+    return 1.0 / amax
+
+
+@njit(cache=True)
+def keep_lex_min(keys, cand, nc, unit):
+    """Keep the candidates whose key is the minimum, within roundoff; return their count.
+
+    Entries equal in exact arithmetic may differ by roundoff, so the comparison carries a
+    tolerance with a floor at ``unit``, the scale of an identity entry.
+    """
+    kmin = np.inf
+    kmax = 0.0
+    for s in range(nc):
+        v = keys[s]
+        if v < kmin:
+            kmin = v
+        if abs(v) > kmax:
+            kmax = abs(v)
+    m = 0
+    for s in range(nc):
+        if keys[s] <= kmin + 1e-10 * max(kmax, unit):
+            cand[m] = cand[s]
+            m += 1
+    return m
+
+
+@njit(cache=True)
 def lemke_kernel(M, q, d, max_iter, piv_tol, tie_tol, record):
     """Run Lemke's method; return (status, z, pivots, basic, ray_dz, ray_dz0, z0).
 
@@ -116,72 +195,23 @@ def lemke_kernel(M, q, d, max_iter, piv_tol, tie_tol, record):
         # complement of the variable that just left enters
         entering = leaving + n if leaving < n else leaving - n
         c = -where[entering] - 1
-        colmax = 0.0
-        for i in range(n):
-            a = abs(T[i, c])
-            if a > colmax:
-                colmax = a
-        ptol = piv_tol * colmax
-        qmax = 0.0
-        for i in range(n):
-            if qb[i] > qmax:
-                qmax = qb[i]
-        ztol = 1e-13 * qmax
-        tmin = np.inf
-        for i in range(n):
-            a = T[i, c]
-            if a < -ptol:
-                v = qb[i] if qb[i] > ztol else 0.0
-                t = v / (-a)
-                if t < tmin:
-                    tmin = t
-        if tmin == np.inf:
+        col = T[:, c]
+        nc, z0_row, _ = ratio_candidates(col, qb, basic, nz, piv_tol, tie_tol, cand)
+        if nc == 0:
             status = RAY
             break
-        # tied candidates
-        nc = 0
-        z0_row = -1
-        for i in range(n):
-            a = T[i, c]
-            if a < -ptol:
-                v = qb[i] if qb[i] > ztol else 0.0
-                t = v / (-a)
-                if t <= tmin + tie_tol * tmin:
-                    cand[nc] = i
-                    nc += 1
-                    if basic[i] == nz:
-                        z0_row = i
         if z0_row >= 0:
             r = z0_row
         elif nc == 1:
             r = cand[0]
         else:
-            # lexicographic minimum over rows of the basis inverse divided by the pivot element;
-            # entries equal in exact arithmetic may differ by roundoff, so comparisons carry a
-            # tolerance with a floor at the scale of an identity entry (1 / largest pivot)
-            amax = 0.0
-            for s in range(nc):
-                a = -T[cand[s], c]
-                if a > amax:
-                    amax = a
-            unit = 1.0 / amax
+            # lexicographic minimum over rows of the basis inverse divided by the pivot element
+            unit = lex_unit(col, cand, nc)
             for k in range(n):
-                kmin = np.inf
-                kmax = 0.0
                 for s in range(nc):
                     i = cand[s]
-                    v = _lex_key(T, basic, where, i, k, n) / (-T[i, c])
-                    keys[s] = v
-                    if v < kmin:
-                        kmin = v
-                    if abs(v) > kmax:
-                        kmax = abs(v)
-                m = 0
-                for s in range(nc):
-                    if keys[s] <= kmin + 1e-10 * max(kmax, unit):
-                        cand[m] = cand[s]
-                        m += 1
-                nc = m
+                    keys[s] = _lex_key(T, basic, where, i, k, n) / (-col[i])
+                nc = keep_lex_min(keys, cand, nc, unit)
                 if nc == 1:
                     break
             r = cand[0]

@@ -29,6 +29,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from lcpcli.solvers._lemke_kernel import keep_lex_min, lex_unit, ratio_candidates
+
 OK = 0
 RAY = 1
 MAX_ITER = 2
@@ -286,73 +288,26 @@ def lemke_revised_kernel(M, q, d, max_iter, piv_tol, tie_tol, record, refactor_e
             refactors += 1
             since = 0
             _column(MT, alpha, beta, apos, m, B, Ct, basic, where, n, entering, col, xb, tmp)
-        colmax = 0.0
-        for i in range(n):
-            a = abs(col[i])
-            if a > colmax:
-                colmax = a
-        ptol = piv_tol * colmax
-        qmax = 0.0
-        for i in range(n):
-            if qb[i] > qmax:
-                qmax = qb[i]
-        ztol = 1e-13 * qmax
-        tmin = np.inf
-        for i in range(n):
-            a = col[i]
-            if a < -ptol:
-                v = qb[i] if qb[i] > ztol else 0.0
-                t = v / (-a)
-                if t < tmin:
-                    tmin = t
-        if tmin == np.inf:
+        nc, z0_row, colmax = ratio_candidates(col, qb, basic, nz, piv_tol, tie_tol, cand)
+        if nc == 0:
             status = RAY
             break
-        nc = 0
-        z0_row = -1
-        for i in range(n):
-            a = col[i]
-            if a < -ptol:
-                v = qb[i] if qb[i] > ztol else 0.0
-                t = v / (-a)
-                if t <= tmin + tie_tol * tmin:
-                    cand[nc] = i
-                    nc += 1
-                    if basic[i] == nz:
-                        z0_row = i
         if z0_row >= 0:
             r = z0_row
         elif nc == 1:
             r = cand[0]
         else:
-            amax = 0.0
-            for s in range(nc):
-                a = -col[cand[s]]
-                if a > amax:
-                    amax = a
-            unit = 1.0 / amax
+            unit = lex_unit(col, cand, nc)
             for k in range(n):
-                kmin = np.inf
-                kmax = 0.0
+                loc = where[k]
                 for s in range(nc):
                     i = cand[s]
-                    loc = where[k]
                     if loc >= 0:
                         key = 1.0 if loc == i else 0.0
                     else:
                         key = -_wcol_entry(bpos, apos, m, B, Ct, basic, n, k, i)
-                    v = key / (-col[i])
-                    keys[s] = v
-                    if v < kmin:
-                        kmin = v
-                    if abs(v) > kmax:
-                        kmax = abs(v)
-                mm = 0
-                for s in range(nc):
-                    if keys[s] <= kmin + 1e-10 * max(kmax, unit):
-                        cand[mm] = cand[s]
-                        mm += 1
-                nc = mm
+                    keys[s] = key / (-col[i])
+                nc = keep_lex_min(keys, cand, nc, unit)
                 if nc == 1:
                     break
             r = cand[0]
