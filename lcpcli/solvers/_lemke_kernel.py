@@ -230,25 +230,37 @@ def lemke_kernel(M, q, d, max_iter, piv_tol, tie_tol, record):
             status = OK
             break
 
+    z0, dz0 = basic_solution(basic, qb, T[:, c], entering, status == RAY, z, ray_dz)
+    return status, z, pivots, basic, ray_dz, dz0, z0
+
+
+@njit(cache=True)
+def basic_solution(basic, qb, col, entering, ray, z, ray_dz):
+    """Read z (and, on a ray, its direction) off the final basis; return (z0, dz0).
+
+    ``col`` is the entering column: on a ray the entering variable grows at rate 1 and the
+    basic variables at ``col``.  Codes as in the module docstring (``z0`` is ``2n``).
+    """
+    n = qb.shape[0]
+    nz = 2 * n
     z0 = 0.0
+    dz0 = 0.0
     for i in range(n):
         b = basic[i]
         if n <= b < nz:
             z[b - n] = qb[i]
         elif b == nz:
             z0 = qb[i]
-    dz0 = 0.0
-    if status == RAY:
-        # direction of the ray: the entering variable grows at rate 1
+    if ray:
         if n <= entering < nz:
             ray_dz[entering - n] = 1.0
         for i in range(n):
             b = basic[i]
             if n <= b < nz:
-                ray_dz[b - n] = T[i, c]
+                ray_dz[b - n] = col[i]
             elif b == nz:
-                dz0 = T[i, c]
-    return status, z, pivots, basic, ray_dz, dz0, z0
+                dz0 = col[i]
+    return z0, dz0
 
 
 @njit(cache=True)

@@ -29,7 +29,12 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from lcpcli.solvers._lemke_kernel import keep_lex_min, lex_unit, ratio_candidates
+from lcpcli.solvers._lemke_kernel import (
+    basic_solution,
+    keep_lex_min,
+    lex_unit,
+    ratio_candidates,
+)
 
 OK = 0
 RAY = 1
@@ -67,13 +72,8 @@ def _refactor(MT, alpha, beta, m, B):
 
 
 @njit(cache=True)
-def _q_prime(MT, q, alpha, beta, m, B, Ct, basic, where, n, qb, xb, tmp):
-    """q' by seed eqs (2)-(3), in row order."""
-    for s in range(m):
-        acc = 0.0
-        for p in range(m):
-            acc += B[s, p] * q[alpha[p]]
-        xb[s] = -acc
+def _combine_rows(Ct, xb, m, n, tmp):
+    """``tmp[:n] = sum_s xb[s] * Ct[s, :n]`` (M[:, beta] times the beta part)."""
     for i in range(n):
         tmp[i] = 0.0
     for s in range(m):
@@ -81,6 +81,17 @@ def _q_prime(MT, q, alpha, beta, m, B, Ct, basic, where, n, qb, xb, tmp):
         if x != 0.0:
             for i in range(n):
                 tmp[i] += Ct[s, i] * x
+
+
+@njit(cache=True)
+def _q_prime(MT, q, alpha, beta, m, B, Ct, basic, where, n, qb, xb, tmp):
+    """q' by seed eqs (2)-(3), in row order."""
+    for s in range(m):
+        acc = 0.0
+        for p in range(m):
+            acc += B[s, p] * q[alpha[p]]
+        xb[s] = -acc
+    _combine_rows(Ct, xb, m, n, tmp)
     for r in range(n):
         b = basic[r]
         if b < n:
@@ -102,13 +113,7 @@ def _column(MT, alpha, beta, apos, m, B, Ct, basic, where, n, e, col, xb, tmp):
             tmp[p] = MT[j, alpha[p]]
         for s in range(m):
             xb[s] = -_dot(B, s, tmp, m)
-    for i in range(n):
-        tmp[i] = 0.0
-    for s in range(m):
-        x = xb[s]
-        if x != 0.0:
-            for i in range(n):
-                tmp[i] += Ct[s, i] * x
+    _combine_rows(Ct, xb, m, n, tmp)
     for r in range(n):
         b = basic[r]
         if b < n:
@@ -430,21 +435,5 @@ def lemke_revised_kernel(M, q, d, max_iter, piv_tol, tie_tol, record, refactor_e
 
     if status == OK:  # final values by eqs (2)-(3) (the caller polishes them by LU)
         _q_prime(MT, q, alpha, beta, m, B, Ct, basic, where, n, qb, xb, tmp)
-    z0 = 0.0
-    for i in range(n):
-        b = basic[i]
-        if n <= b < nz:
-            z[b - n] = qb[i]
-        elif b == nz:
-            z0 = qb[i]
-    dz0 = 0.0
-    if status == RAY:
-        if n <= entering < nz:
-            ray_dz[entering - n] = 1.0
-        for i in range(n):
-            b = basic[i]
-            if n <= b < nz:
-                ray_dz[b - n] = col[i]
-            elif b == nz:
-                dz0 = col[i]
+    z0, dz0 = basic_solution(basic, qb, col, entering, status == RAY, z, ray_dz)
     return status, z, pivots, basic, ray_dz, dz0, z0, refactors
