@@ -170,12 +170,7 @@ def scene_from_dict(data: Any, default_name: str = "") -> Scene:
     omega = np.zeros((nb, r))
     for i, b in enumerate(bodies):
         where = f"body {i + 1}"
-        if not isinstance(b, dict):
-            raise ProblemError(f"{where}: expected an object")
-        bad = sorted(set(b) - BODY_KEYS)
-        if bad:
-            raise ProblemError(f"{where}: unknown key {bad[0]!r} "
-                               f"(known: {', '.join(sorted(BODY_KEYS))})")
+        _check_record(b, where, BODY_KEYS, ", ".join(sorted(BODY_KEYS)))
         name = b.get("name", f"body{i + 1}")
         if not isinstance(name, str) or not name:
             raise ProblemError(f"{where}: 'name' must be a non-empty string")
@@ -221,12 +216,7 @@ def scene_from_dict(data: Any, default_name: str = "") -> Scene:
     cnames: list[str] = []
     for k, c in enumerate(contacts):
         where = f"contact {k + 1}"
-        if not isinstance(c, dict):
-            raise ProblemError(f"{where}: expected an object")
-        bad = sorted(set(c) - CONTACT_KEYS)
-        if bad:
-            raise ProblemError(f"{where}: unknown key {bad[0]!r} "
-                               f"(known: a, b, point, normal, restitution, mu, name)")
+        _check_record(c, where, CONTACT_KEYS, "a, b, point, normal, restitution, mu, name")
         cnames.append(str(c.get("name", f"c{k + 1}")))
         for side, keys, arr in (("A", ("a", "body_a"), ca), ("B", ("b", "body_b"), cb)):
             given = [key for key in keys if key in c]
@@ -602,3 +592,12 @@ def _inertia(x: Any, dim: int, where: str) -> np.ndarray:
     if isinstance(x, list) and len(x) == 3 and all(isinstance(v, list) for v in x):
         return np.array([_vec(row, 3, where, "inertia") for row in x])
     raise ProblemError(f"{where}: 'inertia' must be 3 numbers (diagonal) or a 3x3 matrix")
+
+
+def _check_record(item: Any, where: str, keys: set[str] | frozenset[str], known: str) -> None:
+    """ProblemError unless ``item`` is an object whose keys are all in ``keys``."""
+    if not isinstance(item, dict):
+        raise ProblemError(f"{where}: expected an object")
+    bad = sorted(set(item) - keys)
+    if bad:
+        raise ProblemError(f"{where}: unknown key {bad[0]!r} (known: {known})")
