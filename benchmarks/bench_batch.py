@@ -33,9 +33,9 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from lcpcli.core.problem import Problem  # noqa: E402
 from lcpcli.io import save  # noqa: E402
 from lcpcli.io.hdf5_format import write_many  # noqa: E402
-from lcpcli.problem import Problem  # noqa: E402
 
 
 def random_problem(rng: np.random.Generator, n: int, name: str) -> Problem:

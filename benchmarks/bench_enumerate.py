@@ -5,7 +5,7 @@ cone must be visited to prove there is no other), q ~ 3 N(0, 1), seeded by n.
 
 Measured (wall time of the method only, numba kernel compiled beforehand):
 
-* ``ours_all``: :func:`lcpcli.enumeration.enumerate_cones`, all 2^n cones (the proof of
+* ``ours_all``: :func:`lcpcli.analysis.enumeration.enumerate_cones`, all 2^n cones (the proof of
   uniqueness); ``ours_first``: the same, stopping at the first solution (``solve -m enum``);
 * ``siconos_all``: Siconos ENUM with ``iparam[11] = 1`` (multiple solutions: visits every cone;
   it then reports info = 1, which is expected); ``siconos_first``: Siconos ENUM as shipped
@@ -33,9 +33,9 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from lcpcli.certificate import certify  # noqa: E402
-from lcpcli.enumeration import enumerate_cones, prepare  # noqa: E402
-from lcpcli.problem import Problem  # noqa: E402
+from lcpcli.analysis.enumeration import enumerate_cones, prepare  # noqa: E402
+from lcpcli.core.certificate import certify  # noqa: E402
+from lcpcli.core.problem import Problem  # noqa: E402
 
 #: The shared Siconos runner, beside the checkout (``../shared``).
 PEER = ROOT.parent / "shared" / "peers" / "siconos_peer.py"

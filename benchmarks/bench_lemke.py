@@ -7,7 +7,7 @@ CPU time of the method (``time.process_time``, steadier on a shared machine, use
 faster of tableau/revised); Siconos' come from
 ``/usr/bin/python3 ../shared/peers/siconos_peer.py PROBLEM.npz --solver Lemke --repeat K``
 (its ``seconds_median``, driver call only).  Errors are the project's certificate
-(:func:`lcpcli.certificate.certify`) applied to every answer, Siconos' included.
+(:func:`lcpcli.core.certificate.certify`) applied to every answer, Siconos' included.
 
     python benchmarks/bench_lemke.py            # n = 10, 50, 100, 500, 1000
     python benchmarks/bench_lemke.py --quick    # n = 10, 50, 100, 300, few repeats
@@ -32,9 +32,9 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from lcpcli.api import solve  # noqa: E402
-from lcpcli.certificate import certify  # noqa: E402
-from lcpcli.problem import Problem  # noqa: E402
-from lcpcli.solvers import get_method  # noqa: E402
+from lcpcli.core.certificate import certify  # noqa: E402
+from lcpcli.core.problem import Problem  # noqa: E402
+from lcpcli.solvers.registry import get_method  # noqa: E402
 
 #: The shared Siconos runner, beside the checkout (``../shared``).
 PEER = ROOT.parent / "shared" / "peers" / "siconos_peer.py"

@@ -8,7 +8,7 @@ problems; time and certified error per (method, problem), with Siconos peers in 
 
 Timings are the method's own wall time as ``lcpcli.solve`` measures it (kernels compiled before,
 no file reading, certification excluded); the median of the repeats.  ``error`` is the project's
-scaled error (:mod:`lcpcli.certificate`) of the returned z; for a Siconos peer it is the same
+scaled error (:mod:`lcpcli.core.certificate`) of the returned z; for a Siconos peer it is the same
 certificate applied to the z the peer returned (so the errors are comparable).  A method whose
 previous size took more than ``--budget`` seconds is skipped at larger sizes (shown as "skip").
 Writes ``benchmarks/results/methods.json``.
@@ -42,8 +42,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from lcpcli.api import solve  # noqa: E402
-from lcpcli.certificate import certify  # noqa: E402
-from lcpcli.problem import Problem  # noqa: E402
+from lcpcli.core.certificate import certify  # noqa: E402
+from lcpcli.core.problem import Problem  # noqa: E402
 
 METHODS = ["lemke", "murty", "pgs", "psor", "newton", "newton-min", "ip", "auto"]
 #: Our method -> the Siconos solver that implements the same algorithm.
@@ -174,7 +174,7 @@ def main(argv: list[str] | None = None) -> int:
     peer_max_n = 1000 if not args.full else 2000
     # iteration caps so that a slowly converging method ends (as unsolved) within the run
     caps = {} if args.full else {"pgs": args.max_sweeps, "psor": args.max_sweeps}
-    from lcpcli.solvers import get_method
+    from lcpcli.solvers.registry import get_method
 
     for m in methods:  # compile / load kernels outside every timed region
         spec = get_method(m)

@@ -42,10 +42,10 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from lcpcli.api import solve  # noqa: E402
-from lcpcli.certificate import certify  # noqa: E402
+from lcpcli.core.certificate import certify  # noqa: E402
+from lcpcli.core.problem import Problem  # noqa: E402
 from lcpcli.io import load  # noqa: E402
-from lcpcli.problem import Problem  # noqa: E402
-from lcpcli.solvers import methods  # noqa: E402
+from lcpcli.solvers.registry import methods  # noqa: E402
 
 
 def shared_dir() -> Path | None:

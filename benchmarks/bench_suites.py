@@ -22,8 +22,9 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
 
-from lcpcli import bench, peers, suites  # noqa: E402
-from lcpcli.render_bench import markdown_report, plot_available, write_plot  # noqa: E402
+from lcpcli.bench import peers, suites  # noqa: E402
+from lcpcli.bench import runner as bench  # noqa: E402
+from lcpcli.cli.render.bench import markdown_report, plot_available, write_plot  # noqa: E402
 
 
 def machine() -> list[str]:

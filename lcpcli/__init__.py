@@ -25,16 +25,16 @@ from typing import Any
 __version__ = "0.1.0"
 
 _LAZY = {
-    "Problem": "lcpcli.problem",
-    "Result": "lcpcli.result",
-    "Certificate": "lcpcli.certificate",
-    "certify": "lcpcli.certificate",
+    "Problem": "lcpcli.core.problem",
+    "Result": "lcpcli.core.result",
+    "Certificate": "lcpcli.core.certificate",
+    "certify": "lcpcli.core.certificate",
     "solve": "lcpcli.api",
     "load": "lcpcli.io",
     "save": "lcpcli.io",
     "list_problems": "lcpcli.io",
-    "ProblemError": "lcpcli.errors",
-    "methods": "lcpcli.solvers",
+    "ProblemError": "lcpcli.core.errors",
+    "methods": "lcpcli.solvers.registry",
 }
 
 __all__ = ["__version__", *_LAZY]

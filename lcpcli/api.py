@@ -7,11 +7,11 @@ from typing import Any
 
 import numpy as np
 
-from lcpcli.certificate import certify, matrix_norm_inf
-from lcpcli.errors import OptionError
-from lcpcli.problem import Problem
-from lcpcli.result import NO_SOLUTION, SOLVED, UNSOLVED, Outcome, Result
-from lcpcli.solvers import get_method
+from lcpcli.core.certificate import certify, matrix_norm_inf
+from lcpcli.core.errors import OptionError
+from lcpcli.core.problem import Problem
+from lcpcli.core.result import NO_SOLUTION, SOLVED, UNSOLVED, Outcome, Result
+from lcpcli.solvers.registry import get_method
 
 DEFAULT_METHOD = "auto"
 #: Methods whose ``prepare`` hook (kernel loading) already ran in this process.

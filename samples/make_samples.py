@@ -16,7 +16,7 @@ import scipy.sparse as sp
 
 from lcpcli.io import save
 from lcpcli.io.hdf5_format import write_many
-from lcpcli.problem import Problem
+from lcpcli.core.problem import Problem
 
 HERE = Path(__file__).resolve().parent
 

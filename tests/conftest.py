@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from lcpcli.suites import siconos_root  # noqa: E402  (one definition of where the data is)
+from lcpcli.bench.suites import siconos_root  # noqa: E402  (one definition of where the data is)
 
 ROOT = Path(__file__).resolve().parents[1]
 SAMPLES = ROOT / "samples"

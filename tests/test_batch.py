@@ -17,10 +17,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from lcpcli.batch_output import journal_path, read_rows
+from lcpcli.batch.output import journal_path, read_rows
+from lcpcli.core.problem import Problem
 from lcpcli.io import save
 from lcpcli.io.hdf5_format import write_many
-from lcpcli.problem import Problem
 
 ROOT = Path(__file__).resolve().parents[1]
 SLOW_KEYS = ("seconds", "wall_seconds")
@@ -48,7 +48,8 @@ def check_by_substitution(row: dict, problem: Problem) -> None:
 
 def lib(inputs: list, **kw):
     """The library entry point, in this process (faster than the CLI for most checks)."""
-    from lcpcli.batch import SolveOptions, run_batch
+    from lcpcli.batch.records import SolveOptions
+    from lcpcli.batch.run import run_batch
 
     opts = SolveOptions(method=kw.pop("method", "auto"),
                         options={"max_iter": kw.pop("max_iter")} if "max_iter" in kw else {})
@@ -361,10 +362,13 @@ def test_dask_local_cluster(cli, folder, tmp_path):
 
 def test_worker_crash_costs_one_problem(folder, monkeypatch):
     """A worker that dies (segfault, OOM kill) is replaced; only its problem is lost."""
-    import lcpcli.batch as batch
+    from lcpcli.batch import worker
+    from lcpcli.batch.inputs import expand_inputs
+    from lcpcli.batch.pool import iter_local
+    from lcpcli.batch.records import SolveOptions
 
     base, problems = folder
-    real = batch.solve_tasks
+    real = worker.solve_tasks
 
     def crashing(tasks, opts):
         for task in tasks:
@@ -372,9 +376,9 @@ def test_worker_crash_costs_one_problem(folder, monkeypatch):
                 os._exit(7)  # as abrupt as a segfault: no cleanup, no message
             yield from real([task], opts)
 
-    monkeypatch.setattr(batch, "solve_tasks", crashing)  # forked workers inherit the patch
-    tasks, bad = batch.expand_inputs([str(base / "probs")])
-    rows = by_key(list(batch.iter_local(tasks, batch.SolveOptions(), jobs=2)))
+    monkeypatch.setattr(worker, "solve_tasks", crashing)  # forked workers inherit the patch
+    tasks, bad = expand_inputs([str(base / "probs")])
+    rows = by_key(list(iter_local(tasks, SolveOptions(), jobs=2)))
     assert len(rows) == 9 and not bad
     crashed = rows[(str(base / "probs" / "p03.json"), "p03")]
     assert crashed["status"] == "error" and "exit code 7" in crashed["message"]

@@ -12,10 +12,11 @@ import json
 import numpy as np
 import pytest
 
-from lcpcli import bench, suites
 from lcpcli.api import solve
-from lcpcli.certificate import certify
-from lcpcli.result import Result
+from lcpcli.bench import runner as bench
+from lcpcli.bench import suites
+from lcpcli.core.certificate import certify
+from lcpcli.core.result import Result
 
 
 @pytest.fixture(scope="module")
@@ -354,7 +355,7 @@ def test_cli_plot_and_markdown(cli, tmp_path) -> None:
 
 
 def test_siconos_peer_is_certified_like_our_methods() -> None:
-    from lcpcli import peers
+    from lcpcli.bench import peers
 
     found, missing = peers.discover(["siconos"])
     if not found:

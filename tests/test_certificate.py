@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from lcpcli.certificate import certify
-from lcpcli.problem import Problem
+from lcpcli.core.certificate import certify
+from lcpcli.core.problem import Problem
 
 
 def test_exact_solution_scores_zero():
@@ -72,7 +72,7 @@ def test_huge_solution_gets_a_warning():
     # a z of 1e14 passes the backward-error test on a nearly infeasible PSD problem, but the
     # verdict says how large it is compared with the data
     from lcpcli.api import certify_outcome
-    from lcpcli.result import Outcome
+    from lcpcli.core.result import Outcome
 
     p = Problem.create([[1, -1], [-1, 1]], [-1, -1])
     r = certify_outcome(p, Outcome(np.array([1.5e14, 1.5e14 + 0.5]), 1, "converged", "x"),

@@ -11,7 +11,7 @@ from lcpcli.contact import build, load_scene, scene_from_dict, solve
 from lcpcli.contact.assembly import assemble, body_columns, dense_gram_by_body
 from lcpcli.contact.impact import momentum
 from lcpcli.contact.scene import build_scene, quat_to_matrix, write_scene_hdf5
-from lcpcli.errors import OptionError, ProblemError
+from lcpcli.core.errors import OptionError, ProblemError
 
 RNG_SEED = 20240501
 

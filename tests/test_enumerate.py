@@ -9,15 +9,15 @@ import numpy as np
 import pytest
 
 import lcpcli
-from lcpcli.certificate import certify
-from lcpcli.enumeration import (
+from lcpcli.analysis.enumeration import (
     complementary_matrix,
     covers_plane,
     enumerate_cones,
 )
-from lcpcli.errors import OptionError, ProblemError
+from lcpcli.core.certificate import certify
+from lcpcli.core.errors import OptionError, ProblemError
+from lcpcli.core.problem import Problem
 from lcpcli.io import load
-from lcpcli.problem import Problem
 
 SEED_M = [[2.0, 1.0], [1.0, 2.0]]
 SEED_Q = [-5.0, -6.0]
@@ -324,7 +324,7 @@ def test_plot_png(cli, samples, tmp_path):
 
 
 def test_terminal_drawing_marks_q_in_its_cone():
-    from lcpcli.render_enumerate import draw_cones_text
+    from lcpcli.cli.render.enumerate import draw_cones_text
 
     text = draw_cones_text(np.array(SEED_M), np.array(SEED_Q)).plain
     rows = text.splitlines()[:-2]

@@ -10,10 +10,10 @@ import pytest
 import scipy.sparse as sp
 
 import lcpcli
-from lcpcli.errors import ProblemError
+from lcpcli.core.errors import ProblemError
+from lcpcli.core.problem import MAX_DENSE_ENTRIES, Problem
 from lcpcli.io import list_problems, load, save
 from lcpcli.io.hdf5_format import write_many
-from lcpcli.problem import MAX_DENSE_ENTRIES, Problem
 
 
 def same(a: Problem, b: Problem) -> None:

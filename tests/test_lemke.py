@@ -7,8 +7,8 @@ import pytest
 from references import brute_force_solutions, exact_lemke_sequence
 
 import lcpcli
-from lcpcli.problem import Problem
-from lcpcli.solvers.lemke import PIVOT_TOL, TIE_TOL
+from lcpcli.core.problem import Problem
+from lcpcli.solvers.methods.lemke import PIVOT_TOL, TIE_TOL
 
 
 def lemke(M, q, **kw):
@@ -16,7 +16,7 @@ def lemke(M, q, **kw):
 
 
 def kernel_sequence(M: np.ndarray, q: np.ndarray, limit: int = 5000):
-    from lcpcli.solvers._lemke_kernel import lemke_kernel
+    from lcpcli.solvers.kernels.lemke import lemke_kernel
 
     rec = np.zeros((limit, 3), dtype=np.int64)
     status, z, pivots, *_ = lemke_kernel(np.asarray(M, float), np.asarray(q, float),
@@ -120,7 +120,7 @@ def test_covering_vector_option():
     r = lemke([[2, 1], [1, 2]], [-5, -6], covering=[1.0, 3.0])
     assert r.status == "solved"
     np.testing.assert_allclose(r.z, [4 / 3, 7 / 3])
-    with pytest.raises(lcpcli.errors.OptionError):
+    with pytest.raises(lcpcli.core.errors.OptionError):
         lemke([[2, 1], [1, 2]], [-5, -6], covering=[1.0, -1.0])
 
 
@@ -210,7 +210,7 @@ def test_sparse_matrix_is_accepted(samples):
 def test_solver_never_claims_solved_without_the_certificate():
     # a method that lies about convergence: the shared certification must catch it
     from lcpcli.api import certify_outcome
-    from lcpcli.result import CONVERGED, Outcome
+    from lcpcli.core.result import CONVERGED, Outcome
 
     p = Problem.create([[2, 1], [1, 2]], [-5, -6])
     lie = Outcome(np.ones(p.n), 1, CONVERGED, "trust me")

@@ -13,10 +13,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from lcpcli.analysis.mlcp import choose_pivot_set, factor, recover, reduce, schur, split
 from lcpcli.api import solve
+from lcpcli.core.problem import Problem
 from lcpcli.io import load
-from lcpcli.mlcp import choose_pivot_set, factor, recover, reduce, schur, split
-from lcpcli.problem import Problem
 
 _ROOT = Path(__file__).resolve().parents[1]
 MLCP_DIR = next((d / "shared" / "data" / "siconos" / "mlcp" for d in (_ROOT.parent,
@@ -395,7 +395,7 @@ def test_cli_wrong_kind_and_bad_input(cli, samples, tmp_path):
 
 
 def test_wrong_kind_and_bad_options_raise_option_error(samples):
-    from lcpcli.errors import OptionError
+    from lcpcli.core.errors import OptionError
 
     mlcp = load(samples / "mlcp_small.json")
     box = load(samples / "box_small.json")
@@ -409,7 +409,7 @@ def test_wrong_kind_and_bad_options_raise_option_error(samples):
 
 
 def test_methods_are_registered_with_kinds():
-    from lcpcli.solvers import get_method
+    from lcpcli.solvers.registry import get_method
 
     assert get_method("mlcp-schur").kinds == ("mlcp",)
     assert get_method("mlcp-lemke").kinds == ("mlcp",)

@@ -14,14 +14,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from lcpcli.errors import ProblemError
-from lcpcli.pivoting import (
+from lcpcli.analysis.pivoting import (
     all_vars,
     augment,
     parse_tuple,
     parse_var,
     principal_pivot,
 )
+from lcpcli.core.errors import ProblemError
 
 SEED_M = np.array([[0, -1, 2, 1], [2, 0, -2, 1], [-1, 1, 0, 1]], dtype=float)
 SEED_Q = np.array([-3, 6, -1], dtype=float)
@@ -259,8 +259,8 @@ def test_cli_pivot_singular_exit_2(cli, tmp_path):
 
 # --------------------------------------------------------------------------- trace
 def kernel_record(M, q, limit=5000):
-    from lcpcli.solvers._lemke_kernel import lemke_kernel
-    from lcpcli.solvers.lemke import PIVOT_TOL, TIE_TOL
+    from lcpcli.solvers.kernels.lemke import lemke_kernel
+    from lcpcli.solvers.methods.lemke import PIVOT_TOL, TIE_TOL
 
     rec = np.full((limit, 3), -1, dtype=np.int64)
     out = lemke_kernel(M, q, np.ones(len(q)), limit, PIVOT_TOL, TIE_TOL, rec)
@@ -306,8 +306,8 @@ def test_trace_seed004(cli, samples):
 
 def test_trace_matches_kernel_on_siconos_files(siconos):
     from lcpcli.io import load
-    from lcpcli.solvers._lemke_trace import lemke_traced
-    from lcpcli.solvers.lemke import PIVOT_TOL, TIE_TOL
+    from lcpcli.solvers.lemke_trace import lemke_traced
+    from lcpcli.solvers.methods.lemke import PIVOT_TOL, TIE_TOL
 
     files = sorted((siconos / "lcp").glob("*.dat"))
     assert files
@@ -322,8 +322,8 @@ def test_trace_matches_kernel_on_siconos_files(siconos):
 
 
 def test_trace_matches_kernel_on_degenerate_integer_problems():
-    from lcpcli.solvers._lemke_trace import lemke_traced
-    from lcpcli.solvers.lemke import PIVOT_TOL, TIE_TOL
+    from lcpcli.solvers.lemke_trace import lemke_traced
+    from lcpcli.solvers.methods.lemke import PIVOT_TOL, TIE_TOL
 
     rng = np.random.default_rng(3)
     rules = set()
@@ -343,7 +343,7 @@ def test_trace_matches_kernel_on_degenerate_integer_problems():
 
 def test_trace_large_n_has_columns_not_tableau():
     from lcpcli.api import solve
-    from lcpcli.problem import Problem
+    from lcpcli.core.problem import Problem
 
     rng = np.random.default_rng(5)
     n = 12
@@ -365,8 +365,8 @@ def test_trace_large_n_has_columns_not_tableau():
 
 # --------------------------------------------------------------------------- revised Lemke
 def test_revised_same_pivots_as_tableau_on_random_problems():
-    from lcpcli.solvers._lemke_revised_kernel import lemke_revised_kernel
-    from lcpcli.solvers.lemke import PIVOT_TOL, TIE_TOL
+    from lcpcli.solvers.kernels.lemke_revised import lemke_revised_kernel
+    from lcpcli.solvers.methods.lemke import PIVOT_TOL, TIE_TOL
 
     rng = np.random.default_rng(11)
     for trial in range(120):
@@ -387,8 +387,8 @@ def test_revised_same_pivots_as_tableau_on_random_problems():
 def test_revised_same_pivots_on_degenerate_integer_problems():
     """Not required by the design (roundoff may legitimately split ties differently), but the
     refactorisation keeps degenerate zeros exact, so the sequences agree here too."""
-    from lcpcli.solvers._lemke_revised_kernel import lemke_revised_kernel
-    from lcpcli.solvers.lemke import PIVOT_TOL, TIE_TOL
+    from lcpcli.solvers.kernels.lemke_revised import lemke_revised_kernel
+    from lcpcli.solvers.methods.lemke import PIVOT_TOL, TIE_TOL
 
     rng = np.random.default_rng(4)
     for _ in range(150):
@@ -424,7 +424,7 @@ def test_revised_solves_what_tableau_solves(siconos):
 
 
 def test_revised_column_residual_detects_a_drifted_inverse():
-    from lcpcli.solvers._lemke_revised_kernel import RESID_TOL, _column_residual
+    from lcpcli.solvers.kernels.lemke_revised import RESID_TOL, _column_residual
 
     Maug = np.array([[2.0, 1.0, 1.0], [1.0, 3.0, 1.0]])
     alpha = np.array([0, 1])

@@ -16,9 +16,9 @@ import pytest
 import scipy.sparse as sp
 
 import lcpcli
+from lcpcli.analysis.classify import classify
 from lcpcli.api import solve
-from lcpcli.classify import classify
-from lcpcli.problem import Problem
+from lcpcli.core.problem import Problem
 
 LCP_METHODS = ["murty", "pgs", "psor", "newton", "newton-min", "ip", "auto"]
 
@@ -311,7 +311,7 @@ def test_auto_order_option_and_fallback_message():
     p = Problem.create(M, q)
     r = solve(p, "auto", order="ip,newton")
     assert r.solved and r.info["chosen"] == "ip"
-    with pytest.raises(lcpcli.errors.OptionError):
+    with pytest.raises(lcpcli.core.errors.OptionError):
         solve(p, "auto", order="nope")
 
 
@@ -324,7 +324,7 @@ def test_warm_start_from_the_solution_converges_at_once():
     assert cold.solved and warm.solved and warm.iterations <= 2 < cold.iterations
     assert solve(p, "newton", z0=cold.z).iterations <= 1
     assert solve(p, "murty", z0=cold.z).iterations == 0
-    with pytest.raises(lcpcli.errors.OptionError, match="length"):
+    with pytest.raises(lcpcli.core.errors.OptionError, match="length"):
         solve(p, "pgs", z0=np.zeros(3))
 
 
@@ -335,9 +335,9 @@ def test_omega_validation_and_effect():
     r0 = solve(p, "pgs")
     assert r1.iterations == r0.iterations  # omega = 1 is Gauss-Seidel
     for bad in (0.0, 2.0, -1.0, float("nan")):
-        with pytest.raises(lcpcli.errors.OptionError, match="omega"):
+        with pytest.raises(lcpcli.core.errors.OptionError, match="omega"):
             solve(p, "psor", omega=bad)
-    with pytest.raises(lcpcli.errors.OptionError, match="no option 'omega'"):
+    with pytest.raises(lcpcli.core.errors.OptionError, match="no option 'omega'"):
         solve(p, "pgs", omega=1.2)
 
 
@@ -405,7 +405,7 @@ def test_info_json_and_table(cli, sico):
 
 
 def test_info_report_library_on_mlcp_and_box():
-    from lcpcli.solvers.auto import info_report
+    from lcpcli.solvers.methods.auto import info_report
 
     M, q = rand_pd(6, 51)
     rep = info_report(Problem.create(M, q, n_eq=2))

@@ -20,7 +20,7 @@ import typer
 import typer.core
 
 from lcpcli import __version__
-from lcpcli.errors import EXIT_BAD_INPUT, LcpError
+from lcpcli.core.errors import EXIT_BAD_INPUT, LcpError
 
 EXIT_INTERNAL = 3
 

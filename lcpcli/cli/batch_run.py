@@ -1,8 +1,9 @@
 """The batch side of ``lcpcli solve``: many files, folders, globs, HDF5 files of many problems.
 
 ``solve_cmd`` calls :func:`wants_batch` and, when it says yes, hands everything to
-:func:`run_batch_command`; the engine is :mod:`lcpcli.batch`, the files :mod:`lcpcli.batch_output`,
-the tables :mod:`lcpcli.render_batch`.  Not a subcommand module (no ``register``).
+:func:`run_batch_command`; the engine is :mod:`lcpcli.batch.run`, the files
+:mod:`lcpcli.batch.output`, the tables :mod:`lcpcli.cli.render.batch`. Not a subcommand module (no
+``register``).
 """
 
 from __future__ import annotations
@@ -49,9 +50,10 @@ def run_batch_command(files: list[str], *, method: str, tol: float | None,
                       output: Any, recursive: bool, jobs: int | None, resume: bool,
                       timeout: float | None, quiet: bool, scheduler: str | None) -> int:
     """Run the batch, show progress and the summary; return the exit code (0/1/2, 130)."""
-    from lcpcli.batch import SolveOptions, run_batch
+    from lcpcli.batch.records import SolveOptions
+    from lcpcli.batch.run import run_batch
     from lcpcli.cli.common import stderr_console, stdout_console, write_json_line
-    from lcpcli.errors import OptionError
+    from lcpcli.core.errors import OptionError
 
     if problem is not None:
         raise OptionError("--problem picks one problem of one HDF5 file; a batch solves every "
@@ -86,7 +88,7 @@ def run_batch_command(files: list[str], *, method: str, tol: float | None,
                                    f"{c.get('unsolved', 0)}  failed {c.get('failed', 0)}")
 
     if show_bar:
-        from lcpcli.render_batch import make_progress
+        from lcpcli.cli.render.batch import make_progress
 
         progress = make_progress(err)
     old_term = signal.signal(signal.SIGTERM, _on_sigterm) \
@@ -116,7 +118,7 @@ def run_batch_command(files: list[str], *, method: str, tol: float | None,
         if not stream_rows:
             write_json_line(report.as_dict())
     else:
-        from lcpcli.render_batch import render_summary
+        from lcpcli.cli.render.batch import render_summary
 
         stdout_console().print(render_summary(report))
     return report.exit_code

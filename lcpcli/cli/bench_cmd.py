@@ -10,7 +10,7 @@ from lcpcli.cli.common import MethodListCommand
 
 
 def _floats(text: str, label: str) -> list[float]:
-    from lcpcli.errors import OptionError
+    from lcpcli.core.errors import OptionError
 
     try:
         vals = [float(x) for x in text.replace(";", ",").split(",") if x.strip()]
@@ -65,9 +65,9 @@ def bench(
     'no_solution' on a problem known to be solvable, is a DEFECT. Exit codes: 0 no defect;
     1 at least one defect; 2 bad usage or bad input.
     """
-    from lcpcli import bench as B
+    from lcpcli.bench import runner as B
     from lcpcli.cli.common import stderr_console, stdout_console, write_json_line
-    from lcpcli.errors import OptionError
+    from lcpcli.core.errors import OptionError
 
     tols = _floats(tol, "--tol")
     if any(t <= 0 for t in tols):
@@ -80,7 +80,7 @@ def bench(
         raise OptionError("--timeout must be >= 0")
     method_list = B.resolve_methods(None if methods is None else methods.split(","))
     if plot is not None:
-        from lcpcli.render_bench import plot_available
+        from lcpcli.cli.render.bench import plot_available
 
         if not plot_available():
             raise OptionError("--plot needs matplotlib (pip install 'lcpcli[plot]')")
@@ -91,7 +91,7 @@ def bench(
     cases = []
     titles = []
     if suite is not None:
-        from lcpcli.suites import suite as make_suite
+        from lcpcli.bench.suites import suite as make_suite
 
         cases += make_suite(suite, n, seed)
         titles.append(f"suite {suite}" + (f" (n={n})" if n else ""))
@@ -103,7 +103,7 @@ def bench(
 
     found, missing = [], {}
     if peers:
-        from lcpcli.peers import discover
+        from lcpcli.bench.peers import discover
 
         found, missing = discover()
     err = stderr_console()
@@ -118,16 +118,16 @@ def bench(
                          missing_peers=missing, timeout=timeout or None, on_record=on_record)
     title = ", ".join(titles)
     if not as_json:
-        from lcpcli.render_bench import render_report
+        from lcpcli.cli.render.bench import render_report
 
         stdout_console().print(render_report(report, title))
     if markdown is not None:
+        from lcpcli.cli.render.bench import markdown_report
         from lcpcli.io import write_atomic_text
-        from lcpcli.render_bench import markdown_report
 
         write_atomic_text(markdown, markdown_report(report, title))
     if plot is not None:
-        from lcpcli.render_bench import write_plot
+        from lcpcli.cli.render.bench import write_plot
 
         write_plot(report, plot)
     for rec in report.defects:

@@ -8,14 +8,14 @@ from typing import Any
 
 import typer.core
 
-from lcpcli.errors import EXIT_BAD_INPUT, EXIT_NOT_SOLVED, EXIT_SOLVED, OptionError
+from lcpcli.core.errors import EXIT_BAD_INPUT, EXIT_NOT_SOLVED, EXIT_SOLVED, OptionError
 
 
 class MethodListCommand(typer.core.TyperCommand):
     """A command whose ``--help`` ends with the registered solver methods (built lazily)."""
 
     def format_epilog(self, ctx: Any, formatter: Any) -> None:
-        from lcpcli.solvers import methods
+        from lcpcli.solvers.registry import methods
 
         rows = []
         for name, m in methods().items():

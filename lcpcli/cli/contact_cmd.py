@@ -42,7 +42,7 @@ def contact_matrix(
     from lcpcli.cli.common import exit_code_for, write_json_line
     from lcpcli.contact import build, load_scene, solve, to_json
     from lcpcli.contact.model import check_method
-    from lcpcli.errors import OptionError
+    from lcpcli.core.errors import OptionError
 
     if friction < 0:
         raise OptionError(f"--friction K must be >= 0, got {friction}")
@@ -65,7 +65,7 @@ def contact_matrix(
         write_json_line(to_json(clcp, impact))
     else:
         from lcpcli.cli.common import stdout_console
-        from lcpcli.render_contact import render_impact, render_scene
+        from lcpcli.cli.render.contact import render_impact, render_scene
 
         console = stdout_console()
         console.print(render_scene(clcp, scene_file, str(output) if output else None))

@@ -23,7 +23,7 @@ def convert(
     bad input never leaves a partial or damaged OUT. Exit codes: 0 done; 2 bad usage or bad
     input.
     """
-    from lcpcli.errors import ProblemError
+    from lcpcli.core.errors import ProblemError
     from lcpcli.io import atomic_path, detect_format, list_problems, load, save
 
     out_fmt = detect_format(target)

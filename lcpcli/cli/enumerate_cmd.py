@@ -45,9 +45,9 @@ def enumerate_command(
     import json
     import sys
 
+    from lcpcli.analysis.enumeration import check_problem, covers_plane, enumerate_cones, prepare
     from lcpcli.cli.common import write_json_line
-    from lcpcli.enumeration import check_problem, covers_plane, enumerate_cones, prepare
-    from lcpcli.errors import OptionError
+    from lcpcli.core.errors import OptionError
     from lcpcli.io import load, write_atomic_text
 
     plot_path = Path(plot) if plot is not None else None
@@ -79,7 +79,7 @@ def enumerate_command(
         res = enumerate_cones(prob, all_cones=all_cones, max_n=max_n, progress=progress)
     covers = covers_plane(M) if n == 2 else None
     if plot_path is not None:
-        from lcpcli.render_enumerate import plot_cones
+        from lcpcli.cli.render.enumerate import plot_cones
 
         plot_cones(M, prob.q, plot_path, title=prob.name or "")
     payload = res.to_dict()
@@ -92,7 +92,7 @@ def enumerate_command(
         write_json_line(payload)
     else:
         from lcpcli.cli.common import stdout_console
-        from lcpcli.render_enumerate import draw_cones_text, render_enumeration
+        from lcpcli.cli.render.enumerate import draw_cones_text, render_enumeration
 
         drawing = draw_cones_text(M, prob.q) if n == 2 else None
         stdout_console().print(render_enumeration(res, prob, file, all_cones=all_cones,

@@ -19,7 +19,7 @@ def info(
     Exit codes: 0 done; 2 bad usage or bad input; 3 internal error.
     """
     from lcpcli.io import load
-    from lcpcli.solvers.auto import info_report
+    from lcpcli.solvers.methods.auto import info_report
 
     prob = load(file, problem)
     report = info_report(prob, file)
@@ -29,7 +29,7 @@ def info(
         write_json_line(report)
     else:
         from lcpcli.cli.common import stdout_console
-        from lcpcli.render_info import render_info
+        from lcpcli.cli.render.info import render_info
 
         stdout_console().print(render_info(report))
     return 0

@@ -9,7 +9,7 @@ def methods_command(
     as_json: bool = typer.Option(False, "--json", help="Machine-readable list on stdout."),
 ) -> int:
     """List the solver methods, the matrix classes they handle and their options."""
-    from lcpcli.solvers import methods
+    from lcpcli.solvers.registry import methods
 
     registry = methods()
     if as_json:
@@ -22,7 +22,7 @@ def methods_command(
                          for m in registry.values()])
         return 0
     from lcpcli.cli.common import stdout_console
-    from lcpcli.render import render_methods
+    from lcpcli.cli.render.common import render_methods
 
     stdout_console().print(render_methods(registry))
     return 0

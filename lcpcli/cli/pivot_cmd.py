@@ -32,7 +32,7 @@ def pivot(
     Variable names are 1-based: w1..wn, z1..z{n+1}; z0 is an alias of the artificial z{n+1}.
     Exit codes: 0 done; 2 bad input (bad basis, singular M^{alpha beta}, bad file).
     """
-    from lcpcli.pivoting import load_augmented, parse_tuple, parse_var, principal_pivot
+    from lcpcli.analysis.pivoting import load_augmented, parse_tuple, parse_var, principal_pivot
 
     Maug, q, source = load_augmented(file, covering, problem)
     n = q.shape[0]
@@ -49,7 +49,7 @@ def pivot(
         write_json_line(payload)
     else:
         from lcpcli.cli.common import stdout_console
-        from lcpcli.render_pivot import render_pivot
+        from lcpcli.cli.render.pivot import render_pivot
 
         stdout_console().print(render_pivot(t, Maug, q, source))
     return 0

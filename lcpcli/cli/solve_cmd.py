@@ -70,7 +70,7 @@ def solve(
 
     from lcpcli.api import solve as solve_problem
     from lcpcli.cli.common import exit_code_for, parse_key_values, write_json_line
-    from lcpcli.errors import OptionError
+    from lcpcli.core.errors import OptionError
     from lcpcli.io import load, write_atomic_text
 
     opts: dict[str, object] = parse_key_values(option)
@@ -81,7 +81,7 @@ def solve(
     if omega is not None:
         opts["omega"] = omega
     if z0 is not None:
-        from lcpcli.warmstart import load_z0
+        from lcpcli.io.warmstart import load_z0
 
         opts["z0"] = load_z0(z0)
     from lcpcli.cli.batch_run import run_batch_command, wants_batch
@@ -107,11 +107,11 @@ def solve(
         write_json_line(payload)
     else:
         from lcpcli.cli.common import stdout_console
-        from lcpcli.render import render_result
+        from lcpcli.cli.render.common import render_result
 
         console = stdout_console()
         if result.trace is not None:
-            from lcpcli.render_pivot import render_trace
+            from lcpcli.cli.render.pivot import render_trace
 
             console.print(render_trace(result.trace, prob.n))
         console.print(render_result(result, prob, file))

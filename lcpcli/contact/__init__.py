@@ -4,7 +4,7 @@
 * :mod:`lcpcli.contact.assembly`: ``J``, ``W``, ``M``, ``q`` and the effective masses;
 * :mod:`lcpcli.contact.friction`: the polyhedral (Stewart-Trinkle) friction LCP;
 * :mod:`lcpcli.contact.impact`: post-impact velocities and kinetic energy;
-* :mod:`lcpcli.contact.model`: the :class:`~lcpcli.problem.Problem` with metadata, solve, JSON.
+* :mod:`lcpcli.contact.model`: the :class:`~lcpcli.core.problem.Problem` with metadata, solve, JSON.
 """
 
 from __future__ import annotations

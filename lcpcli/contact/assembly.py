@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 
 from lcpcli.contact.scene import Scene
-from lcpcli.errors import OptionError
+from lcpcli.core.errors import OptionError
 
 #: Up to this many LCP rows the matrix is kept dense ("auto" storage).
 DENSE_MAX_ROWS = 400

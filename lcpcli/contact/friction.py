@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 
 from lcpcli.contact.assembly import Assembly, direction_rows, relative_velocity
-from lcpcli.errors import OptionError
+from lcpcli.core.errors import OptionError
 
 
 def tangent_basis(normals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

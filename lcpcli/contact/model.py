@@ -1,4 +1,4 @@
-"""The contact LCP of a scene as a :class:`~lcpcli.problem.Problem`, and its solution mapped back.
+"""The contact LCP of a scene as a :class:`~lcpcli.core.problem.Problem`; its solution mapped back.
 
 ``build(scene, friction=K)`` returns a :class:`ContactLCP` (the problem with contact metadata in
 ``Problem.meta["contact"]``); ``solve(clcp, method)`` solves it with :func:`lcpcli.solve` (which
@@ -22,7 +22,7 @@ from lcpcli.contact.impact import (
     post_velocities,
 )
 from lcpcli.contact.scene import Scene
-from lcpcli.problem import Problem, is_sparse
+from lcpcli.core.problem import Problem, is_sparse
 
 #: Default method for contact LCPs: Lemke handles the symmetric PSD (often singular) M and
 #: the non-symmetric frictional matrix.
@@ -55,7 +55,7 @@ class ContactLCP:
 class Impact:
     """A solved contact LCP mapped back onto the scene."""
 
-    result: Any                    # lcpcli.result.Result
+    result: Any                    # lcpcli.core.result.Result
     normal_impulses: np.ndarray    # (nc,)
     tangent_impulses: np.ndarray   # (nf, K)
     slacks: np.ndarray             # (nf,)
@@ -153,7 +153,7 @@ def solve(clcp: ContactLCP, method: str = DEFAULT_METHOD, tol: float | None = No
 def check_method(clcp: ContactLCP, method: str) -> None:
     """OptionError for an unknown method, or a densifying method on a huge sparse LCP."""
     from lcpcli.api import check_dense_ok
-    from lcpcli.solvers import get_method
+    from lcpcli.solvers.registry import get_method
 
     check_dense_ok(clcp.problem, get_method(method))
 

@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from lcpcli.errors import ProblemError
+from lcpcli.core.errors import ProblemError
 
 BODY_KEYS = {"name", "mass", "inertia", "orientation", "position", "velocity",
              "angular_velocity", "static"}

@@ -1,8 +1,8 @@
 """Problem files: read and write JSON, NPZ, HDF5 and Siconos ``.dat``.
 
-``load(path)`` returns a validated :class:`~lcpcli.problem.Problem`; every failure (missing
+``load(path)`` returns a validated :class:`~lcpcli.core.problem.Problem`; every failure (missing
 file, unknown extension, malformed content, wrong shapes, NaN/Inf, pickled NPZ, truncated HDF5,
-absurd sizes) raises :class:`~lcpcli.errors.ProblemError` with a one-line message that names
+absurd sizes) raises :class:`~lcpcli.core.errors.ProblemError` with a one-line message that names
 the file.  ``save(problem, path)`` writes atomically: a temporary file in the same folder is
 renamed over the target only once it is complete, so a failed write leaves no partial file and
 never damages an existing one.
@@ -30,8 +30,8 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-from lcpcli.errors import ProblemError
-from lcpcli.problem import Problem
+from lcpcli.core.errors import ProblemError
+from lcpcli.core.problem import Problem
 
 FORMATS = {
     ".json": "json",

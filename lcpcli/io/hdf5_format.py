@@ -15,9 +15,9 @@ from typing import Any
 
 import numpy as np
 
-from lcpcli.errors import ProblemError
+from lcpcli.core.errors import ProblemError
+from lcpcli.core.problem import Problem, check_size
 from lcpcli.io.sparse import sparse_from_parts, sparse_parts
-from lcpcli.problem import Problem, check_size
 
 
 def _open(path: Path) -> Any:

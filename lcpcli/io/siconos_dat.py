@@ -20,8 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
-from lcpcli.errors import ProblemError
-from lcpcli.problem import Problem, check_size
+from lcpcli.core.errors import ProblemError
+from lcpcli.core.problem import Problem, check_size
 
 
 class _Tokens:

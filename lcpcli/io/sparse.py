@@ -7,8 +7,8 @@ from typing import Any
 
 import numpy as np
 
-from lcpcli.errors import ProblemError
-from lcpcli.problem import check_size
+from lcpcli.core.errors import ProblemError
+from lcpcli.core.problem import check_size
 
 PARTS = {"csr": ("data", "indices", "indptr"), "csc": ("data", "indices", "indptr"),
          "coo": ("data", "row", "col")}

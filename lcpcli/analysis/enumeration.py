@@ -1,0 +1,493 @@
+"""The enumeration method (seed 004): complementary cones and all solutions of LCP(q, M).
+
+Conventions: ``w = M z + q`` (the seed's ``w - M z = q``).  For each of the ``2^n`` choices of
+complementary basic variables ``y_j in {w_j, z_j}`` the *complementary matrix* ``A_r`` has
+column ``I_j`` where ``y_j = w_j`` and ``-M_j`` where ``y_j = z_j``; the cone
+``Pos(A_r) = {A_r y : y >= 0}`` contains ``q`` exactly when ``A_r y = q`` has a solution
+``y >= 0``, and then ``z_j = y_j`` (z basic), ``w_j = y_j`` (w basic), the other variable of each
+pair 0, is a solution of the LCP.  Every solution lies in some cone, so visiting all ``2^n``
+cones finds them all.
+
+A cone is coded by the integer whose bit ``j`` (0-based) is set when ``z_j`` is basic; cone 0
+is ``(w1, ..., wn)``.  ``det A_r = (-1)^|S| det M[S, S]`` with ``S`` the z-basic set.
+
+Singular ``A_r`` (degenerate cones): the solutions in that cone form a polyhedron
+``{y >= 0 : A_r y = q}``; an LP decides whether it is empty, one point, or a continuum (two
+LPs with a random objective: max and min differ, or one is unbounded, exactly when the
+polyhedron has more than one point).  The LCP has infinitely many solutions exactly when
+some cone holds a continuum, since a nonsingular cone holds at most one point.
+
+Tolerances are scaled by the data: a cone is feasible when ``min(mu z_S, w) >= -rtol (mu ||z||_inf
++ ||q||_inf)`` with ``mu = ||M||_inf`` (the units of :func:`lcpcli.core.certificate.certify`);
+every reported solution is re-solved in numpy and certified.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from lcpcli.core.certificate import DEFAULT_TOL, Certificate, certify, matrix_norm_inf
+from lcpcli.core.errors import OptionError, ProblemError
+
+#: Default refusal threshold (2^24 = 16.7 million cones).
+DEFAULT_MAX_N = 24
+#: Hard limit of the bit coding.
+HARD_MAX_N = 62
+#: Relative feasibility tolerance of the cone test.
+RTOL = 1e-9
+#: Relative pivot tolerance (times ||M||_max and the block size) under which a block is singular.
+PIVOT_RTOL = 1e-12
+#: First block of cones when stopping at the first solution (then doubling, aligned).
+FIRST_CHUNK = 4096
+#: Smallest n for which the fast (depth-first pivoting) kernel is used.
+FAST_MIN_N = 6
+
+UNIQUE = "unique"
+FINITE = "finite"
+CONTINUUM = "continuum"
+NONE = "none"
+FOUND = "found"  # stop_at_first: one solution found, the rest not examined
+INCOMPLETE = "incomplete"  # solutions found, but some singular cones left unresolved
+UNKNOWN = "unknown"  # no solution found, but some singular cones left unresolved
+
+#: At most this many singular cones are resolved by LP (each costs about 3 LPs).
+MAX_LPS = 2000
+
+
+@dataclass
+class Cone:
+    """One complementary cone (0-based data; :meth:`basis_names` gives the 1-based names)."""
+
+    code: int
+    n: int
+    feasible: bool
+    singular: bool
+    y: np.ndarray | None = None
+    z: np.ndarray | None = None
+    w: np.ndarray | None = None
+    det: float | None = None
+    rank: int | None = None
+    continuum: bool = False
+
+    @property
+    def r(self) -> int:
+        """1-based cone number in the seed's order: (w1, w2), (w1, z2), (z1, w2), (z1, z2)."""
+        return 1 + sum(1 << (self.n - 1 - j) for j in range(self.n) if (self.code >> j) & 1)
+
+    @property
+    def z_basic(self) -> list[int]:
+        """0-based indices j with z_j basic."""
+        return [j for j in range(self.n) if (self.code >> j) & 1]
+
+    def basis_names(self) -> list[str]:
+        """``["w1", "z2", ...]``: the complementary basic variables, 1-based."""
+        return [("z" if (self.code >> j) & 1 else "w") + str(j + 1) for j in range(self.n)]
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"r": self.r, "basis": self.basis_names(), "feasible": bool(self.feasible),
+                "singular": bool(self.singular), "continuum": bool(self.continuum),
+                "det": _jfloat(self.det), "rank": self.rank, "y": _jvec(self.y)}
+
+
+@dataclass
+class Solution:
+    """A certified solution and the cones (codes) it was found in."""
+
+    z: np.ndarray
+    w: np.ndarray
+    certificate: Certificate
+    cones: list[int] = field(default_factory=list)
+    continuum: bool = False
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"z": _jvec(self.z), "w": _jvec(self.w), "error": _jfloat(self.certificate.error),
+                "residual": _jfloat(self.certificate.residual),
+                "continuum": bool(self.continuum), "cones": len(self.cones)}
+
+
+@dataclass
+class Enumeration:
+    """What :func:`enumerate_cones` found.
+
+    ``verdict``: ``unique``, ``finite``, ``continuum``, ``none`` (a proof that the LCP has no
+    solution, up to the tolerances) or ``found`` (``stop_at_first``: the rest not examined);
+    ``incomplete`` / ``unknown`` when more than ``max_lp`` singular cones containing q would
+    need an LP (solutions found / none found: nothing is proven then).
+    ``cones``: the feasible cones (all cones when asked for), in code order.
+    """
+
+    n: int
+    verdict: str
+    solutions: list[Solution]
+    cones: list[Cone]
+    examined: int
+    total: int
+    counts: dict[str, int]
+    seconds: float
+    complete: bool
+
+    @property
+    def status(self) -> str:
+        if self.solutions:
+            return "solved"
+        return "unsolved" if self.verdict == UNKNOWN else "no_solution"
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"n": self.n, "status": self.status, "verdict": self.verdict,
+                "cones": [c.to_dict() for c in self.cones],
+                "solutions": [s.to_dict() for s in self.solutions],
+                "examined": self.examined, "total": self.total, "counts": dict(self.counts),
+                "complete": self.complete, "seconds": self.seconds}
+
+
+# ---------------------------------------------------------------------------- helpers
+def _jfloat(x: Any) -> float | None:
+    if x is None:
+        return None
+    x = float(x)
+    return x if np.isfinite(x) else None
+
+
+def _jvec(v: np.ndarray | None) -> list[float | None] | None:
+    return None if v is None else [_jfloat(x) for x in np.asarray(v, dtype=float)]
+
+
+def basis_names(code: int, n: int) -> list[str]:
+    """1-based names of the complementary basic variables of cone ``code``."""
+    return [("z" if (code >> j) & 1 else "w") + str(j + 1) for j in range(n)]
+
+
+def complementary_matrix(M: np.ndarray, code: int) -> np.ndarray:
+    """``A_r``: column ``I_j`` where ``w_j`` is basic, ``-M_j`` where ``z_j`` is basic."""
+    n = M.shape[0]
+    A = np.eye(n)
+    for j in range(n):
+        if (code >> j) & 1:
+            A[:, j] = -M[:, j]
+    return A
+
+
+def check_problem(problem: Any, max_n: int = DEFAULT_MAX_N) -> np.ndarray:
+    """The dense M of an LCP the method accepts; ProblemError/OptionError otherwise."""
+    if problem.kind != "lcp":
+        raise ProblemError(f"enumeration handles plain LCPs only, not {problem.kind.upper()} "
+                           f"problems")
+    try:
+        max_n = int(max_n)
+    except (TypeError, ValueError):
+        raise OptionError(f"max-n must be an integer, got {max_n!r}") from None
+    if max_n < 1 or max_n > HARD_MAX_N:
+        raise OptionError(f"max-n must be between 1 and {HARD_MAX_N}, got {max_n}")
+    n = problem.n
+    if n > max_n:
+        raise OptionError(f"n = {n} means 2^{n} = {2**n:,} complementary cones, above the "
+                          f"limit --max-n {max_n} (2^{max_n} = {2**max_n:,}); raise --max-n "
+                          f"to run it anyway (each extra variable doubles the time), or use "
+                          f"a pivoting method (lcpcli solve -m lemke)")
+    if n == 0:
+        raise ProblemError("empty problem (n = 0)")
+    return np.ascontiguousarray(problem.dense_M(), dtype=np.float64)
+
+
+def prepare() -> None:
+    """Compile (or load from the cache) the kernel outside any timed region."""
+    from lcpcli.solvers.kernels.enum import classify_chunk
+
+    M = np.array([[2.0, 1.0], [1.0, 2.0]])
+    q = np.array([-5.0, -6.0])
+    masks = np.zeros(2, dtype=np.int64)
+    from lcpcli.solvers.kernels.enum import SERIAL_BELOW, TASK_BITS, classify_chunk_fast
+
+    for count in (4, SERIAL_BELOW):
+        classify_chunk(M, q, 0, count, masks, masks, 1e-12, RTOL, 3.0, 6.0, 0.0,
+                       np.zeros(count, dtype=np.uint8))
+    n = TASK_BITS + 1
+    M = np.eye(n) + 0.1
+    q = -np.ones(n)
+    masks = np.zeros(n, dtype=np.int64)
+    for count in (4, 1 << n):
+        classify_chunk_fast(M, q, 0, count, masks, masks, 1e-12, RTOL, 2.0, 1.0, 0.0,
+                            np.zeros(count, dtype=np.uint8))
+
+
+def sign_masks(M: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Bit masks of the strictly positive / strictly negative entries of each row of M."""
+    n = M.shape[0]
+    weights = np.left_shift(np.int64(1), np.arange(n, dtype=np.int64))
+    pos = ((M > 0).astype(np.int64) * weights).sum(axis=1).astype(np.int64)
+    neg = ((M < 0).astype(np.int64) * weights).sum(axis=1).astype(np.int64)
+    return pos, neg
+
+
+def solve_cone(M: np.ndarray, q: np.ndarray, code: int) -> tuple[np.ndarray, np.ndarray]:
+    """(z, w) of a nonsingular cone, by LU with one step of iterative refinement."""
+    n = q.shape[0]
+    S = [j for j in range(n) if (code >> j) & 1]
+    z = np.zeros(n)
+    if S:
+        B = M[np.ix_(S, S)]
+        zs = np.linalg.solve(B, -q[S])
+        r = -q[S] - B @ zs
+        zs = zs + np.linalg.solve(B, r)
+        z[S] = zs
+    w = M @ z + q
+    w[S] = 0.0
+    return z, w
+
+
+def cone_y(code: int, z: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """The basic values ``y_j`` (``z_j`` or ``w_j``) of cone ``code``."""
+    n = z.shape[0]
+    return np.array([z[j] if (code >> j) & 1 else w[j] for j in range(n)])
+
+
+def singular_cone_lp(M: np.ndarray, q: np.ndarray, code: int,
+                     seed: int = 0) -> tuple[np.ndarray | None, bool]:
+    """For a singular cone: a point ``y >= 0`` with ``A_r y = q`` (or None) and whether the
+    polyhedron of such points is more than one point (a continuum of LCP solutions)."""
+    from scipy.optimize import linprog
+
+    n = q.shape[0]
+    A = complementary_matrix(M, code)
+    res = linprog(np.zeros(n), A_eq=A, b_eq=q, bounds=[(0, None)] * n, method="highs")
+    if res.status != 0:
+        return None, False
+    y0 = np.maximum(res.x, 0.0)
+    c = np.random.default_rng(seed + code).standard_normal(n)
+    lo = linprog(c, A_eq=A, b_eq=q, bounds=[(0, None)] * n, method="highs")
+    hi = linprog(-c, A_eq=A, b_eq=q, bounds=[(0, None)] * n, method="highs")
+    if lo.status == 3 or hi.status == 3:
+        return y0, True
+    if lo.status != 0 or hi.status != 0:
+        return y0, False
+    spread = float(np.max(np.abs(lo.x - hi.x)))
+    scale = max(float(np.max(np.abs(y0))), 1e-300)
+    return y0, spread > 1e-7 * scale
+
+
+def _y_to_zw(M: np.ndarray, q: np.ndarray, code: int, y: np.ndarray) -> tuple[np.ndarray,
+                                                                               np.ndarray]:
+    n = q.shape[0]
+    bits = np.array([(code >> j) & 1 for j in range(n)], dtype=bool)
+    z = np.where(bits, y, 0.0)
+    w = M @ z + q
+    w[bits] = 0.0
+    return z, w
+
+
+def _same(a: np.ndarray, b: np.ndarray) -> bool:
+    scale = 1.0 + max(float(np.max(np.abs(a))), float(np.max(np.abs(b))))
+    return bool(np.max(np.abs(a - b)) <= 1e-7 * scale)
+
+
+# ---------------------------------------------------------------------------- engine
+def enumerate_cones(problem: Any, *, stop_at_first: bool = False, all_cones: bool = False,
+                    max_n: int = DEFAULT_MAX_N, tol: float = DEFAULT_TOL, rtol: float = RTOL,
+                    progress: Callable[[int, int], None] | None = None,
+                    chunk: int = 1 << 18, keep_cones: int = 100_000,
+                    fast: bool = True, max_lp: int = MAX_LPS) -> Enumeration:
+    """Visit the ``2^n`` complementary cones of ``problem`` (an LCP) and collect the solutions.
+
+    ``stop_at_first``: stop at the first certified solution (verdict ``found``).
+    ``all_cones``: return every cone (with ``y``, ``det`` and ``rank``) instead of the feasible
+    ones only; meant for small n (memory grows as 2^n n).
+    ``progress(done, total)`` is called after each chunk of cones.  At most ``keep_cones``
+    feasible cones are kept in ``cones`` (the counts stay exact).  ``fast``: use the
+    depth-first principal-pivoting kernel (candidates re-checked by the direct LU kernel,
+    unsafe pivots sent to it); ``fast=False`` uses the direct kernel for every cone.
+    """
+    from lcpcli.solvers.kernels.enum import (
+        CANDIDATE,
+        FEASIBLE,
+        PRUNED,
+        SINGULAR_CONSISTENT,
+        SINGULAR_EMPTY,
+        classify_chunk,
+        classify_chunk_fast,
+    )
+
+    M = check_problem(problem, max_n)
+    q = np.ascontiguousarray(problem.q, dtype=np.float64)
+    n = q.shape[0]
+    total = 1 << n
+    mu = matrix_norm_inf(M)
+    mu = mu if mu > 0 else 1.0
+    qnorm = float(np.max(np.abs(q)))
+    piv_tol = PIVOT_RTOL * max(float(np.max(np.abs(M))), 1e-300) * n
+    prune_tol = rtol * qnorm
+    pos, neg = sign_masks(M)
+    start_time = time.perf_counter()
+
+    solutions: list[Solution] = []
+    feasible_cones: list[Cone] = []
+    counts = {"feasible": 0, "singular": 0, "singular_with_q": 0, "pruned": 0,
+              "uncertified": 0, "singular_unresolved": 0}
+    lps = 0
+    continuum_seen = False
+    done = 0
+    size = min(FIRST_CHUNK, total) if stop_at_first else min(chunk, total)
+    stopped = False
+    while done < total and not stopped:
+        count = min(size, total - done)
+        status = np.empty(count, dtype=np.uint8)
+        aligned = count & (count - 1) == 0 and done % count == 0
+        if fast and aligned and n >= FAST_MIN_N:
+            classify_chunk_fast(M, q, done, count, pos, neg, piv_tol, rtol, mu, qnorm,
+                                prune_tol, status)
+            one = np.empty(1, dtype=np.uint8)
+            for t in np.flatnonzero(status == CANDIDATE):  # the direct path decides
+                classify_chunk(M, q, done + int(t), 1, pos, neg, piv_tol, rtol, mu, qnorm,
+                               prune_tol, one)
+                status[t] = one[0]
+        else:
+            classify_chunk(M, q, done, count, pos, neg, piv_tol, rtol, mu, qnorm, prune_tol,
+                           status)
+        counts["pruned"] += int(np.count_nonzero(status == PRUNED))
+        counts["singular"] += int(np.count_nonzero((status == SINGULAR_CONSISTENT)
+                                                   | (status == SINGULAR_EMPTY)))
+        for t in np.flatnonzero((status == FEASIBLE) | (status == SINGULAR_CONSISTENT)):
+            code = done + int(t)
+            if status[t] == FEASIBLE:
+                z, w = solve_cone(M, q, code)
+                cone = Cone(code, n, True, False, cone_y(code, z, w), z, w)
+                continuum = False
+            else:
+                # once a continuum is known the verdict cannot change: skip further LPs
+                if continuum_seen or lps >= max_lp:
+                    counts["singular_unresolved"] += 1
+                    continue
+                lps += 1
+                y, continuum = singular_cone_lp(M, q, code)
+                continuum_seen = continuum_seen or continuum
+                if y is None:
+                    continue
+                z, w = _y_to_zw(M, q, code, y)
+                cone = Cone(code, n, True, True, y, z, w, continuum=continuum)
+                counts["singular_with_q"] += 1
+            for sol in solutions:
+                if _same(sol.z, z):
+                    sol.cones.append(code)
+                    sol.continuum = sol.continuum or continuum
+                    break
+            else:
+                cert = certify(problem, z, tol, w=M @ z + q, norm_M=mu)
+                if not cert.passed:
+                    counts["uncertified"] += 1
+                    continue
+                solutions.append(Solution(z, M @ z + q, cert, [code], continuum))
+            counts["feasible"] += 1
+            if len(feasible_cones) < keep_cones:
+                feasible_cones.append(cone)
+            if stop_at_first:
+                stopped = True
+                done = code + 1
+                break
+        if not stopped:
+            done += count
+        if progress is not None:
+            progress(done, total)
+        if stop_at_first:
+            size = min(done, chunk, total - done) if done >= FIRST_CHUNK else size  # aligned
+
+    if stopped:
+        verdict = FOUND
+    elif any(s.continuum for s in solutions):
+        verdict = CONTINUUM
+    elif counts["singular_unresolved"]:
+        verdict = INCOMPLETE if solutions else UNKNOWN
+    elif not solutions:
+        verdict = NONE
+    elif len(solutions) == 1:
+        verdict = UNIQUE
+    else:
+        verdict = FINITE
+    seconds = time.perf_counter() - start_time
+    cones = all_cone_details(M, q, feasible_cones) if all_cones else _add_det(M, feasible_cones)
+    cones.sort(key=lambda c: c.r)
+    return Enumeration(n=n, verdict=verdict, solutions=solutions, cones=cones, examined=done,
+                       total=total, counts=counts, seconds=seconds, complete=not stopped)
+
+
+def _add_det(M: np.ndarray, cones: list[Cone]) -> list[Cone]:
+    for c in cones:
+        A = complementary_matrix(M, c.code)
+        c.det = float(np.linalg.det(A))
+        c.rank = int(np.linalg.matrix_rank(A))
+    return cones
+
+
+def all_cone_details(M: np.ndarray, q: np.ndarray, feasible: list[Cone]) -> list[Cone]:
+    """Every cone in code order: det, rank, and ``y = A_r^-1 q`` for the nonsingular ones
+    (negative entries mean q is outside the cone); the feasible ones as found."""
+    n = q.shape[0]
+    found = {c.code: c for c in feasible}
+    out: list[Cone] = []
+    block = 1 << 12
+    for lo in range(0, 1 << n, block):
+        codes = np.arange(lo, min(lo + block, 1 << n), dtype=np.int64)
+        bits = ((codes[:, None] >> np.arange(n)) & 1).astype(bool)  # (B, n)
+        A = np.where(bits[:, None, :], -M[None, :, :], np.eye(n)[None, :, :])
+        dets = np.linalg.det(A)
+        ranks = np.linalg.matrix_rank(A)
+        for t, code in enumerate(codes.tolist()):
+            if code in found:
+                c = found[code]
+                c.det, c.rank = float(dets[t]), int(ranks[t])
+                out.append(c)
+                continue
+            singular = bool(ranks[t] < n)
+            y = None if singular else np.linalg.solve(A[t], q)
+            out.append(Cone(code, n, False, singular, y, det=float(dets[t]),
+                            rank=int(ranks[t])))
+    return out
+
+
+# ---------------------------------------------------------------------------- n = 2 geometry
+def generators_2d(M: np.ndarray) -> dict[str, np.ndarray]:
+    """The four complementary columns of a 2 x 2 problem: I_1, I_2, -M_1, -M_2 by name."""
+    return {"w1": np.array([1.0, 0.0]), "w2": np.array([0.0, 1.0]),
+            "z1": -np.asarray(M[:, 0], dtype=float), "z2": -np.asarray(M[:, 1], dtype=float)}
+
+
+def in_cone_2d(A: np.ndarray, x: np.ndarray, rtol: float = 1e-12) -> bool:
+    """Whether ``x`` is in ``Pos(A)`` for a 2 x 2 ``A`` (degenerate A: rays / a line)."""
+    scale = max(float(np.max(np.abs(A))), 1e-300) * max(float(np.max(np.abs(x))), 1e-300)
+    det = A[0, 0] * A[1, 1] - A[0, 1] * A[1, 0]
+    if abs(det) > 1e-12 * max(float(np.max(np.abs(A))) ** 2, 1e-300):
+        y = np.linalg.solve(A, x)
+        return bool(np.all(y >= -rtol * max(1.0, float(np.max(np.abs(y))))))
+    for j in range(2):  # degenerate: x must be a nonnegative multiple of a column
+        a = A[:, j]
+        if np.max(np.abs(a)) == 0:
+            continue
+        cross = a[0] * x[1] - a[1] * x[0]
+        if abs(cross) <= 1e-12 * scale and a @ x >= 0:
+            return True
+    return bool(np.max(np.abs(x)) == 0)
+
+
+def covers_plane(M: Any) -> bool:
+    """For n = 2: whether K(M), the union of the four complementary cones, is all of R^2.
+
+    Independent of q.  Exact test: the cones are closed, so they cover the plane iff they
+    cover the direction halfway between each pair of consecutive generator directions.
+    """
+    M = np.asarray(M, dtype=float)
+    if M.shape != (2, 2):
+        raise ValueError("covers_plane needs a 2 x 2 matrix")
+    gens = generators_2d(M)
+    angles = sorted({float(np.arctan2(v[1], v[0])) % (2 * np.pi)
+                     for v in gens.values() if np.max(np.abs(v)) > 0})
+    mats = [complementary_matrix(M, code) for code in range(4)]
+    for i, a in enumerate(angles):
+        b = angles[(i + 1) % len(angles)] + (2 * np.pi if i + 1 == len(angles) else 0.0)
+        mid = 0.5 * (a + b) if b > a else a + np.pi
+        x = np.array([np.cos(mid), np.sin(mid)])
+        if not any(in_cone_2d(A, x) for A in mats):
+            return False
+    return True

@@ -1,0 +1,380 @@
+"""The principal pivoting transform of seed 000 (Dai & Drumwright), as pure functions.
+
+System (seed 000, sign convention of the whole package): ``w = q + M z`` with
+``w = (w_1..w_n)`` and ``z = (z_1..z_n, z_{n+1})``, where ``M`` is ``n x (n+1)`` and its last
+column belongs to the artificial variable ``z_{n+1}`` (Lemke's ``z0``; the covering vector).
+
+A *basis* is the dependent tuple ``w'`` (n variables) and the independent tuple ``z'``
+(the other n+1 variables, in a chosen order; by default the order of the original tuples).
+The pivoted system is ``w' = q' + M' z'``.  Index sets (kept 0-based here, shown 1-based by
+the CLI and in :meth:`PivotTransform.to_dict`, as in the seed):
+
+* ``alpha``: positions in ``w`` of the w's that are independent (ascending);
+  ``alpha'``: their positions in ``z'``;
+* ``beta``: positions in ``z`` of the z's that are dependent (ascending);
+  ``beta'``: their positions in ``w'``;
+* ``alpha_bar``: positions in ``w`` of the w's that stay dependent (ascending);
+  ``alpha_bar'``: their positions in ``w'``;
+* ``beta_bar``: positions in ``z`` of the z's that stay independent (ascending; the seed's
+  "one greater than" is a slip, see the seeds guide); ``beta_bar'``: their positions in ``z'``.
+
+Then (seed eqs 2-3) ``q'[beta'] = -(M^{alpha beta})^{-1} q^alpha`` and
+``q'[alpha_bar'] = q^{alpha_bar} + M^{alpha_bar beta} q'[beta']``; the column of ``M'`` that
+multiplies a driving variable is, for ``w_{alpha_gamma}`` (eqs 5-6),
+``M'_d[beta'] = (M^{alpha beta})^{-1} e_gamma``,
+``M'_d[alpha_bar'] = M^{alpha_bar beta} M'_d[beta']``,
+and for ``z_zeta`` (eqs 7-8), with ``g = M[:, zeta]``,
+``M'_d[beta'] = -(M^{alpha beta})^{-1} g^alpha``,
+``M'_d[alpha_bar'] = g^{alpha_bar} + M^{alpha_bar beta} M'_d[beta']``.
+
+``M^{alpha beta}`` is factorised once (LU with partial pivoting); a singular block means the
+tuples are not a basis and raises :class:`~lcpcli.core.errors.ProblemError`.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from lcpcli.core.errors import ProblemError
+
+#: A block whose reciprocal condition number is below this is treated as singular.
+RCOND_MIN = 1e-14
+
+_NAME = re.compile(r"^\s*([wWzZ])\s*_?\s*(\d+)\s*$")
+
+Var = tuple[str, int]  # ("w", i) or ("z", j), 0-based; ("z", n) is the artificial variable
+
+
+def var_name(var: Var, n: int) -> str:
+    """1-based display name: ``w1``, ``z3``; the artificial variable is ``z{n+1}``."""
+    return f"{var[0]}{var[1] + 1}"
+
+
+def parse_var(name: str, n: int) -> Var:
+    """Parse ``w1..wn``, ``z1..z{n+1}`` or ``z0`` (alias of ``z{n+1}``) into a 0-based pair."""
+    m = _NAME.match(str(name))
+    if not m:
+        raise ProblemError(f"unknown variable name {name!r} (expected w1..w{n}, z1..z{n + 1} "
+                           f"or z0)")
+    kind, idx = m.group(1).lower(), int(m.group(2))
+    if kind == "z" and idx == 0:
+        return ("z", n)
+    top = n if kind == "w" else n + 1
+    if not 1 <= idx <= top:
+        raise ProblemError(f"variable {name!r} out of range (w1..w{n}, z1..z{n + 1}, z0)")
+    return (kind, idx - 1)
+
+
+def parse_tuple(text: str | list[str] | tuple[str, ...], n: int) -> tuple[Var, ...]:
+    """A comma/space separated list of variable names."""
+    items = text if isinstance(text, (list, tuple)) else re.split(r"[,\s]+", str(text).strip())
+    items = [s for s in items if str(s).strip()]
+    return tuple(parse_var(s, n) for s in items)
+
+
+def all_vars(n: int) -> list[Var]:
+    """``w_1..w_n, z_1..z_{n+1}`` in the seed's order."""
+    return [("w", i) for i in range(n)] + [("z", j) for j in range(n + 1)]
+
+
+def validate_basis(dependent: tuple[Var, ...], independent: tuple[Var, ...] | None, n: int, *,
+                   any_basis: bool = False) -> tuple[tuple[Var, ...], tuple[Var, ...]]:
+    """Check a (dependent, independent) pair; return it with the independent tuple completed.
+
+    Rules: ``n`` dependent variables, ``n + 1`` independent ones, no variable twice, together
+    exactly ``w_1..w_n, z_1..z_{n+1}`` (then Lemma 1, ``|alpha| = |beta|``, holds).  Unless
+    ``any_basis``, the dependent tuple may not hold both ``w_i`` and ``z_i``: the transform is
+    meant for Lemke's (almost) complementary bases.  Without ``independent`` the independent
+    variables come in the seed's order ``w_1..w_n, z_1..z_{n+1}``.
+    """
+    def dupes(tup: tuple[Var, ...]) -> list[str]:
+        seen: set[Var] = set()
+        out = []
+        for v in tup:
+            if v in seen:
+                out.append(var_name(v, n))
+            seen.add(v)
+        return out
+
+    if dupes(dependent):
+        raise ProblemError(f"dependent tuple lists {dupes(dependent)[0]} twice")
+    if len(dependent) != n:
+        n_iw = sum(1 for i in range(n) if ("w", i) not in dependent)
+        n_dz = sum(1 for v in dependent if v[0] == "z")
+        raise ProblemError(f"dependent tuple has {len(dependent)} variables, expected n = {n} "
+                           f"(Lemma 1 of the seed fails: {n_iw} independent w but {n_dz} "
+                           f"dependent z)")
+    if independent is None:
+        independent = tuple(v for v in all_vars(n) if v not in set(dependent))
+    else:
+        if dupes(independent):
+            raise ProblemError(f"independent tuple lists {dupes(independent)[0]} twice")
+        both = [var_name(v, n) for v in independent if v in set(dependent)]
+        if both:
+            raise ProblemError(f"{both[0]} is in both the dependent and the independent tuple")
+        if len(independent) != n + 1:
+            raise ProblemError(f"independent tuple has {len(independent)} variables, expected "
+                               f"n + 1 = {n + 1}")
+    missing = [var_name(v, n) for v in all_vars(n) if v not in set(dependent) | set(independent)]
+    if missing:
+        raise ProblemError(f"variable {missing[0]} is in neither tuple")
+    if not any_basis:
+        for i in range(n):
+            if ("w", i) in dependent and ("z", i) in dependent:
+                raise ProblemError(f"dependent tuple holds both w{i + 1} and z{i + 1}: not an "
+                                   f"(almost) complementary basis (use --any-basis to allow)")
+    return tuple(dependent), tuple(independent)
+
+
+@dataclass
+class PivotTransform:
+    """The pivoted system ``w' = q' + M' z'`` (0-based index sets, see the module docstring)."""
+
+    n: int
+    dependent: tuple[Var, ...]
+    independent: tuple[Var, ...]
+    alpha: list[int]
+    alpha_prime: list[int]
+    beta: list[int]
+    beta_prime: list[int]
+    alpha_bar: list[int]
+    alpha_bar_prime: list[int]
+    beta_bar: list[int]
+    beta_bar_prime: list[int]
+    M_ab: np.ndarray
+    M_abar_b: np.ndarray
+    q_a: np.ndarray
+    q_abar: np.ndarray
+    q_prime: np.ndarray
+    driving: Var | None = None
+    driving_case: str | None = None  # "w" (eqs 5-6) or "z" (eqs 7-8)
+    driving_column: np.ndarray | None = None
+    g_alpha: np.ndarray | None = None
+    g_alpha_bar: np.ndarray | None = None
+    full: np.ndarray | None = None  # M' (n x (n+1)), columns in z' order
+
+    @property
+    def m(self) -> int:
+        return len(self.alpha)
+
+    def names(self, tup: tuple[Var, ...]) -> list[str]:
+        return [var_name(v, self.n) for v in tup]
+
+    def to_dict(self) -> dict[str, Any]:
+        """The JSON schema of ``lcpcli pivot --json`` (index sets 1-based)."""
+        def one(xs: list[int]) -> list[int]:
+            return [int(x) + 1 for x in xs]
+
+        out: dict[str, Any] = {
+            "n": self.n,
+            "m": self.m,
+            "dependent": self.names(self.dependent),
+            "independent": self.names(self.independent),
+            "alpha": one(self.alpha), "alpha_prime": one(self.alpha_prime),
+            "beta": one(self.beta), "beta_prime": one(self.beta_prime),
+            "alpha_bar": one(self.alpha_bar), "alpha_bar_prime": one(self.alpha_bar_prime),
+            "beta_bar": one(self.beta_bar), "beta_bar_prime": one(self.beta_bar_prime),
+            "M_alpha_beta": self.M_ab.tolist(),
+            "M_alpha_bar_beta": self.M_abar_b.tolist(),
+            "q_alpha": self.q_a.tolist(),
+            "q_alpha_bar": self.q_abar.tolist(),
+            "q_prime": self.q_prime.tolist(),
+            "driving": None if self.driving is None else var_name(self.driving, self.n),
+            "driving_case": self.driving_case,
+            "driving_column": None if self.driving_column is None
+            else self.driving_column.tolist(),
+        }
+        if self.full is not None:
+            out["M_prime"] = self.full.tolist()
+        return out
+
+
+class _Factor:
+    """LU factorisation of the square block ``M^{alpha beta}`` (m may be 0)."""
+
+    def __init__(self, A: np.ndarray) -> None:
+        self.m = A.shape[0]
+        if self.m == 0:
+            return
+        import scipy.linalg as sla
+
+        if not np.all(np.isfinite(A)):
+            raise ProblemError("M^{alpha beta} contains NaN or Inf")
+        import warnings
+
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            self.lu = sla.lu_factor(A, check_finite=False)
+        diag = np.abs(np.diag(self.lu[0]))
+        scale = max(float(np.max(np.abs(A))), np.finfo(float).tiny)
+        if diag.min() <= RCOND_MIN * scale * self.m:
+            raise ProblemError("M^{alpha beta} is singular: these tuples are not a basis "
+                               "(no pivoted system exists)")
+        rcond = _rcond(self.lu, A)
+        if rcond < RCOND_MIN:
+            raise ProblemError(f"M^{{alpha beta}} is singular to working precision "
+                               f"(rcond {rcond:.1e}): these tuples are not a basis")
+
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        if self.m == 0:
+            return np.zeros(0)
+        import scipy.linalg as sla
+
+        return sla.lu_solve(self.lu, b, check_finite=False)
+
+
+def _rcond(lu: Any, A: np.ndarray) -> float:
+    """Reciprocal 1-norm condition estimate of a factorised block (LAPACK gecon)."""
+    from scipy.linalg import lapack
+
+    anorm = float(np.max(np.sum(np.abs(A), axis=0)))
+    if anorm == 0:
+        return 0.0
+    rc, _info = lapack.dgecon(lu[0], anorm, norm="1")
+    return float(rc)
+
+
+def principal_pivot(M: np.ndarray, q: np.ndarray, dependent: tuple[Var, ...],
+                    independent: tuple[Var, ...] | None = None, *,
+                    driving: Var | None = None, full: bool = False,
+                    any_basis: bool = False) -> PivotTransform:
+    """Compute the pivoted system of ``w = q + M z`` (``M`` is ``n x (n+1)``).
+
+    Returns q' in ``w'`` order and, for ``driving`` (a variable of ``z'``), the column of
+    ``M'`` that multiplies it (``w'`` order); ``full`` computes every column of ``M'`` the
+    same way (z' order).  Raises :class:`ProblemError` for a bad basis or a singular block.
+    """
+    M = np.asarray(M, dtype=np.float64)
+    q = np.asarray(q, dtype=np.float64).ravel()
+    n = q.shape[0]
+    if M.shape != (n, n + 1):
+        raise ProblemError(f"M must be n x (n+1) = {n} x {n + 1} (artificial column last), "
+                           f"got {M.shape[0]} x {M.shape[1]}")
+    dependent, independent = validate_basis(tuple(dependent),
+                                            None if independent is None else tuple(independent),
+                                            n, any_basis=any_basis)
+    pos_dep = {v: k for k, v in enumerate(dependent)}
+    pos_ind = {v: k for k, v in enumerate(independent)}
+    alpha = [i for i in range(n) if ("w", i) in pos_ind]
+    alpha_p = [pos_ind[("w", i)] for i in alpha]
+    beta = [j for j in range(n + 1) if ("z", j) in pos_dep]
+    beta_p = [pos_dep[("z", j)] for j in beta]
+    abar = [i for i in range(n) if ("w", i) in pos_dep]
+    abar_p = [pos_dep[("w", i)] for i in abar]
+    bbar = [j for j in range(n + 1) if ("z", j) in pos_ind]
+    bbar_p = [pos_ind[("z", j)] for j in bbar]
+    if len(alpha) != len(beta):  # Lemma 1 (cannot fail after validate_basis; kept as a guard)
+        raise ProblemError(f"Lemma 1 fails: {len(alpha)} independent w but {len(beta)} "
+                           f"dependent z")
+    M_ab = M[np.ix_(alpha, beta)]
+    M_abar_b = M[np.ix_(abar, beta)]
+    q_a, q_abar = q[alpha], q[abar]
+    lu = _Factor(M_ab)
+
+    def column(var: Var) -> np.ndarray:
+        col = np.empty(n)
+        if var[0] == "w":  # eqs (5)-(6)
+            gamma = alpha.index(var[1])
+            e = np.zeros(len(alpha))
+            e[gamma] = 1.0
+            xb = lu.solve(e)
+            col[beta_p] = xb
+            col[abar_p] = M_abar_b @ xb
+        else:  # eqs (7)-(8)
+            g = M[:, var[1]]
+            xb = -lu.solve(g[alpha])
+            col[beta_p] = xb
+            col[abar_p] = g[abar] + M_abar_b @ xb
+        return col
+
+    qp = np.empty(n)
+    qb = -lu.solve(q_a)  # eq (2)
+    qp[beta_p] = qb
+    qp[abar_p] = q_abar + M_abar_b @ qb  # eq (3)
+    out = PivotTransform(n, dependent, independent, alpha, alpha_p, beta, beta_p, abar, abar_p,
+                         bbar, bbar_p, M_ab, M_abar_b, q_a, q_abar, qp)
+    if driving is not None:
+        if driving not in pos_ind:
+            raise ProblemError(f"driving variable {var_name(driving, n)} is not independent "
+                               f"(it must be one of {', '.join(out.names(independent))})")
+        out.driving = driving
+        out.driving_case = driving[0]
+        out.driving_column = column(driving)
+        if driving[0] == "z":
+            g = M[:, driving[1]]
+            out.g_alpha, out.g_alpha_bar = g[alpha], g[abar]
+    if full:
+        out.full = np.column_stack([column(v) for v in independent]) if n else np.zeros((0, 1))
+    return out
+
+
+def augment(M: np.ndarray, covering: np.ndarray | None = None) -> np.ndarray:
+    """``[M, d]``: append the artificial column (default all ones) to an n x n matrix."""
+    M = np.asarray(M, dtype=np.float64)
+    n = M.shape[0]
+    d = np.ones(n) if covering is None else np.asarray(covering, dtype=np.float64).ravel()
+    if d.size == 1:
+        d = np.full(n, float(d[0]))
+    if d.shape[0] != n:
+        raise ProblemError(f"covering vector has length {d.shape[0]}, expected {n}")
+    if not np.all(np.isfinite(d)):
+        raise ProblemError("covering vector contains NaN or Inf")
+    return np.column_stack([M, d])
+
+
+def load_augmented(path: str, covering: str | None = None,
+                   problem: str | None = None) -> tuple[np.ndarray, np.ndarray, str]:
+    """Read ``q`` and the ``n x (n+1)`` matrix ``[M, d]`` of a problem file.
+
+    JSON and NPZ files may store ``M`` with ``n + 1`` columns (the artificial column last,
+    as in seed 000); otherwise the file holds an ordinary LCP and ``covering`` (text such as
+    ``"1,2,1"``; default all ones) supplies the artificial column.  Returns ``(Maug, q, where)``
+    with ``where`` saying where the artificial column came from.
+    """
+    import json
+    from pathlib import Path
+
+    from lcpcli.io import detect_format, load
+
+    kind = detect_format(path)
+    raw_M: Any = None
+    raw_q: Any = None
+    try:
+        if kind == "json" and str(path) != "-" and Path(path).is_file():
+            data = json.loads(Path(path).read_text(encoding="utf-8"))
+            if isinstance(data, dict) and isinstance(data.get("M"), list):
+                raw_M, raw_q = data["M"], data.get("q")
+        elif kind == "npz" and Path(path).is_file():
+            with np.load(path, allow_pickle=False) as npz:
+                if "M" in npz.files and "q" in npz.files:
+                    raw_M, raw_q = npz["M"], npz["q"]
+    except (ValueError, OSError, UnicodeDecodeError):
+        raw_M = None  # let the regular reader produce the proper message
+    if raw_M is not None and raw_q is not None:
+        try:
+            A = np.asarray(raw_M, dtype=np.float64)
+            qv = np.asarray(raw_q, dtype=np.float64).ravel()
+        except (TypeError, ValueError):
+            A, qv = None, None
+        if A is not None and A.ndim == 2 and A.shape == (qv.shape[0], qv.shape[0] + 1):
+            if covering is not None:
+                raise ProblemError("M already has n + 1 columns (the artificial column); "
+                                   "drop --covering", str(path))
+            if not (np.all(np.isfinite(A)) and np.all(np.isfinite(qv))):
+                raise ProblemError("M or q contains NaN or Inf", str(path))
+            return np.ascontiguousarray(A), qv, "file (last column of M)"
+    prob = load(path, problem)
+    d = None
+    if covering is not None:
+        try:
+            d = np.array([float(x) for x in str(covering).replace(",", " ").split()])
+        except ValueError:
+            raise ProblemError(f"--covering must be numbers, got {covering!r}") from None
+        if d.size == 0:
+            raise ProblemError("--covering is empty")
+    Maug = augment(prob.dense_M(), d)
+    return Maug, prob.q.copy(), "--covering" if covering is not None else "all ones (default)"

@@ -1,0 +1,60 @@
+"""The records a batch passes around: tasks, solve options and result rows.
+
+A **row** is the ``lcpcli solve --json`` object (:meth:`lcpcli.core.result.Result.to_dict`) plus
+``source`` (the file, as given or found) and ``problem`` (the HDF5 group, or the file's stem for
+one-problem files); the pair is the row's :func:`key`, which ``--resume`` uses.  Rows of inputs
+that could not be read have ``status = "error"``, ``termination = "error"``, ``n = None``, empty
+``z``/``w``, ``certificate = None`` and the one-line reason in ``message``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+#: Status of a row whose input could not be read or solved at all (not a solver verdict).
+ERROR = "error"
+
+
+#: ``message`` and ``termination`` of a problem stopped by ``--timeout``.
+TIMEOUT = "timeout"
+
+
+@dataclass(frozen=True)
+class Task:
+    """One problem to solve: the file and the problem's name in it."""
+
+    source: str
+    problem: str
+    hdf5: bool = False
+
+
+@dataclass(frozen=True)
+class SolveOptions:
+    """What every problem of a batch is solved with (picklable, sent to the workers)."""
+
+    method: str = "auto"  # = lcpcli.api.DEFAULT_METHOD
+    tol: float | None = None
+    options: dict[str, Any] = field(default_factory=dict)
+
+
+def key(row: dict[str, Any]) -> tuple[str, str]:
+    """The identity of a row: ``(source, problem)``."""
+    return (str(row.get("source", "")), str(row.get("problem", "")))
+
+
+def error_row(source: str, problem: str, message: str, method: str = "",
+              *, status: str = ERROR, termination: str = ERROR,
+              seconds: float = 0.0) -> dict[str, Any]:
+    """A row for a problem that produced no solution at all (bad input, crash, timeout)."""
+    return {"file": source, "status": status, "method": method, "n": None, "z": [], "w": [],
+            "iterations": 0, "seconds": float(seconds), "residual": None, "error": None,
+            "message": " ".join(str(message).split()), "problem": problem,
+            "termination": termination, "certificate": None, "source": source}
+
+
+def timeout_row(task: Task, seconds: float, method: str) -> dict[str, Any]:
+    """The row of a problem stopped by the per-problem time limit."""
+    return error_row(task.source, task.problem, TIMEOUT, method, status="unsolved",
+                     termination=TIMEOUT, seconds=seconds)
+

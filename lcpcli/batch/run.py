@@ -1,0 +1,137 @@
+"""One batch from start to end: expand inputs, resume, solve (locally or on Dask), write rows."""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import os
+import signal
+import time
+from collections.abc import Callable, Iterable, Iterator
+from pathlib import Path
+from typing import Any
+
+from lcpcli.batch.cluster import iter_dask
+from lcpcli.batch.inputs import expand_inputs
+from lcpcli.batch.pool import iter_local
+from lcpcli.batch.records import SolveOptions, key
+from lcpcli.batch.report import BatchReport, BatchStats, Tally
+from lcpcli.batch.worker import prepare_method
+
+
+@contextlib.contextmanager
+def signals_deferred() -> Iterator[None]:
+    """Hold SIGINT and SIGTERM while a result is being written (delivered right after).
+
+    A write is then never cut in the middle by Ctrl-C or ``kill``: the journal line and the
+    HDF5 group of a row are written together or not at all.
+    """
+    import threading
+
+    if not hasattr(signal, "pthread_sigmask") or \
+            threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    held = {signal.SIGINT, signal.SIGTERM}
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, held)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
+def run_batch(inputs: Iterable[str], opts: SolveOptions, *, recursive: bool = False,
+              jobs: int | None = None, timeout: float | None = None,
+              output: str | os.PathLike[str] | None = None, resume: bool = False,
+              scheduler: Any = None,
+              on_start: Callable[[int, int], None] | None = None,
+              on_row: Callable[[dict[str, Any]], None] | None = None) -> BatchReport:
+    """Expand ``inputs``, skip what ``output`` already holds (``resume``), solve the rest.
+
+    Rows are written to ``output`` as they complete (see :mod:`lcpcli.batch.output`) and passed
+    to ``on_row``; ``on_start(total, skipped)`` is called once the work is known.  Local worker
+    processes (``jobs``, default the number of cores) unless ``scheduler`` (a Dask address or
+    Client) is given.  On KeyboardInterrupt the output is closed cleanly, then it propagates.
+    """
+    from lcpcli.core.errors import OptionError
+
+    if timeout is not None and not (timeout > 0 and math.isfinite(timeout)):
+        raise OptionError(f"--timeout must be a positive number of seconds, got {timeout}")
+    if jobs is not None and jobs < 1:
+        raise OptionError(f"--jobs must be at least 1, got {jobs}")
+    if scheduler is not None and timeout:
+        raise OptionError("--timeout is not available with --scheduler (a Dask worker cannot "
+                          "stop a running problem); bound the work with --max-iter instead")
+    jobs = jobs or os.cpu_count() or 1
+    start = time.perf_counter()
+    from lcpcli.solvers.registry import get_method
+
+    canonical = get_method(opts.method).name  # unknown method: OptionError before any work
+    opts = SolveOptions(canonical, opts.tol, dict(opts.options))
+    prepare_method(canonical)
+    tasks, bad_inputs = expand_inputs(inputs, recursive=recursive)
+    if output is not None:  # never read our own result file back as an input
+        own = os.path.realpath(output)
+        tasks = [t for t in tasks if os.path.realpath(t.source) != own]
+        bad_inputs = [r for r in bad_inputs if os.path.realpath(r["source"]) != own]
+    tally, stats = Tally(), BatchStats()
+    report = BatchReport(tally=tally, stats=stats, total=len(tasks) + len(bad_inputs),
+                         output=None if output is None else str(output))
+    writer = None
+    if output is not None:
+        from lcpcli.batch import output as batch_output
+
+        batch_output.output_kind(output)
+        if resume and Path(output).exists() or resume and \
+                batch_output.journal_path(Path(output)).exists():
+            wanted = {(t.source, t.problem) for t in tasks} | {key(r) for r in bad_inputs}
+            for row in batch_output.read_rows(output):
+                k = key(row)
+                if k in wanted:
+                    wanted.discard(k)  # a duplicate line counts once
+                    tally.add(row)
+                    report.skipped += 1
+            done = {(t.source, t.problem) for t in tasks} | {key(r) for r in bad_inputs}
+            done -= wanted
+            tasks = [t for t in tasks if (t.source, t.problem) not in done]
+            bad_inputs = [r for r in bad_inputs if key(r) not in done]
+        writer = batch_output.open_writer(output, resume=resume)
+    report.setup_seconds = time.perf_counter() - start
+    if on_start:
+        on_start(report.total, report.skipped)
+
+    def emit(row: dict[str, Any]) -> None:
+        if writer is not None:
+            t0 = time.perf_counter()
+            with signals_deferred():
+                writer.write([row])
+            stats.write_seconds += time.perf_counter() - t0
+        tally.add(row)
+        report.new += 1
+        if on_row:
+            on_row(row)
+
+    try:
+        for row in bad_inputs:
+            emit(row)
+        if scheduler is not None:
+            rows = iter_dask(tasks, opts, scheduler, on_timing=stats.add)
+        else:
+            rows = iter_local(tasks, opts, jobs=jobs, timeout=timeout, on_timing=stats.add)
+        try:
+            for row in rows:
+                emit(row)
+        finally:
+            rows.close()
+    except KeyboardInterrupt:
+        report.interrupted = True
+        raise
+    finally:
+        if writer is not None:
+            t0 = time.perf_counter()
+            with signals_deferred():
+                writer.close()
+            stats.write_seconds += time.perf_counter() - t0
+        report.wall_seconds = time.perf_counter() - start
+    return report
+

@@ -1,0 +1,294 @@
+"""Rendering of ``lcpcli bench`` results: rich tables, a Markdown report and the PNG plot.
+
+No computing here beyond formatting: the figures come from :mod:`lcpcli.bench.runner`.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+from rich.console import Group
+from rich.table import Table
+from rich.text import Text
+
+from lcpcli.bench.runner import (
+    PENALTY,
+    SHIFT,
+    BenchReport,
+    MethodSummary,
+    peer_ratios,
+    performance_profile,
+    summarize,
+)
+
+#: Profile values shown in the terminal table.
+PROFILE_TAUS = (1.0, 2.0, 4.0, 10.0, 100.0)
+
+
+def ms(seconds: float | None) -> str:
+    """Seconds as milliseconds, 3 significant digits ('-' for none)."""
+    if seconds is None or not math.isfinite(seconds):
+        return "-"
+    return f"{seconds * 1e3:.3g}"
+
+
+def sci(x: float | None) -> str:
+    if x is None or not math.isfinite(x):
+        return "-"
+    return f"{x:.1e}"
+
+
+def mark(r: Any) -> str:
+    """Short verdict: ok (right outcome), fail (unsolved), wrong (a verdict that is not the
+    expected one, e.g. a huge-z 'solution' of an infeasible problem), error, DEFECT."""
+    if r.defect:
+        return "DEFECT"
+    if r.success:
+        return "ok"
+    return {"solved": "wrong", "no_solution": "wrong", "unsolved": "fail",
+            "error": "error"}.get(r.status, r.status)
+
+
+def header(report: BenchReport, title: str) -> Table:
+    grid = Table.grid(padding=(0, 2))
+    grid.add_column(style="bold")
+    grid.add_column()
+    kinds = sorted({k for _, _, k, _ in report.problems})
+    grid.add_row("benchmark", title)
+    grid.add_row("problems", f"{len(report.problems)} ({', '.join(k.upper() for k in kinds)})")
+    grid.add_row("methods", ", ".join(report.methods))
+    peers = ", ".join(f"{k} {v}" for k, v in report.peers.items()) or "none"
+    grid.add_row("peers", peers)
+    for fam, why in report.missing_peers.items():
+        grid.add_row("peer not used", f"{fam}: {why}")
+    grid.add_row("tolerances", ", ".join(f"{t:g}" for t in report.tols))
+    grid.add_row("timing", "median of repeats after one untimed warm-up; method time only "
+                           "(no loading, no JIT, no certification)")
+    return grid
+
+
+def summary_table(rows: list[MethodSummary]) -> Table:
+    table = Table(title=f"per method (shifted geometric mean: shift {SHIFT * 1e3:g} ms, a "
+                        f"failure counts {PENALTY:g}x the slowest time on its problem)",
+                  title_justify="left")
+    table.add_column("method", no_wrap=True)
+    for name, just in (("tol", "right"), ("success", "right"),
+                       ("sgm ms", "right"), ("median ms", "right"),
+                       ("median error", "right"), ("worst error", "right"),
+                       ("defects", "right")):
+        table.add_column(name, justify=just)
+    for s in rows:
+        name = s.method + (" (peer)" if s.peer else "")
+        defects = Text(str(s.defects), style="bold red" if s.defects else "")
+        table.add_row(name, f"{s.tol:g}", f"{s.successes}/{s.runs}", ms(s.sgm_seconds),
+                      ms(s.median_seconds), sci(s.median_error), sci(s.worst_error), defects)
+    return table
+
+
+def problem_table(report: BenchReport, tol: float | None = None) -> Table:
+    """Per problem: for each method, time (ms), error and verdict at ``tol``."""
+    tol = report.tols[0] if tol is None else tol
+    methods = report.all_methods()
+    by = {(r.problem, r.method): r for r in report.records if r.tol == tol}
+    table = Table(title=f"per problem at tol {tol:g}: time ms, error, verdict",
+                  title_justify="left")
+    table.add_column("problem", no_wrap=True)
+    table.add_column("n", justify="right")
+    table.add_column("expected")
+    for m in methods:
+        table.add_column(m, justify="right", overflow="fold")
+    for name, n, _kind, expected in report.problems:
+        cells = []
+        for m in methods:
+            r = by.get((name, m))
+            if r is None:
+                cells.append(Text("n/a", style="dim"))
+                continue
+            style = "bold red" if r.defect else ("green" if r.success else "yellow")
+            cells.append(Text(f"{ms(r.seconds)} {sci(r.error)} {mark(r)}", style=style))
+        table.add_row(name, str(n), expected, *cells)
+    return table
+
+
+def tolerance_table(rows: list[MethodSummary]) -> Table:
+    """Time to reach each tolerance: success count and median time of successes per tol."""
+    tols = sorted({s.tol for s in rows}, reverse=True)
+    table = Table(title="time to reach each tolerance (successes, median ms of successes)",
+                  title_justify="left")
+    table.add_column("method")
+    for t in tols:
+        table.add_column(f"tol {t:g}", justify="right")
+    for m in dict.fromkeys(s.method for s in rows):
+        cells = []
+        for t in tols:
+            s = next((x for x in rows if x.method == m and x.tol == t), None)
+            cells.append("-" if s is None else f"{s.successes}/{s.runs}, {ms(s.median_seconds)}")
+        table.add_row(m, *cells)
+    return table
+
+
+def peer_table(report: BenchReport) -> Table | None:
+    ratios = peer_ratios(report)
+    if not ratios:
+        return None
+    claims = {}
+    for r in report.records:
+        if r.peer and r.tol == report.tols[0] and r.claimed and r.status != "solved":
+            claims[r.method] = claims.get(r.method, 0) + 1
+    table = Table(title="peer ratios: time(ours) / time(peer), geometric mean over problems both "
+                        "solved (< 1: ours faster)", title_justify="left")
+    for name in ("method", "peer", "problems", "geomean ratio", "min", "max",
+                 "peer claims failing our certificate"):
+        table.add_column(name, justify="left" if name in ("method", "peer") else "right")
+    for d in ratios:
+        table.add_row(d["method"], d["peer"], str(d["problems"]), f"{d['geomean_ratio']:.3g}",
+                      f"{d['min_ratio']:.3g}", f"{d['max_ratio']:.3g}",
+                      str(claims.get(d["peer"], 0)))
+    return table
+
+
+def profile_table(report: BenchReport) -> Table:
+    prof = performance_profile(report)
+    table = Table(title=f"performance profile (Dolan-More) at tol {prof['tol']:g} over "
+                        f"{len(prof['problems'])} problems: fraction solved within tau x the "
+                        "best time", title_justify="left")
+    table.add_column("method")
+    for tau in PROFILE_TAUS:
+        table.add_column(f"tau={tau:g}", justify="right")
+    table.add_column("ever", justify="right")
+    for m, ratios in prof["ratios"].items():
+        vals = list(ratios)
+        cnt = len(vals) or 1
+        cells = [f"{sum(1 for x in vals if x is not None and x <= tau) / cnt:.2f}"
+                 for tau in PROFILE_TAUS]
+        cells.append(f"{sum(1 for x in vals if x is not None) / cnt:.2f}")
+        table.add_row(m, *cells)
+    return table
+
+
+def defect_table(report: BenchReport) -> Table | None:
+    if not report.defects:
+        return None
+    table = Table(title="DEFECTS (a method claimed something false)", title_justify="left",
+                  style="red")
+    for name in ("problem", "method", "tol", "status", "why"):
+        table.add_column(name)
+    for r in report.defects:
+        table.add_row(r.problem, r.method, f"{r.tol:g}", r.status, r.defect_reason)
+    return table
+
+
+def render_report(report: BenchReport, title: str) -> Group:
+    """Everything the terminal shows for a benchmark run."""
+    rows = summarize(report)
+    parts: list[Any] = [header(report, title), Text(""), summary_table(rows), Text(""),
+                        problem_table(report)]
+    if len(report.tols) > 1:
+        parts += [Text(""), tolerance_table(rows)]
+    parts += [Text(""), profile_table(report)]
+    peers = peer_table(report)
+    if peers is not None:
+        parts += [Text(""), peers]
+    defects = defect_table(report)
+    if defects is not None:
+        parts += [Text(""), defects]
+    if report.skipped:
+        skipped = sorted({f"{m} ({why})" for _, m, why in report.skipped})
+        parts += [Text(f"skipped {len(report.skipped)} (problem, method) pairs: "
+                       + "; ".join(skipped), style="dim")]
+    return Group(*parts)
+
+
+# ---------------------------------------------------------------------- plot
+def plot_available() -> bool:
+    try:
+        import matplotlib  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+def write_plot(report: BenchReport, path: Path) -> None:
+    """PNG with the performance profile (left) and the work-precision scatter (right)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from lcpcli.bench.runner import work_precision
+    from lcpcli.io import atomic_path
+
+    prof = performance_profile(report)
+    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(12, 4.8))
+    taus = prof["tau"]
+    top = max(taus[-1] * 1.5, 2.0)
+    for m, rho in prof["rho"].items():
+        ax1.step(taus + [top], rho + [rho[-1]], where="post", label=m)
+    ax1.set_xscale("log")
+    ax1.set_ylim(0, 1.02)
+    ax1.set_xlabel("tau (time / best time)")
+    ax1.set_ylabel("fraction of problems")
+    ax1.set_title(f"performance profile, tol {prof['tol']:g}, {len(prof['problems'])} problems")
+    ax1.legend(fontsize=8, loc="lower right")
+    pts = work_precision(report)
+    floor = 1e-18
+    for m in report.all_methods():
+        xs = [p["seconds"] for p in pts if p["method"] == m]
+        ys = [max(p["error"], floor) for p in pts if p["method"] == m]
+        if xs:
+            ax2.scatter(xs, ys, s=14, alpha=0.7, label=m)
+    for t in report.tols:
+        ax2.axhline(t, color="grey", lw=0.6, ls="--")
+    ax2.set_xscale("log")
+    ax2.set_yscale("log")
+    ax2.set_xlabel("seconds (median, method only)")
+    ax2.set_ylabel(f"scaled error (floored at {floor:g})")
+    ax2.set_title("work-precision (all runs; dashed: tolerances)")
+    ax2.legend(fontsize=8, loc="upper right")
+    fig.tight_layout()
+    with atomic_path(Path(path)) as tmp:
+        fig.savefig(tmp, format="png", dpi=110)
+    plt.close(fig)
+
+
+# ---------------------------------------------------------------------- markdown
+def markdown_report(report: BenchReport, title: str) -> str:
+    """The same figures as Markdown tables (for benchmarks/README.md)."""
+    rows = summarize(report)
+    out = [f"### {title}", ""]
+    out.append(f"Problems: {len(report.problems)}; methods: {', '.join(report.methods)}; "
+               f"peers: {', '.join(f'{k} {v}' for k, v in report.peers.items()) or 'none'}"
+               + "".join(f"; not used: {k} ({v})" for k, v in report.missing_peers.items()))
+    out += ["", "| method | tol | success | sgm ms | median ms | median error | worst error "
+                "| defects |", "|---|---|---|---|---|---|---|---|"]
+    for s in rows:
+        out.append(f"| {s.method}{' (peer)' if s.peer else ''} | {s.tol:g} | "
+                   f"{s.successes}/{s.runs} | {ms(s.sgm_seconds)} | {ms(s.median_seconds)} | "
+                   f"{sci(s.median_error)} | {sci(s.worst_error)} | {s.defects} |")
+    ratios = peer_ratios(report)
+    if ratios:
+        out += ["", "| method | peer | problems both solved | geomean time ratio ours/peer "
+                    "| min | max |", "|---|---|---|---|---|---|"]
+        for d in ratios:
+            out.append(f"| {d['method']} | {d['peer']} | {d['problems']} | "
+                       f"{d['geomean_ratio']:.3g} | {d['min_ratio']:.3g} | "
+                       f"{d['max_ratio']:.3g} |")
+    methods = report.all_methods()
+    tol = report.tols[0]
+    by = {(r.problem, r.method): r for r in report.records if r.tol == tol}
+    out += ["", f"Per problem at tol {tol:g} (time ms / scaled error / verdict: ok = right "
+                "outcome, fail = unsolved, wrong = a verdict that is not the expected one):", "",
+            "| problem | n | expected | " + " | ".join(methods) + " |",
+            "|---|---|---|" + "---|" * len(methods)]
+    for name, n, _k, expected in report.problems:
+        cells = []
+        for m in methods:
+            r = by.get((name, m))
+            cells.append("n/a" if r is None else f"{ms(r.seconds)} / {sci(r.error)} / {mark(r)}")
+        out.append(f"| {name} | {n} | {expected} | " + " | ".join(cells) + " |")
+    if report.defects:
+        out += ["", "**Defects:**", ""]
+        out += [f"- {r.problem} / {r.method}: {r.defect_reason}" for r in report.defects]
+    return "\n".join(out) + "\n"

@@ -1,0 +1,303 @@
+"""Rendering of an enumeration: the complementary-cone table, the solutions, the verdict, and
+for n = 2 the classic picture of the four cones and the point q (terminal or matplotlib).
+
+Variable names are 1-based (``w1``, ``z2``); the complementary matrix ``A_r`` has column
+``I_j`` for ``w_j`` basic and ``-M_j`` for ``z_j`` basic (seed 004).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from rich.console import Group
+from rich.table import Table
+from rich.text import Text
+
+from lcpcli.analysis.enumeration import (
+    CONTINUUM,
+    FINITE,
+    FOUND,
+    INCOMPLETE,
+    NONE,
+    UNIQUE,
+    UNKNOWN,
+    Enumeration,
+    complementary_matrix,
+    generators_2d,
+)
+from lcpcli.cli.render.common import fmt
+
+#: Show the complementary matrix in the table up to this n.
+MATRIX_MAX_N = 4
+#: Show the basic values y in the table up to this n.
+Y_MAX_N = 8
+#: Rows of the cone and solution tables before truncation.
+MAX_ROWS = 64
+
+VERDICT_TEXT = {
+    UNIQUE: ("unique solution", "bold green"),
+    FINITE: ("finitely many solutions", "bold green"),
+    CONTINUUM: ("a continuum of solutions (a singular cone holds more than one point)",
+                "bold green"),
+    NONE: ("no solution: no complementary cone contains q (proof by exhaustion)",
+           "bold yellow"),
+    FOUND: ("a solution (stopped at the first one)", "bold green"),
+    INCOMPLETE: ("solutions found; some singular cones containing q were not resolved "
+                 "(LP limit), so there may be more", "bold green"),
+    UNKNOWN: ("undecided: no solution found, but some singular cones containing q were not "
+              "resolved (LP limit)", "bold red"),
+}
+
+
+def _matrix_text(A: np.ndarray) -> str:
+    cells = [[fmt(x) for x in row] for row in A]
+    width = max(len(c) for row in cells for c in row)
+    return "\n".join("[" + " ".join(c.rjust(width) for c in row) + "]" for row in cells)
+
+
+def _vec(v: np.ndarray | None) -> str:
+    if v is None:
+        return "-"
+    return "(" + ", ".join(fmt(x) for x in v) + ")"
+
+
+def cone_table(res: Enumeration, M: np.ndarray, all_cones: bool) -> Table:
+    """One row per cone: basic variables, A_r (small n), det, rank, q in cone, y."""
+    n = res.n
+    what = "all" if all_cones else "feasible"
+    table = Table(title=f"complementary cones ({what}: {len(res.cones)} of 2^{n} = "
+                        f"{res.total:,})", title_justify="left", show_lines=n <= MATRIX_MAX_N)
+    table.add_column("r", justify="right")
+    small = n <= MATRIX_MAX_N
+    if small:  # the y column names the basic variables
+        table.add_column("A_r (I_j or -M_j)", no_wrap=True)
+    else:
+        table.add_column("basic y")
+    table.add_column("det A_r, rank", justify="right", no_wrap=True)
+    table.add_column("q in cone", no_wrap=True)
+    if n <= Y_MAX_N:
+        table.add_column("y (A_r y = q)", no_wrap=small)
+    shown = res.cones[:MAX_ROWS]
+    for c in shown:
+        row: list[Any] = [str(c.r)]
+        row.append(_matrix_text(complementary_matrix(M, c.code)) if small
+                   else " ".join(c.basis_names()))
+        det = fmt(c.det) if c.det is not None else "-"
+        rank = "-" if c.rank is None else str(c.rank)
+        row.append(Text(f"{det}, {rank} singular", style="yellow") if c.singular
+                   else f"{det}, {rank}")
+        if c.feasible:
+            row.append(Text("yes (continuum)" if c.continuum else "yes", style="green"))
+        else:
+            row.append(Text("no", style="dim"))
+        if n <= Y_MAX_N:
+            if c.y is None or (c.singular and not c.feasible):
+                row.append("-")
+            elif small:  # a column beside A_r
+                row.append("\n".join(f"{name} = {fmt(v)}"
+                                      for name, v in zip(c.basis_names(), c.y, strict=True)))
+            else:
+                row.append(_vec(c.y))
+        table.add_row(*row)
+    if len(res.cones) > len(shown):
+        table.caption = f"{len(res.cones) - len(shown):,} more rows not shown: use --json"
+    return table
+
+
+def solutions_table(res: Enumeration) -> Table:
+    """The distinct solutions (z, w) with the number of cones holding each."""
+    table = Table(title=f"solutions ({len(res.solutions)} distinct)", title_justify="left")
+    table.add_column("#", justify="right")
+    table.add_column("z")
+    table.add_column("w = Mz + q")
+    table.add_column("cones", justify="right")
+    table.add_column("error", justify="right")
+    for k, s in enumerate(res.solutions[:MAX_ROWS], 1):
+        mark = " (+ a continuum)" if s.continuum else ""
+        table.add_row(str(k), _vec(s.z) + mark, _vec(s.w), str(len(s.cones)),
+                      f"{s.certificate.error:.1e}")
+    if len(res.solutions) > MAX_ROWS:
+        table.caption = f"{len(res.solutions) - MAX_ROWS} more: use --json"
+    return table
+
+
+def render_enumeration(res: Enumeration, problem: Any, file: str | None, *,
+                       all_cones: bool, covers: bool | None = None,
+                       drawing: Text | None = None) -> Group:
+    """The whole teaching display."""
+    M = np.asarray(problem.dense_M(), dtype=float)
+    head = Table.grid(padding=(0, 2))
+    head.add_column(style="bold")
+    head.add_column()
+    head.add_row("problem", f"{file or ''}{' : ' + problem.name if problem.name else ''}")
+    head.add_row("size", f"{problem.summary()}, 2^{res.n} = {res.total:,} complementary cones")
+    c = res.counts
+    pruned = f", {c['pruned']:,} excluded by sign tests" if c["pruned"] else ""
+    if c.get("singular_unresolved"):
+        pruned += f", {c['singular_unresolved']:,} singular ones not resolved"
+    head.add_row("cones", f"{c['feasible']:,} contain q, {c['singular']:,} singular "
+                          f"({c['singular_with_q']:,} of them contain q){pruned}")
+    head.add_row("time", f"{res.seconds * 1e3:.3f} ms")
+    parts: list[Any] = [head, Text("")]
+    if res.cones or all_cones:
+        parts.append(cone_table(res, M, all_cones))
+    if res.solutions:
+        parts.append(solutions_table(res))
+    text, style = VERDICT_TEXT[res.verdict]
+    parts.append(Text.assemble(("verdict: ", "bold"), (text, style)))
+    if covers is not None:
+        if covers:
+            parts.append(Text("K(M) = R^2: the four complementary cones cover the plane, so "
+                              "LCP(q, M) has a solution for every q."))
+        else:
+            parts.append(Text("K(M) != R^2: the complementary cones leave gaps, so LCP(q, M) "
+                              "has no solution for q in the blank region."))
+    if drawing is not None:
+        parts += [Text(""), drawing]
+    return Group(*parts)
+
+
+# ---------------------------------------------------------------------------- n = 2 drawings
+def _cone_membership(M: np.ndarray, pts: np.ndarray) -> np.ndarray:
+    """(4, P) booleans: point p in the interior-or-boundary of the nondegenerate cone r."""
+    out = np.zeros((4, pts.shape[1]), dtype=bool)
+    for code in range(4):
+        A = complementary_matrix(M, code)
+        det = np.linalg.det(A)
+        if abs(det) <= 1e-12 * max(float(np.max(np.abs(A))) ** 2, 1e-300):
+            continue
+        y = np.linalg.solve(A, pts)
+        out[code] = np.all(y > 1e-12, axis=0)
+    return out
+
+
+def draw_cones_text(M: Any, q: Any, width: int = 49, height: int = 21) -> Text:
+    """Character drawing of the four complementary cones and q (directions only)."""
+    M = np.asarray(M, dtype=float)
+    q = np.asarray(q, dtype=float)
+    R = 1.15
+    xs = np.linspace(-R, R, width)
+    ys = np.linspace(R, -R, height)
+    X, Y = np.meshgrid(xs, ys)
+    pts = np.vstack([X.ravel(), Y.ravel()])
+    member = _cone_membership(M, pts)
+    cover = member.sum(axis=0).reshape(height, width)
+    which = np.argmax(member, axis=0).reshape(height, width)
+    grid = [[" "] * width for _ in range(height)]
+    styles = [[""] * width for _ in range(height)]
+    for i in range(height):
+        for j in range(width):
+            if cover[i, j] >= 2:
+                grid[i][j] = "▒"
+                styles[i][j] = "yellow"
+            elif cover[i, j] == 1 and j % 2 == 0:
+                code = int(which[i, j])
+                grid[i][j] = str(1 + sum(1 << (1 - b) for b in range(2) if (code >> b) & 1))
+                styles[i][j] = "dim"
+
+    def cell(x: float, y: float) -> tuple[int, int]:
+        return (int(round((R - y) / (2 * R) * (height - 1))),
+                int(round((x + R) / (2 * R) * (width - 1))))
+
+    r0, c0 = cell(0.0, 0.0)
+    grid[r0][c0] = "+"
+    for name, v in generators_2d(M).items():
+        norm = float(np.hypot(*v))
+        if norm == 0:
+            continue
+        u = v / norm
+        style = "bold cyan" if name.startswith("w") else "bold magenta"
+        ang = float(np.degrees(np.arctan2(u[1], u[0]))) % 180.0
+        ray = "─" if ang < 22.5 or ang >= 157.5 else "│" if 67.5 <= ang < 112.5 else (
+            "╱" if ang < 90 else "╲")
+        for t in np.linspace(0.08, 0.92, 40):
+            r, c = cell(*(t * u))
+            grid[r][c] = ray
+            styles[r][c] = style
+        r, c = cell(*(1.0 * u))
+        for k, ch in enumerate(name):
+            cc = min(max(c - (1 if u[0] < -0.3 else 0) + k, 0), width - 1)
+            grid[r][cc] = ch
+            styles[r][cc] = style
+    qn = float(np.hypot(*q))
+    r, c = cell(*((0.75 * q / qn) if qn > 0 else np.zeros(2)))
+    grid[r][c] = "q"
+    styles[r][c] = "bold red"
+    text = Text()
+    for row, srow in zip(grid, styles, strict=True):
+        for ch, st in zip(row, srow, strict=True):
+            text.append(ch, style=st or None)
+        text.append("\n")
+    text.append("1-4: the one cone r holding the region   ", style="dim")
+    text.append("▒", style="yellow")
+    text.append(" 2+ cones   blank: no cone   ", style="dim")
+    text.append("w1 w2", style="bold cyan")
+    text.append(" = I_j,  ", style="dim")
+    text.append("z1 z2", style="bold magenta")
+    text.append(" = -M_j (unit length);  ", style="dim")
+    text.append("q", style="bold red")
+    text.append(f" = ({fmt(q[0])}, {fmt(q[1])}) drawn at its direction", style="dim")
+    return text
+
+
+def plot_cones(M: Any, q: Any, target: Path, title: str = "") -> None:
+    """Write the picture of the four complementary cones and q with matplotlib (atomically).
+
+    The format follows the file suffix (png by default).  Raises ImportError without
+    matplotlib.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from lcpcli.io import atomic_path
+
+    M = np.asarray(M, dtype=float)
+    q = np.asarray(q, dtype=float)
+    gens = generators_2d(M)
+    qn = float(np.hypot(*q))
+    R = max(1.0, qn) * 1.25
+    fig, ax = plt.subplots(figsize=(6, 6))
+    colours = ["tab:blue", "tab:orange", "tab:green", "tab:red"]
+    names = list(gens)
+    for code in range(4):
+        cols = [gens[f"z{j + 1}"] if (code >> j) & 1 else gens[f"w{j + 1}"] for j in range(2)]
+        A = np.column_stack(cols)
+        label = "Pos(" + ", ".join(
+            (f"-M{j + 1}" if (code >> j) & 1 else f"I{j + 1}") for j in range(2)) + ")"
+        if abs(np.linalg.det(A)) <= 1e-12 * max(float(np.max(np.abs(A))) ** 2, 1e-300):
+            ax.plot([], [], color=colours[code], label=label + " (degenerate)")
+            continue
+        a0, a1 = (np.arctan2(c[1], c[0]) for c in cols)
+        d = (a1 - a0) % (2 * np.pi)
+        if d > np.pi:
+            a0, d = a1, 2 * np.pi - d
+        t = np.linspace(a0, a0 + d, 60)
+        poly = np.vstack([[0, 0], np.column_stack([np.cos(t), np.sin(t)]) * R * 2.0, [0, 0]])
+        ax.fill(poly[:, 0], poly[:, 1], color=colours[code], alpha=0.22, label=label)
+    for name in names:
+        v = gens[name]
+        norm = float(np.hypot(*v))
+        if norm == 0:
+            continue
+        u = v / norm * R * 0.9
+        ax.annotate("", xy=u, xytext=(0, 0),
+                    arrowprops={"arrowstyle": "->", "color": "black", "lw": 1.2})
+        tex = f"$I_{name[1]}$" if name[0] == "w" else f"$-M_{name[1]}$"
+        ax.text(*(u * 1.08), tex, ha="center", va="center")
+    ax.plot([q[0]], [q[1]], "o", color="crimson", ms=7)
+    ax.text(q[0], q[1], f"  q = ({fmt(q[0])}, {fmt(q[1])})", color="crimson", va="bottom")
+    ax.axhline(0, color="grey", lw=0.5)
+    ax.axvline(0, color="grey", lw=0.5)
+    ax.set_xlim(-R, R)
+    ax.set_ylim(-R, R)
+    ax.set_aspect("equal")
+    ax.legend(loc="lower left", fontsize=8)
+    ax.set_title(title or "complementary cones of M and the point q")
+    fmt_name = (target.suffix.lstrip(".") or "png").lower()
+    with atomic_path(target) as tmp:
+        fig.savefig(tmp, format=fmt_name, dpi=120, bbox_inches="tight")
+    plt.close(fig)

@@ -1,0 +1,227 @@
+"""The problem model: one class for the LCP, the mixed LCP and the box LCP.
+
+Sign convention (one for all forms, stated once): ``w = M z + q``.
+
+* **LCP**: ``0 <= z  _|_  w >= 0``.
+* **MLCP** (Siconos form): the first ``n_eq`` variables are free and their rows are
+  equalities, ``M = [[A, C], [D, B]]``, ``q = [a; b]``: ``A u + C v + a = 0`` and
+  ``0 <= v _|_ D u + B v + b >= 0``.
+* **Box LCP**: ``lower <= z <= upper`` and ``-w`` lies in the normal cone of the box at ``z``:
+  ``w >= 0`` where ``z_i = lower_i``, ``w <= 0`` where ``z_i = upper_i``, ``w = 0`` strictly
+  between.
+  Seed 002 writes ``-y in N_[l,u](lambda)`` with ``y = W lambda + b``: the same thing with
+  ``w = y``, ``z = lambda``, ``M = W``, ``q = b`` (data written as ``y = -W lambda + b`` must
+  be given with ``M = -W``).
+
+All three are the mixed complementarity problem over the box ``[l, u]`` returned by
+:meth:`Problem.bounds` (LCP: ``[0, inf)``; free MLCP variables: ``(-inf, inf)``), which is how the
+certificate treats them uniformly.
+
+``M`` is a dense ``numpy`` array or a ``scipy.sparse`` CSR matrix; it is never densified here.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from lcpcli.core.errors import ProblemError
+
+#: Largest dense matrix accepted, in entries (2.5e8 float64 entries = 2 GB).
+MAX_DENSE_ENTRIES = 250_000_000
+#: Largest sparse matrix accepted, in stored entries.
+MAX_SPARSE_NNZ = 500_000_000
+#: Largest dimension accepted at all.
+MAX_N = 50_000_000
+
+
+def check_size(n_rows: int, n_cols: int, *, sparse: bool = False, nnz: int | None = None) -> None:
+    """Refuse absurd sizes *before* any allocation (readers call this from file headers)."""
+    if n_rows < 0 or n_cols < 0:
+        raise ProblemError(f"negative matrix size {n_rows} x {n_cols}")
+    if max(n_rows, n_cols) > MAX_N:
+        raise ProblemError(f"matrix of size {n_rows} x {n_cols} is too large (limit n = {MAX_N})")
+    if sparse:
+        if nnz is not None and nnz > MAX_SPARSE_NNZ:
+            raise ProblemError(f"sparse matrix with {nnz} stored entries is too large "
+                               f"(limit {MAX_SPARSE_NNZ})")
+    elif n_rows * n_cols > MAX_DENSE_ENTRIES:
+        gib = n_rows * n_cols * 8 / 2**30
+        raise ProblemError(
+            f"dense {n_rows} x {n_cols} matrix would need {gib:.1f} GiB "
+            f"(limit {MAX_DENSE_ENTRIES} entries); store M sparse (CSR/COO) instead")
+
+
+def is_sparse(M: Any) -> bool:
+    """True for a ``scipy.sparse`` matrix or array (checked without importing scipy)."""
+    return hasattr(M, "tocsr") and hasattr(M, "nnz")
+
+
+@dataclass
+class Problem:
+    """A linear complementarity problem ``w = M z + q`` (LCP, MLCP or box LCP).
+
+    Build one with :meth:`Problem.create` (validates and normalises) or read one with
+    :func:`lcpcli.io.load`.  Attributes are 0-based arrays.
+    """
+
+    M: Any
+    q: np.ndarray
+    n_eq: int = 0
+    lower: np.ndarray | None = None
+    upper: np.ndarray | None = None
+    name: str = ""
+    description: str = ""
+    meta: dict[str, Any] = field(default_factory=dict)
+
+    # ------------------------------------------------------------------ construction
+    @classmethod
+    def create(cls, M: Any, q: Any, *, n_eq: int = 0, lower: Any = None, upper: Any = None,
+               name: str = "", description: str = "",
+               meta: dict[str, Any] | None = None) -> Problem:
+        """Validate and normalise the data; raise :class:`ProblemError` with a one-line reason."""
+        M = _as_matrix(M)
+        n_rows, n_cols = M.shape
+        if n_rows != n_cols:
+            raise ProblemError(f"M must be square, got {n_rows} x {n_cols}")
+        n = n_rows
+        q = _as_vector(q, "q")
+        if q.shape[0] != n:
+            raise ProblemError(f"q has length {q.shape[0]} but M is {n} x {n}")
+        _check_finite(M, "M")
+        if not np.all(np.isfinite(q)):
+            raise ProblemError("q contains NaN or Inf")
+        try:
+            n_eq = int(n_eq)
+        except (TypeError, ValueError):
+            raise ProblemError(f"n_eq must be an integer, got {n_eq!r}") from None
+        if not 0 <= n_eq <= n:
+            raise ProblemError(f"n_eq = {n_eq} is outside 0..{n}")
+        if lower is not None or upper is not None:
+            if n_eq:
+                raise ProblemError("give either n_eq (MLCP) or bounds (box LCP), not both")
+            lower = np.zeros(n) if lower is None else _as_vector(lower, "lower", inf=-math.inf)
+            upper = np.full(n, np.inf) if upper is None else _as_vector(upper, "upper",
+                                                                       inf=math.inf)
+            for vec, label in ((lower, "lower"), (upper, "upper")):
+                if vec.shape[0] != n:
+                    raise ProblemError(f"{label} has length {vec.shape[0]} but M is {n} x {n}")
+                if np.isnan(vec).any():
+                    raise ProblemError(f"{label} contains NaN")
+            if np.any(lower == np.inf) or np.any(upper == -np.inf):
+                raise ProblemError("bounds must satisfy lower < inf and upper > -inf")
+            bad = np.flatnonzero(lower > upper)
+            if bad.size:
+                i = int(bad[0])
+                raise ProblemError(f"lower > upper at index {i + 1} "
+                                   f"({lower[i]:g} > {upper[i]:g})")
+        return cls(M=M, q=q, n_eq=n_eq, lower=lower, upper=upper, name=str(name or ""),
+                   description=str(description or ""), meta=dict(meta or {}))
+
+    # ------------------------------------------------------------------ properties
+    @property
+    def n(self) -> int:
+        """Number of variables (and of rows)."""
+        return int(self.q.shape[0])
+
+    @property
+    def kind(self) -> str:
+        """``"lcp"``, ``"mlcp"`` (n_eq > 0) or ``"box"`` (bounds given)."""
+        if self.lower is not None:
+            return "box"
+        return "mlcp" if self.n_eq else "lcp"
+
+    @property
+    def sparse(self) -> bool:
+        """True when M is stored as a scipy.sparse matrix."""
+        return is_sparse(self.M)
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """The box ``[l, u]`` of the equivalent mixed complementarity problem."""
+        if self.lower is not None:
+            return self.lower, self.upper  # type: ignore[return-value]
+        lo = np.zeros(self.n)
+        lo[: self.n_eq] = -np.inf
+        return lo, np.full(self.n, np.inf)
+
+    def w(self, z: np.ndarray) -> np.ndarray:
+        """``w = M z + q``."""
+        return np.asarray(self.M @ z).ravel() + self.q
+
+    def dense_M(self) -> np.ndarray:
+        """M as a dense array (a copy-free view when it is already dense)."""
+        return self.M.toarray() if self.sparse else self.M
+
+    def label(self) -> str:
+        """A short name for messages."""
+        return self.name or "problem"
+
+    def summary(self) -> str:
+        """One line: kind, size, storage."""
+        store = f"sparse, nnz={self.M.nnz}" if self.sparse else "dense"
+        extra = f", n_eq={self.n_eq}" if self.n_eq else ""
+        return f"{self.kind.upper()} n={self.n}{extra} ({store})"
+
+
+# ---------------------------------------------------------------------- helpers
+def _as_matrix(M: Any) -> Any:
+    if is_sparse(M):
+        if M.ndim != 2:
+            raise ProblemError("M must be 2-D")
+        check_size(*M.shape, sparse=True, nnz=M.nnz)
+        M = M.tocsr().astype(np.float64)
+        M.sum_duplicates()
+        return M
+    try:
+        arr = np.asarray(M, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ProblemError(f"M is not a numeric matrix ({_short(exc)})") from None
+    if arr.ndim == 0 and arr.size == 1:
+        arr = arr.reshape(1, 1)
+    if arr.ndim != 2:
+        raise ProblemError(f"M must be a 2-D matrix, got {arr.ndim}-D data")
+    check_size(*arr.shape)
+    return np.ascontiguousarray(arr)
+
+
+def _as_vector(v: Any, label: str, *, inf: float | None = None) -> np.ndarray:
+    """A float vector; for bounds (``inf`` given) JSON ``null`` means that infinity."""
+    try:
+        if inf is not None and isinstance(v, (list, tuple)):
+            v = [_bound_value(x, inf) for x in v]
+        arr = np.asarray(v, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ProblemError(f"{label} is not a numeric vector ({_short(exc)})") from None
+    if arr.ndim == 2 and 1 in arr.shape:
+        arr = arr.ravel()
+    if arr.ndim == 0:
+        arr = arr.reshape(1)
+    if arr.ndim != 1:
+        raise ProblemError(f"{label} must be a vector, got shape {arr.shape}")
+    return arr.copy()
+
+
+def _bound_value(x: Any, inf: float) -> Any:
+    """JSON bounds: ``null`` and the strings "inf"/"-inf" are accepted for infinite bounds."""
+    if x is None:
+        return inf
+    if isinstance(x, str):
+        s = x.strip().lower()
+        if s in ("inf", "+inf", "infinity", "+infinity"):
+            return math.inf
+        if s in ("-inf", "-infinity"):
+            return -math.inf
+    return x
+
+
+def _check_finite(M: Any, label: str) -> None:
+    data = M.data if is_sparse(M) else M
+    if not np.all(np.isfinite(data)):
+        raise ProblemError(f"{label} contains NaN or Inf")
+
+
+def _short(exc: Exception) -> str:
+    return str(exc).splitlines()[0][:120] if str(exc) else type(exc).__name__

@@ -1,0 +1,2 @@
+"""The solver methods, one module each (scanned by :mod:`lcpcli.solvers.registry`).
+"""

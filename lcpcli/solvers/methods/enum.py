@@ -1,0 +1,84 @@
+"""Enumeration of the complementary cones (seed 004): the exhaustive method.
+
+Problem: LCP(q, M), ``w = M z + q``.  Visits the ``2^n`` complementary matrices ``A_r`` (column
+``I_j`` for ``w_j`` basic, ``-M_j`` for ``z_j`` basic) and solves ``A_r y = q, y >= 0``; see
+:mod:`lcpcli.analysis.enumeration`.
+
+Matrix classes: any square M (no assumption at all), for small n: the cost is ``2^n`` small
+LU solves.  By default it stops at the first solution; with ``all=true`` it visits every cone
+and reports how many distinct solutions exist.  When no cone contains q the LCP has no
+solution: the exhaustive search is the proof (``no_solution``).  ``max_n`` (default 24)
+refuses larger problems.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from lcpcli.core.result import CONVERGED, INFEASIBLE, NUMERICAL, Outcome
+from lcpcli.solvers.options import bool_option
+from lcpcli.solvers.registry import Method, Option
+
+
+def _max_n(value: Any) -> int:
+    v = int(value)
+    if v < 1:
+        raise ValueError("must be a positive integer")
+    return v
+
+
+def prepare() -> None:
+    from lcpcli.analysis.enumeration import prepare as prep
+
+    prep()
+
+
+def run(problem: Any, *, tol: float, max_n: int = 24, all: bool = False) -> Outcome:  # noqa: A002
+    """Enumerate the cones of ``problem``; return the first solution (or all, counted)."""
+    from lcpcli.analysis.enumeration import basis_names, enumerate_cones
+
+    res = enumerate_cones(problem, stop_at_first=not all, max_n=max_n, tol=tol)
+    n = res.n
+    info = {"verdict": res.verdict, "cones_examined": res.examined, "cones_total": res.total,
+            "solutions": len(res.solutions), **res.counts}
+    if not res.solutions and res.verdict != "none":
+        return Outcome(np.zeros(n), res.examined, NUMERICAL,
+                       f"no solution found, but {res.counts['singular_unresolved']:,} singular "
+                       f"cones containing q were not resolved (LP limit): nothing is proven",
+                       info=info)
+    if not res.solutions:
+        return Outcome(np.zeros(n), res.examined, INFEASIBLE,
+                       f"none of the 2^{n} = {res.total:,} complementary cones contains q "
+                       f"({res.counts['pruned']:,} excluded by sign tests, "
+                       f"{res.counts['singular']:,} singular): the LCP has no solution",
+                       proven_infeasible=True, info=info)
+    first = res.solutions[0]
+    cone = ", ".join(basis_names(first.cones[0], n))
+    if all:
+        kind = {"unique": "the unique solution", "finite": f"{len(res.solutions)} distinct "
+                f"solutions (the first is returned)", "continuum": "a continuum of solutions "
+                "(one point returned)"}.get(res.verdict, res.verdict)
+        msg = f"{kind}; all {res.total:,} cones examined, the first in cone ({cone})"
+    else:
+        msg = (f"first solution found in cone ({cone}) after {res.examined:,} of "
+               f"{res.total:,} cones (-O all=true counts all solutions)")
+    return Outcome(first.z, res.examined, CONVERGED, msg, info=info)
+
+
+METHODS = [
+    Method(
+        name="enum",
+        run=run,
+        summary="Enumeration of the 2^n complementary cones (seed 004), exhaustive",
+        matrix_classes="any M (small n): finds a solution or proves there is none",
+        kinds=("lcp",),
+        options={
+            "max_n": Option(_max_n, 24, "refuse problems with more variables (default 24)"),
+            "all": Option(bool_option, False, "visit every cone and count the distinct solutions"),
+        },
+        prepare=prepare,
+        aliases=("enumerate", "enumeration"),
+    ),
+]

@@ -1,0 +1,164 @@
+"""Lemke's complementary pivoting method (dense tableau, lexicographic anti-cycling).
+
+Problem: LCP(q, M), ``w = M z + q``; the augmented system is ``w = q + M z + d z0`` with the
+covering vector ``d > 0`` (default all ones) and the artificial variable ``z0``.
+
+Matrix classes: finds a solution for P-matrices, and for copositive-plus matrices (e.g. positive
+semidefinite ones) whenever one exists.  A secondary ray on a copositive-plus matrix proves
+there is no solution; on other matrices a ray proves nothing and is reported as ``unsolved``.
+Independently of the class, when the ray yields ``y >= 0`` with ``M^T y <= 0`` and
+``q^T y < 0`` (a Farkas certificate: no ``z >= 0`` has ``M z + q >= 0``) the verdict is
+``no_solution`` with that proof.
+
+Cost: O(n^2) per pivot (rank-one tableau update in a compiled kernel).  The final basis is
+re-solved with a dense LU factorisation (one step of refinement) so the answer is accurate to
+the conditioning of the basic block, not to the accumulated tableau updates.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, RAY, Outcome
+from lcpcli.solvers.options import bool_option, positive_int, vector_option
+from lcpcli.solvers.registry import Method, Option
+
+#: Relative pivot tolerance: entries below this fraction of the column's largest are not pivots.
+PIVOT_TOL = 1e-11
+#: Relative tolerance under which two ratios are a tie (then the lexicographic rule decides).
+TIE_TOL = 1e-9
+#: Empty pivot record (the kernel records nothing).
+NO_RECORD = np.zeros((0, 3), dtype=np.int64)
+
+
+def covering_vector(n: int, covering: np.ndarray | None) -> np.ndarray:
+    """The covering vector ``d``: all ones by default; must be positive and of length n."""
+    if covering is None:
+        return np.ones(n)
+    d = np.asarray(covering, dtype=np.float64).ravel()
+    if d.size == 1:
+        d = np.full(n, float(d[0]))
+    if d.shape[0] != n:
+        from lcpcli.core.errors import OptionError
+
+        raise OptionError(f"covering vector has length {d.shape[0]}, expected {n}")
+    if not np.all(np.isfinite(d)) or np.any(d <= 0):
+        from lcpcli.core.errors import OptionError
+
+        raise OptionError("covering vector must be finite and positive")
+    return d
+
+
+def default_max_iter(n: int) -> int:
+    """Pivot limit when none is given: generous, but finite (Murty's family needs 2^n)."""
+    return max(1000, 100 * n)
+
+
+def prepare() -> None:
+    """Load (or compile once and cache) the kernel outside the timed region."""
+    from lcpcli.solvers.kernels.lemke import lemke_kernel, polish_kernel
+
+    one = np.array([[1.0]])
+    out = lemke_kernel(one, np.array([-1.0]), np.array([1.0]), 10, PIVOT_TOL, TIE_TOL, NO_RECORD)
+    polish_kernel(one, np.array([-1.0]), out[1], out[3])
+
+
+def run(problem: Any, *, tol: float, covering: np.ndarray | None = None,
+        max_iter: int | None = None, trace: bool = False) -> Outcome:
+    """Solve ``problem`` (an LCP) by Lemke's method; see the module docstring.
+
+    ``trace=True`` runs the numpy replica of the kernel (same pivots) and records each pivot
+    in ``Outcome.trace`` (see :mod:`lcpcli.solvers.lemke_trace`).
+    """
+    from lcpcli.solvers.kernels.lemke import lemke_kernel
+
+    n = problem.n
+    M = np.ascontiguousarray(problem.dense_M(), dtype=np.float64)
+    q = problem.q
+    d = covering_vector(n, covering)
+    limit = max_iter or default_max_iter(n)
+    steps = None
+    if trace:
+        from lcpcli.solvers.lemke_trace import lemke_traced
+
+        status, z, pivots, basic, ray_dz, ray_dz0, z0, steps = lemke_traced(
+            M, q, d, limit, PIVOT_TOL, TIE_TOL)
+    else:
+        status, z, pivots, basic, ray_dz, ray_dz0, z0 = lemke_kernel(M, q, d, limit, PIVOT_TOL,
+                                                                     TIE_TOL, NO_RECORD)
+    out = finish(problem, M, q, status, z, int(pivots), basic, ray_dz, float(z0), limit)
+    out.trace = steps
+    return out
+
+
+def finish(problem: Any, M: np.ndarray, q: np.ndarray, status: int, z: np.ndarray, pivots: int,
+           basic: np.ndarray, ray_dz: np.ndarray, z0: float, limit: int) -> Outcome:
+    """Turn a Lemke kernel's status into an :class:`Outcome` (polish, ray classification)."""
+    from lcpcli.solvers.kernels.lemke import MAX_ITER, OK, TRIVIAL
+
+    n = problem.n
+    if status == TRIVIAL:
+        return Outcome(np.zeros(n), 0, CONVERGED, "q >= 0: z = 0 solves the problem")
+    if status == OK:
+        z = polish(M, q, z, basic)
+        return Outcome(z, int(pivots), CONVERGED, f"artificial variable left the basis "
+                                                  f"after {pivots} pivots")
+    if status == MAX_ITER:
+        return Outcome(np.maximum(z, 0.0), int(pivots), ITERATION_LIMIT,
+                       f"pivot limit {limit} reached (raise it with --max-iter)")
+    return ray_outcome(problem, M, q, z, int(pivots), ray_dz, float(z0))
+
+
+def polish(M: np.ndarray, q: np.ndarray, z: np.ndarray, basic: np.ndarray) -> np.ndarray:
+    """Re-solve the final complementary basis ``M[b, b] z_b = -q_b`` by LU (one refinement).
+
+    Keeps the tableau's answer when the re-solve is not better (e.g. a singular block).
+    """
+    from lcpcli.solvers.kernels.lemke import polish_kernel
+
+    try:
+        return polish_kernel(M, q, z, basic)
+    except np.linalg.LinAlgError:  # singular basic block: keep the tableau's answer
+        return np.maximum(z, 0.0)
+
+
+def ray_outcome(problem: Any, M: np.ndarray, q: np.ndarray, z: np.ndarray, pivots: int,
+                ray_dz: np.ndarray, z0: float) -> Outcome:
+    """Classify a secondary-ray termination: proven infeasible, or merely unsolved."""
+    from lcpcli.analysis.classify import farkas_certificate, is_psd
+
+    y = farkas_certificate(M, q, ray_dz)
+    base = f"ray termination after {pivots} pivots (z0 = {z0:.3g})"
+    if y is not None:
+        return Outcome(np.maximum(z, 0.0), pivots, RAY,
+                       f"{base}; Farkas certificate y >= 0 with M^T y <= 0, q^T y = "
+                       f"{float(q @ y):.3g} < 0: no z >= 0 has Mz + q >= 0",
+                       proven_infeasible=True, info={"farkas_y": y.tolist()})
+    if is_psd(M):
+        return Outcome(np.maximum(z, 0.0), pivots, RAY,
+                       f"{base}; M is positive semidefinite (copositive-plus), for which "
+                       f"Lemke's secondary ray proves that no solution exists",
+                       proven_infeasible=True)
+    return Outcome(np.maximum(z, 0.0), pivots, RAY,
+                   f"{base}; M is not known to be copositive-plus, so this proves nothing "
+                   f"(try another method)")
+
+
+METHODS = [
+    Method(
+        name="lemke-tableau",
+        run=run,
+        summary="Lemke's complementary pivoting, dense tableau, lexicographic anti-cycling",
+        matrix_classes="P-matrices; copositive-plus (incl. PSD): solution or proof of none",
+        kinds=("lcp",),
+        options={
+            "covering": Option(vector_option, None, "covering vector d > 0 (default all ones)"),
+            "max_iter": Option(positive_int, None, "pivot limit (default max(1000, 100 n))"),
+            "trace": Option(bool_option, False, "record every pivot (numpy replica of the "
+                                                 "kernel, same pivots; slow for large n)"),
+        },
+        prepare=prepare,
+    ),
+]

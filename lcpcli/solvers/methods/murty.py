@@ -1,0 +1,107 @@
+"""Murty's least-index principal pivoting method (Bard-type) for the LCP.
+
+Problem: LCP(q, M), ``w = M z + q``.  Start from the complementary basis ``w`` (z = 0), or from
+``{i : z0_i > 0}`` with a warm start; at every step take the *least* index ``i`` whose basic
+variable (``w_i`` or ``z_i``) is negative and exchange ``w_i`` and ``z_i`` (a single principal
+pivot), until every basic variable is nonnegative.
+
+Matrix classes: **P-matrices** (all principal minors positive: e.g. symmetric or non-symmetric
+positive definite, H-matrices with positive diagonal), for which the method is finite (Murty 1974)
+and ends at the unique solution, though possibly after exponentially many pivots (up to 2^n - 1,
+as on Murty's own triangular family).  On other matrices the pivot element may be zero or
+negative (a principal pivot transform of a P-matrix has a positive diagonal), or the method may
+cycle; both end as ``unsolved`` (non-positive pivot, pivot limit) and never as a false
+``solved``: the answer is certified by the shared certificate.
+
+Cost: O(n^2) per pivot on a dense tableau (compiled kernel); a sparse M is densified (the method is
+meant for small and medium dense problems).  The final basis is re-solved by LU with one step of
+refinement (as Lemke's polish) so the answer is accurate to the conditioning of the basic block.
+"""
+
+from __future__ import annotations
+
+import contextlib
+from typing import Any
+
+import numpy as np
+
+from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, SINGULAR, Outcome
+from lcpcli.solvers.options import positive_int, vector_option
+from lcpcli.solvers.registry import Method, Option
+from lcpcli.solvers.support import start_point
+
+#: Pivot tolerance, relative to the largest entry of the pivot row.
+PIVOT_TOL = 1e-11
+#: A basic value counts as negative below ``-NEG_TOL * ||q||_inf``.
+NEG_TOL = 1e-13
+
+
+def default_max_iter(n: int) -> int:
+    """Pivot limit when none is given (finite for P-matrices, but possibly 2^n)."""
+    return max(1000, 100 * n)
+
+
+def prepare() -> None:
+    """Compile (or load from the cache) the kernel outside the timed region."""
+    from lcpcli.solvers.kernels.lemke import polish_kernel
+    from lcpcli.solvers.kernels.murty import murty_kernel
+
+    one = np.array([[1.0]])
+    basic = np.zeros(1, dtype=np.int64)
+    out = murty_kernel(one, np.array([-1.0]), 10, PIVOT_TOL, NEG_TOL, basic)
+    polish_kernel(one, np.array([-1.0]), out[1], basic)
+
+
+def run(problem: Any, *, tol: float, max_iter: int | None = None,
+        z0: np.ndarray | None = None) -> Outcome:
+    """Solve ``problem`` (an LCP) by Murty's least-index method; see the module docstring."""
+    from lcpcli.solvers.kernels.lemke import polish_kernel
+    from lcpcli.solvers.kernels.murty import BAD_PIVOT, OK, murty_kernel
+
+    n = problem.n
+    M = np.ascontiguousarray(problem.dense_M(), dtype=np.float64)
+    q = np.ascontiguousarray(problem.q, dtype=np.float64)
+    limit = max_iter or default_max_iter(n)
+    if n and np.min(q) >= 0:
+        return Outcome(np.zeros(n), 0, CONVERGED, "q >= 0: z = 0 solves the problem")
+    basic = np.arange(n, dtype=np.int64)
+    warm = ""
+    if z0 is not None:
+        start = start_point(problem, z0)
+        basic = np.where(start > 0, basic + n, basic).astype(np.int64)
+        warm = f" from the warm-start basis ({int(np.sum(start > 0))} z basic)"
+    status, z, pivots, bad = murty_kernel(M, q, limit, PIVOT_TOL, NEG_TOL, basic)
+    if status == BAD_PIVOT and pivots == 0 and z0 is not None:
+        # the warm-start basis could not be pivoted in: restart from z = 0
+        basic = np.arange(n, dtype=np.int64)
+        warm = " (warm-start basis singular; restarted from z = 0)"
+        status, z, pivots, bad = murty_kernel(M, q, limit, PIVOT_TOL, NEG_TOL, basic)
+    if status == OK:
+        with contextlib.suppress(np.linalg.LinAlgError):
+            z = polish_kernel(M, q, z, basic)
+        return Outcome(z, int(pivots), CONVERGED,
+                       f"Murty: all basic variables nonnegative after {pivots} pivots{warm}")
+    if status == BAD_PIVOT:
+        var = "w" if basic[bad] < n else "z"
+        return Outcome(z, int(pivots), SINGULAR,
+                       f"Murty: non-positive pivot for {var}{bad + 1} after {pivots} pivots{warm}; "
+                       f"M is not a P-matrix, outside the method's class")
+    return Outcome(z, int(pivots), ITERATION_LIMIT,
+                   f"Murty: pivot limit {limit} reached{warm} (M may not be a P-matrix; "
+                   f"raise --max-iter if it is)")
+
+
+METHODS = [
+    Method(
+        name="murty",
+        run=run,
+        summary="Murty's least-index principal pivoting (Bard-type), dense tableau",
+        matrix_classes="P-matrices (finite, unique solution); others: may stop unsolved",
+        kinds=("lcp",),
+        options={
+            "max_iter": Option(positive_int, None, "pivot limit (default max(1000, 100 n))"),
+            "z0": Option(vector_option, None, "warm start: start from the basis {i: z0_i > 0}"),
+        },
+        prepare=prepare,
+    ),
+]

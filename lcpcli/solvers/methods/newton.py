@@ -1,0 +1,331 @@
+"""Semismooth Newton methods: ``newton`` (Fischer-Burmeister) and ``newton-min`` (min / mid map).
+
+Problem: ``w = M z + q``, ``z`` in the box ``[l, u]`` of :meth:`Problem.bounds` (LCP ``[0, inf)``;
+MLCP: free variables ``(-inf, inf)`` whose rows are plain equations ``w_i = 0``; box LCP: the
+given bounds, sign convention ``w >= 0`` at ``l``, ``w <= 0`` at ``u``, ``w = 0`` between).
+
+The problem is written as ``Phi(z) = 0`` componentwise and solved by Newton's method with the
+generalized (B-/Clarke) Jacobian ``H = diag(a) + diag(b) M``:
+
+* ``newton``: ``psi(s, t) = s + t - sqrt(s^2 + t^2)`` (minus the Fischer-Burmeister function,
+  zero iff ``s, t >= 0, s t = 0``); lower bound only ``Phi = psi(z - l, w)``; upper bound only
+  ``Phi = -psi(u - z, -w)``; both bounds ``Phi = -psi(u - z, -psi(z - l, w))`` (Billups'
+  composition); free ``Phi = w``.
+* ``newton-min``: ``Phi = max(z - u, min(z - l, w))`` = ``z - mid(l, u, z - w)``, the natural
+  residual of the certificate.
+
+Globalisation: Armijo backtracking on the merit ``Psi = ||Phi||^2 / 2`` (a full Newton step is
+accepted against the largest of the last 5 merits, Grippo-Lampariello-Lucidi's non-monotone
+rule; shortened steps must decrease the current merit); when the Newton system
+is singular or its solution is not a sufficient descent direction, a Levenberg-Marquardt step
+``(H^T H + lam I) d = -H^T Phi`` (``lam`` proportional to ``||Phi||``) is tried, and failing that a
+step along ``-grad Psi = -H^T Phi`` (De Luca, Facchinei and Kanzow's scheme).  Sparse M: the Newton
+systems are solved by sparse LU (``scipy.sparse.linalg.splu``), never densified.  After the
+iterations an active-set re-solve is tried (see :func:`lcpcli.solvers.support.active_set_polish`).
+
+Matrix classes: ``newton`` converges globally (to a stationary point of the merit, which solves
+the problem) for P0 matrices with bounded level sets, e.g. **P-matrices**, and for **monotone
+(PSD) problems** with a solution under mild conditions; locally quadratically at nondegenerate
+regular solutions; it handles non-symmetric and zero-diagonal matrices, MLCP free rows and box
+bounds.  ``newton-min`` is locally fast but not globally convergent (the min merit is not
+smooth): it can stall on degenerate or singular problems.  Neither ever claims success: the
+answer is certified by the shared certificate and is ``unsolved`` otherwise.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, NUMERICAL, Outcome
+from lcpcli.solvers.options import positive_int, vector_option
+from lcpcli.solvers.registry import Method, Option
+from lcpcli.solvers.support import active_set_polish, scaled_error, start_point
+
+DEFAULT_MAX_ITER = 200
+#: Armijo constant, backtracking factor, smallest step.
+SIGMA, BETA, MIN_STEP = 1e-4, 0.5, 1e-12
+#: Descent test for the Newton direction: grad . d <= -RHO ||d||^P.
+RHO, P_EXP = 1e-10, 2.1
+#: Length of the merit history of the non-monotone test (full steps only; 1 = monotone Armijo).
+NONMONOTONE = 5
+#: Value of psi's partial derivatives at the kink (0, 0) (an element of the generalized Jacobian).
+KINK = 1.0 - 1.0 / np.sqrt(2.0)
+
+
+def _psi(s: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``psi(s, t) = s + t - sqrt(s^2 + t^2)`` and its partials (stable form, kink-safe)."""
+    r = np.hypot(s, t)
+    ssum = s + t
+    with np.errstate(invalid="ignore", divide="ignore"):
+        # s + t - r = 2 s t / (s + t + r) when s + t > 0 avoids cancellation
+        val = np.where(ssum > 0, 2.0 * s * t / np.where(ssum > 0, ssum + r, 1.0), ssum - r)
+        safe = np.where(r > 0, r, 1.0)
+        ds = np.where(r > 0, 1.0 - s / safe, KINK)
+        dt = np.where(r > 0, 1.0 - t / safe, KINK)
+    return val, ds, dt
+
+
+class _Residual:
+    """The componentwise map ``Phi(z, w)`` and the diagonals ``a = dPhi/dz``, ``b = dPhi/dw``."""
+
+    def __init__(self, problem: Any, variant: str) -> None:
+        lo, up = problem.bounds()
+        self.lo, self.up = lo, up
+        self.variant = variant
+        lf, uf = np.isfinite(lo), np.isfinite(up)
+        self.lower = np.flatnonzero(lf & ~uf)
+        self.upper = np.flatnonzero(~lf & uf)
+        self.both = np.flatnonzero(lf & uf)
+        self.free = np.flatnonzero(~lf & ~uf)
+
+    def __call__(self, z: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        n = z.shape[0]
+        phi, a, b = np.empty(n), np.zeros(n), np.zeros(n)
+        lo, up = self.lo, self.up
+        if self.variant == "min":
+            with np.errstate(invalid="ignore"):
+                s = z - lo
+                low = s <= w
+                v = np.where(low, s, w)
+                hi = (z - up) >= v
+                phi[:] = np.where(hi, z - up, v)
+            zpart = hi | low
+            a[:] = np.where(zpart, 1.0, 0.0)
+            b[:] = np.where(zpart, 0.0, 1.0)
+            fr = self.free
+            phi[fr], a[fr], b[fr] = w[fr], 0.0, 1.0
+            return phi, a, b
+        i = self.lower
+        if i.size:
+            phi[i], a[i], b[i] = _psi(z[i] - lo[i], w[i])
+        i = self.upper
+        if i.size:
+            v, ds, dt = _psi(up[i] - z[i], -w[i])
+            phi[i], a[i], b[i] = -v, ds, dt
+        i = self.both
+        if i.size:
+            g, gs, gt = _psi(z[i] - lo[i], w[i])
+            v, ds, dt = _psi(up[i] - z[i], -g)
+            phi[i], a[i], b[i] = -v, ds + dt * gs, dt * gt
+        i = self.free
+        if i.size:
+            phi[i], a[i], b[i] = w[i], 0.0, 1.0
+        return phi, a, b
+
+
+def _newton_direction(M: Any, sparse: bool, a: np.ndarray, b: np.ndarray,
+                      phi: np.ndarray) -> np.ndarray | None:
+    """Solve ``(diag(a) + diag(b) M) d = -phi``; None when the matrix is (numerically) singular."""
+    import warnings
+
+    n = phi.shape[0]
+    if sparse:
+        import scipy.sparse as sp
+        import scipy.sparse.linalg as spla
+
+        H = (sp.diags(b) @ M + sp.diags(a)).tocsc()
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                lu = spla.splu(H)
+                d = lu.solve(-phi)
+        except RuntimeError:
+            return None
+    else:
+        import scipy.linalg as sla
+
+        H = b[:, None] * M
+        H[np.diag_indices(n)] += a
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                lu, piv = sla.lu_factor(H, check_finite=False)
+                if np.min(np.abs(np.diag(lu))) <= 1e-15 * max(np.max(np.abs(lu)), 1e-300):
+                    return None
+                d = sla.lu_solve((lu, piv), -phi, check_finite=False)
+        except (np.linalg.LinAlgError, ValueError):
+            return None
+    return d if np.all(np.isfinite(d)) else None
+
+
+def _lm_direction(M: Any, sparse: bool, a: np.ndarray, b: np.ndarray, phi: np.ndarray,
+                  grad: np.ndarray, lam: float) -> np.ndarray | None:
+    """Levenberg-Marquardt direction ``(H^T H + lam I) d = -H^T phi`` (singular H, e.g. a
+    rank-deficient PSD M at a degenerate point); None if it fails."""
+    import warnings
+
+    n = phi.shape[0]
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            if sparse:
+                import scipy.sparse as sp
+                import scipy.sparse.linalg as spla
+
+                H = (sp.diags(b) @ M + sp.diags(a)).tocsr()
+                K = (H.T @ H + lam * sp.identity(n)).tocsc()
+                d = spla.splu(K).solve(-grad)
+            else:
+                import scipy.linalg as sla
+
+                H = b[:, None] * M
+                H[np.diag_indices(n)] += a
+                K = H.T @ H
+                K[np.diag_indices(n)] += lam
+                d = sla.cho_solve(sla.cho_factor(K, check_finite=False), -grad,
+                                  check_finite=False)
+    except (np.linalg.LinAlgError, ValueError, RuntimeError):
+        return None
+    return d if np.all(np.isfinite(d)) else None
+
+
+def run_newton(problem: Any, *, tol: float, variant: str = "fb", max_iter: int | None = None,
+               z0: np.ndarray | None = None) -> Outcome:
+    """Semismooth Newton with Armijo line search; ``variant`` is ``"fb"`` or ``"min"``."""
+    from lcpcli.core.certificate import matrix_norm_inf
+
+    name = "Newton-FB" if variant == "fb" else "Newton-min"
+    n = problem.n
+    M = problem.M
+    sparse = problem.sparse
+    if sparse:
+        M = M.tocsr()
+    lo, up = problem.bounds()
+    z = start_point(problem, z0)
+    if z0 is not None:
+        z = np.clip(z, lo, up)
+    resid = _Residual(problem, "min" if variant == "min" else "fb")
+    mu = matrix_norm_inf(M)
+    mu = mu if mu > 0 else 1.0
+    qn = float(np.max(np.abs(problem.q))) if n else 0.0
+    limit = max_iter or DEFAULT_MAX_ITER
+
+    def matvec(x: np.ndarray) -> np.ndarray:
+        return np.asarray(M @ x).ravel()
+
+    def rmatvec(x: np.ndarray) -> np.ndarray:
+        return np.asarray(M.T @ x).ravel()
+
+    w = matvec(z) + problem.q
+    phi, a, b = resid(z, w)
+    merit = 0.5 * float(phi @ phi)
+    history = [merit]
+    grad_steps = 0
+    lm_steps = 0
+    it = 0
+    termination, why = ITERATION_LIMIT, f"iteration limit {limit} reached"
+    best_z, best_err = z.copy(), scaled_error(z, w, lo, up, mu, qn)
+    err = best_err
+    while True:
+        if err <= tol:
+            termination, why = CONVERGED, "scaled error below tolerance"
+            break
+        if it >= limit:
+            break
+        it += 1
+        grad = a * phi + rmatvec(b * phi)
+        d = _newton_direction(M, sparse, a, b, phi)
+        slope = float(grad @ d) if d is not None else 0.0
+        if d is None or slope > -RHO * float(np.linalg.norm(d)) ** P_EXP:
+            lam = min(1.0, float(np.sqrt(2.0 * merit))) * max(1.0, mu) ** 2 * 1e-3
+            d = _lm_direction(M, sparse, a, b, phi, grad, max(lam, 1e-14))
+            slope = float(grad @ d) if d is not None else 0.0
+            if d is not None and slope < -RHO * float(np.linalg.norm(d)) ** P_EXP:
+                lm_steps += 1
+            else:
+                d = None
+        if d is None:
+            d = -grad
+            slope = -float(grad @ grad)
+            grad_steps += 1
+            if slope == 0.0:
+                termination = NUMERICAL
+                why = "stationary point of the merit function that is not a solution"
+                break
+        dw = matvec(d)
+        t = 1.0
+        while True:
+            zt = z + t * d
+            wt = w + t * dw
+            phit, at, bt = resid(zt, wt)
+            merit_t = 0.5 * float(phit @ phit)
+            ref = max(history) if t == 1.0 else merit  # non-monotone test for the full step
+            if np.isfinite(merit_t) and merit_t <= ref + SIGMA * t * slope:
+                break
+            t *= BETA
+            if t < MIN_STEP:
+                break
+        if t < MIN_STEP:
+            termination, why = NUMERICAL, "line search failed (no decrease of the merit function)"
+            break
+        z, w, phi, a, b, merit = zt, wt, phit, at, bt, merit_t
+        w = matvec(z) + problem.q  # fresh product: no drift from the w + t dw updates
+        phi, a, b = resid(z, w)
+        merit = 0.5 * float(phi @ phi)
+        history.append(merit)
+        del history[:-NONMONOTONE]
+        err = scaled_error(z, w, lo, up, mu, qn)
+        if err < best_err:
+            best_z, best_err = z.copy(), err
+    z_out, err_out = best_z, best_err
+    if np.all(np.isfinite(z_out)) and err_out > 0:
+        try:
+            zp = active_set_polish(problem, z_out)
+            ep = scaled_error(zp, problem.w(zp), lo, up, mu, qn)
+            if ep < err_out:
+                z_out, err_out = zp, ep
+                if ep <= tol and termination != CONVERGED:
+                    why += "; solved by the active-set re-solve"
+                    termination = CONVERGED
+        except (np.linalg.LinAlgError, ValueError, MemoryError):
+            pass
+    extra = f", {lm_steps} Levenberg-Marquardt steps" if lm_steps else ""
+    extra += f", {grad_steps} gradient steps" if grad_steps else ""
+    return Outcome(z_out, it, termination,
+                   f"{name}: {why} after {it} iterations{extra} (scaled error {err_out:.2e})",
+                   info={"gradient_steps": grad_steps, "lm_steps": lm_steps})
+
+
+def run_fb(problem: Any, *, tol: float, max_iter: int | None = None,
+           z0: np.ndarray | None = None) -> Outcome:
+    """Newton on the Fischer-Burmeister function (``newton``)."""
+    return run_newton(problem, tol=tol, variant="fb", max_iter=max_iter, z0=z0)
+
+
+def run_min(problem: Any, *, tol: float, max_iter: int | None = None,
+            z0: np.ndarray | None = None) -> Outcome:
+    """Newton on the min / mid map (``newton-min``)."""
+    return run_newton(problem, tol=tol, variant="min", max_iter=max_iter, z0=z0)
+
+
+_OPTIONS = {
+    "max_iter": Option(positive_int, None, f"Newton iteration limit (default {DEFAULT_MAX_ITER})"),
+    "z0": Option(vector_option, None, "warm start z (default 0)"),
+}
+
+METHODS = [
+    Method(
+        name="newton",
+        run=run_fb,
+        summary="semismooth Newton on the Fischer-Burmeister function, Armijo line search "
+                "(dense LU or sparse LU)",
+        matrix_classes="P-matrices and monotone (PSD) problems (global, via the smooth merit); "
+                       "non-symmetric, zero diagonal, MLCP free rows and box bounds handled",
+        kinds=("lcp", "mlcp", "box"),
+        sparse=True,
+        options=dict(_OPTIONS),
+        aliases=("newton-fb",),
+    ),
+    Method(
+        name="newton-min",
+        run=run_min,
+        summary="semismooth Newton on the min / mid map (natural residual), Armijo line search",
+        matrix_classes="P-matrices near the solution (locally fast); not globally convergent: "
+                       "may stall on degenerate or singular problems",
+        kinds=("lcp", "mlcp", "box"),
+        sparse=True,
+        options=dict(_OPTIONS),
+    ),
+]

@@ -1,0 +1,55 @@
+"""Parsers of method options (``-O KEY=VALUE``, ``--max-iter``, ``--z0``, ...).
+
+Each parser takes what the user gave (a string from the command line, or a Python value from
+the library) and returns the typed value, raising ``ValueError`` with a one-line reason; the
+registry (:meth:`lcpcli.solvers.registry.Method.parse_options`) turns that into an ``OptionError``.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+
+def vector_option(value: Any) -> np.ndarray | None:
+    """A float vector from a list/array or a string ``'1,2 3'`` (None stays None)."""
+    if value is None:
+        return None
+    if isinstance(value, str):
+        value = [float(x) for x in value.replace(",", " ").split()]
+    arr = np.asarray(value, dtype=np.float64).ravel()
+    if not np.all(np.isfinite(arr)):
+        raise ValueError("contains NaN or Inf")
+    return arr
+
+
+def positive_int(value: Any) -> int:
+    """A positive integer option (``max_iter``)."""
+    if isinstance(value, float) and not value.is_integer():
+        raise ValueError(f"must be a positive integer, got {value}")
+    v = int(value)
+    if v < 1:
+        raise ValueError("must be a positive integer")
+    return v
+
+
+def bool_option(value: Any) -> bool:
+    """A true/false option: bools, or the strings 1/0, true/false, yes/no, on/off."""
+    if isinstance(value, bool):
+        return value
+    low = str(value).strip().lower()
+    if low in ("1", "true", "yes", "on"):
+        return True
+    if low in ("0", "false", "no", "off", ""):
+        return False
+    raise ValueError(f"expected true/false, got {value!r}")
+
+
+def omega_option(value: Any) -> float:
+    """The relaxation parameter: finite, ``0 < omega < 2`` (outside, PSOR need not converge)."""
+    v = float(value)
+    if not (np.isfinite(v) and 0.0 < v < 2.0):
+        raise ValueError(f"omega must satisfy 0 < omega < 2, got {value}")
+    return v
+
