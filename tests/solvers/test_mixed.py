@@ -18,7 +18,7 @@ from lcpcli.api import solve
 from lcpcli.core.problem import Problem
 from lcpcli.io import load
 
-_ROOT = Path(__file__).resolve().parents[1]
+_ROOT = Path(__file__).resolve().parents[2]
 MLCP_DIR = next((d / "shared" / "data" / "siconos" / "mlcp" for d in (_ROOT.parent,
                  _ROOT.parent.parent) if (d / "shared" / "data" / "siconos" / "mlcp").is_dir()),
                 _ROOT.parent / "shared" / "data" / "siconos" / "mlcp")

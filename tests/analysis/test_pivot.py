@@ -455,7 +455,7 @@ def test_revised_cli_and_bad_option(cli, samples):
 
 
 def test_sample_file_is_the_seed():
-    d = json.loads((Path(__file__).resolve().parents[1] / "samples" /
+    d = json.loads((Path(__file__).resolve().parents[2] / "samples" /
                     "seed000_augmented.json").read_text())
     np.testing.assert_array_equal(d["M"], SEED_M)
     np.testing.assert_array_equal(d["q"], SEED_Q)

@@ -22,7 +22,7 @@ from lcpcli.core.problem import Problem
 from lcpcli.io import save
 from lcpcli.io.hdf5_format import write_many
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 SLOW_KEYS = ("seconds", "wall_seconds")
 
 
