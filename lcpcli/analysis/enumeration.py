@@ -375,7 +375,7 @@ def enumerate_cones(problem: Any, *, stop_at_first: bool = False, all_cones: boo
                     sol.continuum = sol.continuum or continuum
                     break
             else:
-                cert = certify(problem, z, tol, w=M @ z + q, norm_M=mu)
+                cert = certify(problem, z, tol)
                 if not cert.passed:
                     counts["uncertified"] += 1
                     continue

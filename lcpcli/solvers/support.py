@@ -1,9 +1,8 @@
 """Numerical helpers shared by the solver methods (not a method module: no ``METHODS``).
 
-Conventions: ``w = M z + q``, the box ``[lo, up]`` from :meth:`Problem.bounds`.  The scaled error
-computed here is the certificate's formula (:mod:`lcpcli.core.certificate`), evaluated cheaply
-inside the iterations to decide when to stop; the verdict is always given by the shared
-certificate.
+Conventions: ``w = M z + q``, the box ``[lo, up]`` from :meth:`Problem.bounds`.  Iterative methods
+stop on :func:`certified_error`, the certificate's own ``error``, so that a method's "converged"
+and the verdict agree.
 """
 
 from __future__ import annotations
@@ -12,6 +11,7 @@ from typing import Any
 
 import numpy as np
 
+from lcpcli.core.certificate import certify
 from lcpcli.core.errors import OptionError
 
 #: Termination reason of a method that does not apply to the given matrix (e.g. zero diagonal).
@@ -31,19 +31,15 @@ def start_point(problem: Any, z0: np.ndarray | None, default: float = 0.0) -> np
     return z.copy()
 
 
-def scaled_error(z: np.ndarray, w: np.ndarray, lo: np.ndarray, up: np.ndarray, mu: float,
-                 qnorm: float) -> float:
-    """The certificate's scaled error of ``(z, w)`` (``mu = ||M||_inf``, ``qnorm = ||q||_inf``)."""
-    mu = mu if mu > 0 else 1.0
-    with np.errstate(invalid="ignore", over="ignore"):
-        r = np.maximum(mu * (z - up), np.minimum(mu * (z - lo), w))
-    num = float(np.max(np.abs(r))) if r.size else 0.0
-    if num == 0.0:
-        return 0.0
-    denom = mu * (float(np.max(np.abs(z))) if z.size else 0.0) + qnorm
-    if not np.isfinite(num):
+def certified_error(problem: Any, z: np.ndarray) -> float:
+    """The certificate's ``error`` of ``z`` (the one definition, :mod:`lcpcli.core.certificate`).
+
+    Iterative methods stop on it, so that "converged" and the verdict never disagree; Inf for a
+    non-finite ``z``.
+    """
+    if not np.all(np.isfinite(z)):
         return float("inf")
-    return num / denom if denom > 0 else float("inf")
+    return certify(problem, z).error
 
 
 def diagonal(M: Any) -> np.ndarray:
@@ -118,16 +114,11 @@ def active_set_polish(problem: Any, z: np.ndarray, w: np.ndarray | None = None) 
     return np.clip(zc, lo, up)
 
 
-def better(problem: Any, candidates: list[np.ndarray], mu: float) -> tuple[np.ndarray, float]:
-    """The candidate with the smallest scaled error, and that error."""
-    lo, up = problem.bounds()
-    qn = float(np.max(np.abs(problem.q))) if problem.n else 0.0
+def better(problem: Any, candidates: list[np.ndarray]) -> tuple[np.ndarray, float]:
+    """The candidate with the smallest certified error, and that error."""
     best, best_err = candidates[0], float("inf")
     for z in candidates:
-        if not np.all(np.isfinite(z)):
-            continue
-        e = scaled_error(z, problem.w(z), lo, up, mu, qn)
+        e = certified_error(problem, z)
         if e < best_err:
             best, best_err = z, e
     return best, best_err
-

@@ -171,7 +171,7 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None,
     """Classify, plan and try methods until one's answer passes the certificate."""
     from lcpcli.analysis.classify import classify
     from lcpcli.api import _PREPARED
-    from lcpcli.core.certificate import certify, matrix_norm_inf
+    from lcpcli.core.certificate import certify
     from lcpcli.core.errors import OptionError
     from lcpcli.solvers.registry import methods
     from lcpcli.solvers.support import start_point
@@ -199,7 +199,6 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None,
     else:
         steps = plan(problem, c, registry)
     desc = _describe(c)
-    norm_M = matrix_norm_inf(problem.M)
     attempts: list[dict[str, Any]] = []
     best: tuple[float, np.ndarray, str] | None = None
     total_it = 0
@@ -231,7 +230,7 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None,
         secs = time.perf_counter() - t1
         total_it += int(out.iterations)
         z = np.asarray(out.z, dtype=np.float64)
-        cert = certify(problem, z, tol, norm_M=norm_M)
+        cert = certify(problem, z, tol)
         rec = {"method": name, "reason": why, "termination": out.termination,
                "iterations": int(out.iterations), "error": cert.error, "seconds": secs,
                "message": out.message}

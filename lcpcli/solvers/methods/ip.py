@@ -30,7 +30,7 @@ import numpy as np
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, NUMERICAL, Outcome
 from lcpcli.solvers.options import positive_int
 from lcpcli.solvers.registry import Method, Option
-from lcpcli.solvers.support import active_set_polish, scaled_error
+from lcpcli.solvers.support import active_set_polish, certified_error
 
 DEFAULT_MAX_ITER = 100
 #: Fraction of the step to the boundary that is taken.
@@ -103,27 +103,27 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None) -> Outcome:
     s = max(1.0, np.sqrt(qn / mu_M)) if qn > 0 else 1.0
     z = np.full(n, s)
     w = np.maximum(matvec(z) + q, s)
-    best_z, best_err = np.zeros(n), scaled_error(np.zeros(n), q.copy(), lo, up, mu_M, qn)
+    best_z, best_err = np.zeros(n), certified_error(problem, np.zeros(n))
     termination, why = ITERATION_LIMIT, f"iteration limit {limit} reached"
     it = 0
     rounded = False
     zmax0 = float(np.max(z))
     while True:
         wz = matvec(z) + q
-        err = scaled_error(z, wz, lo, up, mu_M, qn)
+        err = certified_error(problem, z)
         if err < best_err:
             best_z, best_err, rounded = z.copy(), err, False
         if best_err <= tol:
-            termination, why = CONVERGED, "scaled error below tolerance"
+            termination, why = CONVERGED, "certified error below tolerance"
             break
         if err <= ROUND_BELOW:
             try:
                 zr = active_set_polish(problem, z, wz)
-                er = scaled_error(zr, matvec(zr) + q, lo, up, mu_M, qn)
+                er = certified_error(problem, zr)
                 if er < best_err:
                     best_z, best_err, rounded = zr, er, True
                 if er <= tol:
-                    termination, why = CONVERGED, "scaled error below tolerance after rounding"
+                    termination, why = CONVERGED, "certified error below tolerance after rounding"
                     break
             except (np.linalg.LinAlgError, ValueError, RuntimeError):
                 pass

@@ -41,7 +41,7 @@ import numpy as np
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, NUMERICAL, Outcome
 from lcpcli.solvers.options import positive_int, vector_option
 from lcpcli.solvers.registry import Method, Option
-from lcpcli.solvers.support import active_set_polish, scaled_error, start_point
+from lcpcli.solvers.support import active_set_polish, certified_error, start_point
 
 DEFAULT_MAX_ITER = 200
 #: Armijo constant, backtracking factor, smallest step.
@@ -187,7 +187,6 @@ def run_newton(problem: Any, *, tol: float, variant: str = "fb", max_iter: int |
     from lcpcli.core.certificate import matrix_norm_inf
 
     name = "Newton-FB" if variant == "fb" else "Newton-min"
-    n = problem.n
     M = problem.M
     sparse = problem.sparse
     if sparse:
@@ -199,7 +198,6 @@ def run_newton(problem: Any, *, tol: float, variant: str = "fb", max_iter: int |
     resid = _Residual(problem, "min" if variant == "min" else "fb")
     mu = matrix_norm_inf(M)
     mu = mu if mu > 0 else 1.0
-    qn = float(np.max(np.abs(problem.q))) if n else 0.0
     limit = max_iter or DEFAULT_MAX_ITER
 
     def matvec(x: np.ndarray) -> np.ndarray:
@@ -216,11 +214,11 @@ def run_newton(problem: Any, *, tol: float, variant: str = "fb", max_iter: int |
     lm_steps = 0
     it = 0
     termination, why = ITERATION_LIMIT, f"iteration limit {limit} reached"
-    best_z, best_err = z.copy(), scaled_error(z, w, lo, up, mu, qn)
+    best_z, best_err = z.copy(), certified_error(problem, z)
     err = best_err
     while True:
         if err <= tol:
-            termination, why = CONVERGED, "scaled error below tolerance"
+            termination, why = CONVERGED, "certified error below tolerance"
             break
         if it >= limit:
             break
@@ -266,14 +264,14 @@ def run_newton(problem: Any, *, tol: float, variant: str = "fb", max_iter: int |
         merit = 0.5 * float(phi @ phi)
         history.append(merit)
         del history[:-NONMONOTONE]
-        err = scaled_error(z, w, lo, up, mu, qn)
+        err = certified_error(problem, z)
         if err < best_err:
             best_z, best_err = z.copy(), err
     z_out, err_out = best_z, best_err
     if np.all(np.isfinite(z_out)) and err_out > 0:
         try:
             zp = active_set_polish(problem, z_out)
-            ep = scaled_error(zp, problem.w(zp), lo, up, mu, qn)
+            ep = certified_error(problem, zp)
             if ep < err_out:
                 z_out, err_out = zp, ep
                 if ep <= tol and termination != CONVERGED:
@@ -284,7 +282,7 @@ def run_newton(problem: Any, *, tol: float, variant: str = "fb", max_iter: int |
     extra = f", {lm_steps} Levenberg-Marquardt steps" if lm_steps else ""
     extra += f", {grad_steps} gradient steps" if grad_steps else ""
     return Outcome(z_out, it, termination,
-                   f"{name}: {why} after {it} iterations{extra} (scaled error {err_out:.2e})",
+                   f"{name}: {why} after {it} iterations{extra} (certified error {err_out:.2e})",
                    info={"gradient_steps": grad_steps, "lm_steps": lm_steps})
 
 
