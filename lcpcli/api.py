@@ -11,6 +11,7 @@ from lcpcli.core.certificate import check, validate_tol
 from lcpcli.core.errors import OptionError
 from lcpcli.core.problem import Problem
 from lcpcli.core.result import NO_SOLUTION, SOLVED, UNSOLVED, Outcome, Result
+from lcpcli.solvers.pipeline import run_method
 from lcpcli.solvers.registry import get_method
 
 DEFAULT_METHOD = "auto"
@@ -39,7 +40,8 @@ def solve(problem: Problem, method: str = DEFAULT_METHOD, *, tol: float | None =
 
     The verdict is ``solved`` only if the recomputed certificate passes; ``no_solution`` only
     when the method proved it (the proof is in ``message``); ``unsolved`` otherwise.
-    ``seconds`` times the method alone (no file reading, no certification).
+    ``seconds`` times the method (with its equilibration and final polish, see
+    :mod:`lcpcli.solvers.pipeline`), not file reading or certification.
     """
     spec = get_method(method)
     if problem.kind not in spec.kinds:
@@ -52,7 +54,7 @@ def solve(problem: Problem, method: str = DEFAULT_METHOD, *, tol: float | None =
         spec.prepare()
         _PREPARED.add(spec.name)
     start = time.perf_counter()
-    outcome: Outcome = spec.run(problem, tol=tol, **opts)
+    outcome: Outcome = run_method(spec, problem, tol, opts)
     seconds = time.perf_counter() - start
     return certify_outcome(problem, outcome, spec.name, seconds, tol)
 

@@ -15,8 +15,9 @@ cdef struct CertOut:
 
 # Dense M (row-major, row stride ldm).  lo/up may be NULL: then the first n_eq variables are
 # free and the rest are bounded below by 0 (LCP / MLCP).  w (n) receives M z + q.
-# work: 5 n doubles; iwork: 3 n Py_ssize_t.  Returns out.status.
+# work: 5 n doubles; iwork: 3 n Py_ssize_t; state (n, may be NULL) receives each pair's
+# state (0 at lower, 1 at upper, 2 between with w = 0).  Returns out.status.
 cdef int certify_dense(Py_ssize_t n, const double* M, Py_ssize_t ldm, const double* q,
                        const double* z, Py_ssize_t n_eq, const double* lo, const double* up,
-                       double* w, double* work, Py_ssize_t* iwork,
+                       double* w, double* work, Py_ssize_t* iwork, signed char* state,
                        CertOut* out) noexcept nogil

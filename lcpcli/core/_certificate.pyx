@@ -67,7 +67,7 @@ cdef inline double _move(double x, double kappa) noexcept nogil:
 
 cdef int _finish(Py_ssize_t n, const double* q, const double* z, Py_ssize_t n_eq,
                  const double* lo, const double* up, const double* w, double* work,
-                 Py_ssize_t* iwork, CertOut* out) noexcept nogil:
+                 Py_ssize_t* iwork, signed char* state, CertOut* out) noexcept nogil:
     """Pass 3: score the pairs and the blocks (a, s, kappa filled; parent built)."""
     cdef double* a = work
     cdef double* s = work + n
@@ -77,6 +77,8 @@ cdef int _finish(Py_ssize_t n, const double* q, const double* z, Py_ssize_t n_eq
     cdef Py_ssize_t i, r, worst = -1
     cdef double l, u, zi, wi, si, best, cost, x, g, den, e, err = 0.0, omega = 0.0
     cdef double growth = 1.0, gi
+    cdef signed char st
+    cdef double cF, cL, cU
     cdef double resid = 0.0, bviol = 0.0, wviol = 0.0, comp = 0.0, eqres = 0.0, t
     for i in range(2 * n):
         compmin[i] = INFINITY
@@ -92,34 +94,49 @@ cdef int _finish(Py_ssize_t n, const double* q, const double* z, Py_ssize_t n_eq
         zi = z[i]
         wi = w[i]
         si = s[i]
-        best = INFINITY
-        if l > -INFINITY:
-            x = fabs(zi - l)
-            cost = _rel(-wi, si) if wi < 0.0 else 0.0
-            t = _move(x, kappa[i])
-            if t > cost:
-                cost = t
-            if cost < best:
-                best = cost
-        if u < INFINITY:
-            x = fabs(zi - u)
-            cost = _rel(wi, si) if wi > 0.0 else 0.0
-            t = _move(x, kappa[i])
-            if t > cost:
-                cost = t
-            if cost < best:
-                best = cost
+        # the three states' costs; ties go to the state that needs no move of z_i (the bound
+        # state when z_i sits exactly on it, else 'between'), which the polish relies on
+        cF = _rel(fabs(wi), si)
         x = 0.0
         if zi < l:
             x = l - zi
         elif zi > u:
             x = zi - u
-        cost = _rel(fabs(wi), si)
         t = _move(x, kappa[i])
-        if t > cost:
-            cost = t
-        if cost < best:
-            best = cost
+        if t > cF:
+            cF = t
+        cL = INFINITY
+        if l > -INFINITY:
+            cL = _rel(-wi, si) if wi < 0.0 else 0.0
+            t = _move(fabs(zi - l), kappa[i])
+            if t > cL:
+                cL = t
+        cU = INFINITY
+        if u < INFINITY:
+            cU = _rel(wi, si) if wi > 0.0 else 0.0
+            t = _move(fabs(zi - u), kappa[i])
+            if t > cU:
+                cU = t
+        if zi == l:
+            best, st = cL, 0
+            if cF < best:
+                best, st = cF, 2
+            if cU < best:
+                best, st = cU, 1
+        elif zi == u:
+            best, st = cU, 1
+            if cF < best:
+                best, st = cF, 2
+            if cL < best:
+                best, st = cL, 0
+        else:
+            best, st = cF, 2
+            if cL < best:
+                best, st = cL, 0
+            if cU < best:
+                best, st = cU, 1
+        if state != NULL:
+            state[i] = st
         if best > omega:
             omega = best
         gi = 1.0
@@ -206,7 +223,7 @@ cdef int _fail(CertOut* out, int status) noexcept nogil:
 
 cdef int certify_dense(Py_ssize_t n, const double* M, Py_ssize_t ldm, const double* q,
                        const double* z, Py_ssize_t n_eq, const double* lo, const double* up,
-                       double* w, double* work, Py_ssize_t* iwork,
+                       double* w, double* work, Py_ssize_t* iwork, signed char* state,
                        CertOut* out) noexcept nogil:
     cdef double* a = work
     cdef double* s = work + n
@@ -261,7 +278,7 @@ cdef int certify_dense(Py_ssize_t n, const double* M, Py_ssize_t ldm, const doub
         j = cols[k]
         if kappa[j] == 0.0:      # a zero column: moving z_j is never negligible
             kappa[j] = INFINITY
-    return _finish(n, q, z, n_eq, lo, up, w, work, iwork, out)
+    return _finish(n, q, z, n_eq, lo, up, w, work, iwork, state, out)
 
 
 ctypedef fused index_t:
@@ -272,7 +289,7 @@ ctypedef fused index_t:
 cdef int certify_csr(Py_ssize_t n, const double* data, const index_t* indices,
                      const index_t* indptr, const double* q, const double* z, Py_ssize_t n_eq,
                      const double* lo, const double* up, double* w, double* work,
-                     Py_ssize_t* iwork, CertOut* out) noexcept nogil:
+                     Py_ssize_t* iwork, signed char* state, CertOut* out) noexcept nogil:
     cdef double* a = work
     cdef double* s = work + n
     cdef double* kappa = work + 2 * n
@@ -319,15 +336,16 @@ cdef int certify_csr(Py_ssize_t n, const double* data, const index_t* indices,
     for j in range(n):
         if movable[j] and kappa[j] == 0.0:
             kappa[j] = INFINITY
-    return _finish(n, q, z, n_eq, lo, up, w, work, iwork, out)
+    return _finish(n, q, z, n_eq, lo, up, w, work, iwork, state, out)
 
 
 def certify_arrays(M, const double[::1] q, const double[::1] z, Py_ssize_t n_eq,
-                   lo, up, double[::1] w):
+                   lo, up, double[::1] w, signed char[::1] state=None):
     """Certify z; M is a C-contiguous float64 array or a (data, indices, indptr) CSR triple.
 
     ``lo``/``up`` are float64 arrays or None (then the first ``n_eq`` variables are free and the
-    others bounded below by 0).  Fills ``w`` and returns ``(status, error, backward_error,
+    others bounded below by 0).  Fills ``w`` (and ``state``, if given: 0 at lower bound, 1 at
+    upper bound, 2 between with w = 0, the state that pair's score came from) and returns ``(status, error, backward_error,
     growth, residual, bound_violation, w_violation, complementarity, equality_residual, worst)``.
     """
     cdef Py_ssize_t n = q.shape[0]
@@ -340,6 +358,7 @@ def certify_arrays(M, const double[::1] q, const double[::1] z, Py_ssize_t n_eq,
     cdef const double* pup = NULL
     cdef double[::1] work
     cdef Py_ssize_t[::1] iwork
+    cdef signed char* pst = NULL
     if z.shape[0] != n or w.shape[0] != n:
         raise ValueError("q, z and w must have the same length")
     if n == 0:
@@ -349,6 +368,10 @@ def certify_arrays(M, const double[::1] q, const double[::1] z, Py_ssize_t n_eq,
         upv = up
         plo = &lov[0]
         pup = &upv[0]
+    if state is not None:
+        if state.shape[0] != n:
+            raise ValueError("state must have length n")
+        pst = &state[0]
     import numpy as np  # the only allocation helper here (numpy is already imported)
     work = np.empty(5 * n)
     iwork = np.empty(3 * n, dtype=np.intp)
@@ -360,21 +383,21 @@ def certify_arrays(M, const double[::1] q, const double[::1] z, Py_ssize_t n_eq,
             with nogil:
                 certify_csr(n, &data[0] if data.shape[0] else NULL, &ind32[0] if ind32.shape[0]
                             else NULL, &ptr32[0], &q[0], &z[0], n_eq, plo, pup, &w[0],
-                            &work[0], &iwork[0], &out)
+                            &work[0], &iwork[0], pst, &out)
         else:
             ind64 = M[1]
             ptr64 = M[2]
             with nogil:
                 certify_csr(n, &data[0] if data.shape[0] else NULL, &ind64[0] if ind64.shape[0]
                             else NULL, &ptr64[0], &q[0], &z[0], n_eq, plo, pup, &w[0],
-                            &work[0], &iwork[0], &out)
+                            &work[0], &iwork[0], pst, &out)
     else:
         Md = M
         if Md.shape[0] != n or Md.shape[1] != n:
             raise ValueError("M must be n x n")
         with nogil:
             certify_dense(n, &Md[0, 0], n, &q[0], &z[0], n_eq, plo, pup, &w[0], &work[0],
-                          &iwork[0], &out)
+                          &iwork[0], pst, &out)
     return (out.status, out.error, out.backward_error, out.growth, out.residual,
             out.bound_violation, out.w_violation, out.complementarity, out.equality_residual,
             out.worst)

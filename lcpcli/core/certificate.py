@@ -108,10 +108,16 @@ def validate_tol(tol: Any) -> float:
     return value
 
 
-def check(problem: Any, z: Any, tol: float = DEFAULT_TOL) -> tuple[Certificate, np.ndarray]:
+#: The state of a pair that its score came from (:func:`pair_states`).
+AT_LOWER, AT_UPPER, BETWEEN = 0, 1, 2
+
+
+def check(problem: Any, z: Any, tol: float = DEFAULT_TOL, *,
+          state: np.ndarray | None = None) -> tuple[Certificate, np.ndarray]:
     """Certify ``z`` for ``problem``; return the certificate and ``w = M z + q`` (recomputed).
 
-    ``passed`` is true when every number is finite and ``error <= tol``.
+    ``passed`` is true when every number is finite and ``error <= tol``.  ``state`` (int8,
+    length n), when given, receives each pair's state (``AT_LOWER``, ``AT_UPPER``, ``BETWEEN``).
     """
     z = np.ascontiguousarray(z, dtype=np.float64).ravel()
     n = problem.n
@@ -120,9 +126,9 @@ def check(problem: Any, z: Any, tol: float = DEFAULT_TOL) -> tuple[Certificate, 
     w = np.empty(n)
     lo, up = (problem.lower, problem.upper) if problem.lower is not None else (None, None)
     out = _certificate.certify_arrays(_matrix_arg(problem.M), problem.q, z, problem.n_eq,
-                                      lo, up, w)
+                                      lo, up, w, state)
     if out[0] == 2:
-        out, w = _rescaled_check(problem, z)
+        out, w = _rescaled_check(problem, z, state)
     return _make(out, tol), w
 
 
@@ -184,7 +190,8 @@ def _exponent(x: np.ndarray) -> np.ndarray:
     return np.frexp(x)[1].astype(np.int64)
 
 
-def _rescaled_check(problem: Any, z: np.ndarray) -> tuple[tuple, np.ndarray]:
+def _rescaled_check(problem: Any, z: np.ndarray,
+                    state: np.ndarray | None = None) -> tuple[tuple, np.ndarray]:
     """Certify data whose products leave the safe range: rescale rows and columns exactly by
     powers of two (``M' = D M cexp``, ``q' = D q``, ``z' = cexp^-1 z``; the certificate does not
     change), certify the rescaled copy, and map ``w`` back (``w = D^-1 w'``, Inf where the true
@@ -236,7 +243,7 @@ def _rescaled_check(problem: Any, z: np.ndarray) -> tuple[tuple, np.ndarray]:
         lo = np.where(np.isfinite(problem.lower), np.clip(lo, -big, big), lo)
         up = np.where(np.isfinite(problem.upper), np.clip(up, -big, big), up)
     ws = np.empty(n)
-    out = _certificate.certify_arrays(marg, qs, zs, problem.n_eq, lo, up, ws)
+    out = _certificate.certify_arrays(marg, qs, zs, problem.n_eq, lo, up, ws, state)
     with np.errstate(over="ignore"):
         w = np.ldexp(ws, rexp.astype(np.int32))
     res = list(out)

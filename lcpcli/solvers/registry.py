@@ -43,6 +43,9 @@ class Method:
     aliases: tuple[str, ...] = ()
     #: True when the method works on a scipy.sparse M without densifying it.
     sparse: bool = False
+    #: How :mod:`lcpcli.solvers.pipeline` equilibrates the problem first: ``"auto"`` (``D M D``
+    #: for a symmetric M, two-sided otherwise), ``"symmetric"`` (always ``D M D``) or ``"none"``.
+    scaling: str = "none"
 
     def parse_options(self, given: Mapping[str, Any]) -> dict[str, Any]:
         """Defaults merged with ``given``; unknown names or bad values raise OptionError."""

@@ -173,6 +173,7 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None,
     from lcpcli.api import _PREPARED
     from lcpcli.core.certificate import certify
     from lcpcli.core.errors import OptionError
+    from lcpcli.solvers.pipeline import run_method
     from lcpcli.solvers.registry import methods
     from lcpcli.solvers.support import start_point
 
@@ -219,7 +220,7 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None,
             _PREPARED.add(spec.name)
         t1 = time.perf_counter()
         try:
-            out: Outcome = spec.run(problem, tol=tol, **spec.parse_options(opts))
+            out: Outcome = run_method(spec, problem, tol, spec.parse_options(opts))
         except (np.linalg.LinAlgError, MemoryError, ValueError, RuntimeError) as exc:
             if isinstance(exc, OptionError):
                 raise

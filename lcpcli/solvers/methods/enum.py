@@ -80,5 +80,6 @@ METHODS = [
         },
         prepare=prepare,
         aliases=("enumerate", "enumeration"),
+        scaling="auto",
     ),
 ]

@@ -30,7 +30,7 @@ import numpy as np
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, NUMERICAL, Outcome
 from lcpcli.solvers.options import positive_int
 from lcpcli.solvers.registry import Method, Option
-from lcpcli.solvers.support import active_set_polish, certified_error
+from lcpcli.solvers.support import certified_error, refine
 
 DEFAULT_MAX_ITER = 100
 #: Fraction of the step to the boundary that is taken.
@@ -117,16 +117,12 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None) -> Outcome:
             termination, why = CONVERGED, "certified error below tolerance"
             break
         if err <= ROUND_BELOW:
-            try:
-                zr = active_set_polish(problem, z, wz)
-                er = certified_error(problem, zr)
-                if er < best_err:
-                    best_z, best_err, rounded = zr, er, True
-                if er <= tol:
-                    termination, why = CONVERGED, "certified error below tolerance after rounding"
-                    break
-            except (np.linalg.LinAlgError, ValueError, RuntimeError):
-                pass
+            polished = refine(problem, z)
+            if polished is not None and polished[1] < best_err:
+                best_z, best_err, rounded = polished[0], polished[1], True
+            if best_err <= tol:
+                termination, why = CONVERGED, "certified error below tolerance after rounding"
+                break
         if it >= limit:
             break
         if float(np.max(z)) > 1e12 * max(zmax0, 1.0):
@@ -183,5 +179,6 @@ METHODS = [
                                f"iteration limit (default {DEFAULT_MAX_ITER})"),
         },
         aliases=("interior-point",),
+        scaling="symmetric",
     ),
 ]

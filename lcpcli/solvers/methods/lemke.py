@@ -104,11 +104,17 @@ def finish(problem: Any, M: np.ndarray, q: np.ndarray, status: int, z: np.ndarra
     if status == OK:
         z = polish(M, q, z, basic)
         return Outcome(z, int(pivots), CONVERGED, f"artificial variable left the basis "
-                                                  f"after {pivots} pivots")
+                                                  f"after {pivots} pivots",
+                       info={"basis": basic_z(basic, n)})
     if status == MAX_ITER:
         return Outcome(np.maximum(z, 0.0), int(pivots), ITERATION_LIMIT,
                        f"pivot limit {limit} reached (raise it with --max-iter)")
     return ray_outcome(problem, M, q, z, int(pivots), ray_dz, float(z0))
+
+
+def basic_z(basic: np.ndarray, n: int) -> list[int]:
+    """The 0-based indices of the z's in Lemke's final basis (codes n..2n-1; see the kernel)."""
+    return sorted(int(b) - n for b in basic if n <= b < 2 * n)
 
 
 def polish(M: np.ndarray, q: np.ndarray, z: np.ndarray, basic: np.ndarray) -> np.ndarray:
@@ -160,5 +166,6 @@ METHODS = [
                                                  "kernel, same pivots; slow for large n)"),
         },
         prepare=prepare,
+        scaling="auto",
     ),
 ]

@@ -82,5 +82,6 @@ METHODS = [
             "max_iter": Option(positive_int, None, "Lemke pivot limit"),
         },
         prepare=prepare,
+        scaling="auto",
     ),
 ]

@@ -109,5 +109,6 @@ METHODS = [
             "max_iter": Option(positive_int, None, "iteration limit of the inner method"),
         },
         prepare=prepare,
+        scaling="auto",
     ),
 ]

@@ -103,5 +103,6 @@ METHODS = [
             "z0": Option(vector_option, None, "warm start: start from the basis {i: z0_i > 0}"),
         },
         prepare=prepare,
+        scaling="auto",
     ),
 ]

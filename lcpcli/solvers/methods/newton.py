@@ -21,7 +21,7 @@ is singular or its solution is not a sufficient descent direction, a Levenberg-M
 ``(H^T H + lam I) d = -H^T Phi`` (``lam`` proportional to ``||Phi||``) is tried, and failing that a
 step along ``-grad Psi = -H^T Phi`` (De Luca, Facchinei and Kanzow's scheme).  Sparse M: the Newton
 systems are solved by sparse LU (``scipy.sparse.linalg.splu``), never densified.  After the
-iterations an active-set re-solve is tried (see :func:`lcpcli.solvers.support.active_set_polish`).
+iterations an active-set re-solve is tried (see :func:`lcpcli.solvers.support.refine`).
 
 Matrix classes: ``newton`` converges globally (to a stationary point of the merit, which solves
 the problem) for P0 matrices with bounded level sets, e.g. **P-matrices**, and for **monotone
@@ -41,7 +41,7 @@ import numpy as np
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, NUMERICAL, Outcome
 from lcpcli.solvers.options import positive_int, vector_option
 from lcpcli.solvers.registry import Method, Option
-from lcpcli.solvers.support import active_set_polish, certified_error, start_point
+from lcpcli.solvers.support import certified_error, refine, start_point
 
 DEFAULT_MAX_ITER = 200
 #: Armijo constant, backtracking factor, smallest step.
@@ -268,17 +268,13 @@ def run_newton(problem: Any, *, tol: float, variant: str = "fb", max_iter: int |
         if err < best_err:
             best_z, best_err = z.copy(), err
     z_out, err_out = best_z, best_err
-    if np.all(np.isfinite(z_out)) and err_out > 0:
-        try:
-            zp = active_set_polish(problem, z_out)
-            ep = certified_error(problem, zp)
-            if ep < err_out:
-                z_out, err_out = zp, ep
-                if ep <= tol and termination != CONVERGED:
-                    why += "; solved by the active-set re-solve"
-                    termination = CONVERGED
-        except (np.linalg.LinAlgError, ValueError, MemoryError):
-            pass
+    if err_out > 0:
+        polished = refine(problem, z_out)
+        if polished is not None and polished[1] < err_out:
+            z_out, err_out = polished
+            if err_out <= tol and termination != CONVERGED:
+                why += "; solved by the active-set re-solve"
+                termination = CONVERGED
     extra = f", {lm_steps} Levenberg-Marquardt steps" if lm_steps else ""
     extra += f", {grad_steps} gradient steps" if grad_steps else ""
     return Outcome(z_out, it, termination,
@@ -315,6 +311,7 @@ METHODS = [
         sparse=True,
         options=dict(_OPTIONS),
         aliases=("newton-fb",),
+        scaling="auto",
     ),
     Method(
         name="newton-min",
@@ -325,5 +322,6 @@ METHODS = [
         kinds=("lcp", "mlcp", "box"),
         sparse=True,
         options=dict(_OPTIONS),
+        scaling="auto",
     ),
 ]
