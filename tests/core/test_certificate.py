@@ -179,7 +179,8 @@ def _scale_like(rng: np.random.Generator, n: int, spread: float) -> np.ndarray:
 
 
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(seed=st.integers(0, 2**32 - 1), n=st.integers(1, 12), spread=st.sampled_from([0, 8, 30, 120]))
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(1, 12),
+       spread=st.sampled_from([0, 8, 30, 120]))
 def test_planted_solutions_pass_under_any_scaling(seed, n, spread):
     rng = np.random.default_rng(seed)
     M, q, z, _ = _planted(rng, n)
@@ -238,7 +239,8 @@ def test_corrupted_copies_fail(seed, n, corruption):
 
 
 @settings(max_examples=80, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(seed=st.integers(0, 2**32 - 1), n=st.integers(1, 9), form=st.sampled_from(["lcp", "mlcp", "box"]),
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(1, 9),
+       form=st.sampled_from(["lcp", "mlcp", "box"]),
        sparse=st.booleans(), zero_frac=st.sampled_from([0.0, 0.3, 0.8]))
 def test_kernel_agrees_with_the_independent_reference(seed, n, form, sparse, zero_frac):
     rng = np.random.default_rng(seed)

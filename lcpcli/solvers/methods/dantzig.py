@@ -89,6 +89,6 @@ METHODS = [
         kinds=("lcp", "box"),
         options={"max_iter": Option(positive_int, None, "pivot limit (default max(1000, 50 n))")},
         prepare=prepare,
-        scaling="symmetric",
+        scaling="auto",
     ),
 ]

@@ -179,6 +179,6 @@ METHODS = [
                                f"iteration limit (default {DEFAULT_MAX_ITER})"),
         },
         aliases=("interior-point",),
-        scaling="symmetric",
+        scaling="auto",
     ),
 ]
