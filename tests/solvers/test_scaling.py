@@ -162,3 +162,15 @@ def test_a_wrong_warm_start_is_not_accepted(method):
         lcpcli.solve(p, method, z0=[1.0, 0.0])
     if r.status == "solved":
         assert np.allclose(r.z, [4 / 3, 7 / 3])
+
+
+@pytest.mark.parametrize("s", [1e-300, 1e-12, 1.0, 1e6, 1e100, 1e300])
+def test_enumeration_of_scaled_seed004(s):
+    from lcpcli.analysis.enumeration import enumerate_cones
+
+    p = Problem.create(np.array([[2.0, 1.0], [1.0, 2.0]]) * s, np.array([-5.0, -6.0]) * s)
+    e = enumerate_cones(p, all_cones=True)
+    assert e.verdict == "unique" and len(e.solutions) == 1
+    assert np.allclose(e.solutions[0].z, [4 / 3, 7 / 3], rtol=1e-12)
+    assert e.solutions[0].certificate.passed
+    assert [c.rank for c in e.cones] == [2, 2, 2, 2]
