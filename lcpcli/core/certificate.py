@@ -75,7 +75,7 @@ MIN_TOL = 1e-16
 MAX_TOL = 1e-2
 
 
-@dataclass(frozen=True)
+@dataclass(slots=True)
 class Certificate:
     """The checked numbers of a candidate solution (definitions in the module docstring)."""
 
@@ -119,7 +119,9 @@ def check(problem: Any, z: Any, tol: float = DEFAULT_TOL, *,
     ``passed`` is true when every number is finite and ``error <= tol``.  ``state`` (int8,
     length n), when given, receives each pair's state (``AT_LOWER``, ``AT_UPPER``, ``BETWEEN``).
     """
-    z = np.ascontiguousarray(z, dtype=np.float64).ravel()
+    if not (type(z) is np.ndarray and z.dtype == np.float64 and z.ndim == 1
+            and z.flags.c_contiguous):
+        z = np.ascontiguousarray(z, dtype=np.float64).ravel()
     n = problem.n
     if z.shape[0] != n:
         raise ValueError(f"z has length {z.shape[0]}, the problem has n = {n}")
