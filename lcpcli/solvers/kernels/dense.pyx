@@ -1,0 +1,279 @@
+# cython: language_level=3, boundscheck=False, wraparound=False, cdivision=True
+"""Small dense LU, solves and inverses for the kernels (row-major, ``nogil``).
+
+Sizes below :data:`LAPACK_MIN` use the loops here (partial pivoting, row-oriented
+elimination: no library call, no import).  From ``LAPACK_MIN`` up, and once
+:func:`bind_lapack` has run, the same functions call LAPACK's ``dgetrf``/``dgetrs``/``dgetri``
+through the function pointers that ``scipy.linalg.cython_lapack`` exports as capsules in
+``__pyx_capi__`` (what ``cimport`` does underneath, without importing scipy when this module
+is imported).  A row-major ``A`` is LAPACK's column-major ``A^T``: ``dgetrf`` factors ``A^T``,
+``dgetrs`` with ``trans = 'T'`` then solves ``A x = b``, and ``dgetri`` of ``A^T`` is
+``inv(A)^T`` in column-major, i.e. ``inv(A)`` in row-major.
+
+All functions return 0 on success and ``k + 1`` when the ``k``-th pivot is exactly zero
+(LAPACK's ``info`` convention: singular to working precision means an exact zero pivot).
+"""
+
+from cpython.pycapsule cimport PyCapsule_GetName, PyCapsule_GetPointer
+from libc.math cimport fabs
+from libc.stdlib cimport free, malloc
+from libc.string cimport memcpy
+
+ctypedef void (*dgetrf_t)(int* m, int* n, double* a, int* lda, int* ipiv,
+                          int* info) noexcept nogil
+ctypedef void (*dgetrs_t)(char* trans, int* n, int* nrhs, double* a, int* lda, int* ipiv,
+                          double* b, int* ldb, int* info) noexcept nogil
+ctypedef void (*dgetri_t)(int* n, double* a, int* lda, int* ipiv, double* work, int* lwork,
+                          int* info) noexcept nogil
+
+cdef dgetrf_t _dgetrf = NULL
+cdef dgetrs_t _dgetrs = NULL
+cdef dgetri_t _dgetri = NULL
+
+#: From this size up the LU, solves and inverses call LAPACK (once :func:`bind_lapack` ran).
+LAPACK_MIN = 64
+cdef Py_ssize_t _lapack_min = LAPACK_MIN
+
+
+cdef Py_ssize_t lapack_min() noexcept nogil:
+    return _lapack_min
+
+
+def set_lapack_min(Py_ssize_t m):
+    """Change the LAPACK crossover (for benchmarks; ``m <= 0`` restores the default)."""
+    global _lapack_min
+    _lapack_min = m if m > 0 else LAPACK_MIN
+
+
+def lapack_bound():
+    """Whether the LAPACK pointers are bound (after :func:`bind_lapack`)."""
+    return _dgetrf != NULL
+
+
+cdef void* _pointer(object capi, str name) except NULL:
+    cap = capi[name]
+    return PyCapsule_GetPointer(cap, PyCapsule_GetName(cap))
+
+
+def bind_lapack():
+    """Bind dgetrf/dgetrs/dgetri from scipy's capsules (idempotent).
+
+    Imports ``scipy.linalg`` (about 0.3 s), so callers do it only for a size that needs it
+    (see :func:`need`).  Without it the loops here are used at every size.
+    """
+    global _dgetrf, _dgetrs, _dgetri
+    if _dgetrf != NULL:
+        return
+    # heavy import (scipy.linalg, ~0.3 s): only when a large factorisation needs it
+    from scipy.linalg import cython_lapack
+    capi = cython_lapack.__pyx_capi__
+    _dgetrs = <dgetrs_t>_pointer(capi, "dgetrs")
+    _dgetri = <dgetri_t>_pointer(capi, "dgetri")
+    _dgetrf = <dgetrf_t>_pointer(capi, "dgetrf")
+
+
+def need(Py_ssize_t m):
+    """Bind LAPACK if a factorisation of size ``m`` will use it (call before a kernel)."""
+    ensure_lapack(m)
+
+
+cdef int ensure_lapack(Py_ssize_t m) except -1:
+    """C-level :func:`need` (with the GIL): bind LAPACK when ``m`` reaches the crossover."""
+    if m >= _lapack_min and _dgetrf == NULL:
+        bind_lapack()
+    return 0
+
+
+cdef inline bint _use_lapack(Py_ssize_t m) noexcept nogil:
+    return m >= _lapack_min and _dgetrf != NULL
+
+
+cdef int lu_factor(double* a, Py_ssize_t m, int* ipiv) noexcept nogil:
+    """In-place LU with partial pivoting of the row-major ``m x m`` ``a``.
+
+    Own loops: ``P A = L U`` with ``ipiv[k]`` the row swapped with row ``k``.  LAPACK (large
+    m): the factors of ``A^T`` (use only through :func:`lu_solve`).
+    """
+    cdef Py_ssize_t i, j, k, p
+    cdef double best, v, f, piv
+    cdef double* rk
+    cdef double* ri
+    cdef int mm, info
+    if _use_lapack(m):
+        mm = <int>m
+        info = 0
+        _dgetrf(&mm, &mm, a, &mm, ipiv, &info)
+        return info if info > 0 else 0
+    for k in range(m):
+        p = k
+        best = fabs(a[k * m + k])
+        for i in range(k + 1, m):
+            v = fabs(a[i * m + k])
+            if v > best:
+                best = v
+                p = i
+        ipiv[k] = <int>p
+        if best == 0.0:
+            return <int>(k + 1)
+        if p != k:
+            for j in range(m):
+                v = a[k * m + j]
+                a[k * m + j] = a[p * m + j]
+                a[p * m + j] = v
+        rk = a + k * m
+        piv = rk[k]
+        for i in range(k + 1, m):
+            ri = a + i * m
+            f = ri[k] / piv
+            ri[k] = f
+            if f != 0.0:
+                for j in range(k + 1, m):
+                    ri[j] -= f * rk[j]
+    return 0
+
+
+cdef void lu_solve(const double* lu, Py_ssize_t m, const int* ipiv, double* b) noexcept nogil:
+    """Solve ``A x = b`` in place from :func:`lu_factor`'s output."""
+    cdef Py_ssize_t i, j, k
+    cdef double s, v
+    cdef int mm, one, info
+    cdef char trans
+    if _use_lapack(m):
+        mm = <int>m
+        one = 1
+        info = 0
+        trans = b'T'
+        _dgetrs(&trans, &mm, &one, <double*>lu, &mm, <int*>ipiv, b, &mm, &info)
+        return
+    for k in range(m):
+        i = ipiv[k]
+        if i != k:
+            v = b[k]
+            b[k] = b[i]
+            b[i] = v
+    for i in range(1, m):
+        s = b[i]
+        for j in range(i):
+            s -= lu[i * m + j] * b[j]
+        b[i] = s
+    for i in range(m - 1, -1, -1):
+        s = b[i]
+        for j in range(i + 1, m):
+            s -= lu[i * m + j] * b[j]
+        b[i] = s / lu[i * m + i]
+
+
+cdef int invert(const double* a, Py_ssize_t m, double* out, double* work,
+                int* ipiv) noexcept nogil:
+    """``out = inv(a)`` (row-major ``m x m``); ``work`` holds ``m * m + m`` doubles.
+
+    Returns 0, or ``k + 1`` for an exactly zero pivot (``out`` is then undefined).
+    """
+    cdef Py_ssize_t i, j
+    cdef int info, mm, lwork
+    cdef double* col
+    if _use_lapack(m):
+        memcpy(out, a, m * m * sizeof(double))
+        mm = <int>m
+        info = 0
+        _dgetrf(&mm, &mm, out, &mm, ipiv, &info)
+        if info > 0:
+            return info
+        lwork = <int>(m * m + m)
+        _dgetri(&mm, out, &mm, ipiv, work, &lwork, &info)
+        return info if info > 0 else 0
+    memcpy(work, a, m * m * sizeof(double))
+    info = lu_factor(work, m, ipiv)
+    if info:
+        return info
+    col = work + m * m
+    for j in range(m):
+        for i in range(m):
+            col[i] = 0.0
+        col[j] = 1.0
+        lu_solve(work, m, ipiv, col)
+        for i in range(m):
+            out[i * m + j] = col[i]
+    return 0
+
+
+cdef int solve_refined(const double* a, Py_ssize_t m, double* x, double* lu, double* r,
+                       int* ipiv) noexcept nogil:
+    """Solve ``a x = b`` (``x`` holds ``b`` on entry) with one step of iterative refinement.
+
+    ``lu`` (``m * m``) and ``r`` (``m``) are work space.  Returns 0 or ``k + 1`` (singular).
+    """
+    cdef Py_ssize_t i, j
+    cdef double s
+    cdef int info
+    memcpy(lu, a, m * m * sizeof(double))
+    memcpy(r, x, m * sizeof(double))  # r = b for now
+    info = lu_factor(lu, m, ipiv)
+    if info:
+        return info
+    lu_solve(lu, m, ipiv, x)
+    for i in range(m):
+        s = 0.0
+        for j in range(m):
+            s += a[i * m + j] * x[j]
+        r[i] = r[i] - s
+    lu_solve(lu, m, ipiv, r)
+    for i in range(m):
+        x[i] += r[i]
+    return 0
+
+
+def solve(a, b):
+    """``x`` with ``a x = b`` (one refinement step); ``LinAlgError`` when singular.
+
+    A thin wrapper for tests: the kernels call the C functions directly.
+    """
+    import numpy as np
+    cdef double[:, ::1] A = np.ascontiguousarray(a, dtype=np.float64)
+    cdef Py_ssize_t m = A.shape[0]
+    if A.shape[1] != m:
+        raise ValueError("a must be square")
+    x = np.array(b, dtype=np.float64).reshape(m)
+    cdef double[::1] X = x
+    need(m)
+    cdef double* lu = <double*>malloc((m * m + m + 1) * sizeof(double))
+    cdef int* ipiv = <int*>malloc((m + 1) * sizeof(int))
+    cdef int info
+    if lu == NULL or ipiv == NULL:
+        free(lu)
+        free(ipiv)
+        raise MemoryError()
+    with nogil:
+        info = solve_refined(&A[0, 0] if m else NULL, m, &X[0] if m else NULL, lu, lu + m * m,
+                             ipiv)
+    free(lu)
+    free(ipiv)
+    if info:
+        raise np.linalg.LinAlgError("singular matrix")
+    return x
+
+
+def inv(a):
+    """``inv(a)``; ``LinAlgError`` when singular (a thin wrapper for tests)."""
+    import numpy as np
+    cdef double[:, ::1] A = np.ascontiguousarray(a, dtype=np.float64)
+    cdef Py_ssize_t m = A.shape[0]
+    out = np.empty((m, m))
+    cdef double[:, ::1] O = out
+    if m == 0:
+        return out
+    need(m)
+    cdef double* work = <double*>malloc((m * m + m) * sizeof(double))
+    cdef int* ipiv = <int*>malloc(m * sizeof(int))
+    cdef int info
+    if work == NULL or ipiv == NULL:
+        free(work)
+        free(ipiv)
+        raise MemoryError()
+    with nogil:
+        info = invert(&A[0, 0], m, &O[0, 0], work, ipiv)
+    free(work)
+    free(ipiv)
+    if info:
+        raise np.linalg.LinAlgError("singular matrix")
+    return out
