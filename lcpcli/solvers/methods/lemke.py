@@ -10,7 +10,8 @@ Independently of the class, when the ray yields ``y >= 0`` with ``M^T y <= 0`` a
 ``q^T y < 0`` (a Farkas certificate: no ``z >= 0`` has ``M z + q >= 0``) the verdict is
 ``no_solution`` with that proof.
 
-Cost: O(n^2) per pivot (rank-one tableau update in a compiled kernel, :mod:`lcpcli.solvers.kernels.lemke`).  The final basis is
+Cost: O(n^2) per pivot (rank-one tableau update in the compiled kernel
+:mod:`lcpcli.solvers.kernels.lemke`).  The final basis is
 re-solved with a dense LU factorisation (one step of refinement) so the answer is accurate to
 the conditioning of the basic block, not to the accumulated tableau updates.
 """
