@@ -6,9 +6,14 @@ elimination: no library call, no import).  From ``LAPACK_MIN`` up, and once
 :func:`bind_lapack` has run, the same functions call LAPACK's ``dgetrf``/``dgetrs``/``dgetri``
 through the function pointers that ``scipy.linalg.cython_lapack`` exports as capsules in
 ``__pyx_capi__`` (what ``cimport`` does underneath, without importing scipy when this module
-is imported).  A row-major ``A`` is LAPACK's column-major ``A^T``: ``dgetrf`` factors ``A^T``,
-``dgetrs`` with ``trans = 'T'`` then solves ``A x = b``, and ``dgetri`` of ``A^T`` is
-``inv(A)^T`` in column-major, i.e. ``inv(A)`` in row-major.
+is imported).  A row-major buffer is LAPACK's column-major transpose, so the LAPACK path
+transposes in place first (O(m^2)) and factors ``A`` itself, as ``numpy.linalg.solve`` does
+(same pivoting, same answers).
+
+The crossover (:data:`LAPACK_MIN` = 64) is above the per-call one (32-40 on the development
+machine, single-threaded OpenBLAS: ``benchmarks/bench_kernels.py --crossover``) because binding
+LAPACK imports ``scipy.linalg`` once (about 0.3 s, the cost of 10^4 small solves): problems
+below 64 basic variables never import scipy.
 
 All functions return 0 on success and ``k + 1`` when the ``k``-th pivot is exactly zero
 (LAPACK's ``info`` convention: singular to working precision means an exact zero pivot).
@@ -88,11 +93,21 @@ cdef inline bint _use_lapack(Py_ssize_t m) noexcept nogil:
     return m >= _lapack_min and _dgetrf != NULL
 
 
+cdef void _transpose(double* a, Py_ssize_t m) noexcept nogil:
+    cdef Py_ssize_t i, j
+    cdef double v
+    for i in range(m):
+        for j in range(i + 1, m):
+            v = a[i * m + j]
+            a[i * m + j] = a[j * m + i]
+            a[j * m + i] = v
+
+
 cdef int lu_factor(double* a, Py_ssize_t m, int* ipiv) noexcept nogil:
     """In-place LU with partial pivoting of the row-major ``m x m`` ``a``.
 
     Own loops: ``P A = L U`` with ``ipiv[k]`` the row swapped with row ``k``.  LAPACK (large
-    m): the factors of ``A^T`` (use only through :func:`lu_solve`).
+    m): ``dgetrf``'s column-major factors of ``A`` (use only through :func:`lu_solve`).
     """
     cdef Py_ssize_t i, j, k, p
     cdef double best, v, f, piv
@@ -100,6 +115,7 @@ cdef int lu_factor(double* a, Py_ssize_t m, int* ipiv) noexcept nogil:
     cdef double* ri
     cdef int mm, info
     if _use_lapack(m):
+        _transpose(a, m)
         mm = <int>m
         info = 0
         _dgetrf(&mm, &mm, a, &mm, ipiv, &info)
@@ -142,7 +158,7 @@ cdef void lu_solve(const double* lu, Py_ssize_t m, const int* ipiv, double* b) n
         mm = <int>m
         one = 1
         info = 0
-        trans = b'T'
+        trans = b'N'
         _dgetrs(&trans, &mm, &one, <double*>lu, &mm, <int*>ipiv, b, &mm, &info)
         return
     for k in range(m):
@@ -165,15 +181,20 @@ cdef void lu_solve(const double* lu, Py_ssize_t m, const int* ipiv, double* b) n
 
 cdef int invert(const double* a, Py_ssize_t m, double* out, double* work,
                 int* ipiv) noexcept nogil:
-    """``out = inv(a)`` (row-major ``m x m``); ``work`` holds ``m * m + m`` doubles.
+    """``out = inv(a)`` (row-major ``m x m``); ``work`` holds ``m * m + m`` doubles, ``ipiv`` m.
 
     Returns 0, or ``k + 1`` for an exactly zero pivot (``out`` is then undefined).
     """
-    cdef Py_ssize_t i, j
+    cdef Py_ssize_t i, j, k, p
     cdef int info, mm, lwork
-    cdef double* col
+    cdef double best, v, piv, f
+    cdef double* rk
+    cdef double* ri
+    cdef double* ok
+    cdef double* oi
     if _use_lapack(m):
         memcpy(out, a, m * m * sizeof(double))
+        _transpose(out, m)
         mm = <int>m
         info = 0
         _dgetrf(&mm, &mm, out, &mm, ipiv, &info)
@@ -181,19 +202,50 @@ cdef int invert(const double* a, Py_ssize_t m, double* out, double* work,
             return info
         lwork = <int>(m * m + m)
         _dgetri(&mm, out, &mm, ipiv, work, &lwork, &info)
+        _transpose(out, m)
         return info if info > 0 else 0
+    # Gauss-Jordan with partial pivoting on [A | I] (row-major rows of length 2m would need
+    # 2 m^2 work; instead A is reduced in ``work`` while the same row operations build ``out``)
     memcpy(work, a, m * m * sizeof(double))
-    info = lu_factor(work, m, ipiv)
-    if info:
-        return info
-    col = work + m * m
-    for j in range(m):
+    for i in range(m):
+        for j in range(m):
+            out[i * m + j] = 0.0
+        out[i * m + i] = 1.0
+    for k in range(m):
+        p = k
+        best = fabs(work[k * m + k])
+        for i in range(k + 1, m):
+            v = fabs(work[i * m + k])
+            if v > best:
+                best = v
+                p = i
+        if best == 0.0:
+            return <int>(k + 1)
+        if p != k:
+            for j in range(m):
+                v = work[k * m + j]
+                work[k * m + j] = work[p * m + j]
+                work[p * m + j] = v
+                v = out[k * m + j]
+                out[k * m + j] = out[p * m + j]
+                out[p * m + j] = v
+        rk = work + k * m
+        ok = out + k * m
+        piv = 1.0 / rk[k]
+        for j in range(m):
+            rk[j] *= piv
+            ok[j] *= piv
         for i in range(m):
-            col[i] = 0.0
-        col[j] = 1.0
-        lu_solve(work, m, ipiv, col)
-        for i in range(m):
-            out[i * m + j] = col[i]
+            if i == k:
+                continue
+            ri = work + i * m
+            oi = out + i * m
+            f = ri[k]
+            if f != 0.0:
+                for j in range(k, m):
+                    ri[j] -= f * rk[j]
+                for j in range(m):
+                    oi[j] -= f * ok[j]
     return 0
 
 
