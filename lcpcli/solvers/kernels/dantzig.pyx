@@ -26,7 +26,7 @@ from libc.math cimport INFINITY, fabs
 from libc.stdint cimport int64_t
 from libc.stdlib cimport free, malloc
 
-from lcpcli.solvers.kernels.dense cimport ensure_lapack, invert
+from lcpcli.solvers.kernels.dense cimport invert
 
 import numpy as np
 
@@ -411,7 +411,6 @@ def dantzig_kernel(M, q, lo, up, order, int64_t max_piv, int64_t refactor_period
     cdef int64_t pivots = 0
     if n == 0:
         return status, z, 0, state
-    ensure_lapack(n)  # a refactorisation of a large block may use LAPACK
     with nogil:
         rc = dantzig(&Mv[0, 0], &qv[0], &lv[0], &uv[0], &ov[0], n, max_piv, refactor_period,
                      refine, &zv[0], &sv[0], &status, &pivots)

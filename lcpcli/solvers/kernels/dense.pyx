@@ -48,6 +48,7 @@ def set_lapack_min(Py_ssize_t m):
     """Change the LAPACK crossover (for benchmarks; ``m <= 0`` restores the default)."""
     global _lapack_min
     _lapack_min = m if m > 0 else LAPACK_MIN
+    return None
 
 
 def lapack_bound():
@@ -78,7 +79,9 @@ def bind_lapack():
 
 
 def need(Py_ssize_t m):
-    """Bind LAPACK if a factorisation of size ``m`` will use it (call before a kernel)."""
+    """Bind LAPACK now if a factorisation of size ``m`` will use it (optional: the functions
+    bind it themselves on first need, taking the GIL once; a batched driver may call this
+    before its parallel loop)."""
     ensure_lapack(m)
 
 
@@ -89,8 +92,18 @@ cdef int ensure_lapack(Py_ssize_t m) except -1:
     return 0
 
 
-cdef inline bint _use_lapack(Py_ssize_t m) noexcept nogil:
-    return m >= _lapack_min and _dgetrf != NULL
+cdef bint _use_lapack(Py_ssize_t m) noexcept nogil:
+    """Whether size ``m`` goes to LAPACK; binds it on first need (takes the GIL for that once;
+    if scipy is missing the loops here are used at every size)."""
+    if m < _lapack_min:
+        return False
+    if _dgetrf == NULL:
+        with gil:
+            try:
+                bind_lapack()
+            except Exception:  # no scipy: keep the own loops
+                set_lapack_min(1 << 62)
+    return _dgetrf != NULL
 
 
 cdef void _transpose(double* a, Py_ssize_t m) noexcept nogil:

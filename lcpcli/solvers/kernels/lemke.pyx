@@ -23,7 +23,7 @@ from libc.math cimport INFINITY, fabs, isfinite
 from libc.stdint cimport int64_t
 from libc.stdlib cimport free, malloc
 
-from lcpcli.solvers.kernels.dense cimport ensure_lapack, solve_refined
+from lcpcli.solvers.kernels.dense cimport solve_refined
 
 import numpy as np
 
@@ -440,13 +440,8 @@ def polish_kernel(M, q, z, basic):
     res = np.empty(n)
     cdef double[::1] ov = res
     cdef int rc
-    cdef Py_ssize_t i, m = 0
     if n == 0:
         return res
-    for i in range(n):
-        if n <= bv[i] < 2 * n:
-            m += 1
-    ensure_lapack(m)
     with nogil:
         rc = polish(&Mv[0, 0], &qv[0], n, &zv[0], &bv[0], &ov[0])
     if rc:

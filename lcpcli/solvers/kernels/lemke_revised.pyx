@@ -31,7 +31,7 @@ from libc.math cimport fabs, isfinite
 from libc.stdint cimport int64_t
 from libc.stdlib cimport free, malloc
 
-from lcpcli.solvers.kernels.dense cimport ensure_lapack, invert
+from lcpcli.solvers.kernels.dense cimport invert
 from lcpcli.solvers.kernels.lemke cimport (
     LEMKE_MAX_ITER,
     LEMKE_OK,
@@ -556,7 +556,6 @@ def lemke_revised_kernel(M, q, d, int64_t max_iter, double piv_tol, double tie_t
     cdef int rc
     if n == 0:
         return TRIVIAL, z, 0, basic, ray, 0.0, 0.0, 0
-    ensure_lapack(n)  # a refactorisation may need LAPACK (binds only from its crossover up)
     with nogil:
         rc = lemke_revised(&Mv[0, 0], &qv[0], &dv[0], n, max_iter, piv_tol, tie_tol,
                            &rv[0, 0] if nrec else NULL, nrec, refactor_every, &zv[0], &bv[0],
