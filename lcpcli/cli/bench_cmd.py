@@ -62,10 +62,12 @@ def bench(
     """Benchmark solver methods: time, achieved error and verdict on each problem.
 
     Every answer is re-certified; a method that claims 'solved' with a failing certificate, or
-    'no_solution' on a problem known to be solvable, is a DEFECT. Exit codes: 0 no defect;
-    1 at least one defect; 2 bad usage or bad input.
+    'no_solution' on a problem known to be solvable, is a DEFECT. Exit codes: 0 no defect and
+    no error; 1 at least one defect; 2 bad usage or bad input; 3 a method raised or its
+    process died (an internal error; the rows say which).
     """
     from lcpcli.bench import runner as B
+    from lcpcli.cli import EXIT_INTERNAL
     from lcpcli.cli.common import stderr_console, stdout_console, write_json_line
     from lcpcli.core.errors import OptionError
 
@@ -132,7 +134,11 @@ def bench(
         write_plot(report, plot)
     for rec in report.defects:
         err.print(f"lcpcli: DEFECT: {rec.method} on {rec.problem}: {rec.defect_reason}")
-    return 1 if report.defects else 0
+    for rec in report.errors:
+        err.print(f"lcpcli: ERROR: {rec.method} on {rec.problem}: {rec.message}")
+    if report.defects:
+        return 1
+    return EXIT_INTERNAL if report.errors else 0
 
 
 def register(app: typer.Typer) -> None:
