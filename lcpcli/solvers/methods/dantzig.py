@@ -27,7 +27,7 @@ import numpy as np
 
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, NUMERICAL, RAY, Outcome
 from lcpcli.solvers.options import positive_int
-from lcpcli.solvers.registry import Method, Option
+from lcpcli.solvers.registry import Cost, Guarantee, Method, Option, when
 
 
 def prepare() -> None:
@@ -84,8 +84,13 @@ METHODS = [
         run=run,
         summary="Cottle-Dantzig principal pivoting (ODE's dLCP): one index at a time, "
                 "clamped block inverse updated in O(k^2)",
-        matrix_classes="symmetric PSD (incl. PD) and P-matrices; box bounds, infinite sides, "
-                       "free variables",
+        guarantees=(
+            Guarantee(when("symmetric", "psd"), "finite principal pivoting"),
+            Guarantee(when("p_matrix"), "finite principal pivoting", kinds=("lcp",)),
+        ),
+        notes="box bounds, infinite sides and free variables handled",
+        cost=Cost.PIVOTING,
+        preference=30,
         kinds=("lcp", "box"),
         options={"max_iter": Option(positive_int, None, "pivot limit (default max(1000, 50 n))")},
         prepare=prepare,

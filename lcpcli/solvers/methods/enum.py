@@ -19,7 +19,7 @@ import numpy as np
 
 from lcpcli.core.result import CONVERGED, INFEASIBLE, NUMERICAL, Outcome
 from lcpcli.solvers.options import bool_option
-from lcpcli.solvers.registry import Method, Option
+from lcpcli.solvers.registry import Cost, Guarantee, Method, Option, when
 
 
 def _max_n(value: Any) -> int:
@@ -35,7 +35,12 @@ def prepare() -> None:
     prep()
 
 
-def run(problem: Any, *, tol: float, max_n: int = 24, all: bool = False) -> Outcome:  # noqa: A002
+#: Largest n enumerated unless the ``max_n`` option says otherwise.
+DEFAULT_MAX_N = 24
+
+
+def run(problem: Any, *, tol: float, max_n: int = DEFAULT_MAX_N,
+        all: bool = False) -> Outcome:  # noqa: A002
     """Enumerate the cones of ``problem``; return the first solution (or all, counted)."""
     from lcpcli.analysis.enumeration import basis_names, enumerate_cones
 
@@ -72,10 +77,13 @@ METHODS = [
         name="enum",
         run=run,
         summary="Enumeration of the 2^n complementary cones (seed 004), exhaustive",
-        matrix_classes="any M (small n): finds a solution or proves there is none",
+        guarantees=(Guarantee(when(), "a solution, or the proof that none exists (2^n cones)"),),
+        max_n=DEFAULT_MAX_N,
+        cost=Cost.EXHAUSTIVE,
         kinds=("lcp",),
         options={
-            "max_n": Option(_max_n, 24, "refuse problems with more variables (default 24)"),
+            "max_n": Option(_max_n, DEFAULT_MAX_N,
+                            f"refuse problems with more variables (default {DEFAULT_MAX_N})"),
             "all": Option(bool_option, False, "visit every cone and count the distinct solutions"),
         },
         prepare=prepare,

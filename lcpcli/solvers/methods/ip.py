@@ -30,7 +30,7 @@ import numpy as np
 from lcpcli.analysis.classify import is_symmetric
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, NUMERICAL, Outcome
 from lcpcli.solvers.options import positive_int
-from lcpcli.solvers.registry import Method, Option
+from lcpcli.solvers.registry import Cost, Guarantee, Method, Option, when
 from lcpcli.solvers.support import active_set_polish, scaled_error
 
 DEFAULT_MAX_ITER = 100
@@ -173,7 +173,11 @@ METHODS = [
         run=run,
         summary="primal-dual interior point, Mehrotra predictor-corrector, with active-set "
                 "rounding (dense or sparse)",
-        matrix_classes="monotone LCPs (M positive semidefinite, symmetric or not)",
+        guarantees=(Guarantee(when("psd"), "monotone LCP: converges when a solution exists"),),
+        cost=Cost.FACTORING,
+        preference=20,
+        fallback="no guarantee outside monotone problems",
+        auto_max_iter=DEFAULT_MAX_ITER,
         kinds=("lcp",),
         sparse=True,
         options={

@@ -23,7 +23,7 @@ import numpy as np
 
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, RAY, Outcome
 from lcpcli.solvers.options import bool_option, positive_int, vector_option
-from lcpcli.solvers.registry import Method, Option
+from lcpcli.solvers.registry import Cost, Guarantee, Method, Option, when
 
 #: Relative pivot tolerance: entries below this fraction of the column's largest are not pivots.
 PIVOT_TOL = 1e-11
@@ -146,12 +146,20 @@ def ray_outcome(problem: Any, M: np.ndarray, q: np.ndarray, z: np.ndarray, pivot
                    f"(try another method)")
 
 
+#: Lemke's classes (both Lemke methods, and the inner LCP of the MLCP methods).
+GUARANTEES = (
+    Guarantee(when("p_matrix"), "finite: the unique solution"),
+    Guarantee(when("psd"), "copositive-plus: a solution, or a proof that none exists"),
+)
+
 METHODS = [
     Method(
         name="lemke-tableau",
         run=run,
         summary="Lemke's complementary pivoting, dense tableau, lexicographic anti-cycling",
-        matrix_classes="P-matrices; copositive-plus (incl. PSD): solution or proof of none",
+        guarantees=GUARANTEES,
+        cost=Cost.PIVOTING,
+        preference=20,  # after lemke-revised, which is faster (benchmarks/bench_lemke.py)
         kinds=("lcp",),
         options={
             "covering": Option(vector_option, None, "covering vector d > 0 (default all ones)"),

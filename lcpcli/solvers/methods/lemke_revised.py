@@ -24,6 +24,7 @@ import numpy as np
 
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, NUMERICAL, Outcome
 from lcpcli.solvers.methods.lemke import (
+    GUARANTEES,
     NO_RECORD,
     PIVOT_TOL,
     TIE_TOL,
@@ -33,7 +34,7 @@ from lcpcli.solvers.methods.lemke import (
     ray_outcome,
 )
 from lcpcli.solvers.options import bool_option, positive_int, vector_option
-from lcpcli.solvers.registry import Method, Option
+from lcpcli.solvers.registry import Cost, Method, Option
 
 
 def _refactor_every(value: Any) -> int:
@@ -115,7 +116,10 @@ METHODS = [
         run=run,
         summary="Lemke's complementary pivoting, revised: seed 000 transform with an updated "
                 "inverse of M^(alpha beta), lexicographic anti-cycling",
-        matrix_classes="P-matrices; copositive-plus (incl. PSD): solution or proof of none",
+        guarantees=GUARANTEES,
+        cost=Cost.PIVOTING,
+        preference=10,
+        fallback="solves many problems outside its classes (a ray then proves nothing)",
         kinds=("lcp",),
         options={
             "covering": Option(vector_option, None, "covering vector d > 0 (default all ones)"),

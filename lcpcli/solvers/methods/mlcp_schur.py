@@ -21,7 +21,7 @@ import numpy as np
 
 from lcpcli.core.result import CONVERGED, NUMERICAL, Outcome
 from lcpcli.solvers.options import positive_int
-from lcpcli.solvers.registry import Method, Option
+from lcpcli.solvers.registry import Cost, Guarantee, Method, Option, when
 
 #: Largest pivot-block condition under which an infeasibility proof on the reduced LCP is
 #: reported as a proof for the MLCP (above it, roundoff in the reduction could fake one).
@@ -99,8 +99,13 @@ METHODS = [
         run=run,
         summary="MLCP: eliminate the free variables by the Schur complement of A (LU), "
                 "solve the LCP left with an inner method, recover u",
-        matrix_classes="A invertible and well conditioned; Schur complement in the inner "
-                       "method's class (lemke: P or copositive-plus/PSD)",
+        guarantees=(Guarantee(when("p_matrix"), "A is nonsingular and the Schur complement "
+                                                "is P: finite with lemke"),),
+        notes="generally: A invertible and well conditioned, Schur complement in the inner "
+              "method's class (lemke: P or copositive-plus/PSD)",
+        cost=Cost.PIVOTING,
+        preference=10,
+        fallback="eliminates the free variables when A is well conditioned",
         kinds=("mlcp",),
         options={
             "inner": Option(str, "lemke", "inner LCP method for the Schur complement"),

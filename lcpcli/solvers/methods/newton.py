@@ -40,7 +40,7 @@ import numpy as np
 
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, NUMERICAL, Outcome
 from lcpcli.solvers.options import positive_int, vector_option
-from lcpcli.solvers.registry import Method, Option
+from lcpcli.solvers.registry import Cost, Guarantee, Method, Option, when
 from lcpcli.solvers.support import active_set_polish, scaled_error, start_point
 
 DEFAULT_MAX_ITER = 200
@@ -311,8 +311,15 @@ METHODS = [
         run=run_fb,
         summary="semismooth Newton on the Fischer-Burmeister function, Armijo line search "
                 "(dense LU or sparse LU)",
-        matrix_classes="P-matrices and monotone (PSD) problems (global, via the smooth merit); "
-                       "non-symmetric, zero diagonal, MLCP free rows and box bounds handled",
+        guarantees=(
+            Guarantee(when("p_matrix"), "globally convergent (FB merit): the unique solution"),
+            Guarantee(when("psd"), "monotone: globally convergent when a solution exists"),
+        ),
+        notes="non-symmetric, zero diagonal, MLCP free rows and box bounds handled",
+        cost=Cost.FACTORING,
+        preference=10,
+        fallback="semismooth Newton handles any square M (may stop at a stationary point)",
+        auto_max_iter=100,
         kinds=("lcp", "mlcp", "box"),
         sparse=True,
         options=dict(_OPTIONS),
@@ -322,8 +329,12 @@ METHODS = [
         name="newton-min",
         run=run_min,
         summary="semismooth Newton on the min / mid map (natural residual), Armijo line search",
-        matrix_classes="P-matrices near the solution (locally fast); not globally convergent: "
-                       "may stall on degenerate or singular problems",
+        notes="locally fast near a solution; not globally convergent: may stall on "
+              "degenerate or singular problems",
+        cost=Cost.FACTORING,
+        preference=30,
+        fallback="min-map Newton, locally fast",
+        auto_max_iter=50,
         kinds=("lcp", "mlcp", "box"),
         sparse=True,
         options=dict(_OPTIONS),
