@@ -668,6 +668,9 @@ class Classifier:
 
     def cheap(self, prop: str) -> bool | None:
         """``prop`` if its test is O(n^2) or cheaper (run if needed), else :meth:`known`."""
+        value = getattr(self.report, prop)
+        if value is not None:
+            return value
         if prop in CHEAP:
             return self.get(prop)
         return self.known(prop)

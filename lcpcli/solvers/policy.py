@@ -100,6 +100,8 @@ class Row:
     preference: int
     #: The reason when the condition is assumed (optimistic first attempt).
     assumed_reason: str = ""
+    #: The method's record (None in tables built without one).
+    spec: Method | None = None
 
 
 class Step(NamedTuple):
@@ -123,9 +125,9 @@ def rows(kind: str, registry: Mapping[str, Method]) -> list[Row]:
                 reason = f"{g.when}: {g.claim}" if g.when.props else g.claim
                 assumed = f"{g.claim}, if M is {g.when} (not tested before this first attempt)"
                 out.append(Row(g.when, name, reason, 1 if g.slow else 0, m.cost, m.preference,
-                               assumed))
+                               assumed, m))
         if m.fallback is not None:
-            out.append(Row(when(), name, m.fallback, 2, m.cost, m.preference))
+            out.append(Row(when(), name, m.fallback, 2, m.cost, m.preference, m.fallback, m))
     return out
 
 
@@ -148,6 +150,8 @@ def regime_of(c: Classifier) -> Regime:
 
 def _startable(m: Method, c: Classifier, value: Callable[[str], bool | None]) -> bool:
     """False when ``m`` cannot start on the problem (too large, a failed requirement)."""
+    if m.max_n is None and not m.needs and (m.sparse or not c.report.sparse):
+        return True
     if m.max_n is not None and c.report.n > m.max_n:
         return False
     if c.report.sparse and m.densifies(c.problem):
@@ -182,18 +186,17 @@ def plan(problem: Any, c: Classifier, registry: Mapping[str, Method] | None = No
     methods already tried.  ``first``: stop at the first step (auto's first attempt).
     """
     table = _table(c.report.kind, regime or regime_of(c), registry)
-    reg = methods() if registry is None else registry
     value = c.cheap if optimistic else c.get
     done = set(skip)
     steps: list[Step] = []
     for row in table:
         if row.method in done:
             continue
-        holds = row.when.evaluate(value)
+        holds = row.when.evaluate(value) if row.when.props else True
         if holds is False or (holds is None and not optimistic):
             continue
         done.add(row.method)
-        if not _startable(reg[row.method], c, value):
+        if not _startable(row.spec, c, value):  # type: ignore[arg-type]
             continue
         if row.tier == 2:
             steps.append(Step(row.method, row.reason, False))
@@ -299,7 +302,7 @@ def markdown(registry: Mapping[str, Method] | None = None) -> str:
         if m.planner:
             guar, cost, auto = "the guarantees of the method it picks", "-", "(default)"
         else:
-            guar = "; ".join(f"{g.when}: {g.claim}" + (" (slow)" if g.slow else "")
+            guar = "; ".join(f"{g.when}: {g.claim}"
                              + (f" ({'/'.join(k.upper() for k in g.kinds)} only)"
                                 if g.kinds else "") for g in m.guarantees) or "none"
             cost = m.cost.value

@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from lcpcli.analysis.mlcp import polish
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, NUMERICAL, RAY, Outcome
 from lcpcli.solvers.options import positive_int
 from lcpcli.solvers.registry import Cost, Guarantee, Method, Option, when
@@ -47,7 +48,6 @@ def processing_order(lo: np.ndarray, up: np.ndarray) -> np.ndarray:
 
 def run(problem: Any, *, tol: float, max_iter: int | None = None) -> Outcome:
     """Solve an LCP or box LCP by principal pivoting; see the module docstring."""
-    from lcpcli.analysis.mlcp import polish
     from lcpcli.solvers.kernels.dantzig import MAX_ITER, OK, SINGULAR, dantzig_kernel
 
     n = problem.n

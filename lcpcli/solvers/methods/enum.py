@@ -17,6 +17,8 @@ from typing import Any
 
 import numpy as np
 
+from lcpcli.analysis.enumeration import basis_names, enumerate_cones
+from lcpcli.analysis.enumeration import prepare as prep
 from lcpcli.core.result import CONVERGED, INFEASIBLE, NUMERICAL, Outcome
 from lcpcli.solvers.options import bool_option
 from lcpcli.solvers.registry import Cost, Guarantee, Method, Option, when
@@ -30,8 +32,6 @@ def _max_n(value: Any) -> int:
 
 
 def prepare() -> None:
-    from lcpcli.analysis.enumeration import prepare as prep
-
     prep()
 
 
@@ -42,8 +42,6 @@ DEFAULT_MAX_N = 24
 def run(problem: Any, *, tol: float, max_n: int = DEFAULT_MAX_N,
         all: bool = False) -> Outcome:  # noqa: A002
     """Enumerate the cones of ``problem``; return the first solution (or all, counted)."""
-    from lcpcli.analysis.enumeration import basis_names, enumerate_cones
-
     res = enumerate_cones(problem, stop_at_first=not all, max_n=max_n, tol=tol)
     n = res.n
     info = {"verdict": res.verdict, "cones_examined": res.examined, "cones_total": res.total,

@@ -21,6 +21,8 @@ from typing import Any
 
 import numpy as np
 
+from lcpcli.analysis.classify import farkas_certificate, is_psd
+from lcpcli.core.errors import OptionError
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, RAY, Outcome
 from lcpcli.solvers.options import bool_option, positive_int, vector_option
 from lcpcli.solvers.registry import Cost, Guarantee, Method, Option, when
@@ -41,12 +43,8 @@ def covering_vector(n: int, covering: np.ndarray | None) -> np.ndarray:
     if d.size == 1:
         d = np.full(n, float(d[0]))
     if d.shape[0] != n:
-        from lcpcli.core.errors import OptionError
-
         raise OptionError(f"covering vector has length {d.shape[0]}, expected {n}")
     if not np.all(np.isfinite(d)) or np.any(d <= 0):
-        from lcpcli.core.errors import OptionError
-
         raise OptionError("covering vector must be finite and positive")
     return d
 
@@ -81,7 +79,7 @@ def run(problem: Any, *, tol: float, covering: np.ndarray | None = None,
     limit = max_iter or default_max_iter(n)
     steps = None
     if trace:
-        from lcpcli.solvers.lemke_trace import lemke_traced
+        from lcpcli.solvers.lemke_trace import lemke_traced  # loads the numba kernels: lazy
 
         status, z, pivots, basic, ray_dz, ray_dz0, z0, steps = lemke_traced(
             M, q, d, limit, PIVOT_TOL, TIE_TOL)
@@ -127,8 +125,6 @@ def polish(M: np.ndarray, q: np.ndarray, z: np.ndarray, basic: np.ndarray) -> np
 def ray_outcome(problem: Any, M: np.ndarray, q: np.ndarray, z: np.ndarray, pivots: int,
                 ray_dz: np.ndarray, z0: float) -> Outcome:
     """Classify a secondary-ray termination: proven infeasible, or merely unsolved."""
-    from lcpcli.analysis.classify import farkas_certificate, is_psd
-
     y = farkas_certificate(M, q, ray_dz)
     base = f"ray termination after {pivots} pivots (z0 = {z0:.3g})"
     if y is not None:

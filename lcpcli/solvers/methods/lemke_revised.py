@@ -33,6 +33,7 @@ from lcpcli.solvers.methods.lemke import (
     polish,
     ray_outcome,
 )
+from lcpcli.solvers.methods.lemke import run as run_tableau
 from lcpcli.solvers.options import bool_option, positive_int, vector_option
 from lcpcli.solvers.registry import Cost, Method, Option
 
@@ -69,8 +70,6 @@ def run(problem: Any, *, tol: float, covering: np.ndarray | None = None,
     same pivot rule, hence the same pivots on non-degenerate problems.
     """
     if trace:
-        from lcpcli.solvers.methods.lemke import run as run_tableau
-
         out = run_tableau(problem, tol=tol, covering=covering, max_iter=max_iter, trace=True)
         out.info["trace_engine"] = "tableau replica (same pivot rule)"
         return out

@@ -24,6 +24,8 @@ from typing import Any
 
 import numpy as np
 
+from lcpcli.analysis.mlcp import choose_pivot_set, reduce
+from lcpcli.core.errors import ProblemError
 from lcpcli.core.result import NUMERICAL, Outcome
 from lcpcli.solvers.methods.mlcp_schur import (
     PROOF_COND_MAX,
@@ -38,9 +40,6 @@ from lcpcli.solvers.registry import Cost, Guarantee, Method, Option, when
 def run(problem: Any, *, tol: float, cond_max: float = 1e12,
         max_iter: int | None = None) -> Outcome:
     """Solve an MLCP by block pivoting the free variables in, then Lemke; see the docstring."""
-    from lcpcli.analysis.mlcp import choose_pivot_set, reduce
-    from lcpcli.core.errors import ProblemError
-
     M = np.asarray(problem.dense_M(), dtype=np.float64)
     J, cond = choose_pivot_set(M, problem.n_eq, cond_max)
     if not np.isfinite(cond):

@@ -19,9 +19,13 @@ from typing import Any
 
 import numpy as np
 
+from lcpcli.analysis.mlcp import polish, recover, schur
+from lcpcli.core.errors import OptionError, ProblemError
+from lcpcli.core.problem import Problem
 from lcpcli.core.result import CONVERGED, NUMERICAL, Outcome
+from lcpcli.solvers.methods.lemke import prepare as lemke_prepare
 from lcpcli.solvers.options import positive_int
-from lcpcli.solvers.registry import Cost, Guarantee, Method, Option, when
+from lcpcli.solvers.registry import Cost, Guarantee, Method, Option, get_method, when
 
 #: Largest pivot-block condition under which an infeasibility proof on the reduced LCP is
 #: reported as a proof for the MLCP (above it, roundoff in the reduction could fake one).
@@ -36,22 +40,14 @@ def _positive(value: Any) -> float:
 
 
 def prepare() -> None:
-    from lcpcli.solvers.methods.lemke import prepare as lemke_prepare
-
     lemke_prepare()
 
 
 def solve_reduced(problem: Any, red: Any, inner: str, tol: float,
                   max_iter: int | None) -> tuple[np.ndarray, Outcome]:
     """Run the inner LCP method on a reduction's LCP; return (full z, inner outcome)."""
-    from lcpcli.analysis.mlcp import polish, recover
-    from lcpcli.core.problem import Problem
-    from lcpcli.solvers.registry import get_method
-
     spec = get_method(inner)
     if "lcp" not in spec.kinds:
-        from lcpcli.core.errors import OptionError
-
         raise OptionError(f"inner method '{spec.name}' does not solve LCPs")
     sub = Problem.create(red.lcp_M, red.lcp_q, name=f"{problem.name}-reduced")
     opts: dict[str, Any] = {}
@@ -71,9 +67,6 @@ def solve_reduced(problem: Any, red: Any, inner: str, tol: float,
 def run(problem: Any, *, tol: float, inner: str = "lemke", cond_max: float = 1e12,
         max_iter: int | None = None) -> Outcome:
     """Solve an MLCP by Schur reduction; see the module docstring."""
-    from lcpcli.analysis.mlcp import schur
-    from lcpcli.core.errors import ProblemError
-
     try:
         red = schur(problem, cond_max)
     except ProblemError as exc:

@@ -34,10 +34,12 @@ answer is certified by the shared certificate and is ``unsolved`` otherwise.
 
 from __future__ import annotations
 
+import warnings
 from typing import Any
 
 import numpy as np
 
+from lcpcli.core.certificate import matrix_norm_inf
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, NUMERICAL, Outcome
 from lcpcli.solvers.options import positive_int, vector_option
 from lcpcli.solvers.registry import Cost, Guarantee, Method, Option, when
@@ -118,11 +120,9 @@ class _Residual:
 def _newton_direction(M: Any, sparse: bool, a: np.ndarray, b: np.ndarray,
                       phi: np.ndarray) -> np.ndarray | None:
     """Solve ``(diag(a) + diag(b) M) d = -phi``; None when the matrix is (numerically) singular."""
-    import warnings
-
     n = phi.shape[0]
     if sparse:
-        import scipy.sparse as sp
+        import scipy.sparse as sp  # scipy is imported on first use (start-up budget)
         import scipy.sparse.linalg as spla
 
         H = (sp.diags(b) @ M + sp.diags(a)).tocsc()
@@ -134,7 +134,7 @@ def _newton_direction(M: Any, sparse: bool, a: np.ndarray, b: np.ndarray,
         except RuntimeError:
             return None
     else:
-        import scipy.linalg as sla
+        import scipy.linalg as sla  # scipy is imported on first use (start-up budget)
 
         H = b[:, None] * M
         H[np.diag_indices(n)] += a
@@ -154,21 +154,19 @@ def _lm_direction(M: Any, sparse: bool, a: np.ndarray, b: np.ndarray, phi: np.nd
                   grad: np.ndarray, lam: float) -> np.ndarray | None:
     """Levenberg-Marquardt direction ``(H^T H + lam I) d = -H^T phi`` (singular H, e.g. a
     rank-deficient PSD M at a degenerate point); None if it fails."""
-    import warnings
-
     n = phi.shape[0]
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             if sparse:
-                import scipy.sparse as sp
+                import scipy.sparse as sp  # scipy is imported on first use (start-up budget)
                 import scipy.sparse.linalg as spla
 
                 H = (sp.diags(b) @ M + sp.diags(a)).tocsr()
                 K = (H.T @ H + lam * sp.identity(n)).tocsc()
                 d = spla.splu(K).solve(-grad)
             else:
-                import scipy.linalg as sla
+                import scipy.linalg as sla  # scipy is imported on first use (start-up budget)
 
                 H = b[:, None] * M
                 H[np.diag_indices(n)] += a
@@ -184,8 +182,6 @@ def _lm_direction(M: Any, sparse: bool, a: np.ndarray, b: np.ndarray, phi: np.nd
 def run_newton(problem: Any, *, tol: float, variant: str = "fb", max_iter: int | None = None,
                z0: np.ndarray | None = None) -> Outcome:
     """Semismooth Newton with Armijo line search; ``variant`` is ``"fb"`` or ``"min"``."""
-    from lcpcli.core.certificate import matrix_norm_inf
-
     name = "Newton-FB" if variant == "fb" else "Newton-min"
     n = problem.n
     M = problem.M

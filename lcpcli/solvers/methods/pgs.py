@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from lcpcli.core.certificate import matrix_norm_inf
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, NOT_APPLICABLE, NUMERICAL, Outcome
 from lcpcli.solvers.options import omega_option, positive_int, vector_option
 from lcpcli.solvers.registry import Cost, Guarantee, Method, Option, Requirement, when
@@ -51,7 +52,6 @@ def prepare() -> None:
 def run_sor(problem: Any, *, tol: float, omega: float = 1.0, max_iter: int | None = None,
             z0: np.ndarray | None = None, name: str = "PGS") -> Outcome:
     """Run projected SOR with relaxation ``omega`` (1 = Gauss-Seidel); see the module docstring."""
-    from lcpcli.core.certificate import matrix_norm_inf
     from lcpcli.solvers.kernels import pgs as K
 
     n = problem.n
