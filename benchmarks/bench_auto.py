@@ -33,6 +33,7 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ[_var] = os.environ.get("BENCH_THREADS", "1")
 
 import argparse  # noqa: E402
+import importlib  # noqa: E402
 import json  # noqa: E402
 import platform  # noqa: E402
 import statistics  # noqa: E402
@@ -47,13 +48,13 @@ if not os.environ.get("PYTHONPATH"):
     sys.path.insert(0, str(HERE.parent))
 sys.path.insert(0, str(HERE))
 
-from bench_methods import gen_p, gen_pd, gen_psd  # noqa: E402
-
 import lcpcli  # noqa: E402
 from lcpcli.api import solve  # noqa: E402
 from lcpcli.core.problem import Problem  # noqa: E402
 
-FAMILIES = {"pd": gen_pd, "psd": gen_psd, "p": gen_p}
+# after lcpcli: bench_methods puts its own checkout on sys.path (PYTHONPATH must win here)
+_gens = importlib.import_module("bench_methods")
+FAMILIES = {"pd": _gens.gen_pd, "psd": _gens.gen_psd, "p": _gens.gen_p}
 
 
 def measure(p: Problem, budget: float, max_repeat: int) -> dict:

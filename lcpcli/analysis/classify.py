@@ -41,8 +41,6 @@ DENSE_TEST_MAX_N = 6000
 SPARSE_TEST_MAX_N = 300_000
 #: Sizes up to which the P-matrix property is decided exactly (all 2^n - 1 principal minors).
 EXACT_P_MAX_N = 10
-#: Iterations of the diagonal balancing that precedes the "PD after scaling" P-matrix test.
-BALANCE_ITERATIONS = 60
 
 PD, PSD, INDEFINITE = "pd", "psd", "indefinite"
 
@@ -111,10 +109,13 @@ def is_symmetric(M: Any, tol: float = SYM_TOL) -> bool:
         absA = abs(A)
         pair = np.asarray(absA.maximum(absA.T).tocsr()[D.row, D.col]).ravel()
         return bool(np.all(np.abs(D.data) <= tol * (pair + sd[D.row] * sd[D.col])))
-    if np.array_equal(A, A.T):
-        return True
     with np.errstate(over="ignore", invalid="ignore"):
         asym = np.abs(A - A.T)
+        worst = float(asym.max()) if asym.size else 0.0
+        if worst == 0.0:
+            return True
+        if worst > tol * (max_abs(A) + float(sd.max()) ** 2):  # fails for every pair's scale
+            return False
         scale = np.maximum(np.abs(A), np.abs(A.T)) + np.outer(sd, sd)
         return bool(np.all(asym <= tol * scale))
 
@@ -290,6 +291,9 @@ def h_matrix_positive_diagonal(M: Any) -> bool | None:
         C[np.diag_indices(n)] = 1.0
         if np.all(np.sum(C, axis=1) > 0):  # 1 - sum_j |b_ij| > 0: strictly diagonally dominant
             return True
+        decided = _collatz_wielandt(-C + np.eye(n))
+        if decided is not None:
+            return decided
         try:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
@@ -301,6 +305,30 @@ def h_matrix_positive_diagonal(M: Any) -> bool | None:
     return bool(np.all(np.asarray(C @ x).ravel() > 0.5))
 
 
+#: Power iterations tried on the comparison matrix before the O(n^3) solve.
+CW_ITERATIONS = 30
+
+
+def _collatz_wielandt(B: np.ndarray) -> bool | None:
+    """Is ``rho(B) < 1`` for ``B >= 0`` (zero diagonal)?  Collatz-Wielandt bounds
+    ``min_i (Bx)_i / x_i <= rho(B) <= max_i (Bx)_i / x_i`` for any ``x > 0``, with x from
+    power iterations of ``I + B``: True when the upper bound is < 1 (then ``x > 0`` and
+    ``(I - B) x > 0``), False when the lower bound is >= 1, None if undecided."""
+    x = np.ones(B.shape[0])
+    for _ in range(CW_ITERATIONS):
+        y = B @ x
+        ratio = y / x
+        if ratio.max() < 1.0:
+            return True
+        if ratio.min() >= 1.0:
+            return False
+        x = x + y
+        x /= x.max()
+        if not np.all(x > 0):
+            return None
+    return None
+
+
 def _unit_diagonal_symmetric(A: np.ndarray) -> np.ndarray:
     """``diag(a_ii)^(-1/2) A diag(a_ii)^(-1/2)`` (A dense with a positive diagonal)."""
     r = 1.0 / np.sqrt(np.diagonal(A))
@@ -308,24 +336,26 @@ def _unit_diagonal_symmetric(A: np.ndarray) -> np.ndarray:
 
 
 def _balanced(K: np.ndarray) -> np.ndarray:
-    """A diagonal similarity ``G^-1 K G`` whose off-diagonal row and column 2-norms agree
-    (Osborne's balancing, all indices at once with half steps); it is K itself when K is
-    symmetric, and the same matrix (up to rounding) for every ``D^-1 K D``."""
+    """The diagonal similarity ``G^-1 K G`` closest to symmetric: ``log g`` solves the least
+    squares problem ``log g_i - log g_j = log|k_ij / k_ji| / 2`` over the pairs with both
+    entries nonzero (a graph Laplacian system).  It is K itself when K is symmetric, exactly
+    symmetric when K is diagonally similar to a symmetric matrix, and the same matrix (up to
+    rounding) for every ``D^-1 K D``."""
     n = K.shape[0]
-    B = np.abs(K) ** 2
-    B[np.diag_indices(n)] = 0.0
-    logg = np.zeros(n)
-    for _ in range(BALANCE_ITERATIONS):
-        g2 = np.exp(2.0 * logg)
-        rows = B @ g2 / g2          # squared row norms of G^-1 K G
-        cols = (B.T @ (1.0 / g2)) * g2  # squared column norms
-        with np.errstate(divide="ignore", invalid="ignore"):
-            step = 0.125 * np.log(rows / cols)  # half of the exact single-index step
-        step = np.where(np.isfinite(step), step, 0.0)
-        if np.max(np.abs(step), initial=0.0) < 1e-9:
-            break
-        logg += step
-    g = np.exp(logg - np.mean(logg))
+    A = np.abs(K)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        both = (A > 0) & (A.T > 0)
+        np.fill_diagonal(both, False)
+        R = np.where(both, 0.5 * np.log(np.where(both, A, 1.0) / np.where(both, A.T, 1.0)), 0.0)
+    W = both.astype(np.float64)
+    L = -W
+    L[np.diag_indices(n)] = W.sum(axis=1)
+    b = R.sum(axis=1)
+    try:
+        f = np.linalg.solve(L + 1.0 / n, b)  # + e e^T / n: fixes the free constant
+    except np.linalg.LinAlgError:  # disconnected pairs graph
+        f = np.linalg.lstsq(L, b, rcond=None)[0]
+    g = np.exp(f - np.mean(f))
     return K * g[None, :] / g[:, None]
 
 
@@ -366,14 +396,15 @@ def is_p_matrix_exact(M: Any) -> bool:
     return _minor_pivots_positive(_unit_diagonal_symmetric(normalised(A)))
 
 
-def p_matrix(M: Any, pd: bool | None = None,
-             h_matrix: bool | None = None) -> tuple[bool | None, str]:
+def p_matrix(M: Any, pd: bool | None = None, h_matrix: bool | None = None,
+             symmetric: bool | None = None) -> tuple[bool | None, str]:
     """``(is M a P-matrix?, how it was decided)``; None when no test decides.
 
     In order: a non-positive diagonal entry or 2 x 2 principal minor (not P); PD symmetric part
-    (``pd``, if known); H-matrix with positive diagonal (``h_matrix``, computed if not given);
-    PD symmetric part after a diagonal scaling ``G^-1 D M D G`` (unit diagonal, balanced); all
-    principal minors when n <= EXACT_P_MAX_N.  The answer is the same on ``D1 M D2``.
+    (``pd``, if known); for a symmetric M (``symmetric``), P iff PD; H-matrix with positive
+    diagonal (``h_matrix``, computed if not given); PD symmetric part after a diagonal scaling
+    ``G^-1 D M D G`` (unit diagonal, balanced); all principal minors when n <= EXACT_P_MAX_N.
+    The answer is the same on ``D1 M D2``.
     """
     n = M.shape[0]
     if n == 0:
@@ -395,6 +426,8 @@ def p_matrix(M: Any, pd: bool | None = None,
             return False, f"the 2 x 2 principal minor on indices ({i}, {j}) is <= 0"
     if pd:
         return True, "positive definite (symmetric part PD)"
+    if symmetric and pd is False:
+        return False, "symmetric and not positive definite (for a symmetric M, P = PD)"
     h = h_matrix_positive_diagonal(M) if h_matrix is None else h_matrix
     if h:
         return True, "H-matrix with positive diagonal"
@@ -403,8 +436,11 @@ def p_matrix(M: Any, pd: bool | None = None,
         return p, "all principal minors checked" + ("" if p else ": one is <= 0")
     if not sparse:
         B = _balanced(K)
-        if definiteness(B).kind == PD:
+        pd_b = definiteness(B).kind == PD
+        if pd_b:
             return True, "positive definite after a positive diagonal scaling"
+        if is_symmetric(B):  # P iff PD for a symmetric matrix
+            return False, "diagonally similar to a symmetric matrix that is not PD"
     return None, "unknown (no sufficient test applies)"
 
 
@@ -648,8 +684,9 @@ class Classifier:
         if r.p_matrix is None:
             self.run("pd")  # PD => P, and the definiteness is wanted by other tests anyway
             self.run("h_matrix")
+            self.run("symmetric")
             r.p_matrix, r.p_matrix_reason = p_matrix(self.problem.M, pd=r.pd,
-                                                     h_matrix=r.h_matrix)
+                                                     h_matrix=r.h_matrix, symmetric=r.symmetric)
 
     # -- queries
     def run(self, prop: str) -> None:

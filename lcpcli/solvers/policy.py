@@ -26,8 +26,9 @@ from __future__ import annotations
 
 import sys
 import time
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass
+from itertools import islice
 from pathlib import Path
 from typing import Any, NamedTuple
 
@@ -51,12 +52,15 @@ TIERS = ("guarantee", "slow guarantee", "fallback")
 
 @dataclass(frozen=True)
 class Regime:
-    """A row of the regime table: problems where ``test`` holds try cost classes in ``order``."""
+    """A row of the regime table: problems where ``test`` holds try cost classes in ``order``;
+    ``optimistic``: the first attempt is planned on the cheap tests only (else on all the tests
+    the rows need, when a failed attempt costs more than the O(n^3) tests)."""
 
     name: str
     text: str
     test: Callable[[Classifier], bool]
     order: tuple[Cost, ...]
+    optimistic: bool
 
 
 def _small(c: Classifier) -> bool:
@@ -72,19 +76,22 @@ def _sparse_low_fill(c: Classifier) -> bool:
     return bool(r.psd) and r.factor_fill is not None and r.factor_fill <= LOW_FILL
 
 
-#: The regime table, first match wins.
+#: The regime table, first match wins.  Optimism where a wrong first attempt costs about
+#: what the O(n^3) tests cost (a pivoting method on a small problem, sparse LU once the
+#: factorisation is known to be cheap); tests first where it may cost much more (1000 sweeps
+#: of a method that does not converge, or a dense factorisation per Newton step).
 REGIMES: tuple[Regime, ...] = (
     Regime("small", f"dense with n <= {PIVOT_MAX_N:,}, or sparse with n <= {SMALL_SPARSE_N}",
-           _small, (Cost.PIVOTING, Cost.FACTORING, Cost.SWEEPING)),
+           _small, (Cost.PIVOTING, Cost.FACTORING, Cost.SWEEPING), True),
     Regime("sparse, cheap to factor", f"sparse PSD whose factorisation fills in little "
                                       f"(nnz(L+U)/nnz(S) <= {LOW_FILL:g})",
-           _sparse_low_fill, (Cost.FACTORING, Cost.SWEEPING, Cost.PIVOTING)),
+           _sparse_low_fill, (Cost.FACTORING, Cost.SWEEPING, Cost.PIVOTING), True),
     Regime("large", f"dense with n <= {PIVOT_HARD_MAX_N:,}, or sparse with n <= "
                     f"{PIVOT_HARD_MAX_N:,}",
            lambda c: c.report.n <= PIVOT_HARD_MAX_N,
-           (Cost.SWEEPING, Cost.FACTORING, Cost.PIVOTING)),
+           (Cost.SWEEPING, Cost.FACTORING, Cost.PIVOTING), False),
     Regime("huge", f"n > {PIVOT_HARD_MAX_N:,}", lambda c: True,
-           (Cost.SWEEPING, Cost.FACTORING)),
+           (Cost.SWEEPING, Cost.FACTORING), False),
 )
 
 
@@ -127,7 +134,8 @@ def rows(kind: str, registry: Mapping[str, Method]) -> list[Row]:
                 out.append(Row(g.when, name, reason, 1 if g.slow else 0, m.cost, m.preference,
                                assumed, m))
         if m.fallback is not None:
-            out.append(Row(when(), name, m.fallback, 2, m.cost, m.preference, m.fallback, m))
+            pref = m.preference if m.fallback_preference is None else m.fallback_preference
+            out.append(Row(when(), name, m.fallback, 2, m.cost, pref, m.fallback, m))
     return out
 
 
@@ -145,7 +153,10 @@ def plannable(m: Method) -> bool:
 
 def regime_of(c: Classifier) -> Regime:
     """The first regime whose test holds."""
-    return next(r for r in REGIMES if r.test(c))
+    for regime in REGIMES:
+        if regime.test(c):
+            return regime
+    raise AssertionError("the last regime holds for every problem")
 
 
 def _startable(m: Method, c: Classifier, value: Callable[[str], bool | None]) -> bool:
@@ -185,10 +196,18 @@ def plan(problem: Any, c: Classifier, registry: Mapping[str, Method] | None = No
     is run (:meth:`Classifier.get`) and an undecided condition counts as false.  ``skip``:
     methods already tried.  ``first``: stop at the first step (auto's first attempt).
     """
+    steps = iter_plan(problem, c, registry, optimistic=optimistic, skip=skip, regime=regime)
+    return list(islice(steps, 1)) if first else list(steps)
+
+
+def iter_plan(problem: Any, c: Classifier, registry: Mapping[str, Method] | None = None, *,
+              optimistic: bool = False, skip: Iterable[str] = (),
+              regime: Regime | None = None) -> Iterator[Step]:
+    """:func:`plan`, lazily: each row's tests run only when the steps before it are consumed
+    (so auto runs no test that the method it ends up using did not need)."""
     table = _table(c.report.kind, regime or regime_of(c), registry)
     value = c.cheap if optimistic else c.get
-    done = set(skip)
-    steps: list[Step] = []
+    done = set(skip) if skip else set()
     for row in table:
         if row.method in done:
             continue
@@ -199,14 +218,11 @@ def plan(problem: Any, c: Classifier, registry: Mapping[str, Method] | None = No
         if not _startable(row.spec, c, value):  # type: ignore[arg-type]
             continue
         if row.tier == 2:
-            steps.append(Step(row.method, row.reason, False))
+            yield Step(row.method, row.reason, False)
         elif holds:
-            steps.append(Step(row.method, row.reason, True))
+            yield Step(row.method, row.reason, True)
         else:
-            steps.append(Step(row.method, row.assumed_reason, None))
-        if first:
-            break
-    return steps
+            yield Step(row.method, row.assumed_reason, None)
 
 
 def applicability(problem: Any, c: Classifier,
@@ -233,7 +249,7 @@ def applicability(problem: Any, c: Classifier,
             applies, why = "no", f"would densify a sparse {n} x {n} matrix"
         elif (failed := next((r for r in m.needs if r.when.evaluate(c.get) is False),
                              None)) is not None:
-            applies, why = "no", f"M is not {failed.when}: {failed.why}"
+            applies, why = "no", f"needs {failed.when}: {failed.why}"
         else:
             applies, why = _guarantee_or_not(m, kind, c)
         out.append({"method": name, "applies": applies, "why": why,
@@ -253,10 +269,11 @@ def _guarantee_or_not(m: Method, kind: str, c: Classifier) -> tuple[str, str]:
             undecided.append(str(g.when))
     if undecided:
         return "maybe", f"{' / '.join(undecided)} undecided: no guarantee known"
+    extra = f"; {m.fallback}" if m.fallback else ""
     if m.guarantees:
         classes = "; ".join(str(g.when) for g in m.guarantees if g.applies_to(kind))
-        return "maybe", f"outside its classes ({classes or 'none for this kind'})"
-    return "maybe", m.fallback or m.notes or "no guarantee"
+        return "maybe", f"outside its classes ({classes or 'none for this kind'}){extra}"
+    return "maybe", (m.fallback or m.notes or "no guarantee")
 
 
 def info_report(problem: Any, file: str | None = None,
@@ -273,7 +290,8 @@ def info_report(problem: Any, file: str | None = None,
     reg = methods() if registry is None else registry
     t0 = time.perf_counter()
     c = Classifier(problem)
-    first = plan(problem, c, reg, optimistic=True, first=True)
+    regime = regime_of(c)
+    first = plan(problem, c, reg, optimistic=regime.optimistic, first=True, regime=regime)
     report: ClassReport = c.complete()
     secs = time.perf_counter() - t0
     return {"file": file, "problem": problem.name, "summary": problem.summary(),
@@ -312,11 +330,15 @@ def markdown(registry: Mapping[str, Method] | None = None) -> str:
                            + ([f"n > {m.max_n}"] if m.max_n is not None else [])) or "-"
         opts = ", ".join(f"`{o}`" for o in m.options) or "-"
         lines.append(f"| {label} | {kinds} | {guar} | {cannot} | {cost} | {auto} | {opts} |")
-    lines += ["", "Regimes (first match wins) and the order in which `auto` tries cost "
-              "classes there:", "", "| regime | problems | cost classes, in order |",
-              "| --- | --- | --- |"]
+    lines += ["", "Regimes (first match wins), the order in which `auto` tries cost "
+              "classes there, and whether its first attempt is optimistic (planned on the "
+              "O(n) and O(n^2) tests only):", "",
+              "| regime | problems | cost classes, in order | first attempt |",
+              "| --- | --- | --- | --- |"]
     for r in REGIMES:
-        lines.append(f"| {r.name} | {r.text} | {', '.join(c.value for c in r.order)} |")
+        first = "optimistic" if r.optimistic else "after the tests its rows need"
+        lines.append(f"| {r.name} | {r.text} | {', '.join(c.value for c in r.order)} | "
+                     f"{first} |")
     lines += ["", "The resulting order for an LCP whose classes are all established "
               "(within a regime, a method is tried at its first row whose condition holds):", ""]
     for r in REGIMES:

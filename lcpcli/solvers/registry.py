@@ -111,8 +111,9 @@ class Method:
     ``guarantees`` (per matrix class), ``needs`` (what it cannot start without), ``max_n``
     (the largest n it accepts), ``cost`` and ``preference`` (auto's order: lower first among
     methods of the same cost), ``fallback`` (why auto may try it outside its guarantees;
-    None: never) and ``auto_max_iter`` (the iteration cap auto gives it when the user gave
-    none, so that a fallback fails fast).  ``planner`` marks ``auto`` itself.
+    None: never; ``fallback_preference`` orders that row) and ``auto_max_iter`` (the
+    iteration cap auto gives it when the user gave none, so that a fallback fails fast).
+    ``planner`` marks ``auto`` itself.
     """
 
     name: str
@@ -131,6 +132,8 @@ class Method:
     cost: Cost = Cost.FACTORING
     preference: int = 50
     fallback: str | None = None
+    #: The preference of the fallback row (default: ``preference``).
+    fallback_preference: int | None = None
     auto_max_iter: int | None = None
     #: Prose beyond the guarantees (shown after them in ``lcpcli methods``).
     notes: str = ""

@@ -181,7 +181,7 @@ def test_after_a_failed_first_attempt_the_rest_is_planned_on_the_full_report(sic
 
 def test_every_auto_answer_is_certified():
     rng = np.random.default_rng(7)
-    for seed in range(5):
+    for _ in range(5):
         n = 8
         M = rng.standard_normal((n, n))
         q = rng.standard_normal(n)
@@ -248,3 +248,30 @@ def test_info_json_has_first_attempt_and_plan(cli, samples):
 def test_condition_names_are_checked():
     with pytest.raises(ValueError, match="unknown matrix properties"):
         when("positive_definite")
+
+
+def test_large_problems_are_tested_before_the_first_attempt_but_only_as_needed():
+    """Outside the optimistic regimes a wrong first attempt could cost 1000 sweeps: the first
+    row is chosen on established classes, and only the tests its rows needed have run."""
+    rng = np.random.default_rng(3)
+    n = 400
+    A = sp.random(n, n, density=0.02, random_state=3, format="csr")
+    # diagonal plus a strictly upper triangle: an H-matrix (its comparison matrix is
+    # triangular) whose symmetric part is indefinite (large off-diagonal entries)
+    M = (sp.diags(1.0 + rng.random(n)) + 20 * sp.triu(A, 1)).tocsr()
+    p = Problem.create(M, rng.standard_normal(n))
+    c = Classifier(p)
+    regime = policy.regime_of(c)
+    assert not regime.optimistic and regime.name == "large"
+    r = solve(p)
+    assert r.solved and "not tested" not in r.message
+    first = r.info["attempts"][0]
+    assert methods()[first["method"]].cost == Cost.SWEEPING
+    report = r.info["classification"]
+    assert report.symmetric is False and report.h_matrix is True
+    assert report.definiteness == "indefinite" and report.p_matrix is None  # P not needed
+    # a dense symmetric PD problem of the large regime: PD established, P never tested
+    Md, qd = rand_pd(1600, 9)
+    r = solve(Problem.create(Md, qd))
+    assert r.solved and r.info["regime"] == "large" and len(r.info["attempts"]) == 1
+    assert r.info["classification"].pd is True and r.info["classification"].h_matrix is None

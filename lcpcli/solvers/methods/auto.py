@@ -26,7 +26,7 @@ Matrix classes: any; the guarantees are those of the methods it picks (see docs/
 from __future__ import annotations
 
 import time
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from typing import Any
 
 import numpy as np
@@ -74,11 +74,14 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None,
     registry = methods()
     c = Classifier(problem)
     regime = policy.regime_of(c)
+    queue: Iterator[Step]
     if order:
-        queue, replanned = _given_order(order, problem.kind, registry), True
-    else:
-        queue = policy.plan(problem, c, optimistic=True, first=True, regime=regime)
+        queue, replanned = iter(_given_order(order, problem.kind, registry)), True
+    elif regime.optimistic:
+        queue = iter(policy.plan(problem, c, optimistic=True, first=True, regime=regime))
         replanned = False
+    else:
+        queue, replanned = policy.iter_plan(problem, c, regime=regime), True
     attempts: list[dict[str, Any]] = []
     best: tuple[float, np.ndarray, Any] | None = None
     total_it = 0
@@ -92,12 +95,15 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None,
                 "certify_seconds": t_certify}
 
     while True:
-        if not queue and not replanned:  # the optimistic first attempt failed: plan the rest
-            queue = policy.plan(problem, c, skip=[a["method"] for a in attempts], regime=regime)
+        step = next(queue, None)
+        if step is None and not replanned:  # the optimistic first attempt failed: plan the rest
+            queue = policy.iter_plan(problem, c, skip=[a["method"] for a in attempts],
+                                     regime=regime)
             replanned = True
-        if not queue:
+            step = next(queue, None)
+        if step is None:
             break
-        name, why, _ = queue.pop(0)
+        name, why, _ = step
         spec = registry[name]
         if spec.densifies(problem):
             continue  # it would densify a huge sparse M (api.check_dense_ok refuses that too)

@@ -313,7 +313,7 @@ METHODS = [
         ),
         notes="non-symmetric, zero diagonal, MLCP free rows and box bounds handled",
         cost=Cost.FACTORING,
-        preference=10,
+        preference=20,
         fallback="semismooth Newton handles any square M (may stop at a stationary point)",
         auto_max_iter=100,
         kinds=("lcp", "mlcp", "box"),
