@@ -139,7 +139,7 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None,
                          "error": cert.error, "seconds": t2 - t1, "message": out.message})
         if status == Status.SOLVED:
             failed = "".join(f"; {a['method']} failed first ({a['message']})"
-                             for a in attempts[:-1])
+                             for a in attempts[:-1]) if len(attempts) > 1 else ""
             return Outcome(z, total_it, CONVERGED,
                            f"auto ({c.report.describe()}): solved by {name} ({why}){failed}",
                            info=info(name))
