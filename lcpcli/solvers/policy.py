@@ -16,10 +16,11 @@ start (a :class:`~lcpcli.solvers.registry.Requirement` that fails, ``n > max_n``
 too large to densify).  :func:`plan` (auto), :func:`applicability` (``lcpcli info``) and
 :func:`markdown` (the tables of docs/methods.md) all read these tables; no method is named here.
 
-Optimism: auto's first attempt is planned with :meth:`Classifier.cheap` (only the O(n) and
-O(n^2) tests a row needs run), an open condition counting as true; if that attempt's certified
-answer fails, the rest is planned with every test the remaining rows need.  The certificate
-decides, never the classification.
+Optimism: in a regime marked optimistic, auto's first attempt is planned with
+:meth:`Classifier.cheap` (only the O(n) and O(n^2) tests a row needs run), an open condition
+counting as true; after a failure, and in the other regimes from the start, the rows are
+evaluated lazily (:func:`iter_plan`), each running the tests its condition names.  The
+certificate decides, never the classification.
 """
 
 from __future__ import annotations

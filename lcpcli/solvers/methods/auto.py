@@ -5,12 +5,15 @@ tables of :mod:`lcpcli.solvers.policy` (regimes by size and storage, rows declar
 methods: condition on the class report -> method, reason); no method is named here.
 
 1. An LCP with ``q >= 0``: ``z = 0``.
-2. First attempt, optimistic: the class report holds only the O(n) diagonal test
-   (:class:`lcpcli.analysis.classify.Classifier`); the first row of the regime whose condition
-   is not refuted is tried (e.g. Lemke on a dense n <= 1500 problem with a positive diagonal).
-3. If its certified answer fails: the tests the remaining rows need are run (symmetry, a
-   Cholesky attempt, the H-matrix solve, P-matrix tests only where a guarantee names them)
-   and the remaining methods are tried in the policy's order.
+2. The regime (size and storage) gives the order of the cost classes.  In an optimistic
+   regime (small dense problems, sparse ones that are cheap to factor) the first attempt is
+   planned on the O(n) and O(n^2) tests only (:class:`lcpcli.analysis.classify.Classifier`):
+   the first row whose condition is not refuted is tried, e.g. Lemke on any dense n <= 1500
+   LCP.  In the other regimes the tests a row needs run before it is chosen (a failed
+   sweeping attempt would cost more than a Cholesky factorisation).
+3. If an answer fails the certificate: the next rows are evaluated lazily, each running only
+   the tests its condition names (symmetry, a Cholesky attempt, the H-matrix test, P-matrix
+   tests only where a guarantee names P), and the methods are tried in the policy's order.
 
 Every attempt is certified with :func:`lcpcli.core.certificate.certify` and the first that
 passes is returned: the certificate decides, never the classification.  A method's *proof*
