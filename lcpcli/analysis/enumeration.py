@@ -35,6 +35,15 @@ from lcpcli.analysis.scaling import Scaling, equilibrate
 from lcpcli.core.certificate import DEFAULT_TOL, Certificate, certify, matrix_norm_inf
 from lcpcli.core.errors import OptionError, ProblemError
 from lcpcli.core.result import Status
+from lcpcli.solvers.kernels.enum import (
+    CANDIDATE,
+    FEASIBLE,
+    PRUNED,
+    SINGULAR_CONSISTENT,
+    SINGULAR_EMPTY,
+    classify_chunk,
+    classify_chunk_fast,
+)
 
 #: Default refusal threshold (2^24 = 16.7 million cones).
 DEFAULT_MAX_N = 24
@@ -196,27 +205,6 @@ def check_problem(problem: Any, max_n: int = DEFAULT_MAX_N) -> np.ndarray:
     return np.ascontiguousarray(problem.dense_M(), dtype=np.float64)
 
 
-def prepare() -> None:
-    """Compile (or load from the cache) the kernel outside any timed region."""
-    from lcpcli.solvers.kernels.enum import classify_chunk
-
-    M = np.array([[2.0, 1.0], [1.0, 2.0]])
-    q = np.array([-5.0, -6.0])
-    masks = np.zeros(2, dtype=np.int64)
-    from lcpcli.solvers.kernels.enum import SERIAL_BELOW, TASK_BITS, classify_chunk_fast
-
-    for count in (4, SERIAL_BELOW):
-        classify_chunk(M, q, 0, count, masks, masks, 1e-12, RTOL, 3.0, 6.0, 0.0,
-                       np.zeros(count, dtype=np.uint8))
-    n = TASK_BITS + 1
-    M = np.eye(n) + 0.1
-    q = -np.ones(n)
-    masks = np.zeros(n, dtype=np.int64)
-    for count in (4, 1 << n):
-        classify_chunk_fast(M, q, 0, count, masks, masks, 1e-12, RTOL, 2.0, 1.0, 0.0,
-                            np.zeros(count, dtype=np.uint8))
-
-
 def sign_masks(M: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Bit masks of the strictly positive / strictly negative entries of each row of M."""
     n = M.shape[0]
@@ -252,7 +240,7 @@ def singular_cone_lp(M: np.ndarray, q: np.ndarray, code: int,
                      seed: int = 0) -> tuple[np.ndarray | None, bool]:
     """For a singular cone: a point ``y >= 0`` with ``A_r y = q`` (or None) and whether the
     polyhedron of such points is more than one point (a continuum of LCP solutions)."""
-    from scipy.optimize import linprog
+    from scipy.optimize import linprog  # scipy is imported on first use (start-up budget)
 
     n = q.shape[0]
     A = complementary_matrix(M, code)
@@ -344,16 +332,6 @@ def _enumerate(problem: Any, *, stop_at_first: bool, all_cones: bool, max_n: int
                rtol: float, progress: Callable[[int, int], None] | None, chunk: int,
                keep_cones: int, fast: bool, max_lp: int) -> Enumeration:
     """:func:`enumerate_cones` on a problem in its own units (the caller scales)."""
-    from lcpcli.solvers.kernels.enum import (
-        CANDIDATE,
-        FEASIBLE,
-        PRUNED,
-        SINGULAR_CONSISTENT,
-        SINGULAR_EMPTY,
-        classify_chunk,
-        classify_chunk_fast,
-    )
-
     M = check_problem(problem, max_n)
     q = np.ascontiguousarray(problem.q, dtype=np.float64)
     n = q.shape[0]

@@ -7,7 +7,7 @@ from pathlib import Path
 import typer
 
 from lcpcli.cli.common import MethodListCommand
-from lcpcli.core.errors import EXIT_NOT_SOLVED, EXIT_OK
+from lcpcli.core.errors import EXIT_INTERNAL, EXIT_NOT_SOLVED, EXIT_OK
 
 
 def _floats(text: str, label: str) -> list[float]:
@@ -63,8 +63,9 @@ def bench(
     """Benchmark solver methods: time, achieved error and verdict on each problem.
 
     Every answer is re-certified; a method that claims 'solved' with a failing certificate, or
-    'no_solution' on a problem known to be solvable, is a DEFECT. Exit codes: 0 no defect;
-    1 at least one defect; 2 bad usage or bad input.
+    'no_solution' on a problem known to be solvable, is a DEFECT. Exit codes: 0 no defect and
+    no error; 1 at least one defect; 2 bad usage or bad input; 3 a method raised or its
+    process died (an internal error; the rows say which).
     """
     from lcpcli.bench import runner as B
     from lcpcli.cli.common import stderr_console, stdout_console, write_json_line
@@ -133,7 +134,11 @@ def bench(
         write_plot(report, plot)
     for rec in report.defects:
         err.print(f"lcpcli: DEFECT: {rec.method} on {rec.problem}: {rec.defect_reason}")
-    return EXIT_NOT_SOLVED if report.defects else EXIT_OK
+    for rec in report.errors:
+        err.print(f"lcpcli: ERROR: {rec.method} on {rec.problem}: {rec.message}")
+    if report.defects:
+        return EXIT_NOT_SOLVED
+    return EXIT_INTERNAL if report.errors else EXIT_OK
 
 
 def register(app: typer.Typer) -> None:

@@ -47,7 +47,7 @@ def enumerate_command(
     import json
     import sys
 
-    from lcpcli.analysis.enumeration import check_problem, covers_plane, enumerate_cones, prepare
+    from lcpcli.analysis.enumeration import check_problem, covers_plane, enumerate_cones
     from lcpcli.cli.common import write_json_line
     from lcpcli.core.errors import OptionError
     from lcpcli.io import load, write_atomic_text
@@ -76,7 +76,6 @@ def enumerate_command(
         if not plot_path.parent.is_dir():
             raise OptionError(f"--plot: folder {plot_path.parent} does not exist")
 
-    prepare()
     with _progress_bar() as progress:
         res = enumerate_cones(prob, all_cones=all_cones, max_n=max_n, progress=progress)
     covers = covers_plane(M) if n == 2 else None

@@ -7,6 +7,7 @@ and the verdict agree.
 
 from __future__ import annotations
 
+import warnings
 from typing import Any
 
 import numpy as np
@@ -188,9 +189,7 @@ def _solve_peeling_singletons(A: Any, b: np.ndarray, sparse: bool) -> np.ndarray
 
 def _sparse_solve(A: Any, b: np.ndarray) -> np.ndarray:
     """``A x = b`` by sparse LU with one refinement step; least squares when singular."""
-    import warnings
-
-    import scipy.sparse.linalg as spla  # sparse LU only on this path
+    import scipy.sparse.linalg as spla  # scipy is imported on first use (start-up budget)
 
     try:
         with warnings.catch_warnings():
@@ -204,9 +203,7 @@ def _sparse_solve(A: Any, b: np.ndarray) -> np.ndarray:
 
 def _dense_solve(A: np.ndarray, b: np.ndarray) -> np.ndarray:
     """``A x = b`` by LU with one step of iterative refinement; least squares if singular."""
-    import warnings
-
-    import scipy.linalg as sla  # LAPACK LU only on this path
+    import scipy.linalg as sla  # scipy is imported on first use (start-up budget)
 
     try:
         with warnings.catch_warnings():

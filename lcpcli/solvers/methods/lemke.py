@@ -10,7 +10,8 @@ Independently of the class, when the ray yields ``y >= 0`` with ``M^T y <= 0`` a
 ``q^T y < 0`` (a Farkas certificate: no ``z >= 0`` has ``M z + q >= 0``) the verdict is
 ``no_solution`` with that proof.
 
-Cost: O(n^2) per pivot (rank-one tableau update in a compiled kernel).  The final basis is
+Cost: O(n^2) per pivot (rank-one tableau update in the compiled kernel
+:mod:`lcpcli.solvers.kernels.lemke`).  The final basis is
 re-solved with a dense LU factorisation (one step of refinement) so the answer is accurate to
 the conditioning of the basic block, not to the accumulated tableau updates.
 """
@@ -21,9 +22,12 @@ from typing import Any
 
 import numpy as np
 
+from lcpcli.analysis.classify import farkas_certificate, is_psd
+from lcpcli.core.errors import OptionError
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, RAY, Outcome
+from lcpcli.solvers.kernels.lemke import MAX_ITER, OK, TRIVIAL, lemke_kernel, polish_kernel
 from lcpcli.solvers.options import bool_option, positive_int, vector_option
-from lcpcli.solvers.registry import Method, Option
+from lcpcli.solvers.registry import Cost, Guarantee, Method, Option, when
 
 #: Relative pivot tolerance: entries below this fraction of the column's largest are not pivots.
 PIVOT_TOL = 1e-11
@@ -41,12 +45,8 @@ def covering_vector(n: int, covering: np.ndarray | None) -> np.ndarray:
     if d.size == 1:
         d = np.full(n, float(d[0]))
     if d.shape[0] != n:
-        from lcpcli.core.errors import OptionError
-
         raise OptionError(f"covering vector has length {d.shape[0]}, expected {n}")
     if not np.all(np.isfinite(d)) or np.any(d <= 0):
-        from lcpcli.core.errors import OptionError
-
         raise OptionError("covering vector must be finite and positive")
     return d
 
@@ -56,15 +56,6 @@ def default_max_iter(n: int) -> int:
     return max(1000, 100 * n)
 
 
-def prepare() -> None:
-    """Load (or compile once and cache) the kernel outside the timed region."""
-    from lcpcli.solvers.kernels.lemke import lemke_kernel, polish_kernel
-
-    one = np.array([[1.0]])
-    out = lemke_kernel(one, np.array([-1.0]), np.array([1.0]), 10, PIVOT_TOL, TIE_TOL, NO_RECORD)
-    polish_kernel(one, np.array([-1.0]), out[1], out[3])
-
-
 def run(problem: Any, *, tol: float, covering: np.ndarray | None = None,
         max_iter: int | None = None, trace: bool = False) -> Outcome:
     """Solve ``problem`` (an LCP) by Lemke's method; see the module docstring.
@@ -72,8 +63,6 @@ def run(problem: Any, *, tol: float, covering: np.ndarray | None = None,
     ``trace=True`` runs the numpy replica of the kernel (same pivots) and records each pivot
     in ``Outcome.trace`` (see :mod:`lcpcli.solvers.lemke_trace`).
     """
-    from lcpcli.solvers.kernels.lemke import lemke_kernel
-
     n = problem.n
     M = np.ascontiguousarray(problem.dense_M(), dtype=np.float64)
     q = problem.q
@@ -81,7 +70,7 @@ def run(problem: Any, *, tol: float, covering: np.ndarray | None = None,
     limit = max_iter or default_max_iter(n)
     steps = None
     if trace:
-        from lcpcli.solvers.lemke_trace import lemke_traced
+        from lcpcli.solvers.lemke_trace import lemke_traced  # loads the numba kernels: lazy
 
         status, z, pivots, basic, ray_dz, ray_dz0, z0, steps = lemke_traced(
             M, q, d, limit, PIVOT_TOL, TIE_TOL)
@@ -96,8 +85,6 @@ def run(problem: Any, *, tol: float, covering: np.ndarray | None = None,
 def finish(problem: Any, M: np.ndarray, q: np.ndarray, status: int, z: np.ndarray, pivots: int,
            basic: np.ndarray, ray_dz: np.ndarray, z0: float, limit: int) -> Outcome:
     """Turn a Lemke kernel's status into an :class:`Outcome` (polish, ray classification)."""
-    from lcpcli.solvers.kernels.lemke import MAX_ITER, OK, TRIVIAL
-
     n = problem.n
     if status == TRIVIAL:
         return Outcome(np.zeros(n), 0, CONVERGED, "q >= 0: z = 0 solves the problem")
@@ -122,19 +109,12 @@ def polish(M: np.ndarray, q: np.ndarray, z: np.ndarray, basic: np.ndarray) -> np
 
     Keeps the tableau's answer when the re-solve is not better (e.g. a singular block).
     """
-    from lcpcli.solvers.kernels.lemke import polish_kernel
-
-    try:
-        return polish_kernel(M, q, z, basic)
-    except np.linalg.LinAlgError:  # singular basic block: keep the tableau's answer
-        return np.maximum(z, 0.0)
+    return polish_kernel(M, q, z, basic)
 
 
 def ray_outcome(problem: Any, M: np.ndarray, q: np.ndarray, z: np.ndarray, pivots: int,
                 ray_dz: np.ndarray, z0: float) -> Outcome:
     """Classify a secondary-ray termination: proven infeasible, or merely unsolved."""
-    from lcpcli.analysis.classify import farkas_certificate, is_psd
-
     y = farkas_certificate(M, q, ray_dz)
     base = f"ray termination after {pivots} pivots (z0 = {z0:.3g})"
     if y is not None:
@@ -152,12 +132,20 @@ def ray_outcome(problem: Any, M: np.ndarray, q: np.ndarray, z: np.ndarray, pivot
                    f"(try another method)")
 
 
+#: Lemke's classes (both Lemke methods, and the inner LCP of the MLCP methods).
+GUARANTEES = (
+    Guarantee(when("p_matrix"), "finite: the unique solution"),
+    Guarantee(when("psd"), "copositive-plus: a solution, or a proof that none exists"),
+)
+
 METHODS = [
     Method(
         name="lemke-tableau",
         run=run,
         summary="Lemke's complementary pivoting, dense tableau, lexicographic anti-cycling",
-        matrix_classes="P-matrices; copositive-plus (incl. PSD): solution or proof of none",
+        guarantees=GUARANTEES,
+        cost=Cost.PIVOTING,
+        preference=20,  # after lemke-revised, which is faster (benchmarks/bench_lemke.py)
         kinds=("lcp",),
         options={
             "covering": Option(vector_option, None, "covering vector d > 0 (default all ones)"),
@@ -165,7 +153,6 @@ METHODS = [
             "trace": Option(bool_option, False, "record every pivot (numpy replica of the "
                                                  "kernel, same pivots; slow for large n)"),
         },
-        prepare=prepare,
         scaling="auto",
     ),
 ]

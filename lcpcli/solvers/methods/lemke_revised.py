@@ -23,7 +23,15 @@ from typing import Any
 import numpy as np
 
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, NUMERICAL, Outcome
+from lcpcli.solvers.kernels.lemke_revised import (
+    MAX_ITER,
+    OK,
+    SINGULAR,
+    TRIVIAL,
+    lemke_revised_kernel,
+)
 from lcpcli.solvers.methods.lemke import (
+    GUARANTEES,
     NO_RECORD,
     PIVOT_TOL,
     TIE_TOL,
@@ -35,7 +43,7 @@ from lcpcli.solvers.methods.lemke import (
 )
 from lcpcli.solvers.methods.lemke import run as run_tableau
 from lcpcli.solvers.options import bool_option, positive_int, vector_option
-from lcpcli.solvers.registry import Method, Option
+from lcpcli.solvers.registry import Cost, Method, Option
 
 
 def _refactor_every(value: Any) -> int:
@@ -50,17 +58,6 @@ def default_refactor_every(n: int) -> int:
     return max(50, n)
 
 
-def prepare() -> None:
-    """Load (or compile once and cache) the kernel outside the timed region."""
-    from lcpcli.solvers.kernels.lemke import polish_kernel
-    from lcpcli.solvers.kernels.lemke_revised import lemke_revised_kernel
-
-    M = np.array([[2.0, 1.0], [1.0, 2.0]])
-    out = lemke_revised_kernel(M, np.array([-5.0, -6.0]), np.ones(2), 10, PIVOT_TOL, TIE_TOL,
-                               NO_RECORD, 1)
-    polish_kernel(M, np.array([-5.0, -6.0]), out[1], out[3])
-
-
 def run(problem: Any, *, tol: float, covering: np.ndarray | None = None,
         max_iter: int | None = None, refactor_every: int | None = None,
         trace: bool = False) -> Outcome:
@@ -73,14 +70,6 @@ def run(problem: Any, *, tol: float, covering: np.ndarray | None = None,
         out = run_tableau(problem, tol=tol, covering=covering, max_iter=max_iter, trace=True)
         out.info["trace_engine"] = "tableau replica (same pivot rule)"
         return out
-    from lcpcli.solvers.kernels.lemke_revised import (
-        MAX_ITER,
-        OK,
-        SINGULAR,
-        TRIVIAL,
-        lemke_revised_kernel,
-    )
-
     n = problem.n
     M = np.ascontiguousarray(problem.dense_M(), dtype=np.float64)
     q = problem.q
@@ -128,7 +117,10 @@ METHODS = [
         run=run,
         summary="Lemke's complementary pivoting, revised: seed 000 transform with an updated "
                 "inverse of M^(alpha beta), lexicographic anti-cycling",
-        matrix_classes="P-matrices; copositive-plus (incl. PSD): solution or proof of none",
+        guarantees=GUARANTEES,
+        cost=Cost.PIVOTING,
+        preference=10,
+        fallback="solves many problems outside its classes (a ray then proves nothing)",
         kinds=("lcp",),
         options={
             "covering": Option(vector_option, None, "covering vector d > 0 (default all ones)"),
@@ -138,7 +130,6 @@ METHODS = [
             "trace": Option(bool_option, False, "record every pivot (tableau replica, same "
                                                  "pivot rule)"),
         },
-        prepare=prepare,
         # the faster of the two on benchmarks/bench_lemke.py (CPU time, n = 10..1000)
         aliases=("lemke",),
         scaling="auto",

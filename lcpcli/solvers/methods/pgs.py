@@ -25,9 +25,11 @@ from typing import Any
 
 import numpy as np
 
+from lcpcli.core.certificate import matrix_norm_inf
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, NOT_APPLICABLE, NUMERICAL, Outcome
+from lcpcli.solvers.kernels import pgs as K
 from lcpcli.solvers.options import omega_option, positive_int, vector_option
-from lcpcli.solvers.registry import Method, Option
+from lcpcli.solvers.registry import Cost, Guarantee, Method, Option, Requirement, when
 from lcpcli.solvers.support import certified_error, diagonal, start_point
 
 #: Sweep limit when none is given.
@@ -36,24 +38,9 @@ DEFAULT_MAX_ITER = 10_000
 DEFAULT_OMEGA = 1.3
 
 
-def prepare() -> None:
-    """Compile (or load from the cache) both kernels outside the timed region."""
-    from lcpcli.solvers.kernels.pgs import pgs_csr, pgs_dense
-
-    one = np.ones((1, 1))
-    v = np.ones(1)
-    lo, up = np.zeros(1), np.full(1, np.inf)
-    pgs_dense(one, -v, v, lo, up, np.zeros(1), 1.0, 2, 1e-8, 1.0, 1.0)
-    pgs_csr(np.array([0, 1], dtype=np.int64), np.array([0], dtype=np.int64), v.copy(), -v, v,
-            lo, up, np.zeros(1), 1.0, 2, 1e-8, 1.0, 1.0)
-
-
 def run_sor(problem: Any, *, tol: float, omega: float = 1.0, max_iter: int | None = None,
             z0: np.ndarray | None = None, name: str = "PGS") -> Outcome:
     """Run projected SOR with relaxation ``omega`` (1 = Gauss-Seidel); see the module docstring."""
-    from lcpcli.core.certificate import matrix_norm_inf
-    from lcpcli.solvers.kernels import pgs as K
-
     n = problem.n
     lo, up = (np.ascontiguousarray(b, dtype=np.float64) for b in problem.bounds())
     z = np.clip(start_point(problem, z0), lo, up)
@@ -123,8 +110,10 @@ def run_psor(problem: Any, *, tol: float, omega: float = DEFAULT_OMEGA,
     return run_sor(problem, tol=tol, omega=omega, max_iter=max_iter, z0=z0, name="PSOR")
 
 
-_CLASSES = ("symmetric PSD with positive diagonal (convergent when a solution exists); "
-            "H-matrices with positive diagonal")
+#: Auto's sweep cap when the user gave none (a fallback should fail fast).
+AUTO_MAX_ITER = 1000
+_SYM = ("symmetric", "positive_diagonal")
+_NEEDS = (Requirement(when("positive_diagonal"), "the update divides by M_ii"),)
 _COMMON = {
     "max_iter": Option(positive_int, None, f"sweep limit (default {DEFAULT_MAX_ITER})"),
     "z0": Option(vector_option, None, "warm start z (projected onto the bounds)"),
@@ -135,22 +124,38 @@ METHODS = [
         name="pgs",
         run=run_pgs,
         summary="projected Gauss-Seidel (dense or sparse CSR, warm start, box projection)",
-        matrix_classes=_CLASSES,
+        guarantees=(
+            Guarantee(when(*_SYM, "pd"), "converges (linearly)"),
+            Guarantee(when("h_matrix"), "a contraction: converges"),
+            Guarantee(when(*_SYM, "psd"), "converges when a solution exists (slowly if M is "
+                                          "singular)", slow=True),
+        ),
+        needs=_NEEDS,
+        cost=Cost.SWEEPING,
+        preference=20,
+        fallback="projected Gauss-Seidel, last resort",
+        auto_max_iter=AUTO_MAX_ITER,
         kinds=("lcp", "box"),
         sparse=True,
         options=dict(_COMMON),
-        prepare=prepare,
     ),
     Method(
         name="psor",
         run=run_psor,
         summary="projected SOR with relaxation omega (dense or sparse CSR, warm start)",
-        matrix_classes=_CLASSES + "; needs 0 < omega < 2",
+        guarantees=(
+            Guarantee(when(*_SYM, "pd"), "converges for 0 < omega < 2 (linearly)"),
+            Guarantee(when(*_SYM, "psd"), "converges when a solution exists, 0 < omega < 2 "
+                                          "(slowly if M is singular)", slow=True),
+        ),
+        needs=_NEEDS,
+        cost=Cost.SWEEPING,
+        preference=10,
+        auto_max_iter=AUTO_MAX_ITER,
         kinds=("lcp", "box"),
         sparse=True,
         options={"omega": Option(omega_option, DEFAULT_OMEGA,
                                  f"relaxation, 0 < omega < 2 (default {DEFAULT_OMEGA})"),
                  **_COMMON},
-        prepare=prepare,
     ),
 ]
