@@ -273,7 +273,8 @@ def trace_codes(trace, n):
             return 2 * n
         return int(name[1:]) - 1 + (n if name[0] == "z" else 0)
 
-    return np.array([[code(s["entering"]), code(s["leaving"]), s["row"] - 1] for s in trace],
+    return np.array([[code(s["entering"]), code(s["leaving"]), s["row"] - 1] for s in trace
+                     if s["pivot"] >= 1 and s["leaving"] is not None],
                     dtype=np.int64).reshape(-1, 3)
 
 
@@ -281,7 +282,10 @@ def test_trace_seed004(cli, samples):
     p = cli("solve", str(samples / "seed004.json"), "--trace", "--json")
     assert p.returncode == 0, p.stderr
     d = json.loads(p.stdout)
-    tr = d["trace"]
+    start, *tr = d["trace"]
+    assert start["pivot"] == 0 and start["basis"] == ["w1", "w2"]
+    assert start["nonbasic"] == ["z1", "z2", "z0"] and start["q_prime"] == [-5, -6]
+    assert start["tableau"] == [[2, 1, 1], [1, 2, 1]] and start["next_entering"] == "z0"
     assert [(s["entering"], s["leaving"]) for s in tr] == [("z0", "w2"), ("z2", "w1"),
                                                            ("z1", "z0")]
     for s in tr:
@@ -306,8 +310,8 @@ def test_trace_seed004(cli, samples):
 
 def test_trace_matches_kernel_on_siconos_files(siconos):
     from lcpcli.io import load
-    from lcpcli.solvers.lemke_trace import lemke_traced
     from lcpcli.solvers.methods.lemke import PIVOT_TOL, TIE_TOL
+    from lcpcli.solvers.trace.lemke import lemke_traced
 
     files = sorted((siconos / "lcp").glob("*.dat"))
     assert files
@@ -322,8 +326,8 @@ def test_trace_matches_kernel_on_siconos_files(siconos):
 
 
 def test_trace_matches_kernel_on_degenerate_integer_problems():
-    from lcpcli.solvers.lemke_trace import lemke_traced
     from lcpcli.solvers.methods.lemke import PIVOT_TOL, TIE_TOL
+    from lcpcli.solvers.trace.lemke import lemke_traced
 
     rng = np.random.default_rng(3)
     rules = set()
@@ -350,7 +354,7 @@ def test_trace_large_n_has_columns_not_tableau():
     A = rng.standard_normal((n, n))
     M, q = A @ A.T + np.eye(n), rng.standard_normal(n) - 1
     res = solve(Problem.create(M, q), "lemke", trace=True)
-    assert res.solved and len(res.trace) == res.iterations
+    assert res.solved and len(res.trace) == res.iterations + 1
     assert all(s["tableau"] is None for s in res.trace)
     assert all(len(s["driving_column"]) == n for s in res.trace[:-1])
     assert res.trace[-1]["leaving"] == "z0" and res.trace[-1]["driving_column"] is None

@@ -70,7 +70,7 @@ def run(problem: Any, *, tol: float, covering: np.ndarray | None = None,
     """Solve ``problem`` (an LCP) by Lemke's method; see the module docstring.
 
     ``trace=True`` runs the numpy replica of the kernel (same pivots) and records each pivot
-    in ``Outcome.trace`` (see :mod:`lcpcli.solvers.lemke_trace`).
+    in ``Outcome.trace`` (see :mod:`lcpcli.solvers.trace.lemke`).
     """
     from lcpcli.solvers.kernels.lemke import lemke_kernel
 
@@ -81,7 +81,7 @@ def run(problem: Any, *, tol: float, covering: np.ndarray | None = None,
     limit = max_iter or default_max_iter(n)
     steps = None
     if trace:
-        from lcpcli.solvers.lemke_trace import lemke_traced
+        from lcpcli.solvers.trace.lemke import lemke_traced
 
         status, z, pivots, basic, ray_dz, ray_dz0, z0, steps = lemke_traced(
             M, q, d, limit, PIVOT_TOL, TIE_TOL)
