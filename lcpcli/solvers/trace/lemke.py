@@ -44,6 +44,20 @@ def ratio_formula(entering: str, piv_tol: float, tie_tol: float) -> str:
             f"minimum tie)")
 
 
+def ratio_formula_murty(entering: str, piv_tol: float, tie_tol: float) -> str:
+    """The same test in the signs of Murty's tableau (``a = -c`` is the entering column there)."""
+    return (f"{entering} rises to t = min q_i / a_i over the rows with a_i > {piv_tol:g} max|a| "
+            f"(a = column of {entering}; q_i below {ZERO_Q:g} max q counts as 0; ratios "
+            f"within {tie_tol:g} (relative) of the minimum tie)")
+
+
+def initial_formula_murty(tie_tol: float) -> str:
+    """The first pivot in Murty's tableau, where the column of ``z0`` is ``-d``."""
+    return (f"{ARTIFICIAL} enters at level t = max(-q_i / d_i) over the rows with q_i < 0; the "
+            f"row with the most negative q_i / d_i pivots, on the entry -d_i of the "
+            f"{ARTIFICIAL} column (ties within {tie_tol:g}: the last row)")
+
+
 def initial_formula(tie_tol: float) -> str:
     """The rule of the first pivot, which brings in ``z0``."""
     return (f"{ARTIFICIAL} rises to t = max(-q_i / d_i) over the rows with q_i < 0, the level "
@@ -86,12 +100,13 @@ def ratio_test(col: np.ndarray, qb: np.ndarray, basis: list[str], entering: str,
         elif c == 0.0:
             rec["why"] = f"entry 0: {basis[i]} does not change as {entering} rises"
         elif abs(c) <= ptol:
-            rec["why"] = f"|entry| <= {piv_tol:g} max|c|: treated as 0"
+            rec["why"] = f"|entry| <= {piv_tol:g} of the column's largest: counts as 0"
         else:
-            rec["why"] = f"entry > 0: {basis[i]} grows as {entering} rises, never blocks"
+            rec["why"] = f"{basis[i]} grows as {entering} rises: never blocks"
         rows.append(rec)
     z0_rows = [i for i in tied if basis[i] == ARTIFICIAL]
-    return {"formula": ratio_formula(entering, piv_tol, tie_tol), "rows": rows,
+    return {"formula": ratio_formula(entering, piv_tol, tie_tol),
+            "formula_murty": ratio_formula_murty(entering, piv_tol, tie_tol), "rows": rows,
             "min_ratio": tmin, "tied_rows": tied, "z0_row": z0_rows[-1] if z0_rows else -1}
 
 
@@ -207,7 +222,8 @@ def lemke_traced(M: np.ndarray, q: np.ndarray, d: np.ndarray, max_iter: int, piv
               "tied": bool(tied0[i]) and int(np.sum(tied0)) > 1,
               "why": "" if q[i] < 0 else f"q_{i + 1} >= 0: w{i + 1} >= 0 already at z0 = 0"}
              for i in range(n)]
-    test0 = {"formula": initial_formula(tie_tol), "rows": rows0, "min_ratio": -best,
+    test0 = {"formula": initial_formula(tie_tol), "formula_murty": initial_formula_murty(tie_tol),
+             "rows": rows0, "min_ratio": -best,
              "tied_rows": [int(i) for i in np.flatnonzero(tied0)], "z0_row": -1}
     ntie = int(np.sum(tied0))
     reason = (f"initial pivot: z0 enters at level max(-q_i/d_i) = {-best:.6g}; row {r + 1} "
@@ -294,5 +310,28 @@ def lemke_traced(M: np.ndarray, q: np.ndarray, d: np.ndarray, max_iter: int, piv
     return status, z, pivots, basic, ray_dz, dz0, z0, trace
 
 
-__all__ = ["MAX_ITER", "OK", "RAY", "TABLEAU_MAX_N", "TRIVIAL", "initial_formula", "lemke_traced",
-           "lexicographic", "ratio_formula", "ratio_test"]
+def path_points(trace: list[dict[str, Any]], q: np.ndarray) -> list[dict[str, Any]]:
+    """Lemke's path ``q + z0 d`` through the complementary cones, one point per state.
+
+    Each item is ``{"step": k, "z0": z0, "point": q + z0 d}``.  State 0 is ``q`` itself
+    (``z0 = 0`` before it enters); after pivot 1 the point lies on the boundary of the
+    nonnegative orthant, and later states move it back towards ``q`` (``z0`` is the basic
+    value of ``z0``, 0 once it has left).  Empty when no pivot is made.
+    """
+    if not trace or trace[0].get("next_entering") != ARTIFICIAL:
+        return []
+    q = np.asarray(q, dtype=np.float64)
+    d = np.asarray(trace[0]["driving_column"], dtype=np.float64)
+    out = [{"step": 0, "z0": 0.0, "point": q.tolist()}]
+    for st in trace[1:]:
+        if st.get("rule") == "ray":
+            continue
+        z0 = st["q_prime"][st["basis"].index(ARTIFICIAL)] if ARTIFICIAL in st["basis"] else 0.0
+        out.append({"step": int(st["pivot"]), "z0": float(z0),
+                    "point": (q + float(z0) * d).tolist()})
+    return out
+
+
+__all__ = ["MAX_ITER", "OK", "RAY", "TABLEAU_MAX_N", "TRIVIAL", "initial_formula",
+           "initial_formula_murty", "lemke_traced", "lexicographic", "path_points", "ratio_formula",
+           "ratio_formula_murty", "ratio_test"]

@@ -116,13 +116,17 @@ def tableau_view(state: dict[str, Any], layout: str = "dictionary",
     qp = np.asarray(state["q_prime"], dtype=float)
     T = np.asarray(state["tableau"], dtype=float).reshape(len(basis), len(nonbasic))
     artificial = ARTIFICIAL in basis or ARTIFICIAL in nonbasic
+    initial = all(b.startswith("w") for b in basis)
     where = None
     if layout == "dictionary":
         cols = ["q'", *nonbasic]
         values = np.column_stack([qp, T]) if basis else np.zeros((0, len(cols)))
         if pivot is not None:
             where = (int(pivot["row"]) - 1, 1 + nonbasic.index(pivot["column"]))
-        eq = "w' = q' + M' z'" if artificial else "x_B = q' + M' x_N"
+        if initial:
+            eq = "w = q + M z + d z0" if artificial else "w = q + M z"
+        else:
+            eq = "w' = q' + M' z'" if artificial else "x_B = q' + M' x_N"
         return TableauView(layout, "basic", basis, cols, values, where, eq)
     variables = sorted(basis + nonbasic, key=canonical_key)
     values = np.zeros((len(basis), len(variables) + 1))
