@@ -138,6 +138,7 @@ def solve(
             on_stdout = _show_trace(result.trace, fmt, layout, output, file, pivot_step, step)
             if on_stdout or pivot_step is not None:
                 return exit_code_for([result.status])
+            console.print()
         console.print(render_result(result, prob, file))
     return exit_code_for([result.status])
 

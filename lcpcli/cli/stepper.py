@@ -7,9 +7,10 @@ it never waits: every page is printed in order (with a note on stderr), as witho
 
 from __future__ import annotations
 
+import contextlib
 import os
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from typing import Any
 
 from lcpcli.cli.render.doc import Page, to_rich
@@ -31,18 +32,31 @@ def interactive() -> bool:
 
 
 def read_key() -> str:
-    """One key press from the terminal on stdin (raw mode, restored afterwards)."""
-    import termios  # POSIX only: --step is refused elsewhere (see step_through)
+    """One key press from stdin (a terminal in cbreak mode, see :func:`_keyboard`); an arrow
+    key's escape sequence comes back whole."""
+    import select  # POSIX: only the --step session reads keys
+
+    fd = sys.stdin.fileno()
+    key = os.read(fd, 1)
+    if key == b"\x1b" and select.select([fd], [], [], 0.05)[0]:
+        key += os.read(fd, 2)
+    return key.decode("utf-8", "replace")
+
+
+@contextlib.contextmanager
+def _keyboard() -> Iterator[None]:
+    """Keys without Enter and without echo for the whole session (cbreak mode, set at once so
+    that no key typed early is flushed); the terminal is restored on the way out."""
+    import termios  # POSIX terminal control; imported here because only --step needs it
     import tty
 
     fd = sys.stdin.fileno()
     old = termios.tcgetattr(fd)
     try:
-        tty.setraw(fd)
-        data = os.read(fd, 8).decode("utf-8", "replace")
+        tty.setcbreak(fd, termios.TCSANOW)
+        yield
     finally:
-        termios.tcsetattr(fd, termios.TCSADRAIN, old)
-    return data
+        termios.tcsetattr(fd, termios.TCSANOW, old)
 
 
 def action(key: str) -> str | None:
@@ -60,11 +74,16 @@ def step_through(console: Any, pages: list[Page], labels: list[str],
     """
     if keys is None:
         try:
-            import termios  # noqa: F401  (POSIX terminal control for the key reader)
+            import termios  # noqa: F401  (POSIX only)
         except ImportError:
             raise OptionError("--step needs a POSIX terminal; use --pivot K to show one "
                               "step") from None
-        keys = read_key
+        with _keyboard():
+            return _loop(console, pages, labels, read_key)
+    return _loop(console, pages, labels, keys)
+
+
+def _loop(console: Any, pages: list[Page], labels: list[str], keys: Callable[[], str]) -> int:
     k = 0
     while True:
         console.clear()

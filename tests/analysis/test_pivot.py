@@ -203,7 +203,8 @@ def test_cli_pivot_json_seed(cli, samples):
         assert key in d
     assert d["q_prime"] == [1, 5, 1]
     assert d["driving_column"] == [-1, -3, 1]
-    assert d["dependent"] == ["z4", "w2", "z3"]
+    # one name for the artificial variable: z0 (the input said z4, its seed position)
+    assert d["dependent"] == ["z0", "w2", "z3"] and d["beta"] == [3, 4]
     assert d["independent"] == ["w1", "w3", "z2", "z1"]
     p = cli("pivot", str(samples / "seed000_augmented.json"), "-d", SEED_DEP, "--json")
     assert json.loads(p.stdout)["driving_column"] is None
@@ -305,7 +306,8 @@ def test_trace_seed004(cli, samples):
     text = cli("solve", str(samples / "seed004.json"), "--trace",
                env={"NO_COLOR": "1", "COLUMNS": "120"})
     assert text.returncode == 0
-    assert "pivot 3: z1 enters, z0 leaves" in text.stdout and "ratio test" in text.stdout
+    assert "Step 3: after pivot 3: z1 entered, z0 left" in text.stdout
+    assert "Ratio test" in text.stdout and "z0 leaves (row 2)" in text.stdout
 
 
 def test_trace_matches_kernel_on_siconos_files(siconos):

@@ -5,11 +5,13 @@ a list of blocks: :class:`Heading`, :class:`Para`, :class:`Grid` (a table whose 
 are the pivot element) and :class:`Items`.  The same pages then go to the terminal
 (:func:`to_rich`), to Markdown (:func:`to_markdown`: headings, pipe tables, the pivot element
 in bold brackets) or to LaTeX (:func:`to_latex`: a fragment for ``\\input{}``, one ``tabular``
-per table, the pivot element in ``\\fbox{}``, no package needed).
+per table, detail tables such as a ratio test as lists, the pivot element in ``\\fbox{}``, no
+package needed).
 
 Text is plain ASCII math as elsewhere in the CLI (``w1``, ``q'_i``, ``B^-1``, ``>=``); the LaTeX
 writer turns those tokens into math (``$w_{1}$``, ``$q'_{i}$``, ``$B^{-1}$``, ``$\\ge$``) and
-escapes the rest.
+escapes the rest; a span in backticks is a whole formula (LaTeX math, Markdown code, plain on
+the terminal).
 """
 
 from __future__ import annotations
@@ -53,6 +55,9 @@ class Grid:
     marked: set[tuple[int, int]] = field(default_factory=set)
     #: Column index after which a vertical rule separates groups (LaTeX), e.g. the row names.
     rules: tuple[int, ...] = ()
+    #: A detail table (a ratio test): LaTeX writes it as a list, so that a step's only
+    #: ``tabular`` is its tableau.
+    inline: bool = False
 
     def alignment(self) -> list[str]:
         return self.align or ["l"] + ["r"] * (len(self.header) - 1)
@@ -78,7 +83,7 @@ def _rich_block(block: Block) -> object:
     if isinstance(block, Heading):
         return Text(block.text, style="bold")
     if isinstance(block, Para):
-        return Text(block.text, style=block.style or "")
+        return Text(block.text.replace("`", ""), style=block.style or "")
     if isinstance(block, Items):
         return Text("\n".join(f"  - {x}" for x in block.items))
     table = Table(title=block.title or None, title_justify="left")
@@ -113,7 +118,9 @@ def _md_block(block: Block) -> str:
     if isinstance(block, Heading):
         return "#" * (block.level + 1) + " " + block.text
     if isinstance(block, Para):
-        return block.text.replace("*", "\\*").replace("_", "\\_")
+        parts = block.text.split("`")  # backtick spans are code: no escaping inside
+        return "".join(f"`{p}`" if k % 2 else p.replace("*", "\\*").replace("_", "\\_")
+                       for k, p in enumerate(parts))
     if isinstance(block, Items):
         return "\n".join("- " + x.replace("*", "\\*").replace("_", "\\_") for x in block.items)
     lines = []
@@ -135,7 +142,7 @@ _TEX_SPECIAL = {"&": r"\&", "%": r"\%", "$": r"\$", "#": r"\#", "_": r"\_", "{":
                 "}": r"\}", "~": r"\textasciitilde{}", "^": r"\textasciicircum{}",
                 "\\": r"\textbackslash{}"}
 _TOKEN = re.compile(
-    r"(?P<var>(?<![\w\\])[wzqdcgMBy]'?(?:\d+|_[a-z0-9]+)(?![\w']))"  # w1, z0, q'_i, c_i
+    r"(?P<var>(?<![\w\\])[wzqdcgMByaex]'?(?:\d+|_[a-zA-Z0-9]+)(?![\w']))"  # w1, q'_i, x_B
     r"|(?P<prime>(?<![\w\\])[qMwz]'(?![\w]))"  # q', M', w', z'
     r"|(?P<inv>B\^-1)"
     r"|(?P<rel>>=|<=|->|!=|<|>|\|)"
@@ -163,7 +170,7 @@ def _tex_math(token: str, kind: str) -> str:
         if mant.lstrip("-") in ("1", "1.0"):
             return ("-" if mant.startswith("-") else "") + power
         return f"{mant} \\cdot {power}"
-    m = re.match(r"^([A-Za-z])('?)(?:(\d+)|_([a-z0-9]+))?$", token)
+    m = re.match(r"^([A-Za-z])('?)(?:(\d+)|_([A-Za-z0-9]+))?$", token)
     if not m:
         return tex_escape(token)
     base, prime, num, sub = m.groups()
@@ -171,8 +178,7 @@ def _tex_math(token: str, kind: str) -> str:
     return f"{base}{prime}" + (f"_{{{idx}}}" if idx else "")
 
 
-def tex_text(text: str) -> str:
-    """Plain text with the CLI's ASCII math (``w1``, ``q'_i``, ``>=``) turned into LaTeX."""
+def _tex_plain(text: str) -> str:
     out = []
     pos = 0
     for m in _TOKEN.finditer(text):
@@ -181,6 +187,25 @@ def tex_text(text: str) -> str:
         pos = m.end()
     out.append(tex_escape(text[pos:]))
     return "".join(out)
+
+
+def _tex_formula(text: str) -> str:
+    """A whole ASCII formula (a backtick span) as one math expression."""
+    out = []
+    pos = 0
+    for m in _TOKEN.finditer(text):
+        out.append(text[pos:m.start()])
+        out.append(_tex_math(m.group(0), m.lastgroup or ""))
+        pos = m.end()
+    out.append(text[pos:])
+    return "$" + "".join(out) + "$"
+
+
+def tex_text(text: str) -> str:
+    """Plain text with the CLI's ASCII math (``w1``, ``q'_i``, ``>=``) turned into LaTeX;
+    a span in backticks is one formula."""
+    parts = text.split("`")
+    return "".join(_tex_formula(p) if k % 2 else _tex_plain(p) for k, p in enumerate(parts))
 
 
 def _tex_block(block: Block) -> str:
@@ -192,6 +217,8 @@ def _tex_block(block: Block) -> str:
     if isinstance(block, Items):
         items = "\n".join(f"  \\item {tex_text(x)}" for x in block.items)
         return "\\begin{itemize}\n" + items + "\n\\end{itemize}"
+    if block.inline:
+        return _tex_items(block)
     spec = ""
     for j, a in enumerate(block.alignment()):
         spec += a
@@ -213,6 +240,26 @@ def _tex_block(block: Block) -> str:
     lines.append("\\hline")
     lines.append("\\end{tabular}")
     return "\n".join(lines) + "\n"
+
+
+def _tex_items(block: Grid) -> str:
+    """A detail table as a list: one item per row, ``header: value`` pairs."""
+    lines = []
+    if block.title:
+        lines.append(f"\\noindent {tex_text(block.title)}")
+    lines.append("\\begin{itemize}")
+    for i, row in enumerate(block.rows):
+        parts = []
+        for j, (h, c) in enumerate(zip(block.header, row, strict=True)):
+            if not c:
+                continue
+            cell = tex_text(c)
+            if (i, j) in block.marked:
+                cell = f"\\fbox{{{cell}}}"
+            parts.append(f"{tex_text(h)}: {cell}" if h else cell)
+        lines.append("  \\item " + "; ".join(parts))
+    lines.append("\\end{itemize}")
+    return "\n".join(lines)
 
 
 def to_latex(pages: list[Page], title: str = "") -> str:

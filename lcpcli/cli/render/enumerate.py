@@ -248,10 +248,11 @@ class _Canvas:
 
     def place_label(self, r: int, c: int, text: str, style: str, right: bool) -> bool:
         """Write ``text`` at (r, c) (ending there if ``right``) with a blank cell each side,
-        on the nearest row where it overlaps no fixed cell; False if none fits."""
-        for dr in (0, -1, 1, -2, 2):
+        at the nearest place where it overlaps no fixed cell; False if none fits."""
+        for dr, dc in ((0, 0), (-1, 0), (1, 0), (0, 2), (0, -2), (1, 2), (-1, 2), (1, -2),
+                       (-1, -2), (-2, 0), (2, 0)):
             rr = r + dr
-            c0 = c - len(text) + 1 if right else c
+            c0 = (c - len(text) + 1 if right else c) + dc
             c0 = min(max(c0, 1), self.width - len(text) - 1)
             span = [(rr, cc) for cc in range(c0 - 1, c0 + len(text) + 1)]
             if not 0 <= rr < self.height or any(x in self.fixed for x in span):
@@ -352,19 +353,34 @@ def draw_cones_text(M: Any, q: Any, width: int = 49, height: int = 21,
 
 def plot_cones(M: Any, q: Any, target: Path, title: str = "",
                path: list[dict[str, Any]] | None = None) -> None:
-    """Write the picture of the four complementary cones and q with matplotlib (atomically).
+    """Write the picture of :func:`cones_figure` with matplotlib (atomically).
 
-    The legend names each cone by its number r and generators (below the axes, so it hides
-    nothing); the generator labels sit inside the axes.  ``path``: Lemke's path ``q + z0 d``
-    (:func:`lcpcli.solvers.trace.lemke.path_points`), each state's point numbered.  The format
-    follows the file suffix (png by default).  Raises ImportError without matplotlib.
+    The format follows the file suffix (png by default).  Raises ImportError without
+    matplotlib.
+    """
+    import matplotlib.pyplot as plt  # matplotlib is optional and slow to import: only here
+
+    from lcpcli.io import atomic_path
+
+    fig = cones_figure(M, q, title, path)
+    fmt_name = (target.suffix.lstrip(".") or "png").lower()
+    with atomic_path(target) as tmp:
+        fig.savefig(tmp, format=fmt_name, dpi=120, bbox_inches="tight")
+    plt.close(fig)
+
+
+def cones_figure(M: Any, q: Any, title: str = "",
+                 path: list[dict[str, Any]] | None = None) -> Any:
+    """The matplotlib figure of the four complementary cones and q (n = 2).
+
+    The legend names each cone by its number r and generators, below the axes so that it
+    hides nothing; the generator labels sit inside the axes.  ``path``: Lemke's path
+    ``q + z0 d`` (:func:`lcpcli.solvers.trace.lemke.path_points`), each state's point numbered.
     """
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-
-    from lcpcli.io import atomic_path
 
     M = np.asarray(M, dtype=float)
     q = np.asarray(q, dtype=float)
@@ -425,7 +441,4 @@ def plot_cones(M: Any, q: Any, target: Path, title: str = "",
     ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.06), ncol=2, fontsize=8,
               frameon=False)
     ax.set_title(title or "complementary cones of M and the point q")
-    fmt_name = (target.suffix.lstrip(".") or "png").lower()
-    with atomic_path(target) as tmp:
-        fig.savefig(tmp, format=fmt_name, dpi=120, bbox_inches="tight")
-    plt.close(fig)
+    return fig

@@ -51,8 +51,10 @@ def _pivot_text(pe: dict[str, Any], layout: str) -> str:
 
 # ------------------------------------------------------------------------------- Lemke
 def ratio_grid(test: dict[str, Any], entering: str, layout: str, leaving_row: int | None,
-               initial: bool = False) -> Grid:
-    """Every row of a ratio test: its values and ratio, or why it cannot block."""
+               initial: bool = False, inline: bool = True) -> Grid:
+    """Every row of a ratio test: its values and ratio, or why it cannot block.
+
+    ``inline``: a detail of a step that shows its tableau (LaTeX writes it as a list)."""
     murty = layout == "murty"
     if initial:
         col = f"{ARTIFICIAL} column (-d_i)" if murty else "d_i"
@@ -77,7 +79,7 @@ def ratio_grid(test: dict[str, Any], entering: str, layout: str, leaving_row: in
             note = ("leaves" + ("; " + note if note else ""))
             marked.add((k, 3))
         rows.append([str(x["row"]), x["basic"], fmt(x["q"]), fmt(shown), ratio, note])
-    return Grid(header, rows, ["r", "l", "r", "r", "r", "l"], "", marked)
+    return Grid(header, rows, ["r", "l", "r", "r", "r", "l"], "", marked, inline=inline)
 
 
 def lex_blocks(lex: dict[str, Any], layout: str) -> list[Any]:
@@ -97,11 +99,11 @@ def lex_blocks(lex: dict[str, Any], layout: str) -> list[Any]:
         else:
             what = "kept " + ", ".join(f"row {r}" for r in c["kept"])
         items.append(f"column {c['variable']}: {keys} -> {what}")
-    return [Para(f"Tie-break: {title}."), Grid(header, rows, ["r", "l", "r"] + ["r"] * n),
-            Items(items)]
+    return [Para(f"Tie-break: {title}."),
+            Grid(header, rows, ["r", "l", "r"] + ["r"] * n, inline=True), Items(items)]
 
 
-def _decision(step: dict[str, Any], layout: str) -> Page:
+def _decision(step: dict[str, Any], layout: str, has_tableau: bool = True) -> Page:
     """What happens from a state: who enters and why, the ratio test, who leaves and why."""
     out: Page = []
     entering = step["entering"]
@@ -111,7 +113,7 @@ def _decision(step: dict[str, Any], layout: str) -> Page:
         formula = test.get("formula_murty") if layout == "murty" else test.get("formula")
         out.append(Para(f"Ratio test: {formula}."))
         out.append(ratio_grid(test, entering, layout, step.get("row"),
-                              initial=step.get("rule") == "initial"))
+                              initial=step.get("rule") == "initial", inline=has_tableau))
     if step.get("lexicographic"):
         out.extend(lex_blocks(step["lexicographic"], layout))
     if step.get("leaving") is None:
@@ -145,12 +147,12 @@ def lemke_pages(trace: list[dict[str, Any]], layout: str = "dictionary") -> list
         page: Page = [Heading(_state_heading(st, k))]
         view = tableau_view(st, layout, nxt.get("pivot_element") if nxt else None)
         if view is not None:
-            page.append(Para(f"{view.equation}  ({layout} layout)"))
+            page.append(Para(f"`{view.equation}`  ({layout} layout)"))
             page.append(view_grid(view))
         else:
             page.append(Para(f"basic variables: {_basis_values(st)}"))
         if nxt is not None:
-            page.extend(_decision(nxt, layout))
+            page.extend(_decision(nxt, layout, has_tableau=view is not None))
         elif k == 0:
             page.append(Para(st["reason"] + "."))
         elif st.get("leaving") == ARTIFICIAL:
@@ -175,7 +177,7 @@ def principal_pages(trace: list[dict[str, Any]], layout: str = "dictionary") -> 
         page: Page = [Heading(head), Para(_index_sets(st))]
         view = tableau_view(st, layout, nxt.get("pivot_element") if nxt else None)
         if view is not None:
-            page.append(Para(f"{view.equation}  ({layout} layout)"))
+            page.append(Para(f"`{view.equation}`  ({layout} layout)"))
             page.append(view_grid(view))
         else:
             page.append(Para(f"basic variables: {_basis_values(st)}"))
@@ -389,7 +391,7 @@ def pivot_pages(items: list[tuple[Any, dict[str, Any] | None]], M: Any, q: Any,
                                 f"({', '.join(t.names(t.dependent))})"))
         if k == 0:
             view = tableau_view(start, layout)
-            page.append(Para(f"original tableau {view.equation}  ({layout} layout)"))
+            page.append(Para(f"original tableau `{view.equation}`  ({layout} layout)"))
             page.append(view_grid(view))
             if source:
                 page.append(Para(f"artificial column {ARTIFICIAL} (position {n + 1} of z, "
@@ -414,7 +416,7 @@ def pivot_pages(items: list[tuple[Any, dict[str, Any] | None]], M: Any, q: Any,
             pe = step.get("pivot_element") if step else None
             view = tableau_view(state, layout, pe)
             marked = "; the pivot element of the next Lemke step is marked" if pe else ""
-            page.append(Para(f"pivoted tableau {view.equation}  ({layout} layout{marked})"))
+            page.append(Para(f"pivoted tableau `{view.equation}`  ({layout} layout{marked})"))
             page.append(view_grid(view))
         pages.append(page)
     return pages
