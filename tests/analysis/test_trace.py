@@ -213,9 +213,10 @@ def test_follow_walks_lemkes_path(M, q):
     items = follow(augment(M), q, parse_tuple(",".join(f"w{i + 1}" for i in range(n)), n), None,
                    parse_var("z0", n))
     trace = trace_of(M, q)
-    assert [t.names(t.dependent) for t, _ in items] == [s["basis"] for s in trace[:-1]]
-    assert [s["blocking"] for _, s in items] == [s["leaving"] for s in trace[1:]]
-    for (t, _), st in zip(items, trace, strict=False):
+    assert [t.names(t.dependent) for t, _ in items] == [s["basis"] for s in trace]
+    assert [s["blocking"] for _, s in items[:-1]] == [s["leaving"] for s in trace[1:]]
+    assert items[-1][1] is None and items[-1][0].driving is None  # the solution's basis
+    for (t, _), st in zip(items, trace, strict=True):
         np.testing.assert_allclose(t.q_prime, st["q_prime"], atol=1e-12)
 
 
@@ -229,7 +230,8 @@ def test_random_follow_agrees_with_the_trace():
             continue
         items = follow(augment(M), q, tuple(("w", i) for i in range(n)), None, ("z", n))
         trace = trace_of(M, q)
-        assert [s["blocking"] for _, s in items] == [s["leaving"] for s in trace[1:]]
+        assert [s["blocking"] for _, s in items if s] == [s["leaving"] for s in trace[1:]]
+        assert [t.names(t.dependent) for t, _ in items] == [s["basis"] for s in trace]
 
 
 def test_sample_file_is_the_degenerate_example(samples):

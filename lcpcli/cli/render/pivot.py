@@ -410,6 +410,9 @@ def pivot_pages(items: list[tuple[Any, dict[str, Any] | None]], M: Any, q: Any,
                          ["l", "r", "l"], "q' (eqs 2-3), in w' order"))
         if t.driving is not None:
             page.extend(_driving_blocks(t, step, layout))
+        elif ARTIFICIAL not in t.names(t.dependent) and float(np.min(t.q_prime)) >= 0:
+            page.append(Para(f"{ARTIFICIAL} is independent (0) and q' >= 0: at z' = 0 this "
+                             f"complementary basis solves the LCP (Lemke's answer)."))
         if t.full is not None:
             state = {"basis": t.names(t.dependent), "nonbasic": t.names(t.independent),
                      "q_prime": t.q_prime.tolist(), "tableau": t.full.tolist()}

@@ -6,7 +6,8 @@ tolerances as the method) to ``q'`` and the driving column ``M'_driving`` of the
 (eqs 2-8): which dependent variable blocks (leaves), at which level, and which variable
 would enter next by the complementary rule.  :func:`follow` repeats this from basis to basis:
 the blocking variable's slot of ``w'`` gets the driving variable, its complement drives next,
-until ``z0`` leaves, no row blocks (a ray), or ``max_steps``.
+until ``z0`` leaves (the final basis is the last item), no row blocks (a ray), or
+``max_steps``.
 
 When ``q'`` has negative entries the basis is not one of Lemke's feasible bases; with ``z0``
 driving, the method's first pivot applies (``z0`` rises to ``max(-q'_i / c_i)``; the most
@@ -151,7 +152,8 @@ def follow(Maug: np.ndarray, q: np.ndarray, dependent: tuple[Var, ...],
     """Lemke's path through seed 000's transforms, from a basis and a driving variable.
 
     Each item is the transform of one basis (with its driving column) and its
-    :func:`driving_step`.  Later bases list the independent variables in the original order.
+    :func:`driving_step`; when ``z0`` leaves, a last item holds the final basis (the solution)
+    and ``None``.  Later bases list the independent variables in the original order.
     """
     n = q.shape[0]
     out = []
@@ -160,6 +162,11 @@ def follow(Maug: np.ndarray, q: np.ndarray, dependent: tuple[Var, ...],
         t = principal_pivot(Maug, q, dep, ind, driving=drv, full=full, any_basis=any_basis)
         step = driving_step(t, Maug)
         out.append((t, step))
+        if step["blocking"] == ARTIFICIAL:  # the final basis: Lemke's solution
+            dep = tuple(parse_var(s, n) for s in step["next_dependent"])
+            out.append((principal_pivot(Maug, q, dep, canonical_independent(dep, n),
+                                        full=full, any_basis=any_basis), None))
+            break
         if step["blocking"] is None or step["next_entering"] is None:
             break
         dep = tuple(parse_var(s, n) for s in step["next_dependent"])
