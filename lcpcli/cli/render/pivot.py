@@ -46,7 +46,7 @@ def view_grid(view: TableauView, title: str = "") -> Grid:
 def _pivot_text(pe: dict[str, Any], layout: str) -> str:
     value = float(pe["value"]) if layout == "dictionary" else -float(pe["value"])
     return (f"pivot element {fmt(value)}: row {pe['row']}, column {pe['column']} "
-            f"(marked in the tableau)")
+            f"(marked above)")
 
 
 # ------------------------------------------------------------------------------- Lemke
@@ -117,7 +117,7 @@ def _decision(step: dict[str, Any], layout: str, has_tableau: bool = True) -> Pa
     if step.get("lexicographic"):
         out.extend(lex_blocks(step["lexicographic"], layout))
     if step.get("leaving") is None:
-        out.append(Para(f"No pivot: {step['reason']}."))
+        out.append(Para(step["reason"][:1].upper() + step["reason"][1:] + "."))
         return out
     out.append(Para(f"{step['leaving']} leaves (row {step['row']}): {step['reason']}; "
                     f"{_pivot_text(step['pivot_element'], layout)}."))

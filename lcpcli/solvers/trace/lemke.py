@@ -256,9 +256,9 @@ def lemke_traced(M: np.ndarray, q: np.ndarray, d: np.ndarray, max_iter: int, piv
                           "leaving": None, "row": None, "entering_reason": why,
                           "pivot_element": None, "ratio_test": test, "candidates": [],
                           "lexicographic": None, "rule": "ray",
-                          "reason": (f"no row blocks: every entry of the {name(entering)} "
-                                     f"column is >= 0, so {name(entering)} can rise without "
-                                     f"bound (secondary ray); no pivot is made"),
+                          "reason": (f"no row blocks: no basic variable falls as "
+                                     f"{name(entering)} rises, so it can rise without bound "
+                                     f"(a secondary ray); no pivot is made"),
                           **state(None)})
             break
         tmin = test["min_ratio"]
