@@ -6,6 +6,8 @@ from pathlib import Path
 
 import typer
 
+from lcpcli.core.errors import EXIT_OK
+
 
 def pivot(
     file: str = typer.Argument(..., metavar="FILE",
@@ -110,7 +112,7 @@ def pivot(
         payload["artificial_column"] = source
         write_json_line(payload)
         if fmt == "text":
-            return 0
+            return EXIT_OK
     from lcpcli.cli.common import stdout_console
     from lcpcli.cli.render.pivot import pivot_pages
 
@@ -121,7 +123,7 @@ def pivot(
          title=f"lcpcli pivot {file}")
     if output is not None:
         sys.stderr.write(f"lcpcli: wrote {output}\n")
-    return 0
+    return EXIT_OK
 
 
 def register(app: typer.Typer) -> None:
