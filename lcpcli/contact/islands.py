@@ -1,0 +1,201 @@
+"""Islands: the independent sub-LCPs of a scene, solved one by one and merged back.
+
+Two contacts interact (``M_ij != 0``, or a friction row of one touches the other) only through a
+dynamic body they share; static and kinematic bodies have infinite mass, so they transmit no
+impulse.  An **island** is a connected component of the graph whose nodes are the dynamic bodies
+and whose edges are the contacts between two dynamic bodies; a contact belongs to the island of
+its dynamic body (one of its two bodies is dynamic).  Ordering the LCP's unknowns by island
+makes ``M`` block diagonal, so the LCP splits into one LCP per island, and the scene's LCP has a
+solution if and only if every island's has (the union of the islands' solutions is one).
+
+Islands are numbered in the order of their first contact; inside an island the unknowns keep
+the scene's order (normal impulses, then tangential impulses, then slacks).  Box2D, ODE
+(``dxProcessIslands``), Bullet and MuJoCo (``mj_island``) split their contact problems the same
+way.
+
+:func:`solve_problems` is the one place where the island LCPs are solved (switching to a batched
+solver is a change there only).
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from lcpcli.contact.scene import Scene
+from lcpcli.core.problem import Problem, is_sparse
+
+#: Warm start: each island is first tried with this method from its part of ``z0`` ...
+WARM_METHOD = "newton"
+#: ... for at most this many iterations; if its certificate fails, the island is solved cold.
+WARM_MAX_ITER = 20
+#: With ``jobs > 1``, islands go to a process pool only when they hold at least this many
+#: unknowns in all and there are at least ``2 * jobs`` islands (below, forking the workers and
+#: sending the problems back and forth costs more than it saves; benchmarks/bench_contact.py).
+PARALLEL_MIN_UNKNOWNS = 20_000
+
+
+@dataclass
+class Islands:
+    """Island of every contact and body; ``count`` islands numbered by first contact."""
+
+    contact_island: np.ndarray   # (nc,) island index of each contact
+    body_island: np.ndarray      # (nb,) island of each dynamic body in contact, -1 otherwise
+    count: int
+
+    def sizes(self) -> np.ndarray:
+        """Contacts per island."""
+        return np.bincount(self.contact_island, minlength=self.count)
+
+    def body_counts(self) -> np.ndarray:
+        """Dynamic bodies per island."""
+        b = self.body_island[self.body_island >= 0]
+        return np.bincount(b, minlength=self.count)
+
+
+def find_islands(scene: Scene) -> Islands:
+    """Connected components of the contact graph through dynamic bodies (see module docstring)."""
+    import scipy.sparse as sp
+    from scipy.sparse.csgraph import connected_components
+
+    nb, nc = scene.n_bodies, scene.n_contacts
+    ca, cb = scene.contact_a, scene.contact_b
+    dyn = ~scene.fixed
+    both = np.flatnonzero(dyn[ca] & dyn[cb])
+    graph = sp.csr_matrix((np.ones(both.size), (ca[both], cb[both])), shape=(nb, nb))
+    _, labels = connected_components(graph, directed=False)
+    body_of = np.where(dyn[ca], ca, cb)        # a dynamic body of each contact
+    raw = labels[body_of]
+    # renumber: island 0 holds contact 0, island 1 the first contact not in island 0, ...
+    uniq, first = np.unique(raw, return_index=True)
+    order = np.argsort(first, kind="stable")
+    new = np.empty(uniq.size, dtype=np.int64)
+    new[order] = np.arange(uniq.size)
+    contact_island = new[np.searchsorted(uniq, raw)] if nc else np.zeros(0, dtype=np.int64)
+    body_island = np.full(nb, -1, dtype=np.int64)
+    for side in (ca, cb):
+        d = dyn[side]
+        body_island[side[d]] = contact_island[d]
+    return Islands(contact_island=contact_island, body_island=body_island, count=int(uniq.size))
+
+
+@dataclass
+class IslandLayout:
+    """The LCP's unknowns grouped by island: island ``k`` is ``perm[offsets[k]:offsets[k+1]]``."""
+
+    perm: np.ndarray
+    offsets: np.ndarray
+
+    def unknowns(self, k: int) -> np.ndarray:
+        return self.perm[self.offsets[k]: self.offsets[k + 1]]
+
+    @property
+    def count(self) -> int:
+        return int(self.offsets.size - 1)
+
+
+def layout(islands: Islands, unknown_contact: np.ndarray) -> IslandLayout:
+    """Group the unknowns (``unknown_contact[i]``: the contact of unknown ``i``) by island."""
+    isl = islands.contact_island[unknown_contact]
+    perm = np.argsort(isl, kind="stable")
+    offsets = np.searchsorted(isl[perm], np.arange(islands.count + 1))
+    return IslandLayout(perm=perm, offsets=offsets)
+
+
+def island_problems(problem: Problem, lay: IslandLayout, storage: str = "auto",
+                    name: str = "island") -> list[Problem]:
+    """The islands' LCPs: principal blocks of ``problem.M`` (dense or CSR by ``storage``)."""
+    from lcpcli.contact.assembly import choose_storage
+
+    M, q = problem.M, problem.q
+    out = []
+    if lay.count == 1 and lay.perm.size == problem.n:
+        return [problem]  # one island holding every unknown, in order (a stable sort)
+    if is_sparse(M):
+        P = M.tocsr()[lay.perm][:, lay.perm].tocsr()
+    else:
+        P = np.asarray(M)[np.ix_(lay.perm, lay.perm)]
+    qp = q[lay.perm]
+    for k in range(lay.count):
+        s, e = int(lay.offsets[k]), int(lay.offsets[k + 1])
+        block = P[s:e, s:e]
+        if is_sparse(block):
+            kind = choose_storage(storage, e - s, int(block.nnz))
+            block = block.toarray() if kind == "dense" else block.tocsr()
+        elif storage == "sparse":
+            import scipy.sparse as sp
+
+            block = sp.csr_matrix(block)
+        out.append(Problem(M=block, q=qp[s:e].copy(), name=f"{name}#{k + 1}"))
+    return out
+
+
+def solve_problems(problems: list[Problem], method: str = "auto", tol: float | None = None,
+                   z0s: list[np.ndarray] | None = None, jobs: int = 1,
+                   **options: Any) -> list[Any]:
+    """Solve each island LCP with :func:`lcpcli.solve`; one :class:`Result` per problem.
+
+    The one function through which islands are solved (a batched solver replaces the loop
+    here).  ``z0s``: warm starts, one per problem (see :func:`solve_one`).  ``jobs > 1`` uses a
+    process pool when the work is large enough (:data:`PARALLEL_MIN_UNKNOWNS`).
+    """
+    z0s = z0s if z0s is not None else [None] * len(problems)
+    total = sum(p.n for p in problems)
+    if jobs > 1 and len(problems) >= 2 * jobs and total >= PARALLEL_MIN_UNKNOWNS:
+        return _solve_parallel(problems, method, tol, z0s, jobs, options)
+    return [solve_one(p, method, tol, z0, options) for p, z0 in zip(problems, z0s, strict=True)]
+
+
+def solve_one(problem: Problem, method: str, tol: float | None, z0: np.ndarray | None,
+              options: dict[str, Any]) -> Any:
+    """One island: with a warm start, :data:`WARM_METHOD` from ``z0`` first (a ``z0`` that
+    already solves the island costs no iteration); then ``method`` if that did not solve it."""
+    from lcpcli.api import solve
+
+    if z0 is not None:
+        warm = solve(problem, WARM_METHOD, tol=tol, z0=z0, max_iter=WARM_MAX_ITER)
+        if warm.solved:
+            warm.info["warm"] = True
+            return warm
+    res = solve(problem, method, tol=tol, **options)
+    res.info["warm"] = False
+    return res
+
+
+def _chunks(sizes: list[int], parts: int) -> list[list[int]]:
+    """Split indices 0..len(sizes)-1 into ``parts`` lists of about equal summed cost n^2."""
+    order = np.argsort(-np.asarray(sizes, dtype=np.float64) ** 2, kind="stable")
+    loads = np.zeros(parts)
+    out: list[list[int]] = [[] for _ in range(parts)]
+    for i in order:
+        j = int(np.argmin(loads))
+        out[j].append(int(i))
+        loads[j] += float(sizes[i]) ** 2 + 1.0
+    return [c for c in out if c]
+
+
+def _work(args: tuple[list[Problem], str, float | None, list[Any], dict[str, Any]]) -> list[Any]:
+    problems, method, tol, z0s, options = args
+    return [solve_one(p, method, tol, z0, options) for p, z0 in zip(problems, z0s, strict=True)]
+
+
+def _solve_parallel(problems: list[Problem], method: str, tol: float | None, z0s: list[Any],
+                    jobs: int, options: dict[str, Any]) -> list[Any]:
+    # concurrent.futures / multiprocessing only here: most runs never use a pool
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    ctx = multiprocessing.get_context("fork" if "fork" in multiprocessing.get_all_start_methods()
+                                      else "spawn")
+    groups = _chunks([p.n for p in problems], jobs * 4)
+    results: list[Any] = [None] * len(problems)
+    with ProcessPoolExecutor(max_workers=min(jobs, os.cpu_count() or 1), mp_context=ctx) as ex:
+        futures = [(g, ex.submit(_work, ([problems[i] for i in g], method, tol,
+                                         [z0s[i] for i in g], options))) for g in groups]
+        for g, fut in futures:
+            for i, res in zip(g, fut.result(), strict=True):
+                results[i] = res
+    return results
