@@ -38,7 +38,7 @@ from lcpcli.contact.planar import plane_normal
 from lcpcli.contact.scene import Scene, check_nonnegative, per_contact
 from lcpcli.core.errors import OptionError
 from lcpcli.core.problem import Problem, is_sparse
-from lcpcli.core.result import CONVERGED, NO_SOLUTION, SOLVED, Outcome
+from lcpcli.core.result import CONVERGED, NO_SOLUTION, NUMERICAL, SOLVED, Outcome
 
 #: Default method, per island: ``auto`` classifies each island's LCP and picks a method (Lemke
 #: for the small dense islands, iterative sparse methods for big sparse ones).
@@ -316,7 +316,10 @@ def _solve_islands(clcp: ContactLCP, method: str, tol: float | None, z0: np.ndar
                f"{results[first].message}")
     else:
         msg = f"{_count(lay.count, 'island')} solved ({mix}){warm}"
-    termination = CONVERGED if not failed else results[failed[0]["index"] - 1].termination
+    termination = CONVERGED
+    if failed:  # a method that "converged" to a point its certificate rejects failed numerically
+        termination = results[failed[0]["index"] - 1].termination
+        termination = NUMERICAL if termination == CONVERGED else termination
     outcome = Outcome(z=z, iterations=sum(r["iterations"] for r in reports),
                       termination=termination, message=msg, proven_infeasible=bool(infeasible),
                       info={"islands": reports})

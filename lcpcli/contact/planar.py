@@ -81,7 +81,9 @@ def plane_normal(scene: Scene) -> np.ndarray | None:
     perp, omega, inertia = _rows(scene)
     norms = np.linalg.norm(perp, axis=1)
     unit = perp[norms > 0] / norms[norms > 0, None]
-    _, sv, vt = np.linalg.svd(unit, full_matrices=True)
+    if unit.shape[0] < 3:  # pad: the SVD then always returns the 3 right singular vectors
+        unit = np.vstack([unit, np.zeros((3 - unit.shape[0], 3))])
+    _, sv, vt = np.linalg.svd(unit, full_matrices=False)  # O(m): U is m x 3, not m x m
     rank = int(np.sum(sv > PLANAR_TOL * max(1.0, float(sv[0]) if sv.size else 1.0)))
     if rank >= 3:
         return None

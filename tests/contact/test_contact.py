@@ -675,16 +675,20 @@ def box_stack(n: int, seed: int, tilt: float = 0.0):
 
 @pytest.mark.parametrize("k", [4, 8])
 def test_box_stacks_with_friction_solve(k: int) -> None:
+    # the tableau Lemke: on seed 3 with K = 8 lemke-revised ends with a certificate error of
+    # 7.6e-3 (a numerical failure of the revised kernel; auto then needs ip, about 20 s)
     for seed in range(8):
         scene = box_stack(6, seed, tilt=0.05 if seed % 2 else 0.0)
         clcp = build(scene, friction=k)
         if seed % 2 == 0:  # flat: each layer of 4 coplanar corners loses one rank
             assert np.linalg.matrix_rank(build(scene).problem.M) == scene.n_contacts - 6
-        impact = solve(clcp)
+        impact = solve(clcp, "lemke-tableau")
         assert impact.result.solved, impact.result.message
         fc = clcp.friction_contacts
         assert np.all(impact.tangent_impulses.sum(axis=1)
                       <= scene.mu[fc] * impact.normal_impulses[fc] + 1e-9)
-        # no contact ends up approaching faster than Newton's law allows
-        assert np.all(impact.normal_velocity + scene.restitution * clcp.assembly.v_rel >= -1e-9)
+        # no contact ends up approaching, impacts leave at least -eps v^-
+        assert np.all(impact.normal_velocity >= -1e-9) and not impact.approaching.any()
+        e = clcp.assembly.restitution_used
+        assert np.all(impact.normal_velocity + e * clcp.assembly.v_rel >= -1e-9)
         assert impact.energy_after <= impact.energy_before * (1 + 1e-9) or impact.energy_increase
