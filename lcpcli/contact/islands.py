@@ -114,21 +114,36 @@ def island_problems(problem: Problem, lay: IslandLayout, storage: str = "auto",
     out = []
     if lay.count == 1 and lay.perm.size == problem.n:
         return [problem]  # one island holding every unknown, in order (a stable sort)
-    if is_sparse(M):
-        P = M.tocsr()[lay.perm][:, lay.perm].tocsr()
-    else:
-        P = np.asarray(M)[np.ix_(lay.perm, lay.perm)]
     qp = q[lay.perm]
+    if not is_sparse(M):
+        P = np.asarray(M)[np.ix_(lay.perm, lay.perm)]
+        for k in range(lay.count):
+            s, e = int(lay.offsets[k]), int(lay.offsets[k + 1])
+            block = P[s:e, s:e]
+            if storage == "sparse":
+                import scipy.sparse as sp
+
+                block = sp.csr_matrix(block)
+            out.append(Problem(M=block, q=qp[s:e].copy(), name=f"{name}#{k + 1}"))
+        return out
+    import scipy.sparse as sp
+
+    P = M.tocsr()[lay.perm][:, lay.perm].tocsr()
+    P.sum_duplicates()
+    # block diagonal: rows s..e-1 hold entries in columns s..e-1 only, so each block is a slice
+    # of P's arrays (no scipy slicing per island)
+    ptr, idx, val = P.indptr, P.indices, P.data
     for k in range(lay.count):
         s, e = int(lay.offsets[k]), int(lay.offsets[k + 1])
-        block = P[s:e, s:e]
-        if is_sparse(block):
-            kind = choose_storage(storage, e - s, int(block.nnz))
-            block = block.toarray() if kind == "dense" else block.tocsr()
-        elif storage == "sparse":
-            import scipy.sparse as sp
-
-            block = sp.csr_matrix(block)
+        a, b = int(ptr[s]), int(ptr[e])
+        n = e - s
+        if choose_storage(storage, n, b - a) == "dense":
+            block = np.zeros((n, n))
+            rows = np.repeat(np.arange(n), np.diff(ptr[s:e + 1]))
+            block[rows, idx[a:b] - s] = val[a:b]
+        else:
+            block = sp.csr_matrix((val[a:b].copy(), idx[a:b] - s, ptr[s:e + 1] - a),
+                                  shape=(n, n))
         out.append(Problem(M=block, q=qp[s:e].copy(), name=f"{name}#{k + 1}"))
     return out
 
