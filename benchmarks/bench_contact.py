@@ -10,9 +10,11 @@ Cases (scenes from :mod:`lcpcli.contact.examples`, seeds fixed):
   islands): build time, solve time (auto per island) and their ratio (goal: solve <= 3 x build);
   the whole-scene LCP solved at once is timed on 10 stacks (it grows as n^2 per pivot);
 * ``stacks-10k``: 834 stacks (10,008 contacts, K = 4; goal: solved in <= 10 s), with 2 processes
-  (``jobs=2``) and warm-started from its own impulses;
+  (``jobs=2``), and warm-started: from its own impulses, and a "next step" (every velocity
+  changed by about 1 %) solved cold and from the first step's impulses;
 * ``lattice-100k``: 33 x 33 x 32 touching spheres, frictionless (102,432 contacts in one island;
-  goal: the default solve works), also through the CLI (``contact-matrix SCENE.h5 --solve``);
+  goal: the default solve works), also through the CLI (``contact-matrix SCENE.h5 --solve``),
+  and warm-started as above;
 * ``old-law``: a 15^3 sphere lattice (9,675 contacts) solved with the former law
   ``q = (1 + eps) v_rel^-`` on every contact and with the contact states: contacts ending
   approaching (``v_rel^+ < 0``) under each;
@@ -34,6 +36,7 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ[_var] = os.environ.get("BENCH_THREADS", "1")
 
 import argparse  # noqa: E402
+import dataclasses  # noqa: E402
 import json  # noqa: E402
 import platform  # noqa: E402
 import statistics  # noqa: E402
@@ -92,17 +95,36 @@ def case_stacks(n: int, repeat: int) -> dict:
     return out
 
 
+def next_step(scene, rel: float = 0.01, seed: int = 0):
+    """The scene with every velocity changed by about ``rel`` (a stand-in for the next step)."""
+    rng = np.random.default_rng(seed)
+    return dataclasses.replace(
+        scene, velocity=scene.velocity * (1 + rel * rng.normal(size=scene.velocity.shape)),
+        omega=scene.omega * (1 + rel * rng.normal(size=scene.omega.shape)))
+
+
+def warm_runs(clcp, impact, repeat: int) -> dict:
+    """Warm starts: from the scene's own impulses, and a 1 % perturbed scene from them."""
+    t_same, same = timed(lambda: solve(clcp, z0=impact.result.z), repeat)
+    nxt = build(next_step(clcp.scene), friction=clcp.requested_friction)
+    t_cold, cold = timed(lambda: solve(nxt), repeat)
+    t_next, warm = timed(lambda: solve(nxt, z0=impact.result.z), repeat)
+    return {"warm_same_s": t_same, "warm_same_status": same.result.status,
+            "next_cold_s": t_cold, "next_cold_iterations": cold.result.iterations,
+            "next_warm_s": t_next, "next_warm_status": warm.result.status,
+            "next_warm_iterations": warm.result.iterations,
+            "next_warm_islands": sum(r["warm"] for r in warm.islands)}
+
+
 def case_stacks_10k(n: int, repeat: int) -> dict:
     scene = box_stacks(n, 3, seed=1)
     t_build, clcp = timed(lambda: build(scene, friction=4), repeat)
     t_solve, impact = timed(lambda: solve(clcp), repeat)
     t_jobs, par = timed(lambda: solve(clcp, jobs=2), repeat)
-    t_warm, warm = timed(lambda: solve(clcp, z0=impact.result.z), repeat)
     return {"case": f"stacks {n}x3 K=4", "contacts": scene.n_contacts,
             "unknowns": clcp.problem.n, "build_s": t_build, "solve_s": t_solve,
             "ratio": t_solve / t_build, "jobs2_s": t_jobs, "jobs2_status": par.result.status,
-            "warm_s": t_warm, "warm_status": warm.result.status,
-            "warm_islands": sum(r["warm"] for r in warm.islands), **summary(impact)}
+            **warm_runs(clcp, impact, repeat), **summary(impact)}
 
 
 def case_lattice(shape: tuple[int, int, int], repeat: int, cli: bool) -> dict:
@@ -111,7 +133,8 @@ def case_lattice(shape: tuple[int, int, int], repeat: int, cli: bool) -> dict:
     t_solve, impact = timed(lambda: solve(clcp), repeat)
     out = {"case": f"lattice {'x'.join(map(str, shape))} frictionless",
            "contacts": scene.n_contacts, "unknowns": clcp.problem.n, "build_s": t_build,
-           "solve_s": t_solve, "ratio": t_solve / t_build, **summary(impact)}
+           "solve_s": t_solve, "ratio": t_solve / t_build, **warm_runs(clcp, impact, repeat),
+           **summary(impact)}
     if cli:
         with tempfile.TemporaryDirectory() as tmp:
             path = Path(tmp) / "lattice.h5"
@@ -159,13 +182,12 @@ def case_samples() -> list[dict]:
 
 def case_hard(limit: float) -> dict:
     """One frictional island of 9,675 contacts (58,050 unknowns), in a child process."""
-    code = ("import sys, time; sys.path.insert(0, %r)\n"
+    code = (f"import sys, time; sys.path.insert(0, {str(ROOT)!r})\n"
             "from lcpcli.contact import build, solve\n"
             "from lcpcli.contact.examples import sphere_lattice\n"
             "c = build(sphere_lattice(15, 15, 15, seed=1), friction=4)\n"
             "t = time.perf_counter(); i = solve(c)\n"
-            "print(i.result.status, time.perf_counter() - t, i.result.message[:200])\n"
-            % str(ROOT))
+            "print(i.result.status, time.perf_counter() - t, i.result.message[:200])\n")
     t0 = time.perf_counter()
     try:
         proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,

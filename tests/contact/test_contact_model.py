@@ -489,7 +489,7 @@ def test_warm_start_from_impulses_file(tmp_path, capsys) -> None:
     assert "48 of 48 unknowns matched by name" in err
     d1, d2 = json.loads(out1), json.loads(out2)
     for rep in d2["islands"]["per_island"]:
-        assert rep["warm"] is True and rep["iterations"] == 0 and rep["method"] == "newton"
+        assert rep["warm"] is True and rep["iterations"] == 0 and rep["method"] == "z0"
     assert d2["impulses"] == pytest.approx(d1["impulses"], abs=1e-12)
     # the --json output and an .npz impulses file work too
     js = tmp_path / "out.json"
@@ -501,6 +501,29 @@ def test_warm_start_from_impulses_file(tmp_path, capsys) -> None:
     code, out3, err = run_inprocess(capsys, "contact-matrix", path, "--friction", "4", "--solve",
                                     "--json", "--z0", str(npz))
     assert code == 0 and all(r["warm"] for r in json.loads(out3)["islands"]["per_island"])
+
+
+def test_warm_start_policy_small_and_big_islands() -> None:
+    """A z0 that is not a solution: small islands are solved cold; an island of at least
+    WARM_NEWTON_MIN_N unknowns starts Newton from z0 (fewer iterations than cold)."""
+    import dataclasses
+
+    from lcpcli.contact.islands import WARM_NEWTON_MIN_N
+
+    small = build(box_stacks(3, 2, seed=4), friction=4)
+    first = solve(small)
+    bad = solve(small, z0=first.result.z * 0.5)
+    assert bad.result.solved and not any(r["warm"] for r in bad.islands)
+    scene = sphere_lattice(12, 12, 8, seed=6)
+    assert scene.n_contacts >= WARM_NEWTON_MIN_N
+    rng = np.random.default_rng(1)
+    step1 = solve(build(scene))
+    nxt = build(dataclasses.replace(scene, velocity=scene.velocity
+                                    * (1 + 0.01 * rng.normal(size=scene.velocity.shape))))
+    cold, warm = solve(nxt), solve(nxt, z0=step1.result.z)
+    assert warm.result.solved and warm.islands[0]["warm"] and warm.islands[0]["method"] == "newton"
+    assert warm.result.iterations < cold.result.iterations
+    assert np.allclose(warm.velocity, cold.velocity, atol=1e-8)
 
 
 def test_warm_start_by_name_when_the_scene_changes(tmp_path) -> None:
