@@ -36,7 +36,7 @@ from lcpcli.contact.islands import (
 )
 from lcpcli.contact.planar import plane_normal
 from lcpcli.contact.scene import Scene, check_nonnegative, per_contact
-from lcpcli.core.errors import OptionError
+from lcpcli.core.errors import OptionError, ProblemError
 from lcpcli.core.problem import Problem, is_sparse
 from lcpcli.core.result import CONVERGED, NO_SOLUTION, NUMERICAL, SOLVED, Outcome
 
@@ -121,7 +121,7 @@ def build(scene: Scene, friction: int = 0, storage: str = "auto", *,
                          (softness, "--softness")):
         try:
             check_nonnegative(value, label)
-        except Exception as exc:  # ProblemError -> an option error (exit 2 either way)
+        except ProblemError as exc:  # an option, not the scene file (exit 2 either way)
             raise OptionError(str(exc)) from None
     asm = assemble(scene, storage, restitution_threshold=restitution_threshold)
     nc = scene.n_contacts
@@ -129,7 +129,7 @@ def build(scene: Scene, friction: int = 0, storage: str = "auto", *,
     plane = plane_normal(scene) if planar and scene.dimension == 3 else None
     notes = []
     if k:
-        fb = friction_blocks(asm, k, plane if k else None)
+        fb = friction_blocks(asm, k, plane)
         fc, dirs, kk = fb["fc"], fb["dirs"], fb["K"]
         G = fb["matrix"]
         q = fb["q"]
