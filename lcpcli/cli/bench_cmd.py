@@ -7,6 +7,7 @@ from pathlib import Path
 import typer
 
 from lcpcli.cli.common import MethodListCommand
+from lcpcli.core.errors import EXIT_NOT_SOLVED, EXIT_OK
 
 
 def _floats(text: str, label: str) -> list[float]:
@@ -132,7 +133,7 @@ def bench(
         write_plot(report, plot)
     for rec in report.defects:
         err.print(f"lcpcli: DEFECT: {rec.method} on {rec.problem}: {rec.defect_reason}")
-    return 1 if report.defects else 0
+    return EXIT_NOT_SOLVED if report.defects else EXIT_OK
 
 
 def register(app: typer.Typer) -> None:
