@@ -81,11 +81,12 @@ def plane_normal(scene: Scene) -> np.ndarray | None:
     perp, omega, inertia = _rows(scene)
     norms = np.linalg.norm(perp, axis=1)
     unit = perp[norms > 0] / norms[norms > 0, None]
-    head = unit[:64]  # most non-planar scenes show it in their first rows: skip the full SVD
-    if head.shape[0] >= 3:
-        # ||head e|| > sqrt(h) * tol for every unit e means some row has |x . e| > tol
-        if np.linalg.svd(head, compute_uv=False)[2] > np.sqrt(head.shape[0]) * PLANAR_TOL:
-            return None
+    # most non-planar scenes show it in their first rows: skip the full SVD.  ||head e|| >
+    # sqrt(h) * tol for every unit e means some row has |x . e| > tol
+    head = unit[:64]
+    if head.shape[0] >= 3 and \
+            np.linalg.svd(head, compute_uv=False)[2] > np.sqrt(head.shape[0]) * PLANAR_TOL:
+        return None
     if unit.shape[0] < 3:  # pad: the SVD then always returns the 3 right singular vectors
         unit = np.vstack([unit, np.zeros((3 - unit.shape[0], 3))])
     _, sv, vt = np.linalg.svd(unit, full_matrices=False)  # O(m): U is m x 3, not m x m

@@ -246,10 +246,10 @@ def test_parallel_islands_match_serial(monkeypatch) -> None:
         solve(clcp, jobs=0)
 
 
-def test_default_solve_handles_big_sparse_scenes(capsys, tmp_path) -> None:
+def test_default_solve_handles_big_sparse_scenes(capsys, tmp_path, monkeypatch) -> None:
     """One island of 1,116 frictionless contacts stored sparse: auto (the default) solves it
     where a dense-only method would be refused (the limit is lowered to provoke that)."""
-    import lcpcli.api
+    import lcpcli.solvers.registry
 
     scene = sphere_lattice(8, 8, 6, seed=3)
     path = tmp_path / "lattice.h5"
@@ -260,13 +260,13 @@ def test_default_solve_handles_big_sparse_scenes(capsys, tmp_path) -> None:
     d = json.loads(out)
     assert d["status"] == "solved" and d["islands"]["count"] == 1
     assert d["islands"]["unknowns"] == [scene.n_contacts] and d["approaching_after"] == 0
-    lcpcli.api.MAX_DENSIFY_ENTRIES, old = 1000, lcpcli.api.MAX_DENSIFY_ENTRIES
-    try:
-        code, _, err = run_inprocess(capsys, "contact-matrix", str(path), "--solve",
-                                     "--storage", "sparse", "--method", "lemke")
-        assert code == 2 and "dense" in err
-    finally:
-        lcpcli.api.MAX_DENSIFY_ENTRIES = old
+    monkeypatch.setattr(lcpcli.solvers.registry, "MAX_DENSIFY_ENTRIES", 1000)
+    code, _, err = run_inprocess(capsys, "contact-matrix", str(path), "--solve", "--storage",
+                                 "sparse", "--method", "lemke")
+    assert code == 2 and "dense" in err
+    code, out, err = run_inprocess(capsys, "contact-matrix", str(path), "--solve", "--json",
+                                   "--storage", "sparse")
+    assert code == 0 and json.loads(out)["status"] == "solved", err
 
 
 # ---------------------------------------------------------------------- kinematic bodies
