@@ -13,8 +13,8 @@ the scene's order (normal impulses, then tangential impulses, then slacks).  Box
 (``dxProcessIslands``), Bullet and MuJoCo (``mj_island``) split their contact problems the same
 way.
 
-:func:`solve_problems` is the one place where the island LCPs are solved (switching to a batched
-solver is a change there only).
+:func:`solve_problems` is the one place where the island LCPs are solved; its
+:func:`solve_cold` is the one line that a batched solver for many small LCPs replaces.
 """
 
 from __future__ import annotations
@@ -156,48 +156,72 @@ def island_problems(problem: Problem, lay: IslandLayout, storage: str = "auto",
 def solve_problems(problems: list[Problem], method: str = "auto", tol: float | None = None,
                    z0s: list[np.ndarray] | None = None, jobs: int = 1,
                    **options: Any) -> list[Any]:
-    """Solve each island LCP with :func:`lcpcli.solve`; one :class:`Result` per problem.
+    """Solve the island LCPs; one certified :class:`Result` per problem, in order.
 
-    The one function through which islands are solved (a batched solver replaces the loop
-    here).  ``z0s``: warm starts, one per problem (see :func:`solve_one`).  ``jobs > 1`` uses a
-    process pool when the work is large enough (:data:`PARALLEL_MIN_UNKNOWNS`).
+    ``z0s``: warm starts, one per problem (:func:`warm_attempt`); the problems they do not solve,
+    and all problems without them, go to :func:`solve_cold` (``jobs > 1``: in a process pool
+    when the work is large enough, :data:`PARALLEL_MIN_UNKNOWNS`).  ``Result.info["warm"]`` says
+    whether the warm start gave the answer.
     """
-    z0s = z0s if z0s is not None else [None] * len(problems)
-    total = sum(p.n for p in problems)
-    if jobs > 1 and len(problems) >= 2 * jobs and total >= PARALLEL_MIN_UNKNOWNS:
-        return _solve_parallel(problems, method, tol, z0s, jobs, options)
-    return [solve_one(p, method, tol, z0, options) for p, z0 in zip(problems, z0s, strict=True)]
+    results: list[Any] = [None] * len(problems)
+    todo = list(range(len(problems)))
+    if z0s is not None:
+        todo = []
+        for i, (p, z0) in enumerate(zip(problems, z0s, strict=True)):
+            res = warm_attempt(p, method, tol, z0)
+            if res is None:
+                todo.append(i)
+            else:
+                results[i] = res
+    cold = [problems[i] for i in todo]
+    total = sum(p.n for p in cold)
+    if jobs > 1 and len(cold) >= 2 * jobs and total >= PARALLEL_MIN_UNKNOWNS:
+        answers = _solve_parallel(cold, method, tol, jobs, options)
+    else:
+        answers = solve_cold(cold, method, tol, options)
+    for i, res in zip(todo, answers, strict=True):
+        res.info["warm"] = False
+        results[i] = res
+    return results
+
+
+def solve_cold(problems: list[Problem], method: str, tol: float | None,
+               options: dict[str, Any]) -> list[Any]:
+    """Each problem with :func:`lcpcli.solve` from scratch: the one line a batched solver for
+    many small LCPs (``lcpcli.solve_many``, issue 14) replaces."""
+    from lcpcli.api import solve
+
+    return [solve(p, method, tol=tol, **options) for p in problems]
 
 
 def solve_one(problem: Problem, method: str, tol: float | None, z0: np.ndarray | None,
               options: dict[str, Any]) -> Any:
-    """One island (or the whole scene), certified by :func:`lcpcli.solve`.
+    """One LCP (an island or the whole scene): :func:`warm_attempt`, else :func:`solve_cold`."""
+    return solve_problems([problem], method, tol, None if z0 is None else [z0], 1, **options)[0]
 
-    With a warm start ``z0``: if ``z0`` itself passes the certificate it is the answer (method
-    ``z0``, no iteration); otherwise, on islands of at least :data:`WARM_NEWTON_MIN_N` unknowns,
-    :data:`WARM_METHOD` from ``z0`` (at most :data:`WARM_MAX_ITER` iterations); if neither solved
-    it, ``method`` from scratch.  ``Result.info["warm"]`` says whether ``z0`` was used.
-    """
+
+def warm_attempt(problem: Problem, method: str, tol: float | None, z0: np.ndarray) -> Any:
+    """The warm start's answer, or None: ``z0`` itself if it passes the certificate (method
+    ``z0``, no iteration); otherwise, on problems of at least :data:`WARM_NEWTON_MIN_N`
+    unknowns, :data:`WARM_METHOD` from ``z0`` (at most :data:`WARM_MAX_ITER` iterations) if it
+    solves it.  The tolerance is ``tol`` or ``method``'s default."""
     from lcpcli.api import certify_outcome, solve
     from lcpcli.core.result import CONVERGED, Outcome
     from lcpcli.solvers.registry import get_method
 
-    if z0 is not None:
-        limit = get_method(method).default_tol if tol is None else float(tol)
-        given = certify_outcome(problem, Outcome(np.asarray(z0, dtype=np.float64), 0, CONVERGED,
-                                                 "the warm start z0 passes the certificate"),
-                                "z0", 0.0, limit)
-        if given.solved:
-            given.info["warm"] = True
-            return given
-        if problem.n >= WARM_NEWTON_MIN_N:
-            warm = solve(problem, WARM_METHOD, tol=tol, z0=z0, max_iter=WARM_MAX_ITER)
-            if warm.solved:
-                warm.info["warm"] = True
-                return warm
-    res = solve(problem, method, tol=tol, **options)
-    res.info["warm"] = False
-    return res
+    limit = get_method(method).default_tol if tol is None else float(tol)
+    given = certify_outcome(problem, Outcome(np.asarray(z0, dtype=np.float64), 0, CONVERGED,
+                                             "the warm start z0 passes the certificate"),
+                            "z0", 0.0, limit)
+    if given.solved:
+        given.info["warm"] = True
+        return given
+    if problem.n >= WARM_NEWTON_MIN_N:
+        warm = solve(problem, WARM_METHOD, tol=tol, z0=z0, max_iter=WARM_MAX_ITER)
+        if warm.solved:
+            warm.info["warm"] = True
+            return warm
+    return None
 
 
 def _chunks(sizes: list[int], parts: int) -> list[list[int]]:
@@ -212,13 +236,13 @@ def _chunks(sizes: list[int], parts: int) -> list[list[int]]:
     return [c for c in out if c]
 
 
-def _work(args: tuple[list[Problem], str, float | None, list[Any], dict[str, Any]]) -> list[Any]:
-    problems, method, tol, z0s, options = args
-    return [solve_one(p, method, tol, z0, options) for p, z0 in zip(problems, z0s, strict=True)]
+def _work(args: tuple[list[Problem], str, float | None, dict[str, Any]]) -> list[Any]:
+    problems, method, tol, options = args
+    return solve_cold(problems, method, tol, options)
 
 
-def _solve_parallel(problems: list[Problem], method: str, tol: float | None, z0s: list[Any],
-                    jobs: int, options: dict[str, Any]) -> list[Any]:
+def _solve_parallel(problems: list[Problem], method: str, tol: float | None, jobs: int,
+                    options: dict[str, Any]) -> list[Any]:
     # concurrent.futures / multiprocessing only here: most runs never use a pool
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor
@@ -228,8 +252,8 @@ def _solve_parallel(problems: list[Problem], method: str, tol: float | None, z0s
     groups = _chunks([p.n for p in problems], jobs * 4)
     results: list[Any] = [None] * len(problems)
     with ProcessPoolExecutor(max_workers=min(jobs, os.cpu_count() or 1), mp_context=ctx) as ex:
-        futures = [(g, ex.submit(_work, ([problems[i] for i in g], method, tol,
-                                         [z0s[i] for i in g], options))) for g in groups]
+        futures = [(g, ex.submit(_work, ([problems[i] for i in g], method, tol, options)))
+                   for g in groups]
         for g, fut in futures:
             for i, res in zip(g, fut.result(), strict=True):
                 results[i] = res
