@@ -15,15 +15,20 @@ from __future__ import annotations
 import importlib
 import os
 import sys
+import warnings
 
 import typer
 import typer.core
 
 from lcpcli import __version__
-from lcpcli.core.errors import EXIT_BAD_INPUT, LcpError
-
-EXIT_INTERNAL = 3
-
+from lcpcli.cli import common
+from lcpcli.core.errors import (
+    EXIT_BAD_INPUT,
+    EXIT_INTERNAL,
+    EXIT_INTERRUPTED,
+    EXIT_OK,
+    LcpError,
+)
 
 
 def _click_exceptions():  # type: ignore[no-untyped-def]
@@ -69,7 +74,7 @@ app = typer.Typer(
 def _version(value: bool) -> None:
     if value:
         typer.echo(f"lcpcli {__version__}")
-        raise typer.Exit(0)
+        raise typer.Exit(EXIT_OK)
 
 
 @app.callback()
@@ -90,10 +95,46 @@ def error_line(message: str) -> None:
     sys.stderr.write(f"lcpcli: error: {text}\n")
 
 
-def main(argv: list[str] | None = None) -> None:
-    """Entry point: run the app, map every failure to one stderr line and an exit code."""
+def _show_warning(message: Warning | str, category: type[Warning], filename: str, lineno: int,
+                  file: object = None, line: str | None = None) -> None:
+    """Warnings as one ``lcpcli: warning:`` line (no source path, no code line)."""
+    text = " ".join(str(message).split())
+    sys.stderr.write(f"lcpcli: warning: {text}\n")
+
+
+def _print_root_help() -> None:
+    """The formatted top-level help, on stderr (bare ``lcpcli`` is a usage error)."""
+    command = typer.main.get_command(app)
+    with command.make_context("lcpcli", [], resilient_parsing=True) as ctx:
+        sys.stderr.write(ctx.get_help() + "\n")
+
+
+def _silence_stdout() -> None:
+    """After a broken pipe: send what is still buffered for stdout to /dev/null, so the
+    interpreter's final flush cannot fail (and print a traceback) on the closed pipe."""
     try:
-        code = app(args=argv, standalone_mode=False, prog_name="lcpcli")
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+    except (OSError, ValueError):
+        pass
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Entry point: run the app, map every failure to one stderr line and an exit code.
+
+    Bare ``lcpcli`` prints the formatted help on stderr and exits 2 (a usage error; ``lcpcli
+    --help`` prints it on stdout and exits 0).  A broken pipe on stdout (``lcpcli ... | head``)
+    is not a failure: the exit code is the one the finished work earned (see
+    :func:`lcpcli.cli.common.pending_exit`).
+    """
+    args = sys.argv[1:] if argv is None else list(argv)
+    warnings.showwarning = _show_warning
+    if not args:
+        _print_root_help()
+        sys.exit(EXIT_BAD_INPUT)
+    try:
+        code = app(args=args, standalone_mode=False, prog_name="lcpcli")
     except click_exc.UsageError as exc:
         hint = f" (see '{exc.ctx.command_path} --help')" if exc.ctx else ""
         error_line(f"{exc.format_message()}{hint}")
@@ -103,19 +144,24 @@ def main(argv: list[str] | None = None) -> None:
         code = EXIT_BAD_INPUT
     except typer.Abort:
         error_line("interrupted")
-        code = 130
+        code = EXIT_INTERRUPTED
     except LcpError as exc:
         error_line(str(exc))
         code = EXIT_BAD_INPUT
     except KeyboardInterrupt:
         error_line("interrupted")
-        code = 130
+        code = EXIT_INTERRUPTED
     except BrokenPipeError:
-        code = 0
+        _silence_stdout()
+        code = common.pending_exit()
     except Exception as exc:  # noqa: BLE001 - last line of defence: no tracebacks for users
         if os.environ.get("LCPCLI_DEBUG"):
             raise
         error_line(f"internal error: {type(exc).__name__}: {exc} "
                    f"(set LCPCLI_DEBUG=1 for the traceback)")
         code = EXIT_INTERNAL
-    sys.exit(code if isinstance(code, int) else 0)
+    try:
+        sys.stdout.flush()
+    except BrokenPipeError:  # the reader left after the last write
+        _silence_stdout()
+    sys.exit(code if isinstance(code, int) else EXIT_OK)

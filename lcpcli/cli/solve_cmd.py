@@ -69,12 +69,14 @@ def solve(
     import json
 
     from lcpcli.api import solve as solve_problem
-    from lcpcli.cli.common import exit_code_for, parse_key_values, write_json_line
+    from lcpcli.cli.common import MAX_ITER, exit_code_for, parse_key_values, write_json_line
     from lcpcli.core.errors import OptionError
-    from lcpcli.io import load, write_atomic_text
+    from lcpcli.io import check_output, load, write_atomic_text
 
     opts: dict[str, object] = parse_key_values(option)
     if max_iter is not None:
+        if max_iter > MAX_ITER:
+            raise OptionError(f"--max-iter {max_iter} is too large (limit {MAX_ITER:,})")
         opts["max_iter"] = max_iter
     if covering is not None:
         opts["covering"] = covering
@@ -89,7 +91,7 @@ def solve(
     files = [file, *(more_files or [])]
     batch = {"recursive": recursive, "jobs": jobs, "resume": resume, "timeout": timeout,
              "quiet": quiet, "scheduler": scheduler}
-    if wants_batch(files, output, **batch):
+    if wants_batch(files, output, problem=problem, **batch):
         if trace:
             raise OptionError("--trace shows one problem's pivots; it does not apply to a batch")
         return run_batch_command(files, method=method, tol=tol, opts=opts, problem=problem,
@@ -98,9 +100,12 @@ def solve(
         opts["trace"] = True
         if method == "auto":  # the pivot trace is a Lemke feature: auto would refuse it
             method = "lemke"
+    if output is not None:  # before any work: never the input, a device or a link
+        check_output(output, inputs=[file, z0])
     prob = load(file, problem)
     result = solve_problem(prob, method, tol=tol, **opts)
     payload = result.to_dict(file=file)
+    code = exit_code_for([result.status])
     if output is not None:
         write_atomic_text(output, json.dumps(payload, allow_nan=False) + "\n")
     if as_json:
@@ -115,7 +120,7 @@ def solve(
 
             console.print(render_trace(result.trace, prob.n))
         console.print(render_result(result, prob, file))
-    return exit_code_for([result.status])
+    return code
 
 
 def register(app: typer.Typer) -> None:

@@ -309,8 +309,9 @@ def test_single_file_mode_unchanged(cli, samples, tmp_path):
     assert np.allclose(payload["z"], [4 / 3, 7 / 3])
     rng = np.random.default_rng(0)
     write_many([spd_problem(rng, 3, "x"), spd_problem(rng, 3, "y")], tmp_path / "two.h5")
-    r = cli("solve", str(tmp_path / "two.h5"))
-    assert r.returncode == 2 and "--problem" in r.stderr
+    r = cli("solve", str(tmp_path / "two.h5"), "--json")  # several problems: a batch
+    rows = [json.loads(line) for line in r.stdout.splitlines()]
+    assert r.returncode == 0 and sorted(row["problem"] for row in rows) == ["x", "y"]
     r = cli("solve", str(tmp_path / "two.h5"), "-p", "y", "--json")
     assert r.returncode == 0 and json.loads(r.stdout)["problem"] == "y"
 
