@@ -270,11 +270,15 @@ class CsvWriter(_LineWriter):
         super().__init__(path, resume, header=",".join(CSV_COLUMNS) + "\n")
         self.buffer = io.StringIO()
         self.csv = csv.writer(self.buffer, lineterminator="\n")
+        # the csv module quotes a field holding the line terminator, not a lone "\r"
+        self.csv_quoted = csv.writer(self.buffer, lineterminator="\n", quoting=csv.QUOTE_ALL)
 
     def _line(self, row: dict[str, Any]) -> str:
         self.buffer.seek(0)
         self.buffer.truncate()
-        self.csv.writerow([_csv_text(c, row.get(c)) for c in CSV_COLUMNS])
+        cells = [_csv_text(c, row.get(c)) for c in CSV_COLUMNS]
+        writer = self.csv_quoted if any("\r" in cell for cell in cells) else self.csv
+        writer.writerow(cells)
         return self.buffer.getvalue()
 
 

@@ -130,9 +130,12 @@ def main(argv: list[str] | None = None) -> None:
     """
     args = sys.argv[1:] if argv is None else list(argv)
     warnings.showwarning = _show_warning
+    common.pending_exit(EXIT_OK)
     if not args:
         _print_root_help()
         sys.exit(EXIT_BAD_INPUT)
+    stdout = sys.stdout
+    sys.stdout = common.StdoutGuard(stdout)  # type: ignore[assignment]
     try:
         code = app(args=args, standalone_mode=False, prog_name="lcpcli")
     except click_exc.UsageError as exc:
@@ -151,7 +154,7 @@ def main(argv: list[str] | None = None) -> None:
     except KeyboardInterrupt:
         error_line("interrupted")
         code = EXIT_INTERRUPTED
-    except BrokenPipeError:
+    except (common.PipeClosed, BrokenPipeError):
         _silence_stdout()
         code = common.pending_exit()
     except Exception as exc:  # noqa: BLE001 - last line of defence: no tracebacks for users
@@ -160,6 +163,8 @@ def main(argv: list[str] | None = None) -> None:
         error_line(f"internal error: {type(exc).__name__}: {exc} "
                    f"(set LCPCLI_DEBUG=1 for the traceback)")
         code = EXIT_INTERNAL
+    finally:
+        sys.stdout = stdout
     try:
         sys.stdout.flush()
     except BrokenPipeError:  # the reader left after the last write

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import errno
 import json
 import sys
 from typing import Any
@@ -23,6 +22,36 @@ MAX_ITER = 2**31 - 1
 
 #: The exit code of the work finished so far (what a broken pipe on stdout exits with).
 _PENDING = {"code": EXIT_OK}
+
+
+class PipeClosed(Exception):  # noqa: N818 - the name says what happened, not "Error"
+    """The reader of stdout went away (``lcpcli ... | head``).
+
+    Deliberately not an OSError: typer turns an EPIPE OSError into exit status 1, which reads
+    as "not solved"; ``lcpcli.cli.main`` exits with :func:`pending_exit` instead.
+    """
+
+
+class StdoutGuard:
+    """sys.stdout as the commands see it: a broken pipe raises :class:`PipeClosed`."""
+
+    def __init__(self, stream: Any) -> None:
+        self._stream = stream
+
+    def write(self, text: str) -> int:
+        try:
+            return self._stream.write(text)
+        except BrokenPipeError:
+            raise PipeClosed() from None
+
+    def flush(self) -> None:
+        try:
+            self._stream.flush()
+        except BrokenPipeError:
+            raise PipeClosed() from None
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._stream, name)
 
 
 def pending_exit(code: int | None = None) -> int:
@@ -88,7 +117,7 @@ def _console_class() -> Any:
     class PipeConsole(Console):
         def on_broken_pipe(self) -> None:
             self.quiet = True
-            raise BrokenPipeError(errno.EPIPE, "broken pipe")
+            raise PipeClosed()
 
     return PipeConsole
 
@@ -114,6 +143,6 @@ def write_json_line(obj: Any) -> None:
     sys.stdout.flush()
 
 
-__all__ = ["EXIT_BAD_INPUT", "MAX_ITER", "MethodListCommand", "duration", "exit_code_for",
-           "parse_key_values", "pending_exit", "plural", "stderr_console", "stdout_console",
-           "write_json_line"]
+__all__ = ["EXIT_BAD_INPUT", "MAX_ITER", "MethodListCommand", "PipeClosed", "StdoutGuard",
+           "duration", "exit_code_for", "parse_key_values", "pending_exit", "plural",
+           "stderr_console", "stdout_console", "write_json_line"]

@@ -58,7 +58,7 @@ def enumerate_command(
     output_path = Path(output) if output is not None else None
     for target in (output_path, plot_path):  # before any work: never the input or a device
         if target is not None:
-            check_output(target, inputs=[file])
+            check_output(target, inputs=[file], stdout=False)
     prob = load(file, problem)
     M = check_problem(prob, max_n)
     n = prob.n

@@ -101,7 +101,7 @@ def solve(
         if method == "auto":  # the pivot trace is a Lemke feature: auto would refuse it
             method = "lemke"
     if output is not None:  # before any work: never the input, a device or a link
-        check_output(output, inputs=[file, z0])
+        check_output(output, inputs=[file, z0], stdout=False)
     prob = load(file, problem)
     result = solve_problem(prob, method, tol=tol, **opts)
     payload = result.to_dict(file=file)

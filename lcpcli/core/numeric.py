@@ -29,7 +29,8 @@ INDEX_KINDS = "iu"
 #: What the refused kinds are called in messages.
 KIND_NAMES = {"b": "booleans", "c": "complex numbers", "U": "strings", "S": "byte strings",
               "O": "mixed or non-numeric values", "V": "structured records", "M": "dates",
-              "m": "time spans", "T": "strings"}
+              "m": "time spans", "T": "strings", "f": "floating-point numbers",
+              "i": "integers", "u": "integers"}
 
 
 def kind_name(kind: str) -> str:

@@ -1,11 +1,15 @@
 """Problem files: read and write JSON, NPZ, HDF5 and Siconos ``.dat``.
 
 ``load(path)`` returns a validated :class:`~lcpcli.core.problem.Problem`; every failure (missing
-file, unknown extension, malformed content, wrong shapes, NaN/Inf, pickled NPZ, truncated HDF5,
-absurd sizes) raises :class:`~lcpcli.core.errors.ProblemError` with a one-line message that names
-the file.  ``save(problem, path)`` writes atomically: a temporary file in the same folder is
-renamed over the target only once it is complete, so a failed write leaves no partial file and
-never damages an existing one.
+or non-regular file, unknown extension, malformed content, wrong shapes or types, NaN/Inf,
+pickled NPZ, truncated HDF5, absurd sizes) raises :class:`~lcpcli.core.errors.ProblemError` with
+a one-line message that names the file.  Readers check types (:mod:`lcpcli.core.numeric`),
+shapes and sizes of every dataset from the file's headers before reading its data, and read
+only regular files, text up to :data:`~lcpcli.io.files.MAX_TEXT_BYTES` (:mod:`lcpcli.io.files`).
+``save(problem, path)`` writes atomically: a temporary file in the same folder is renamed over
+the target only once it is complete, so a failed write leaves no partial file and never damages
+an existing one; :func:`~lcpcli.io.files.check_output` is what commands call first so that an
+output is never an input, a link or a device.
 
 Formats (chosen by extension, or ``fmt=``):
 

@@ -166,15 +166,18 @@ def check_depth(obj: Any, label: str, limit: int = MAX_JSON_DEPTH) -> None:
 
 # ----------------------------------------------------------------------------- outputs
 def check_output(target: str | os.PathLike[str], inputs: Iterable[Any] = (), *,
-                 force: bool = True) -> None:
+                 force: bool = True, stdout: bool = True) -> None:
     """Refuse an output before any work is done (ProblemError naming ``target``).
 
     Refused: a symbolic link, anything that is not a regular file (directory, device, FIFO,
     socket; whatever ``force`` says), the same file as one of ``inputs`` (compared by device
     and inode, so hard links and other spellings count), a missing folder, and an existing
-    file when ``force`` is false.  ``-`` (stdout) is always accepted.
+    file when ``force`` is false.  ``-`` is stdout: accepted when ``stdout`` is true.
     """
     if str(target) == "-":
+        if not stdout:
+            raise ProblemError("'-' is not a file here: --json prints the result on stdout",
+                               "--output")
         return
     source = str(target)
     try:

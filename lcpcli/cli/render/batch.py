@@ -16,7 +16,7 @@ from rich.progress import (
 from rich.table import Table
 from rich.text import Text
 
-from lcpcli.cli.common import plural
+from lcpcli.core.text import plural
 
 STATUS_STYLE = {"solved": "bold green", "no_solution": "bold yellow", "unsolved": "bold red",
                 "error": "bold magenta"}
