@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from lcpcli.cli.common import duration, plural
+from lcpcli.core.errors import EXIT_INTERRUPTED, EXIT_TERMINATED
 
 #: Up to this many problems, the batch summary lists every problem with its status.
 FEW_PROBLEMS = 20
@@ -79,7 +80,8 @@ def run_batch_command(files: list[str], *, method: str, tol: float | None,
     from lcpcli.batch.records import SolveOptions
     from lcpcli.batch.run import run_batch
     from lcpcli.cli.common import pending_exit, stderr_console, stdout_console, write_json_line
-    from lcpcli.core.errors import EXIT_INTERRUPTED, EXIT_TERMINATED, OptionError
+    from lcpcli.core.errors import OptionError
+    from lcpcli.core.result import Status  # imports numpy: not at --help time
 
     if problem is not None:
         raise OptionError("--problem picks one problem of one HDF5 file; a batch solves every "
@@ -114,9 +116,9 @@ def run_batch_command(files: list[str], *, method: str, tol: float | None,
         _maybe_estimate(state, quiet)
         if progress is not None and state["task"] is not None:
             c = state["counts"]
-            status = row.get("status", "error")
-            bucket = "failed" if status == "error" else (
-                "solved" if status == "solved" else "unsolved")
+            status = row.get("status", Status.ERROR)
+            bucket = "failed" if status == Status.ERROR else (
+                "solved" if status == Status.SOLVED else "unsolved")
             c[bucket] = c.get(bucket, 0) + 1
             progress.update(state["task"], advance=1,
                             counts=f"solved {c.get('solved', 0)}  unsolved "

@@ -11,6 +11,7 @@ from typing import Any
 import typer
 
 from lcpcli.cli.common import MethodListCommand
+from lcpcli.core.errors import EXIT_INTERRUPTED, EXIT_NOT_SOLVED, EXIT_OK
 
 #: Largest ``--n`` of each built-in suite (hard: dense 4n x 4n families, Murty's needs 2^n
 #: pivots; random: its largest size; siconos: any, it only skips larger files).
@@ -161,7 +162,6 @@ def bench(
         sys.stderr.write(f"lcpcli: interrupted after {tracker.done:,} of {tracker.total:,} "
                          f"runs; the report below covers those\n")
     from lcpcli.cli.common import pending_exit
-    from lcpcli.core.errors import EXIT_INTERRUPTED, EXIT_NOT_SOLVED, EXIT_OK
 
     code = pending_exit(EXIT_INTERRUPTED if interrupted else
                         EXIT_NOT_SOLVED if report.defects else EXIT_OK)

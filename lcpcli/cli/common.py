@@ -133,7 +133,9 @@ def stderr_console() -> Any:
 
 def exit_code_for(statuses: list[str]) -> int:
     """0 if every status is ``solved``, 1 otherwise (bad input is raised, not returned)."""
-    code = EXIT_SOLVED if all(s == "solved" for s in statuses) else EXIT_NOT_SOLVED
+    from lcpcli.core.result import Status  # imports numpy: not at --help time
+
+    code = EXIT_SOLVED if all(s == Status.SOLVED for s in statuses) else EXIT_NOT_SOLVED
     return pending_exit(code)
 
 

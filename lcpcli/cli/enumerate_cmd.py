@@ -9,6 +9,8 @@ from typing import Any
 
 import typer
 
+from lcpcli.core.errors import EXIT_INTERRUPTED, EXIT_NOT_SOLVED, EXIT_SOLVED
+
 #: Above this n, ``--all-cones`` is refused for the terminal table.
 ALL_CONES_TABLE_MAX_N = 12
 #: Above this n, ``--all-cones`` is refused even with ``--json``.
@@ -51,7 +53,7 @@ def enumerate_command(
 
     from lcpcli.analysis.enumeration import check_problem, covers_plane, enumerate_cones, prepare
     from lcpcli.cli.common import pending_exit, write_json_line
-    from lcpcli.core.errors import EXIT_INTERRUPTED, EXIT_NOT_SOLVED, EXIT_OK, OptionError
+    from lcpcli.core.errors import OptionError
     from lcpcli.io import check_output, load, write_atomic_text
 
     plot_path = Path(plot) if plot is not None else None
@@ -92,7 +94,7 @@ def enumerate_command(
                          f"must be visited to list all solutions or prove there is none (for "
                          f"one solution use 'lcpcli solve')\n")
         return EXIT_INTERRUPTED
-    code = pending_exit(EXIT_OK if res.solutions else EXIT_NOT_SOLVED)
+    code = pending_exit(EXIT_SOLVED if res.solutions else EXIT_NOT_SOLVED)
     covers = covers_plane(M) if n == 2 else None
     if plot_path is not None:
         from lcpcli.cli.render.enumerate import plot_cones

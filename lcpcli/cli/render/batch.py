@@ -16,10 +16,11 @@ from rich.progress import (
 from rich.table import Table
 from rich.text import Text
 
+from lcpcli.cli.render.common import STATUS_STYLE as COMMON_STATUS_STYLE
+from lcpcli.core.result import Status
 from lcpcli.core.text import plural
 
-STATUS_STYLE = {"solved": "bold green", "no_solution": "bold yellow", "unsolved": "bold red",
-                "error": "bold magenta"}
+STATUS_STYLE = {**COMMON_STATUS_STYLE, Status.ERROR: "bold magenta"}
 
 
 class RateColumn(ProgressColumn):
@@ -61,7 +62,7 @@ def problems_table(rows: list[dict[str, Any]]) -> Table:
                       "" if row.get("n") is None else str(row["n"]),
                       "" if row.get("n") is None else str(row.get("iterations")),
                       "" if err is None else f"{err:.1e}",
-                      Text("" if status == "solved" else str(row.get("message") or "")))
+                      Text("" if status == Status.SOLVED else str(row.get("message") or "")))
     return table
 
 

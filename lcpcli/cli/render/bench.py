@@ -22,6 +22,7 @@ from lcpcli.bench.runner import (
     performance_profile,
     summarize,
 )
+from lcpcli.core.result import Status
 
 #: Profile values shown in the terminal table.
 PROFILE_TAUS = (1.0, 2.0, 4.0, 10.0, 100.0)
@@ -47,8 +48,8 @@ def mark(r: Any) -> str:
         return "DEFECT"
     if r.success:
         return "ok"
-    return {"solved": "wrong", "no_solution": "wrong", "unsolved": "fail",
-            "error": "error"}.get(r.status, r.status)
+    return {Status.SOLVED: "wrong", Status.NO_SOLUTION: "wrong", Status.UNSOLVED: "fail",
+            Status.ERROR: "error"}.get(r.status, r.status)
 
 
 def header(report: BenchReport, title: str) -> Table:
@@ -174,7 +175,7 @@ def peer_table(report: BenchReport, width: int | None = None) -> list[Table]:
         return []
     claims: dict[str, int] = {}
     for r in report.records:
-        if r.peer and r.tol == report.tols[0] and r.claimed and r.status != "solved":
+        if r.peer and r.tol == report.tols[0] and r.claimed and r.status != Status.SOLVED:
             claims[r.method] = claims.get(r.method, 0) + 1
     cells: list[list[Cell]] = [
         [d["method"], d["peer"], str(d["problems"]), f"{d['geomean_ratio']:.3g}",

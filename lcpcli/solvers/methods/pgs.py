@@ -25,10 +25,10 @@ from typing import Any
 
 import numpy as np
 
-from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, NUMERICAL, Outcome
+from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, NOT_APPLICABLE, NUMERICAL, Outcome
 from lcpcli.solvers.options import omega_option, positive_int, vector_option
 from lcpcli.solvers.registry import Method, Option
-from lcpcli.solvers.support import NOT_APPLICABLE, diagonal, start_point
+from lcpcli.solvers.support import diagonal, start_point
 
 #: Sweep limit when none is given.
 DEFAULT_MAX_ITER = 10_000
