@@ -1170,13 +1170,16 @@ def test_bad_input(case: Case, fixtures: Path) -> None:
 
 
 # ------------------------------------------------------------------------------ survey
-def survey(root: Path, d: Path, timeout: float) -> dict[str, int]:
-    """Run every case in a subprocess against the checkout at ``root``; count by kind."""
+def survey(root: Path, d: Path, timeout: float, only: list[str] | None = None) -> dict[str, int]:
+    """Run every case (or those named in ``only``) in a subprocess against the checkout at
+    ``root`` under the 1 GiB limit; print what went wrong and count the cases by kind."""
     import fcntl
     from collections import Counter
 
     counts: Counter[str] = Counter()
     for case in CASES:
+        if only and case.id not in only:
+            continue
         if case.root_only and not (d / "chardev.json").exists():
             continue
         fd = None
@@ -1203,9 +1206,10 @@ if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--root", type=Path, default=ROOT, help="checkout to test")
     parser.add_argument("--timeout", type=float, default=20.0, help="seconds per case")
+    parser.add_argument("--only", nargs="*", help="case ids to run (default: all)")
     ns = parser.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp) / "hostile"
         build(folder)
-        result = survey(ns.root.resolve(), folder, ns.timeout)
+        result = survey(ns.root.resolve(), folder, ns.timeout, ns.only)
         print(f"{len(CASES)} cases; failures by kind: {json.dumps(result, sort_keys=True)}")
