@@ -141,7 +141,7 @@ class Result:
 
     def __repr__(self) -> str:
         """One short line (z and w are in ``str()`` and ``to_dict()``, not here)."""
-        return (f"Result(status={self.status!r}, method={self.method!r}, n={self.n}, "
+        return (f"Result(status={str(self.status)!r}, method={self.method!r}, n={self.n}, "
                 f"error={float(self.certificate.error):.3g}, iterations={self.iterations})")
 
     def __str__(self) -> str:
