@@ -65,6 +65,7 @@ class Case:
     root_only: bool = False
     xfail: str | None = None
     env: dict[str, str] = field(default_factory=dict)
+    timeout: int = 0  # seconds of the kill switch (0: TIMEOUT)
 
 
 # ------------------------------------------------------------------------------ fixtures
@@ -813,6 +814,12 @@ def _output_cases() -> list[Case]:
         Case("out-lock-held", "data-loss", ["solve", "{d}/ok.json", "{d}/three.json", "-o",
                                             "{d}/existing.jsonl"], BAD,
              "is being written by another lcpcli run", protect=("existing.jsonl",)),
+        Case("fifo-contact-scene", "hang", ["contact-matrix", "{d}/fifo.json"], BAD, "is a FIFO",
+             sub=True, timeout=10, xfail="contact/scene.py load_scene reads the file itself: it "
+                                        "should use lcpcli.io.files.read_input_bytes"),
+        Case("zero-contact-scene", "memory", ["contact-matrix", "{d}/zero.json"], BAD,
+             "is a character device", sub=True, memory=True, timeout=20,
+             xfail="contact/scene.py load_scene: lcpcli.io.files.read_input_bytes bounds it"),
         Case("out-contact-scene", "data-loss", ["contact-matrix", "{d}/scene.json", "-o",
                                                 "{d}/scene.json"], BAD, same,
              protect=("scene.json",), xfail="contact_cmd.py (not in this branch) should call "
@@ -1044,6 +1051,7 @@ def run_subprocess(case: Case, d: Path, root: Path = ROOT, timeout: float = TIME
     env = {**os.environ, "PYTHONPATH": str(root), **case.env}
     env.pop("LCPCLI_DEBUG", None)
     limit = case.memory if memory is None else memory
+    timeout = case.timeout or timeout
     stdin = open(path, "rb") if path is not None else None  # noqa: SIM115
     try:
         proc = subprocess.run([sys.executable, "-m", "lcpcli", *_argv(case, d)],
