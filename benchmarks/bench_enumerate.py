@@ -3,7 +3,7 @@
 Problems: random positive definite nonsymmetric M (a P-matrix: exactly one solution, so every
 cone must be visited to prove there is no other), q ~ 3 N(0, 1), seeded by n.
 
-Measured (wall time of the method only, numba kernel compiled beforehand):
+Measured (wall time of the method only; the Cython kernel is compiled at install):
 
 * ``ours_all``: :func:`lcpcli.analysis.enumeration.enumerate_cones`, all 2^n cones (the proof of
   uniqueness); ``ours_first``: the same, stopping at the first solution (``solve -m enum``);
@@ -33,7 +33,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from lcpcli.analysis.enumeration import enumerate_cones, prepare  # noqa: E402
+from lcpcli.analysis.enumeration import enumerate_cones  # noqa: E402
 from lcpcli.core.certificate import certify  # noqa: E402
 from lcpcli.core.problem import Problem  # noqa: E402
 
@@ -101,7 +101,6 @@ def main() -> None:
     ap.add_argument("--output", default=str(ROOT / "benchmarks" / "results" / "enumerate.json"))
     args = ap.parse_args()
     sizes = [8, 12] if args.quick else [12, 16, 20] + ([24, 26] if args.full else [])
-    prepare()
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for n in sizes:

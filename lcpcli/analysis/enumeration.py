@@ -34,6 +34,15 @@ import numpy as np
 from lcpcli.core.certificate import DEFAULT_TOL, Certificate, certify, matrix_norm_inf
 from lcpcli.core.errors import OptionError, ProblemError
 from lcpcli.core.result import Status
+from lcpcli.solvers.kernels.enum import (
+    CANDIDATE,
+    FEASIBLE,
+    PRUNED,
+    SINGULAR_CONSISTENT,
+    SINGULAR_EMPTY,
+    classify_chunk,
+    classify_chunk_fast,
+)
 
 #: Default refusal threshold (2^24 = 16.7 million cones).
 DEFAULT_MAX_N = 24
@@ -195,27 +204,6 @@ def check_problem(problem: Any, max_n: int = DEFAULT_MAX_N) -> np.ndarray:
     return np.ascontiguousarray(problem.dense_M(), dtype=np.float64)
 
 
-def prepare() -> None:
-    """Compile (or load from the cache) the kernel outside any timed region."""
-    from lcpcli.solvers.kernels.enum import classify_chunk
-
-    M = np.array([[2.0, 1.0], [1.0, 2.0]])
-    q = np.array([-5.0, -6.0])
-    masks = np.zeros(2, dtype=np.int64)
-    from lcpcli.solvers.kernels.enum import SERIAL_BELOW, TASK_BITS, classify_chunk_fast
-
-    for count in (4, SERIAL_BELOW):
-        classify_chunk(M, q, 0, count, masks, masks, 1e-12, RTOL, 3.0, 6.0, 0.0,
-                       np.zeros(count, dtype=np.uint8))
-    n = TASK_BITS + 1
-    M = np.eye(n) + 0.1
-    q = -np.ones(n)
-    masks = np.zeros(n, dtype=np.int64)
-    for count in (4, 1 << n):
-        classify_chunk_fast(M, q, 0, count, masks, masks, 1e-12, RTOL, 2.0, 1.0, 0.0,
-                            np.zeros(count, dtype=np.uint8))
-
-
 def sign_masks(M: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Bit masks of the strictly positive / strictly negative entries of each row of M."""
     n = M.shape[0]
@@ -302,16 +290,6 @@ def enumerate_cones(problem: Any, *, stop_at_first: bool = False, all_cones: boo
     depth-first principal-pivoting kernel (candidates re-checked by the direct LU kernel,
     unsafe pivots sent to it); ``fast=False`` uses the direct kernel for every cone.
     """
-    from lcpcli.solvers.kernels.enum import (
-        CANDIDATE,
-        FEASIBLE,
-        PRUNED,
-        SINGULAR_CONSISTENT,
-        SINGULAR_EMPTY,
-        classify_chunk,
-        classify_chunk_fast,
-    )
-
     M = check_problem(problem, max_n)
     q = np.ascontiguousarray(problem.q, dtype=np.float64)
     n = q.shape[0]

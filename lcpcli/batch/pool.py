@@ -4,6 +4,8 @@
 own pool: chunks are handed out on demand, a worker that exceeds the per-problem ``timeout`` is
 killed and replaced (the problem is recorded as ``unsolved`` with message ``timeout``), a worker
 that dies (segfault, out of memory) costs only its current problem (status ``error``).
+Workers are started by ``forkserver`` (``spawn`` where there is none), never by a bare
+``fork``: see :func:`lcpcli.solvers.kernels.process_context`.
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ from typing import Any
 
 from lcpcli.batch import worker
 from lcpcli.batch.records import SolveOptions, Task, error_row, timeout_row
+from lcpcli.solvers.kernels import process_context
 
 
 def make_chunks(tasks: list[Task], jobs: int, *, max_chunk: int = 256) -> list[list[Task]]:
@@ -109,14 +112,14 @@ class _Worker:
         self.conn.close()
 
 
-def _mp_context() -> Any:
-    import multiprocessing as mp
+#: Modules the forkserver imports once, so that every worker starts with them loaded.
+PRELOAD = ("lcpcli.batch.worker", "lcpcli.api", "lcpcli.io")
 
-    # fork is fast (the parent has numpy and the kernel loaded) and safe here: workers only
-    # compute and talk over their pipe.  Elsewhere use spawn.
-    if sys.platform.startswith("linux"):
-        return mp.get_context("fork")
-    return mp.get_context("spawn")
+
+def _mp_context() -> Any:
+    # not fork: the enumeration kernel's OpenMP threads do not survive fork() (a worker forked
+    # after the parent ran a parallel region hangs); forkserver workers fork from a clean server
+    return process_context(PRELOAD)
 
 
 def iter_local(tasks: list[Task], opts: SolveOptions, *, jobs: int = 1,
@@ -141,8 +144,6 @@ def iter_local(tasks: list[Task], opts: SolveOptions, *, jobs: int = 1,
         return
     from multiprocessing.connection import wait
 
-    with contextlib.suppress(Exception):  # load once in the parent: forked workers inherit
-        worker.prepare_method(opts.method)
     ctx = _mp_context()
     pending: deque[tuple[int, list[Task]]] = deque(enumerate(make_chunks(tasks, jobs)))
     next_id = len(pending)
@@ -187,6 +188,7 @@ def iter_local(tasks: list[Task], opts: SolveOptions, *, jobs: int = 1,
                     if not alive_before:
                         dead = True
                 if dead:
+                    w.proc.join(timeout=5)  # reap it, so that its exit code is known
                     if not w.ready:
                         failed_starts += 1
                         if failed_starts > 2 * jobs + 2:

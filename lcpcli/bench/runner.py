@@ -39,6 +39,7 @@ from lcpcli.bench.suites import INFEASIBLE, SOLVABLE, Case
 from lcpcli.core.certificate import certify
 from lcpcli.core.errors import OptionError, ProblemError
 from lcpcli.core.result import Status
+from lcpcli.solvers.kernels import process_context
 
 #: Shift of the shifted geometric mean, in seconds.
 SHIFT = 0.010
@@ -53,6 +54,8 @@ ERROR = Status.ERROR  # status when a method raised instead of returning
 TIMEOUT = Status.TIMEOUT  # status when an isolated run was killed
 #: Default wall-clock limit of one (problem, method, tol) run, warm-up and repeats included.
 DEFAULT_TIMEOUT = 60.0
+#: Modules the forkserver of isolated runs imports once (each child starts with them).
+PRELOAD = ("lcpcli.api", "lcpcli.bench.runner")
 
 
 @dataclass
@@ -103,6 +106,12 @@ class BenchReport:
     @property
     def defects(self) -> list[Record]:
         return [r for r in self.records if r.defect]
+
+    @property
+    def errors(self) -> list[Record]:
+        """Rows of our own methods that raised or whose child process died (status
+        ``error``; a timeout is not one, nor a peer's failure): an internal error."""
+        return [r for r in self.records if r.status == ERROR and not r.peer]
 
     def all_methods(self) -> list[str]:
         """Own methods first, then the peer solvers that produced records."""
@@ -249,26 +258,16 @@ def run_one(case: Case, method: str, tol: float, *, repeat: int = DEFAULT_REPEAT
 def run_isolated(case: Case, method: str, tol: float, *, timeout: float,
                  repeat: int = DEFAULT_REPEAT, budget: float = DEFAULT_BUDGET,
                  solve_fn: SolveFn | None = None) -> Record:
-    """:func:`run_one` in a forked child process killed after ``timeout`` seconds.
+    """:func:`run_one` in a child process killed after ``timeout`` seconds.
 
-    The method's ``prepare()`` hook (JIT loading) runs in the parent first, so every child
-    inherits the compiled kernels.  A child that times out or dies gives a record with status
-    ``timeout`` or ``error`` (a failure, not a defect).  Timing is unchanged: it is measured
-    inside the child by :func:`lcpcli.api.solve`.
+    The child is started by :func:`lcpcli.solvers.kernels.process_context` (``forkserver``,
+    else ``spawn``; never a bare ``fork``, which the enumeration kernel's OpenMP threads do
+    not survive), so ``case`` and ``solve_fn`` must be picklable (module-level functions).
+    A child that times out or dies gives a record with status ``timeout`` or ``error`` (a
+    failure, not a defect).  Timing is unchanged: it is measured inside the child by
+    :func:`lcpcli.api.solve`.
     """
-    import multiprocessing as mp
-
-    from lcpcli.solvers.registry import get_method
-
-    if "fork" not in mp.get_all_start_methods():  # e.g. Windows: no isolation, no limit
-        return run_one(case, method, tol, repeat=repeat, budget=budget, solve_fn=solve_fn)
-    try:
-        spec = get_method(method)
-        if spec.prepare is not None:
-            spec.prepare()
-    except OptionError:
-        pass
-    ctx = mp.get_context("fork")
+    ctx = process_context(PRELOAD)
     recv, send = ctx.Pipe(duplex=False)
     proc = ctx.Process(target=_child, args=(send, case, method, tol, repeat, budget, solve_fn),
                        daemon=True)
@@ -334,7 +333,7 @@ def run_bench(cases: list[Case], methods: list[str], tols: Iterable[float] = DEF
               on_record: Callable[[Record], None] | None = None) -> BenchReport:
     """Run every method (and peer) on every case at every tolerance; see the module docstring.
 
-    With ``timeout`` (seconds) each (problem, method, tol) runs in a forked child process that is
+    With ``timeout`` (seconds) each (problem, method, tol) runs in a child process that is
     killed after that long (:func:`run_isolated`); without it, everything runs in this process.
 
     A method that does not handle a problem's kind (e.g. an LCP-only method on an MLCP) is

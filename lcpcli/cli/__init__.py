@@ -21,7 +21,7 @@ import typer
 import typer.core
 
 from lcpcli import __version__
-from lcpcli.cli import common
+from lcpcli.cli import common, plain_params
 from lcpcli.core.errors import (
     EXIT_BAD_INPUT,
     EXIT_INTERNAL,
@@ -40,6 +40,7 @@ def _click_exceptions():  # type: ignore[no-untyped-def]
 
 
 click_exc = _click_exceptions()
+plain_params.install()  # plain str/int/float/Path coercion: no pydantic at start-up
 
 EXIT_CODES_HELP = (
     "Exit codes: 0 solved; 1 not solved (no_solution or unsolved); "

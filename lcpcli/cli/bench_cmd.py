@@ -11,7 +11,7 @@ from typing import Any
 import typer
 
 from lcpcli.cli.common import MethodListCommand
-from lcpcli.core.errors import EXIT_INTERRUPTED, EXIT_NOT_SOLVED, EXIT_OK
+from lcpcli.core.errors import EXIT_INTERNAL, EXIT_INTERRUPTED, EXIT_NOT_SOLVED, EXIT_OK
 
 #: Largest ``--n`` of each built-in suite (hard: dense 4n x 4n families, Murty's needs 2^n
 #: pivots; random: its largest size; siconos: any, it only skips larger files).
@@ -75,8 +75,9 @@ def bench(
     """Benchmark solver methods: time, achieved error and verdict on each problem.
 
     Every answer is re-certified; a method that claims 'solved' with a failing certificate, or
-    'no_solution' on a problem known to be solvable, is a DEFECT. Exit codes: 0 no defect;
-    1 at least one defect; 2 bad usage or bad input.
+    'no_solution' on a problem known to be solvable, is a DEFECT. Exit codes: 0 no defect and
+    no error; 1 at least one defect; 2 bad usage or bad input; 3 a method raised or its
+    process died (an internal error; the rows say which).
     """
     from lcpcli.bench import runner as B
     from lcpcli.cli.common import stderr_console, stdout_console, write_json_line
@@ -163,8 +164,8 @@ def bench(
                          f"runs; the report below covers those\n")
     from lcpcli.cli.common import pending_exit
 
-    code = pending_exit(EXIT_INTERRUPTED if interrupted else
-                        EXIT_NOT_SOLVED if report.defects else EXIT_OK)
+    code = pending_exit(EXIT_INTERRUPTED if interrupted else EXIT_NOT_SOLVED if report.defects
+                        else EXIT_INTERNAL if report.errors else EXIT_OK)
     if not as_json and report.records:
         from lcpcli.cli.render.bench import render_report
 
@@ -181,6 +182,8 @@ def bench(
         write_plot(report, plot)
     for rec in report.defects:
         err.print(f"lcpcli: DEFECT: {rec.method} on {rec.problem}: {rec.defect_reason}")
+    for rec in report.errors:
+        err.print(f"lcpcli: ERROR: {rec.method} on {rec.problem}: {rec.message}")
     return code
 
 

@@ -51,7 +51,7 @@ def enumerate_command(
     """
     import json
 
-    from lcpcli.analysis.enumeration import check_problem, covers_plane, enumerate_cones, prepare
+    from lcpcli.analysis.enumeration import check_problem, covers_plane, enumerate_cones
     from lcpcli.cli.common import pending_exit, write_json_line
     from lcpcli.core.errors import OptionError
     from lcpcli.io import check_output, load, write_atomic_text
@@ -83,7 +83,6 @@ def enumerate_command(
         if not plot_path.parent.is_dir():
             raise OptionError(f"--plot: folder {plot_path.parent} does not exist")
 
-    prepare()
     tracker = _Progress(1 << n)
     try:
         with tracker:

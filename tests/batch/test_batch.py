@@ -361,30 +361,41 @@ def test_dask_local_cluster(cli, folder, tmp_path):
         assert {k: strip(v) for k, v in rows.items()} == {k: strip(v) for k, v in local.items()}
 
 
-def test_worker_crash_costs_one_problem(folder, monkeypatch):
-    """A worker that dies (segfault, OOM kill) is replaced; only its problem is lost."""
-    from lcpcli.batch import worker
+def test_worker_crash_costs_one_problem(folder, tmp_path):
+    """A worker that dies (segfault, OOM kill) is replaced; only its problem is lost.
+
+    Workers do not fork from this process (forkserver), so nothing here can be patched into
+    them: a slow problem keeps one worker busy, and once every other row is in, the test kills
+    the workers with SIGKILL, as the kernel's OOM killer would.
+    """
+    import multiprocessing as mp
+
     from lcpcli.batch.inputs import expand_inputs
     from lcpcli.batch.pool import iter_local
     from lcpcli.batch.records import SolveOptions
 
     base, problems = folder
-    real = worker.solve_tasks
-
-    def crashing(tasks, opts):
-        for task in tasks:
-            if task.problem == "p03":
-                os._exit(7)  # as abrupt as a segfault: no cleanup, no message
-            yield from real([task], opts)
-
-    monkeypatch.setattr(worker, "solve_tasks", crashing)  # forked workers inherit the patch
-    tasks, bad = expand_inputs([str(base / "probs")])
-    rows = by_key(list(iter_local(tasks, SolveOptions(), jobs=2)))
-    assert len(rows) == 9 and not bad
-    crashed = rows[(str(base / "probs" / "p03.json"), "p03")]
-    assert crashed["status"] == "error" and "exit code 7" in crashed["message"]
+    slow = tmp_path / "slow.json"
+    save(murty(23), slow)  # about 8e6 Lemke pivots: seconds
+    tasks, bad = expand_inputs([str(base / "probs" / f"p0{i}.json") for i in (0, 1, 2, 3, 4)]
+                               + [str(slow)] + [str(base / "probs" / f"p0{i}.json")
+                                                for i in (7, 8)])
+    assert not bad and len(tasks) == 8
+    opts = SolveOptions(method="lemke", options={"max_iter": 10**9})
+    rows, killed = [], []
+    for row in iter_local(tasks, opts, jobs=2):
+        rows.append(row)
+        if len(rows) == len(tasks) - 1 and not killed:  # only the slow problem is left
+            for proc in mp.active_children():
+                os.kill(proc.pid, signal.SIGKILL)
+                killed.append(proc.pid)
+    assert killed and len(rows) == len(tasks)
+    (crashed,) = [r for r in rows if r["source"] == str(slow)]
+    rows = by_key(rows)
+    assert crashed["status"] == "error" and "worker process died" in crashed["message"]
+    assert f"exit code -{int(signal.SIGKILL)}" in crashed["message"]
     for src, p in problems.items():
-        if "p03" not in src and "sub" not in src:
+        if Path(src).stem in {f"p0{i}" for i in (0, 1, 2, 3, 4, 7, 8)}:
             row = rows[(str(base / src), Path(src).stem)]
             check_by_substitution(row, p)
 

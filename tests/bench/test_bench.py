@@ -234,16 +234,24 @@ def test_defect_detection_with_lying_methods() -> None:
     assert not rep.defects and rep.records[0].success
 
 
-def test_isolated_runs_time_out_and_survive_crashes() -> None:
-    import os
+def _sleepy(problem, method, tol=1e-8):
+    """A solve function that hangs (module level: isolated runs pickle it to a child)."""
     import time
 
-    def sleepy(problem, method, tol=1e-8):
-        time.sleep(30)
+    time.sleep(30)
 
-    def crashing(problem, method, tol=1e-8):
-        os._exit(7)
 
+def _crashing(problem, method, tol=1e-8):
+    """A solve function that dies as abruptly as a segfault."""
+    import os
+
+    os._exit(7)
+
+
+def test_isolated_runs_time_out_and_survive_crashes() -> None:
+    import time
+
+    sleepy, crashing = _sleepy, _crashing
     case = suites.kostreva()
     t0 = time.perf_counter()
     rep = bench.run_bench([case], ["sleepy"], repeat=0, solve_fn=sleepy, timeout=0.5)

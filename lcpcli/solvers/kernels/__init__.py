@@ -1,2 +1,29 @@
-"""Compiled kernels of the solver methods (no Python objects inside the hot loops).
+"""Compiled kernels of the solver methods (Cython extensions built at install; no Python
+objects inside the hot loops, the GIL released).  See docs/kernels.md.
+
+The enumeration kernel runs OpenMP threads.  GNU OpenMP does not survive ``fork()``: a child
+forked from a process that has run a parallel region hangs or dies in its first one.  Worker
+pools therefore start their processes with :func:`process_context` (``forkserver`` where the
+platform has it, else ``spawn``), never with a bare ``fork``.
 """
+
+from __future__ import annotations
+
+from typing import Any
+
+
+def process_context(preload: tuple[str, ...] = ()) -> Any:
+    """A :mod:`multiprocessing` context that is safe with the kernels' OpenMP threads.
+
+    ``forkserver`` (POSIX): workers fork from a clean server process that never ran a kernel;
+    ``preload`` names modules the server imports once (so each worker starts with them loaded;
+    it applies only when the server is started).  Elsewhere ``spawn``.
+    """
+    import multiprocessing as mp
+
+    if "forkserver" in mp.get_all_start_methods():
+        ctx = mp.get_context("forkserver")
+        if preload:
+            ctx.set_forkserver_preload(list(preload))
+        return ctx
+    return mp.get_context("spawn")

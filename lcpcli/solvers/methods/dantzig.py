@@ -26,17 +26,9 @@ from typing import Any
 import numpy as np
 
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, NUMERICAL, RAY, Outcome
+from lcpcli.solvers.kernels.dantzig import MAX_ITER, OK, SINGULAR, dantzig_kernel
 from lcpcli.solvers.options import positive_int
 from lcpcli.solvers.registry import Method, Option
-
-
-def prepare() -> None:
-    """Compile (or load from the cache) the kernel outside the timed region."""
-    from lcpcli.solvers.kernels.dantzig import dantzig_kernel
-
-    M = np.array([[2.0, 1.0], [1.0, 2.0]])
-    dantzig_kernel(M, np.array([-1.0, 1.0]), np.array([0.0, -np.inf]),
-                   np.array([np.inf, np.inf]), np.array([1, 0], dtype=np.int64), 100)
 
 
 def processing_order(lo: np.ndarray, up: np.ndarray) -> np.ndarray:
@@ -48,7 +40,6 @@ def processing_order(lo: np.ndarray, up: np.ndarray) -> np.ndarray:
 def run(problem: Any, *, tol: float, max_iter: int | None = None) -> Outcome:
     """Solve an LCP or box LCP by principal pivoting; see the module docstring."""
     from lcpcli.analysis.mlcp import polish
-    from lcpcli.solvers.kernels.dantzig import MAX_ITER, OK, SINGULAR, dantzig_kernel
 
     n = problem.n
     M = np.ascontiguousarray(problem.dense_M(), dtype=np.float64)
@@ -88,6 +79,5 @@ METHODS = [
                        "free variables",
         kinds=("lcp", "box"),
         options={"max_iter": Option(positive_int, None, "pivot limit (default max(1000, 50 n))")},
-        prepare=prepare,
     ),
 ]

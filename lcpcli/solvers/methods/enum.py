@@ -29,12 +29,6 @@ def _max_n(value: Any) -> int:
     return v
 
 
-def prepare() -> None:
-    from lcpcli.analysis.enumeration import prepare as prep
-
-    prep()
-
-
 def run(problem: Any, *, tol: float, max_n: int = 24, all: bool = False) -> Outcome:  # noqa: A002
     """Enumerate the cones of ``problem``; return the first solution (or all, counted)."""
     from lcpcli.analysis.enumeration import basis_names, enumerate_cones
@@ -78,7 +72,6 @@ METHODS = [
             "max_n": Option(_max_n, 24, "refuse problems with more variables (default 24)"),
             "all": Option(bool_option, False, "visit every cone and count the distinct solutions"),
         },
-        prepare=prepare,
         aliases=("enumerate", "enumeration"),
     ),
 ]

@@ -10,7 +10,8 @@ Independently of the class, when the ray yields ``y >= 0`` with ``M^T y <= 0`` a
 ``q^T y < 0`` (a Farkas certificate: no ``z >= 0`` has ``M z + q >= 0``) the verdict is
 ``no_solution`` with that proof.
 
-Cost: O(n^2) per pivot (rank-one tableau update in a compiled kernel).  The final basis is
+Cost: O(n^2) per pivot (rank-one tableau update in the compiled kernel
+:mod:`lcpcli.solvers.kernels.lemke`).  The final basis is
 re-solved with a dense LU factorisation (one step of refinement) so the answer is accurate to
 the conditioning of the basic block, not to the accumulated tableau updates.
 """
@@ -22,6 +23,7 @@ from typing import Any
 import numpy as np
 
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, RAY, Outcome
+from lcpcli.solvers.kernels.lemke import MAX_ITER, OK, TRIVIAL, lemke_kernel, polish_kernel
 from lcpcli.solvers.options import bool_option, positive_int, vector_option
 from lcpcli.solvers.registry import Method, Option
 
@@ -56,15 +58,6 @@ def default_max_iter(n: int) -> int:
     return max(1000, 100 * n)
 
 
-def prepare() -> None:
-    """Load (or compile once and cache) the kernel outside the timed region."""
-    from lcpcli.solvers.kernels.lemke import lemke_kernel, polish_kernel
-
-    one = np.array([[1.0]])
-    out = lemke_kernel(one, np.array([-1.0]), np.array([1.0]), 10, PIVOT_TOL, TIE_TOL, NO_RECORD)
-    polish_kernel(one, np.array([-1.0]), out[1], out[3])
-
-
 def run(problem: Any, *, tol: float, covering: np.ndarray | None = None,
         max_iter: int | None = None, trace: bool = False) -> Outcome:
     """Solve ``problem`` (an LCP) by Lemke's method; see the module docstring.
@@ -72,8 +65,6 @@ def run(problem: Any, *, tol: float, covering: np.ndarray | None = None,
     ``trace=True`` runs the numpy replica of the kernel (same pivots) and records each pivot
     in ``Outcome.trace`` (see :mod:`lcpcli.solvers.lemke_trace`).
     """
-    from lcpcli.solvers.kernels.lemke import lemke_kernel
-
     n = problem.n
     M = np.ascontiguousarray(problem.dense_M(), dtype=np.float64)
     q = problem.q
@@ -96,8 +87,6 @@ def run(problem: Any, *, tol: float, covering: np.ndarray | None = None,
 def finish(problem: Any, M: np.ndarray, q: np.ndarray, status: int, z: np.ndarray, pivots: int,
            basic: np.ndarray, ray_dz: np.ndarray, z0: float, limit: int) -> Outcome:
     """Turn a Lemke kernel's status into an :class:`Outcome` (polish, ray classification)."""
-    from lcpcli.solvers.kernels.lemke import MAX_ITER, OK, TRIVIAL
-
     n = problem.n
     if status == TRIVIAL:
         return Outcome(np.zeros(n), 0, CONVERGED, "q >= 0: z = 0 solves the problem")
@@ -116,12 +105,7 @@ def polish(M: np.ndarray, q: np.ndarray, z: np.ndarray, basic: np.ndarray) -> np
 
     Keeps the tableau's answer when the re-solve is not better (e.g. a singular block).
     """
-    from lcpcli.solvers.kernels.lemke import polish_kernel
-
-    try:
-        return polish_kernel(M, q, z, basic)
-    except np.linalg.LinAlgError:  # singular basic block: keep the tableau's answer
-        return np.maximum(z, 0.0)
+    return polish_kernel(M, q, z, basic)
 
 
 def ray_outcome(problem: Any, M: np.ndarray, q: np.ndarray, z: np.ndarray, pivots: int,
@@ -159,6 +143,5 @@ METHODS = [
             "trace": Option(bool_option, False, "record every pivot (numpy replica of the "
                                                  "kernel, same pivots; slow for large n)"),
         },
-        prepare=prepare,
     ),
 ]

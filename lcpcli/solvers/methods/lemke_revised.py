@@ -23,6 +23,13 @@ from typing import Any
 import numpy as np
 
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, NUMERICAL, Outcome
+from lcpcli.solvers.kernels.lemke_revised import (
+    MAX_ITER,
+    OK,
+    SINGULAR,
+    TRIVIAL,
+    lemke_revised_kernel,
+)
 from lcpcli.solvers.methods.lemke import (
     NO_RECORD,
     PIVOT_TOL,
@@ -48,17 +55,6 @@ def default_refactor_every(n: int) -> int:
     return max(50, n)
 
 
-def prepare() -> None:
-    """Load (or compile once and cache) the kernel outside the timed region."""
-    from lcpcli.solvers.kernels.lemke import polish_kernel
-    from lcpcli.solvers.kernels.lemke_revised import lemke_revised_kernel
-
-    M = np.array([[2.0, 1.0], [1.0, 2.0]])
-    out = lemke_revised_kernel(M, np.array([-5.0, -6.0]), np.ones(2), 10, PIVOT_TOL, TIE_TOL,
-                               NO_RECORD, 1)
-    polish_kernel(M, np.array([-5.0, -6.0]), out[1], out[3])
-
-
 def run(problem: Any, *, tol: float, covering: np.ndarray | None = None,
         max_iter: int | None = None, refactor_every: int | None = None,
         trace: bool = False) -> Outcome:
@@ -73,14 +69,6 @@ def run(problem: Any, *, tol: float, covering: np.ndarray | None = None,
         out = run_tableau(problem, tol=tol, covering=covering, max_iter=max_iter, trace=True)
         out.info["trace_engine"] = "tableau replica (same pivot rule)"
         return out
-    from lcpcli.solvers.kernels.lemke_revised import (
-        MAX_ITER,
-        OK,
-        SINGULAR,
-        TRIVIAL,
-        lemke_revised_kernel,
-    )
-
     n = problem.n
     M = np.ascontiguousarray(problem.dense_M(), dtype=np.float64)
     q = problem.q
@@ -125,7 +113,6 @@ METHODS = [
             "trace": Option(bool_option, False, "record every pivot (tableau replica, same "
                                                  "pivot rule)"),
         },
-        prepare=prepare,
         # the faster of the two on benchmarks/bench_lemke.py (CPU time, n = 10..1000)
         aliases=("lemke",),
     ),

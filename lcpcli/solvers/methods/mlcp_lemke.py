@@ -28,7 +28,6 @@ from lcpcli.core.result import NUMERICAL, Outcome
 from lcpcli.solvers.methods.mlcp_schur import (
     PROOF_COND_MAX,
     _positive,
-    prepare,
     solve_reduced,
 )
 from lcpcli.solvers.options import positive_int
@@ -81,6 +80,5 @@ METHODS = [
             "cond_max": Option(_positive, 1e12, "largest accepted condition of the pivot block"),
             "max_iter": Option(positive_int, None, "Lemke pivot limit"),
         },
-        prepare=prepare,
     ),
 ]

@@ -35,12 +35,6 @@ def _positive(value: Any) -> float:
     return v
 
 
-def prepare() -> None:
-    from lcpcli.solvers.methods.lemke import prepare as lemke_prepare
-
-    lemke_prepare()
-
-
 def solve_reduced(problem: Any, red: Any, inner: str, tol: float,
                   max_iter: int | None) -> tuple[np.ndarray, Outcome]:
     """Run the inner LCP method on a reduction's LCP; return (full z, inner outcome)."""
@@ -107,6 +101,5 @@ METHODS = [
             "cond_max": Option(_positive, 1e12, "largest accepted condition estimate of A"),
             "max_iter": Option(positive_int, None, "iteration limit of the inner method"),
         },
-        prepare=prepare,
     ),
 ]

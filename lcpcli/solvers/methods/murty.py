@@ -20,12 +20,13 @@ refinement (as Lemke's polish) so the answer is accurate to the conditioning of 
 
 from __future__ import annotations
 
-import contextlib
 from typing import Any
 
 import numpy as np
 
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, SINGULAR, Outcome
+from lcpcli.solvers.kernels.lemke import polish_kernel
+from lcpcli.solvers.kernels.murty import BAD_PIVOT, OK, murty_kernel
 from lcpcli.solvers.options import positive_int, vector_option
 from lcpcli.solvers.registry import Method, Option
 from lcpcli.solvers.support import start_point
@@ -41,23 +42,9 @@ def default_max_iter(n: int) -> int:
     return max(1000, 100 * n)
 
 
-def prepare() -> None:
-    """Compile (or load from the cache) the kernel outside the timed region."""
-    from lcpcli.solvers.kernels.lemke import polish_kernel
-    from lcpcli.solvers.kernels.murty import murty_kernel
-
-    one = np.array([[1.0]])
-    basic = np.zeros(1, dtype=np.int64)
-    out = murty_kernel(one, np.array([-1.0]), 10, PIVOT_TOL, NEG_TOL, basic)
-    polish_kernel(one, np.array([-1.0]), out[1], basic)
-
-
 def run(problem: Any, *, tol: float, max_iter: int | None = None,
         z0: np.ndarray | None = None) -> Outcome:
     """Solve ``problem`` (an LCP) by Murty's least-index method; see the module docstring."""
-    from lcpcli.solvers.kernels.lemke import polish_kernel
-    from lcpcli.solvers.kernels.murty import BAD_PIVOT, OK, murty_kernel
-
     n = problem.n
     M = np.ascontiguousarray(problem.dense_M(), dtype=np.float64)
     q = np.ascontiguousarray(problem.q, dtype=np.float64)
@@ -77,8 +64,7 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None,
         warm = " (warm-start basis singular; restarted from z = 0)"
         status, z, pivots, bad = murty_kernel(M, q, limit, PIVOT_TOL, NEG_TOL, basic)
     if status == OK:
-        with contextlib.suppress(np.linalg.LinAlgError):
-            z = polish_kernel(M, q, z, basic)
+        z = polish_kernel(M, q, z, basic)  # a singular basic block keeps the kernel's z
         return Outcome(z, int(pivots), CONVERGED,
                        f"Murty: all basic variables nonnegative after {pivots} pivots{warm}")
     if status == BAD_PIVOT:
@@ -102,6 +88,5 @@ METHODS = [
             "max_iter": Option(positive_int, None, "pivot limit (default max(1000, 100 n))"),
             "z0": Option(vector_option, None, "warm start: start from the basis {i: z0_i > 0}"),
         },
-        prepare=prepare,
     ),
 ]

@@ -25,7 +25,9 @@ from typing import Any
 
 import numpy as np
 
+from lcpcli.core.certificate import matrix_norm_inf
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, NOT_APPLICABLE, NUMERICAL, Outcome
+from lcpcli.solvers.kernels import pgs as K
 from lcpcli.solvers.options import omega_option, positive_int, vector_option
 from lcpcli.solvers.registry import Method, Option
 from lcpcli.solvers.support import diagonal, start_point
@@ -36,24 +38,9 @@ DEFAULT_MAX_ITER = 10_000
 DEFAULT_OMEGA = 1.3
 
 
-def prepare() -> None:
-    """Compile (or load from the cache) both kernels outside the timed region."""
-    from lcpcli.solvers.kernels.pgs import pgs_csr, pgs_dense
-
-    one = np.ones((1, 1))
-    v = np.ones(1)
-    lo, up = np.zeros(1), np.full(1, np.inf)
-    pgs_dense(one, -v, v, lo, up, np.zeros(1), 1.0, 2, 1e-8, 1.0, 1.0)
-    pgs_csr(np.array([0, 1], dtype=np.int64), np.array([0], dtype=np.int64), v.copy(), -v, v,
-            lo, up, np.zeros(1), 1.0, 2, 1e-8, 1.0, 1.0)
-
-
 def run_sor(problem: Any, *, tol: float, omega: float = 1.0, max_iter: int | None = None,
             z0: np.ndarray | None = None, name: str = "PGS") -> Outcome:
     """Run projected SOR with relaxation ``omega`` (1 = Gauss-Seidel); see the module docstring."""
-    from lcpcli.core.certificate import matrix_norm_inf
-    from lcpcli.solvers.kernels import pgs as K
-
     n = problem.n
     lo, up = (np.ascontiguousarray(b, dtype=np.float64) for b in problem.bounds())
     z = np.clip(start_point(problem, z0), lo, up)
@@ -120,7 +107,6 @@ METHODS = [
         kinds=("lcp", "box"),
         sparse=True,
         options=dict(_COMMON),
-        prepare=prepare,
     ),
     Method(
         name="psor",
@@ -132,6 +118,5 @@ METHODS = [
         options={"omega": Option(omega_option, DEFAULT_OMEGA,
                                  f"relaxation, 0 < omega < 2 (default {DEFAULT_OMEGA})"),
                  **_COMMON},
-        prepare=prepare,
     ),
 ]

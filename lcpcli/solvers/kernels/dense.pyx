@@ -1,0 +1,344 @@
+# cython: language_level=3, boundscheck=False, wraparound=False, cdivision=True
+"""Small dense LU, solves and inverses for the kernels (row-major, ``nogil``).
+
+Sizes below :data:`LAPACK_MIN` use the loops here (partial pivoting, row-oriented
+elimination: no library call, no import).  From ``LAPACK_MIN`` up, and once
+:func:`bind_lapack` has run, the same functions call LAPACK's ``dgetrf``/``dgetrs``/``dgetri``
+through the function pointers that ``scipy.linalg.cython_lapack`` exports as capsules in
+``__pyx_capi__`` (what ``cimport`` does underneath, without importing scipy when this module
+is imported).  A row-major buffer is LAPACK's column-major transpose, so the LAPACK path
+transposes in place first (O(m^2)) and factors ``A`` itself, as ``numpy.linalg.solve`` does
+(same pivoting, same answers).
+
+The crossover (:data:`LAPACK_MIN` = 64) is above the per-call one (32-40 on the development
+machine, single-threaded OpenBLAS: ``benchmarks/bench_kernels.py --crossover``) because binding
+LAPACK imports ``scipy.linalg`` once (about 0.3 s, the cost of 10^4 small solves): problems
+below 64 basic variables never import scipy.
+
+All functions return 0 on success and ``k + 1`` when the ``k``-th pivot is exactly zero
+(LAPACK's ``info`` convention: singular to working precision means an exact zero pivot).
+"""
+
+from cpython.pycapsule cimport PyCapsule_GetName, PyCapsule_GetPointer
+from libc.math cimport fabs
+from libc.stdlib cimport free, malloc
+from libc.string cimport memcpy
+
+ctypedef void (*dgetrf_t)(int* m, int* n, double* a, int* lda, int* ipiv,
+                          int* info) noexcept nogil
+ctypedef void (*dgetrs_t)(char* trans, int* n, int* nrhs, double* a, int* lda, int* ipiv,
+                          double* b, int* ldb, int* info) noexcept nogil
+ctypedef void (*dgetri_t)(int* n, double* a, int* lda, int* ipiv, double* work, int* lwork,
+                          int* info) noexcept nogil
+
+cdef dgetrf_t _dgetrf = NULL
+cdef dgetrs_t _dgetrs = NULL
+cdef dgetri_t _dgetri = NULL
+
+#: From this size up the LU, solves and inverses call LAPACK (once :func:`bind_lapack` ran).
+LAPACK_MIN = 64
+cdef Py_ssize_t _lapack_min = LAPACK_MIN
+
+
+cdef Py_ssize_t lapack_min() noexcept nogil:
+    return _lapack_min
+
+
+def set_lapack_min(Py_ssize_t m):
+    """Change the LAPACK crossover (for benchmarks; ``m <= 0`` restores the default)."""
+    global _lapack_min
+    _lapack_min = m if m > 0 else LAPACK_MIN
+    return None
+
+
+def lapack_bound():
+    """Whether the LAPACK pointers are bound (after :func:`bind_lapack`)."""
+    return _dgetrf != NULL
+
+
+cdef void* _pointer(object capi, str name) except NULL:
+    cap = capi[name]
+    return PyCapsule_GetPointer(cap, PyCapsule_GetName(cap))
+
+
+def bind_lapack():
+    """Bind dgetrf/dgetrs/dgetri from scipy's capsules (idempotent).
+
+    Imports ``scipy.linalg`` (about 0.3 s), so callers do it only for a size that needs it
+    (see :func:`need`).  Without it the loops here are used at every size.
+    """
+    global _dgetrf, _dgetrs, _dgetri
+    if _dgetrf != NULL:
+        return
+    # heavy import (scipy.linalg, ~0.3 s): only when a large factorisation needs it
+    from scipy.linalg import cython_lapack
+    capi = cython_lapack.__pyx_capi__
+    _dgetrs = <dgetrs_t>_pointer(capi, "dgetrs")
+    _dgetri = <dgetri_t>_pointer(capi, "dgetri")
+    _dgetrf = <dgetrf_t>_pointer(capi, "dgetrf")
+
+
+def need(Py_ssize_t m):
+    """Bind LAPACK now if a factorisation of size ``m`` will use it (optional: the functions
+    bind it themselves on first need, taking the GIL once; a batched driver may call this
+    before its parallel loop)."""
+    ensure_lapack(m)
+
+
+cdef int ensure_lapack(Py_ssize_t m) except -1:
+    """C-level :func:`need` (with the GIL): bind LAPACK when ``m`` reaches the crossover."""
+    if m >= _lapack_min and _dgetrf == NULL:
+        bind_lapack()
+    return 0
+
+
+cdef bint _use_lapack(Py_ssize_t m) noexcept nogil:
+    """Whether size ``m`` goes to LAPACK; binds it on first need (takes the GIL for that once;
+    if scipy is missing the loops here are used at every size)."""
+    if m < _lapack_min:
+        return False
+    if _dgetrf == NULL:
+        with gil:
+            try:
+                bind_lapack()
+            except Exception:  # no scipy: keep the own loops
+                set_lapack_min(1 << 62)
+    return _dgetrf != NULL
+
+
+cdef void _transpose(double* a, Py_ssize_t m) noexcept nogil:
+    cdef Py_ssize_t i, j
+    cdef double v
+    for i in range(m):
+        for j in range(i + 1, m):
+            v = a[i * m + j]
+            a[i * m + j] = a[j * m + i]
+            a[j * m + i] = v
+
+
+cdef int lu_factor(double* a, Py_ssize_t m, int* ipiv) noexcept nogil:
+    """In-place LU with partial pivoting of the row-major ``m x m`` ``a``.
+
+    Own loops: ``P A = L U`` with ``ipiv[k]`` the row swapped with row ``k``.  LAPACK (large
+    m): ``dgetrf``'s column-major factors of ``A`` (use only through :func:`lu_solve`).
+    """
+    cdef Py_ssize_t i, j, k, p
+    cdef double best, v, f, piv
+    cdef double* rk
+    cdef double* ri
+    cdef int mm, info
+    if _use_lapack(m):
+        _transpose(a, m)
+        mm = <int>m
+        info = 0
+        _dgetrf(&mm, &mm, a, &mm, ipiv, &info)
+        return info if info > 0 else 0
+    for k in range(m):
+        p = k
+        best = fabs(a[k * m + k])
+        for i in range(k + 1, m):
+            v = fabs(a[i * m + k])
+            if v > best:
+                best = v
+                p = i
+        ipiv[k] = <int>p
+        if best == 0.0:
+            return <int>(k + 1)
+        if p != k:
+            for j in range(m):
+                v = a[k * m + j]
+                a[k * m + j] = a[p * m + j]
+                a[p * m + j] = v
+        rk = a + k * m
+        piv = rk[k]
+        for i in range(k + 1, m):
+            ri = a + i * m
+            f = ri[k] / piv
+            ri[k] = f
+            if f != 0.0:
+                for j in range(k + 1, m):
+                    ri[j] -= f * rk[j]
+    return 0
+
+
+cdef void lu_solve(const double* lu, Py_ssize_t m, const int* ipiv, double* b) noexcept nogil:
+    """Solve ``A x = b`` in place from :func:`lu_factor`'s output."""
+    cdef Py_ssize_t i, j, k
+    cdef double s, v
+    cdef int mm, one, info
+    cdef char trans
+    if _use_lapack(m):
+        mm = <int>m
+        one = 1
+        info = 0
+        trans = b'N'
+        _dgetrs(&trans, &mm, &one, <double*>lu, &mm, <int*>ipiv, b, &mm, &info)
+        return
+    for k in range(m):
+        i = ipiv[k]
+        if i != k:
+            v = b[k]
+            b[k] = b[i]
+            b[i] = v
+    for i in range(1, m):
+        s = b[i]
+        for j in range(i):
+            s -= lu[i * m + j] * b[j]
+        b[i] = s
+    for i in range(m - 1, -1, -1):
+        s = b[i]
+        for j in range(i + 1, m):
+            s -= lu[i * m + j] * b[j]
+        b[i] = s / lu[i * m + i]
+
+
+cdef int invert(const double* a, Py_ssize_t m, double* out, double* work,
+                int* ipiv) noexcept nogil:
+    """``out = inv(a)`` (row-major ``m x m``); ``work`` holds ``m * m + m`` doubles, ``ipiv`` m.
+
+    Returns 0, or ``k + 1`` for an exactly zero pivot (``out`` is then undefined).
+    """
+    cdef Py_ssize_t i, j, k, p
+    cdef int info, mm, lwork
+    cdef double best, v, piv, f
+    cdef double* rk
+    cdef double* ri
+    cdef double* ok
+    cdef double* oi
+    if _use_lapack(m):
+        memcpy(out, a, m * m * sizeof(double))
+        _transpose(out, m)
+        mm = <int>m
+        info = 0
+        _dgetrf(&mm, &mm, out, &mm, ipiv, &info)
+        if info > 0:
+            return info
+        lwork = <int>(m * m + m)
+        _dgetri(&mm, out, &mm, ipiv, work, &lwork, &info)
+        _transpose(out, m)
+        return info if info > 0 else 0
+    # Gauss-Jordan with partial pivoting on [A | I] (row-major rows of length 2m would need
+    # 2 m^2 work; instead A is reduced in ``work`` while the same row operations build ``out``)
+    memcpy(work, a, m * m * sizeof(double))
+    for i in range(m):
+        for j in range(m):
+            out[i * m + j] = 0.0
+        out[i * m + i] = 1.0
+    for k in range(m):
+        p = k
+        best = fabs(work[k * m + k])
+        for i in range(k + 1, m):
+            v = fabs(work[i * m + k])
+            if v > best:
+                best = v
+                p = i
+        if best == 0.0:
+            return <int>(k + 1)
+        if p != k:
+            for j in range(m):
+                v = work[k * m + j]
+                work[k * m + j] = work[p * m + j]
+                work[p * m + j] = v
+                v = out[k * m + j]
+                out[k * m + j] = out[p * m + j]
+                out[p * m + j] = v
+        rk = work + k * m
+        ok = out + k * m
+        piv = 1.0 / rk[k]
+        for j in range(m):
+            rk[j] *= piv
+            ok[j] *= piv
+        for i in range(m):
+            if i == k:
+                continue
+            ri = work + i * m
+            oi = out + i * m
+            f = ri[k]
+            if f != 0.0:
+                for j in range(k, m):
+                    ri[j] -= f * rk[j]
+                for j in range(m):
+                    oi[j] -= f * ok[j]
+    return 0
+
+
+cdef int solve_refined(const double* a, Py_ssize_t m, double* x, double* lu, double* r,
+                       int* ipiv) noexcept nogil:
+    """Solve ``a x = b`` (``x`` holds ``b`` on entry) with one step of iterative refinement.
+
+    ``lu`` (``m * m``) and ``r`` (``m``) are work space.  Returns 0 or ``k + 1`` (singular).
+    """
+    cdef Py_ssize_t i, j
+    cdef double s
+    cdef int info
+    memcpy(lu, a, m * m * sizeof(double))
+    memcpy(r, x, m * sizeof(double))  # r = b for now
+    info = lu_factor(lu, m, ipiv)
+    if info:
+        return info
+    lu_solve(lu, m, ipiv, x)
+    for i in range(m):
+        s = 0.0
+        for j in range(m):
+            s += a[i * m + j] * x[j]
+        r[i] = r[i] - s
+    lu_solve(lu, m, ipiv, r)
+    for i in range(m):
+        x[i] += r[i]
+    return 0
+
+
+def solve(a, b):
+    """``x`` with ``a x = b`` (one refinement step); ``LinAlgError`` when singular.
+
+    A thin wrapper for tests: the kernels call the C functions directly.
+    """
+    import numpy as np
+    cdef double[:, ::1] A = np.ascontiguousarray(a, dtype=np.float64)
+    cdef Py_ssize_t m = A.shape[0]
+    if A.shape[1] != m:
+        raise ValueError("a must be square")
+    x = np.array(b, dtype=np.float64).reshape(m)
+    cdef double[::1] X = x
+    need(m)
+    cdef double* lu = <double*>malloc((m * m + m + 1) * sizeof(double))
+    cdef int* ipiv = <int*>malloc((m + 1) * sizeof(int))
+    cdef int info
+    if lu == NULL or ipiv == NULL:
+        free(lu)
+        free(ipiv)
+        raise MemoryError()
+    with nogil:
+        info = solve_refined(&A[0, 0] if m else NULL, m, &X[0] if m else NULL, lu, lu + m * m,
+                             ipiv)
+    free(lu)
+    free(ipiv)
+    if info:
+        raise np.linalg.LinAlgError("singular matrix")
+    return x
+
+
+def inv(a):
+    """``inv(a)``; ``LinAlgError`` when singular (a thin wrapper for tests)."""
+    import numpy as np
+    cdef double[:, ::1] A = np.ascontiguousarray(a, dtype=np.float64)
+    cdef Py_ssize_t m = A.shape[0]
+    out = np.empty((m, m))
+    cdef double[:, ::1] O = out
+    if m == 0:
+        return out
+    need(m)
+    cdef double* work = <double*>malloc((m * m + m) * sizeof(double))
+    cdef int* ipiv = <int*>malloc(m * sizeof(int))
+    cdef int info
+    if work == NULL or ipiv == NULL:
+        free(work)
+        free(ipiv)
+        raise MemoryError()
+    with nogil:
+        info = invert(&A[0, 0], m, &O[0, 0], work, ipiv)
+    free(work)
+    free(ipiv)
+    if info:
+        raise np.linalg.LinAlgError("singular matrix")
+    return out

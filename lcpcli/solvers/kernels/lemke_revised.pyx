@@ -1,0 +1,581 @@
+# cython: language_level=3, boundscheck=False, wraparound=False, cdivision=True
+"""Compiled kernel of the revised Lemke method (Cython, ``nogil``).
+
+The engine is seed 000's principal pivoting transform: with ``Maug = [M, d]`` (``n x (n+1)``),
+``alpha`` the nonbasic w's, ``beta`` the basic z's (``z0`` is index ``n``) and
+``A = Maug[alpha, beta]`` (``m x m``), the kernel keeps ``B = A^{-1}`` explicitly and
+*updates* it at every pivot in O(m^2), one formula per case:
+
+* z_j enters, w_i leaves: ``A`` gains row ``i`` and column ``j`` (bordering, Schur complement);
+* z_j enters, z_l leaves: column ``l`` of ``A`` is replaced by column ``j`` (Sherman-Morrison);
+* w_k enters, w_i leaves: row ``k`` of ``A`` is replaced by row ``i`` (Sherman-Morrison);
+* w_k enters, z_l leaves: row ``k`` and column ``l`` are removed (inverse of a Schur complement).
+
+The entering column is computed by seed eqs (5)-(6) (w enters) or (7)-(8) (z enters) in
+O(n m); ``q'`` is updated along the ray of the pivot and recomputed by eqs (2)-(3) after every
+refactorisation.  ``B`` is recomputed from scratch (``inv(A)``) every ``refactor_every`` pivots
+and whenever a pivot is small relative to its column (an unstable update).
+
+Instability is detected a posteriori: every ``CHECK_EVERY`` pivots the entering column's
+beta part is substituted back into ``M^{alpha beta} x = rhs``; a relative residual above
+``RESID_TOL`` triggers a refactorisation before the column is used.
+
+The pivot rule is the tableau kernel's (:mod:`lcpcli.solvers.kernels.lemke`): same initial
+pivot, same lexicographic minimum-ratio test with the same tolerances, ``z0`` preferred on ties.
+Variable codes: ``0..n-1`` = ``w_1..w_n``, ``n..2n-1`` = ``z_1..z_n``, ``2n`` = ``z0``.
+
+C level (``lemke_revised.pxd``): :c:func:`lemke_revised` on raw row-major buffers, no GIL.
+"""
+
+from libc.math cimport fabs, isfinite
+from libc.stdint cimport int64_t
+from libc.stdlib cimport free, malloc
+
+from lcpcli.solvers.kernels.dense cimport invert
+from lcpcli.solvers.kernels.lemke cimport (
+    LEMKE_MAX_ITER,
+    LEMKE_OK,
+    LEMKE_RAY,
+    LEMKE_SINGULAR,
+    LEMKE_TRIVIAL,
+    LemkeOut,
+    basic_solution,
+    initial_row,
+    keep_lex_min,
+    lex_unit,
+    ratio_candidates,
+)
+
+import numpy as np
+
+OK = LEMKE_OK
+RAY = LEMKE_RAY
+MAX_ITER = LEMKE_MAX_ITER
+TRIVIAL = LEMKE_TRIVIAL
+SINGULAR = LEMKE_SINGULAR
+
+# A pivot smaller than this fraction of its column's largest entry triggers a refactorisation.
+cdef double _SMALL_PIVOT = 1e-7
+# At a refactorisation, q' entries that moved less than this (relative) keep their value.
+cdef double _DRIFT_TOL = 1e-9
+# Every CHECK_EVERY pivots the entering column is checked against M^{alpha beta} ...
+cdef int64_t _CHECK_EVERY = 8
+# ... and a relative residual above RESID_TOL triggers a refactorisation.
+cdef double _RESID_TOL = 1e-9
+SMALL_PIVOT = _SMALL_PIVOT
+DRIFT_TOL = _DRIFT_TOL
+CHECK_EVERY = _CHECK_EVERY
+RESID_TOL = _RESID_TOL
+
+
+cdef struct State:
+    # sizes
+    Py_ssize_t n
+    Py_ssize_t m
+    # data: MT = [M, d]^T ((n + 1) x n), q (n)
+    const double* MT
+    const double* q
+    # index sets: alpha (nonbasic w's), beta (basic z's, n = z0), their inverse positions
+    int64_t* alpha
+    int64_t* beta
+    int64_t* apos
+    int64_t* bpos
+    int64_t* basic
+    int64_t* where
+    # B = inv(Maug[alpha, beta]) (stride n), Ct[s, :] = Maug[:, beta[s]] (stride n)
+    double* B
+    double* Ct
+    # work vectors (n)
+    double* qb
+    double* xb
+    double* tmp
+    # refactorisation work space (allocated on first use)
+    double* fA
+    double* fwork
+    int* fpiv
+
+
+cdef bint _refactor(State* S) noexcept nogil:
+    """B[:m, :m] = inv(Maug[alpha, beta]); False when singular, non-finite or out of memory."""
+    cdef Py_ssize_t m = S.m, n = S.n, p, s
+    cdef double v
+    if m == 0:
+        return True
+    if S.fA == NULL:
+        S.fA = <double*>malloc((2 * n * n + n) * sizeof(double))
+        S.fwork = <double*>malloc((n * n + n) * sizeof(double))
+        S.fpiv = <int*>malloc(n * sizeof(int))
+        if S.fA == NULL or S.fwork == NULL or S.fpiv == NULL:
+            return False
+    cdef double* A = S.fA
+    cdef double* Ainv = S.fA + n * n
+    for p in range(m):
+        for s in range(m):
+            A[p * m + s] = S.MT[S.beta[s] * n + S.alpha[p]]
+    if invert(A, m, Ainv, S.fwork, S.fpiv):
+        return False
+    for s in range(m):
+        for p in range(m):
+            v = Ainv[s * m + p]
+            if not isfinite(v):
+                return False
+            S.B[s * n + p] = v
+    return True
+
+
+cdef void _combine_rows(const double* Ct, const double* xb, Py_ssize_t m, Py_ssize_t n,
+                        double* tmp) noexcept nogil:
+    """``tmp[:n] = sum_s xb[s] * Ct[s, :n]`` (M[:, beta] times the beta part)."""
+    cdef Py_ssize_t i, s
+    cdef double x
+    cdef const double* row
+    for i in range(n):
+        tmp[i] = 0.0
+    for s in range(m):
+        x = xb[s]
+        if x != 0.0:
+            row = Ct + s * n
+            for i in range(n):
+                tmp[i] += row[i] * x
+
+
+cdef void _q_prime(State* S) noexcept nogil:
+    """q' by seed eqs (2)-(3), in row order (into S.qb)."""
+    cdef Py_ssize_t m = S.m, n = S.n, s, p, r
+    cdef int64_t b
+    cdef double acc
+    for s in range(m):
+        acc = 0.0
+        for p in range(m):
+            acc += S.B[s * n + p] * S.q[S.alpha[p]]
+        S.xb[s] = -acc
+    _combine_rows(S.Ct, S.xb, m, n, S.tmp)
+    for r in range(n):
+        b = S.basic[r]
+        if b < n:
+            S.qb[r] = S.q[b] + S.tmp[b]
+    for s in range(m):
+        S.qb[S.where[n + S.beta[s]]] = S.xb[s]
+
+
+cdef inline double _dot(const double* Bs, const double* v, Py_ssize_t m) noexcept nogil:
+    """sum_p Bs[p] v[p] with four partial sums (lets the compiler use SIMD lanes)."""
+    cdef double a0 = 0.0, a1 = 0.0, a2 = 0.0, a3 = 0.0
+    cdef Py_ssize_t p = 0
+    while p + 4 <= m:
+        a0 += Bs[p] * v[p]
+        a1 += Bs[p + 1] * v[p + 1]
+        a2 += Bs[p + 2] * v[p + 2]
+        a3 += Bs[p + 3] * v[p + 3]
+        p += 4
+    while p < m:
+        a0 += Bs[p] * v[p]
+        p += 1
+    return (a0 + a1) + (a2 + a3)
+
+
+cdef void _column(State* S, int64_t e, double* col) noexcept nogil:
+    """Column of M' for entering code ``e``, row order (eqs 5-6 or 7-8); S.xb = its beta part."""
+    cdef Py_ssize_t m = S.m, n = S.n, s, p, r
+    cdef int64_t b, j
+    if e < n:
+        p = S.apos[e]
+        for s in range(m):
+            S.xb[s] = S.B[s * n + p]
+    else:
+        j = e - n
+        for p in range(m):
+            S.tmp[p] = S.MT[j * n + S.alpha[p]]
+        for s in range(m):
+            S.xb[s] = -_dot(S.B + s * n, S.tmp, m)
+    _combine_rows(S.Ct, S.xb, m, n, S.tmp)
+    for r in range(n):
+        b = S.basic[r]
+        if b < n:
+            col[r] = S.tmp[b] + (S.MT[(e - n) * n + b] if e >= n else 0.0)
+    for s in range(m):
+        col[S.where[n + S.beta[s]]] = S.xb[s]
+
+
+cdef void _fresh_q_prime(State* S, double* old) noexcept nogil:
+    """q' by eqs (2)-(3) after a refactorisation; entries that moved only at roundoff level
+    keep their updated value, so degenerate zeros stay exact zeros (the lexicographic rule then
+    sees the same degeneracy as before, as the tableau method does)."""
+    cdef Py_ssize_t i, n = S.n
+    cdef double scale = 0.0
+    for i in range(n):
+        old[i] = S.qb[i]
+    _q_prime(S)
+    for i in range(n):
+        scale = max(scale, fabs(old[i]), fabs(S.q[i]))
+    for i in range(n):
+        if fabs(S.qb[i] - old[i]) <= _DRIFT_TOL * scale:
+            S.qb[i] = old[i]
+
+
+cdef double column_residual(const double* MT, const double* Ct, const int64_t* alpha,
+                            const int64_t* apos, Py_ssize_t m, int64_t e, Py_ssize_t n,
+                            const double* xb, double* acc, double* size) noexcept nogil:
+    """Relative residual of the beta part of the entering column: ``A xb = rhs`` with
+    ``A = Maug[alpha, beta]`` and rhs ``e_gamma`` (w enters) or ``-g^alpha`` (z enters).
+    ``acc`` and ``size`` are work vectors of length >= m; ``Ct`` has row stride n."""
+    cdef Py_ssize_t p, s
+    cdef double rhs, x, t, rel, worst = 0.0
+    for p in range(m):
+        if e < n:
+            rhs = 1.0 if apos[e] == p else 0.0
+        else:
+            rhs = -MT[(e - n) * n + alpha[p]]
+        acc[p] = -rhs
+        size[p] = fabs(rhs)
+    for s in range(m):
+        x = xb[s]
+        for p in range(m):
+            t = Ct[s * n + alpha[p]] * x
+            acc[p] += t
+            size[p] += fabs(t)
+    for p in range(m):
+        if size[p] > 0.0:
+            rel = fabs(acc[p]) / size[p]
+            if rel > worst:
+                worst = rel
+    return worst
+
+
+cdef void _row_times_B(const double* Ct, const double* B, Py_ssize_t m, Py_ssize_t n,
+                       int64_t i, double* out) noexcept nogil:
+    """out[:m] = Maug[i, beta] @ B (row access of B only)."""
+    cdef Py_ssize_t p, s
+    cdef double c
+    cdef const double* Bs
+    for p in range(m):
+        out[p] = 0.0
+    for s in range(m):
+        c = Ct[s * n + i]
+        if c != 0.0:
+            Bs = B + s * n
+            for p in range(m):
+                out[p] += c * Bs[p]
+
+
+cdef double _wcol_entry(State* S, int64_t k, Py_ssize_t r) noexcept nogil:
+    """Entry at row r of the column of the nonbasic w_k (for the lexicographic keys)."""
+    cdef Py_ssize_t p = S.apos[k], s, m = S.m, n = S.n
+    cdef int64_t b = S.basic[r]
+    cdef double acc = 0.0
+    if b >= n:  # a z row (z0 included): B[s, p] with s the beta position of that z
+        return S.B[S.bpos[b - n] * n + p]
+    for s in range(m):
+        acc += S.Ct[s * n + b] * S.B[s * n + p]
+    return acc
+
+
+cdef int lemke_revised(const double* M, const double* q, const double* d, Py_ssize_t n,
+                       int64_t max_iter, double piv_tol, double tie_tol, int64_t* record,
+                       Py_ssize_t nrec, int64_t refactor_every, double* z, int64_t* basic,
+                       double* ray_dz, LemkeOut* out) noexcept nogil:
+    """Revised Lemke on row-major ``M``; fills ``z``, ``basic``, ``ray_dz`` and ``out`` as
+    :c:func:`lcpcli.solvers.kernels.lemke.lemke_tableau`.  Returns 0, or -1 (no memory)."""
+    cdef Py_ssize_t i, j, i0, j0, s, p, k, r, m, nc, z0_row, s0, p0, last, blk = 32
+    cdef int64_t nz = 2 * n, entering, leaving, pivots, since, refactors, loc, jj
+    cdef int status
+    cdef double colmax, unit, key, piv, qr, inv, bu, f, y0, x0, bsp
+    cdef State S
+    cdef double* work = <double*>malloc(((n + 1) * n + 2 * n * n + 8 * n + 1) * sizeof(double))
+    cdef int64_t* iwork = <int64_t*>malloc((2 * n + 1 + 4 * n + 1 + n) * sizeof(int64_t))
+    if work == NULL or iwork == NULL:
+        free(work)
+        free(iwork)
+        return -1
+    cdef double* MT = work
+    S.B = MT + (n + 1) * n
+    S.Ct = S.B + n * n
+    S.qb = S.Ct + n * n
+    S.xb = S.qb + n
+    S.tmp = S.xb + n
+    cdef double* col = S.tmp + n
+    cdef double* w1 = col + n
+    cdef double* w2 = w1 + n
+    cdef double* keys = w2 + n
+    S.where = iwork
+    S.alpha = S.where + 2 * n + 1
+    S.beta = S.alpha + n
+    S.apos = S.beta + n
+    S.bpos = S.apos + n
+    cdef int64_t* cand = S.bpos + n + 1
+    S.n = n
+    S.m = 0
+    S.MT = MT
+    S.q = q
+    S.basic = basic
+    S.fA = NULL
+    S.fwork = NULL
+    S.fpiv = NULL
+    # MT = [M, d]^T, so that a column of [M, d] is a contiguous row (blocked transpose)
+    i0 = 0
+    while i0 < n:
+        j0 = 0
+        while j0 < n:
+            for i in range(i0, min(i0 + blk, n)):
+                for j in range(j0, min(j0 + blk, n)):
+                    MT[j * n + i] = M[i * n + j]
+            j0 += blk
+        i0 += blk
+    for i in range(n):
+        MT[n * n + i] = d[i]
+        basic[i] = i
+        S.where[i] = i
+        S.apos[i] = -1
+        S.bpos[i] = -1
+        S.qb[i] = q[i]
+        z[i] = 0.0
+        ray_dz[i] = 0.0
+        col[i] = 0.0
+    for i in range(n, 2 * n + 1):
+        S.where[i] = -1
+    S.bpos[n] = -1
+    refactors = 0
+    out.z0 = 0.0
+    out.dz0 = 0.0
+    out.pivots = 0
+    out.refactors = 0
+
+    r = initial_row(q, d, n, tie_tol)
+    if r < 0:
+        out.status = LEMKE_TRIVIAL
+        free(work)
+        free(iwork)
+        return 0
+    # initial pivot: z0 enters, w_r leaves: A = [d_r]
+    S.m = 1
+    S.alpha[0] = r
+    S.apos[r] = 0
+    S.beta[0] = n
+    S.bpos[n] = 0
+    S.B[0] = 1.0 / d[r]
+    for i in range(n):
+        S.Ct[i] = d[i]
+    entering = nz
+    leaving = r
+    basic[r] = nz
+    S.where[nz] = r
+    S.where[r] = -1
+    _q_prime(&S)
+    pivots = 1
+    since = 0
+    if nrec > 0:
+        record[0] = entering
+        record[1] = leaving
+        record[2] = r
+    status = LEMKE_MAX_ITER
+    while pivots < max_iter:
+        entering = leaving + n if leaving < n else leaving - n
+        _column(&S, entering, col)
+        if pivots % _CHECK_EVERY == 0 and column_residual(
+                MT, S.Ct, S.alpha, S.apos, S.m, entering, n, S.xb, w1, w2) > _RESID_TOL:
+            # the updated inverse has drifted: refactorise before using the column
+            if not _refactor(&S):
+                status = LEMKE_SINGULAR
+                break
+            _fresh_q_prime(&S, w2)
+            refactors += 1
+            since = 0
+            _column(&S, entering, col)
+        nc = ratio_candidates(col, S.qb, basic, n, nz, piv_tol, tie_tol, cand, &z0_row,
+                              &colmax)
+        if nc == 0:
+            status = LEMKE_RAY
+            break
+        if z0_row >= 0:
+            r = z0_row
+        elif nc == 1:
+            r = cand[0]
+        else:
+            unit = lex_unit(col, cand, nc)
+            for k in range(n):
+                loc = S.where[k]
+                for s in range(nc):
+                    i = cand[s]
+                    if loc >= 0:
+                        key = 1.0 if loc == i else 0.0
+                    else:
+                        key = -_wcol_entry(&S, k, i)
+                    keys[s] = key / (-col[i])
+                nc = keep_lex_min(keys, cand, nc, unit)
+                if nc == 1:
+                    break
+            r = cand[0]
+        leaving = basic[r]
+        piv = col[r]
+        # q' along the pivot: the entering variable rises to qr
+        qr = -S.qb[r] / piv
+        for i in range(n):
+            if i != r:
+                S.qb[i] += col[i] * qr
+        S.qb[r] = qr
+        m = S.m
+        # update B = inv(Maug[alpha, beta]) for the four cases
+        if entering >= n and leaving < n:  # z_j in, w_i out: border
+            jj = entering - n
+            _row_times_B(S.Ct, S.B, m, n, leaving, w1)
+            inv = 1.0 / piv
+            for s in range(m):
+                bu = -S.xb[s]
+                f = bu * inv
+                for p in range(m):
+                    S.B[s * n + p] += f * w1[p]
+                S.B[s * n + m] = -f
+            for p in range(m):
+                S.B[m * n + p] = -w1[p] * inv
+            S.B[m * n + m] = inv
+            S.alpha[m] = leaving
+            S.apos[leaving] = m
+            S.beta[m] = jj
+            S.bpos[jj] = m
+            for i in range(n):
+                S.Ct[m * n + i] = MT[jj * n + i]
+            S.m = m + 1
+        elif entering >= n:  # z_j in, z_l out: replace column
+            jj = entering - n
+            s0 = S.bpos[leaving - n]
+            y0 = -S.xb[s0]
+            for p in range(m):
+                S.B[s0 * n + p] /= y0
+            for s in range(m):
+                if s != s0:
+                    f = -S.xb[s]
+                    if f != 0.0:
+                        for p in range(m):
+                            S.B[s * n + p] -= f * S.B[s0 * n + p]
+            S.beta[s0] = jj
+            S.bpos[leaving - n] = -1
+            S.bpos[jj] = s0
+            for i in range(n):
+                S.Ct[s0 * n + i] = MT[jj * n + i]
+        elif leaving < n:  # w_k in, w_i out: replace row
+            p0 = S.apos[entering]
+            _row_times_B(S.Ct, S.B, m, n, leaving, w1)
+            x0 = w1[p0]
+            for s in range(m):
+                S.B[s * n + p0] /= x0
+            w1[p0] = 0.0
+            for s in range(m):
+                bsp = S.B[s * n + p0]
+                if bsp != 0.0:
+                    for p in range(m):
+                        S.B[s * n + p] -= w1[p] * bsp
+            S.alpha[p0] = leaving
+            S.apos[entering] = -1
+            S.apos[leaving] = p0
+        else:  # w_k in, z_l out: remove row and column
+            p0 = S.apos[entering]
+            s0 = S.bpos[leaving - n]
+            bsp = S.B[s0 * n + p0]
+            for p in range(m):
+                w2[p] = S.B[s0 * n + p] / bsp
+            for s in range(m):
+                if s != s0:
+                    f = S.B[s * n + p0]
+                    if f != 0.0:
+                        for p in range(m):
+                            S.B[s * n + p] -= f * w2[p]
+            last = m - 1
+            # move the last row into s0 and the last column into p0
+            if s0 != last:
+                for p in range(m):
+                    S.B[s0 * n + p] = S.B[last * n + p]
+                S.beta[s0] = S.beta[last]
+                S.bpos[S.beta[s0]] = s0
+                for i in range(n):
+                    S.Ct[s0 * n + i] = S.Ct[last * n + i]
+            if p0 != last:
+                for s in range(m):
+                    S.B[s * n + p0] = S.B[s * n + last]
+                S.alpha[p0] = S.alpha[last]
+                S.apos[S.alpha[p0]] = p0
+            S.apos[entering] = -1
+            S.bpos[leaving - n] = -1
+            S.m = m - 1
+        basic[r] = entering
+        S.where[entering] = r
+        S.where[leaving] = -1
+        if pivots < nrec:
+            record[3 * pivots] = entering
+            record[3 * pivots + 1] = leaving
+            record[3 * pivots + 2] = r
+        pivots += 1
+        since += 1
+        if leaving == nz:
+            status = LEMKE_OK
+            break
+        if since >= refactor_every or fabs(piv) < _SMALL_PIVOT * colmax:
+            if not _refactor(&S):
+                status = LEMKE_SINGULAR
+                break
+            _fresh_q_prime(&S, w2)
+            refactors += 1
+            since = 0
+
+    if status == LEMKE_OK:  # final values by eqs (2)-(3) (the caller polishes them by LU)
+        _q_prime(&S)
+    basic_solution(basic, S.qb, col, entering, status == LEMKE_RAY, n, z, ray_dz, &out.z0,
+                   &out.dz0)
+    out.status = status
+    out.pivots = pivots
+    out.refactors = refactors
+    free(S.fA)
+    free(S.fwork)
+    free(S.fpiv)
+    free(work)
+    free(iwork)
+    return 0
+
+
+# ---------------------------------------------------------------------------- Python wrappers
+def lemke_revised_kernel(M, q, d, int64_t max_iter, double piv_tol, double tie_tol, record,
+                         int64_t refactor_every):
+    """Revised Lemke; return (status, z, pivots, basic, ray_dz, ray_dz0, z0, refactors).
+
+    ``record`` (int64, shape (k, 3)) receives (entering, leaving, row) of the first k pivots.
+    """
+    cdef const double[:, ::1] Mv = M
+    cdef const double[::1] qv = q
+    cdef const double[::1] dv = d
+    cdef int64_t[:, ::1] rv = record
+    cdef Py_ssize_t n = qv.shape[0]
+    if Mv.shape[0] != n or Mv.shape[1] != n or dv.shape[0] != n or rv.shape[1] != 3:
+        raise ValueError("lemke_revised_kernel: inconsistent shapes")
+    z = np.zeros(n)
+    ray = np.zeros(n)
+    basic = np.empty(n, dtype=np.int64)
+    cdef double[::1] zv = z
+    cdef double[::1] rayv = ray
+    cdef int64_t[::1] bv = basic
+    cdef Py_ssize_t nrec = rv.shape[0]
+    cdef LemkeOut out
+    cdef int rc
+    if n == 0:
+        return TRIVIAL, z, 0, basic, ray, 0.0, 0.0, 0
+    with nogil:
+        rc = lemke_revised(&Mv[0, 0], &qv[0], &dv[0], n, max_iter, piv_tol, tie_tol,
+                           &rv[0, 0] if nrec else NULL, nrec, refactor_every, &zv[0], &bv[0],
+                           &rayv[0], &out)
+    if rc:
+        raise MemoryError()
+    return out.status, z, out.pivots, basic, ray, out.dz0, out.z0, out.refactors
+
+
+def _column_residual(MT, Ct, alpha, apos, Py_ssize_t m, int64_t e, Py_ssize_t n, xb, acc,
+                     size):
+    """Python access to :c:func:`column_residual` (for tests); ``Ct`` is ``m x n``."""
+    cdef const double[:, ::1] MTv = np.ascontiguousarray(MT, dtype=np.float64)
+    cdef const double[:, ::1] Ctv = np.ascontiguousarray(Ct, dtype=np.float64)
+    cdef const int64_t[::1] av = np.ascontiguousarray(alpha, dtype=np.int64)
+    cdef const int64_t[::1] pv = np.ascontiguousarray(apos, dtype=np.int64)
+    cdef const double[::1] xv = np.ascontiguousarray(xb, dtype=np.float64)
+    cdef double[::1] accv = acc
+    cdef double[::1] sizev = size
+    if Ctv.shape[1] != n or MTv.shape[1] != n or Ctv.shape[0] < m:
+        raise ValueError("_column_residual: inconsistent shapes")
+    return column_residual(&MTv[0, 0], &Ctv[0, 0], &av[0], &pv[0], m, e, n, &xv[0], &accv[0],
+                           &sizev[0])
