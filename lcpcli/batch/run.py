@@ -24,20 +24,35 @@ def signals_deferred() -> Iterator[None]:
     """Hold SIGINT and SIGTERM while a result is being written (delivered right after).
 
     A write is then never cut in the middle by Ctrl-C or ``kill``: the journal line and the
-    HDF5 group of a row are written together or not at all.
+    HDF5 group of a row are written together or not at all.  The holding is done at the
+    Python level (the handlers are swapped for one that only records the signal): blocking
+    the signals in the main thread is not enough, because the kernel then delivers them to
+    another thread (BLAS, OpenMP) and Python still runs the handler in the main thread.
     """
     import threading
 
-    if not hasattr(signal, "pthread_sigmask") or \
-            threading.current_thread() is not threading.main_thread():
+    if threading.current_thread() is not threading.main_thread():
         yield
         return
-    held = {signal.SIGINT, signal.SIGTERM}
-    old = signal.pthread_sigmask(signal.SIG_BLOCK, held)
+    pending: list[int] = []
+
+    def hold(signum: int, frame: Any) -> None:
+        pending.append(signum)
+
+    held = (signal.SIGINT, signal.SIGTERM)
+    old = {sig: signal.signal(sig, hold) for sig in held}
     try:
         yield
     finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+        for sig in held:
+            signal.signal(sig, old[sig] if old[sig] is not None else signal.SIG_DFL)
+        if pending:
+            sig = pending[0]
+            handler = old[sig]
+            if callable(handler):
+                handler(sig, None)  # e.g. KeyboardInterrupt, or the batch's SIGTERM handler
+            elif handler in (signal.SIG_DFL, None):
+                os.kill(os.getpid(), sig)  # the default action, now that the write is done
 
 
 def run_batch(inputs: Iterable[str], opts: SolveOptions, *, recursive: bool = False,

@@ -123,8 +123,15 @@ def read_input_bytes(path: str | os.PathLike[str], limit: int = MAX_TEXT_BYTES,
 
 
 def read_stdin_bytes(limit: int = MAX_TEXT_BYTES) -> bytes:
-    """At most ``limit`` bytes of stdin (more is refused, not silently cut)."""
+    """At most ``limit`` bytes of stdin (more is refused, not silently cut; a file redirected
+    to stdin is measured before it is read)."""
     stream = getattr(sys.stdin, "buffer", None)
+    try:
+        st = os.fstat(sys.stdin.fileno())
+    except (OSError, ValueError, AttributeError):
+        st = None
+    if st is not None and stat.S_ISREG(st.st_mode) and st.st_size > limit:
+        raise too_big(st.st_size, limit, "stdin")
     data = stream.read(limit + 1) if stream is not None else sys.stdin.read(limit + 1).encode()
     if len(data) > limit:
         raise too_big(len(data), limit, "stdin")

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -82,7 +83,7 @@ def test_small_batch_prints_one_line_per_problem_and_plurals(cli, tmp_path):
         assert any(name in line and status in line for line in lines), (name, r.stdout)
     assert any("q holds booleans" in line for line in lines)
     r = cli("solve", "a.json", "--jobs", "1", cwd=tmp_path)
-    assert "1 problem done" in r.stdout and "1 problems" not in r.stdout
+    assert "1 problem done" in r.stdout and not re.search(r"\b1 problems\b", r.stdout)
     r = cli("solve", str(ROOT / "samples" / "collection.h5"), "-m", "lemke")
     assert "5 problems done" in r.stdout
 
