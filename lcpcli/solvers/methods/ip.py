@@ -28,10 +28,11 @@ from typing import Any
 import numpy as np
 
 from lcpcli.analysis.classify import is_symmetric
+from lcpcli.core.certificate import matrix_norm_inf
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, NUMERICAL, Outcome
 from lcpcli.solvers.options import positive_int
-from lcpcli.solvers.registry import Method, Option
-from lcpcli.solvers.support import active_set_polish, scaled_error
+from lcpcli.solvers.registry import Cost, Guarantee, Method, Option, when
+from lcpcli.solvers.support import certified_error, refine
 
 DEFAULT_MAX_ITER = 100
 #: Fraction of the step to the boundary that is taken.
@@ -45,13 +46,13 @@ class _Factor:
 
     def __init__(self, M: Any, d: np.ndarray, sparse: bool, symmetric: bool) -> None:
         if sparse:
-            import scipy.sparse as sp
+            import scipy.sparse as sp  # scipy is imported on first use (start-up budget)
             import scipy.sparse.linalg as spla
 
             K = (M + sp.diags(d)).tocsc()
             self._solve = spla.splu(K).solve
             return
-        import scipy.linalg as sla
+        import scipy.linalg as sla  # scipy is imported on first use (start-up budget)
 
         K = M.copy()
         K[np.diag_indices_from(K)] += d
@@ -79,8 +80,6 @@ def _max_step(x: np.ndarray, dx: np.ndarray) -> float:
 
 def run(problem: Any, *, tol: float, max_iter: int | None = None) -> Outcome:
     """Mehrotra predictor-corrector on a monotone LCP; see the module docstring."""
-    from lcpcli.core.certificate import matrix_norm_inf
-
     n = problem.n
     q = problem.q
     if n == 0 or np.min(q) >= 0:
@@ -101,30 +100,26 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None) -> Outcome:
     s = max(1.0, np.sqrt(qn / mu_M)) if qn > 0 else 1.0
     z = np.full(n, s)
     w = np.maximum(matvec(z) + q, s)
-    best_z, best_err = np.zeros(n), scaled_error(np.zeros(n), q.copy(), lo, up, mu_M, qn)
+    best_z, best_err = np.zeros(n), certified_error(problem, np.zeros(n))
     termination, why = ITERATION_LIMIT, f"iteration limit {limit} reached"
     it = 0
     rounded = False
     zmax0 = float(np.max(z))
     while True:
         wz = matvec(z) + q
-        err = scaled_error(z, wz, lo, up, mu_M, qn)
+        err = certified_error(problem, z)
         if err < best_err:
             best_z, best_err, rounded = z.copy(), err, False
         if best_err <= tol:
-            termination, why = CONVERGED, "scaled error below tolerance"
+            termination, why = CONVERGED, "certified error below tolerance"
             break
         if err <= ROUND_BELOW:
-            try:
-                zr = active_set_polish(problem, z, wz)
-                er = scaled_error(zr, matvec(zr) + q, lo, up, mu_M, qn)
-                if er < best_err:
-                    best_z, best_err, rounded = zr, er, True
-                if er <= tol:
-                    termination, why = CONVERGED, "scaled error below tolerance after rounding"
-                    break
-            except (np.linalg.LinAlgError, ValueError, RuntimeError):
-                pass
+            polished = refine(problem, z)
+            if polished is not None and polished[1] < best_err:
+                best_z, best_err, rounded = polished[0], polished[1], True
+            if best_err <= tol:
+                termination, why = CONVERGED, "certified error below tolerance after rounding"
+                break
         if it >= limit:
             break
         if float(np.max(z)) > 1e12 * max(zmax0, 1.0):
@@ -173,7 +168,12 @@ METHODS = [
         run=run,
         summary="primal-dual interior point, Mehrotra predictor-corrector, with active-set "
                 "rounding (dense or sparse)",
-        matrix_classes="monotone LCPs (M positive semidefinite, symmetric or not)",
+        guarantees=(Guarantee(when("psd"), "monotone LCP: converges when a solution exists"),),
+        cost=Cost.FACTORING,
+        preference=10,  # faster than newton on PSD problems (benchmarks/results/methods.json)
+        fallback="no guarantee outside monotone problems",
+        fallback_preference=40,  # after the Newton methods
+        auto_max_iter=DEFAULT_MAX_ITER,
         kinds=("lcp",),
         sparse=True,
         options={
@@ -181,5 +181,6 @@ METHODS = [
                                f"iteration limit (default {DEFAULT_MAX_ITER})"),
         },
         aliases=("interior-point",),
+        scaling="auto",
     ),
 ]

@@ -31,16 +31,19 @@ from lcpcli.solvers.kernels.lemke_revised import (
     lemke_revised_kernel,
 )
 from lcpcli.solvers.methods.lemke import (
+    GUARANTEES,
     NO_RECORD,
     PIVOT_TOL,
     TIE_TOL,
+    basic_z,
     covering_vector,
     default_max_iter,
     polish,
     ray_outcome,
 )
+from lcpcli.solvers.methods.lemke import run as run_tableau
 from lcpcli.solvers.options import bool_option, positive_int, vector_option
-from lcpcli.solvers.registry import Method, Option
+from lcpcli.solvers.registry import Cost, Method, Option
 
 
 def _refactor_every(value: Any) -> int:
@@ -64,8 +67,6 @@ def run(problem: Any, *, tol: float, covering: np.ndarray | None = None,
     same pivot rule, hence the same pivots on non-degenerate problems.
     """
     if trace:
-        from lcpcli.solvers.methods.lemke import run as run_tableau
-
         out = run_tableau(problem, tol=tol, covering=covering, max_iter=max_iter, trace=True)
         out.info["trace_engine"] = "tableau replica (same pivot rule)"
         return out
@@ -82,6 +83,7 @@ def run(problem: Any, *, tol: float, covering: np.ndarray | None = None,
         return Outcome(np.zeros(n), 0, CONVERGED, "q >= 0: z = 0 solves the problem")
     if status == OK:
         z = polish(M, q, z, basic)
+        info["basis"] = basic_z(basic, n)
         return Outcome(z, int(pivots), CONVERGED, f"artificial variable left the basis after "
                                                   f"{pivots} pivots ({refactors} "
                                                   f"refactorisations)", info=info)
@@ -89,11 +91,23 @@ def run(problem: Any, *, tol: float, covering: np.ndarray | None = None,
         return Outcome(np.maximum(z, 0.0), int(pivots), ITERATION_LIMIT,
                        f"pivot limit {limit} reached (raise it with --max-iter)", info=info)
     if status == SINGULAR:
-        return Outcome(np.maximum(z, 0.0), int(pivots), NUMERICAL,
-                       f"basis block M^(alpha beta) became singular at a refactorisation "
-                       f"after {pivots} pivots (try --method lemke-tableau)", info=info)
-    out = ray_outcome(problem, M, q, z, int(pivots), ray_dz, float(z0))
-    out.info.update(info)
+        out = Outcome(np.maximum(z, 0.0), int(pivots), NUMERICAL,
+                      f"basis block M^(alpha beta) became singular at a refactorisation "
+                      f"after {pivots} pivots", info=info)
+    else:
+        out = ray_outcome(problem, M, q, z, int(pivots), ray_dz, float(z0))
+        out.info.update(info)
+        if out.proven_infeasible:
+            return out
+    # an unproven ray or a singular block can come from the drift of the updated inverse (a
+    # ray at z0 ~ 1e-13 where the tableau reaches the solution): the tableau method follows the
+    # same pivot rule with O(n^2) rank-one updates of the whole tableau; let it decide
+    again = run_tableau(problem, tol=tol, covering=covering, max_iter=max_iter)
+    if again.termination == CONVERGED or again.proven_infeasible:
+        again.message = f"{out.message}; rerun as lemke-tableau: {again.message}"
+        again.iterations += out.iterations
+        again.info.update(info)
+        return again
     return out
 
 
@@ -103,7 +117,10 @@ METHODS = [
         run=run,
         summary="Lemke's complementary pivoting, revised: seed 000 transform with an updated "
                 "inverse of M^(alpha beta), lexicographic anti-cycling",
-        matrix_classes="P-matrices; copositive-plus (incl. PSD): solution or proof of none",
+        guarantees=GUARANTEES,
+        cost=Cost.PIVOTING,
+        preference=10,
+        fallback="solves many problems outside its classes (a ray then proves nothing)",
         kinds=("lcp",),
         options={
             "covering": Option(vector_option, None, "covering vector d > 0 (default all ones)"),
@@ -115,5 +132,6 @@ METHODS = [
         },
         # the faster of the two on benchmarks/bench_lemke.py (CPU time, n = 10..1000)
         aliases=("lemke",),
+        scaling="auto",
     ),
 ]

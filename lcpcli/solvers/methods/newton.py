@@ -21,7 +21,7 @@ is singular or its solution is not a sufficient descent direction, a Levenberg-M
 ``(H^T H + lam I) d = -H^T Phi`` (``lam`` proportional to ``||Phi||``) is tried, and failing that a
 step along ``-grad Psi = -H^T Phi`` (De Luca, Facchinei and Kanzow's scheme).  Sparse M: the Newton
 systems are solved by sparse LU (``scipy.sparse.linalg.splu``), never densified.  After the
-iterations an active-set re-solve is tried (see :func:`lcpcli.solvers.support.active_set_polish`).
+iterations an active-set re-solve is tried (see :func:`lcpcli.solvers.support.refine`).
 
 Matrix classes: ``newton`` converges globally (to a stationary point of the merit, which solves
 the problem) for P0 matrices with bounded level sets, e.g. **P-matrices**, and for **monotone
@@ -34,14 +34,16 @@ answer is certified by the shared certificate and is ``unsolved`` otherwise.
 
 from __future__ import annotations
 
+import warnings
 from typing import Any
 
 import numpy as np
 
+from lcpcli.core.certificate import matrix_norm_inf
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, NUMERICAL, Outcome
 from lcpcli.solvers.options import positive_int, vector_option
-from lcpcli.solvers.registry import Method, Option
-from lcpcli.solvers.support import active_set_polish, scaled_error, start_point
+from lcpcli.solvers.registry import Cost, Guarantee, Method, Option, when
+from lcpcli.solvers.support import certified_error, refine, start_point
 
 DEFAULT_MAX_ITER = 200
 #: Armijo constant, backtracking factor, smallest step.
@@ -118,11 +120,9 @@ class _Residual:
 def _newton_direction(M: Any, sparse: bool, a: np.ndarray, b: np.ndarray,
                       phi: np.ndarray) -> np.ndarray | None:
     """Solve ``(diag(a) + diag(b) M) d = -phi``; None when the matrix is (numerically) singular."""
-    import warnings
-
     n = phi.shape[0]
     if sparse:
-        import scipy.sparse as sp
+        import scipy.sparse as sp  # scipy is imported on first use (start-up budget)
         import scipy.sparse.linalg as spla
 
         H = (sp.diags(b) @ M + sp.diags(a)).tocsc()
@@ -134,7 +134,7 @@ def _newton_direction(M: Any, sparse: bool, a: np.ndarray, b: np.ndarray,
         except RuntimeError:
             return None
     else:
-        import scipy.linalg as sla
+        import scipy.linalg as sla  # scipy is imported on first use (start-up budget)
 
         H = b[:, None] * M
         H[np.diag_indices(n)] += a
@@ -154,21 +154,19 @@ def _lm_direction(M: Any, sparse: bool, a: np.ndarray, b: np.ndarray, phi: np.nd
                   grad: np.ndarray, lam: float) -> np.ndarray | None:
     """Levenberg-Marquardt direction ``(H^T H + lam I) d = -H^T phi`` (singular H, e.g. a
     rank-deficient PSD M at a degenerate point); None if it fails."""
-    import warnings
-
     n = phi.shape[0]
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             if sparse:
-                import scipy.sparse as sp
+                import scipy.sparse as sp  # scipy is imported on first use (start-up budget)
                 import scipy.sparse.linalg as spla
 
                 H = (sp.diags(b) @ M + sp.diags(a)).tocsr()
                 K = (H.T @ H + lam * sp.identity(n)).tocsc()
                 d = spla.splu(K).solve(-grad)
             else:
-                import scipy.linalg as sla
+                import scipy.linalg as sla  # scipy is imported on first use (start-up budget)
 
                 H = b[:, None] * M
                 H[np.diag_indices(n)] += a
@@ -184,10 +182,7 @@ def _lm_direction(M: Any, sparse: bool, a: np.ndarray, b: np.ndarray, phi: np.nd
 def run_newton(problem: Any, *, tol: float, variant: str = "fb", max_iter: int | None = None,
                z0: np.ndarray | None = None) -> Outcome:
     """Semismooth Newton with Armijo line search; ``variant`` is ``"fb"`` or ``"min"``."""
-    from lcpcli.core.certificate import matrix_norm_inf
-
     name = "Newton-FB" if variant == "fb" else "Newton-min"
-    n = problem.n
     M = problem.M
     sparse = problem.sparse
     if sparse:
@@ -199,7 +194,6 @@ def run_newton(problem: Any, *, tol: float, variant: str = "fb", max_iter: int |
     resid = _Residual(problem, "min" if variant == "min" else "fb")
     mu = matrix_norm_inf(M)
     mu = mu if mu > 0 else 1.0
-    qn = float(np.max(np.abs(problem.q))) if n else 0.0
     limit = max_iter or DEFAULT_MAX_ITER
 
     def matvec(x: np.ndarray) -> np.ndarray:
@@ -216,11 +210,11 @@ def run_newton(problem: Any, *, tol: float, variant: str = "fb", max_iter: int |
     lm_steps = 0
     it = 0
     termination, why = ITERATION_LIMIT, f"iteration limit {limit} reached"
-    best_z, best_err = z.copy(), scaled_error(z, w, lo, up, mu, qn)
+    best_z, best_err = z.copy(), certified_error(problem, z)
     err = best_err
     while True:
         if err <= tol:
-            termination, why = CONVERGED, "scaled error below tolerance"
+            termination, why = CONVERGED, "certified error below tolerance"
             break
         if it >= limit:
             break
@@ -266,25 +260,21 @@ def run_newton(problem: Any, *, tol: float, variant: str = "fb", max_iter: int |
         merit = 0.5 * float(phi @ phi)
         history.append(merit)
         del history[:-NONMONOTONE]
-        err = scaled_error(z, w, lo, up, mu, qn)
+        err = certified_error(problem, z)
         if err < best_err:
             best_z, best_err = z.copy(), err
     z_out, err_out = best_z, best_err
-    if np.all(np.isfinite(z_out)) and err_out > 0:
-        try:
-            zp = active_set_polish(problem, z_out)
-            ep = scaled_error(zp, problem.w(zp), lo, up, mu, qn)
-            if ep < err_out:
-                z_out, err_out = zp, ep
-                if ep <= tol and termination != CONVERGED:
-                    why += "; solved by the active-set re-solve"
-                    termination = CONVERGED
-        except (np.linalg.LinAlgError, ValueError, MemoryError):
-            pass
+    if err_out > 0:
+        polished = refine(problem, z_out)
+        if polished is not None and polished[1] < err_out:
+            z_out, err_out = polished
+            if err_out <= tol and termination != CONVERGED:
+                why += "; solved by the active-set re-solve"
+                termination = CONVERGED
     extra = f", {lm_steps} Levenberg-Marquardt steps" if lm_steps else ""
     extra += f", {grad_steps} gradient steps" if grad_steps else ""
     return Outcome(z_out, it, termination,
-                   f"{name}: {why} after {it} iterations{extra} (scaled error {err_out:.2e})",
+                   f"{name}: {why} after {it} iterations{extra} (certified error {err_out:.2e})",
                    info={"gradient_steps": grad_steps, "lm_steps": lm_steps})
 
 
@@ -311,21 +301,34 @@ METHODS = [
         run=run_fb,
         summary="semismooth Newton on the Fischer-Burmeister function, Armijo line search "
                 "(dense LU or sparse LU)",
-        matrix_classes="P-matrices and monotone (PSD) problems (global, via the smooth merit); "
-                       "non-symmetric, zero diagonal, MLCP free rows and box bounds handled",
+        guarantees=(
+            Guarantee(when("p_matrix"), "globally convergent (FB merit): the unique solution"),
+            Guarantee(when("psd"), "monotone: globally convergent when a solution exists"),
+        ),
+        notes="non-symmetric, zero diagonal, MLCP free rows and box bounds handled",
+        cost=Cost.FACTORING,
+        preference=20,
+        fallback="semismooth Newton handles any square M (may stop at a stationary point)",
+        auto_max_iter=100,
         kinds=("lcp", "mlcp", "box"),
         sparse=True,
         options=dict(_OPTIONS),
         aliases=("newton-fb",),
+        scaling="auto",
     ),
     Method(
         name="newton-min",
         run=run_min,
         summary="semismooth Newton on the min / mid map (natural residual), Armijo line search",
-        matrix_classes="P-matrices near the solution (locally fast); not globally convergent: "
-                       "may stall on degenerate or singular problems",
+        notes="locally fast near a solution; not globally convergent: may stall on "
+              "degenerate or singular problems",
+        cost=Cost.FACTORING,
+        preference=30,
+        fallback="min-map Newton, locally fast",
+        auto_max_iter=50,
         kinds=("lcp", "mlcp", "box"),
         sparse=True,
         options=dict(_OPTIONS),
+        scaling="auto",
     ),
 ]
