@@ -956,8 +956,7 @@ def _option_cases() -> list[Case]:
         Case("pivot-deep-json", "internal", ["pivot", "{d}/deep_M.json", "-d", "z1"], BAD,
              "invalid JSON", xfail="analysis/pivoting.py load_augmented parses JSON itself: "
                                    "it should use lcpcli.io.files.parse_json"),
-        Case("norm-overflow-info", "internal", ["info", "{d}/overflow.json"], SOLVED, None,
-             xfail="classification with |M| ~ 1e300 (policy helper / lead)"),
+        Case("norm-overflow-info", "internal", ["info", "{d}/overflow.json"], SOLVED, None),
         Case("norm-overflow-enumerate", "internal", ["enumerate", "{d}/overflow.json"], SOLVED,
              None, xfail="enumeration's 2-D cover test with |M| ~ 1e300 (lead)"),
         Case("norm-overflow-solve", "internal", ["solve", "{d}/overflow.json"], SOLVED, None),
