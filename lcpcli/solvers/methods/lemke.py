@@ -28,11 +28,8 @@ from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, RAY, Outcome
 from lcpcli.solvers.kernels.lemke import MAX_ITER, OK, TRIVIAL, lemke_kernel, polish_kernel
 from lcpcli.solvers.options import bool_option, positive_int, vector_option
 from lcpcli.solvers.registry import Cost, Guarantee, Method, Option, when
+from lcpcli.solvers.tolerances import PIVOT_TOL, TIE_TOL
 
-#: Relative pivot tolerance: entries below this fraction of the column's largest are not pivots.
-PIVOT_TOL = 1e-11
-#: Relative tolerance under which two ratios are a tie (then the lexicographic rule decides).
-TIE_TOL = 1e-9
 #: Empty pivot record (the kernel records nothing).
 NO_RECORD = np.zeros((0, 3), dtype=np.int64)
 
@@ -61,7 +58,7 @@ def run(problem: Any, *, tol: float, covering: np.ndarray | None = None,
     """Solve ``problem`` (an LCP) by Lemke's method; see the module docstring.
 
     ``trace=True`` runs the numpy replica of the kernel (same pivots) and records each pivot
-    in ``Outcome.trace`` (see :mod:`lcpcli.solvers.lemke_trace`).
+    in ``Outcome.trace`` (see :mod:`lcpcli.solvers.trace.lemke`).
     """
     n = problem.n
     M = np.ascontiguousarray(problem.dense_M(), dtype=np.float64)
@@ -70,7 +67,7 @@ def run(problem: Any, *, tol: float, covering: np.ndarray | None = None,
     limit = max_iter or default_max_iter(n)
     steps = None
     if trace:
-        from lcpcli.solvers.lemke_trace import lemke_traced  # loads the numba kernels: lazy
+        from lcpcli.solvers.trace.lemke import lemke_traced
 
         status, z, pivots, basic, ray_dz, ray_dz0, z0, steps = lemke_traced(
             M, q, d, limit, PIVOT_TOL, TIE_TOL)
