@@ -896,7 +896,7 @@ def _option_cases() -> list[Case]:
         Case("batch-stdin", "exit-code", ["solve", "-", ok], BAD,
              "'-' (stdin) cannot be part of a batch"),
         Case("batch-trace", "exit-code", ["solve", ok, "{d}/three.json", "--trace"], BAD,
-             "--trace shows one problem's pivots"),
+             "--trace (and --layout, --pivot, --step, --format) shows one problem's steps"),
         Case("bench-budget-nan", "exit-code", ["bench", ok, "--budget", "nan"], BAD,
              "--budget must be a positive number"),
         Case("bench-budget-inf", "exit-code", ["bench", ok, "--budget", "inf"], BAD,
