@@ -20,6 +20,7 @@ from typing import Any
 
 from lcpcli.batch import worker
 from lcpcli.batch.records import SolveOptions, Task, error_row, timeout_row
+from lcpcli.core.text import one_line_warnings
 from lcpcli.solvers.kernels import process_context
 
 
@@ -36,6 +37,7 @@ def make_chunks(tasks: list[Task], jobs: int, *, max_chunk: int = 256) -> list[l
 
 def _worker_main(conn: Any, opts: SolveOptions) -> None:
     """Worker process: receive chunks, send one message per solved problem."""
+    one_line_warnings()  # as the CLI prints them: this process is not started through it
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent decides when to stop
     _die_with_parent()
     signal.signal(signal.SIGTERM, signal.SIG_DFL)

@@ -15,7 +15,6 @@ from __future__ import annotations
 import importlib
 import os
 import sys
-import warnings
 
 import typer
 import typer.core
@@ -29,6 +28,7 @@ from lcpcli.core.errors import (
     EXIT_OK,
     LcpError,
 )
+from lcpcli.core.text import one_line_warnings
 
 
 def _click_exceptions():  # type: ignore[no-untyped-def]
@@ -96,13 +96,6 @@ def error_line(message: str) -> None:
     sys.stderr.write(f"lcpcli: error: {text}\n")
 
 
-def _show_warning(message: Warning | str, category: type[Warning], filename: str, lineno: int,
-                  file: object = None, line: str | None = None) -> None:
-    """Warnings as one ``lcpcli: warning:`` line (no source path, no code line)."""
-    text = " ".join(str(message).split())
-    sys.stderr.write(f"lcpcli: warning: {text}\n")
-
-
 def _print_root_help() -> None:
     """The formatted top-level help, on stderr (bare ``lcpcli`` is a usage error)."""
     command = typer.main.get_command(app)
@@ -130,7 +123,7 @@ def main(argv: list[str] | None = None) -> None:
     :func:`lcpcli.cli.common.pending_exit`).
     """
     args = sys.argv[1:] if argv is None else list(argv)
-    warnings.showwarning = _show_warning
+    one_line_warnings()
     common.pending_exit(EXIT_OK)
     if not args:
         _print_root_help()

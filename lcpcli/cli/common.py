@@ -15,10 +15,8 @@ from lcpcli.core.errors import (
     EXIT_SOLVED,
     OptionError,
 )
+from lcpcli.core.limits import MAX_ITER
 from lcpcli.core.text import plural
-
-#: Largest ``--max-iter`` accepted (pivots or iterations; beyond it a run would take days).
-MAX_ITER = 2**31 - 1
 
 #: The exit code of the work finished so far (what a broken pipe on stdout exits with).
 _PENDING = {"code": EXIT_OK}

@@ -72,6 +72,7 @@ def contact_matrix(
     from lcpcli.contact.scene import with_kinematic
     from lcpcli.contact.warmstart import check_impulses_path, warm_start, write_impulses
     from lcpcli.core.errors import OptionError
+    from lcpcli.io import check_output
 
     if friction < 0:
         raise OptionError(f"--friction K must be >= 0, got {friction}")
@@ -82,6 +83,9 @@ def contact_matrix(
             raise OptionError(f"{flag} needs --solve")
     if impulses is not None:
         check_impulses_path(impulses)
+    if output is not None:  # before any work: never the scene itself, a device or a link
+        check_output(output, inputs=[scene_file, z0] if z0 is not None else [scene_file],
+                     stdout=False)
     scene = load_scene(scene_file)
     names = [nm.strip() for item in kinematic or [] for nm in item.split(",") if nm.strip()]
     scene = with_kinematic(scene, names)

@@ -3,37 +3,36 @@ on stdout or in a file (``-o``, written atomically, never over an input file).""
 
 from __future__ import annotations
 
-import os
 import sys
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from lcpcli.cli.render.doc import FORMATS, Page, to_rich, write
-from lcpcli.cli.stepper import interactive, pick, print_all, step_through
 from lcpcli.core.errors import OptionError
+
+if TYPE_CHECKING:
+    from lcpcli.cli.render.doc import Page
+
 
 
 def check_format(fmt: str) -> str:
     """``text``, ``markdown`` (``md``) or ``latex`` (``tex``)."""
     value = {"md": "markdown", "tex": "latex"}.get(str(fmt).lower(), str(fmt).lower())
+    if value == "text":  # the default: no renderer to load
+        return value
+    from lcpcli.cli.render.doc import FORMATS  # the renderer knows what it can write
+
     if value not in FORMATS:
         raise OptionError(f"--format must be one of {', '.join(FORMATS)}, got {fmt!r}")
     return value
 
 
 def check_target(output: Path, inputs: list[str]) -> None:
-    """Refuse to write the export over one of the input files."""
-    for name in inputs:
-        if name == "-" or not name:
-            continue
-        src = Path(name)
-        same = False
-        try:
-            same = output.exists() and src.exists() and os.path.samefile(output, src)
-        except OSError:
-            same = False
-        if same or output.resolve() == src.resolve():
-            raise OptionError(f"-o {output}: that is the input file; choose another name")
+    """Refuse to write the export over an input, a device, a link or a directory
+    (:func:`lcpcli.io.check_output`, the one definition of what an output may be)."""
+    from lcpcli.io import check_output  # io (numpy) only when an export file is named
+
+    check_output(output, inputs=[name for name in inputs if name and name != "-"],
+                 stdout=False)
 
 
 def emit(pages: list[Page], *, fmt: str, output: Path | None, inputs: list[str],
@@ -44,6 +43,10 @@ def emit(pages: list[Page], *, fmt: str, output: Path | None, inputs: list[str],
     ``numbers`` are the step numbers of the pages (``--pivot K`` picks number K), ``labels``
     their names on the step screen.
     """
+    # the renderer and the stepper only here: a plain solve never loads them (start-up budget)
+    from lcpcli.cli.render.doc import to_rich, write
+    from lcpcli.cli.stepper import interactive, pick, print_all, step_through
+
     if pivot is not None:
         pages = pick(pages, pivot, numbers, what)
     if fmt == "text":

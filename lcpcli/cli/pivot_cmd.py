@@ -136,29 +136,30 @@ def load_augmented(path: str, covering: str | None = None,
     ``"1,2,1"``; default all ones) supplies the artificial column.  Returns ``(Maug, q, where)``
     with ``where`` saying where the artificial column came from.
     """
-    import json  # file reading happens in the command body (start-up budget)
     from pathlib import Path
 
-    import numpy as np
+    import numpy as np  # file reading happens in the command body (start-up budget)
 
     from lcpcli.analysis.pivoting import augment
     from lcpcli.core.errors import ProblemError
     from lcpcli.io import detect_format, load
+    from lcpcli.io.files import decode_text, parse_json, read_input_bytes
+    from lcpcli.io.npz_format import read_augmented
 
     kind = detect_format(path)
     raw_M: Any = None
     raw_q: Any = None
     try:
-        if kind == "json" and str(path) != "-" and Path(path).is_file():
-            data = json.loads(Path(path).read_text(encoding="utf-8"))
+        if kind == "json" and str(path) != "-":
+            data = parse_json(decode_text(read_input_bytes(path)))
             if isinstance(data, dict) and isinstance(data.get("M"), list):
                 raw_M, raw_q = data["M"], data.get("q")
-        elif kind == "npz" and Path(path).is_file():
-            with np.load(path, allow_pickle=False) as npz:
-                if "M" in npz.files and "q" in npz.files:
-                    raw_M, raw_q = npz["M"], npz["q"]
-    except (ValueError, OSError, UnicodeDecodeError):
-        raw_M = None  # let the regular reader produce the proper message
+        elif kind == "npz":
+            found = read_augmented(Path(path))
+            if found is not None:
+                raw_M, raw_q = found
+    except ProblemError:
+        raw_M = None  # the regular reader below gives the proper one-line message
     if raw_M is not None and raw_q is not None:
         try:
             A = np.asarray(raw_M, dtype=np.float64)

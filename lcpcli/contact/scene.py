@@ -23,7 +23,6 @@ thousands of bodies is vectorised.  Every bad input raises :class:`ProblemError`
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -32,6 +31,7 @@ from typing import Any
 import numpy as np
 
 from lcpcli.core.errors import ProblemError
+from lcpcli.io.files import check_input_file, decode_text, parse_json, read_input_bytes
 
 BODY_KEYS = {"name", "mass", "inertia", "orientation", "position", "velocity",
              "angular_velocity", "static", "kinematic"}
@@ -141,22 +141,14 @@ def load_scene(path: str | Path) -> Scene:
     source = str(path)
     p = Path(path)
     try:
-        if not p.exists():
-            raise ProblemError("no such file")
-        if p.is_dir():
-            raise ProblemError("is a directory, not a scene file")
         ext = p.suffix.lower()
         if ext == ".json":
-            try:
-                data = json.loads(p.read_text(encoding="utf-8"),
-                                  parse_constant=_reject_constant)
-            except UnicodeDecodeError:
-                raise ProblemError("not a UTF-8 text file") from None
-            except json.JSONDecodeError as exc:
-                raise ProblemError(f"invalid JSON: {exc.msg} at line {exc.lineno} "
-                                   f"column {exc.colno}") from None
+            # the io layer's rules: a regular file only (no FIFO, device, directory), bounded
+            text = decode_text(read_input_bytes(p, what="a scene file"))
+            data = parse_json(text, parse_constant=_reject_constant)
             return scene_from_dict(data, default_name=p.stem)
         if ext in (".h5", ".hdf5", ".hdf"):
+            check_input_file(p, "a scene file")  # a regular file: a FIFO would hang h5py
             return read_scene_hdf5(p)
         raise ProblemError(f"unknown scene file type {ext or '(none)'} (expected .json, .h5)")
     except ProblemError as exc:

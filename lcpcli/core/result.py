@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 
 from lcpcli.core.certificate import Certificate
+from lcpcli.core.text import plural
 
 
 class _StrEnum(str, Enum):
@@ -154,7 +155,7 @@ class Result:
             z, w = np.array2string(self.z), np.array2string(self.w)
         return "\n".join([
             f"{self.status} by {self.method} ({self.termination}), n = {self.n}, "
-            f"{self.iterations} iterations, {self.seconds * 1e3:.3f} ms",
+            f"{plural(self.iterations, 'iteration')}, {self.seconds * 1e3:.3f} ms",
             f"  message:  {self.message}",
             f"  residual: {float(self.certificate.residual):.3e}   "
             f"error: {float(self.certificate.error):.3e} (tol {float(self.certificate.tol):.1e})",

@@ -2,7 +2,23 @@
 
 from __future__ import annotations
 
+import sys
+import warnings
+
 
 def plural(count: int, word: str, many: str | None = None) -> str:
     """``"1 pivot"``, ``"2 pivots"``, ``"1,000 problems"`` (``many`` for irregular plurals)."""
     return f"{count:,} {word if count == 1 else (many or word + 's')}"
+
+
+def show_warning(message: Warning | str, category: type[Warning], filename: str, lineno: int,
+                 file: object = None, line: str | None = None) -> None:
+    """Warnings as one ``lcpcli: warning:`` line on stderr (no source path, no code line)."""
+    text = " ".join(str(message).split())
+    sys.stderr.write(f"lcpcli: warning: {text}\n")
+
+
+def one_line_warnings() -> None:
+    """Print every Python warning of this process as one ``lcpcli: warning:`` line (the CLI
+    and the batch worker processes call it at start)."""
+    warnings.showwarning = show_warning

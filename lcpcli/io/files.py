@@ -146,10 +146,11 @@ def decode_text(data: bytes, what: str = "a UTF-8 text file") -> str:
         raise ProblemError(f"not {what}") from None
 
 
-def parse_json(text: str | bytes) -> Any:
-    """``json.loads`` with every failure as one ProblemError line (deep nesting included)."""
+def parse_json(text: str | bytes, *, parse_constant: Any = None) -> Any:
+    """``json.loads`` with every failure as one ProblemError line (deep nesting included);
+    ``parse_constant`` handles NaN/Infinity literals as ``json.loads`` does."""
     try:
-        return json.loads(text)
+        return json.loads(text, parse_constant=parse_constant)
     except json.JSONDecodeError as exc:
         raise ProblemError(f"invalid JSON: {exc.msg} at line {exc.lineno} column {exc.colno}") \
             from None

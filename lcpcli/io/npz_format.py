@@ -132,6 +132,30 @@ def read(path: Path) -> Problem:
                                f"{str(exc).splitlines()[0][:100]})") from None
 
 
+def read_augmented(path: Path) -> tuple[np.ndarray, np.ndarray] | None:
+    """Seed 000's augmented form: a dense ``M`` of shape ``(n, n + 1)`` (the artificial column
+    last) and ``q`` of length ``n``; None when the file holds anything else.  Same checks as
+    :func:`read` (regular file, zip directory and array headers before any data)."""
+    with open_input(path) as fh:
+        try:
+            with zipfile.ZipFile(fh) as zf:
+                infos = zf.infolist()
+                if len(infos) > MAX_MEMBERS:
+                    return None
+                entries = {i.filename[:-4]: i for i in infos if i.filename.endswith(".npy")}
+                if "M" not in entries or "q" not in entries:
+                    return None
+                m = Member(zf, entries["M"], "M")
+                if len(m.shape) != 2 or m.shape[1] != m.shape[0] + 1:
+                    return None
+                m.check("M")
+                check_size(m.shape[0], m.shape[1])
+                return m.read(), Member(zf, entries["q"], "q").vector("q", m.shape[0])
+        except (zipfile.BadZipFile, EOFError, OSError, NotImplementedError, RuntimeError,
+                ValueError):
+            return None  # the regular reader gives the proper message
+
+
 def _read(zf: zipfile.ZipFile, path: Path) -> Problem:
     infos = zf.infolist()
     if len(infos) > MAX_MEMBERS:

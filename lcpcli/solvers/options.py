@@ -11,6 +11,8 @@ from typing import Any
 
 import numpy as np
 
+from lcpcli.core.limits import MAX_ITER
+
 
 def vector_option(value: Any) -> np.ndarray | None:
     """A float vector from a list/array or a string ``'1,2 3'`` (None stays None)."""
@@ -25,12 +27,19 @@ def vector_option(value: Any) -> np.ndarray | None:
 
 
 def positive_int(value: Any) -> int:
-    """A positive integer option (``max_iter``)."""
+    """A positive integer option (``max_iter``), at most :data:`MAX_ITER`."""
+    if isinstance(value, bool):
+        raise ValueError(f"must be a positive integer, got {value!r}")
     if isinstance(value, float) and not value.is_integer():
         raise ValueError(f"must be a positive integer, got {value}")
-    v = int(value)
+    try:
+        v = int(value)
+    except OverflowError:
+        raise ValueError(f"must be at most {MAX_ITER:,}, got {value}") from None
     if v < 1:
         raise ValueError("must be a positive integer")
+    if v > MAX_ITER:
+        raise ValueError(f"must be at most {MAX_ITER:,}, got {v:,}")
     return v
 
 

@@ -815,15 +815,12 @@ def _output_cases() -> list[Case]:
                                             "{d}/existing.jsonl"], BAD,
              "is being written by another lcpcli run", protect=("existing.jsonl",)),
         Case("fifo-contact-scene", "hang", ["contact-matrix", "{d}/fifo.json"], BAD, "is a FIFO",
-             sub=True, timeout=10, xfail="contact/scene.py load_scene reads the file itself: it "
-                                        "should use lcpcli.io.files.read_input_bytes"),
+             sub=True, timeout=10),
         Case("zero-contact-scene", "memory", ["contact-matrix", "{d}/zero.json"], BAD,
-             "is a character device", sub=True, memory=True, timeout=20,
-             xfail="contact/scene.py load_scene: lcpcli.io.files.read_input_bytes bounds it"),
+             "is a character device", sub=True, memory=True, timeout=20),
         Case("out-contact-scene", "data-loss", ["contact-matrix", "{d}/scene.json", "-o",
                                                 "{d}/scene.json"], BAD, same,
-             protect=("scene.json",), xfail="contact_cmd.py (not in this branch) should call "
-                                            "lcpcli.io.check_output(output, [scene])"),
+             protect=("scene.json",)),
     ]
 
 
@@ -836,8 +833,7 @@ def _option_cases() -> list[Case]:
              "--max-iter 100000000000000000000 is too large"),
         Case("opt-max-iter-O-huge", "internal", ["solve", ok, "-m", "lemke", "-O",
                                                  "max_iter=" + "1" + "0" * 20], BAD,
-             "option 'max_iter'", xfail="solvers/options.py positive_int needs an upper "
-                                        "bound (cli/common.MAX_ITER)"),
+             "option 'max_iter'"),
         Case("opt-max-iter-0", "exit-code", ["solve", ok, "--max-iter", "0"], BAD, "option"),
         Case("opt-tol-nan", "exit-code", ["solve", ok, "--tol", "nan"], BAD, "tolerance"),
         Case("opt-tol-inf", "exit-code", ["solve", ok, "--tol", "inf"], BAD, "tolerance"),
@@ -954,11 +950,10 @@ def _option_cases() -> list[Case]:
                                                  "{d}/box.dat"], BAD, None, absent=("box.dat",)),
         Case("info-missing", "exit-code", ["info", "{d}/missing.npz"], BAD, "no such file"),
         Case("pivot-deep-json", "internal", ["pivot", "{d}/deep_M.json", "-d", "z1"], BAD,
-             "invalid JSON", xfail="analysis/pivoting.py load_augmented parses JSON itself: "
-                                   "it should use lcpcli.io.files.parse_json"),
+             "invalid JSON"),
         Case("norm-overflow-info", "internal", ["info", "{d}/overflow.json"], SOLVED, None),
         Case("norm-overflow-enumerate", "internal", ["enumerate", "{d}/overflow.json"], SOLVED,
-             None, xfail="enumeration's 2-D cover test with |M| ~ 1e300 (lead)"),
+             None),
         Case("norm-overflow-solve", "internal", ["solve", "{d}/overflow.json"], SOLVED, None),
     ]
 

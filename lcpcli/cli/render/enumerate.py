@@ -217,8 +217,13 @@ def _cone_membership(M: np.ndarray, pts: np.ndarray) -> np.ndarray:
     out = np.zeros((4, pts.shape[1]), dtype=bool)
     for code in range(4):
         A = complementary_matrix(M, code)
-        det = np.linalg.det(A)
-        if abs(det) <= 1e-12 * max(float(np.max(np.abs(A))) ** 2, 1e-300):
+        # membership is unchanged by scaling a generator: unit columns, relative tests, no
+        # overflow for entries of 1e300 (as analysis.enumeration.in_cone_2d)
+        peak = np.max(np.abs(A), axis=0)
+        if np.any(peak == 0):
+            continue
+        A = A / peak
+        if abs(A[0, 0] * A[1, 1] - A[0, 1] * A[1, 0]) <= 1e-12:
             continue
         y = np.linalg.solve(A, pts)
         out[code] = np.all(y > 1e-12, axis=0)

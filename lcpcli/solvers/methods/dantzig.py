@@ -27,6 +27,7 @@ import numpy as np
 
 from lcpcli.analysis.mlcp import polish
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, NUMERICAL, RAY, Outcome
+from lcpcli.core.text import plural
 from lcpcli.solvers.kernels.dantzig import MAX_ITER, OK, SINGULAR, dantzig_kernel
 from lcpcli.solvers.options import bool_option, positive_int
 from lcpcli.solvers.registry import Cost, Guarantee, Method, Option, when
@@ -72,17 +73,19 @@ def _run(problem: Any, *, max_iter: int | None, kernel: Any = None) -> Outcome:
             "at_upper": int(np.sum(state == 3))}
     if status == OK:
         return Outcome(polish(problem, z), int(pivots), CONVERGED,
-                       f"all {n} indices processed in {pivots} pivots ({clamped} clamped)",
+                       f"all {n} indices processed in {plural(pivots, 'pivot')} "
+                       f"({clamped} clamped)",
                        info=info)
     if status == MAX_ITER:
         return Outcome(z, int(pivots), ITERATION_LIMIT,
                        f"pivot limit {limit} reached (raise it with --max-iter)", info=info)
     if status == SINGULAR:
         return Outcome(z, int(pivots), NUMERICAL,
-                       f"singular principal block after {pivots} pivots: M is not in the "
+                       f"singular principal block after {plural(pivots, 'pivot')}: M is not in the "
                        f"method's class (symmetric PSD or P)", info=info)
     return Outcome(z, int(pivots), RAY,
-                   f"unbounded driving direction after {pivots} pivots: no blocking event "
+                   f"unbounded driving direction after {plural(pivots, 'pivot')}: "
+                   f"no blocking event "
                    f"(for a PSD M this indicates that no solution exists; not proven here)",
                    info=info)
 

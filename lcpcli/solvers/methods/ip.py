@@ -30,6 +30,7 @@ import numpy as np
 from lcpcli.analysis.classify import is_symmetric
 from lcpcli.core.certificate import matrix_norm_inf
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, NUMERICAL, Outcome
+from lcpcli.core.text import plural
 from lcpcli.solvers.options import positive_int
 from lcpcli.solvers.registry import Cost, Guarantee, Method, Option, when
 from lcpcli.solvers.support import certified_error, refine
@@ -158,7 +159,7 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None) -> Outcome:
         w = np.maximum(w + alpha * dw, 1e-300)
     note = ", active-set rounding" if rounded else ""
     return Outcome(best_z, it, termination,
-                   f"interior point: {why} after {it} iterations{note} "
+                   f"interior point: {why} after {plural(it, 'iteration')}{note} "
                    f"(scaled error {best_err:.2e})")
 
 

@@ -25,6 +25,7 @@ import numpy as np
 from lcpcli.analysis.classify import farkas_certificate, is_psd
 from lcpcli.core.errors import OptionError
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, RAY, Outcome
+from lcpcli.core.text import plural
 from lcpcli.solvers.kernels.lemke import MAX_ITER, OK, TRIVIAL, lemke_kernel, polish_kernel
 from lcpcli.solvers.options import bool_option, positive_int, vector_option
 from lcpcli.solvers.registry import Cost, Guarantee, Method, Option, when
@@ -88,7 +89,7 @@ def finish(problem: Any, M: np.ndarray, q: np.ndarray, status: int, z: np.ndarra
     if status == OK:
         z = polish(M, q, z, basic)
         return Outcome(z, int(pivots), CONVERGED, f"artificial variable left the basis "
-                                                  f"after {pivots} pivots",
+                                                  f"after {plural(pivots, 'pivot')}",
                        info={"basis": basic_z(basic, n)})
     if status == MAX_ITER:
         return Outcome(np.maximum(z, 0.0), int(pivots), ITERATION_LIMIT,
@@ -113,7 +114,7 @@ def ray_outcome(problem: Any, M: np.ndarray, q: np.ndarray, z: np.ndarray, pivot
                 ray_dz: np.ndarray, z0: float) -> Outcome:
     """Classify a secondary-ray termination: proven infeasible, or merely unsolved."""
     y = farkas_certificate(M, q, ray_dz)
-    base = f"ray termination after {pivots} pivots (z0 = {z0:.3g})"
+    base = f"ray termination after {plural(pivots, 'pivot')} (z0 = {z0:.3g})"
     if y is not None:
         return Outcome(np.maximum(z, 0.0), pivots, RAY,
                        f"{base}; Farkas certificate y >= 0 with M^T y <= 0, q^T y = "

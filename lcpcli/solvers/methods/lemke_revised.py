@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, NUMERICAL, Outcome
+from lcpcli.core.text import plural
 from lcpcli.solvers.kernels.lemke_revised import (
     MAX_ITER,
     OK,
@@ -85,7 +86,7 @@ def run(problem: Any, *, tol: float, covering: np.ndarray | None = None,
         z = polish(M, q, z, basic)
         info["basis"] = basic_z(basic, n)
         return Outcome(z, int(pivots), CONVERGED, f"artificial variable left the basis after "
-                                                  f"{pivots} pivots ({refactors} "
+                                                  f"{plural(pivots, 'pivot')} ({refactors} "
                                                   f"refactorisations)", info=info)
     if status == MAX_ITER:
         return Outcome(np.maximum(z, 0.0), int(pivots), ITERATION_LIMIT,
@@ -93,7 +94,7 @@ def run(problem: Any, *, tol: float, covering: np.ndarray | None = None,
     if status == SINGULAR:
         out = Outcome(np.maximum(z, 0.0), int(pivots), NUMERICAL,
                       f"basis block M^(alpha beta) became singular at a refactorisation "
-                      f"after {pivots} pivots", info=info)
+                      f"after {plural(pivots, 'pivot')}", info=info)
     else:
         out = ray_outcome(problem, M, q, z, int(pivots), ray_dz, float(z0))
         out.info.update(info)

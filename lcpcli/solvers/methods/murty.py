@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, SINGULAR, Outcome
+from lcpcli.core.text import plural
 from lcpcli.solvers.kernels.lemke import polish_kernel
 from lcpcli.solvers.kernels.murty import BAD_PIVOT, OK, murty_kernel
 from lcpcli.solvers.options import bool_option, positive_int, vector_option
@@ -85,11 +86,13 @@ def _run(problem: Any, *, tol: float, max_iter: int | None, z0: np.ndarray | Non
     if status == OK:
         z = polish_kernel(M, q, z, basic)  # a singular basic block keeps the kernel's z
         return Outcome(z, int(pivots), CONVERGED,
-                       f"Murty: all basic variables nonnegative after {pivots} pivots{warm}")
+                       f"Murty: all basic variables nonnegative after "
+                       f"{plural(pivots, 'pivot')}{warm}")
     if status == BAD_PIVOT:
         var = "w" if basic[bad] < n else "z"
         return Outcome(z, int(pivots), SINGULAR,
-                       f"Murty: non-positive pivot for {var}{bad + 1} after {pivots} pivots{warm}; "
+                       f"Murty: non-positive pivot for {var}{bad + 1} after "
+                       f"{plural(pivots, 'pivot')}{warm}; "
                        f"M is not a P-matrix, outside the method's class")
     return Outcome(z, int(pivots), ITERATION_LIMIT,
                    f"Murty: pivot limit {limit} reached{warm} (M may not be a P-matrix; "

@@ -41,6 +41,7 @@ import numpy as np
 
 from lcpcli.core.certificate import matrix_norm_inf
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, NUMERICAL, Outcome
+from lcpcli.core.text import plural
 from lcpcli.solvers.options import positive_int, vector_option
 from lcpcli.solvers.registry import Cost, Guarantee, Method, Option, when
 from lcpcli.solvers.support import certified_error, refine, start_point
@@ -274,7 +275,8 @@ def run_newton(problem: Any, *, tol: float, variant: str = "fb", max_iter: int |
     extra = f", {lm_steps} Levenberg-Marquardt steps" if lm_steps else ""
     extra += f", {grad_steps} gradient steps" if grad_steps else ""
     return Outcome(z_out, it, termination,
-                   f"{name}: {why} after {it} iterations{extra} (certified error {err_out:.2e})",
+                   f"{name}: {why} after {plural(it, 'iteration')}{extra} "
+                   f"(certified error {err_out:.2e})",
                    info={"gradient_steps": grad_steps, "lm_steps": lm_steps})
 
 

@@ -27,6 +27,7 @@ import numpy as np
 
 from lcpcli.core.certificate import matrix_norm_inf
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, NOT_APPLICABLE, NUMERICAL, Outcome
+from lcpcli.core.text import plural
 from lcpcli.solvers.kernels import pgs as K
 from lcpcli.solvers.options import bool_option, omega_option, positive_int, vector_option
 from lcpcli.solvers.registry import Cost, Guarantee, Method, Option, Requirement, when
@@ -112,10 +113,10 @@ def _run_sor(problem: Any, *, tol: float, omega: float, max_iter: int | None,
     label = name if omega == 1.0 else f"{name} (omega = {omega:g})"
     if status == K.CONVERGED:
         return Outcome(z, int(sweeps), CONVERGED,
-                       f"{label}: certified error {err:.2e} after {sweeps} sweeps")
+                       f"{label}: certified error {err:.2e} after {plural(sweeps, 'sweep')}")
     if status == K.DIVERGED:
         return Outcome(z, int(sweeps), NUMERICAL,
-                       f"{label} diverged (non-finite iterate after {sweeps} sweeps)")
+                       f"{label} diverged (non-finite iterate after {plural(sweeps, 'sweep')})")
     return Outcome(z, int(sweeps), ITERATION_LIMIT,
                    f"{label}: sweep limit {limit} reached with error {err:.2e} "
                    f"(raise --max-iter, or M may be outside the method's class)")
