@@ -62,6 +62,7 @@ def openmp_flags() -> list[str]:
 
 
 def extensions() -> list[Extension]:
+    import numpy
     from Cython.Build import cythonize
 
     omp = openmp_flags()
@@ -70,7 +71,8 @@ def extensions() -> list[Extension]:
     for name, path in pyx_modules():
         flags = base + (omp if name in OPENMP_MODULES else [])
         link = omp if name in OPENMP_MODULES else []
-        exts.append(Extension(name, [path], extra_compile_args=flags, extra_link_args=link,
+        exts.append(Extension(name, [path], include_dirs=[numpy.get_include()],
+                              extra_compile_args=flags, extra_link_args=link,
                               define_macros=[("NPY_NO_DEPRECATED_API",
                                               "NPY_1_7_API_VERSION")]))
     return cythonize(exts, compiler_directives={"language_level": "3", "boundscheck": False,

@@ -22,10 +22,17 @@ below are the thin Python wrappers.  The ratio test, the lexicographic filter an
 from libc.math cimport INFINITY, fabs, isfinite
 from libc.stdint cimport int64_t
 from libc.stdlib cimport free, malloc
+from libc.string cimport memcpy
 
 from lcpcli.solvers.kernels.dense cimport solve_refined
 
 import numpy as np
+
+cimport numpy as cnp
+
+from lcpcli.solvers.kernels.arrays cimport empty_f64, empty_i64, f64, f64_ptr
+
+cnp.import_array()
 
 # status codes returned by the kernel
 OK = LEMKE_OK
@@ -447,3 +454,63 @@ def polish_kernel(M, q, z, basic):
     if rc:
         raise MemoryError()
     return res
+
+
+cdef double* _ones(Py_ssize_t n) noexcept nogil:
+    cdef double* d = <double*>malloc(n * sizeof(double))
+    cdef Py_ssize_t i
+    if d != NULL:
+        for i in range(n):
+            d[i] = 1.0
+    return d
+
+
+def lemke_solve(M, q, d, int64_t max_iter, double piv_tol, double tie_tol):
+    """Kernel and final polish in one call (the small-solve path: one C call, no record).
+
+    ``d`` None means the covering vector of all ones.  Returns
+    ``(status, z, pivots, basic, ray_dz, z0)``; on ``OK`` ``z`` is already polished
+    (:func:`polish_kernel`), otherwise it is the kernel's raw ``z`` (not clipped).
+    """
+    cdef Py_ssize_t n = len(q)
+    cdef cnp.ndarray qa = f64(q, n, -1)
+    cdef cnp.ndarray Ma = f64(M, n, n)
+    cdef cnp.ndarray da
+    cdef const double* dp = NULL
+    if d is not None:
+        da = f64(d, n, -1)
+        dp = f64_ptr(da)
+    cdef cnp.ndarray z = empty_f64(n)
+    cdef cnp.ndarray ray = empty_f64(n)
+    cdef cnp.ndarray basic = empty_i64(n)
+    if n == 0:
+        return TRIVIAL, z, 0, basic, ray, 0.0
+    cdef const double* Mp = f64_ptr(Ma)
+    cdef const double* qp = f64_ptr(qa)
+    cdef double* zp = f64_ptr(z)
+    cdef double* rp = f64_ptr(ray)
+    cdef int64_t* bp = <int64_t*>cnp.PyArray_DATA(basic)
+    cdef LemkeOut out
+    cdef int rc = 0
+    cdef double* ones = NULL
+    cdef double* raw = NULL
+    with nogil:
+        if dp == NULL:
+            ones = _ones(n)
+            dp = ones
+        raw = <double*>malloc(n * sizeof(double))
+        if dp == NULL or raw == NULL:
+            rc = -1
+        else:
+            rc = lemke_tableau(Mp, qp, dp, n, max_iter, piv_tol, tie_tol, NULL, 0,
+                               raw, bp, rp, &out)
+        if rc == 0:
+            if out.status == LEMKE_OK:
+                rc = polish(Mp, qp, n, raw, bp, zp)
+            else:
+                memcpy(zp, raw, n * sizeof(double))
+        free(ones)
+        free(raw)
+    if rc:
+        raise MemoryError()
+    return out.status, z, out.pivots, basic, ray, out.z0

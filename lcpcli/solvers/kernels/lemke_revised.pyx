@@ -30,6 +30,7 @@ C level (``lemke_revised.pxd``): :c:func:`lemke_revised` on raw row-major buffer
 from libc.math cimport fabs, isfinite
 from libc.stdint cimport int64_t
 from libc.stdlib cimport free, malloc
+from libc.string cimport memcpy
 
 from lcpcli.solvers.kernels.dense cimport invert
 from lcpcli.solvers.kernels.lemke cimport (
@@ -39,14 +40,22 @@ from lcpcli.solvers.kernels.lemke cimport (
     LEMKE_SINGULAR,
     LEMKE_TRIVIAL,
     LemkeOut,
+    _ones,
     basic_solution,
     initial_row,
     keep_lex_min,
     lex_unit,
+    polish,
     ratio_candidates,
 )
 
 import numpy as np
+
+cimport numpy as cnp
+
+from lcpcli.solvers.kernels.arrays cimport empty_f64, empty_i64, f64, f64_ptr
+
+cnp.import_array()
 
 OK = LEMKE_OK
 RAY = LEMKE_RAY
@@ -579,3 +588,56 @@ def _column_residual(MT, Ct, alpha, apos, Py_ssize_t m, int64_t e, Py_ssize_t n,
         raise ValueError("_column_residual: inconsistent shapes")
     return column_residual(&MTv[0, 0], &Ctv[0, 0], &av[0], &pv[0], m, e, n, &xv[0], &accv[0],
                            &sizev[0])
+
+
+def lemke_solve(M, q, d, int64_t max_iter, double piv_tol, double tie_tol,
+                int64_t refactor_every):
+    """Revised kernel and final polish in one call (the small-solve path: one C call).
+
+    ``d`` None means the covering vector of all ones.  Returns
+    ``(status, z, pivots, basic, ray_dz, z0, refactors)``; on ``OK`` ``z`` is already
+    polished (:func:`lcpcli.solvers.kernels.lemke.polish_kernel`), otherwise it is the
+    kernel's raw ``z``.
+    """
+    cdef Py_ssize_t n = len(q)
+    cdef cnp.ndarray qa = f64(q, n, -1)
+    cdef cnp.ndarray Ma = f64(M, n, n)
+    cdef cnp.ndarray da
+    cdef const double* dp = NULL
+    if d is not None:
+        da = f64(d, n, -1)
+        dp = f64_ptr(da)
+    cdef cnp.ndarray z = empty_f64(n)
+    cdef cnp.ndarray ray = empty_f64(n)
+    cdef cnp.ndarray basic = empty_i64(n)
+    if n == 0:
+        return TRIVIAL, z, 0, basic, ray, 0.0, 0
+    cdef const double* Mp = f64_ptr(Ma)
+    cdef const double* qp = f64_ptr(qa)
+    cdef double* zp = f64_ptr(z)
+    cdef double* rp = f64_ptr(ray)
+    cdef int64_t* bp = <int64_t*>cnp.PyArray_DATA(basic)
+    cdef LemkeOut out
+    cdef int rc = 0
+    cdef double* ones = NULL
+    cdef double* raw = NULL
+    with nogil:
+        if dp == NULL:
+            ones = _ones(n)
+            dp = ones
+        raw = <double*>malloc(n * sizeof(double))
+        if dp == NULL or raw == NULL:
+            rc = -1
+        else:
+            rc = lemke_revised(Mp, qp, dp, n, max_iter, piv_tol, tie_tol, NULL, 0,
+                               refactor_every, raw, bp, rp, &out)
+        if rc == 0:
+            if out.status == LEMKE_OK:
+                rc = polish(Mp, qp, n, raw, bp, zp)
+            else:
+                memcpy(zp, raw, n * sizeof(double))
+        free(ones)
+        free(raw)
+    if rc:
+        raise MemoryError()
+    return out.status, z, out.pivots, basic, ray, out.z0, out.refactors

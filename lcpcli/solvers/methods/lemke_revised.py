@@ -23,20 +23,12 @@ from typing import Any
 import numpy as np
 
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, NUMERICAL, Outcome
-from lcpcli.solvers.kernels.lemke_revised import (
-    MAX_ITER,
-    OK,
-    SINGULAR,
-    TRIVIAL,
-    lemke_revised_kernel,
-)
+from lcpcli.solvers.kernels.lemke_revised import MAX_ITER, OK, SINGULAR, TRIVIAL, lemke_solve
 from lcpcli.solvers.methods.lemke import (
-    NO_RECORD,
     PIVOT_TOL,
     TIE_TOL,
     covering_vector,
     default_max_iter,
-    polish,
     ray_outcome,
 )
 from lcpcli.solvers.options import bool_option, positive_int, vector_option
@@ -75,24 +67,24 @@ def run(problem: Any, *, tol: float, covering: np.ndarray | None = None,
     d = covering_vector(n, covering)
     limit = max_iter or default_max_iter(n)
     every = refactor_every or default_refactor_every(n)
-    status, z, pivots, basic, ray_dz, _dz0, z0, refactors = lemke_revised_kernel(
-        M, q, d, limit, PIVOT_TOL, TIE_TOL, NO_RECORD, every)
-    info = {"refactorisations": int(refactors)}
+    # kernel and final polish in one compiled call
+    status, z, pivots, _basic, ray_dz, z0, refactors = lemke_solve(
+        M, q, d, limit, PIVOT_TOL, TIE_TOL, every)
+    info = {"refactorisations": refactors}
     if status == TRIVIAL:
         return Outcome(np.zeros(n), 0, CONVERGED, "q >= 0: z = 0 solves the problem")
     if status == OK:
-        z = polish(M, q, z, basic)
-        return Outcome(z, int(pivots), CONVERGED, f"artificial variable left the basis after "
-                                                  f"{pivots} pivots ({refactors} "
-                                                  f"refactorisations)", info=info)
+        return Outcome(z, pivots, CONVERGED, f"artificial variable left the basis after "
+                                             f"{pivots} pivots ({refactors} "
+                                             f"refactorisations)", info=info)
     if status == MAX_ITER:
-        return Outcome(np.maximum(z, 0.0), int(pivots), ITERATION_LIMIT,
+        return Outcome(np.maximum(z, 0.0), pivots, ITERATION_LIMIT,
                        f"pivot limit {limit} reached (raise it with --max-iter)", info=info)
     if status == SINGULAR:
-        return Outcome(np.maximum(z, 0.0), int(pivots), NUMERICAL,
+        return Outcome(np.maximum(z, 0.0), pivots, NUMERICAL,
                        f"basis block M^(alpha beta) became singular at a refactorisation "
                        f"after {pivots} pivots (try --method lemke-tableau)", info=info)
-    out = ray_outcome(problem, M, q, z, int(pivots), ray_dz, float(z0))
+    out = ray_outcome(problem, M, q, z, pivots, ray_dz, z0)
     out.info.update(info)
     return out
 
