@@ -78,7 +78,8 @@ def extensions() -> list[Extension]:
     return cythonize(exts, compiler_directives={"language_level": "3", "boundscheck": False,
                                                 "wraparound": False, "cdivision": True,
                                                 "initializedcheck": False},
-                     nthreads=int(os.environ.get("LCPCLI_CYTHON_JOBS", "0")) or None,
+                     nthreads=int(os.environ.get("LCPCLI_CYTHON_JOBS", "0"))
+                     or os.cpu_count() or 1,
                      quiet=True)
 
 

@@ -30,7 +30,16 @@ import numpy as np
 
 cimport numpy as cnp
 
-from lcpcli.solvers.kernels.arrays cimport empty_f64, empty_i64, f64, f64_ptr
+from lcpcli.solvers.kernels.arrays cimport (
+    empty_f64,
+    empty_i64,
+    f64,
+    f64_ptr,
+    i64,
+    i64_ptr,
+    inout,
+    zeros_f64,
+)
 
 cnp.import_array()
 
@@ -403,30 +412,26 @@ cdef int polish(const double* M, const double* q, Py_ssize_t n, const double* z,
 def lemke_kernel(M, q, d, int64_t max_iter, double piv_tol, double tie_tol, record):
     """Run Lemke's method; return (status, z, pivots, basic, ray_dz, ray_dz0, z0).
 
-    ``M`` (n x n), ``q``, ``d`` (n): float64, C-contiguous.  ``record`` (int64, shape (k, 3))
-    receives (entering, leaving, row) of the first k pivots.
+    ``M`` (n x n), ``q``, ``d`` (n): float64 (converted when needed).  ``record`` (int64,
+    C-contiguous, shape (k, 3)) receives (entering, leaving, row) of the first k pivots.
     """
-    cdef const double[:, ::1] Mv = M
-    cdef const double[::1] qv = q
-    cdef const double[::1] dv = d
-    cdef int64_t[:, ::1] rv = record
-    cdef Py_ssize_t n = qv.shape[0]
-    if Mv.shape[0] != n or Mv.shape[1] != n or dv.shape[0] != n or rv.shape[1] != 3:
-        raise ValueError("lemke_kernel: inconsistent shapes")
-    z = np.zeros(n)
-    ray = np.zeros(n)
-    basic = np.empty(n, dtype=np.int64)
-    cdef double[::1] zv = z
-    cdef double[::1] rayv = ray
-    cdef int64_t[::1] bv = basic
-    cdef Py_ssize_t nrec = rv.shape[0]
+    cdef Py_ssize_t n = len(q)
+    cdef cnp.ndarray qa = f64(q, n, -1)
+    cdef cnp.ndarray Ma = f64(M, n, n)
+    cdef cnp.ndarray da = f64(d, n, -1)
+    cdef cnp.ndarray ra = inout(record, cnp.NPY_INT64, -1, 3)
+    cdef Py_ssize_t nrec = cnp.PyArray_DIM(ra, 0)
+    cdef cnp.ndarray z = zeros_f64(n)
+    cdef cnp.ndarray ray = zeros_f64(n)
+    cdef cnp.ndarray basic = empty_i64(n)
     cdef LemkeOut out
     cdef int rc
     if n == 0:
         return TRIVIAL, z, 0, basic, ray, 0.0, 0.0
     with nogil:
-        rc = lemke_tableau(&Mv[0, 0], &qv[0], &dv[0], n, max_iter, piv_tol, tie_tol,
-                           &rv[0, 0] if nrec else NULL, nrec, &zv[0], &bv[0], &rayv[0], &out)
+        rc = lemke_tableau(f64_ptr(Ma), f64_ptr(qa), f64_ptr(da), n, max_iter, piv_tol,
+                           tie_tol, i64_ptr(ra) if nrec else NULL, nrec, f64_ptr(z),
+                           i64_ptr(basic), f64_ptr(ray), &out)
     if rc:
         raise MemoryError()
     return out.status, z, out.pivots, basic, ray, out.dz0, out.z0
@@ -437,20 +442,17 @@ def polish_kernel(M, q, z, basic):
 
     See :c:func:`polish`; a singular basic block keeps ``max(z, 0)``.
     """
-    cdef const double[:, ::1] Mv = M
-    cdef const double[::1] qv = q
-    cdef const double[::1] zv = z
-    cdef const int64_t[::1] bv = basic
-    cdef Py_ssize_t n = qv.shape[0]
-    if Mv.shape[0] != n or Mv.shape[1] != n or zv.shape[0] != n or bv.shape[0] != n:
-        raise ValueError("polish_kernel: inconsistent shapes")
-    res = np.empty(n)
-    cdef double[::1] ov = res
+    cdef Py_ssize_t n = len(q)
+    cdef cnp.ndarray qa = f64(q, n, -1)
+    cdef cnp.ndarray Ma = f64(M, n, n)
+    cdef cnp.ndarray za = f64(z, n, -1)
+    cdef cnp.ndarray ba = i64(basic, n, -1)
+    cdef cnp.ndarray res = empty_f64(n)
     cdef int rc
     if n == 0:
         return res
     with nogil:
-        rc = polish(&Mv[0, 0], &qv[0], n, &zv[0], &bv[0], &ov[0])
+        rc = polish(f64_ptr(Ma), f64_ptr(qa), n, f64_ptr(za), i64_ptr(ba), f64_ptr(res))
     if rc:
         raise MemoryError()
     return res

@@ -53,7 +53,16 @@ import numpy as np
 
 cimport numpy as cnp
 
-from lcpcli.solvers.kernels.arrays cimport empty_f64, empty_i64, f64, f64_ptr
+from lcpcli.solvers.kernels.arrays cimport (
+    empty_f64,
+    empty_i64,
+    f64,
+    f64_ptr,
+    i64,
+    i64_ptr,
+    inout,
+    zeros_f64,
+)
 
 cnp.import_array()
 
@@ -545,30 +554,26 @@ def lemke_revised_kernel(M, q, d, int64_t max_iter, double piv_tol, double tie_t
                          int64_t refactor_every):
     """Revised Lemke; return (status, z, pivots, basic, ray_dz, ray_dz0, z0, refactors).
 
-    ``record`` (int64, shape (k, 3)) receives (entering, leaving, row) of the first k pivots.
+    ``record`` (int64, C-contiguous, shape (k, 3)) receives (entering, leaving, row) of the
+    first k pivots.
     """
-    cdef const double[:, ::1] Mv = M
-    cdef const double[::1] qv = q
-    cdef const double[::1] dv = d
-    cdef int64_t[:, ::1] rv = record
-    cdef Py_ssize_t n = qv.shape[0]
-    if Mv.shape[0] != n or Mv.shape[1] != n or dv.shape[0] != n or rv.shape[1] != 3:
-        raise ValueError("lemke_revised_kernel: inconsistent shapes")
-    z = np.zeros(n)
-    ray = np.zeros(n)
-    basic = np.empty(n, dtype=np.int64)
-    cdef double[::1] zv = z
-    cdef double[::1] rayv = ray
-    cdef int64_t[::1] bv = basic
-    cdef Py_ssize_t nrec = rv.shape[0]
+    cdef Py_ssize_t n = len(q)
+    cdef cnp.ndarray qa = f64(q, n, -1)
+    cdef cnp.ndarray Ma = f64(M, n, n)
+    cdef cnp.ndarray da = f64(d, n, -1)
+    cdef cnp.ndarray ra = inout(record, cnp.NPY_INT64, -1, 3)
+    cdef Py_ssize_t nrec = cnp.PyArray_DIM(ra, 0)
+    cdef cnp.ndarray z = zeros_f64(n)
+    cdef cnp.ndarray ray = zeros_f64(n)
+    cdef cnp.ndarray basic = empty_i64(n)
     cdef LemkeOut out
     cdef int rc
     if n == 0:
         return TRIVIAL, z, 0, basic, ray, 0.0, 0.0, 0
     with nogil:
-        rc = lemke_revised(&Mv[0, 0], &qv[0], &dv[0], n, max_iter, piv_tol, tie_tol,
-                           &rv[0, 0] if nrec else NULL, nrec, refactor_every, &zv[0], &bv[0],
-                           &rayv[0], &out)
+        rc = lemke_revised(f64_ptr(Ma), f64_ptr(qa), f64_ptr(da), n, max_iter, piv_tol,
+                           tie_tol, i64_ptr(ra) if nrec else NULL, nrec, refactor_every,
+                           f64_ptr(z), i64_ptr(basic), f64_ptr(ray), &out)
     if rc:
         raise MemoryError()
     return out.status, z, out.pivots, basic, ray, out.dz0, out.z0, out.refactors
@@ -576,18 +581,20 @@ def lemke_revised_kernel(M, q, d, int64_t max_iter, double piv_tol, double tie_t
 
 def _column_residual(MT, Ct, alpha, apos, Py_ssize_t m, int64_t e, Py_ssize_t n, xb, acc,
                      size):
-    """Python access to :c:func:`column_residual` (for tests); ``Ct`` is ``m x n``."""
-    cdef const double[:, ::1] MTv = np.ascontiguousarray(MT, dtype=np.float64)
-    cdef const double[:, ::1] Ctv = np.ascontiguousarray(Ct, dtype=np.float64)
-    cdef const int64_t[::1] av = np.ascontiguousarray(alpha, dtype=np.int64)
-    cdef const int64_t[::1] pv = np.ascontiguousarray(apos, dtype=np.int64)
-    cdef const double[::1] xv = np.ascontiguousarray(xb, dtype=np.float64)
-    cdef double[::1] accv = acc
-    cdef double[::1] sizev = size
-    if Ctv.shape[1] != n or MTv.shape[1] != n or Ctv.shape[0] < m:
+    """Python access to :c:func:`column_residual` (for tests); ``Ct`` is ``m x n``; ``acc``
+    and ``size`` are work vectors (float64, length >= m)."""
+    cdef cnp.ndarray MTa = f64(MT, -1, n)
+    cdef cnp.ndarray Cta = f64(Ct, -1, n)
+    cdef cnp.ndarray aa = i64(alpha, -1, -1)
+    cdef cnp.ndarray pa = i64(apos, -1, -1)
+    cdef cnp.ndarray xa = f64(xb, -1, -1)
+    cdef cnp.ndarray acca = inout(acc, cnp.NPY_FLOAT64, -1, -1)
+    cdef cnp.ndarray sizea = inout(size, cnp.NPY_FLOAT64, -1, -1)
+    if cnp.PyArray_DIM(Cta, 0) < m or cnp.PyArray_DIM(aa, 0) < m or cnp.PyArray_DIM(xa, 0) < m \
+            or cnp.PyArray_DIM(acca, 0) < m or cnp.PyArray_DIM(sizea, 0) < m:
         raise ValueError("_column_residual: inconsistent shapes")
-    return column_residual(&MTv[0, 0], &Ctv[0, 0], &av[0], &pv[0], m, e, n, &xv[0], &accv[0],
-                           &sizev[0])
+    return column_residual(f64_ptr(MTa), f64_ptr(Cta), i64_ptr(aa), i64_ptr(pa), m, e, n,
+                           f64_ptr(xa), f64_ptr(acca), f64_ptr(sizea))
 
 
 def lemke_solve(M, q, d, int64_t max_iter, double piv_tol, double tie_tol,
