@@ -10,20 +10,16 @@ import numpy as np
 from lcpcli.core.certificate import certify, matrix_norm_inf
 from lcpcli.core.errors import OptionError
 from lcpcli.core.problem import Problem
-from lcpcli.core.result import NO_SOLUTION, SOLVED, UNSOLVED, Outcome, Result
-from lcpcli.solvers.registry import get_method
+from lcpcli.core.result import CONVERGED, NO_SOLUTION, SOLVED, UNSOLVED, Outcome, Result
+from lcpcli.solvers.registry import Method, get_method
 
 DEFAULT_METHOD = "auto"
-#: Methods whose ``prepare`` hook (kernel loading) already ran in this process.
-_PREPARED: set[str] = set()
-#: A method that densifies M is refused on a sparse problem with more entries than this.
-MAX_DENSIFY_ENTRIES = 10_000 ** 2
 
 
-def check_dense_ok(problem: Problem, spec: Any) -> None:
+def check_dense_ok(problem: Problem, spec: Method) -> None:
     """OptionError when ``spec`` would densify a huge sparse M (checked before any work)."""
     n = problem.n
-    if problem.sparse and not spec.sparse and n * n > MAX_DENSIFY_ENTRIES:
+    if spec.densifies(problem):
         raise OptionError(f"method '{spec.name}' works on a dense {n} x {n} matrix "
                           f"({n * n * 8 / 2**30:.1f} GiB) but M is sparse (nnz={problem.M.nnz}); "
                           f"choose a method for large sparse problems (see 'lcpcli methods')")
@@ -50,9 +46,7 @@ def solve(problem: Problem, method: str = DEFAULT_METHOD, *, tol: float | None =
     tol = spec.default_tol if tol is None else float(tol)
     if not (np.isfinite(tol) and tol > 0):
         raise OptionError(f"tolerance must be positive and finite, got {tol}")
-    if spec.prepare is not None and spec.name not in _PREPARED:
-        spec.prepare()
-        _PREPARED.add(spec.name)
+    spec.prepare_once()
     start = time.perf_counter()
     outcome: Outcome = spec.run(problem, tol=tol, **opts)
     seconds = time.perf_counter() - start
@@ -80,7 +74,7 @@ def certify_outcome(problem: Problem, outcome: Outcome, method: str, seconds: fl
     message = outcome.message
     if cert.passed:
         status = SOLVED
-        if outcome.termination != "converged":
+        if outcome.termination != CONVERGED:
             message = f"{message}; the returned point passes the certificate anyway"
         growth = _growth(problem, z)
         if growth > LARGE_SOLUTION:
@@ -91,7 +85,7 @@ def certify_outcome(problem: Problem, outcome: Outcome, method: str, seconds: fl
         status = NO_SOLUTION
     else:
         status = UNSOLVED
-        if outcome.termination == "converged":
+        if outcome.termination == CONVERGED:
             message = (f"{message}, but the certificate failed: error {cert.error:.3g} > "
                        f"tol {tol:.3g}")
     return Result(status=status, method=method, z=z, w=w, iterations=outcome.iterations,

@@ -16,8 +16,14 @@ def symmetric_part(M: np.ndarray) -> np.ndarray:
     return 0.5 * (M + M.T)
 
 
-def is_symmetric(M: np.ndarray, tol: float = CLASS_TOL) -> bool:
-    """``||M - M^T||_max <= tol * ||M||_max``."""
+def is_symmetric(M, tol: float = CLASS_TOL) -> bool:  # type: ignore[no-untyped-def]
+    """``||M - M^T||_max <= tol * ||M||_max`` (dense or scipy.sparse M)."""
+    if hasattr(M, "tocsr"):
+        if M.nnz == 0:
+            return True
+        D = (M - M.T).tocsr()
+        scale = float(abs(M).max())
+        return bool(D.nnz == 0 or float(abs(D).max()) <= tol * max(scale, 1e-300))
     scale = float(np.max(np.abs(M))) if M.size else 0.0
     return bool(np.max(np.abs(M - M.T), initial=0.0) <= tol * max(scale, 1e-300))
 
@@ -82,16 +88,6 @@ EXACT_P_MAX_N = 10
 
 def _sym_part_any(M):  # type: ignore[no-untyped-def]
     return (M + M.T) * 0.5
-
-
-def _is_symmetric_any(M, tol: float = CLASS_TOL) -> bool:  # type: ignore[no-untyped-def]
-    if hasattr(M, "tocsr"):
-        if M.nnz == 0:
-            return True
-        D = (M - M.T).tocsr()
-        scale = float(abs(M).max())
-        return bool(D.nnz == 0 or float(abs(D).max()) <= tol * max(scale, 1e-300))
-    return is_symmetric(M, tol)
 
 
 #: Fill of the last sparse factorisation in :func:`definiteness` (nnz(L + U) / nnz(S)).
@@ -256,7 +252,7 @@ def classify(problem, thorough: bool = True) -> dict:  # type: ignore[no-untyped
     }
     out["density"] = out["nnz"] / max(n * n, 1)
     out["q_nonnegative"] = bool(n == 0 or np.min(problem.q) >= 0)
-    out["symmetric"] = _is_symmetric_any(M)
+    out["symmetric"] = is_symmetric(M)
     out["diagonal_min"] = float(np.min(d)) if n else 0.0
     out["zero_diagonal"] = int(np.sum(d == 0))
     out["positive_diagonal"] = bool(n == 0 or np.min(d) > 0)

@@ -33,6 +33,7 @@ import numpy as np
 
 from lcpcli.core.certificate import DEFAULT_TOL, Certificate, certify, matrix_norm_inf
 from lcpcli.core.errors import OptionError, ProblemError
+from lcpcli.core.result import Status
 from lcpcli.solvers.kernels.enum import (
     CANDIDATE,
     FEASIBLE,
@@ -141,10 +142,10 @@ class Enumeration:
     complete: bool
 
     @property
-    def status(self) -> str:
+    def status(self) -> Status:
         if self.solutions:
-            return "solved"
-        return "unsolved" if self.verdict == UNKNOWN else "no_solution"
+            return Status.SOLVED
+        return Status.UNSOLVED if self.verdict == UNKNOWN else Status.NO_SOLUTION
 
     def to_dict(self) -> dict[str, Any]:
         return {"n": self.n, "status": self.status, "verdict": self.verdict,

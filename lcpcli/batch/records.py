@@ -12,12 +12,12 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-#: Status of a row whose input could not be read or solved at all (not a solver verdict).
-ERROR = "error"
+from lcpcli.core.result import Status, Termination
 
-
+#: Status (and termination) of a row whose input could not be read or solved at all.
+ERROR = Status.ERROR
 #: ``message`` and ``termination`` of a problem stopped by ``--timeout``.
-TIMEOUT = "timeout"
+TIMEOUT = Termination.TIMEOUT
 
 
 @dataclass(frozen=True)
@@ -44,7 +44,8 @@ def key(row: dict[str, Any]) -> tuple[str, str]:
 
 
 def error_row(source: str, problem: str, message: str, method: str = "",
-              *, status: str = ERROR, termination: str = ERROR,
+              *, status: Status = Status.ERROR,
+              termination: Termination = Termination.ERROR,
               seconds: float = 0.0) -> dict[str, Any]:
     """A row for a problem that produced no solution at all (bad input, crash, timeout)."""
     return {"file": source, "status": status, "method": method, "n": None, "z": [], "w": [],
@@ -55,6 +56,6 @@ def error_row(source: str, problem: str, message: str, method: str = "",
 
 def timeout_row(task: Task, seconds: float, method: str) -> dict[str, Any]:
     """The row of a problem stopped by the per-problem time limit."""
-    return error_row(task.source, task.problem, TIMEOUT, method, status="unsolved",
+    return error_row(task.source, task.problem, TIMEOUT, method, status=Status.UNSOLVED,
                      termination=TIMEOUT, seconds=seconds)
 

@@ -6,6 +6,8 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from lcpcli.batch.records import ERROR, key
+from lcpcli.core.errors import EXIT_BAD_INPUT, EXIT_NOT_SOLVED, EXIT_SOLVED
+from lcpcli.core.result import Status
 
 
 @dataclass
@@ -66,11 +68,9 @@ class Tally:
 
     def exit_code(self) -> int:
         """2 if some input was bad, else 1 if some problem was not solved, else 0."""
-        from lcpcli.core.errors import EXIT_BAD_INPUT, EXIT_NOT_SOLVED, EXIT_SOLVED
-
         if self.counts.get(ERROR):
             return EXIT_BAD_INPUT
-        if any(s != "solved" and c for s, c in self.counts.items()):
+        if any(s != Status.SOLVED and c for s, c in self.counts.items()):
             return EXIT_NOT_SOLVED
         return EXIT_SOLVED
 

@@ -38,6 +38,7 @@ import numpy as np
 from lcpcli.bench.suites import INFEASIBLE, SOLVABLE, Case
 from lcpcli.core.certificate import certify
 from lcpcli.core.errors import OptionError, ProblemError
+from lcpcli.core.result import Status
 from lcpcli.solvers.kernels import process_context
 
 #: Shift of the shifted geometric mean, in seconds.
@@ -49,8 +50,8 @@ DEFAULT_TOLS = (1e-8,)
 DEFAULT_REPEAT = 5
 DEFAULT_BUDGET = 1.0
 UNKNOWN = "unknown"
-ERROR = "error"  # status when a method raised instead of returning
-TIMEOUT = "timeout"  # status when an isolated run was killed
+ERROR = Status.ERROR  # status when a method raised instead of returning
+TIMEOUT = Status.TIMEOUT  # status when an isolated run was killed
 #: Default wall-clock limit of one (problem, method, tol) run, warm-up and repeats included.
 DEFAULT_TIMEOUT = 60.0
 #: Modules the forkserver of isolated runs imports once (each child starts with them).
@@ -166,22 +167,22 @@ def judge(case: Case, status: str, z: np.ndarray | None, tol: float) -> tuple[bo
         cert = certify(case.problem, np.asarray(z, dtype=float), tol)
     passed = bool(cert is not None and cert.passed)
     defect, reason = False, ""
-    if status == "solved" and not passed:
+    if status == Status.SOLVED and not passed:
         defect = True
         err = "none" if cert is None else f"{cert.error:.3g}"
         reason = f"claimed solved but the recomputed certificate fails (error {err} > {tol:g})"
-    elif status == "no_solution" and case.expected == SOLVABLE:
+    elif status == Status.NO_SOLUTION and case.expected == SOLVABLE:
         defect = True
         reason = "claimed no_solution on a problem known to be solvable"
-    elif case.expected == INFEASIBLE and passed and status == "solved":
+    elif case.expected == INFEASIBLE and passed and status == Status.SOLVED:
         defect = True
         reason = ("claimed solved on a problem proven infeasible: the scaled error "
                   f"{cert.error:.2g} passes only because ||z||_inf = "
                   f"{float(np.max(np.abs(z))):.2g} (residual {cert.residual:.2g})")
     if case.expected == INFEASIBLE:
-        success = status == "no_solution" and not defect
+        success = status == Status.NO_SOLUTION and not defect
     else:
-        success = status == "solved" and passed
+        success = status == Status.SOLVED and passed
     return success, defect, reason, cert
 
 
@@ -307,11 +308,11 @@ def run_peer(case: Case, peer: Any, tol: float, *, repeat: int = DEFAULT_REPEAT,
     runs = peer.run_many(prob, tol, repeat, budget, timeout=timeout)
     out = []
     for name, run in runs.items():
-        status = "unsolved"
+        status = Status.UNSOLVED
         z = run.z
         if z is not None and z.shape == (prob.n,):
             cert = certify(prob, z, tol)
-            status = "solved" if cert.passed else "unsolved"
+            status = Status.SOLVED if cert.passed else Status.UNSOLVED
         elif run.seconds is None:
             status = ERROR
         success, _, reason, cert = judge(case, status, z, tol)

@@ -21,10 +21,13 @@ import typer.core
 
 from lcpcli import __version__
 from lcpcli.cli import plain_params
-from lcpcli.core.errors import EXIT_BAD_INPUT, LcpError
-
-EXIT_INTERNAL = 3
-
+from lcpcli.core.errors import (
+    EXIT_BAD_INPUT,
+    EXIT_INTERNAL,
+    EXIT_INTERRUPTED,
+    EXIT_OK,
+    LcpError,
+)
 
 
 def _click_exceptions():  # type: ignore[no-untyped-def]
@@ -71,7 +74,7 @@ app = typer.Typer(
 def _version(value: bool) -> None:
     if value:
         typer.echo(f"lcpcli {__version__}")
-        raise typer.Exit(0)
+        raise typer.Exit(EXIT_OK)
 
 
 @app.callback()
@@ -105,19 +108,19 @@ def main(argv: list[str] | None = None) -> None:
         code = EXIT_BAD_INPUT
     except typer.Abort:
         error_line("interrupted")
-        code = 130
+        code = EXIT_INTERRUPTED
     except LcpError as exc:
         error_line(str(exc))
         code = EXIT_BAD_INPUT
     except KeyboardInterrupt:
         error_line("interrupted")
-        code = 130
+        code = EXIT_INTERRUPTED
     except BrokenPipeError:
-        code = 0
+        code = EXIT_OK
     except Exception as exc:  # noqa: BLE001 - last line of defence: no tracebacks for users
         if os.environ.get("LCPCLI_DEBUG"):
             raise
         error_line(f"internal error: {type(exc).__name__}: {exc} "
                    f"(set LCPCLI_DEBUG=1 for the traceback)")
         code = EXIT_INTERNAL
-    sys.exit(code if isinstance(code, int) else 0)
+    sys.exit(code if isinstance(code, int) else EXIT_OK)

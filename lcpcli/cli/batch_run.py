@@ -14,6 +14,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from lcpcli.core.errors import EXIT_INTERRUPTED, EXIT_TERMINATED
+
 _GLOB_CHARS = set("*?[")
 _BATCH_SUFFIXES = (".jsonl", ".ndjson", ".csv", ".h5", ".hdf5")
 
@@ -54,6 +56,7 @@ def run_batch_command(files: list[str], *, method: str, tol: float | None,
     from lcpcli.batch.run import run_batch
     from lcpcli.cli.common import stderr_console, stdout_console, write_json_line
     from lcpcli.core.errors import OptionError
+    from lcpcli.core.result import Status  # imports numpy: not at --help time
 
     if problem is not None:
         raise OptionError("--problem picks one problem of one HDF5 file; a batch solves every "
@@ -79,9 +82,9 @@ def run_batch_command(files: list[str], *, method: str, tol: float | None,
             write_json_line(row)
         if progress is not None and state["task"] is not None:
             c = state["counts"]
-            status = row.get("status", "error")
-            bucket = "failed" if status == "error" else (
-                "solved" if status == "solved" else "unsolved")
+            status = row.get("status", Status.ERROR)
+            bucket = "failed" if status == Status.ERROR else (
+                "solved" if status == Status.SOLVED else "unsolved")
             c[bucket] = c.get(bucket, 0) + 1
             progress.update(state["task"], advance=1,
                             counts=f"solved {c.get('solved', 0)}  unsolved "
@@ -108,7 +111,7 @@ def run_batch_command(files: list[str], *, method: str, tol: float | None,
         where = f"; finished results are in {output}: run again with --resume to go on" \
             if output is not None else ""
         sys.stderr.write(f"lcpcli: {what}{where}\n")
-        return 130 if not isinstance(exc, _Terminated) else 143
+        return EXIT_TERMINATED if isinstance(exc, _Terminated) else EXIT_INTERRUPTED
     finally:
         if progress is not None:
             progress.stop()

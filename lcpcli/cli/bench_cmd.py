@@ -7,6 +7,7 @@ from pathlib import Path
 import typer
 
 from lcpcli.cli.common import MethodListCommand
+from lcpcli.core.errors import EXIT_INTERNAL, EXIT_NOT_SOLVED, EXIT_OK
 
 
 def _floats(text: str, label: str) -> list[float]:
@@ -67,7 +68,6 @@ def bench(
     process died (an internal error; the rows say which).
     """
     from lcpcli.bench import runner as B
-    from lcpcli.cli import EXIT_INTERNAL
     from lcpcli.cli.common import stderr_console, stdout_console, write_json_line
     from lcpcli.core.errors import OptionError
 
@@ -137,8 +137,8 @@ def bench(
     for rec in report.errors:
         err.print(f"lcpcli: ERROR: {rec.method} on {rec.problem}: {rec.message}")
     if report.defects:
-        return 1
-    return EXIT_INTERNAL if report.errors else 0
+        return EXIT_NOT_SOLVED
+    return EXIT_INTERNAL if report.errors else EXIT_OK
 
 
 def register(app: typer.Typer) -> None:

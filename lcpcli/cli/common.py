@@ -54,7 +54,9 @@ def stderr_console() -> Any:
 
 def exit_code_for(statuses: list[str]) -> int:
     """0 if every status is ``solved``, 1 otherwise (bad input is raised, not returned)."""
-    return EXIT_SOLVED if all(s == "solved" for s in statuses) else EXIT_NOT_SOLVED
+    from lcpcli.core.result import Status  # imports numpy: not at --help time
+
+    return EXIT_SOLVED if all(s == Status.SOLVED for s in statuses) else EXIT_NOT_SOLVED
 
 
 def write_json_line(obj: Any) -> None:

@@ -6,6 +6,8 @@ from pathlib import Path
 
 import typer
 
+from lcpcli.core.errors import EXIT_OK
+
 
 def convert(
     source: str = typer.Argument(..., metavar="IN", help="Problem file ('-' = JSON on stdin)."),
@@ -43,9 +45,9 @@ def convert(
                 p.name = name
             with atomic_path(Path(target)) as tmp:
                 write_many(problems, tmp)
-            return 0
+            return EXIT_OK
     save(load(source, problem), target)
-    return 0
+    return EXIT_OK
 
 
 def register(app: typer.Typer) -> None:

@@ -6,6 +6,8 @@ from pathlib import Path
 
 import typer
 
+from lcpcli.core.errors import EXIT_NOT_SOLVED, EXIT_SOLVED
+
 #: Above this n, ``--all-cones`` is refused for the terminal table.
 ALL_CONES_TABLE_MAX_N = 12
 #: Above this n, ``--all-cones`` is refused even with ``--json``.
@@ -98,7 +100,7 @@ def enumerate_command(
                                                   covers=covers, drawing=drawing))
         if plot_path is not None:
             sys.stderr.write(f"lcpcli: wrote {plot_path}\n")
-    return 0 if res.solutions else 1
+    return EXIT_SOLVED if res.solutions else EXIT_NOT_SOLVED
 
 
 class _progress_bar:

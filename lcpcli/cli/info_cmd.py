@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import typer
 
+from lcpcli.core.errors import EXIT_OK
+
 
 def info(
     file: str = typer.Argument(..., metavar="FILE",
@@ -32,7 +34,7 @@ def info(
         from lcpcli.cli.render.info import render_info
 
         stdout_console().print(render_info(report))
-    return 0
+    return EXIT_OK
 
 
 def register(app: typer.Typer) -> None:

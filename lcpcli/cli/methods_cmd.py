@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import typer
 
+from lcpcli.core.errors import EXIT_OK
+
 
 def methods_command(
     as_json: bool = typer.Option(False, "--json", help="Machine-readable list on stdout."),
@@ -20,12 +22,12 @@ def methods_command(
                           "default_tol": m.default_tol,
                           "options": {k: o.help for k, o in m.options.items()}}
                          for m in registry.values()])
-        return 0
+        return EXIT_OK
     from lcpcli.cli.common import stdout_console
     from lcpcli.cli.render.common import render_methods
 
     stdout_console().print(render_methods(registry))
-    return 0
+    return EXIT_OK
 
 
 def register(app: typer.Typer) -> None:

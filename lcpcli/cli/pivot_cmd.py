@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import typer
 
+from lcpcli.core.errors import EXIT_OK
+
 
 def pivot(
     file: str = typer.Argument(..., metavar="FILE",
@@ -52,7 +54,7 @@ def pivot(
         from lcpcli.cli.render.pivot import render_pivot
 
         stdout_console().print(render_pivot(t, Maug, q, source))
-    return 0
+    return EXIT_OK
 
 
 def register(app: typer.Typer) -> None:

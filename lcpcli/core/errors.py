@@ -1,17 +1,23 @@
-"""Exceptions and the process exit codes they map to.
+"""Exceptions and the process exit codes (the one definition of both; the CLI imports them).
 
 Exit codes (documented in ``lcpcli --help`` and the README):
 
-* 0 - every problem solved (certificate checked);
-* 1 - a problem was not solved (``no_solution`` or ``unsolved``);
-* 2 - bad usage or bad input (malformed file, wrong shapes, NaN/Inf, unknown option, ...).
+* 0 - every problem solved (certificate checked); for commands without a verdict: done;
+* 1 - a problem was not solved (``no_solution`` or ``unsolved``), or ``bench`` found a defect;
+* 2 - bad usage or bad input (malformed file, wrong shapes, NaN/Inf, unknown option, ...);
+* 3 - internal error (a bug);
+* 130 - interrupted (Ctrl-C); 143 - terminated (SIGTERM; a batch closes its output first).
 """
 
 from __future__ import annotations
 
-EXIT_SOLVED = 0
+EXIT_OK = 0
+EXIT_SOLVED = EXIT_OK  # the same code, named for commands with a verdict
 EXIT_NOT_SOLVED = 1
 EXIT_BAD_INPUT = 2
+EXIT_INTERNAL = 3
+EXIT_INTERRUPTED = 130
+EXIT_TERMINATED = 143
 
 
 class LcpError(Exception):

@@ -3,24 +3,62 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from enum import Enum
 from typing import Any
 
 import numpy as np
 
 from lcpcli.core.certificate import Certificate
 
-SOLVED = "solved"
-NO_SOLUTION = "no_solution"
-UNSOLVED = "unsolved"
+
+class _StrEnum(str, Enum):
+    """A str-valued enum: equal to, hashed, formatted and JSON-encoded as its value, so that
+    ``status == "solved"``, ``f"{status}"`` and ``json.dumps(status)`` read as the plain string."""
+
+    def __str__(self) -> str:
+        return str(self.value)
+
+    def __format__(self, spec: str) -> str:
+        return format(str(self.value), spec)
+
+
+class Status(_StrEnum):
+    """The verdict of a solve (:attr:`Result.status`), and the status of a batch/bench row."""
+
+    SOLVED = "solved"            # the certificate passed
+    NO_SOLUTION = "no_solution"  # proven (the proof is in ``message``)
+    UNSOLVED = "unsolved"        # the method gave up or its answer failed the certificate
+    ERROR = "error"              # batch/bench rows only: no verdict (unreadable input, a crash)
+    TIMEOUT = "timeout"          # bench rows only: the isolated run was killed at its limit
+
+
+class Termination(_StrEnum):
+    """Why a method stopped (:attr:`Outcome.termination`)."""
+
+    CONVERGED = "converged"
+    RAY = "ray_termination"
+    ITERATION_LIMIT = "iteration_limit"
+    SINGULAR = "singular_basis"
+    INFEASIBLE = "infeasible"  # proven: the method's theory shows no solution exists
+    NUMERICAL = "numerical_failure"
+    NOT_APPLICABLE = "not_applicable"  # the method cannot start on this M (e.g. zero diagonal)
+    TIMEOUT = "timeout"  # batch rows: stopped by --timeout
+    ERROR = "error"  # batch rows of inputs that could not be read or solved at all
+
+
+SOLVED = Status.SOLVED
+NO_SOLUTION = Status.NO_SOLUTION
+UNSOLVED = Status.UNSOLVED
+#: The three verdicts a solve can return.
 STATUSES = (SOLVED, NO_SOLUTION, UNSOLVED)
 
-# Why a method stopped (``Outcome.termination``).
-CONVERGED = "converged"
-RAY = "ray_termination"
-ITERATION_LIMIT = "iteration_limit"
-SINGULAR = "singular_basis"
-INFEASIBLE = "infeasible"  # proven: the method's theory shows no solution exists
-NUMERICAL = "numerical_failure"
+CONVERGED = Termination.CONVERGED
+RAY = Termination.RAY
+ITERATION_LIMIT = Termination.ITERATION_LIMIT
+SINGULAR = Termination.SINGULAR
+INFEASIBLE = Termination.INFEASIBLE
+NUMERICAL = Termination.NUMERICAL
+NOT_APPLICABLE = Termination.NOT_APPLICABLE
 
 
 @dataclass
@@ -33,7 +71,7 @@ class Outcome:
 
     z: np.ndarray
     iterations: int
-    termination: str
+    termination: Termination
     message: str = ""
     proven_infeasible: bool = False
     trace: list[dict[str, Any]] | None = None
@@ -49,7 +87,7 @@ class Result:
     ``seconds`` is the method's own wall time (no process start-up, no file reading).
     """
 
-    status: str
+    status: Status
     method: str
     z: np.ndarray
     w: np.ndarray
@@ -57,7 +95,7 @@ class Result:
     seconds: float
     certificate: Certificate
     message: str
-    termination: str
+    termination: Termination
     problem_name: str = ""
     trace: list[dict[str, Any]] | None = None
     info: dict[str, Any] = field(default_factory=dict)

@@ -14,6 +14,12 @@ from typing import Any
 
 from lcpcli.core.errors import OptionError
 
+#: A method that densifies M is refused on a sparse problem with more entries than this
+#: (``n * n``; 1e8 entries are 0.8 GB as float64).
+MAX_DENSIFY_ENTRIES = 10_000 ** 2
+#: Names of the methods whose ``prepare`` hook already ran in this process.
+_PREPARED: set[str] = set()
+
 
 @dataclass(frozen=True)
 class Option:
@@ -43,6 +49,18 @@ class Method:
     aliases: tuple[str, ...] = ()
     #: True when the method works on a scipy.sparse M without densifying it.
     sparse: bool = False
+
+    def prepare_once(self) -> None:
+        """Run the ``prepare`` hook (kernel compilation or loading) once per process."""
+        if self.prepare is not None and self.name not in _PREPARED:
+            self.prepare()
+            _PREPARED.add(self.name)
+
+    def densifies(self, problem: Any) -> bool:
+        """True when running this method on ``problem`` would densify a sparse M larger than
+        :data:`MAX_DENSIFY_ENTRIES` (the caller refuses or skips it)."""
+        return bool(problem.sparse and not self.sparse
+                    and problem.n * problem.n > MAX_DENSIFY_ENTRIES)
 
     def parse_options(self, given: Mapping[str, Any]) -> dict[str, Any]:
         """Defaults merged with ``given``; unknown names or bad values raise OptionError."""
@@ -90,11 +108,17 @@ def methods() -> dict[str, Method]:
     return dict(_load())
 
 
-def get_method(name: str) -> Method:
-    """The method called ``name`` (or one of its aliases); OptionError if unknown."""
+def resolve(name: str) -> str | None:
+    """The registered name of ``name`` (a name or an alias, any case), or None if unknown."""
     registry = _load()
     key = name.strip().lower()
     key = _ALIASES.get(key, key)
-    if key not in registry:
-        raise OptionError(f"unknown method '{name}' (available: {', '.join(registry)})")
-    return registry[key]
+    return key if key in registry else None
+
+
+def get_method(name: str) -> Method:
+    """The method called ``name`` (or one of its aliases); OptionError if unknown."""
+    key = resolve(name)
+    if key is None:
+        raise OptionError(f"unknown method '{name}' (available: {', '.join(_load())})")
+    return _load()[key]

@@ -14,9 +14,6 @@ import numpy as np
 
 from lcpcli.core.errors import OptionError
 
-#: Termination reason of a method that does not apply to the given matrix (e.g. zero diagonal).
-NOT_APPLICABLE = "not_applicable"
-
 
 def start_point(problem: Any, z0: np.ndarray | None, default: float = 0.0) -> np.ndarray:
     """The warm start ``z0`` checked against ``problem`` (OptionError on a length mismatch)."""

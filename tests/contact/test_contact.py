@@ -578,9 +578,9 @@ def test_sparse_lcp_json_and_dense_method_guard(monkeypatch) -> None:
     assert a.result.solved and b.result.solved
     assert np.allclose(a.velocity, b.velocity, atol=1e-8)
     assert np.allclose(a.omega, b.omega, atol=1e-8)
-    import lcpcli.api
+    import lcpcli.solvers.registry
 
-    monkeypatch.setattr(lcpcli.api, "MAX_DENSIFY_ENTRIES", 100)
+    monkeypatch.setattr(lcpcli.solvers.registry, "MAX_DENSIFY_ENTRIES", 100)
     with pytest.raises(OptionError, match="dense 50 x 50 matrix"):
         solve(clcp)
 

@@ -16,8 +16,10 @@ from rich.progress import (
 from rich.table import Table
 from rich.text import Text
 
-STATUS_STYLE = {"solved": "bold green", "no_solution": "bold yellow", "unsolved": "bold red",
-                "error": "bold magenta"}
+from lcpcli.cli.render.common import STATUS_STYLE as COMMON_STATUS_STYLE
+from lcpcli.core.result import Status
+
+STATUS_STYLE = {**COMMON_STATUS_STYLE, Status.ERROR: "bold magenta"}
 
 
 class RateColumn(ProgressColumn):

@@ -22,6 +22,7 @@ from lcpcli.bench.runner import (
     performance_profile,
     summarize,
 )
+from lcpcli.core.result import Status
 
 #: Profile values shown in the terminal table.
 PROFILE_TAUS = (1.0, 2.0, 4.0, 10.0, 100.0)
@@ -47,8 +48,8 @@ def mark(r: Any) -> str:
         return "DEFECT"
     if r.success:
         return "ok"
-    return {"solved": "wrong", "no_solution": "wrong", "unsolved": "fail",
-            "error": "error"}.get(r.status, r.status)
+    return {Status.SOLVED: "wrong", Status.NO_SOLUTION: "wrong", Status.UNSOLVED: "fail",
+            Status.ERROR: "error"}.get(r.status, r.status)
 
 
 def header(report: BenchReport, title: str) -> Table:
@@ -135,7 +136,7 @@ def peer_table(report: BenchReport) -> Table | None:
         return None
     claims = {}
     for r in report.records:
-        if r.peer and r.tol == report.tols[0] and r.claimed and r.status != "solved":
+        if r.peer and r.tol == report.tols[0] and r.claimed and r.status != Status.SOLVED:
             claims[r.method] = claims.get(r.method, 0) + 1
     table = Table(title="peer ratios: time(ours) / time(peer), geometric mean over problems both "
                         "solved (< 1: ours faster)", title_justify="left")

@@ -11,7 +11,10 @@ from rich.console import Group
 from rich.table import Table
 from rich.text import Text
 
-STATUS_STYLE = {"solved": "bold green", "no_solution": "bold yellow", "unsolved": "bold red"}
+from lcpcli.core.result import Status
+
+STATUS_STYLE = {Status.SOLVED: "bold green", Status.NO_SOLUTION: "bold yellow",
+                Status.UNSOLVED: "bold red"}
 
 #: Above this many variables the z/w table shows the head and tail only.
 MAX_ROWS = 40

@@ -20,16 +20,14 @@ from typing import Any
 
 import numpy as np
 
-from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, Outcome
+from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, Outcome, Status
 from lcpcli.solvers.options import positive_int, vector_option
-from lcpcli.solvers.registry import Method, Option
+from lcpcli.solvers.registry import Method, Option, resolve
 
 #: Dense problems up to this size are given to the pivoting methods first.
 PIVOT_MAX_N = 1500
 #: Dense problems above this size are never given to the O(n^3)-per-solve pivoting methods.
 PIVOT_HARD_MAX_N = 5000
-#: A method that densifies M is not tried on a sparse problem with more entries than this.
-MAX_DENSIFY_ENTRIES = 10_000 ** 2
 #: Sparse problems up to this size are treated like small dense ones (pivoting first).
 SMALL_SPARSE_N = 200
 #: Sparse LU fill ratio (nnz(L+U) / nnz(M)) under which Newton goes before PSOR.
@@ -54,13 +52,9 @@ def _describe(c: dict[str, Any]) -> str:
 
 
 def _resolve(name: str, available: dict[str, Any]) -> str | None:
-    """The registered name of ``name`` (which may be an alias), or None if absent."""
-    if name in available:
-        return name
-    for key, m in available.items():
-        if name in m.aliases:
-            return key
-    return None
+    """The registered name of ``name`` (which may be an alias) if it is in ``available``."""
+    key = resolve(name)
+    return key if key in available else None
 
 
 def plan(problem: Any, c: dict[str, Any], available: dict[str, Any]) -> list[tuple[str, str]]:
@@ -153,7 +147,6 @@ def plan(problem: Any, c: dict[str, Any], available: dict[str, Any]) -> list[tup
 def prepare() -> None:
     """Warm up the compiled kernels of the LCP methods auto tries most (outside the timed
     region); other methods' hooks run inside ``run`` when they are tried (cached, cheap)."""
-    from lcpcli.api import _PREPARED
     from lcpcli.solvers.registry import get_method
 
     for name in ("lemke", "murty", "pgs", "dantzig", "mlcp-schur", "mlcp-lemke"):
@@ -161,16 +154,13 @@ def prepare() -> None:
             spec = get_method(name)
         except Exception:  # noqa: BLE001 - a method absent from this build
             continue
-        if spec.prepare is not None and spec.name not in _PREPARED:
-            spec.prepare()
-            _PREPARED.add(spec.name)
+        spec.prepare_once()
 
 
 def run(problem: Any, *, tol: float, max_iter: int | None = None,
         z0: np.ndarray | None = None, order: str | None = None) -> Outcome:
     """Classify, plan and try methods until one's answer passes the certificate."""
     from lcpcli.analysis.classify import classify
-    from lcpcli.api import _PREPARED
     from lcpcli.core.certificate import certify, matrix_norm_inf
     from lcpcli.core.errors import OptionError
     from lcpcli.solvers.registry import methods
@@ -213,18 +203,16 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None,
                 opts["max_iter"] = AUTO_CAPS[name]
         if z0 is not None and "z0" in spec.options:
             opts["z0"] = z0
-        if problem.sparse and not spec.sparse and n * n > MAX_DENSIFY_ENTRIES:
+        if spec.densifies(problem):
             continue  # it would densify a huge sparse M (api.check_dense_ok refuses that too)
-        if spec.prepare is not None and spec.name not in _PREPARED:
-            spec.prepare()  # once per process, as lcpcli.api.solve does
-            _PREPARED.add(spec.name)
+        spec.prepare_once()
         t1 = time.perf_counter()
         try:
             out: Outcome = spec.run(problem, tol=tol, **spec.parse_options(opts))
         except (np.linalg.LinAlgError, MemoryError, ValueError, RuntimeError) as exc:
             if isinstance(exc, OptionError):
                 raise
-            attempts.append({"method": name, "reason": why, "status": "error",
+            attempts.append({"method": name, "reason": why, "status": Status.ERROR,
                              "message": f"{type(exc).__name__}: {exc}",
                              "seconds": time.perf_counter() - t1})
             continue
@@ -236,7 +224,7 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None,
                "iterations": int(out.iterations), "error": cert.error, "seconds": secs,
                "message": out.message}
         if cert.passed:
-            rec["status"] = "solved"
+            rec["status"] = Status.SOLVED
             attempts.append(rec)
             failed = "".join(f"; {a['method']} failed first ({a['message']})"
                              for a in attempts[:-1])
@@ -245,14 +233,14 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None,
                            info={"chosen": name, "attempts": attempts, "classification": c,
                                  "classify_seconds": t_class})
         if out.proven_infeasible:
-            rec["status"] = "no_solution"
+            rec["status"] = Status.NO_SOLUTION
             attempts.append(rec)
             return Outcome(z, total_it, out.termination,
                            f"auto ({desc}): {name} proved that no solution exists: "
                            f"{out.message}", proven_infeasible=True,
                            info={"chosen": name, "attempts": attempts, "classification": c,
                                  "classify_seconds": t_class})
-        rec["status"] = "unsolved"
+        rec["status"] = Status.UNSOLVED
         attempts.append(rec)
         if best is None or cert.error < best[0]:
             best = (cert.error, z, out.termination)

@@ -27,6 +27,7 @@ from typing import Any
 
 import numpy as np
 
+from lcpcli.analysis.classify import is_symmetric
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, NUMERICAL, Outcome
 from lcpcli.solvers.options import positive_int
 from lcpcli.solvers.registry import Method, Option
@@ -86,10 +87,7 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None) -> Outcome:
         return Outcome(np.zeros(n), 0, CONVERGED, "q >= 0: z = 0 solves the problem")
     sparse = problem.sparse
     M = problem.M.tocsr() if sparse else np.ascontiguousarray(problem.M, dtype=np.float64)
-    if sparse:
-        symmetric = abs(M - M.T).max() <= 1e-14 * max(abs(M).max(), 1e-300) if M.nnz else True
-    else:
-        symmetric = bool(np.allclose(M, M.T, rtol=0, atol=1e-14 * max(np.max(np.abs(M)), 1e-300)))
+    symmetric = is_symmetric(M)
     lo, up = problem.bounds()
     mu_M = matrix_norm_inf(M)
     mu_M = mu_M if mu_M > 0 else 1.0

@@ -52,8 +52,7 @@ def solve_reduced(problem: Any, red: Any, inner: str, tol: float,
     if max_iter is not None and "max_iter" in spec.options:
         opts["max_iter"] = max_iter
     opts = spec.parse_options(opts)
-    if spec.prepare is not None:
-        spec.prepare()
+    spec.prepare_once()
     out = spec.run(sub, tol=tol, **opts)
     x = np.asarray(out.z, dtype=np.float64)
     M = np.asarray(problem.dense_M(), dtype=np.float64)

@@ -26,11 +26,11 @@ from typing import Any
 import numpy as np
 
 from lcpcli.core.certificate import matrix_norm_inf
-from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, NUMERICAL, Outcome
+from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, NOT_APPLICABLE, NUMERICAL, Outcome
 from lcpcli.solvers.kernels import pgs as K
 from lcpcli.solvers.options import omega_option, positive_int, vector_option
 from lcpcli.solvers.registry import Method, Option
-from lcpcli.solvers.support import NOT_APPLICABLE, diagonal, start_point
+from lcpcli.solvers.support import diagonal, start_point
 
 #: Sweep limit when none is given.
 DEFAULT_MAX_ITER = 10_000
