@@ -18,6 +18,7 @@ import tempfile
 from pathlib import Path
 
 from setuptools import Extension, setup
+from setuptools.command.build_ext import build_ext
 
 ROOT = Path(__file__).resolve().parent
 #: Modules that use ``prange`` (OpenMP); the others are built without it.
@@ -83,4 +84,14 @@ def extensions() -> list[Extension]:
                      quiet=True)
 
 
-setup(ext_modules=extensions())
+class ParallelBuildExt(build_ext):
+    """``build_ext`` that compiles the modules in parallel by default (``pip install`` passes no
+    ``-j``): one job per CPU."""
+
+    def finalize_options(self) -> None:
+        super().finalize_options()
+        if not self.parallel:
+            self.parallel = os.cpu_count() or 1
+
+
+setup(ext_modules=extensions(), cmdclass={"build_ext": ParallelBuildExt})
