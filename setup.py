@@ -63,35 +63,42 @@ def openmp_flags() -> list[str]:
 
 
 def extensions() -> list[Extension]:
-    import numpy
-    from Cython.Build import cythonize
-
-    omp = openmp_flags()
-    base = ["-O3"] if sys.platform != "win32" else ["/O2"]
-    exts = []
-    for name, path in pyx_modules():
-        flags = base + (omp if name in OPENMP_MODULES else [])
-        link = omp if name in OPENMP_MODULES else []
-        exts.append(Extension(name, [path], include_dirs=[numpy.get_include()],
-                              extra_compile_args=flags, extra_link_args=link,
-                              define_macros=[("NPY_NO_DEPRECATED_API",
-                                              "NPY_1_7_API_VERSION")]))
-    return cythonize(exts, compiler_directives={"language_level": "3", "boundscheck": False,
-                                                "wraparound": False, "cdivision": True,
-                                                "initializedcheck": False},
-                     nthreads=int(os.environ.get("LCPCLI_CYTHON_JOBS", "0"))
-                     or os.cpu_count() or 1,
-                     quiet=True)
+    """One Extension per ``.pyx`` (sources still ``.pyx``: :class:`BuildExt` cythonizes)."""
+    return [Extension(name, [path]) for name, path in pyx_modules()]
 
 
-class ParallelBuildExt(build_ext):
-    """``build_ext`` that compiles the modules in parallel by default (``pip install`` passes no
-    ``-j``): one job per CPU."""
+class BuildExt(build_ext):
+    """Cythonize and compile only when extensions are built (not when pip asks for metadata),
+    with OpenMP where used and available, and in parallel by default (``pip install`` passes
+    no ``-j``: one job per CPU)."""
 
     def finalize_options(self) -> None:
         super().finalize_options()
         if not self.parallel:
             self.parallel = os.cpu_count() or 1
 
+    def run(self) -> None:
+        import numpy
+        from Cython.Build import cythonize
 
-setup(ext_modules=extensions(), cmdclass={"build_ext": ParallelBuildExt})
+        omp = openmp_flags()
+        base = ["-O3"] if sys.platform != "win32" else ["/O2"]
+        for ext in self.extensions:
+            ext.include_dirs.append(numpy.get_include())
+            ext.extra_compile_args = base + (omp if ext.name in OPENMP_MODULES else [])
+            ext.extra_link_args = omp if ext.name in OPENMP_MODULES else []
+            ext.define_macros.append(("NPY_NO_DEPRECATED_API", "NPY_1_7_API_VERSION"))
+        done = cythonize(
+            self.extensions,
+            compiler_directives={"language_level": "3", "boundscheck": False,
+                                 "wraparound": False, "cdivision": True,
+                                 "initializedcheck": False},
+            nthreads=int(os.environ.get("LCPCLI_CYTHON_JOBS", "0")) or os.cpu_count() or 1,
+            quiet=True)
+        sources = {e.name: e.sources for e in done}  # the .c files, on setuptools' extensions
+        for ext in self.extensions:
+            ext.sources = sources[ext.name]
+        super().run()
+
+
+setup(ext_modules=extensions(), cmdclass={"build_ext": BuildExt})
