@@ -64,7 +64,8 @@ def openmp_flags() -> list[str]:
 
 def extensions() -> list[Extension]:
     """One Extension per ``.pyx`` (sources still ``.pyx``: :class:`BuildExt` cythonizes)."""
-    return [Extension(name, [path]) for name, path in pyx_modules()]
+    headers = [str(p.relative_to(ROOT)) for p in sorted((ROOT / "lcpcli").rglob("*.h"))]
+    return [Extension(name, [path], depends=headers) for name, path in pyx_modules()]
 
 
 class BuildExt(build_ext):

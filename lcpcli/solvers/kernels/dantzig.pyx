@@ -27,6 +27,7 @@ from libc.stdint cimport int64_t
 from libc.stdlib cimport free, malloc
 
 from lcpcli.solvers.kernels.dense cimport invert
+from lcpcli.solvers.kernels.simd cimport axpy, axpy_scaled, big_alloc
 
 cimport numpy as cnp
 
@@ -99,8 +100,7 @@ cdef bint _add(double* Binv, Py_ssize_t n, int64_t* C, Py_ssize_t k, const doubl
         return False
     inv = 1.0 / s
     for a in range(k):
-        for b in range(k):
-            Binv[a * n + b] += x[a] * y[b] * inv
+        axpy_scaled(Binv + a * n, y, x[a], inv, k)  # += x[a] * y[b] * inv
         Binv[a * n + k] = -x[a] * inv
         Binv[k * n + a] = -y[a] * inv
     Binv[k * n + k] = inv
@@ -130,8 +130,7 @@ cdef void _remove(double* Binv, Py_ssize_t n, int64_t* C, int64_t* pos, Py_ssize
     for a in range(last):
         f = Binv[a * n + last] / h
         if f != 0.0:
-            for b in range(last):
-                Binv[a * n + b] -= f * Binv[last * n + b]
+            axpy(Binv + a * n, Binv + last * n, -f, last)
 
 
 cdef int _refactor(double* Binv, Py_ssize_t n, const int64_t* C, Py_ssize_t k,
@@ -171,7 +170,7 @@ cdef int dantzig(const double* M, const double* q, const double* lo, const doubl
     cdef int status = DZ_OK, event
     cdef double mscale = 0.0, v, wi, zscale, qs, tolw, direc, s, dmax, epsz, epsw, tmin, tt, d
     cdef double* space = NULL
-    cdef double* work = <double*>malloc((n * n + 9 * n + 1) * sizeof(double))
+    cdef double* work = <double*>big_alloc((n * n + 9 * n + 1) * sizeof(double))
     cdef int64_t* iwork = <int64_t*>malloc((2 * n + 1) * sizeof(int64_t))
     if work == NULL or iwork == NULL:
         free(work)

@@ -25,6 +25,7 @@ from libc.stdlib cimport free, malloc
 from libc.string cimport memcpy
 
 from lcpcli.solvers.kernels.dense cimport solve_refined
+from lcpcli.solvers.kernels.simd cimport axpy, big_alloc
 
 import numpy as np
 
@@ -76,8 +77,7 @@ cdef void pivot(double* T, double* qb, Py_ssize_t nrows, Py_ssize_t ncols, Py_ss
         f = Ti[c]
         if f != 0.0:
             qb[i] += f * qr
-            for j in range(ncols):
-                Ti[j] += f * rowr[j]
+            axpy(Ti, rowr, f, ncols)
             Ti[c] = f * inv
     for j in range(ncols):
         T[r * ncols + j] = rowr[j]
@@ -232,7 +232,7 @@ cdef int lemke_tableau(const double* M, const double* q, const double* d, Py_ssi
     cdef int64_t entering, leaving, pivots, loc
     cdef int status
     cdef double colmax, unit, key
-    cdef double* work = <double*>malloc((n * m + 4 * n + 2 * m + 1) * sizeof(double))
+    cdef double* work = <double*>big_alloc((n * m + 4 * n + 2 * m + 1) * sizeof(double))
     cdef int64_t* iwork = <int64_t*>malloc((2 * n + 1 + m + n + 1) * sizeof(int64_t))
     if work == NULL or iwork == NULL:
         free(work)

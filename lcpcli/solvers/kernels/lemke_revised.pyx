@@ -49,6 +49,8 @@ from lcpcli.solvers.kernels.lemke cimport (
     ratio_candidates,
 )
 
+from lcpcli.solvers.kernels.simd cimport axpy, big_alloc, dot4
+
 import numpy as np
 
 cimport numpy as cnp
@@ -146,15 +148,12 @@ cdef void _combine_rows(const double* Ct, const double* xb, Py_ssize_t m, Py_ssi
     """``tmp[:n] = sum_s xb[s] * Ct[s, :n]`` (M[:, beta] times the beta part)."""
     cdef Py_ssize_t i, s
     cdef double x
-    cdef const double* row
     for i in range(n):
         tmp[i] = 0.0
     for s in range(m):
         x = xb[s]
         if x != 0.0:
-            row = Ct + s * n
-            for i in range(n):
-                tmp[i] += row[i] * x
+            axpy(tmp, Ct + s * n, x, n)
 
 
 cdef void _q_prime(State* S) noexcept nogil:
@@ -176,22 +175,6 @@ cdef void _q_prime(State* S) noexcept nogil:
         S.qb[S.where[n + S.beta[s]]] = S.xb[s]
 
 
-cdef inline double _dot(const double* Bs, const double* v, Py_ssize_t m) noexcept nogil:
-    """sum_p Bs[p] v[p] with four partial sums (lets the compiler use SIMD lanes)."""
-    cdef double a0 = 0.0, a1 = 0.0, a2 = 0.0, a3 = 0.0
-    cdef Py_ssize_t p = 0
-    while p + 4 <= m:
-        a0 += Bs[p] * v[p]
-        a1 += Bs[p + 1] * v[p + 1]
-        a2 += Bs[p + 2] * v[p + 2]
-        a3 += Bs[p + 3] * v[p + 3]
-        p += 4
-    while p < m:
-        a0 += Bs[p] * v[p]
-        p += 1
-    return (a0 + a1) + (a2 + a3)
-
-
 cdef void _column(State* S, int64_t e, double* col) noexcept nogil:
     """Column of M' for entering code ``e``, row order (eqs 5-6 or 7-8); S.xb = its beta part."""
     cdef Py_ssize_t m = S.m, n = S.n, s, p, r
@@ -205,7 +188,7 @@ cdef void _column(State* S, int64_t e, double* col) noexcept nogil:
         for p in range(m):
             S.tmp[p] = S.MT[j * n + S.alpha[p]]
         for s in range(m):
-            S.xb[s] = -_dot(S.B + s * n, S.tmp, m)
+            S.xb[s] = -dot4(S.B + s * n, S.tmp, m)  # four partial sums (SIMD lanes)
     _combine_rows(S.Ct, S.xb, m, n, S.tmp)
     for r in range(n):
         b = S.basic[r]
@@ -265,15 +248,12 @@ cdef void _row_times_B(const double* Ct, const double* B, Py_ssize_t m, Py_ssize
     """out[:m] = Maug[i, beta] @ B (row access of B only)."""
     cdef Py_ssize_t p, s
     cdef double c
-    cdef const double* Bs
     for p in range(m):
         out[p] = 0.0
     for s in range(m):
         c = Ct[s * n + i]
         if c != 0.0:
-            Bs = B + s * n
-            for p in range(m):
-                out[p] += c * Bs[p]
+            axpy(out, B + s * n, c, m)
 
 
 cdef double _wcol_entry(State* S, int64_t k, Py_ssize_t r) noexcept nogil:
@@ -299,7 +279,7 @@ cdef int lemke_revised(const double* M, const double* q, const double* d, Py_ssi
     cdef int status
     cdef double colmax, unit, key, piv, qr, inv, bu, f, y0, x0, bsp
     cdef State S
-    cdef double* work = <double*>malloc(((n + 1) * n + 2 * n * n + 8 * n + 1) * sizeof(double))
+    cdef double* work = <double*>big_alloc(((n + 1) * n + 2 * n * n + 8 * n + 1) * sizeof(double))
     cdef int64_t* iwork = <int64_t*>malloc((2 * n + 1 + 4 * n + 1 + n) * sizeof(int64_t))
     if work == NULL or iwork == NULL:
         free(work)
@@ -440,8 +420,7 @@ cdef int lemke_revised(const double* M, const double* q, const double* d, Py_ssi
             for s in range(m):
                 bu = -S.xb[s]
                 f = bu * inv
-                for p in range(m):
-                    S.B[s * n + p] += f * w1[p]
+                axpy(S.B + s * n, w1, f, m)
                 S.B[s * n + m] = -f
             for p in range(m):
                 S.B[m * n + p] = -w1[p] * inv
@@ -463,8 +442,7 @@ cdef int lemke_revised(const double* M, const double* q, const double* d, Py_ssi
                 if s != s0:
                     f = -S.xb[s]
                     if f != 0.0:
-                        for p in range(m):
-                            S.B[s * n + p] -= f * S.B[s0 * n + p]
+                        axpy(S.B + s * n, S.B + s0 * n, -f, m)
             S.beta[s0] = jj
             S.bpos[leaving - n] = -1
             S.bpos[jj] = s0
@@ -480,8 +458,7 @@ cdef int lemke_revised(const double* M, const double* q, const double* d, Py_ssi
             for s in range(m):
                 bsp = S.B[s * n + p0]
                 if bsp != 0.0:
-                    for p in range(m):
-                        S.B[s * n + p] -= w1[p] * bsp
+                    axpy(S.B + s * n, w1, -bsp, m)
             S.alpha[p0] = leaving
             S.apos[entering] = -1
             S.apos[leaving] = p0
@@ -495,8 +472,7 @@ cdef int lemke_revised(const double* M, const double* q, const double* d, Py_ssi
                 if s != s0:
                     f = S.B[s * n + p0]
                     if f != 0.0:
-                        for p in range(m):
-                            S.B[s * n + p] -= f * w2[p]
+                        axpy(S.B + s * n, w2, -f, m)
             last = m - 1
             # move the last row into s0 and the last column into p0
             if s0 != last:

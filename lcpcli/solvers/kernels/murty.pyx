@@ -19,6 +19,7 @@ from libc.stdlib cimport free, malloc
 from libc.string cimport memcpy
 
 from lcpcli.solvers.kernels.lemke cimport pivot
+from lcpcli.solvers.kernels.simd cimport big_alloc
 
 cimport numpy as cnp
 
@@ -51,7 +52,7 @@ cdef int murty(const double* M, const double* q, Py_ssize_t n, int64_t max_iter,
     cdef Py_ssize_t i, j, r
     cdef int64_t pivots = 0, bad = -1
     cdef double qscale = 0.0, p, scale
-    cdef double* work = <double*>malloc((n * n + 2 * n) * sizeof(double))
+    cdef double* work = <double*>big_alloc((n * n + 2 * n) * sizeof(double))
     if work == NULL:
         return -1
     cdef double* T = work
