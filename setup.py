@@ -100,6 +100,10 @@ class BuildExt(build_ext):
         for ext in self.extensions:
             ext.sources = sources[ext.name]
         super().run()
+        if self.inplace:  # editable install / checkout: write the bytecode now, so that the
+            import compileall  # first run after installing is not slower than the second
+
+            compileall.compile_dir(str(ROOT / "lcpcli"), quiet=1)
 
 
 setup(ext_modules=extensions(), cmdclass={"build_ext": BuildExt})
