@@ -1,47 +1,450 @@
-"""Matrix-class tests and infeasibility proofs used by the solvers (pure functions).
+"""Matrix-class tests, the class report and infeasibility proofs used by the solvers.
 
-Conventions: LCP(q, M) with ``w = M z + q``; tolerances are relative to the data's norms.
+Conventions: LCP(q, M) with ``w = M z + q``; 0-based indices.  Every test is scale-aware: it
+gives the same answer on ``2^k M`` for any k in [-1000, 1000] (magnitudes are taken on a copy
+scaled by a power of two, which is exact), and the properties that a positive diagonal scaling
+preserves are tested on a canonical scaling, so that
+
+* positive diagonal, Z-matrix, H-matrix with positive diagonal and P-matrix give the same answer
+  on ``D1 M D2`` (any positive diagonal D1, D2);
+* symmetry and definiteness of ``(M + M^T)/2`` give the same answer on ``D M D``.
+
+Tolerances are relative to the entries they compare (see each test), never absolute.
+
+The class report (:class:`ClassReport`) is filled on demand by a :class:`Classifier`: the O(n)
+and O(n^2) tests first (diagonal signs, symmetry, sign pattern, diagonal dominance, density),
+the O(n^3) ones (a Cholesky attempt for definiteness, the H-matrix solve, P-matrix tests) only
+when asked for.  ``None`` in the report means "not tested" or, after testing, "undecided".
 """
 
 from __future__ import annotations
 
+import warnings
+from dataclasses import dataclass, fields
+from typing import Any
+
 import numpy as np
 
-#: Relative tolerance of the class tests (eigenvalues, signs) against the matrix norm.
-CLASS_TOL = 1e-12
+#: Relative tolerance of the symmetry test: ``|m_ij - m_ji| <= SYM_TOL (max(|m_ij|, |m_ji|)
+#: + sqrt(|m_ii m_jj|))`` for every pair (invariant under ``D M D`` and global scaling).
+SYM_TOL = 1e-10
+#: Relative margin of the definiteness test on the unit-diagonal ``E = D S D`` of the
+#: symmetric part S: PD when ``E - delta I`` has a Cholesky factor, PSD when ``E + delta I`` has
+#: one, with ``delta = DEF_TOL sqrt(n) ||E||_inf``.
+DEF_TOL = 1e-10
+#: Relative pivot tolerance of the exact P-matrix test: a pivot counts as positive when it
+#: exceeds this fraction of the magnitude of the terms it was computed from.
+PIVOT_TOL = 1e-12
+#: Dense sizes up to which the O(n^3) tests (definiteness, H-matrix, P-matrix) are run at all.
+DENSE_TEST_MAX_N = 6000
+#: Sparse sizes up to which the sparse-LU tests are run.
+SPARSE_TEST_MAX_N = 300_000
+#: Sizes up to which the P-matrix property is decided exactly (all 2^n - 1 principal minors).
+EXACT_P_MAX_N = 10
+
+PD, PSD, INDEFINITE = "pd", "psd", "indefinite"
 
 
-def symmetric_part(M: np.ndarray) -> np.ndarray:
-    """``(M + M^T) / 2``."""
+# ---------------------------------------------------------------------------- helpers
+def _is_sparse(M: Any) -> bool:
+    return hasattr(M, "tocsr")
+
+
+def max_abs(M: Any) -> float:
+    """``max |m_ij|`` of a dense or scipy.sparse matrix (0 for an empty one); never overflows."""
+    if _is_sparse(M):
+        return float(np.max(np.abs(M.data))) if M.nnz else 0.0
+    return float(np.max(np.abs(M))) if M.size else 0.0
+
+
+def normalised(M: Any) -> Any:
+    """``M`` times the power of two that brings ``max |m_ij|`` into [0.5, 1) (exact), as float64.
+
+    Products and sums of the result cannot overflow for n < 2^500; entries below 2^-1022 of
+    the largest one may become subnormal or zero, which no magnitude test here depends on.
+    """
+    big = max_abs(M)
+    if big == 0.0 or not np.isfinite(big):
+        return M.astype(np.float64) if _is_sparse(M) else np.asarray(M, dtype=np.float64)
+    e = int(np.frexp(big)[1])
+    if _is_sparse(M):
+        out = M.tocsr().astype(np.float64, copy=True)
+        out.data = np.ldexp(out.data, -e)
+        return out
+    if -400 <= e <= 400:  # already safe: |m_ij| in [2^-401, 2^400): products stay finite
+        return np.asarray(M, dtype=np.float64)
+    return np.ldexp(np.asarray(M, dtype=np.float64), -e)
+
+
+def diagonal(M: Any) -> np.ndarray:
+    """The diagonal of a dense or scipy.sparse matrix, as float64."""
+    return np.asarray(M.diagonal(), dtype=np.float64).ravel()
+
+
+def symmetric_part(M: Any) -> Any:
+    """``(M + M^T) / 2`` (dense or scipy.sparse CSR)."""
+    if _is_sparse(M):
+        return ((M + M.T) * 0.5).tocsr()
     return 0.5 * (M + M.T)
 
 
-def is_symmetric(M, tol: float = CLASS_TOL) -> bool:  # type: ignore[no-untyped-def]
-    """``||M - M^T||_max <= tol * ||M||_max`` (dense or scipy.sparse M)."""
-    if hasattr(M, "tocsr"):
-        if M.nnz == 0:
+# ---------------------------------------------------------------------------- symmetry
+def is_symmetric(M: Any, tol: float = SYM_TOL) -> bool:
+    """Is M symmetric up to rounding?  (The one symmetry test of the package.)
+
+    Entry pair (i, j) passes when ``|m_ij - m_ji| <= tol (max(|m_ij|, |m_ji|) +
+    sqrt(|m_ii| |m_jj|))``: relative to the pair itself and to the diagonal (which bounds
+    ``|m_ij|`` for PSD matrices, and is where the rounding of a product ``A W A^T`` lives).
+    The same answer on ``D M D`` for any positive diagonal D and on ``2^k M``.
+    """
+    if M.shape[0] != M.shape[1]:
+        return False
+    A = normalised(M)
+    sd = np.sqrt(np.abs(diagonal(A)))
+    if _is_sparse(A):
+        D = (A - A.T).tocoo()
+        D.eliminate_zeros()
+        if D.nnz == 0:
             return True
-        D = (M - M.T).tocsr()
-        scale = float(abs(M).max())
-        return bool(D.nnz == 0 or float(abs(D).max()) <= tol * max(scale, 1e-300))
-    scale = float(np.max(np.abs(M))) if M.size else 0.0
-    return bool(np.max(np.abs(M - M.T), initial=0.0) <= tol * max(scale, 1e-300))
+        absA = abs(A)
+        pair = np.asarray(absA.maximum(absA.T).tocsr()[D.row, D.col]).ravel()
+        return bool(np.all(np.abs(D.data) <= tol * (pair + sd[D.row] * sd[D.col])))
+    with np.errstate(over="ignore", invalid="ignore"):
+        asym = np.abs(A - A.T)
+        worst = float(asym.max()) if asym.size else 0.0
+        if worst == 0.0:
+            return True
+        if worst > tol * (max_abs(A) + float(sd.max()) ** 2):  # fails for every pair's scale
+            return False
+        scale = np.maximum(np.abs(A), np.abs(A.T)) + np.outer(sd, sd)
+        return bool(np.all(asym <= tol * scale))
 
 
-def min_eig_sym(M: np.ndarray) -> tuple[float, float]:
-    """(smallest eigenvalue of the symmetric part, largest absolute eigenvalue)."""
-    ev = np.linalg.eigvalsh(symmetric_part(M))
-    return float(ev[0]), float(np.max(np.abs(ev))) if ev.size else 0.0
+# ---------------------------------------------------------------------------- definiteness
+@dataclass(frozen=True)
+class Definiteness:
+    """The definiteness of ``(M + M^T)/2``: ``kind`` is ``"pd"``, ``"psd"``, ``"indefinite"``
+    or None (not tested: too large); ``how`` says how it was decided; ``factor_fill`` is the
+    fill ratio nnz(L + U) / nnz(S) of the sparse factorisation (sparse M only)."""
+
+    kind: str | None
+    how: str
+    factor_fill: float | None = None
 
 
-def is_psd(M: np.ndarray, tol: float = 1e-10) -> bool:
-    """Positive semidefinite in the LCP sense: ``x^T M x >= 0`` for all x (symmetric part)."""
-    if M.size == 0:
+def _sparse_factor_positive(E: Any, shift: float) -> tuple[bool | None, float | None]:
+    """Is the symmetric sparse ``E + shift I`` positive definite?  LU without pivoting in a
+    symmetric fill-reducing order: all pivots positive iff PD.  (None if the factorisation
+    needed pivoting or ran out of memory) and the fill ratio of the factorisation."""
+    import scipy.sparse as sp  # scipy is imported on first use (start-up budget)
+    import scipy.sparse.linalg as spla
+
+    n = E.shape[0]
+    K = (E + shift * sp.identity(n, format="csr")).tocsc()
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            lu = spla.splu(K, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                           options={"SymmetricMode": True})
+    except RuntimeError:  # exactly singular pivot
+        return False, None
+    except MemoryError:
+        return None, None
+    fill = (lu.L.nnz + lu.U.nnz) / max(K.nnz, 1)
+    if not np.array_equal(lu.perm_r, lu.perm_c):
+        return None, fill
+    return bool(np.all(lu.U.diagonal() > 0)), fill
+
+
+def _dense_cholesky_ok(E: np.ndarray, shift: float) -> bool:
+    import scipy.linalg as sla  # scipy is imported on first use (start-up budget)
+
+    K = E.copy()
+    K[np.diag_indices_from(K)] += shift
+    try:
+        sla.cholesky(K, check_finite=False)
+    except np.linalg.LinAlgError:
+        return False
+    return True
+
+
+def definiteness(M: Any) -> Definiteness:
+    """Is ``S = (M + M^T)/2`` positive definite, semidefinite or indefinite?
+
+    S is first scaled to a unit diagonal, ``E = D S D`` with ``D = diag(s_ii)^(-1/2)`` (so the
+    answer is the same on ``D' M D'``); a negative ``s_ii``, or a zero one with a nonzero
+    entry in its row, means indefinite at once.  Then: PD when ``E - delta I`` has a Cholesky
+    factor, PSD when ``E + delta I`` has one, ``delta = DEF_TOL sqrt(n) ||E||_inf`` (sparse M:
+    the same with a sparse LU in a symmetric order).  No eigenvalues.
+    """
+    n = M.shape[0]
+    if n == 0:
+        return Definiteness(PD, "empty matrix")
+    sparse = _is_sparse(M)
+    limit = SPARSE_TEST_MAX_N if sparse else DENSE_TEST_MAX_N
+    if n > limit:
+        return Definiteness(None, f"not tested (n > {limit:,})")
+    S = symmetric_part(normalised(M))
+    s = diagonal(S)
+    if np.any(s < 0):
+        i = int(np.argmin(s))
+        return Definiteness(INDEFINITE, f"(M + M^T)/2 has a negative diagonal entry (index {i})")
+    zero = s == 0
+    if zero.any():
+        if sparse:
+            row_nz = np.asarray((abs(S) > 0).sum(axis=1)).ravel()[zero]
+        else:
+            row_nz = np.count_nonzero(S[zero], axis=1)
+        if np.any(row_nz > 0):
+            return Definiteness(INDEFINITE, "(M + M^T)/2 has a zero diagonal entry with a "
+                                            "nonzero entry in its row")
+    keep = np.flatnonzero(~zero)
+    if keep.size == 0:
+        return Definiteness(PSD, "(M + M^T)/2 is zero")
+    r = 1.0 / np.sqrt(s[keep])
+    if sparse:
+        import scipy.sparse as sp  # scipy is imported on first use (start-up budget)
+
+        Dk = sp.diags(r)
+        E = (Dk @ S.tocsr()[keep][:, keep] @ Dk).tocsr()
+        norm = float(np.max(np.asarray(abs(E).sum(axis=1)).ravel()))
+    else:
+        E = S[np.ix_(keep, keep)] if keep.size < n else S
+        E = E * r[:, None] * r[None, :]
+        norm = float(np.max(np.sum(np.abs(E), axis=1)))
+    delta = DEF_TOL * np.sqrt(n) * norm
+    how = "sparse LU (symmetric order, no pivoting)" if sparse else "Cholesky"
+    how += " of the unit-diagonal D (M + M^T)/2 D"
+    fill = None
+    if sparse:
+        pd, fill = _sparse_factor_positive(E, -delta)
+    else:
+        pd = _dense_cholesky_ok(E, -delta)
+    if pd and keep.size == n:
+        return Definiteness(PD, f"{how} - delta I", fill)
+    if sparse:
+        psd, fill2 = _sparse_factor_positive(E, delta)
+        fill = fill if fill is not None else fill2
+        if psd is None or pd is None:
+            return Definiteness(None, "sparse factorisation needed pivoting (inconclusive)", fill)
+    else:
+        psd = _dense_cholesky_ok(E, delta)
+    return Definiteness(PSD if psd else INDEFINITE, f"{how} + delta I", fill)
+
+
+def is_psd(M: Any) -> bool:
+    """Positive semidefinite in the LCP sense (``x^T M x >= 0`` for all x), by
+    :func:`definiteness`; False when untested (too large)."""
+    return definiteness(M).kind in (PD, PSD)
+
+
+# ---------------------------------------------------------------------------- H and P matrices
+def _unit_rows(M: Any) -> Any:
+    """``diag(m_ii)^-1 M`` (unit diagonal; M has a positive diagonal), on a normalised copy."""
+    A = normalised(M)
+    d = diagonal(A)
+    with np.errstate(over="ignore"):
+        if _is_sparse(A):
+            import scipy.sparse as sp  # scipy is imported on first use (start-up budget)
+
+            return (sp.diags(1.0 / d) @ A).tocsr()
+        return A / d[:, None]
+
+
+def h_matrix_positive_diagonal(M: Any) -> bool | None:
+    """Is M an H-matrix with positive diagonal (a sufficient test for a P-matrix)?
+
+    Row-scaled to a unit diagonal (``B = diag(m_ii)^-1 |offdiag M|``), M is an H-matrix iff
+    the comparison matrix ``C = I - B`` is a nonsingular M-matrix, iff some ``x > 0`` has
+    ``C x > 0``.  ``x = e`` (strict diagonal dominance) is tried, then ``x = C^-1 e``; the
+    answer is the sign test on ``x`` and ``C x`` (the same on ``D1 M D2``).  None when too
+    large to test.
+    """
+    n = M.shape[0]
+    if n == 0:
         return True
-    lo, big = min_eig_sym(M)
-    return lo >= -tol * max(big, 1e-300) * max(1, M.shape[0]) ** 0.5
+    d = diagonal(M)
+    if np.any(~(d > 0)):
+        return False
+    sparse = _is_sparse(M)
+    if n > (SPARSE_TEST_MAX_N if sparse else DENSE_TEST_MAX_N):
+        return None
+    A = _unit_rows(M)
+    if sparse:
+        import scipy.sparse as sp  # scipy is imported on first use (start-up budget)
+        import scipy.sparse.linalg as spla
+
+        B = abs(A).tocsr()
+        B.setdiag(0.0)
+        B.eliminate_zeros()
+        if np.all(np.asarray(B.sum(axis=1)).ravel() < 1.0):
+            return True
+        C = (sp.identity(n, format="csr") - B).tocsc()
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                x = spla.splu(C).solve(np.ones(n))
+        except RuntimeError:
+            return False
+    else:
+        C = -np.abs(A)
+        C[np.diag_indices(n)] = 1.0
+        if np.all(np.sum(C, axis=1) > 0):  # 1 - sum_j |b_ij| > 0: strictly diagonally dominant
+            return True
+        decided = _collatz_wielandt(-C + np.eye(n))
+        if decided is not None:
+            return decided
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                x = np.linalg.solve(C, np.ones(n))
+        except np.linalg.LinAlgError:
+            return False
+    if not (np.all(np.isfinite(x)) and np.all(x > 0)):
+        return False
+    return bool(np.all(np.asarray(C @ x).ravel() > 0.5))
 
 
+#: Power iterations tried on the comparison matrix before the O(n^3) solve.
+CW_ITERATIONS = 30
+
+
+def _collatz_wielandt(B: np.ndarray) -> bool | None:
+    """Is ``rho(B) < 1`` for ``B >= 0`` (zero diagonal)?  Collatz-Wielandt bounds
+    ``min_i (Bx)_i / x_i <= rho(B) <= max_i (Bx)_i / x_i`` for any ``x > 0``, with x from
+    power iterations of ``I + B``: True when the upper bound is < 1 (then ``x > 0`` and
+    ``(I - B) x > 0``), False when the lower bound is >= 1, None if undecided."""
+    x = np.ones(B.shape[0])
+    for _ in range(CW_ITERATIONS):
+        y = B @ x
+        ratio = y / x
+        if ratio.max() < 1.0:
+            return True
+        if ratio.min() >= 1.0:
+            return False
+        x = x + y
+        x /= x.max()
+        if not np.all(x > 0):
+            return None
+    return None
+
+
+def _unit_diagonal_symmetric(A: np.ndarray) -> np.ndarray:
+    """``diag(a_ii)^(-1/2) A diag(a_ii)^(-1/2)`` (A dense with a positive diagonal)."""
+    r = 1.0 / np.sqrt(np.diagonal(A))
+    return A * r[:, None] * r[None, :]
+
+
+def _balanced(K: np.ndarray) -> np.ndarray:
+    """The diagonal similarity ``G^-1 K G`` closest to symmetric: ``log g`` solves the least
+    squares problem ``log g_i - log g_j = log|k_ij / k_ji| / 2`` over the pairs with both
+    entries nonzero (a graph Laplacian system).  It is K itself when K is symmetric, exactly
+    symmetric when K is diagonally similar to a symmetric matrix, and the same matrix (up to
+    rounding) for every ``D^-1 K D``."""
+    n = K.shape[0]
+    A = np.abs(K)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        both = (A > 0) & (A.T > 0)
+        np.fill_diagonal(both, False)
+        R = np.where(both, 0.5 * np.log(np.where(both, A, 1.0) / np.where(both, A.T, 1.0)), 0.0)
+    W = both.astype(np.float64)
+    L = -W
+    L[np.diag_indices(n)] = W.sum(axis=1)
+    b = R.sum(axis=1)
+    try:
+        f = np.linalg.solve(L + 1.0 / n, b)  # + e e^T / n: fixes the free constant
+    except np.linalg.LinAlgError:  # disconnected pairs graph
+        f = np.linalg.lstsq(L, b, rcond=None)[0]
+    g = np.exp(f - np.mean(f))
+    return K * g[None, :] / g[:, None]
+
+
+def _minor_pivots_positive(K: np.ndarray) -> bool:
+    """All principal minors of K positive?  Depth-first over the index sets, one principal
+    pivot (a Schur complement step) per set: ``det(K_{I+j}) / det(K_I)`` is the pivot, and a
+    pivot counts as positive when it exceeds ``PIVOT_TOL`` times the magnitude of the terms it
+    was computed from (a scale-free test: the same on ``D1 K D2``)."""
+    n = K.shape[0]
+
+    def visit(S: np.ndarray, T: np.ndarray, idx: list[int]) -> bool:
+        # S: Schur complement on the indices ``idx`` still free; T: magnitude of its terms
+        for pos in range(len(idx)):
+            p = S[pos, pos]
+            if not p > PIVOT_TOL * T[pos, pos]:
+                return False
+            rest = list(range(pos + 1, len(idx)))
+            if rest:
+                col, row = S[rest, pos], S[pos, rest]
+                S2 = S[np.ix_(rest, rest)] - np.outer(col, row) / p
+                T2 = T[np.ix_(rest, rest)] + np.outer(np.abs(col), np.abs(row)) / p
+                if not visit(S2, T2, [idx[k] for k in rest]):
+                    return False
+        return True
+
+    return visit(K.copy(), np.abs(K), list(range(n)))
+
+
+def is_p_matrix_exact(M: Any) -> bool:
+    """All 2^n - 1 principal minors positive (meant for n <= EXACT_P_MAX_N), by scale-free
+    pivot tests on the unit-diagonal scaling of M (no determinant thresholds)."""
+    A = np.asarray(M.toarray() if _is_sparse(M) else M, dtype=np.float64)
+    if A.shape[0] == 0:
+        return True
+    d = np.diagonal(A)
+    if np.any(~(d > 0)):
+        return False
+    return _minor_pivots_positive(_unit_diagonal_symmetric(normalised(A)))
+
+
+def p_matrix(M: Any, pd: bool | None = None, h_matrix: bool | None = None,
+             symmetric: bool | None = None) -> tuple[bool | None, str]:
+    """``(is M a P-matrix?, how it was decided)``; None when no test decides.
+
+    In order: a non-positive diagonal entry or 2 x 2 principal minor (not P); PD symmetric part
+    (``pd``, if known); for a symmetric M (``symmetric``), P iff PD; H-matrix with positive
+    diagonal (``h_matrix``, computed if not given); PD symmetric part after a diagonal scaling
+    ``G^-1 D M D G`` (unit diagonal, balanced); all principal minors when n <= EXACT_P_MAX_N.
+    The answer is the same on ``D1 M D2``.
+    """
+    n = M.shape[0]
+    if n == 0:
+        return True, "empty matrix"
+    d = diagonal(M)
+    if np.any(~(d > 0)):
+        return False, "a diagonal entry (a 1 x 1 principal minor) is <= 0"
+    sparse = _is_sparse(M)
+    if n > (SPARSE_TEST_MAX_N if sparse else DENSE_TEST_MAX_N):
+        return None, "not tested (too large)"
+    if not sparse or n <= EXACT_P_MAX_N:
+        A = np.asarray(M.toarray() if sparse else M, dtype=np.float64)
+        K = _unit_diagonal_symmetric(normalised(A))
+        prod = K * K.T  # k_ij k_ji: the 2 x 2 minors are 1 - k_ij k_ji (unit diagonal)
+        prod[np.diag_indices(n)] = 0.0
+        bad = 1.0 - prod <= PIVOT_TOL * (1.0 + np.abs(prod))
+        if np.any(bad):
+            i, j = (int(v) for v in np.argwhere(bad)[0])
+            return False, f"the 2 x 2 principal minor on indices ({i}, {j}) is <= 0"
+    if pd:
+        return True, "positive definite (symmetric part PD)"
+    if symmetric and pd is False:
+        return False, "symmetric and not positive definite (for a symmetric M, P = PD)"
+    h = h_matrix_positive_diagonal(M) if h_matrix is None else h_matrix
+    if h:
+        return True, "H-matrix with positive diagonal"
+    if n <= EXACT_P_MAX_N:
+        p = _minor_pivots_positive(K)
+        return p, "all principal minors checked" + ("" if p else ": one is <= 0")
+    if not sparse:
+        B = _balanced(K)
+        pd_b = definiteness(B).kind == PD
+        if pd_b:
+            return True, "positive definite after a positive diagonal scaling"
+        if is_symmetric(B):  # P iff PD for a symmetric matrix
+            return False, "diagonally similar to a symmetric matrix that is not PD"
+    return None, "unknown (no sufficient test applies)"
+
+
+# ---------------------------------------------------------------------------- Farkas
 def farkas_certificate(M: np.ndarray, q: np.ndarray,
                        candidate: np.ndarray | None = None) -> np.ndarray | None:
     """A vector ``y >= 0`` with ``M^T y <= 0`` and ``q^T y < 0``, or None.
@@ -75,230 +478,257 @@ def farkas_certificate(M: np.ndarray, q: np.ndarray,
     return None
 
 
-# ---------------------------------------------------------------------- class report (auto, info)
-#: Dense sizes up to which the eigenvalues of the symmetric part are computed (else Cholesky).
-EIG_MAX_N = 300
-#: Dense sizes up to which the O(n^3) tests (definiteness, H-matrix) are run at all.
-DENSE_TEST_MAX_N = 6000
-#: Sparse sizes up to which the sparse-LU tests are run.
-SPARSE_TEST_MAX_N = 300_000
-#: Sizes up to which the P-matrix property is decided exactly (all 2^n principal minors).
-EXACT_P_MAX_N = 10
+# ---------------------------------------------------------------------------- class report
+@dataclass
+class ClassReport:
+    """What is known about ``problem.M`` (``lcpcli info`` prints it; ``auto`` plans on it).
 
-
-def _sym_part_any(M):  # type: ignore[no-untyped-def]
-    return (M + M.T) * 0.5
-
-
-#: Fill of the last sparse factorisation in :func:`definiteness` (nnz(L + U) / nnz(S)).
-_LAST_FILL: list[float] = []
-
-
-def _sparse_definite(S, shift: float) -> bool | None:  # type: ignore[no-untyped-def]
-    """Is the symmetric sparse ``S + shift I`` positive definite?  (LU without pivoting in a
-    symmetric fill-reducing order: all pivots positive iff PD.)  None if the test failed.
-    The fill ratio of the factorisation is recorded (it predicts the cost of sparse LU in the
-    Newton and interior-point methods)."""
-    import warnings
-
-    import scipy.sparse as sp
-    import scipy.sparse.linalg as spla
-
-    n = S.shape[0]
-    K = (S + shift * sp.identity(n, format="csr")).tocsc()
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            lu = spla.splu(K, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
-                           options={"SymmetricMode": True})
-    except RuntimeError:  # exactly singular pivot
-        return False
-    except MemoryError:
-        return None
-    _LAST_FILL.append((lu.L.nnz + lu.U.nnz) / max(K.nnz, 1))
-    if not np.array_equal(lu.perm_r, lu.perm_c):
-        return None
-    d = lu.U.diagonal()
-    return bool(np.all(d > 0))
-
-
-def definiteness(M) -> tuple[str | None, float | None, str]:  # type: ignore[no-untyped-def]
-    """``("pd" | "psd" | "indefinite" | None, min eigenvalue or None, how)`` of the symmetric part.
-
-    Dense n <= EIG_MAX_N: eigenvalues; larger: Cholesky of ``S`` and of ``S + delta I`` with
-    ``delta = 1e-10 sqrt(n) ||S||`` (numerically PSD); sparse: the same with sparse LU.
-    ``None`` when the problem is too large to test.
+    ``None`` means "not tested" (or, for ``p_matrix`` and the O(n^3) tests after testing,
+    "undecided": ``p_matrix_reason`` / ``definiteness_test`` say which).  The boolean fields
+    are the *properties* a method's guarantee may name (:data:`PROPERTIES`).
     """
-    n = M.shape[0]
-    if n == 0:
-        return "pd", None, "empty"
-    if hasattr(M, "tocsr"):
-        if n > SPARSE_TEST_MAX_N:
-            return None, None, f"not tested (n > {SPARSE_TEST_MAX_N})"
-        S = _sym_part_any(M.tocsr()).tocsr()
-        norm = float(abs(S).sum(axis=1).max()) if S.nnz else 0.0
-        if norm == 0:
-            return "psd", 0.0, "zero matrix"
-        delta = 1e-10 * np.sqrt(n) * norm
-        pd = _sparse_definite(S, -delta)
-        if pd:
-            return "pd", None, "sparse LDL^T-type factorisation of S - delta I"
-        psd = _sparse_definite(S, delta)
-        if psd is None or pd is None:
-            return None, None, "sparse factorisation needed pivoting (inconclusive)"
-        return ("psd" if psd else "indefinite"), None, "sparse factorisation of S + delta I"
-    if n <= EIG_MAX_N:
-        lo, big = min_eig_sym(M)
-        margin = 1e-10 * max(big, 1e-300) * max(1, n) ** 0.5
-        kind = "pd" if lo > margin else ("psd" if lo >= -margin else "indefinite")
-        return kind, lo, "eigenvalues of (M + M^T)/2"
-    if n > DENSE_TEST_MAX_N:
-        return None, None, f"not tested (n > {DENSE_TEST_MAX_N})"
-    import scipy.linalg as sla
 
-    S = symmetric_part(M)
-    norm = float(np.max(np.sum(np.abs(S), axis=1)))
-    if norm == 0:
-        return "psd", 0.0, "zero matrix"
-    delta = 1e-10 * np.sqrt(n) * norm
-    for shift, kind in ((-delta, "pd"), (delta, "psd")):
-        K = S.copy()
-        K[np.diag_indices(n)] += shift
-        try:
-            sla.cholesky(K, check_finite=False)
-            return kind, None, "Cholesky of (M + M^T)/2 -/+ delta I"
-        except np.linalg.LinAlgError:
-            continue
-    return "indefinite", None, "Cholesky of (M + M^T)/2 + delta I failed"
+    kind: str
+    n: int
+    n_eq: int
+    sparse: bool
+    # counts (O(n^2) dense)
+    nnz: int | None = None
+    density: float | None = None
+    q_nonnegative: bool | None = None
+    # O(n) tests
+    diagonal_min: float | None = None
+    zero_diagonal: int | None = None
+    positive_diagonal: bool | None = None
+    # O(n^2) tests (O(nnz) sparse)
+    symmetric: bool | None = None
+    nonnegative: bool | None = None
+    z_matrix: bool | None = None
+    diagonally_dominant: bool | None = None
+    # O(n^3) tests (sparse: sparse LU)
+    definiteness: str | None = None
+    definiteness_test: str = "not tested"
+    factor_fill: float | None = None
+    h_matrix: bool | None = None
+    p_matrix: bool | None = None
+    p_matrix_reason: str = "not tested"
+
+    @property
+    def pd(self) -> bool | None:
+        """Symmetric part positive definite (None: not tested)."""
+        return None if self.definiteness is None else self.definiteness == PD
+
+    @property
+    def psd(self) -> bool | None:
+        """Symmetric part positive semidefinite, i.e. M monotone / copositive-plus."""
+        return None if self.definiteness is None else self.definiteness in (PD, PSD)
+
+    @property
+    def copositive_plus(self) -> bool | None:
+        """True when PSD (a sufficient test); None otherwise (copositivity is not tested)."""
+        return True if self.psd else None
+
+    def as_dict(self) -> dict[str, Any]:
+        """JSON-safe dict (non-finite floats as None) with the derived ``pd``/``psd`` too."""
+        out: dict[str, Any] = {}
+        for f in fields(self):
+            v = getattr(self, f.name)
+            out[f.name] = None if isinstance(v, float) and not np.isfinite(v) else v
+        out["pd"], out["psd"], out["copositive_plus"] = self.pd, self.psd, self.copositive_plus
+        out["h_matrix_positive_diagonal"] = out.pop("h_matrix")
+        return out
+
+    def describe(self) -> str:
+        """A short phrase naming what is known, e.g. ``dense, n=4, non-symmetric, 4 zero
+        diagonal entries``."""
+        parts = ["sparse" if self.sparse else "dense", f"n={self.n}"]
+        if self.symmetric is not None:
+            parts.append("symmetric" if self.symmetric else "non-symmetric")
+        if self.definiteness is not None:
+            parts.append({PD: "PD", PSD: "PSD", INDEFINITE: "indefinite"}[self.definiteness])
+        if self.p_matrix:
+            parts.append("P-matrix")
+        elif self.h_matrix:
+            parts.append("H-matrix")
+        if self.z_matrix:
+            parts.append("Z-matrix")
+        if self.zero_diagonal:
+            parts.append(f"{self.zero_diagonal} zero diagonal entries")
+        return ", ".join(parts)
 
 
-def h_matrix_positive_diagonal(M) -> bool | None:  # type: ignore[no-untyped-def]
-    """Is M an H-matrix with positive diagonal (a sufficient test for a P-matrix)?
+#: The boolean properties a condition may name, with a label for tables and messages.
+PROPERTIES: dict[str, str] = {
+    "sparse": "sparse",
+    "symmetric": "symmetric",
+    "positive_diagonal": "positive diagonal",
+    "nonnegative": "nonnegative",
+    "z_matrix": "Z-matrix",
+    "diagonally_dominant": "strictly diagonally dominant",
+    "pd": "PD",
+    "psd": "PSD",
+    "h_matrix": "H-matrix with positive diagonal",
+    "p_matrix": "P-matrix",
+}
 
-    The comparison matrix ``C`` (``|m_ii|`` on the diagonal, ``-|m_ij|`` off it) is a Z-matrix;
-    it is a nonsingular M-matrix iff some ``x > 0`` has ``C x > 0``; ``x = C^{-1} e`` is tried.
-    None when too large to test.
+#: The properties decided by O(n) or O(n^2) tests (O(nnz) for a sparse M).
+CHEAP = frozenset({"sparse", "symmetric", "positive_diagonal", "nonnegative", "z_matrix",
+                   "diagonally_dominant"})
+
+
+class Classifier:
+    """Fills a :class:`ClassReport` of ``problem.M`` test by test, each at most once.
+
+    :meth:`known` answers from what has been computed plus the O(n) diagonal test (and what
+    it implies: a non-positive diagonal entry refutes P, H and PD); :meth:`cheap` also runs
+    the O(n^2) test of a property that has one; :meth:`get` runs the tests a property needs;
+    :meth:`complete` runs them all.
     """
-    n = M.shape[0]
-    d = np.asarray(M.diagonal()).ravel()
-    if n == 0:
-        return True
-    if np.any(d <= 0):
-        return False
-    if hasattr(M, "tocsr"):
-        if n > SPARSE_TEST_MAX_N:
-            return None
-        import warnings
 
-        import scipy.sparse as sp
-        import scipy.sparse.linalg as spla
+    def __init__(self, problem: Any) -> None:
+        self.problem = problem
+        self.report = ClassReport(kind=problem.kind, n=problem.n, n_eq=problem.n_eq,
+                                  sparse=problem.sparse)
+        self._done: set[str] = set()
 
-        A = abs(M.tocsr())
-        C = (sp.diags(2 * d) - A).tocsc()
-        try:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")
-                x = spla.splu(C).solve(np.ones(n))
-        except RuntimeError:
-            return False
-        Cx = C @ x
-    else:
-        if n > DENSE_TEST_MAX_N:
-            return None
-        A = np.abs(M)
-        # strictly diagonally dominant rows: the common case, no solve needed
-        if np.all(2 * d > A.sum(axis=1)):
-            return True
-        C = -A
-        C[np.diag_indices(n)] = d
-        try:
-            x = np.linalg.solve(C, np.ones(n))
-        except np.linalg.LinAlgError:
-            return False
-        Cx = C @ x
-    return bool(np.all(np.isfinite(x)) and np.all(x > 0) and np.all(Cx > 1e-12))
-
-
-def is_p_matrix_exact(M: np.ndarray) -> bool:
-    """All 2^n - 1 principal minors positive (only for n <= EXACT_P_MAX_N)."""
-    import itertools
-
-    n = M.shape[0]
-    scale = max(float(np.max(np.abs(M))), 1e-300) if M.size else 1.0
-    for k in range(1, n + 1):
-        for idx in itertools.combinations(range(n), k):
-            if np.linalg.det(M[np.ix_(idx, idx)]) <= 1e-12 * scale**k:
-                return False
-    return True
-
-
-def classify(problem, thorough: bool = True) -> dict:  # type: ignore[no-untyped-def]
-    """A cheap class report of ``problem.M`` (keys documented in docs/methods.md).
-
-    Every test is a sufficient one unless said otherwise; ``None`` means "not tested"
-    (too large, or with ``thorough=False`` not needed: the H-matrix test is skipped when M is
-    already known PD) and ``p_matrix_reason`` / ``definiteness_test`` say how each was decided.
-    """
-    M = problem.M
-    n = problem.n
-    sparse = problem.sparse
-    d = np.asarray(M.diagonal(), dtype=float).ravel()
-    out: dict = {
-        "kind": problem.kind,
-        "n": n,
-        "n_eq": problem.n_eq,
-        "sparse": sparse,
-        "nnz": int(M.nnz) if sparse else int(np.count_nonzero(M)),
+    #: The test (method name) that decides each property, in the order :meth:`complete` runs.
+    _TESTS = {
+        "nnz": "_counts", "positive_diagonal": "_diagonal", "symmetric": "_symmetry",
+        "nonnegative": "_signs", "z_matrix": "_signs", "diagonally_dominant": "_signs",
+        "pd": "_definiteness", "psd": "_definiteness", "h_matrix": "_h_matrix",
+        "p_matrix": "_p_matrix",
     }
-    out["density"] = out["nnz"] / max(n * n, 1)
-    out["q_nonnegative"] = bool(n == 0 or np.min(problem.q) >= 0)
-    out["symmetric"] = is_symmetric(M)
-    out["diagonal_min"] = float(np.min(d)) if n else 0.0
-    out["zero_diagonal"] = int(np.sum(d == 0))
-    out["positive_diagonal"] = bool(n == 0 or np.min(d) > 0)
-    if sparse:
-        off = M.tocoo()
-        mask = off.row != off.col
-        offvals = off.data[mask]
-        absrow = np.asarray(abs(M).sum(axis=1)).ravel()
-        out["nonnegative"] = bool(np.all(off.data >= 0))
-    else:
-        offvals = M[~np.eye(n, dtype=bool)]
-        absrow = np.sum(np.abs(M), axis=1)
-        out["nonnegative"] = bool(np.all(M >= 0))
-    out["z_matrix"] = bool(np.all(offvals <= 0))
-    out["diagonally_dominant"] = bool(n == 0 or (out["positive_diagonal"]
-                                                 and np.all(2 * d > absrow)))
-    _LAST_FILL.clear()
-    kind, lam, how = definiteness(M)
-    out["factor_fill"] = float(_LAST_FILL[-1]) if (sparse and _LAST_FILL) else None
-    if out["diagonally_dominant"]:
-        out["h_matrix_positive_diagonal"] = True
-    elif not out["positive_diagonal"]:
-        out["h_matrix_positive_diagonal"] = False
-    elif not thorough and kind == "pd":
-        out["h_matrix_positive_diagonal"] = None
-    else:
-        out["h_matrix_positive_diagonal"] = h_matrix_positive_diagonal(M)
-    out["definiteness"] = kind
-    out["min_eig_sym"] = lam
-    out["definiteness_test"] = how
-    out["psd"] = None if kind is None else kind in ("pd", "psd")
-    out["pd"] = None if kind is None else kind == "pd"
-    # P-matrix: sufficient tests first, exact test for tiny n, necessary test (diagonal > 0)
-    if kind == "pd":
-        p, why = True, "positive definite (symmetric part PD)"
-    elif out["h_matrix_positive_diagonal"]:
-        p, why = True, ("strictly diagonally dominant with positive diagonal"
-                        if out["diagonally_dominant"] else "H-matrix with positive diagonal")
-    elif not out["positive_diagonal"]:
-        p, why = False, "a diagonal entry (a 1 x 1 principal minor) is <= 0"
-    elif n <= EXACT_P_MAX_N and (thorough or not out["psd"]):
-        p = is_p_matrix_exact(problem.dense_M())
-        why = "all principal minors checked" + ("" if p else ": one is <= 0")
-    else:
-        p, why = None, "unknown (no sufficient test applies)"
-    out["p_matrix"] = p
-    out["p_matrix_reason"] = why
-    out["copositive_plus"] = True if out["psd"] else None
-    return out
+
+    # -- tests (each fills its fields of the report)
+    def _counts(self) -> None:
+        r, M, n = self.report, self.problem.M, self.report.n
+        r.nnz = int(M.nnz) if r.sparse else int(np.count_nonzero(M))
+        r.density = r.nnz / max(n * n, 1)
+        r.q_nonnegative = bool(n == 0 or np.min(self.problem.q) >= 0)
+
+    def _diagonal(self) -> None:
+        r = self.report
+        M = self.problem.M
+        d = diagonal(M) if r.sparse else M.diagonal()
+        r.diagonal_min = float(d.min()) if d.size else None
+        r.positive_diagonal = d.size == 0 or r.diagonal_min > 0
+        r.zero_diagonal = 0 if r.positive_diagonal else int(np.count_nonzero(d == 0))
+        if not r.positive_diagonal:  # a 1 x 1 principal minor (of M and of S) is <= 0
+            r.h_matrix = False
+            r.p_matrix, r.p_matrix_reason = False, ("a diagonal entry (a 1 x 1 principal "
+                                                    "minor) is <= 0")
+            if np.any(d < 0):
+                r.definiteness = INDEFINITE
+                r.definiteness_test = "(M + M^T)/2 has a negative diagonal entry"
+            elif self._zero_diagonal_row_nonzero(d == 0):
+                r.definiteness = INDEFINITE
+                r.definiteness_test = ("(M + M^T)/2 has a zero diagonal entry with a nonzero "
+                                       "entry in its row")
+
+    def _zero_diagonal_row_nonzero(self, zero: np.ndarray) -> bool:
+        """Does a zero diagonal entry of S = (M + M^T)/2 have a nonzero in its row?  (Then S
+        is indefinite; O(n) per zero entry.)"""
+        idx = np.flatnonzero(zero)
+        M = self.problem.M
+        if self.problem.sparse:
+            M = M.tocsr()
+            rows = (M[idx] + M.T.tocsr()[idx]).toarray()
+        else:
+            rows = M[idx] + M[:, idx].T
+        return bool(np.any(rows != 0))
+
+    def _symmetry(self) -> None:
+        self.report.symmetric = is_symmetric(self.problem.M)
+
+    def _signs(self) -> None:
+        r = self.report
+        M = self.problem.M
+        A = normalised(M)  # sums of |m_ij| cannot overflow
+        if self.problem.sparse:
+            off = M.tocoo()
+            offvals = off.data[off.row != off.col]
+            r.nonnegative = bool(np.all(off.data >= 0))
+            absrow = np.asarray(abs(A).sum(axis=1)).ravel()
+        else:
+            offvals = M[~np.eye(M.shape[0], dtype=bool)]
+            r.nonnegative = bool(np.all(M >= 0))
+            absrow = np.sum(np.abs(A), axis=1)
+        r.z_matrix = bool(np.all(offvals <= 0))
+        d = diagonal(A)
+        r.diagonally_dominant = bool(d.size == 0 or (np.all(d > 0) and np.all(2 * d > absrow)))
+        if r.diagonally_dominant:  # strict row dominance with a positive diagonal
+            r.h_matrix = True
+            r.p_matrix, r.p_matrix_reason = True, ("strictly diagonally dominant with "
+                                                   "positive diagonal")
+
+    def _definiteness(self) -> None:
+        r = self.report
+        if r.definiteness is not None:
+            return
+        res = definiteness(self.problem.M)
+        r.definiteness, r.definiteness_test, r.factor_fill = res.kind, res.how, res.factor_fill
+
+    def _h_matrix(self) -> None:
+        r = self.report
+        self.run("positive_diagonal")
+        if r.h_matrix is None:
+            self.run("diagonally_dominant")
+        if r.h_matrix is None:
+            r.h_matrix = h_matrix_positive_diagonal(self.problem.M)
+
+    def _p_matrix(self) -> None:
+        r = self.report
+        self.run("positive_diagonal")
+        if r.p_matrix is None:
+            self.run("diagonally_dominant")
+        if r.p_matrix is None:
+            self.run("pd")  # PD => P, and the definiteness is wanted by other tests anyway
+            self.run("h_matrix")
+            self.run("symmetric")
+            r.p_matrix, r.p_matrix_reason = p_matrix(self.problem.M, pd=r.pd,
+                                                     h_matrix=r.h_matrix, symmetric=r.symmetric)
+
+    # -- queries
+    def run(self, prop: str) -> None:
+        """Run the test that decides ``prop`` (once)."""
+        name = self._TESTS[prop]
+        if name not in self._done:
+            self._done.add(name)
+            getattr(self, name)()
+
+    def known(self, prop: str) -> bool | None:
+        """``prop`` from the tests already run (after the O(n) diagonal test); None if open."""
+        if prop == "sparse":
+            return self.report.sparse
+        self.run("positive_diagonal")
+        return getattr(self.report, prop)
+
+    def cheap(self, prop: str) -> bool | None:
+        """``prop`` if its test is O(n^2) or cheaper (run if needed), else :meth:`known`."""
+        value = getattr(self.report, prop)
+        if value is not None:
+            return value
+        if prop in CHEAP:
+            return self.get(prop)
+        return self.known(prop)
+
+    def get(self, prop: str) -> bool | None:
+        """``prop``, running its test if needed; None only when the test cannot decide."""
+        if prop == "sparse":
+            return self.report.sparse
+        value = self.known(prop)
+        if value is None:
+            self.run(prop)
+            value = getattr(self.report, prop)
+        return value
+
+    def complete(self) -> ClassReport:
+        """Run every test; return the report."""
+        for prop in self._TESTS:
+            self.run(prop)
+        return self.report
+
+
+def classify(problem: Any) -> ClassReport:
+    """The complete class report of ``problem.M`` (every test run)."""
+    return Classifier(problem).complete()

@@ -239,7 +239,7 @@ def singular_cone_lp(M: np.ndarray, q: np.ndarray, code: int,
                      seed: int = 0) -> tuple[np.ndarray | None, bool]:
     """For a singular cone: a point ``y >= 0`` with ``A_r y = q`` (or None) and whether the
     polyhedron of such points is more than one point (a continuum of LCP solutions)."""
-    from scipy.optimize import linprog
+    from scipy.optimize import linprog  # scipy is imported on first use (start-up budget)
 
     n = q.shape[0]
     A = complementary_matrix(M, code)

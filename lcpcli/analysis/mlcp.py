@@ -26,6 +26,7 @@ All answers are certified on the ORIGINAL problem by :func:`lcpcli.core.certific
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 from typing import Any
 
@@ -60,7 +61,7 @@ def split(problem: Any) -> Blocks:
 
 def condition_estimate(lu_piv: tuple[np.ndarray, np.ndarray], anorm: float) -> float:
     """1-norm condition estimate of a matrix from its LU factors (LAPACK ``dgecon``)."""
-    from scipy.linalg.lapack import dgecon
+    from scipy.linalg.lapack import dgecon  # scipy is imported on first use (start-up budget)
 
     lu = lu_piv[0]
     if lu.size == 0:
@@ -96,7 +97,7 @@ class Factor:
     cond: float
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
-        from scipy.linalg import lu_solve
+        from scipy.linalg import lu_solve  # scipy is imported on first use (start-up budget)
 
         rhs = np.asarray(rhs, dtype=np.float64)
         if rhs.ndim == 1:
@@ -112,9 +113,7 @@ def factor(K: np.ndarray) -> Factor:
     depends on): badly scaled but otherwise sound blocks (Siconos' Buck converter: rows of
     size 1e4 and 7e-5) are not refused.  ``cond`` is inf when a pivot is exactly zero.
     """
-    import warnings
-
-    from scipy.linalg import lu_factor
+    from scipy.linalg import lu_factor  # scipy is imported on first use (start-up budget)
 
     r, c = equilibrate(K)
     Ks = K * r[:, None] * c[None, :]

@@ -34,6 +34,7 @@ tuples are not a basis and raises :class:`~lcpcli.core.errors.ProblemError`.
 from __future__ import annotations
 
 import re
+import warnings
 from dataclasses import dataclass
 from typing import Any
 
@@ -200,11 +201,10 @@ class _Factor:
         self.m = A.shape[0]
         if self.m == 0:
             return
-        import scipy.linalg as sla
+        import scipy.linalg as sla  # scipy is imported on first use (start-up budget)
 
         if not np.all(np.isfinite(A)):
             raise ProblemError("M^{alpha beta} contains NaN or Inf")
-        import warnings
 
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
@@ -222,14 +222,14 @@ class _Factor:
     def solve(self, b: np.ndarray) -> np.ndarray:
         if self.m == 0:
             return np.zeros(0)
-        import scipy.linalg as sla
+        import scipy.linalg as sla  # scipy is imported on first use (start-up budget)
 
         return sla.lu_solve(self.lu, b, check_finite=False)
 
 
 def _rcond(lu: Any, A: np.ndarray) -> float:
     """Reciprocal 1-norm condition estimate of a factorised block (LAPACK gecon)."""
-    from scipy.linalg import lapack
+    from scipy.linalg import lapack  # scipy is imported on first use (start-up budget)
 
     anorm = float(np.max(np.sum(np.abs(A), axis=0)))
     if anorm == 0:
@@ -324,57 +324,3 @@ def augment(M: np.ndarray, covering: np.ndarray | None = None) -> np.ndarray:
     if not np.all(np.isfinite(d)):
         raise ProblemError("covering vector contains NaN or Inf")
     return np.column_stack([M, d])
-
-
-def load_augmented(path: str, covering: str | None = None,
-                   problem: str | None = None) -> tuple[np.ndarray, np.ndarray, str]:
-    """Read ``q`` and the ``n x (n+1)`` matrix ``[M, d]`` of a problem file.
-
-    JSON and NPZ files may store ``M`` with ``n + 1`` columns (the artificial column last,
-    as in seed 000); otherwise the file holds an ordinary LCP and ``covering`` (text such as
-    ``"1,2,1"``; default all ones) supplies the artificial column.  Returns ``(Maug, q, where)``
-    with ``where`` saying where the artificial column came from.
-    """
-    import json
-    from pathlib import Path
-
-    from lcpcli.io import detect_format, load
-
-    kind = detect_format(path)
-    raw_M: Any = None
-    raw_q: Any = None
-    try:
-        if kind == "json" and str(path) != "-" and Path(path).is_file():
-            data = json.loads(Path(path).read_text(encoding="utf-8"))
-            if isinstance(data, dict) and isinstance(data.get("M"), list):
-                raw_M, raw_q = data["M"], data.get("q")
-        elif kind == "npz" and Path(path).is_file():
-            with np.load(path, allow_pickle=False) as npz:
-                if "M" in npz.files and "q" in npz.files:
-                    raw_M, raw_q = npz["M"], npz["q"]
-    except (ValueError, OSError, UnicodeDecodeError):
-        raw_M = None  # let the regular reader produce the proper message
-    if raw_M is not None and raw_q is not None:
-        try:
-            A = np.asarray(raw_M, dtype=np.float64)
-            qv = np.asarray(raw_q, dtype=np.float64).ravel()
-        except (TypeError, ValueError):
-            A, qv = None, None
-        if A is not None and A.ndim == 2 and A.shape == (qv.shape[0], qv.shape[0] + 1):
-            if covering is not None:
-                raise ProblemError("M already has n + 1 columns (the artificial column); "
-                                   "drop --covering", str(path))
-            if not (np.all(np.isfinite(A)) and np.all(np.isfinite(qv))):
-                raise ProblemError("M or q contains NaN or Inf", str(path))
-            return np.ascontiguousarray(A), qv, "file (last column of M)"
-    prob = load(path, problem)
-    d = None
-    if covering is not None:
-        try:
-            d = np.array([float(x) for x in str(covering).replace(",", " ").split()])
-        except ValueError:
-            raise ProblemError(f"--covering must be numbers, got {covering!r}") from None
-        if d.size == 0:
-            raise ProblemError("--covering is empty")
-    Maug = augment(prob.dense_M(), d)
-    return Maug, prob.q.copy(), "--covering" if covering is not None else "all ones (default)"

@@ -16,12 +16,13 @@ def info(
     as_json: bool = typer.Option(False, "--json",
                                  help="Print one JSON object on stdout and nothing else."),
 ) -> int:
-    """Classify M (symmetric? PSD/PD? Z? P-matrix by a sufficient test? sparse? size?) and list
-    each solver method with whether it applies and why, and the order 'auto' would try.
+    """Classify M (symmetric? PD/PSD? Z? H? P-matrix? sparse? size?), every test run, and
+    list each solver method with whether it applies and why, and the order 'auto' would try
+    once its first, optimistic attempt has failed.
     Exit codes: 0 done; 2 bad usage or bad input; 3 internal error.
     """
     from lcpcli.io import load
-    from lcpcli.solvers.methods.auto import info_report
+    from lcpcli.solvers.policy import info_report
 
     prob = load(file, problem)
     report = info_report(prob, file)

@@ -10,7 +10,11 @@ from lcpcli.core.errors import EXIT_OK
 def methods_command(
     as_json: bool = typer.Option(False, "--json", help="Machine-readable list on stdout."),
 ) -> int:
-    """List the solver methods, the matrix classes they handle and their options."""
+    """List the solver methods, the matrix classes they handle and their options.
+
+    With --json: one list of objects with the declared policy data too (guarantees: the
+    properties of the class report that must hold and the claim; needs; max_n; cost; fallback).
+    """
     from lcpcli.solvers.registry import methods
 
     registry = methods()
@@ -20,7 +24,13 @@ def methods_command(
         write_json_line([{"name": m.name, "aliases": list(m.aliases), "summary": m.summary,
                           "classes": m.matrix_classes, "kinds": list(m.kinds),
                           "default_tol": m.default_tol,
-                          "options": {k: o.help for k, o in m.options.items()}}
+                          "options": {k: o.help for k, o in m.options.items()},
+                          "guarantees": [{"when": list(g.when.props), "claim": g.claim,
+                                          "kinds": list(g.kinds or m.kinds), "slow": g.slow}
+                                         for g in m.guarantees],
+                          "needs": [{"when": list(r.when.props), "why": r.why}
+                                    for r in m.needs],
+                          "max_n": m.max_n, "cost": m.cost.value, "fallback": m.fallback}
                          for m in registry.values()])
         return EXIT_OK
     from lcpcli.cli.common import stdout_console

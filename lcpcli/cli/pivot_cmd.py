@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import typer
 
 from lcpcli.core.errors import EXIT_OK
@@ -34,7 +36,7 @@ def pivot(
     Variable names are 1-based: w1..wn, z1..z{n+1}; z0 is an alias of the artificial z{n+1}.
     Exit codes: 0 done; 2 bad input (bad basis, singular M^{alpha beta}, bad file).
     """
-    from lcpcli.analysis.pivoting import load_augmented, parse_tuple, parse_var, principal_pivot
+    from lcpcli.analysis.pivoting import parse_tuple, parse_var, principal_pivot
 
     Maug, q, source = load_augmented(file, covering, problem)
     n = q.shape[0]
@@ -55,6 +57,64 @@ def pivot(
 
         stdout_console().print(render_pivot(t, Maug, q, source))
     return EXIT_OK
+
+
+def load_augmented(path: str, covering: str | None = None,
+                   problem: str | None = None) -> tuple[Any, Any, str]:
+    """Read ``q`` and the ``n x (n+1)`` matrix ``[M, d]`` of a problem file.
+
+    JSON and NPZ files may store ``M`` with ``n + 1`` columns (the artificial column last,
+    as in seed 000); otherwise the file holds an ordinary LCP and ``covering`` (text such as
+    ``"1,2,1"``; default all ones) supplies the artificial column.  Returns ``(Maug, q, where)``
+    with ``where`` saying where the artificial column came from.
+    """
+    import json  # file reading happens in the command body (start-up budget)
+    from pathlib import Path
+
+    import numpy as np
+
+    from lcpcli.analysis.pivoting import augment
+    from lcpcli.core.errors import ProblemError
+    from lcpcli.io import detect_format, load
+
+    kind = detect_format(path)
+    raw_M: Any = None
+    raw_q: Any = None
+    try:
+        if kind == "json" and str(path) != "-" and Path(path).is_file():
+            data = json.loads(Path(path).read_text(encoding="utf-8"))
+            if isinstance(data, dict) and isinstance(data.get("M"), list):
+                raw_M, raw_q = data["M"], data.get("q")
+        elif kind == "npz" and Path(path).is_file():
+            with np.load(path, allow_pickle=False) as npz:
+                if "M" in npz.files and "q" in npz.files:
+                    raw_M, raw_q = npz["M"], npz["q"]
+    except (ValueError, OSError, UnicodeDecodeError):
+        raw_M = None  # let the regular reader produce the proper message
+    if raw_M is not None and raw_q is not None:
+        try:
+            A = np.asarray(raw_M, dtype=np.float64)
+            qv = np.asarray(raw_q, dtype=np.float64).ravel()
+        except (TypeError, ValueError):
+            A, qv = None, None
+        if A is not None and A.ndim == 2 and A.shape == (qv.shape[0], qv.shape[0] + 1):
+            if covering is not None:
+                raise ProblemError("M already has n + 1 columns (the artificial column); "
+                                   "drop --covering", str(path))
+            if not (np.all(np.isfinite(A)) and np.all(np.isfinite(qv))):
+                raise ProblemError("M or q contains NaN or Inf", str(path))
+            return np.ascontiguousarray(A), qv, "file (last column of M)"
+    prob = load(path, problem)
+    d = None
+    if covering is not None:
+        try:
+            d = np.array([float(x) for x in str(covering).replace(",", " ").split()])
+        except ValueError:
+            raise ProblemError(f"--covering must be numbers, got {covering!r}") from None
+        if d.size == 0:
+            raise ProblemError("--covering is empty")
+    Maug = augment(prob.dense_M(), d)
+    return Maug, prob.q.copy(), "--covering" if covering is not None else "all ones (default)"
 
 
 def register(app: typer.Typer) -> None:

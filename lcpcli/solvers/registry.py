@@ -1,17 +1,23 @@
 """The solver registry: every method is one module of :mod:`lcpcli.solvers.methods`.
 
 A method module defines ``METHODS``, a list of :class:`Method` records; :func:`methods` and
-:func:`get_method` find them.  Adding a method = adding one module there; nothing else changes.
+:func:`get_method` find them.  Adding a method = adding one module there; nothing else changes:
+the record's declared data (:class:`Guarantee` per matrix class, :class:`Requirement` to start,
+``max_n``, :class:`Cost`, ``preference``, ``fallback``) is what ``auto``'s policy
+(:mod:`lcpcli.solvers.policy`), ``lcpcli info`` and the table of docs/methods.md are made of.
 """
 
 from __future__ import annotations
 
+import enum
 import importlib
 import pkgutil
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from types import MappingProxyType
 from typing import Any
 
+from lcpcli.analysis.classify import PROPERTIES
 from lcpcli.core.errors import OptionError
 
 #: A method that densifies M is refused on a sparse problem with more entries than this
@@ -31,17 +37,88 @@ class Option:
 
 
 @dataclass(frozen=True)
+class Condition:
+    """All of ``props`` hold (names of :data:`lcpcli.analysis.classify.PROPERTIES`, i.e.
+    boolean fields of the class report); the empty condition holds for any M."""
+
+    props: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        unknown = [p for p in self.props if p not in PROPERTIES]
+        if unknown:
+            raise ValueError(f"unknown matrix properties {unknown} (known: {list(PROPERTIES)})")
+
+    def evaluate(self, value: Callable[[str], bool | None]) -> bool | None:
+        """Three-valued AND of ``value(prop)``: False as soon as one is False, None if one is
+        undecided, else True."""
+        out: bool | None = True
+        for prop in self.props:
+            v = value(prop)
+            if v is False:
+                return False
+            if v is None:
+                out = None
+        return out
+
+    def __str__(self) -> str:
+        return ", ".join(PROPERTIES[p] for p in self.props) if self.props else "any M"
+
+
+def when(*props: str) -> Condition:
+    """``when("symmetric", "psd")``: the condition that M is symmetric and PSD."""
+    return Condition(tuple(props))
+
+
+@dataclass(frozen=True)
+class Guarantee:
+    """What a method achieves on the matrices satisfying ``when`` (e.g. ``when("p_matrix")``,
+    "finite, unique solution").  ``kinds`` limits it to some problem kinds (default: all the
+    method handles); ``slow`` marks a guarantee that holds but may take long (auto then tries
+    the method after the methods with a plain guarantee)."""
+
+    when: Condition
+    claim: str
+    kinds: tuple[str, ...] | None = None
+    slow: bool = False
+
+    def applies_to(self, kind: str) -> bool:
+        return self.kinds is None or kind in self.kinds
+
+
+@dataclass(frozen=True)
+class Requirement:
+    """A condition without which the method cannot start (``why`` says what goes wrong)."""
+
+    when: Condition
+    why: str
+
+
+class Cost(enum.Enum):
+    """How a method's work grows: the policy orders methods by cost class per regime."""
+
+    PIVOTING = "pivoting"      # finite pivoting on a dense matrix, O(n^2) per pivot
+    FACTORING = "factoring"    # a few (dense or sparse) factorisations
+    SWEEPING = "sweeping"      # many O(nnz) sweeps
+    EXHAUSTIVE = "exhaustive"  # exponential in n (never planned by auto)
+
+
+@dataclass(frozen=True)
 class Method:
     """A registered solver method.
 
     ``run(problem, tol=..., **options) -> Outcome`` does the work; the caller
-    (:func:`lcpcli.api.solve`) times it and certifies its answer.
+    (:func:`lcpcli.api.solve`) times it and certifies its answer.  The policy data:
+    ``guarantees`` (per matrix class), ``needs`` (what it cannot start without), ``max_n``
+    (the largest n it accepts), ``cost`` and ``preference`` (auto's order: lower first among
+    methods of the same cost), ``fallback`` (why auto may try it outside its guarantees;
+    None: never; ``fallback_preference`` orders that row) and ``auto_max_iter`` (the
+    iteration cap auto gives it when the user gave none, so that a fallback fails fast).
+    ``planner`` marks ``auto`` itself.
     """
 
     name: str
     run: Callable[..., Any]
     summary: str
-    matrix_classes: str
     kinds: tuple[str, ...] = ("lcp",)
     options: Mapping[str, Option] = field(default_factory=dict)
     default_tol: float = 1e-8
@@ -49,6 +126,30 @@ class Method:
     aliases: tuple[str, ...] = ()
     #: True when the method works on a scipy.sparse M without densifying it.
     sparse: bool = False
+    guarantees: tuple[Guarantee, ...] = ()
+    needs: tuple[Requirement, ...] = ()
+    max_n: int | None = None
+    cost: Cost = Cost.FACTORING
+    preference: int = 50
+    fallback: str | None = None
+    #: The preference of the fallback row (default: ``preference``).
+    fallback_preference: int | None = None
+    auto_max_iter: int | None = None
+    #: Prose beyond the guarantees (shown after them in ``lcpcli methods``).
+    notes: str = ""
+    planner: bool = False
+
+    @property
+    def matrix_classes(self) -> str:
+        """The guarantees, requirements and limits in words (``lcpcli methods``, ``--help``)."""
+        parts = [f"{g.when}: {g.claim}" + (f" ({'/'.join(k.upper() for k in g.kinds)})"
+                                            if g.kinds else "") for g in self.guarantees]
+        parts += [f"needs {r.when} ({r.why})" for r in self.needs]
+        if self.max_n is not None:
+            parts.append(f"n <= {self.max_n}")
+        if self.notes:
+            parts.append(self.notes)
+        return "; ".join(parts) or "no guarantee"
 
     def prepare_once(self) -> None:
         """Run the ``prepare`` hook (kernel compilation or loading) once per process."""
@@ -82,6 +183,13 @@ class Method:
 
 _REGISTRY: dict[str, Method] | None = None
 _ALIASES: dict[str, str] = {}
+_VERSION = [0]
+
+
+def version() -> tuple[int, int]:
+    """Changes whenever the registry does (loading, :func:`register`, a replaced registry):
+    a cache key for tables derived from it."""
+    return (id(_load()), _VERSION[0])
 
 
 def _load() -> dict[str, Method]:
@@ -103,9 +211,25 @@ def _load() -> dict[str, Method]:
     return _REGISTRY
 
 
-def methods() -> dict[str, Method]:
-    """All registered methods by name (sorted)."""
-    return dict(_load())
+def register(method: Method) -> None:
+    """Add ``method`` to the registry (e.g. from a plugin or a test); RuntimeError if its name
+    or an alias is taken."""
+    registry = _load()
+    taken = {method.name, *method.aliases} & (set(registry) | set(_ALIASES))
+    if taken:
+        raise RuntimeError(f"solver method name(s) {sorted(taken)} registered twice")
+    registry[method.name] = method
+    for alias in method.aliases:
+        _ALIASES[alias] = method.name
+    ordered = sorted(registry.items())
+    registry.clear()
+    registry.update(ordered)
+    _VERSION[0] += 1
+
+
+def methods() -> Mapping[str, Method]:
+    """All registered methods by name (sorted; a read-only view, no copy)."""
+    return MappingProxyType(_load())
 
 
 def resolve(name: str) -> str | None:

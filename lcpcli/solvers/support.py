@@ -8,6 +8,7 @@ certificate.
 
 from __future__ import annotations
 
+import warnings
 from typing import Any
 
 import numpy as np
@@ -75,7 +76,7 @@ def active_set_polish(problem: Any, z: np.ndarray, w: np.ndarray | None = None) 
     N = np.flatnonzero(~basic)
     M = problem.M
     if problem.sparse:
-        import scipy.sparse.linalg as spla
+        import scipy.sparse.linalg as spla  # scipy is imported on first use (start-up budget)
 
         Mc = M.tocsc()
         MBB = Mc[B][:, B].tocsc()
@@ -83,8 +84,6 @@ def active_set_polish(problem: Any, z: np.ndarray, w: np.ndarray | None = None) 
         if N.size:
             rhs = rhs - np.asarray(Mc[B][:, N] @ zc[N]).ravel()
         try:
-            import warnings
-
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
                 lu = spla.splu(MBB)
@@ -98,9 +97,7 @@ def active_set_polish(problem: Any, z: np.ndarray, w: np.ndarray | None = None) 
         if N.size:
             rhs = rhs - M[np.ix_(B, N)] @ zc[N]
         try:
-            import warnings
-
-            import scipy.linalg as sla
+            import scipy.linalg as sla  # scipy is imported on first use (start-up budget)
 
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")

@@ -15,7 +15,7 @@ FIELDS = [
     ("kind", "problem kind"), ("n", "n"), ("n_eq", "equality rows (MLCP)"),
     ("sparse", "sparse storage"), ("nnz", "nonzeros"), ("density", "density"),
     ("q_nonnegative", "q >= 0 (z = 0 solves)"), ("symmetric", "symmetric"),
-    ("definiteness", "definiteness of (M + M^T)/2"), ("min_eig_sym", "smallest eigenvalue"),
+    ("definiteness", "definiteness of (M + M^T)/2"),
     ("definiteness_test", "definiteness test"), ("factor_fill", "sparse LU fill ratio"),
     ("positive_diagonal", "positive diagonal"),
     ("zero_diagonal", "zero diagonal entries"), ("z_matrix", "Z-matrix (off-diagonal <= 0)"),
@@ -43,6 +43,7 @@ def render_info(report: dict[str, Any]) -> Group:
     head.add_column()
     head.add_row("file", str(report.get("file") or ""))
     head.add_row("problem", report["summary"])
+    head.add_row("regime", report["regime"])
     c = report["classification"]
     for key, label in FIELDS:
         if key in c and not (key == "n_eq" and not c[key]):
@@ -53,7 +54,13 @@ def render_info(report: dict[str, Any]) -> Group:
     for row in report["methods"]:
         table.add_row(row["method"], Text(row["applies"], style=APPLIES_STYLE[row["applies"]]),
                       row["why"], str(row["auto_rank"] or "-"))
+    first = report.get("auto_first")
     plan = report["auto_plan"]
     lines = [f"{i + 1}. {name}: {why}" for i, (name, why) in enumerate(plan)]
-    return Group(head, Text(""), table, Text(""),
-                 Text("auto would try: " + ("\n  " + "\n  ".join(lines) if lines else "nothing")))
+    parts = [head, Text(""), table, Text("")]
+    if first:
+        parts.append(Text(f"auto's first attempt (before the O(n^3) tests): {first[0]}: "
+                          f"{first[1]}"))
+    parts.append(Text("auto would try: " + ("\n  " + "\n  ".join(lines) if lines
+                                            else "nothing")))
+    return Group(*parts)

@@ -25,10 +25,11 @@ from typing import Any
 
 import numpy as np
 
+from lcpcli.analysis.mlcp import polish
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, NUMERICAL, RAY, Outcome
 from lcpcli.solvers.kernels.dantzig import MAX_ITER, OK, SINGULAR, dantzig_kernel
 from lcpcli.solvers.options import positive_int
-from lcpcli.solvers.registry import Method, Option
+from lcpcli.solvers.registry import Cost, Guarantee, Method, Option, when
 
 
 def processing_order(lo: np.ndarray, up: np.ndarray) -> np.ndarray:
@@ -39,7 +40,6 @@ def processing_order(lo: np.ndarray, up: np.ndarray) -> np.ndarray:
 
 def run(problem: Any, *, tol: float, max_iter: int | None = None) -> Outcome:
     """Solve an LCP or box LCP by principal pivoting; see the module docstring."""
-    from lcpcli.analysis.mlcp import polish
 
     n = problem.n
     M = np.ascontiguousarray(problem.dense_M(), dtype=np.float64)
@@ -75,8 +75,13 @@ METHODS = [
         run=run,
         summary="Cottle-Dantzig principal pivoting (ODE's dLCP): one index at a time, "
                 "clamped block inverse updated in O(k^2)",
-        matrix_classes="symmetric PSD (incl. PD) and P-matrices; box bounds, infinite sides, "
-                       "free variables",
+        guarantees=(
+            Guarantee(when("symmetric", "psd"), "finite principal pivoting"),
+            Guarantee(when("p_matrix"), "finite principal pivoting", kinds=("lcp",)),
+        ),
+        notes="box bounds, infinite sides and free variables handled",
+        cost=Cost.PIVOTING,
+        preference=30,
         kinds=("lcp", "box"),
         options={"max_iter": Option(positive_int, None, "pivot limit (default max(1000, 50 n))")},
     ),

@@ -17,9 +17,10 @@ from typing import Any
 
 import numpy as np
 
+from lcpcli.analysis.enumeration import basis_names, enumerate_cones
 from lcpcli.core.result import CONVERGED, INFEASIBLE, NUMERICAL, Outcome
 from lcpcli.solvers.options import bool_option
-from lcpcli.solvers.registry import Method, Option
+from lcpcli.solvers.registry import Cost, Guarantee, Method, Option, when
 
 
 def _max_n(value: Any) -> int:
@@ -29,10 +30,13 @@ def _max_n(value: Any) -> int:
     return v
 
 
-def run(problem: Any, *, tol: float, max_n: int = 24, all: bool = False) -> Outcome:  # noqa: A002
-    """Enumerate the cones of ``problem``; return the first solution (or all, counted)."""
-    from lcpcli.analysis.enumeration import basis_names, enumerate_cones
+#: Largest n enumerated unless the ``max_n`` option says otherwise.
+DEFAULT_MAX_N = 24
 
+
+def run(problem: Any, *, tol: float, max_n: int = DEFAULT_MAX_N,
+        all: bool = False) -> Outcome:  # noqa: A002
+    """Enumerate the cones of ``problem``; return the first solution (or all, counted)."""
     res = enumerate_cones(problem, stop_at_first=not all, max_n=max_n, tol=tol)
     n = res.n
     info = {"verdict": res.verdict, "cones_examined": res.examined, "cones_total": res.total,
@@ -66,10 +70,13 @@ METHODS = [
         name="enum",
         run=run,
         summary="Enumeration of the 2^n complementary cones (seed 004), exhaustive",
-        matrix_classes="any M (small n): finds a solution or proves there is none",
+        guarantees=(Guarantee(when(), "a solution, or the proof that none exists (2^n cones)"),),
+        max_n=DEFAULT_MAX_N,
+        cost=Cost.EXHAUSTIVE,
         kinds=("lcp",),
         options={
-            "max_n": Option(_max_n, 24, "refuse problems with more variables (default 24)"),
+            "max_n": Option(_max_n, DEFAULT_MAX_N,
+                            f"refuse problems with more variables (default {DEFAULT_MAX_N})"),
             "all": Option(bool_option, False, "visit every cone and count the distinct solutions"),
         },
         aliases=("enumerate", "enumeration"),

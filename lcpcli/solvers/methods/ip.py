@@ -28,9 +28,10 @@ from typing import Any
 import numpy as np
 
 from lcpcli.analysis.classify import is_symmetric
+from lcpcli.core.certificate import matrix_norm_inf
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, NUMERICAL, Outcome
 from lcpcli.solvers.options import positive_int
-from lcpcli.solvers.registry import Method, Option
+from lcpcli.solvers.registry import Cost, Guarantee, Method, Option, when
 from lcpcli.solvers.support import active_set_polish, scaled_error
 
 DEFAULT_MAX_ITER = 100
@@ -45,13 +46,13 @@ class _Factor:
 
     def __init__(self, M: Any, d: np.ndarray, sparse: bool, symmetric: bool) -> None:
         if sparse:
-            import scipy.sparse as sp
+            import scipy.sparse as sp  # scipy is imported on first use (start-up budget)
             import scipy.sparse.linalg as spla
 
             K = (M + sp.diags(d)).tocsc()
             self._solve = spla.splu(K).solve
             return
-        import scipy.linalg as sla
+        import scipy.linalg as sla  # scipy is imported on first use (start-up budget)
 
         K = M.copy()
         K[np.diag_indices_from(K)] += d
@@ -79,8 +80,6 @@ def _max_step(x: np.ndarray, dx: np.ndarray) -> float:
 
 def run(problem: Any, *, tol: float, max_iter: int | None = None) -> Outcome:
     """Mehrotra predictor-corrector on a monotone LCP; see the module docstring."""
-    from lcpcli.core.certificate import matrix_norm_inf
-
     n = problem.n
     q = problem.q
     if n == 0 or np.min(q) >= 0:
@@ -173,7 +172,12 @@ METHODS = [
         run=run,
         summary="primal-dual interior point, Mehrotra predictor-corrector, with active-set "
                 "rounding (dense or sparse)",
-        matrix_classes="monotone LCPs (M positive semidefinite, symmetric or not)",
+        guarantees=(Guarantee(when("psd"), "monotone LCP: converges when a solution exists"),),
+        cost=Cost.FACTORING,
+        preference=10,  # faster than newton on PSD problems (benchmarks/results/methods.json)
+        fallback="no guarantee outside monotone problems",
+        fallback_preference=40,  # after the Newton methods
+        auto_max_iter=DEFAULT_MAX_ITER,
         kinds=("lcp",),
         sparse=True,
         options={

@@ -22,10 +22,12 @@ from typing import Any
 
 import numpy as np
 
+from lcpcli.analysis.classify import farkas_certificate, is_psd
+from lcpcli.core.errors import OptionError
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, RAY, Outcome
 from lcpcli.solvers.kernels.lemke import MAX_ITER, OK, TRIVIAL, lemke_solve, polish_kernel
 from lcpcli.solvers.options import bool_option, positive_int, vector_option
-from lcpcli.solvers.registry import Method, Option
+from lcpcli.solvers.registry import Cost, Guarantee, Method, Option, when
 
 #: Relative pivot tolerance: entries below this fraction of the column's largest are not pivots.
 PIVOT_TOL = 1e-11
@@ -44,12 +46,8 @@ def covering_vector(n: int, covering: np.ndarray | None) -> np.ndarray | None:
     if d.size == 1:
         d = np.full(n, float(d[0]))
     if d.shape[0] != n:
-        from lcpcli.core.errors import OptionError
-
         raise OptionError(f"covering vector has length {d.shape[0]}, expected {n}")
     if not np.all(np.isfinite(d)) or np.any(d <= 0):
-        from lcpcli.core.errors import OptionError
-
         raise OptionError("covering vector must be finite and positive")
     return d
 
@@ -72,7 +70,7 @@ def run(problem: Any, *, tol: float, covering: np.ndarray | None = None,
     d = covering_vector(n, covering)
     limit = max_iter or default_max_iter(n)
     if trace:
-        from lcpcli.solvers.lemke_trace import lemke_traced
+        from lcpcli.solvers.lemke_trace import lemke_traced  # loads the numba kernels: lazy
 
         status, z, pivots, basic, ray_dz, _, z0, steps = lemke_traced(
             M, q, np.ones(n) if d is None else d, limit, PIVOT_TOL, TIE_TOL)
@@ -112,8 +110,6 @@ def polish(M: np.ndarray, q: np.ndarray, z: np.ndarray, basic: np.ndarray) -> np
 def ray_outcome(problem: Any, M: np.ndarray, q: np.ndarray, z: np.ndarray, pivots: int,
                 ray_dz: np.ndarray, z0: float) -> Outcome:
     """Classify a secondary-ray termination: proven infeasible, or merely unsolved."""
-    from lcpcli.analysis.classify import farkas_certificate, is_psd
-
     y = farkas_certificate(M, q, ray_dz)
     base = f"ray termination after {pivots} pivots (z0 = {z0:.3g})"
     if y is not None:
@@ -131,12 +127,20 @@ def ray_outcome(problem: Any, M: np.ndarray, q: np.ndarray, z: np.ndarray, pivot
                    f"(try another method)")
 
 
+#: Lemke's classes (both Lemke methods, and the inner LCP of the MLCP methods).
+GUARANTEES = (
+    Guarantee(when("p_matrix"), "finite: the unique solution"),
+    Guarantee(when("psd"), "copositive-plus: a solution, or a proof that none exists"),
+)
+
 METHODS = [
     Method(
         name="lemke-tableau",
         run=run,
         summary="Lemke's complementary pivoting, dense tableau, lexicographic anti-cycling",
-        matrix_classes="P-matrices; copositive-plus (incl. PSD): solution or proof of none",
+        guarantees=GUARANTEES,
+        cost=Cost.PIVOTING,
+        preference=20,  # after lemke-revised, which is faster (benchmarks/bench_lemke.py)
         kinds=("lcp",),
         options={
             "covering": Option(vector_option, None, "covering vector d > 0 (default all ones)"),

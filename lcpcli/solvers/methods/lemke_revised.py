@@ -25,14 +25,16 @@ import numpy as np
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, NUMERICAL, Outcome
 from lcpcli.solvers.kernels.lemke_revised import MAX_ITER, OK, SINGULAR, TRIVIAL, lemke_solve
 from lcpcli.solvers.methods.lemke import (
+    GUARANTEES,
     PIVOT_TOL,
     TIE_TOL,
     covering_vector,
     default_max_iter,
     ray_outcome,
 )
+from lcpcli.solvers.methods.lemke import run as run_tableau
 from lcpcli.solvers.options import bool_option, positive_int, vector_option
-from lcpcli.solvers.registry import Method, Option
+from lcpcli.solvers.registry import Cost, Method, Option
 
 
 def _refactor_every(value: Any) -> int:
@@ -56,8 +58,6 @@ def run(problem: Any, *, tol: float, covering: np.ndarray | None = None,
     same pivot rule, hence the same pivots on non-degenerate problems.
     """
     if trace:
-        from lcpcli.solvers.methods.lemke import run as run_tableau
-
         out = run_tableau(problem, tol=tol, covering=covering, max_iter=max_iter, trace=True)
         out.info["trace_engine"] = "tableau replica (same pivot rule)"
         return out
@@ -95,7 +95,10 @@ METHODS = [
         run=run,
         summary="Lemke's complementary pivoting, revised: seed 000 transform with an updated "
                 "inverse of M^(alpha beta), lexicographic anti-cycling",
-        matrix_classes="P-matrices; copositive-plus (incl. PSD): solution or proof of none",
+        guarantees=GUARANTEES,
+        cost=Cost.PIVOTING,
+        preference=10,
+        fallback="solves many problems outside its classes (a ray then proves nothing)",
         kinds=("lcp",),
         options={
             "covering": Option(vector_option, None, "covering vector d > 0 (default all ones)"),

@@ -24,6 +24,8 @@ from typing import Any
 
 import numpy as np
 
+from lcpcli.analysis.mlcp import choose_pivot_set, reduce
+from lcpcli.core.errors import ProblemError
 from lcpcli.core.result import NUMERICAL, Outcome
 from lcpcli.solvers.methods.mlcp_schur import (
     PROOF_COND_MAX,
@@ -31,15 +33,12 @@ from lcpcli.solvers.methods.mlcp_schur import (
     solve_reduced,
 )
 from lcpcli.solvers.options import positive_int
-from lcpcli.solvers.registry import Method, Option
+from lcpcli.solvers.registry import Cost, Guarantee, Method, Option, when
 
 
 def run(problem: Any, *, tol: float, cond_max: float = 1e12,
         max_iter: int | None = None) -> Outcome:
     """Solve an MLCP by block pivoting the free variables in, then Lemke; see the docstring."""
-    from lcpcli.analysis.mlcp import choose_pivot_set, reduce
-    from lcpcli.core.errors import ProblemError
-
     M = np.asarray(problem.dense_M(), dtype=np.float64)
     J, cond = choose_pivot_set(M, problem.n_eq, cond_max)
     if not np.isfinite(cond):
@@ -73,8 +72,12 @@ METHODS = [
         run=run,
         summary="MLCP: free variables block-pivoted into the basis (never leaving), then "
                 "lexicographic Lemke on the remaining pairs; handles singular A",
-        matrix_classes="MLCPs with an invertible principal block containing the free "
-                       "variables; transformed LCP P or copositive-plus (PSD)",
+        guarantees=(Guarantee(when("p_matrix"), "the pivoted LCP is P: finite"),),
+        notes="generally: an invertible principal block containing the free variables, "
+              "pivoted LCP P or copositive-plus (PSD)",
+        cost=Cost.PIVOTING,
+        preference=20,
+        fallback="pivots the free variables in, also when A is singular",
         kinds=("mlcp",),
         options={
             "cond_max": Option(_positive, 1e12, "largest accepted condition of the pivot block"),

@@ -19,9 +19,12 @@ from typing import Any
 
 import numpy as np
 
+from lcpcli.analysis.mlcp import polish, recover, schur
+from lcpcli.core.errors import OptionError, ProblemError
+from lcpcli.core.problem import Problem
 from lcpcli.core.result import CONVERGED, NUMERICAL, Outcome
 from lcpcli.solvers.options import positive_int
-from lcpcli.solvers.registry import Method, Option
+from lcpcli.solvers.registry import Cost, Guarantee, Method, Option, get_method, when
 
 #: Largest pivot-block condition under which an infeasibility proof on the reduced LCP is
 #: reported as a proof for the MLCP (above it, roundoff in the reduction could fake one).
@@ -38,14 +41,8 @@ def _positive(value: Any) -> float:
 def solve_reduced(problem: Any, red: Any, inner: str, tol: float,
                   max_iter: int | None) -> tuple[np.ndarray, Outcome]:
     """Run the inner LCP method on a reduction's LCP; return (full z, inner outcome)."""
-    from lcpcli.analysis.mlcp import polish, recover
-    from lcpcli.core.problem import Problem
-    from lcpcli.solvers.registry import get_method
-
     spec = get_method(inner)
     if "lcp" not in spec.kinds:
-        from lcpcli.core.errors import OptionError
-
         raise OptionError(f"inner method '{spec.name}' does not solve LCPs")
     sub = Problem.create(red.lcp_M, red.lcp_q, name=f"{problem.name}-reduced")
     opts: dict[str, Any] = {}
@@ -65,9 +62,6 @@ def solve_reduced(problem: Any, red: Any, inner: str, tol: float,
 def run(problem: Any, *, tol: float, inner: str = "lemke", cond_max: float = 1e12,
         max_iter: int | None = None) -> Outcome:
     """Solve an MLCP by Schur reduction; see the module docstring."""
-    from lcpcli.analysis.mlcp import schur
-    from lcpcli.core.errors import ProblemError
-
     try:
         red = schur(problem, cond_max)
     except ProblemError as exc:
@@ -93,8 +87,13 @@ METHODS = [
         run=run,
         summary="MLCP: eliminate the free variables by the Schur complement of A (LU), "
                 "solve the LCP left with an inner method, recover u",
-        matrix_classes="A invertible and well conditioned; Schur complement in the inner "
-                       "method's class (lemke: P or copositive-plus/PSD)",
+        guarantees=(Guarantee(when("p_matrix"), "A is nonsingular and the Schur complement "
+                                                "is P: finite with lemke"),),
+        notes="generally: A invertible and well conditioned, Schur complement in the inner "
+              "method's class (lemke: P or copositive-plus/PSD)",
+        cost=Cost.PIVOTING,
+        preference=10,
+        fallback="eliminates the free variables when A is well conditioned",
         kinds=("mlcp",),
         options={
             "inner": Option(str, "lemke", "inner LCP method for the Schur complement"),

@@ -28,7 +28,7 @@ from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, SINGULAR, Outcome
 from lcpcli.solvers.kernels.lemke import polish_kernel
 from lcpcli.solvers.kernels.murty import BAD_PIVOT, OK, murty_kernel
 from lcpcli.solvers.options import positive_int, vector_option
-from lcpcli.solvers.registry import Method, Option
+from lcpcli.solvers.registry import Cost, Guarantee, Method, Option, when
 from lcpcli.solvers.support import start_point
 
 #: Pivot tolerance, relative to the largest entry of the pivot row.
@@ -82,7 +82,11 @@ METHODS = [
         name="murty",
         run=run,
         summary="Murty's least-index principal pivoting (Bard-type), dense tableau",
-        matrix_classes="P-matrices (finite, unique solution); others: may stop unsolved",
+        guarantees=(Guarantee(when("p_matrix"), "finite (up to 2^n pivots): the unique "
+                                                "solution"),),
+        notes="others: may stop on a non-positive pivot",
+        cost=Cost.PIVOTING,
+        preference=40,
         kinds=("lcp",),
         options={
             "max_iter": Option(positive_int, None, "pivot limit (default max(1000, 100 n))"),

@@ -34,13 +34,15 @@ answer is certified by the shared certificate and is ``unsolved`` otherwise.
 
 from __future__ import annotations
 
+import warnings
 from typing import Any
 
 import numpy as np
 
+from lcpcli.core.certificate import matrix_norm_inf
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, NUMERICAL, Outcome
 from lcpcli.solvers.options import positive_int, vector_option
-from lcpcli.solvers.registry import Method, Option
+from lcpcli.solvers.registry import Cost, Guarantee, Method, Option, when
 from lcpcli.solvers.support import active_set_polish, scaled_error, start_point
 
 DEFAULT_MAX_ITER = 200
@@ -118,11 +120,9 @@ class _Residual:
 def _newton_direction(M: Any, sparse: bool, a: np.ndarray, b: np.ndarray,
                       phi: np.ndarray) -> np.ndarray | None:
     """Solve ``(diag(a) + diag(b) M) d = -phi``; None when the matrix is (numerically) singular."""
-    import warnings
-
     n = phi.shape[0]
     if sparse:
-        import scipy.sparse as sp
+        import scipy.sparse as sp  # scipy is imported on first use (start-up budget)
         import scipy.sparse.linalg as spla
 
         H = (sp.diags(b) @ M + sp.diags(a)).tocsc()
@@ -134,7 +134,7 @@ def _newton_direction(M: Any, sparse: bool, a: np.ndarray, b: np.ndarray,
         except RuntimeError:
             return None
     else:
-        import scipy.linalg as sla
+        import scipy.linalg as sla  # scipy is imported on first use (start-up budget)
 
         H = b[:, None] * M
         H[np.diag_indices(n)] += a
@@ -154,21 +154,19 @@ def _lm_direction(M: Any, sparse: bool, a: np.ndarray, b: np.ndarray, phi: np.nd
                   grad: np.ndarray, lam: float) -> np.ndarray | None:
     """Levenberg-Marquardt direction ``(H^T H + lam I) d = -H^T phi`` (singular H, e.g. a
     rank-deficient PSD M at a degenerate point); None if it fails."""
-    import warnings
-
     n = phi.shape[0]
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             if sparse:
-                import scipy.sparse as sp
+                import scipy.sparse as sp  # scipy is imported on first use (start-up budget)
                 import scipy.sparse.linalg as spla
 
                 H = (sp.diags(b) @ M + sp.diags(a)).tocsr()
                 K = (H.T @ H + lam * sp.identity(n)).tocsc()
                 d = spla.splu(K).solve(-grad)
             else:
-                import scipy.linalg as sla
+                import scipy.linalg as sla  # scipy is imported on first use (start-up budget)
 
                 H = b[:, None] * M
                 H[np.diag_indices(n)] += a
@@ -184,8 +182,6 @@ def _lm_direction(M: Any, sparse: bool, a: np.ndarray, b: np.ndarray, phi: np.nd
 def run_newton(problem: Any, *, tol: float, variant: str = "fb", max_iter: int | None = None,
                z0: np.ndarray | None = None) -> Outcome:
     """Semismooth Newton with Armijo line search; ``variant`` is ``"fb"`` or ``"min"``."""
-    from lcpcli.core.certificate import matrix_norm_inf
-
     name = "Newton-FB" if variant == "fb" else "Newton-min"
     n = problem.n
     M = problem.M
@@ -311,8 +307,15 @@ METHODS = [
         run=run_fb,
         summary="semismooth Newton on the Fischer-Burmeister function, Armijo line search "
                 "(dense LU or sparse LU)",
-        matrix_classes="P-matrices and monotone (PSD) problems (global, via the smooth merit); "
-                       "non-symmetric, zero diagonal, MLCP free rows and box bounds handled",
+        guarantees=(
+            Guarantee(when("p_matrix"), "globally convergent (FB merit): the unique solution"),
+            Guarantee(when("psd"), "monotone: globally convergent when a solution exists"),
+        ),
+        notes="non-symmetric, zero diagonal, MLCP free rows and box bounds handled",
+        cost=Cost.FACTORING,
+        preference=20,
+        fallback="semismooth Newton handles any square M (may stop at a stationary point)",
+        auto_max_iter=100,
         kinds=("lcp", "mlcp", "box"),
         sparse=True,
         options=dict(_OPTIONS),
@@ -322,8 +325,12 @@ METHODS = [
         name="newton-min",
         run=run_min,
         summary="semismooth Newton on the min / mid map (natural residual), Armijo line search",
-        matrix_classes="P-matrices near the solution (locally fast); not globally convergent: "
-                       "may stall on degenerate or singular problems",
+        notes="locally fast near a solution; not globally convergent: may stall on "
+              "degenerate or singular problems",
+        cost=Cost.FACTORING,
+        preference=30,
+        fallback="min-map Newton, locally fast",
+        auto_max_iter=50,
         kinds=("lcp", "mlcp", "box"),
         sparse=True,
         options=dict(_OPTIONS),

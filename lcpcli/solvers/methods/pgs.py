@@ -29,7 +29,7 @@ from lcpcli.core.certificate import matrix_norm_inf
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, NOT_APPLICABLE, NUMERICAL, Outcome
 from lcpcli.solvers.kernels import pgs as K
 from lcpcli.solvers.options import omega_option, positive_int, vector_option
-from lcpcli.solvers.registry import Method, Option
+from lcpcli.solvers.registry import Cost, Guarantee, Method, Option, Requirement, when
 from lcpcli.solvers.support import diagonal, start_point
 
 #: Sweep limit when none is given.
@@ -91,8 +91,10 @@ def run_psor(problem: Any, *, tol: float, omega: float = DEFAULT_OMEGA,
     return run_sor(problem, tol=tol, omega=omega, max_iter=max_iter, z0=z0, name="PSOR")
 
 
-_CLASSES = ("symmetric PSD with positive diagonal (convergent when a solution exists); "
-            "H-matrices with positive diagonal")
+#: Auto's sweep cap when the user gave none (a fallback should fail fast).
+AUTO_MAX_ITER = 1000
+_SYM = ("symmetric", "positive_diagonal")
+_NEEDS = (Requirement(when("positive_diagonal"), "the update divides by M_ii"),)
 _COMMON = {
     "max_iter": Option(positive_int, None, f"sweep limit (default {DEFAULT_MAX_ITER})"),
     "z0": Option(vector_option, None, "warm start z (projected onto the bounds)"),
@@ -103,7 +105,17 @@ METHODS = [
         name="pgs",
         run=run_pgs,
         summary="projected Gauss-Seidel (dense or sparse CSR, warm start, box projection)",
-        matrix_classes=_CLASSES,
+        guarantees=(
+            Guarantee(when(*_SYM, "pd"), "converges (linearly)"),
+            Guarantee(when("h_matrix"), "a contraction: converges"),
+            Guarantee(when(*_SYM, "psd"), "converges when a solution exists (slowly if M is "
+                                          "singular)", slow=True),
+        ),
+        needs=_NEEDS,
+        cost=Cost.SWEEPING,
+        preference=20,
+        fallback="projected Gauss-Seidel, last resort",
+        auto_max_iter=AUTO_MAX_ITER,
         kinds=("lcp", "box"),
         sparse=True,
         options=dict(_COMMON),
@@ -112,7 +124,15 @@ METHODS = [
         name="psor",
         run=run_psor,
         summary="projected SOR with relaxation omega (dense or sparse CSR, warm start)",
-        matrix_classes=_CLASSES + "; needs 0 < omega < 2",
+        guarantees=(
+            Guarantee(when(*_SYM, "pd"), "converges for 0 < omega < 2 (linearly)"),
+            Guarantee(when(*_SYM, "psd"), "converges when a solution exists, 0 < omega < 2 "
+                                          "(slowly if M is singular)", slow=True),
+        ),
+        needs=_NEEDS,
+        cost=Cost.SWEEPING,
+        preference=10,
+        auto_max_iter=AUTO_MAX_ITER,
         kinds=("lcp", "box"),
         sparse=True,
         options={"omega": Option(omega_option, DEFAULT_OMEGA,

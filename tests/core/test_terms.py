@@ -1,0 +1,46 @@
+"""One definition per term: statuses and terminations, exit codes, the version."""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+
+import lcpcli
+import lcpcli.core.errors as errors
+from lcpcli.core.result import STATUSES, Status, Termination
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def test_status_and_termination_enums_read_as_their_strings():
+    assert Status.SOLVED == "solved" and Termination.RAY == "ray_termination"
+    assert f"{Status.NO_SOLUTION}" == "no_solution" and str(Termination.CONVERGED) == "converged"
+    assert f"{Status.UNSOLVED:>10}" == "  unsolved"
+    assert json.dumps({Status.SOLVED: Termination.ITERATION_LIMIT}) == \
+        '{"solved": "iteration_limit"}'
+    assert {"solved": 1}[Status.SOLVED] == 1
+    assert STATUSES == (Status.SOLVED, Status.NO_SOLUTION, Status.UNSOLVED)
+
+
+def test_every_exit_code_is_defined_once_and_documented():
+    codes = {name: getattr(errors, name) for name in dir(errors) if name.startswith("EXIT_")}
+    assert codes["EXIT_SOLVED"] == codes["EXIT_OK"] == 0
+    assert (codes["EXIT_NOT_SOLVED"], codes["EXIT_BAD_INPUT"], codes["EXIT_INTERNAL"],
+            codes["EXIT_INTERRUPTED"], codes["EXIT_TERMINATED"]) == (1, 2, 3, 130, 143)
+    doc = errors.__doc__ or ""
+    for value in set(codes.values()):
+        assert re.search(rf"\b{value}\b", doc), value
+    # no other module assigns an EXIT_ constant
+    for path in (ROOT / "lcpcli").rglob("*.py"):
+        if path.name == "errors.py" and path.parent.name == "core":
+            continue
+        assert not re.search(r"^EXIT_[A-Z_]+\s*=\s*\d", path.read_text(), re.M), path
+
+
+def test_the_version_is_defined_once():
+    text = (ROOT / "pyproject.toml").read_text()
+    assert not re.search(r"^version\s*=\s*\"", text, re.M)  # no literal version string
+    assert re.search(r'^dynamic = \["version"\]', text, re.M)
+    assert re.search(r'^version = \{ attr = "lcpcli.__version__" \}', text, re.M)
+    assert re.fullmatch(r"\d+\.\d+\.\d+", lcpcli.__version__)
