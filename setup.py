@@ -4,7 +4,7 @@
     pip install -e ".[test]"                     # editable install, builds the same in place
     pip install .                                # a normal install (wheel built locally)
 
-Compiler flags: ``-O3``.  OpenMP (``-fopenmp``) only for the modules listed in
+Compiler flags: ``-O3 -g0``.  OpenMP (``-fopenmp``) only for the modules listed in
 :data:`OPENMP_MODULES`, and only when the compiler accepts it (else they build serial:
 Cython's ``prange`` then runs as a plain loop).  See docs/kernels.md.
 """
@@ -83,7 +83,8 @@ class BuildExt(build_ext):
         from Cython.Build import cythonize
 
         omp = openmp_flags()
-        base = ["-O3"] if sys.platform != "win32" else ["/O2"]
+        # -g0: no debug information (Python's own CFLAGS add -g: a quarter of the build time)
+        base = ["-O3", "-g0"] if sys.platform != "win32" else ["/O2"]
         for ext in self.extensions:
             ext.include_dirs.append(numpy.get_include())
             ext.extra_compile_args = base + (omp if ext.name in OPENMP_MODULES else [])
