@@ -29,6 +29,7 @@ _LAZY = {
     "Result": "lcpcli.core.result",
     "Certificate": "lcpcli.core.certificate",
     "certify": "lcpcli.core.certificate",
+    "forward_error_bound": "lcpcli.analysis.bounds",
     "solve": "lcpcli.api",
     "load": "lcpcli.io",
     "save": "lcpcli.io",

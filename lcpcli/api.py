@@ -7,10 +7,11 @@ from typing import Any
 
 import numpy as np
 
-from lcpcli.core.certificate import certify, matrix_norm_inf
+from lcpcli.core.certificate import check, validate_tol
 from lcpcli.core.errors import OptionError
 from lcpcli.core.problem import Problem
 from lcpcli.core.result import CONVERGED, NO_SOLUTION, SOLVED, UNSOLVED, Outcome, Result
+from lcpcli.solvers.pipeline import run_method
 from lcpcli.solvers.registry import Method, get_method
 
 DEFAULT_METHOD = "auto"
@@ -35,7 +36,8 @@ def solve(problem: Problem, method: str = DEFAULT_METHOD, *, tol: float | None =
 
     The verdict is ``solved`` only if the recomputed certificate passes; ``no_solution`` only
     when the method proved it (the proof is in ``message``); ``unsolved`` otherwise.
-    ``seconds`` times the method alone (no file reading, no certification).
+    ``seconds`` times the method (with its equilibration and final polish, see
+    :mod:`lcpcli.solvers.pipeline`), not file reading or certification.
     """
     spec = get_method(method)
     if problem.kind not in spec.kinds:
@@ -43,52 +45,42 @@ def solve(problem: Problem, method: str = DEFAULT_METHOD, *, tol: float | None =
                           f"(it handles: {', '.join(k.upper() for k in spec.kinds)})")
     check_dense_ok(problem, spec)
     opts = spec.parse_options(options)
-    tol = spec.default_tol if tol is None else float(tol)
-    if not (np.isfinite(tol) and tol > 0):
-        raise OptionError(f"tolerance must be positive and finite, got {tol}")
+    tol = validate_tol(spec.default_tol if tol is None else tol)
     spec.prepare_once()
     start = time.perf_counter()
-    outcome: Outcome = spec.run(problem, tol=tol, **opts)
+    outcome: Outcome = run_method(spec, problem, tol, opts)
     seconds = time.perf_counter() - start
     return certify_outcome(problem, outcome, spec.name, seconds, tol)
-
-
-#: Above this ratio ``||M|| ||z|| / ||q||`` a certified answer carries a warning.
-LARGE_SOLUTION = 1e10
-
-
-def _growth(problem: Problem, z: np.ndarray) -> float:
-    nq = float(np.max(np.abs(problem.q))) if problem.n else 0.0
-    nz = float(np.max(np.abs(z))) if problem.n else 0.0
-    if nz == 0.0:
-        return 0.0
-    return 0.0 if nq == 0.0 else matrix_norm_inf(problem.M) * nz / nq
 
 
 def certify_outcome(problem: Problem, outcome: Outcome, method: str, seconds: float,
                     tol: float) -> Result:
     """Turn a method's raw :class:`Outcome` into a verdict by checking its answer."""
     z = np.asarray(outcome.z, dtype=np.float64)
-    w = problem.w(z) if np.all(np.isfinite(z)) else np.full(problem.n, np.nan)
-    cert = certify(problem, z, tol, w=w, norm_M=matrix_norm_inf(problem.M))
+    cert, w = check(problem, z, tol)
     message = outcome.message
     if cert.passed:
         status = SOLVED
         if outcome.termination != CONVERGED:
             message = f"{message}; the returned point passes the certificate anyway"
-        growth = _growth(problem, z)
-        if growth > LARGE_SOLUTION:
-            message = (f"{message}; warning: ||M|| ||z|| / ||q|| = {growth:.1e}: the solution is "
-                       f"huge compared with the data, so the problem is close to having none "
-                       f"(the error is a backward error: z solves a nearby problem)")
     elif outcome.proven_infeasible:
         status = NO_SOLUTION
     else:
         status = UNSOLVED
         if outcome.termination == CONVERGED:
             message = (f"{message}, but the certificate failed: error {cert.error:.3g} > "
-                       f"tol {tol:.3g}")
+                       f"tol {tol:.3g}{_why(cert)}")
     return Result(status=status, method=method, z=z, w=w, iterations=outcome.iterations,
                   seconds=seconds, certificate=cert, message=message,
                   termination=outcome.termination, problem_name=problem.name,
                   trace=outcome.trace, info=dict(outcome.info))
+
+
+def _why(cert: Any) -> str:
+    """Which part of the certificate failed, in words (for ``message``)."""
+    if cert.growth > 1.0 and cert.backward_error <= cert.tol < cert.error:
+        return (f" (backward error {cert.backward_error:.2g}, but the rows coupled to pair "
+                f"{cert.worst + 1} balance only by cancellation: growth {cert.growth:.2g})")
+    if cert.worst >= 0:
+        return f" (worst at pair {cert.worst + 1})"
+    return ""

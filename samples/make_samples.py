@@ -3,6 +3,8 @@
 * seed000.json      - Cottle-Pang-Stone Example 4.4.7, the LCP of seed 000 (without z0's column)
 * degenerate.json   - a degenerate LCP (zeros in q, a tie in the first ratio test) resolved
                       by the lexicographic rule
+* degenerate_lex.json - a degenerate 4 x 4 P-matrix LCP whose second Lemke pivot is decided
+                      by the lexicographic rule at column w2 (docs/pivot.md, teaching)
 * collection.h5     - several problems in one HDF5 file (one group each), dense and sparse
 * sparse_chain.npz  - a sparse (CSR) tridiagonal symmetric PD LCP, n = 200
 """
@@ -36,6 +38,17 @@ def degenerate() -> Problem:
                                       "resolved by the lexicographic rule")
 
 
+def degenerate_lex() -> Problem:
+    # P-matrix; q gives a 3-way tie at the first pivot and a 2-way tie at zero at the second,
+    # which the rows of B^-1 decide at their second column
+    M = np.array([[2, 2, 0, 0], [0, 2, 0, 1], [-1, -1, 2, 1], [0, 1, 0, 2]], dtype=float)
+    q = np.array([1, -2, -2, -2], dtype=float)
+    return Problem.create(M, q, name="degenerate_lex",
+                          description="degenerate P-matrix LCP: Lemke's second pivot is a "
+                                      "tie decided by the lexicographic rule (column w2); "
+                                      "solution z = (0, 2/3, 1, 2/3)")
+
+
 def sparse_chain(n: int = 200) -> Problem:
     main = np.full(n, 4.0)
     off = np.full(n - 1, -1.0)
@@ -48,6 +61,7 @@ def sparse_chain(n: int = 200) -> Problem:
 def main() -> None:
     save(seed000(), HERE / "seed000.json")
     save(degenerate(), HERE / "degenerate.json")
+    save(degenerate_lex(), HERE / "degenerate_lex.json")
     save(sparse_chain(), HERE / "sparse_chain.npz")
     seed004 = Problem.create([[2, 1], [1, 2]], [-5, -6], name="seed004",
                              description="seed 004 example: z = (4/3, 7/3)")

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import itertools
 from fractions import Fraction
+from typing import Any
 
 import numpy as np
 
@@ -107,3 +108,77 @@ def exact_lemke_sequence(M: np.ndarray, q: np.ndarray, max_pivots: int = 5000):
                     z[b - n] = float(qb[i])
             return "ok", seq, z
     return "max_pivots", seq, None
+
+
+def componentwise_error(M: Any, q: np.ndarray, z: np.ndarray, lo: np.ndarray | None = None,
+                        up: np.ndarray | None = None, n_eq: int = 0) -> float:
+    """The certificate's ``error``, re-implemented independently (dense numpy, plain loops).
+
+    Same definition as :mod:`lcpcli.core.certificate`, written differently on purpose: every
+    pair's states are enumerated explicitly, and the blocks of coupled rows are found by a
+    breadth-first search over an explicit graph instead of union-find.  Slow; for tests only.
+    """
+    M = np.asarray(M.toarray() if hasattr(M, "toarray") else M, dtype=float)
+    q = np.asarray(q, dtype=float)
+    z = np.asarray(z, dtype=float)
+    n = q.size
+    if lo is None:
+        lo = np.where(np.arange(n) < n_eq, -np.inf, 0.0)
+        up = np.full(n, np.inf)
+    if not np.all(np.isfinite(z)):
+        return float("inf")
+    w = M @ z + q
+    terms = np.abs(M) * np.abs(z)[None, :]
+    a = terms.sum(axis=1)
+    s = a + np.abs(q)
+
+    def rel(v: float, si: float) -> float:
+        if v == 0:
+            return 0.0
+        return float("inf") if si == 0 else v / si
+
+    def move(j: int, x: float) -> float:
+        if x == 0:
+            return 0.0
+        col = np.abs(M[:, j])
+        if not col.any():
+            return float("inf")
+        worst = 0.0
+        for i in np.flatnonzero(col):
+            worst = max(worst, float("inf") if s[i] == 0 else x * col[i] / s[i])
+        return worst
+
+    eps = np.zeros(n)
+    for i in range(n):
+        states = []
+        if np.isfinite(lo[i]):
+            states.append(max(move(i, abs(z[i] - lo[i])), rel(max(-w[i], 0.0), s[i])))
+        if np.isfinite(up[i]):
+            states.append(max(move(i, abs(z[i] - up[i])), rel(max(w[i], 0.0), s[i])))
+        outside = max(lo[i] - z[i], z[i] - up[i], 0.0)
+        states.append(max(move(i, outside), rel(abs(w[i]), s[i])))
+        eps[i] = min(states)
+    # rows linked when they share a column whose term is significant in both
+    significant = (terms > 0) & (terms >= 2.0 ** -10 * a[:, None])
+    block = -np.ones(n, dtype=int)
+    for start in range(n):
+        if block[start] >= 0 or a[start] == 0:
+            continue
+        block[start] = start
+        queue = [start]
+        while queue:
+            i = queue.pop()
+            for j in np.flatnonzero(significant[i]):
+                for k in np.flatnonzero(significant[:, j]):
+                    if block[k] < 0:
+                        block[k] = start
+                        queue.append(k)
+    growth = np.ones(n)
+    for b in set(block[block >= 0].tolist()):
+        rows = np.flatnonzero(block == b)
+        den = np.abs(q[rows]) + np.abs(w[rows])
+        with np.errstate(divide="ignore"):
+            g = np.where(den == 0, np.inf, a[rows] / np.where(den == 0, 1.0, den))
+        growth[rows] = max(1.0, float(g.min()))
+    err = [0.0 if eps[i] == 0 else eps[i] * growth[i] for i in range(n)]
+    return float(max(err)) if n else 0.0

@@ -31,6 +31,7 @@ from typing import Any
 
 import numpy as np
 
+from lcpcli.analysis.scaling import Scaling, equilibrate
 from lcpcli.core.certificate import DEFAULT_TOL, Certificate, certify, matrix_norm_inf
 from lcpcli.core.errors import OptionError, ProblemError
 from lcpcli.core.result import Status
@@ -282,6 +283,12 @@ def enumerate_cones(problem: Any, *, stop_at_first: bool = False, all_cones: boo
                     fast: bool = True, max_lp: int = MAX_LPS) -> Enumeration:
     """Visit the ``2^n`` complementary cones of ``problem`` (an LCP) and collect the solutions.
 
+    The cones are examined on the equilibrated problem (:mod:`lcpcli.analysis.scaling`): a
+    positive row and column scaling maps every complementary cone onto the same cone, so the
+    verdict does not depend on units, and nothing overflows (data of size 1e300 has
+    determinants of size 1e300^n).  Solutions, ``y``, ``w`` and determinants are reported in
+    the units of ``problem`` (a determinant beyond the double range is Inf).
+
     ``stop_at_first``: stop at the first certified solution (verdict ``found``).
     ``all_cones``: return every cone (with ``y``, ``det`` and ``rank``) instead of the feasible
     ones only; meant for small n (memory grows as 2^n n).
@@ -290,6 +297,41 @@ def enumerate_cones(problem: Any, *, stop_at_first: bool = False, all_cones: boo
     depth-first principal-pivoting kernel (candidates re-checked by the direct LU kernel,
     unsafe pivots sent to it); ``fast=False`` uses the direct kernel for every cone.
     """
+    check_problem(problem, max_n)
+    scaling = equilibrate(problem, symmetric=False)
+    work = scaling.apply(problem) if scaling is not None else problem
+    found = _enumerate(work, stop_at_first=stop_at_first, all_cones=all_cones, max_n=max_n,
+                       tol=tol, rtol=rtol, progress=progress, chunk=chunk,
+                       keep_cones=keep_cones, fast=fast, max_lp=max_lp)
+    if scaling is not None:
+        _unscale(found, scaling, problem, tol)
+    return found
+
+
+def _unscale(found: Enumeration, scaling: Scaling, problem: Any, tol: float) -> None:
+    """Map an enumeration of the scaled problem back to the units of ``problem``, in place."""
+    for sol in found.solutions:
+        sol.z = scaling.unscale_z(sol.z)
+        sol.w = scaling.unscale_w(sol.w)
+        sol.certificate = certify(problem, sol.z, tol)
+    shift = scaling.row + scaling.col   # det A_r = det A~_r * 2^-(sum over z-basic of r_j + c_j)
+    for cone in found.cones:
+        zb = np.array([(cone.code >> j) & 1 for j in range(cone.n)], dtype=bool)
+        if cone.z is not None:
+            cone.z = scaling.unscale_z(cone.z)
+        if cone.w is not None:
+            cone.w = scaling.unscale_w(cone.w)
+        if cone.y is not None:
+            cone.y = np.where(zb, scaling.unscale_z(cone.y), scaling.unscale_w(cone.y))
+        if cone.det is not None:
+            with np.errstate(over="ignore"):
+                cone.det = float(np.ldexp(cone.det, -int(shift[zb].sum())))
+
+
+def _enumerate(problem: Any, *, stop_at_first: bool, all_cones: bool, max_n: int, tol: float,
+               rtol: float, progress: Callable[[int, int], None] | None, chunk: int,
+               keep_cones: int, fast: bool, max_lp: int) -> Enumeration:
+    """:func:`enumerate_cones` on a problem in its own units (the caller scales)."""
     M = check_problem(problem, max_n)
     q = np.ascontiguousarray(problem.q, dtype=np.float64)
     n = q.shape[0]
@@ -354,7 +396,7 @@ def enumerate_cones(problem: Any, *, stop_at_first: bool = False, all_cones: boo
                     sol.continuum = sol.continuum or continuum
                     break
             else:
-                cert = certify(problem, z, tol, w=M @ z + q, norm_M=mu)
+                cert = certify(problem, z, tol)
                 if not cert.passed:
                     counts["uncertified"] += 1
                     continue
@@ -434,10 +476,20 @@ def generators_2d(M: np.ndarray) -> dict[str, np.ndarray]:
 
 
 def in_cone_2d(A: np.ndarray, x: np.ndarray, rtol: float = 1e-12) -> bool:
-    """Whether ``x`` is in ``Pos(A)`` for a 2 x 2 ``A`` (degenerate A: rays / a line)."""
-    scale = max(float(np.max(np.abs(A))), 1e-300) * max(float(np.max(np.abs(x))), 1e-300)
+    """Whether ``x`` is in ``Pos(A)`` for a 2 x 2 ``A`` (degenerate A: rays / a line).
+
+    Membership does not change when a column of ``A`` or ``x`` is scaled by a positive factor,
+    so each is normalised to unit largest entry first: the tests are relative and nothing
+    overflows (columns of size 1e300).
+    """
+    def unit(v: np.ndarray) -> np.ndarray:
+        peak = float(np.max(np.abs(v)))
+        return v / peak if peak > 0 else v
+
+    A = np.column_stack([unit(np.asarray(A[:, j], dtype=float)) for j in range(2)])
+    x = unit(np.asarray(x, dtype=float))
     det = A[0, 0] * A[1, 1] - A[0, 1] * A[1, 0]
-    if abs(det) > 1e-12 * max(float(np.max(np.abs(A))) ** 2, 1e-300):
+    if abs(det) > 1e-12:
         y = np.linalg.solve(A, x)
         return bool(np.all(y >= -rtol * max(1.0, float(np.max(np.abs(y))))))
     for j in range(2):  # degenerate: x must be a nonnegative multiple of a column
@@ -445,7 +497,7 @@ def in_cone_2d(A: np.ndarray, x: np.ndarray, rtol: float = 1e-12) -> bool:
         if np.max(np.abs(a)) == 0:
             continue
         cross = a[0] * x[1] - a[1] * x[0]
-        if abs(cross) <= 1e-12 * scale and a @ x >= 0:
+        if abs(cross) <= 1e-12 and a @ x >= 0:
             return True
     return bool(np.max(np.abs(x)) == 0)
 

@@ -2,7 +2,8 @@
 
 System (seed 000, sign convention of the whole package): ``w = q + M z`` with
 ``w = (w_1..w_n)`` and ``z = (z_1..z_n, z_{n+1})``, where ``M`` is ``n x (n+1)`` and its last
-column belongs to the artificial variable ``z_{n+1}`` (Lemke's ``z0``; the covering vector).
+column belongs to the artificial variable ``z_{n+1}`` (the covering vector), displayed as
+``z0`` (Lemke's name; :data:`ARTIFICIAL`) while the index sets keep its seed position ``n + 1``.
 
 A *basis* is the dependent tuple ``w'`` (n variables) and the independent tuple ``z'``
 (the other n+1 variables, in a chosen order; by default the order of the original tuples).
@@ -49,24 +50,31 @@ _NAME = re.compile(r"^\s*([wWzZ])\s*_?\s*(\d+)\s*$")
 
 Var = tuple[str, int]  # ("w", i) or ("z", j), 0-based; ("z", n) is the artificial variable
 
+#: Display name of the artificial variable everywhere (Lemke's and the textbooks' name); its
+#: position in the seed's vector ``z`` is ``n + 1``, and ``z{n+1}`` is accepted as an input alias.
+ARTIFICIAL = "z0"
+
 
 def var_name(var: Var, n: int) -> str:
-    """1-based display name: ``w1``, ``z3``; the artificial variable is ``z{n+1}``."""
+    """1-based display name: ``w1``, ``z3``; the artificial variable ``("z", n)`` is ``z0``."""
+    if var == ("z", n):
+        return ARTIFICIAL
     return f"{var[0]}{var[1] + 1}"
 
 
 def parse_var(name: str, n: int) -> Var:
-    """Parse ``w1..wn``, ``z1..z{n+1}`` or ``z0`` (alias of ``z{n+1}``) into a 0-based pair."""
+    """Parse ``w1..wn``, ``z1..zn``, ``z0`` (the artificial variable) or its alias ``z{n+1}``."""
     m = _NAME.match(str(name))
     if not m:
-        raise ProblemError(f"unknown variable name {name!r} (expected w1..w{n}, z1..z{n + 1} "
-                           f"or z0)")
+        raise ProblemError(f"unknown variable name {name!r} (expected w1..w{n}, z1..z{n} or "
+                           f"{ARTIFICIAL}, alias z{n + 1})")
     kind, idx = m.group(1).lower(), int(m.group(2))
     if kind == "z" and idx == 0:
         return ("z", n)
     top = n if kind == "w" else n + 1
     if not 1 <= idx <= top:
-        raise ProblemError(f"variable {name!r} out of range (w1..w{n}, z1..z{n + 1}, z0)")
+        raise ProblemError(f"variable {name!r} out of range (w1..w{n}, z1..z{n}, {ARTIFICIAL} "
+                           f"alias z{n + 1})")
     return (kind, idx - 1)
 
 

@@ -32,7 +32,14 @@ def enumerate_command(
     problem: str = typer.Option(None, "--problem", "-p",
                                 help="Problem (group) name inside an HDF5 file."),
     output: str = typer.Option(None, "--output", "-o",
-                                help="Also write the JSON result to this file (atomically)."),
+                                help="Also write the JSON result to this file (atomically); "
+                                     "with --format markdown/latex, the export instead."),
+    lemke_path: bool = typer.Option(False, "--lemke-path",
+                                    help="n = 2: draw Lemke's path q + z0 d (covering vector "
+                                         "d = 1) in the cone pictures."),
+    fmt: str = typer.Option("text", "--format",
+                            help="text, markdown or latex: the cone table and solutions for "
+                                 "lecture notes (stdout, or -o FILE)."),
 ) -> int:
     """Enumerate the 2^n complementary cones of an LCP (seed 004) and find ALL its solutions.
 
@@ -49,14 +56,19 @@ def enumerate_command(
 
     from lcpcli.analysis.enumeration import check_problem, covers_plane, enumerate_cones
     from lcpcli.cli.common import write_json_line
+    from lcpcli.cli.export import check_export_options, check_format
     from lcpcli.core.errors import OptionError
     from lcpcli.io import load, write_atomic_text
 
+    fmt = check_format(fmt)
     plot_path = Path(plot) if plot is not None else None
     output_path = Path(output) if output is not None else None
+    check_export_options(fmt, output_path, [file], as_json)
     prob = load(file, problem)
     M = check_problem(prob, max_n)
     n = prob.n
+    if lemke_path and n != 2:
+        raise OptionError(f"--lemke-path draws in the 2 x 2 cone picture only (n = {n})")
     if all_cones:
         if n > ALL_CONES_JSON_MAX_N:
             raise OptionError(f"--all-cones lists 2^n = {2**n:,} cones, too many for n = {n} "
@@ -79,28 +91,51 @@ def enumerate_command(
     with _progress_bar() as progress:
         res = enumerate_cones(prob, all_cones=all_cones, max_n=max_n, progress=progress)
     covers = covers_plane(M) if n == 2 else None
+    path = _lemke_path(prob) if lemke_path else None
     if plot_path is not None:
         from lcpcli.cli.render.enumerate import plot_cones
 
-        plot_cones(M, prob.q, plot_path, title=prob.name or "")
+        plot_cones(M, prob.q, plot_path, title=prob.name or "", path=path)
     payload = res.to_dict()
     payload = {"file": file, **payload}
     if covers is not None:
         payload["covers_plane"] = covers
-    if output_path is not None:
+    if path is not None:
+        payload["lemke_path"] = path
+    if output_path is not None and fmt == "text":
         write_atomic_text(output_path, json.dumps(payload, allow_nan=False) + "\n")
+    if fmt != "text":
+        from lcpcli.cli.render.doc import write
+        from lcpcli.cli.render.enumerate import enumeration_pages
+
+        text = write(enumeration_pages(res, prob, file, all_cones=all_cones, covers=covers),
+                     fmt, title=f"lcpcli enumerate {file}")
+        if output_path is not None:
+            write_atomic_text(output_path, text)
+            sys.stderr.write(f"lcpcli: wrote {output_path}\n")
+        else:
+            sys.stdout.write(text)
     if as_json:
         write_json_line(payload)
-    else:
+    elif fmt == "text":
         from lcpcli.cli.common import stdout_console
         from lcpcli.cli.render.enumerate import draw_cones_text, render_enumeration
 
-        drawing = draw_cones_text(M, prob.q) if n == 2 else None
+        drawing = draw_cones_text(M, prob.q, path=path) if n == 2 else None
         stdout_console().print(render_enumeration(res, prob, file, all_cones=all_cones,
                                                   covers=covers, drawing=drawing))
-        if plot_path is not None:
-            sys.stderr.write(f"lcpcli: wrote {plot_path}\n")
+    if plot_path is not None and not as_json:
+        sys.stderr.write(f"lcpcli: wrote {plot_path}\n")
     return EXIT_SOLVED if res.solutions else EXIT_NOT_SOLVED
+
+
+def _lemke_path(prob: object) -> list[dict[str, object]]:
+    """Lemke's path q + z0 d of a 2 x 2 problem (covering vector d = 1), from the trace."""
+    from lcpcli.api import solve
+    from lcpcli.solvers.trace.lemke import path_points
+
+    result = solve(prob, "lemke-tableau", trace=True)
+    return path_points(result.trace or [], prob.q)  # type: ignore[attr-defined]
 
 
 class _progress_bar:

@@ -1,7 +1,8 @@
-"""``lcpcli pivot``: the principal pivoting transform of seed 000 for one basis."""
+"""``lcpcli pivot``: the principal pivoting transform of seed 000, for one basis or a sequence."""
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 import typer
@@ -12,20 +13,41 @@ from lcpcli.core.errors import EXIT_OK
 def pivot(
     file: str = typer.Argument(..., metavar="FILE",
                                help="Problem file with q and M; M may have n + 1 columns (the "
-                                    "last is the artificial variable z{n+1}, JSON/NPZ)."),
-    dependent: str = typer.Option(..., "--dependent", "-d",
-                                  help="Dependent tuple w' (n names), e.g. 'z4,w2,z3'."),
+                                    "last is the artificial variable z0, JSON/NPZ)."),
+    dependent: list[str] = typer.Option(..., "--dependent", "-d",
+                                        help="Dependent tuple w' (n names), e.g. 'z0,w2,z3'. "
+                                             "Repeat for a sequence of bases."),
     independent: str = typer.Option(None, "--independent", "-i",
                                     help="Independent tuple z' (n+1 names), e.g. "
-                                         "'w1,w3,z2,z1' [default: the others, w's then z's]."),
-    driving: str = typer.Option(None, "--driving",
-                                help="Driving variable (one of z'): print its column of M'."),
+                                         "'w1,w3,z2,z1' [default: the others, w's, z's, z0]. "
+                                         "With one --dependent only."),
+    driving: list[str] = typer.Option(None, "--driving",
+                                      help="Driving variable (one of z'): its column of M', "
+                                           "Lemke's ratio test and the blocking variable. "
+                                           "Repeat once per --dependent."),
+    follow: bool = typer.Option(False, "--follow",
+                                help="From the (one) basis and --driving, follow Lemke's rule "
+                                     "basis by basis until z0 leaves or a ray."),
     covering: str = typer.Option(None, "--covering",
                                  help="Artificial column when M has n columns, e.g. '1,2,1' "
                                       "[default: all ones]."),
     full: bool = typer.Option(False, "--full", help="Also print the whole pivoted tableau."),
     any_basis: bool = typer.Option(False, "--any-basis",
                                    help="Allow w_i and z_i both dependent (non-complementary)."),
+    layout: str = typer.Option("dictionary", "--layout",
+                               help="Tableaux: dictionary (w' = q' + M' z') or murty "
+                                    "(w - M z - d z0 = q)."),
+    pivot_step: int = typer.Option(None, "--pivot", metavar="K", min=0,
+                                   help="Show step K of the sequence alone (0 = the first "
+                                        "basis)."),
+    step: bool = typer.Option(False, "--step",
+                              help="One basis per screen, keys n(ext)/b(ack)/q(uit); without "
+                                   "a terminal every step is printed."),
+    fmt: str = typer.Option("text", "--format",
+                            help="text, markdown or latex (lecture notes; stdout or -o)."),
+    output: Path = typer.Option(None, "--output", "-o",
+                                help="Write the markdown/latex export to this file "
+                                     "(atomically; never over the input)."),
     problem: str = typer.Option(None, "--problem", "-p",
                                 help="Problem (group) name inside an HDF5 file."),
     as_json: bool = typer.Option(False, "--json",
@@ -33,29 +55,75 @@ def pivot(
 ) -> int:
     """Principal pivoting transform (seed 000): q' and M'_driving of w' = q' + M' z'.
 
-    Variable names are 1-based: w1..wn, z1..z{n+1}; z0 is an alias of the artificial z{n+1}.
-    Exit codes: 0 done; 2 bad input (bad basis, singular M^{alpha beta}, bad file).
+    Variable names are 1-based: w1..wn, z1..zn; z0 is the artificial variable (alias
+    z{n+1}, its position in the seed's z). With --driving, Lemke's ratio test on M'_driving
+    names the blocking variable and the next Lemke step. Exit codes: 0 done; 2 bad input
+    (bad basis, singular M^{alpha beta}, bad file, bad option).
     """
-    from lcpcli.analysis.pivoting import parse_tuple, parse_var, principal_pivot
+    import sys
 
+    from lcpcli.analysis.pivoting import parse_tuple, parse_var, principal_pivot
+    from lcpcli.cli.export import check_export_options, check_format, emit
+    from lcpcli.core.errors import OptionError
+    from lcpcli.solvers.trace.path import driving_step
+    from lcpcli.solvers.trace.path import follow as follow_path
+    from lcpcli.solvers.trace.tableau import LAYOUTS
+
+    fmt = check_format(fmt)
+    layout = layout.lower()
+    if layout not in LAYOUTS:
+        raise OptionError(f"--layout must be one of {', '.join(LAYOUTS)}, got {layout!r}")
+    if output is not None and fmt == "text":
+        raise OptionError("-o writes the --format markdown or latex export; give --format")
+    check_export_options(fmt, output, [file], as_json)
+    driving = list(driving or [])
+    if independent is not None and len(dependent) > 1:
+        raise OptionError("--independent goes with a single --dependent (later bases list "
+                          "their independent variables in the original order)")
+    if follow and (len(dependent) != 1 or len(driving) != 1):
+        raise OptionError("--follow starts from one --dependent basis and one --driving "
+                          "variable")
+    if not follow and driving and len(driving) != len(dependent):
+        raise OptionError(f"give one --driving per --dependent ({len(dependent)} bases, "
+                          f"{len(driving)} driving variables)")
     Maug, q, source = load_augmented(file, covering, problem)
     n = q.shape[0]
-    dep = parse_tuple(dependent, n)
+    deps = [parse_tuple(d, n) for d in dependent]
     ind = parse_tuple(independent, n) if independent is not None else None
-    drv = parse_var(driving, n) if driving is not None else None
-    t = principal_pivot(Maug, q, dep, ind, driving=drv, full=full, any_basis=any_basis)
+    drvs = [parse_var(d, n) for d in driving]
+    if follow:
+        items = follow_path(Maug, q, deps[0], ind, drvs[0], full=full, any_basis=any_basis)
+    else:
+        items = []
+        for k, dep in enumerate(deps):
+            drv = drvs[k] if drvs else None
+            t = principal_pivot(Maug, q, dep, ind if k == 0 else None, driving=drv, full=full,
+                                any_basis=any_basis)
+            items.append((t, driving_step(t, Maug) if drv is not None else None))
     if as_json:
         from lcpcli.cli.common import write_json_line
 
-        payload = t.to_dict()
+        objs = []
+        for t, st in items:
+            obj = t.to_dict()
+            obj["ratio_test"] = st
+            objs.append(obj)
+        payload = dict(objs[0]) if len(objs) == 1 else {"steps": objs}
         payload["file"] = file
         payload["artificial_column"] = source
         write_json_line(payload)
-    else:
-        from lcpcli.cli.common import stdout_console
-        from lcpcli.cli.render.pivot import render_pivot
+        if fmt == "text":
+            return EXIT_OK
+    from lcpcli.cli.common import stdout_console
+    from lcpcli.cli.render.pivot import pivot_pages
 
-        stdout_console().print(render_pivot(t, Maug, q, source))
+    pages = pivot_pages(items, Maug, q, source, layout)
+    emit(pages, fmt=fmt, output=output, inputs=[file], pivot=pivot_step,
+         numbers=list(range(len(pages))), labels=[f"step {k}" for k in range(len(pages))],
+         step=step, what="this sequence", console=stdout_console(),
+         title=f"lcpcli pivot {file}")
+    if output is not None:
+        sys.stderr.write(f"lcpcli: wrote {output}\n")
     return EXIT_OK
 
 

@@ -56,15 +56,31 @@ def solve(
                                   help="Batch: run on the Dask cluster at this address "
                                        "(e.g. tcp://host:8786; needs lcpcli[dask])."),
     trace: bool = typer.Option(False, "--trace",
-                               help="Print every pivot (Lemke methods); with --json the "
-                                    "pivots are a list under \"trace\". One problem only."),
+                               help="Print every step: Lemke's pivots (lemke, lemke-tableau, "
+                                    "lemke-revised), principal pivots (murty, dantzig), a "
+                                    "sweep table (pgs, psor); with --json the steps are a "
+                                    "list under \"trace\". One problem only."),
+    layout: str = typer.Option(None, "--layout",
+                               help="Trace tableaux: dictionary (seed 000: w' = q' + M' z') or "
+                                    "murty (textbook: w - M z - d z0 = q) [default: "
+                                    "dictionary]. Implies --trace."),
+    pivot_step: int = typer.Option(None, "--pivot", metavar="K", min=0,
+                                   help="Trace: show step K alone (0 = the initial tableau). "
+                                        "Implies --trace."),
+    step: bool = typer.Option(False, "--step",
+                              help="Trace: one step per screen, keys n(ext)/b(ack)/q(uit); "
+                                   "without a terminal every step is printed. Implies "
+                                   "--trace."),
+    fmt: str = typer.Option("text", "--format",
+                            help="Trace output: text, markdown or latex (lecture notes; on "
+                                 "stdout, or in the -o FILE). Implies --trace unless text."),
 ) -> int:
     """Solve an LCP: find z >= 0 with w = M z + q >= 0 and z^T w = 0.
 
-    The answer is certified: residual = ||min(z, w)||_inf and the scaled error (see the
-    README) are recomputed from M and q; 'solved' is printed only when the error is below
-    the tolerance. Exit codes: 0 solved; 1 not solved (no_solution or unsolved); 2 bad usage
-    or bad input; 3 internal error.
+    The answer is certified: the componentwise error (see the README) is recomputed from M and
+    q; 'solved' is printed only when it is below the tolerance (1e-16 <= --tol <= 1e-2). For a
+    P-matrix of a known class a bound on ||z - z*||_inf is shown too. Exit codes: 0 solved; 1
+    not solved (no_solution or unsolved); 2 bad usage or bad input; 3 internal error.
     """
     import json
 
@@ -89,33 +105,89 @@ def solve(
     files = [file, *(more_files or [])]
     batch = {"recursive": recursive, "jobs": jobs, "resume": resume, "timeout": timeout,
              "quiet": quiet, "scheduler": scheduler}
+    from lcpcli.cli.export import check_export_options, check_format
+
+    fmt = check_format(fmt)
+    trace = trace or layout is not None or pivot_step is not None or step or fmt != "text"
     if wants_batch(files, output, **batch):
         if trace:
-            raise OptionError("--trace shows one problem's pivots; it does not apply to a batch")
+            raise OptionError("--trace (and --layout, --pivot, --step, --format) shows one "
+                              "problem's steps; it does not apply to a batch")
         return run_batch_command(files, method=method, tol=tol, opts=opts, problem=problem,
                                  as_json=as_json, output=output, **batch)
     if trace:
+        method = _traced_method(method)
         opts["trace"] = True
-        if method == "auto":  # the pivot trace is a Lemke feature: auto would refuse it
-            method = "lemke"
+        layout = _check_layout(layout)
+        check_export_options(fmt, output, [file], as_json)
     prob = load(file, problem)
     result = solve_problem(prob, method, tol=tol, **opts)
     payload = result.to_dict(file=file)
-    if output is not None:
+    from lcpcli.analysis.bounds import forward_error_bound
+
+    forward = forward_error_bound(prob, result.z) if result.solved else None
+    payload["forward_error_bound"] = forward.as_dict() if forward is not None else None
+    if output is not None and fmt == "text":
         write_atomic_text(output, json.dumps(payload, allow_nan=False) + "\n")
     if as_json:
         write_json_line(payload)
+        if result.trace is not None and fmt != "text":
+            _show_trace(result.trace, fmt, layout, output, file, pivot_step, False)
     else:
         from lcpcli.cli.common import stdout_console
         from lcpcli.cli.render.common import render_result
 
         console = stdout_console()
         if result.trace is not None:
-            from lcpcli.cli.render.pivot import render_trace
-
-            console.print(render_trace(result.trace, prob.n))
-        console.print(render_result(result, prob, file))
+            on_stdout = _show_trace(result.trace, fmt, layout, output, file, pivot_step, step)
+            if on_stdout or pivot_step is not None:
+                return exit_code_for([result.status])
+            console.print()
+        console.print(render_result(result, prob, file, forward))
     return exit_code_for([result.status])
+
+
+def _traced_method(method: str) -> str:
+    """The method that runs with ``--trace``: ``auto`` means Lemke; others must have a replica."""
+    from lcpcli.core.errors import OptionError
+    from lcpcli.solvers.registry import get_method, methods
+
+    if method == "auto":  # auto picks by matrix class; the teaching trace is Lemke's
+        return "lemke"
+    if "trace" not in get_method(method).options:
+        with_trace = [name for name, m in methods().items() if "trace" in m.options]
+        raise OptionError(f"--trace: method '{method}' has no step-by-step replica (methods "
+                          f"with one: {', '.join(with_trace)})")
+    return method
+
+
+def _check_layout(layout: str | None) -> str:
+    from lcpcli.core.errors import OptionError
+    from lcpcli.solvers.trace.tableau import LAYOUTS
+
+    value = (layout or LAYOUTS[0]).lower()
+    if value not in LAYOUTS:
+        raise OptionError(f"--layout must be one of {', '.join(LAYOUTS)}, got {layout!r}")
+    return value
+
+
+def _show_trace(trace: list, fmt: str, layout: str, output: Path | None, file: str,
+                pivot_step: int | None, step: bool) -> bool:
+    """The trace on the terminal or as an export; True when the export used stdout."""
+    import sys
+
+    from lcpcli.cli.common import stdout_console
+    from lcpcli.cli.export import emit
+    from lcpcli.cli.render.pivot import full_pages, step_labels, step_numbers, step_pages
+
+    whole = pivot_step is None and not step
+    pages = full_pages(trace, layout) if whole else step_pages(trace, layout)
+    on_stdout = emit(pages, fmt=fmt, output=output, inputs=[file], pivot=pivot_step,
+                     numbers=step_numbers(trace), labels=step_labels(trace), step=step,
+                     what="this trace", console=stdout_console(), title=f"lcpcli trace of {file}")
+    if fmt != "text" and output is not None:
+        sys.stderr.write(f"lcpcli: wrote {output}\n")
+    return on_stdout
 
 
 def register(app: typer.Typer) -> None:

@@ -1,46 +1,93 @@
-"""The certificate of a candidate solution: the project's one definition of residual and error.
+"""The certificate of a candidate solution: the project's one definition of ``error``.
 
 Every solver's answer goes through :func:`certify`; nothing is called ``solved`` otherwise.
 
-Definitions (``w = M z + q``, box ``[l, u]`` from :meth:`Problem.bounds`; LCP: ``[0, inf)``):
+Conventions: ``w = M z + q``; variable ``i`` lives in the box ``[l_i, u_i]`` of
+:meth:`Problem.bounds` (LCP ``[0, inf)``; free MLCP variables ``(-inf, inf)``); the pair
+``(z_i, w_i)`` is *complementary* when one of its states holds:
 
-* natural residual ``r = mid(z - l, z - u, w) = max(z - u, min(z - l, w))``, which is
-  ``min(z, w)`` for the LCP, ``w`` for a free (equality) row and the box ``mid`` function otherwise;
-* ``residual = ||r||_inf``  (for the LCP: ``||min(z, w)||_inf``);
-* ``error`` is the same residual measured in the units of ``w`` and relative to the size of the
-  terms that make up ``w``::
+* ``L``: ``z_i = l_i`` and ``w_i >= 0`` (``l_i`` finite);
+* ``U``: ``z_i = u_i`` and ``w_i <= 0`` (``u_i`` finite);
+* ``F``: ``l_i <= z_i <= u_i`` and ``w_i = 0``.
 
-      mu    = ||M||_inf                       (max absolute row sum; 1 if M = 0)
-      r~    = max(mu (z - u), min(mu (z - l), w))
-      error = ||r~||_inf / (mu ||z||_inf + ||q||_inf)      (0 when z = 0 and q = 0)
+**Row scale.**  Row ``i`` of ``w`` is judged against its own scale (Oettli and Prager, 1964; Higham,
+*Accuracy and Stability of Numerical Algorithms*, 2nd ed., sections 7.1-7.2)::
 
-  It is invariant under scaling (M, q) -> (a M, a q) and (q, z) -> (b q, b z), it is a
-  normwise backward error in the sense of linear algebra (rounding in ``M z + q`` alone gives
-  about ``n * eps``), and it does not blow up when ``q`` is near zero, unlike
-  ``||min(z, w)|| / ||q||``: a tiny ``q`` with a solution of matching size scores small.
+    s_i = |q_i| + (|M| |z|)_i
+
+A change of ``w_i`` by ``v`` is a relative change ``v / s_i`` of the row: the smallest relative
+perturbation of the entries of row ``i`` of ``M`` and of ``q_i`` that absorbs it.
+
+**Moves of z.**  A variable ``z_j`` that must move by ``x`` to reach a state (to its bound, or back
+into its box) is judged by what the move does to ``w``: ``x kappa_j`` with
+``kappa_j = max_i |M_ij| / s_i`` (an all-zero column has ``kappa_j = inf``: moving such a
+``z_j`` changes nothing, so it must already sit where its state says).  A ``z_j`` is "zero" when
+setting it to zero changes every row of ``w`` by a negligible fraction of that row, never by
+comparison with the largest entry of the problem.
+
+**Backward error of a pair.**  ``eps_i`` is the smallest, over the states of pair ``i``, of the
+largest relative change that state needs (the move of ``z_i`` and the change of ``w_i``).  The
+componentwise backward error is ``omega = max_i eps_i``.
+
+**Growth.**  A backward error says that ``z`` solves a nearby problem; that is worth little when
+the rows balance only through the cancellation of huge terms, because then the nearby problem can
+be qualitatively different (an infeasible positive semidefinite LCP is "solved" to any backward
+error by a large enough ``z``).  Row ``i`` has growth ``g_i = (|M| |z|)_i / (|q_i| + |w_i|)``.
+Rows coupled through significant terms (``|M_ij z_j| >= 2^-10 (|M| |z|)_i``, through the same
+``z_j``) form blocks; a block's growth ``G`` is the smallest ``g_i`` in it (one row whose terms do
+not cancel anchors the scale of the whole block; rows with ``q_i = 0`` and exact cancellation,
+such as the equality chains of an MLCP, are then fine).  Rows untouched by ``z`` have ``G = 1``.
+
+**The certificate.**  ::
+
+    error = max_i  eps_i * max(1, G_block(i))
+
+``solved`` requires ``error <= tol`` and every number finite.  ``error`` is invariant (up to
+rounding) under positive row scaling ``(D M, D q)``, column scaling ``(M D, z -> D^-1 z)`` and
+global scaling of the data, because every quantity above is a ratio within a row or a product
+``|M_ij z_j|``.  It cannot be passed by making ``z`` large: a large ``z`` raises ``s_i`` only with
+the growth of its block.  Overflow cannot crash it: data whose products leave ``[2^-960, 2^960]``
+are rescaled exactly by powers of two before the check (which does not change the result), and
+any Inf or NaN in ``z`` or ``w`` means not solved.
+
+The certificate also reports, in the units of the data: ``residual`` ``= ||mid(z - l, z - u,
+w)||_inf`` (``||min(z, w)||_inf`` for the LCP), ``bound_violation``, ``w_violation``,
+``complementarity`` and ``equality_residual`` (MLCP rows); and ``backward_error`` (omega),
+``growth`` (the growth of the block that decides ``error``) and ``worst`` (the pair that does).
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass
 from typing import Any
 
 import numpy as np
 
+from lcpcli.core import _certificate
+from lcpcli.core.errors import OptionError
+
 #: Default tolerance on :attr:`Certificate.error` for the verdict ``solved``.
 DEFAULT_TOL = 1e-8
+#: The range a tolerance must lie in: below 1e-16 nothing computed in double precision can pass
+#: (rounding alone is about 1e-16); above 1e-2 the verdict would certify answers off by percents.
+MIN_TOL = 1e-16
+MAX_TOL = 1e-2
 
 
-@dataclass(frozen=True)
+@dataclass(slots=True)
 class Certificate:
-    """Residuals of a candidate solution (see the module docstring for the definitions)."""
+    """The checked numbers of a candidate solution (definitions in the module docstring)."""
 
-    residual: float
     error: float
+    backward_error: float
+    growth: float
+    residual: float
     bound_violation: float
     w_violation: float
     complementarity: float
     equality_residual: float
+    worst: int
     tol: float
     passed: bool
 
@@ -48,55 +95,181 @@ class Certificate:
         return asdict(self)
 
 
-def matrix_norm_inf(M: Any) -> float:
-    """``||M||_inf`` (max absolute row sum) for a dense array or a scipy.sparse matrix."""
-    if hasattr(M, "tocsr"):
-        if M.nnz == 0:
-            return 0.0
-        return float(np.max(np.asarray(abs(M).sum(axis=1)).ravel()))
-    return float(np.max(np.sum(np.abs(M), axis=1))) if M.size else 0.0
+def validate_tol(tol: Any) -> float:
+    """``tol`` as a float in ``[MIN_TOL, MAX_TOL]``; :class:`OptionError` otherwise."""
+    try:
+        value = float(tol)
+    except (TypeError, ValueError):
+        raise OptionError(f"tolerance must be a number, got {tol!r}") from None
+    if not (MIN_TOL <= value <= MAX_TOL):  # also refuses NaN
+        raise OptionError(f"tolerance must lie in [{MIN_TOL:g}, {MAX_TOL:g}] (the certificate's "
+                          f"error is relative: 1e-16 is rounding level, 1e-2 is a 1% error), "
+                          f"got {tol}")
+    return value
 
 
-def certify(problem: Any, z: np.ndarray, tol: float = DEFAULT_TOL, *,
-            w: np.ndarray | None = None, norm_M: float | None = None) -> Certificate:
-    """Check ``z`` against ``problem`` (w is recomputed from M and q unless given).
+#: The state of a pair that its score came from (:func:`pair_states`).
+AT_LOWER, AT_UPPER, BETWEEN = 0, 1, 2
 
-    ``passed`` is true when everything is finite and ``error <= tol``.
+
+def check(problem: Any, z: Any, tol: float = DEFAULT_TOL, *,
+          state: np.ndarray | None = None) -> tuple[Certificate, np.ndarray]:
+    """Certify ``z`` for ``problem``; return the certificate and ``w = M z + q`` (recomputed).
+
+    ``passed`` is true when every number is finite and ``error <= tol``.  ``state`` (int8,
+    length n), when given, receives each pair's state (``AT_LOWER``, ``AT_UPPER``, ``BETWEEN``).
     """
-    z = np.asarray(z, dtype=np.float64)
-    if w is None and np.all(np.isfinite(z)):
-        w = problem.w(z)
-    lo, up = problem.bounds()
-    if w is None or not (np.all(np.isfinite(z)) and np.all(np.isfinite(w))):
-        inf = float("inf")
-        return Certificate(inf, inf, inf, inf, inf, inf, tol, False)
-    mu = matrix_norm_inf(problem.M) if norm_M is None else norm_M
-    mu = mu if mu > 0 else 1.0
-    with np.errstate(invalid="ignore"):
-        r = np.maximum(z - up, np.minimum(z - lo, w))
-        r_scaled = np.maximum(mu * (z - up), np.minimum(mu * (z - lo), w))
-    residual = _norm(r)
-    denom = mu * _norm(z) + _norm(problem.q)
-    err_num = _norm(r_scaled)
-    error = 0.0 if err_num == 0.0 else (err_num / denom if denom > 0 else float("inf"))
+    if not (type(z) is np.ndarray and z.dtype == np.float64 and z.ndim == 1
+            and z.flags.c_contiguous):
+        z = np.ascontiguousarray(z, dtype=np.float64).ravel()
+    n = problem.n
+    if z.shape[0] != n:
+        raise ValueError(f"z has length {z.shape[0]}, the problem has n = {n}")
+    w = np.empty(n)
+    lo, up = (problem.lower, problem.upper) if problem.lower is not None else (None, None)
+    out = _certificate.certify_arrays(_matrix_arg(problem.M), problem.q, z, problem.n_eq,
+                                      lo, up, w, state)
+    if out[0] == 2:
+        out, w = _rescaled_check(problem, z, state)
+    return _make(out, tol), w
 
-    bound_violation = _norm(np.maximum(np.maximum(lo - z, z - up), 0.0))
-    lo_fin, up_fin = np.isfinite(lo), np.isfinite(up)
-    lower_only = lo_fin & ~up_fin
-    upper_only = ~lo_fin & up_fin
-    free = ~lo_fin & ~up_fin
-    both = lo_fin & up_fin
-    w_violation = max(_norm(np.maximum(-w[lower_only], 0.0)),
-                      _norm(np.maximum(w[upper_only], 0.0)))
-    complementarity = max(
-        _norm((z - lo)[lower_only] * w[lower_only]),
-        _norm((up - z)[upper_only] * w[upper_only]),
-        _norm(np.minimum(np.abs(z - lo), np.abs(up - z))[both] * w[both]),
-    )
-    equality_residual = _norm(w[free])
-    passed = bool(error <= tol)
-    return Certificate(residual, float(error), bound_violation, w_violation, complementarity,
-                       equality_residual, tol, passed)
+
+def certify(problem: Any, z: Any, tol: float = DEFAULT_TOL) -> Certificate:
+    """The :class:`Certificate` of ``z`` for ``problem`` (see :func:`check`)."""
+    return check(problem, z, tol)[0]
+
+
+def matrix_norm_inf(M: Any) -> float:
+    """``||M||_inf`` (max absolute row sum) of a dense array or a scipy.sparse matrix, never
+    overflowing to Inf for finite data (large matrices are summed after a power-of-two scaling)."""
+    if hasattr(M, "tocsr"):
+        data = np.abs(M.data)
+        if data.size == 0:
+            return 0.0
+        peak = float(data.max())
+        scale = _pow2_at_least(peak)
+        rows = np.add.reduceat(data / scale, M.indptr[:-1]) if M.nnz else np.zeros(1)
+        rows[np.diff(M.indptr) == 0] = 0.0
+        return float(rows.max()) * scale
+    if M.size == 0:
+        return 0.0
+    peak = float(np.max(np.abs(M)))
+    if peak == 0.0:
+        return 0.0
+    scale = _pow2_at_least(peak)
+    return float(np.max(np.sum(np.abs(M) / scale, axis=1))) * scale
+
+
+# ---------------------------------------------------------------------- internals
+def _matrix_arg(M: Any) -> Any:
+    if hasattr(M, "tocsr"):
+        return (M.data, M.indices, M.indptr)
+    return M
+
+
+def _make(out: tuple, tol: float) -> Certificate:
+    status, error, omega, growth, resid, bviol, wviol, comp, eqres, worst = out
+    finite = status == 0 and math.isfinite(error)
+    return Certificate(error=float(error), backward_error=float(omega), growth=float(growth),
+                       residual=float(resid), bound_violation=float(bviol),
+                       w_violation=float(wviol), complementarity=float(comp),
+                       equality_residual=float(eqres), worst=int(worst), tol=float(tol),
+                       passed=bool(finite and error <= tol))
+
+
+def _pow2_at_least(x: float) -> float:
+    """The power of two in ``[x, 2x)`` (``x > 0``)."""
+    mant, exp = math.frexp(x)
+    return math.ldexp(1.0, exp if mant != 0.5 else exp - 1)
+
+
+_NO_EXP = np.iinfo(np.int64).min // 4    # a row with no term and q_i = 0
+_NO_NEED = np.iinfo(np.int64).max // 4   # a column with no entry
+
+
+def _exponent(x: np.ndarray) -> np.ndarray:
+    """frexp exponents (x = m 2^e, 0.5 <= |m| < 1); 0 for zeros."""
+    return np.frexp(x)[1].astype(np.int64)
+
+
+def _rescaled_check(problem: Any, z: np.ndarray,
+                    state: np.ndarray | None = None) -> tuple[tuple, np.ndarray]:
+    """Certify data whose products leave the safe range: rescale rows and columns exactly by
+    powers of two (``M' = D M cexp``, ``q' = D q``, ``z' = cexp^-1 z``; the certificate does not
+    change), certify the rescaled copy, and map ``w`` back (``w = D^-1 w'``, Inf where the true
+    ``w`` overflows)."""
+    M = problem.M
+    sparse = hasattr(M, "tocsr")
+    Mc = M.tocoo() if sparse else None
+    n = problem.n
+    ez = np.where(z != 0.0, _exponent(z), 0)
+    if sparse:
+        rows, cols, vals = Mc.row, Mc.col, Mc.data
+    else:
+        rows, cols = np.nonzero(M)
+        vals = M[rows, cols]
+    em = _exponent(vals)
+    # row exponent: the largest term |M_ij z_j| (by exponents, no product formed) or |q_i|
+    live = z[cols] != 0.0
+    rexp = np.full(n, _NO_EXP, dtype=np.int64)
+    np.maximum.at(rexp, rows[live], em[live] + ez[cols[live]])
+    nonzero_q = problem.q != 0.0
+    rexp[nonzero_q] = np.maximum(rexp[nonzero_q], _exponent(problem.q[nonzero_q]))
+    untouched = rexp == _NO_EXP
+    rexp[untouched] = 0
+    # columns with z_j = 0: scale so that their entries stay <= 1 after the row scaling
+    cexp = ez.copy()
+    dead = z == 0.0
+    if dead.any():
+        need = np.full(n, _NO_NEED, dtype=np.int64)
+        np.minimum.at(need, cols, rexp[rows] - em)
+        cexp[dead] = np.where(need[dead] == _NO_NEED, 0, need[dead])
+    new_vals = np.ldexp(vals, (cexp[cols] - rexp[rows]).astype(np.int32))
+    zs = np.ldexp(z, (-cexp).astype(np.int32))
+    qs = np.ldexp(problem.q, (-rexp).astype(np.int32))
+    if sparse:
+        import scipy.sparse as sp  # only on this rare path (sparse data out of range)
+
+        Ms = sp.csr_matrix((new_vals, (rows, cols)), shape=(n, n))
+        Ms.sum_duplicates()
+        marg: Any = (Ms.data, Ms.indices, Ms.indptr)
+    else:
+        marg = np.zeros((n, n))
+        marg[rows, cols] = new_vals
+    lo = up = None
+    if problem.lower is not None:
+        big = np.finfo(np.float64).max
+        with np.errstate(over="ignore"):
+            lo = np.ldexp(problem.lower, (-cexp).astype(np.int32))
+            up = np.ldexp(problem.upper, (-cexp).astype(np.int32))
+        lo = np.where(np.isfinite(problem.lower), np.clip(lo, -big, big), lo)
+        up = np.where(np.isfinite(problem.upper), np.clip(up, -big, big), up)
+    ws = np.empty(n)
+    out = _certificate.certify_arrays(marg, qs, zs, problem.n_eq, lo, up, ws, state)
+    with np.errstate(over="ignore"):
+        w = np.ldexp(ws, rexp.astype(np.int32))
+    res = list(out)
+    if res[0] == 0:
+        # the diagnostics in the units of the data (the dimensionless numbers are unchanged)
+        res[4:9] = _unscaled_diagnostics(problem, z, w)
+        if not np.all(np.isfinite(w)):
+            res[0] = 1
+    return tuple(res), w
+
+
+def _unscaled_diagnostics(problem: Any, z: np.ndarray, w: np.ndarray) -> list[float]:
+    lo, up = problem.bounds()
+    with np.errstate(invalid="ignore", over="ignore"):
+        r = np.maximum(z - up, np.minimum(z - lo, w))
+        bviol = np.maximum(np.maximum(lo - z, z - up), 0.0)
+        lo_f, up_f = np.isfinite(lo), np.isfinite(up)
+        lower_only, upper_only = lo_f & ~up_f, ~lo_f & up_f
+        free, both = ~lo_f & ~up_f, lo_f & up_f
+        wviol = np.concatenate([np.maximum(-w[lower_only], 0.0), np.maximum(w[upper_only], 0.0)])
+        comp = np.concatenate([np.abs((z - lo)[lower_only] * w[lower_only]),
+                               np.abs((up - z)[upper_only] * w[upper_only]),
+                               np.minimum(np.abs(z - lo), np.abs(up - z))[both] * np.abs(w[both])])
+    return [_norm(r), _norm(bviol), _norm(wviol), _norm(comp), _norm(w[free])]
 
 
 def _norm(x: np.ndarray) -> float:

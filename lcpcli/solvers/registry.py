@@ -138,6 +138,9 @@ class Method:
     #: Prose beyond the guarantees (shown after them in ``lcpcli methods``).
     notes: str = ""
     planner: bool = False
+    #: How :mod:`lcpcli.solvers.pipeline` equilibrates the problem first: ``"auto"`` (``D M D``
+    #: for a symmetric M, two-sided otherwise), ``"symmetric"`` (always ``D M D``) or ``"none"``.
+    scaling: str = "none"
 
     @property
     def matrix_classes(self) -> str:

@@ -1,9 +1,8 @@
 """Numerical helpers shared by the solver methods (not a method module: no ``METHODS``).
 
-Conventions: ``w = M z + q``, the box ``[lo, up]`` from :meth:`Problem.bounds`.  The scaled error
-computed here is the certificate's formula (:mod:`lcpcli.core.certificate`), evaluated cheaply
-inside the iterations to decide when to stop; the verdict is always given by the shared
-certificate.
+Conventions: ``w = M z + q``, the box ``[lo, up]`` from :meth:`Problem.bounds`.  Iterative methods
+stop on :func:`certified_error`, the certificate's own ``error``, so that a method's "converged"
+and the verdict agree.
 """
 
 from __future__ import annotations
@@ -13,6 +12,7 @@ from typing import Any
 
 import numpy as np
 
+from lcpcli.core.certificate import AT_LOWER, AT_UPPER, BETWEEN, certify, check
 from lcpcli.core.errors import OptionError
 
 
@@ -29,19 +29,15 @@ def start_point(problem: Any, z0: np.ndarray | None, default: float = 0.0) -> np
     return z.copy()
 
 
-def scaled_error(z: np.ndarray, w: np.ndarray, lo: np.ndarray, up: np.ndarray, mu: float,
-                 qnorm: float) -> float:
-    """The certificate's scaled error of ``(z, w)`` (``mu = ||M||_inf``, ``qnorm = ||q||_inf``)."""
-    mu = mu if mu > 0 else 1.0
-    with np.errstate(invalid="ignore", over="ignore"):
-        r = np.maximum(mu * (z - up), np.minimum(mu * (z - lo), w))
-    num = float(np.max(np.abs(r))) if r.size else 0.0
-    if num == 0.0:
-        return 0.0
-    denom = mu * (float(np.max(np.abs(z))) if z.size else 0.0) + qnorm
-    if not np.isfinite(num):
+def certified_error(problem: Any, z: np.ndarray) -> float:
+    """The certificate's ``error`` of ``z`` (the one definition, :mod:`lcpcli.core.certificate`).
+
+    Iterative methods stop on it, so that "converged" and the verdict never disagree; Inf for a
+    non-finite ``z``.
+    """
+    if not np.all(np.isfinite(z)):
         return float("inf")
-    return num / denom if denom > 0 else float("inf")
+    return certify(problem, z).error
 
 
 def diagonal(M: Any) -> np.ndarray:
@@ -49,79 +45,186 @@ def diagonal(M: Any) -> np.ndarray:
     return np.asarray(M.diagonal(), dtype=np.float64).ravel()
 
 
-def active_set_polish(problem: Any, z: np.ndarray, w: np.ndarray | None = None) -> np.ndarray:
-    """Guess the active set from ``(z, w)`` and re-solve the equations it implies.
+def refine(problem: Any, z: np.ndarray, rounds: int = 4,
+           basis: list[int] | None = None) -> tuple[np.ndarray, float] | None:
+    """Polish ``z`` by re-solving the equations its active set implies; None if nothing better.
 
-    Each variable is put at a bound (``z_i = l_i`` where ``z_i - l_i <= w_i``, ``z_i = u_i`` where
-    ``z_i - u_i >= w_i``) or declared basic (``w_i = 0``); free variables are always basic.  The
-    basic block ``M_BB z_B = -(q_B + M_BN z_N)`` is solved (dense LU / sparse LU, least squares
-    when singular) and the result clipped to the box.  Returns the candidate; the caller keeps it
-    only if it scores better (this is the final rounding step of the interior-point and Newton
-    methods).
+    The certificate names each pair's state (at a bound, or between with ``w_i = 0``).  The first
+    candidate only snaps the variables at bounds exactly onto them (rounding noise such as a
+    tangent impulse of 1e-32 in a friction-cone row whose other terms are zero); then the
+    variables at bounds are fixed and the others solve ``M_BB z_B = -(q_B + M_BN z_N)``
+    (dense LU with one refinement step, sparse LU, least squares when singular).  Signs are then
+    repaired (a basic ``z_i`` outside its box goes to the bound; a fixed one whose ``w_i`` has the
+    wrong sign becomes basic) for a few rounds, and the candidate with the smallest certified
+    error is returned with that error.  This is what turns a pivoting or iterative answer whose
+    active set is right into one that is componentwise accurate (tiny rows included).
+
+    ``basis`` (a pivoting method's final basic z's, nonsingular by construction) is tried before
+    the certificate's states: on degenerate, rank-deficient problems (coplanar contacts) the
+    states can name a singular set while the method's basis is not.
     """
+    if not np.all(np.isfinite(z)):
+        return None
     lo, up = problem.bounds()
-    if w is None:
-        w = problem.w(z)
-    with np.errstate(invalid="ignore"):
-        at_lo = (z - lo) <= w
-        at_up = (z - up) >= w
-    at_up &= ~at_lo | (np.abs(z - up) < np.abs(z - lo))
-    at_lo &= ~at_up
-    basic = ~(at_lo | at_up)
-    zc = np.where(at_lo, lo, np.where(at_up, up, z))
-    zc = np.where(np.isfinite(zc), zc, z)
-    B = np.flatnonzero(basic)
+    state = np.empty(problem.n, dtype=np.int8)
+    best_err = check(problem, z, state=state)[0].error
+    best = None
+    # first the cheapest candidate: the variables the certificate puts at a bound, exactly there
+    snapped = np.where(state == AT_LOWER, lo, np.where(state == AT_UPPER, up, z))
+    if np.all(np.isfinite(snapped)) and not np.array_equal(snapped, z):
+        err = certify(problem, snapped).error
+        if err < best_err:
+            best, best_err = snapped, err
+    if basis is not None:
+        hinted = np.where(np.isfinite(lo), AT_LOWER, BETWEEN).astype(np.int8)
+        hinted[np.asarray(basis, dtype=np.intp)] = BETWEEN
+        zc = _solve_active_set(problem, z, hinted, lo, up)
+        if zc is not None:
+            err = certify(problem, zc).error
+            if err < best_err:
+                best, best_err = zc, err
+    seen: set[bytes] = set()
+    for _ in range(rounds):
+        key = state.tobytes()
+        if key in seen:
+            break
+        seen.add(key)
+        zc = _solve_active_set(problem, z, state, lo, up)
+        if zc is None:
+            break
+        cert, w = check(problem, zc)
+        if cert.error < best_err:
+            best, best_err = zc, cert.error
+        new = state.copy()
+        basic = new == BETWEEN
+        new[basic & (zc < lo)] = AT_LOWER
+        new[basic & (zc > up)] = AT_UPPER
+        new[(state == AT_LOWER) & (w < 0)] = BETWEEN
+        new[(state == AT_UPPER) & (w > 0)] = BETWEEN
+        if np.array_equal(new, state):
+            break
+        state, z = new, zc
+    return None if best is None else (best, best_err)
+
+
+def _solve_active_set(problem: Any, z: np.ndarray, state: np.ndarray, lo: np.ndarray,
+                      up: np.ndarray) -> np.ndarray | None:
+    """z with the fixed variables at their bounds and the basic ones solving their rows."""
+    zc = np.where(state == AT_LOWER, lo, np.where(state == AT_UPPER, up, z))
+    if not np.all(np.isfinite(zc)):
+        return None
+    B = np.flatnonzero(state == BETWEEN)
     if B.size == 0:
         return zc
-    N = np.flatnonzero(~basic)
+    N = np.flatnonzero(state != BETWEEN)
     M = problem.M
+    rhs = -problem.q[B]
     if problem.sparse:
-        import scipy.sparse.linalg as spla  # scipy is imported on first use (start-up budget)
-
-        Mc = M.tocsc()
-        MBB = Mc[B][:, B].tocsc()
-        rhs = -problem.q[B]
+        Mr = M.tocsr()[B]
+        MBB = Mr[:, B].tocsr()
         if N.size:
-            rhs = rhs - np.asarray(Mc[B][:, N] @ zc[N]).ravel()
-        try:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")
-                lu = spla.splu(MBB)
-                zb = lu.solve(rhs)
-                zb = zb + lu.solve(rhs - MBB @ zb)
-        except RuntimeError:  # singular
-            zb = spla.lsqr(MBB, rhs, atol=1e-14, btol=1e-14, iter_lim=10 * B.size)[0]
+            rhs = rhs - np.asarray(Mr[:, N] @ zc[N]).ravel()
     else:
         MBB = M[np.ix_(B, B)]
-        rhs = -problem.q[B]
         if N.size:
             rhs = rhs - M[np.ix_(B, N)] @ zc[N]
-        try:
-            import scipy.linalg as sla  # scipy is imported on first use (start-up budget)
-
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")
-                lu = sla.lu_factor(MBB, check_finite=False)
-            if np.min(np.abs(np.diag(lu[0]))) <= 1e-14 * max(np.max(np.abs(MBB)), 1e-300):
-                raise np.linalg.LinAlgError("singular")
-            zb = sla.lu_solve(lu, rhs, check_finite=False)
-            zb = zb + sla.lu_solve(lu, rhs - MBB @ zb, check_finite=False)
-        except (np.linalg.LinAlgError, ValueError):
-            zb = np.linalg.lstsq(MBB, rhs, rcond=None)[0]
+    zb = _solve_peeling_singletons(MBB, rhs, problem.sparse)
+    if not np.all(np.isfinite(zb)):
+        return None
     zc[B] = zb
-    return np.clip(zc, lo, up)
+    return zc
 
 
-def better(problem: Any, candidates: list[np.ndarray], mu: float) -> tuple[np.ndarray, float]:
-    """The candidate with the smallest scaled error, and that error."""
-    lo, up = problem.bounds()
-    qn = float(np.max(np.abs(problem.q))) if problem.n else 0.0
+def _solve_peeling_singletons(A: Any, b: np.ndarray, sparse: bool) -> np.ndarray:
+    """``A x = b`` with the singleton rows solved exactly first.
+
+    A row whose only unknown left is ``x_j`` gives ``x_j = b_i / A_ij`` with one rounding (an
+    exact zero when ``b_i = 0``); it is substituted and the search repeats.  This keeps the
+    structural zeros that LU with partial pivoting would smear with rounding (a row
+    ``w_i = -z_1`` with ``q_i = 0`` must give ``z_1 = 0`` exactly, or that row is 100% violated).
+    The rest is solved by LU with one refinement step (sparse LU for a sparse A).
+    """
+    m = b.shape[0]
+    x = np.zeros(m)
+    if m == 0:
+        return x
+    A = A.tocsr() if sparse else np.asarray(A)
+    pattern = (A != 0) if not sparse else A.astype(bool).tocsr()
+    rows_left = np.ones(m, dtype=bool)
+    cols_left = np.ones(m, dtype=bool)
+    b = b.copy()
+    while True:
+        if sparse:
+            counts = np.asarray(pattern[:, cols_left].sum(axis=1)).ravel()
+        else:
+            counts = pattern[:, cols_left].sum(axis=1)
+        single = np.flatnonzero(rows_left & (counts == 1))
+        if single.size == 0:
+            break
+        taken = False
+        for i in single:
+            row = (A.getrow(i).toarray().ravel() if sparse else A[i]) * cols_left
+            nz = np.flatnonzero(row)
+            if nz.size != 1:  # an earlier singleton of this round took its unknown
+                continue
+            j = int(nz[0])
+            x[j] = b[i] / row[j]
+            col = (A[:, [j]].toarray().ravel() if sparse else A[:, j])
+            b = b - col * x[j]
+            rows_left[i] = False
+            cols_left[j] = False
+            taken = True
+        if not taken:
+            break
+    R, C = np.flatnonzero(rows_left), np.flatnonzero(cols_left)
+    if C.size:
+        sub = A[R][:, C] if sparse else A[np.ix_(R, C)]
+        if R.size == C.size:
+            x[C] = _sparse_solve(sub, b[R]) if sparse else _dense_solve(sub, b[R])
+        else:
+            dense = sub.toarray() if sparse else sub
+            x[C] = np.linalg.lstsq(dense, b[R], rcond=None)[0]
+    return x
+
+
+def _sparse_solve(A: Any, b: np.ndarray) -> np.ndarray:
+    """``A x = b`` by sparse LU with one refinement step; least squares when singular."""
+    import scipy.sparse.linalg as spla  # scipy is imported on first use (start-up budget)
+
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            lu = spla.splu(A.tocsc())
+            x = lu.solve(b)
+            return x + lu.solve(b - A @ x)
+    except RuntimeError:  # exactly singular
+        return spla.lsqr(A, b, atol=1e-15, btol=1e-15, iter_lim=10 * b.shape[0])[0]
+
+
+def _dense_solve(A: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``A x = b`` by LU with one step of iterative refinement; least squares if singular."""
+    import scipy.linalg as sla  # scipy is imported on first use (start-up budget)
+
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            lu = sla.lu_factor(A, check_finite=False)
+        if np.any(np.diag(lu[0]) == 0.0):
+            raise np.linalg.LinAlgError("singular")
+        x = sla.lu_solve(lu, b, check_finite=False)
+        x = x + sla.lu_solve(lu, b - A @ x, check_finite=False)
+        if not np.all(np.isfinite(x)):
+            raise np.linalg.LinAlgError("singular to working precision")
+        return x
+    except (np.linalg.LinAlgError, ValueError):
+        return np.linalg.lstsq(A, b, rcond=None)[0]
+
+
+def better(problem: Any, candidates: list[np.ndarray]) -> tuple[np.ndarray, float]:
+    """The candidate with the smallest certified error, and that error."""
     best, best_err = candidates[0], float("inf")
     for z in candidates:
-        if not np.all(np.isfinite(z)):
-            continue
-        e = scaled_error(z, problem.w(z), lo, up, mu, qn)
+        e = certified_error(problem, z)
         if e < best_err:
             best, best_err = z, e
     return best, best_err
-

@@ -203,7 +203,8 @@ def test_cli_pivot_json_seed(cli, samples):
         assert key in d
     assert d["q_prime"] == [1, 5, 1]
     assert d["driving_column"] == [-1, -3, 1]
-    assert d["dependent"] == ["z4", "w2", "z3"]
+    # one name for the artificial variable: z0 (the input said z4, its seed position)
+    assert d["dependent"] == ["z0", "w2", "z3"] and d["beta"] == [3, 4]
     assert d["independent"] == ["w1", "w3", "z2", "z1"]
     p = cli("pivot", str(samples / "seed000_augmented.json"), "-d", SEED_DEP, "--json")
     assert json.loads(p.stdout)["driving_column"] is None
@@ -273,7 +274,8 @@ def trace_codes(trace, n):
             return 2 * n
         return int(name[1:]) - 1 + (n if name[0] == "z" else 0)
 
-    return np.array([[code(s["entering"]), code(s["leaving"]), s["row"] - 1] for s in trace],
+    return np.array([[code(s["entering"]), code(s["leaving"]), s["row"] - 1] for s in trace
+                     if s["pivot"] >= 1 and s["leaving"] is not None],
                     dtype=np.int64).reshape(-1, 3)
 
 
@@ -281,7 +283,10 @@ def test_trace_seed004(cli, samples):
     p = cli("solve", str(samples / "seed004.json"), "--trace", "--json")
     assert p.returncode == 0, p.stderr
     d = json.loads(p.stdout)
-    tr = d["trace"]
+    start, *tr = d["trace"]
+    assert start["pivot"] == 0 and start["basis"] == ["w1", "w2"]
+    assert start["nonbasic"] == ["z1", "z2", "z0"] and start["q_prime"] == [-5, -6]
+    assert start["tableau"] == [[2, 1, 1], [1, 2, 1]] and start["next_entering"] == "z0"
     assert [(s["entering"], s["leaving"]) for s in tr] == [("z0", "w2"), ("z2", "w1"),
                                                            ("z1", "z0")]
     for s in tr:
@@ -301,13 +306,14 @@ def test_trace_seed004(cli, samples):
     text = cli("solve", str(samples / "seed004.json"), "--trace",
                env={"NO_COLOR": "1", "COLUMNS": "120"})
     assert text.returncode == 0
-    assert "pivot 3: z1 enters, z0 leaves" in text.stdout and "ratio test" in text.stdout
+    assert "Step 3: after pivot 3: z1 entered, z0 left" in text.stdout
+    assert "Ratio test" in text.stdout and "z0 leaves (row 2)" in text.stdout
 
 
 def test_trace_matches_kernel_on_siconos_files(siconos):
     from lcpcli.io import load
-    from lcpcli.solvers.lemke_trace import lemke_traced
     from lcpcli.solvers.methods.lemke import PIVOT_TOL, TIE_TOL
+    from lcpcli.solvers.trace.lemke import lemke_traced
 
     files = sorted((siconos / "lcp").glob("*.dat"))
     assert files
@@ -322,8 +328,8 @@ def test_trace_matches_kernel_on_siconos_files(siconos):
 
 
 def test_trace_matches_kernel_on_degenerate_integer_problems():
-    from lcpcli.solvers.lemke_trace import lemke_traced
     from lcpcli.solvers.methods.lemke import PIVOT_TOL, TIE_TOL
+    from lcpcli.solvers.trace.lemke import lemke_traced
 
     rng = np.random.default_rng(3)
     rules = set()
@@ -350,7 +356,7 @@ def test_trace_large_n_has_columns_not_tableau():
     A = rng.standard_normal((n, n))
     M, q = A @ A.T + np.eye(n), rng.standard_normal(n) - 1
     res = solve(Problem.create(M, q), "lemke", trace=True)
-    assert res.solved and len(res.trace) == res.iterations
+    assert res.solved and len(res.trace) == res.iterations + 1
     assert all(s["tableau"] is None for s in res.trace)
     assert all(len(s["driving_column"]) == n for s in res.trace[:-1])
     assert res.trace[-1]["leaving"] == "z0" and res.trace[-1]["driving_column"] is None
@@ -417,8 +423,10 @@ def test_revised_solves_what_tableau_solves(siconos):
             b = solve(prob, "lemke-revised", refactor_every=every)
             assert a.status == b.status, (f.name, every)
             assert a.iterations == b.iterations, (f.name, every)
-            assert a.message.split(";")[0].split(" (")[0] == \
-                b.message.split(";")[0].split(" (")[0]
+            def head(message: str) -> str:  # the method's own words, before notes
+                return message.split(" [")[0].split(";")[0].split(" (")[0]
+
+            assert head(a.message) == head(b.message)
         if a.solved:
             assert b.error <= 1e-8
 

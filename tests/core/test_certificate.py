@@ -1,83 +1,279 @@
-"""The certificate: one definition of residual and scaled error for every problem form."""
+"""The certificate: componentwise, scale-invariant, not fooled by size, overflow-safe.
+
+Every number below is checked against what the definition in lcpcli/core/certificate.py implies,
+and the compiled kernel is checked against an independent re-implementation
+(``tests/references.py: componentwise_error``) on random and adversarial data.
+"""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
+import scipy.sparse as sp
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from references import componentwise_error
 
-from lcpcli.core.certificate import certify
+from lcpcli.core.certificate import MAX_TOL, MIN_TOL, certify, check, validate_tol
+from lcpcli.core.errors import OptionError
 from lcpcli.core.problem import Problem
 
+SEED004 = Problem.create([[2, 1], [1, 2]], [-5, -6])
 
+
+# ---------------------------------------------------------------------- the definition, by hand
 def test_exact_solution_scores_zero():
-    p = Problem.create([[2, 1], [1, 2]], [-5, -6])
-    c = certify(p, np.array([4 / 3, 7 / 3]))
-    assert c.passed and c.residual < 1e-15 and c.error < 1e-15
+    c, w = check(SEED004, [4 / 3, 7 / 3])
+    assert c.passed and c.error == 0.0 and c.backward_error == 0.0 and c.growth == 1.0
+    assert np.allclose(w, 0.0)
 
 
-def test_residual_is_inf_norm_of_min_z_w():
+def test_violated_row_is_judged_against_its_own_scale():
+    # M = diag(1e8, 1e-8), q = (-1e8, -1e-8): the solution is (1, 1).  z = (1, 0) leaves
+    # w_2 = -1e-8, a 100% violation of row 2 however small it is next to row 1.
+    p = Problem.create(np.diag([1e8, 1e-8]), [-1e8, -1e-8])
+    bad = certify(p, [1.0, 0.0])
+    assert not bad.passed and bad.error == pytest.approx(1.0) and bad.worst == 1
+    good = certify(p, [1.0, 1.0])
+    assert good.passed and good.error == 0.0
+
+
+def test_zero_matrix_with_negative_q_has_no_certifiable_answer():
+    # w = q whatever z is: no z of any size can pass
+    p = Problem.create(np.zeros((4, 4)), [-1.0, 2.0, -3.0, 0.5])
+    for scale in (0.0, 1.0, 1e13, 1e300):
+        c = certify(p, np.full(4, scale))
+        assert not c.passed and c.error >= 1.0
+
+
+def test_a_scaled_up_solution_fails():
+    # an O(1) problem answered with its solution times 1e13
+    c = certify(SEED004, 1e13 * np.array([4 / 3, 7 / 3]))
+    assert not c.passed and c.error > 0.5
+
+
+def test_rows_that_balance_only_by_cancellation_are_not_certified():
+    # M = [[1, -1], [-1, 1]] (PSD), q = (-1, -1): infeasible (w1 + w2 = -2).  Large z make the
+    # backward error tiny, but the rows cancel terms of size |z| to leave O(1) violations.
+    p = Problem.create([[1.0, -1.0], [-1.0, 1.0]], [-1.0, -1.0])
+    for t in (1e6, 1e10, 1e14):
+        c = certify(p, np.array([t, t + 0.5]))
+        assert c.backward_error < 1e-5          # a nearby problem is solved ...
+        assert c.growth > 0.1 * t               # ... by cancellation of terms of size t ...
+        assert not c.passed and c.error > 0.1   # ... so nothing is certified
+
+
+def test_a_decoupled_block_cannot_hide_behind_a_good_one():
+    # block 1 (rows 1-2) solved exactly; block 2 (rows 3-4) the infeasible pair above at z ~ 1e9
+    M = np.zeros((4, 4))
+    M[:2, :2] = [[2, 1], [1, 2]]
+    M[2:, 2:] = [[1, -1], [-1, 1]]
+    p = Problem.create(M, [-5, -6, -1, -1])
+    c = certify(p, [4 / 3, 7 / 3, 1e9, 1e9 + 0.5])
+    assert not c.passed and c.worst in (2, 3) and c.growth > 1e8
+
+
+def test_exact_cancellation_with_zero_q_is_fine():
+    # an MLCP equality chain u1 = u2 = u3 (q = 0 rows) anchored by u3 = 5: every row but the
+    # last cancels exactly; the block's growth is that of its anchoring row (1)
+    M = np.array([[1.0, -1.0, 0.0], [0.0, 1.0, -1.0], [0.0, 0.0, 1.0]])
+    p = Problem.create(M, [0.0, 0.0, -5.0], n_eq=3)
+    c = certify(p, [5.0, 5.0, 5.0])
+    assert c.passed and c.error == 0.0 and c.growth == 1.0
+
+
+def test_a_zero_is_judged_by_what_it_contributes():
+    # z2 = 1e-20 next to w2 = 1 > 0: moving z2 to 0 changes row 1 by 1e-20 / 2 (relative) and
+    # row 2 by 1e-20 / 1: negligible, so the pair is complementary up to 1e-20
+    p = Problem.create([[2.0, 1.0], [0.0, 1.0]], [-2.0, 1.0])
+    c = certify(p, [1.0, 1e-20])
+    assert c.passed and c.error == pytest.approx(1e-20, rel=0.1)
+    # column 2 scaled by 1e-20 and z2 by 1e20: the same answer in other units, the same score
+    p2 = Problem.create([[2.0, 1e-20], [0.0, 1e-20]], [-2.0, 1.0])
+    assert certify(p2, [1.0, 1.0]).error == pytest.approx(c.error, rel=1e-12)
+    # but a z2 that contributes a visible share of row 1 is not zero
+    assert not certify(p, [1.0, 1e-3]).passed
+
+
+def test_zero_column_and_positive_w():
+    # column 2 of M is zero: z2 changes nothing, so a positive z2 beside w2 = q2 > 0 is wrong
+    p = Problem.create([[1.0, 0.0], [1.0, 0.0]], [-1.0, 2.0])
+    assert certify(p, [1.0, 0.0]).passed
+    assert not certify(p, [1.0, 1e-300]).passed
+
+
+def test_nan_inf_and_diverged_answers_fail():
+    for z in ([np.nan, 1.0], [np.inf, 1.0], [1e306, 1e306]):
+        c = certify(SEED004, np.array(z))
+        assert not c.passed
+
+
+def test_mlcp_and_box_forms():
+    mlcp = Problem.create([[2.0, 1.0], [1.0, 2.0]], [-1.0, 1.0], n_eq=1)
+    assert certify(mlcp, [0.5, 0.0]).passed          # free row 2*0.5 - 1 = 0; w2 = 1.5, z2 = 0
+    c = certify(mlcp, [0.0, 0.0])
+    assert not c.passed and c.equality_residual == pytest.approx(1.0)
+    box = Problem.create(np.eye(2), [-2.0, 3.0], lower=[-1.0, -1.0], upper=[1.0, 1.0])
+    assert certify(box, [1.0, -1.0]).passed         # at the upper bound with w = -1 <= 0 ...
+    assert not certify(box, [1.5, -1.0]).passed     # ... but not outside the box
+
+
+def test_diagnostics_in_data_units():
     p = Problem.create(np.eye(3), [1.0, -2.0, 0.5])
     z = np.array([0.5, 1.0, -0.25])
-    w = z + p.q
     c = certify(p, z)
-    assert c.residual == pytest.approx(np.abs(np.minimum(z, w)).max())
-    assert not c.passed
+    assert c.residual == pytest.approx(np.abs(np.minimum(z, z + p.q)).max())
+    assert c.bound_violation == pytest.approx(0.25) and not c.passed
 
 
-def test_error_is_scale_invariant():
-    rng = np.random.default_rng(0)
-    M = rng.standard_normal((5, 5))
-    q = rng.standard_normal(5)
-    z = np.abs(rng.standard_normal(5))
-    base = certify(Problem.create(M, q), z).error
-    assert certify(Problem.create(1e8 * M, 1e8 * q), z).error == pytest.approx(base)
-    assert certify(Problem.create(M, 1e-12 * q), 1e-12 * z).error == pytest.approx(base)
+@pytest.mark.parametrize("bad", [0.0, -1e-8, 1.0, 0.5, 1e-17, float("nan"), float("inf"), "x"])
+def test_tolerance_is_bounded(bad):
+    with pytest.raises(OptionError, match="tolerance"):
+        validate_tol(bad)
 
 
-def test_error_stays_meaningful_when_q_is_near_zero():
-    # the q-relative measure ||min(z, w)|| / ||q|| explodes as q -> 0; ours does not
-    M = np.array([[2.0, 1.0], [1.0, 2.0]])
-    q = np.array([-5.0, -6.0]) * 1e-15
-    z = np.array([4 / 3, 7 / 3]) * 1e-15
-    c = certify(Problem.create(M, q), z)
-    assert c.passed and c.error < 1e-14
-    # ... and a wrong answer is still wrong at that scale
-    assert not certify(Problem.create(M, q), np.zeros(2)).passed
-    # q = 0 exactly: z = 0 is exact
-    assert certify(Problem.create(M, [0.0, 0.0]), np.zeros(2)).error == 0.0
+def test_tolerance_bounds_are_accepted():
+    assert validate_tol(MIN_TOL) == MIN_TOL and validate_tol(MAX_TOL) == MAX_TOL
 
 
-def test_non_finite_answers_fail():
-    p = Problem.create(np.eye(2), [-1.0, -1.0])
-    assert not certify(p, np.array([np.nan, 1.0])).passed
-    assert not certify(p, np.array([np.inf, 1.0])).passed
+# ---------------------------------------------------------------------- overflow and range
+@pytest.mark.parametrize("k", [-1000, -600, -1, 0, 1, 600, 1000])
+def test_global_power_of_two_scaling(k):
+    s = 2.0 ** k
+    p = Problem.create(s * np.array([[2.0, 1.0], [1.0, 2.0]]), s * np.array([-5.0, -6.0]))
+    assert certify(p, [4 / 3, 7 / 3]).passed
+    c = certify(p, [1.0, 0.0])
+    assert not c.passed and c.error == pytest.approx(certify(SEED004, [1.0, 0.0]).error)
 
 
-def test_mlcp_equality_rows_and_box_bounds():
-    M = np.array([[2.0, 1.0], [1.0, 2.0]])
-    mlcp = Problem.create(M, [-1.0, 1.0], n_eq=1)
-    c = certify(mlcp, np.array([0.5, 0.0]))  # free row: 2*0.5 - 1 = 0; w2 = 1.5 >= 0, z2 = 0
-    assert c.passed and c.equality_residual == 0.0
-    c = certify(mlcp, np.array([0.0, 0.0]))
-    assert not c.passed and c.equality_residual == pytest.approx(1.0)
-
-    box = Problem.create(np.eye(2), [-3.0, 2.0], lower=[-1, -1], upper=[1, 1])
-    # z1 at upper bound with w1 = 1 - 3 = -2 <= 0; z2 at lower bound with w2 = -1 + 2 = 1 >= 0
-    assert certify(box, np.array([1.0, -1.0])).passed
-    c = certify(box, np.array([1.5, -1.0]))
-    assert not c.passed and c.bound_violation == pytest.approx(0.5)
+def test_overflowing_products_do_not_crash():
+    # terms of size 1e300 * 1e10 overflow a double; rows still cancel exactly
+    M = np.array([[1e300, -1e300], [0.0, 1.0]])
+    p = Problem.create(M, [0.0, -1e10], n_eq=1)
+    c, w = check(p, [1e10, 1e10])
+    assert c.passed and w[0] == 0.0
+    c = certify(Problem.create(np.full((3, 3), 1e300), [-1e300] * 3), [1e10, 0.0, 0.0])
+    assert not c.passed and np.isfinite(c.error)
 
 
-def test_huge_solution_gets_a_warning():
-    # a z of 1e14 passes the backward-error test on a nearly infeasible PSD problem, but the
-    # verdict says how large it is compared with the data
-    from lcpcli.api import certify_outcome
-    from lcpcli.core.result import Outcome
+def test_subnormal_entries():
+    tiny = 5e-324
+    p = Problem.create([[1.0, 0.0], [0.0, 1.0]], [-tiny, -1.0])
+    assert certify(p, [tiny, 1.0]).passed
+    assert not certify(p, [0.0, 1.0]).passed
 
-    p = Problem.create([[1, -1], [-1, 1]], [-1, -1])
-    r = certify_outcome(p, Outcome(np.array([1.5e14, 1.5e14 + 0.5]), 1, "converged", "x"),
-                        "m", 0.0, 1e-8)
-    assert "huge compared with the data" in r.message
-    ok = certify_outcome(Problem.create([[2, 1], [1, 2]], [-5, -6]),
-                         Outcome(np.array([4 / 3, 7 / 3]), 3, "converged", "x"), "m", 0.0, 1e-8)
-    assert ok.solved and "warning" not in ok.message
+
+# ---------------------------------------------------------------------- invariance, properties
+def _planted(rng: np.random.Generator, n: int, kind: str = "random"):
+    """A random problem with a planted solution (z, w complementary)."""
+    A = rng.standard_normal((n, n))
+    M = A @ A.T / n + np.eye(n) if kind == "pd" else A
+    active = rng.random(n) < 0.5
+    z = np.where(active, rng.uniform(0.1, 2.0, n), 0.0)
+    w = np.where(active, 0.0, rng.uniform(0.1, 2.0, n))
+    return M, w - M @ z, z, w
+
+
+def _scale_like(rng: np.random.Generator, n: int, spread: float) -> np.ndarray:
+    return 2.0 ** np.round(rng.uniform(-spread, spread, n))
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(1, 12),
+       spread=st.sampled_from([0, 8, 30, 120]))
+def test_planted_solutions_pass_under_any_scaling(seed, n, spread):
+    rng = np.random.default_rng(seed)
+    M, q, z, _ = _planted(rng, n)
+    base = certify(Problem.create(M, q), z)
+    assert base.passed, base
+    D, E = _scale_like(rng, n, spread), _scale_like(rng, n, spread)
+    Ms = D[:, None] * M * E[None, :]
+    qs = D * q
+    # a global 2^k that keeps every entry a normal double (then every product stays exact)
+    data = np.abs(np.concatenate([Ms.ravel(), qs]))
+    data = data[data > 0]
+    lo_k = -1021 - int(np.frexp(data.min())[1]) if data.size else 0
+    hi_k = 1023 - int(np.frexp(data.max())[1]) if data.size else 0
+    k = int(rng.integers(lo_k, hi_k + 1)) if (spread and lo_k <= hi_k) else 0
+    scaled = certify(Problem.create(np.ldexp(Ms, k), np.ldexp(qs, k)), z / E)
+    assert scaled.passed, (scaled, k)
+    assert scaled.error <= max(4 * base.error, 1e-15)
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(2, 10),
+       corruption=st.sampled_from(["negative_z", "violated_w", "both_positive", "scaled_up",
+                                   "small_row"]))
+def test_corrupted_copies_fail(seed, n, corruption):
+    rng = np.random.default_rng(seed)
+    M, q, z, w = _planted(rng, n, "pd")
+    i = int(rng.integers(n))
+    z = z.copy()
+    if corruption == "negative_z":
+        z[i] = -0.5
+    elif corruption == "violated_w":
+        # w_i := -0.5 by changing q_i: z is no longer feasible for the new problem
+        q = q.copy()
+        q[i] -= w[i] + 0.5
+    elif corruption == "both_positive":
+        q = q.copy()
+        if z[i] > 0:
+            q[i] += 0.5          # w_i = 0.5 beside z_i > 0
+        else:
+            z[i] = 0.5           # z_i = 0.5 beside w_i > 0 ...
+            q = q - M[:, i] * 0  # (w moves with z; w_i stays positive for a PD M)
+    elif corruption == "scaled_up":
+        z = z * 1e6 if z.any() else np.full(n, 1e6)
+    elif corruption == "small_row":
+        # row i scaled by 1e-8, then violated by half of its own (tiny) scale
+        M = M.copy()
+        q = q.copy()
+        M[i] *= 1e-8
+        q[i] *= 1e-8
+        q[i] -= (M[i] @ z + q[i]) + 0.5 * (np.abs(M[i]) @ np.abs(z) + abs(q[i]))
+    p = Problem.create(M, q)
+    c = certify(p, z)
+    ref = componentwise_error(M, q, z)
+    assert not c.passed, (corruption, c)
+    assert c.error == pytest.approx(ref, rel=1e-6, abs=1e-14)
+
+
+@settings(max_examples=80, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(1, 9),
+       form=st.sampled_from(["lcp", "mlcp", "box"]),
+       sparse=st.booleans(), zero_frac=st.sampled_from([0.0, 0.3, 0.8]))
+def test_kernel_agrees_with_the_independent_reference(seed, n, form, sparse, zero_frac):
+    rng = np.random.default_rng(seed)
+    M = rng.standard_normal((n, n)) * (rng.random((n, n)) >= zero_frac)
+    M *= 2.0 ** rng.integers(-20, 20, (n, 1))
+    q = rng.standard_normal(n) * (rng.random(n) >= zero_frac)
+    z = np.where(rng.random(n) < 0.5, 0.0, rng.uniform(-0.2, 3.0, n))
+    kw: dict = {}
+    lo = up = None
+    n_eq = 0
+    if form == "mlcp":
+        n_eq = int(rng.integers(0, n + 1))
+        kw["n_eq"] = n_eq
+    elif form == "box":
+        lo = np.where(rng.random(n) < 0.3, -np.inf, -rng.uniform(0, 1, n))
+        up = np.where(rng.random(n) < 0.3, np.inf, rng.uniform(0, 1, n))
+        z = np.where(rng.random(n) < 0.5, np.where(rng.random(n) < 0.5, lo, up), z)
+        z = np.where(np.isfinite(z), z, 0.0)
+        kw.update(lower=lo, upper=up)
+    p = Problem.create(sp.csr_matrix(M) if sparse else M, q, **kw)
+    c = certify(p, z)
+    ref = componentwise_error(M, q, z, lo, up, n_eq)
+    if np.isinf(ref):
+        assert np.isinf(c.error)
+    else:
+        assert c.error == pytest.approx(ref, rel=1e-9, abs=1e-300)
+
+
+def test_sparse_and_dense_agree_on_siconos_sized_problem():
+    rng = np.random.default_rng(7)
+    M, q, z, _ = _planted(rng, 60, "pd")
+    M[np.abs(M) < 0.2] = 0.0
+    q = (np.where(z > 0, 0.0, 1.0) - M @ z)
+    a = certify(Problem.create(M, q), z)
+    b = certify(Problem.create(sp.csr_matrix(M), q), z)
+    assert a.passed and b.passed and a.error == pytest.approx(b.error, abs=1e-16)

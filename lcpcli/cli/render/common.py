@@ -25,8 +25,10 @@ def fmt(x: float) -> str:
     return f"{x + 0.0:.6g}"
 
 
-def render_result(result: Any, problem: Any, file: str | None = None) -> Group:
-    """Verdict, certificate and the solution table of a :class:`~lcpcli.core.result.Result`."""
+def render_result(result: Any, problem: Any, file: str | None = None,
+                  forward: Any = None) -> Group:
+    """Verdict, certificate and the solution table of a :class:`~lcpcli.core.result.Result`
+    (``forward``: a :class:`~lcpcli.analysis.bounds.ForwardBound`, when one was computed)."""
     head = Table.grid(padding=(0, 2))
     head.add_column(style="bold")
     head.add_column()
@@ -41,7 +43,11 @@ def render_result(result: Any, problem: Any, file: str | None = None) -> Group:
     head.add_row("time", f"{result.seconds * 1e3:.3f} ms (method only)")
     natural = "||min(z, w)||_inf" if problem.kind == "lcp" else "||mid(z-l, z-u, w)||_inf"
     head.add_row("residual", f"{cert.residual:.3e}  {natural}")
-    head.add_row("error", f"{cert.error:.3e}  scaled (tol {cert.tol:.1e})")
+    head.add_row("error", f"{cert.error:.3e}  componentwise (tol {cert.tol:.1e}): backward error "
+                          f"{cert.backward_error:.2e} x growth {cert.growth:.3g}")
+    if forward is not None:
+        head.add_row("forward error", f"||z - z*||_inf <= {forward.bound:.2e} "
+                                      f"(relative {forward.relative:.2e}; {forward.how})")
     if problem.kind != "lcp":
         head.add_row("bounds / equalities",
                      f"bound violation {cert.bound_violation:.2e}, "

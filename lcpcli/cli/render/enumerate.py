@@ -28,6 +28,7 @@ from lcpcli.analysis.enumeration import (
     generators_2d,
 )
 from lcpcli.cli.render.common import fmt
+from lcpcli.cli.render.doc import Grid, Heading, Page, Para
 
 #: Show the complementary matrix in the table up to this n.
 MATRIX_MAX_N = 4
@@ -159,6 +160,57 @@ def render_enumeration(res: Enumeration, problem: Any, file: str | None, *,
     return Group(*parts)
 
 
+# ---------------------------------------------------------------------------- exports
+def _matrix_inline(A: np.ndarray) -> str:
+    return "[" + "; ".join(" ".join(fmt(x) for x in row) for row in A) + "]"
+
+
+def enumeration_pages(res: Enumeration, problem: Any, file: str | None, *, all_cones: bool,
+                      covers: bool | None = None) -> list[Page]:
+    """The enumeration as one page of blocks for ``--format markdown|latex``."""
+    M = np.asarray(problem.dense_M(), dtype=float)
+    n = res.n
+    c = res.counts
+    page: Page = [Heading(f"Complementary cones of {file or problem.name or 'the problem'}"),
+                  Para(f"{problem.summary()}, 2^{n} = {res.total:,} complementary cones; "
+                       f"{c['feasible']:,} contain q, {c['singular']:,} singular.")]
+    if res.cones or all_cones:
+        small = n <= MATRIX_MAX_N
+        header = ["r", "A_r (I_j or -M_j)" if small else "basic y", "det A_r", "rank",
+                  "q in cone", *(["y (A_r y = q)"] if n <= Y_MAX_N else [])]
+        rows = []
+        for cone in res.cones[:MAX_ROWS]:
+            row = [str(cone.r),
+                   _matrix_inline(complementary_matrix(M, cone.code)) if small
+                   else " ".join(cone.basis_names()),
+                   fmt(cone.det) if cone.det is not None else "-",
+                   "-" if cone.rank is None else str(cone.rank) + (" (singular)"
+                                                                  if cone.singular else ""),
+                   ("yes (continuum)" if cone.continuum else "yes") if cone.feasible else "no"]
+            if n <= Y_MAX_N:
+                row.append("-" if cone.y is None or (cone.singular and not cone.feasible) else
+                           ", ".join(f"{name} = {fmt(v)}"
+                                     for name, v in zip(cone.basis_names(), cone.y,
+                                                        strict=True)))
+            rows.append(row)
+        what = "all" if all_cones else "those containing q"
+        page.append(Grid(header, rows, ["r", "l", "r", "l", "l", "l"][:len(header)],
+                         f"complementary cones ({what})"))
+    if res.solutions:
+        page.append(Grid(["#", "z", "w = Mz + q", "cones", "error"],
+                         [[str(k), _vec(sol.z) + (" (+ a continuum)" if sol.continuum else ""),
+                           _vec(sol.w), str(len(sol.cones)), f"{sol.certificate.error:.1e}"]
+                          for k, sol in enumerate(res.solutions[:MAX_ROWS], 1)],
+                         ["r", "l", "l", "r", "r"], "solutions"))
+    page.append(Para(f"Verdict: {VERDICT_TEXT[res.verdict][0]}."))
+    if covers is not None:
+        page.append(Para("K(M) = R^2: the four cones cover the plane, so LCP(q, M) has a "
+                         "solution for every q." if covers else
+                         "K(M) != R^2: the cones leave gaps; LCP(q, M) has no solution for q "
+                         "in them."))
+    return [page]
+
+
 # ---------------------------------------------------------------------------- n = 2 drawings
 def _cone_membership(M: np.ndarray, pts: np.ndarray) -> np.ndarray:
     """(4, P) booleans: point p in the interior-or-boundary of the nondegenerate cone r."""
@@ -173,8 +225,65 @@ def _cone_membership(M: np.ndarray, pts: np.ndarray) -> np.ndarray:
     return out
 
 
-def draw_cones_text(M: Any, q: Any, width: int = 49, height: int = 21) -> Text:
-    """Character drawing of the four complementary cones and q (directions only)."""
+def _cone_number(code: int) -> int:
+    """The seed's number r of the 2 x 2 cone with code bits (bit j = z_{j+1} basic)."""
+    return 1 + sum(1 << (1 - b) for b in range(2) if (code >> b) & 1)
+
+
+class _Canvas:
+    """A character grid with styles and a record of cells that must not be overwritten."""
+
+    def __init__(self, width: int, height: int) -> None:
+        self.width, self.height = width, height
+        self.chars = [[" "] * width for _ in range(height)]
+        self.styles = [[""] * width for _ in range(height)]
+        self.fixed: set[tuple[int, int]] = set()
+
+    def put(self, r: int, c: int, ch: str, style: str = "", fix: bool = False) -> None:
+        if 0 <= r < self.height and 0 <= c < self.width and (r, c) not in self.fixed:
+            self.chars[r][c] = ch
+            self.styles[r][c] = style
+            if fix:
+                self.fixed.add((r, c))
+
+    def place_label(self, r: int, c: int, text: str, style: str, right: bool) -> bool:
+        """Write ``text`` at (r, c) (ending there if ``right``) with a blank cell each side,
+        at the nearest place where it overlaps no fixed cell; False if none fits."""
+        for dr, dc in ((0, 0), (-1, 0), (1, 0), (0, 2), (0, -2), (1, 2), (-1, 2), (1, -2),
+                       (-1, -2), (-2, 0), (2, 0)):
+            rr = r + dr
+            c0 = (c - len(text) + 1 if right else c) + dc
+            c0 = min(max(c0, 1), self.width - len(text) - 1)
+            span = [(rr, cc) for cc in range(c0 - 1, c0 + len(text) + 1)]
+            if not 0 <= rr < self.height or any(x in self.fixed for x in span):
+                continue
+            for cc in range(c0 - 1, c0 + len(text) + 1):
+                self.put(rr, cc, " ", fix=True)
+            for k, ch in enumerate(text):
+                self.fixed.discard((rr, c0 + k))
+                self.put(rr, c0 + k, ch, style, fix=True)
+            return True
+        return False
+
+    def text(self) -> Text:
+        out = Text()
+        for row, srow in zip(self.chars, self.styles, strict=True):
+            for ch, st in zip(row, srow, strict=True):
+                out.append(ch, style=st or None)
+            out.append("\n")
+        return out
+
+
+def draw_cones_text(M: Any, q: Any, width: int = 49, height: int = 21,
+                    path: list[dict[str, Any]] | None = None) -> Text:
+    """Character drawing of the four complementary cones and q (directions only).
+
+    Each region shows the number r of the one cone holding it (``▒``: 2+ cones, blank: none);
+    the generators ``I_j`` (labelled ``w_j``) and ``-M_j`` (``z_j``) are rays of unit length;
+    labels never overlap a ray, another label or a region digit (one blank cell each side).
+    ``path`` (from :func:`lcpcli.solvers.trace.lemke.path_points`): Lemke's path
+    ``q + z0 d``, drawn at its directions as ``*``.
+    """
     M = np.asarray(M, dtype=float)
     q = np.asarray(q, dtype=float)
     R = 1.15
@@ -185,51 +294,45 @@ def draw_cones_text(M: Any, q: Any, width: int = 49, height: int = 21) -> Text:
     member = _cone_membership(M, pts)
     cover = member.sum(axis=0).reshape(height, width)
     which = np.argmax(member, axis=0).reshape(height, width)
-    grid = [[" "] * width for _ in range(height)]
-    styles = [[""] * width for _ in range(height)]
+    canvas = _Canvas(width, height)
     for i in range(height):
         for j in range(width):
             if cover[i, j] >= 2:
-                grid[i][j] = "▒"
-                styles[i][j] = "yellow"
+                canvas.put(i, j, "▒", "yellow")
             elif cover[i, j] == 1 and j % 2 == 0:
-                code = int(which[i, j])
-                grid[i][j] = str(1 + sum(1 << (1 - b) for b in range(2) if (code >> b) & 1))
-                styles[i][j] = "dim"
+                canvas.put(i, j, str(_cone_number(int(which[i, j]))), "dim")
 
     def cell(x: float, y: float) -> tuple[int, int]:
         return (int(round((R - y) / (2 * R) * (height - 1))),
                 int(round((x + R) / (2 * R) * (width - 1))))
 
-    r0, c0 = cell(0.0, 0.0)
-    grid[r0][c0] = "+"
-    for name, v in generators_2d(M).items():
-        norm = float(np.hypot(*v))
-        if norm == 0:
-            continue
-        u = v / norm
+    gens = [(name, v) for name, v in generators_2d(M).items() if float(np.hypot(*v)) > 0]
+    for name, v in gens:  # all rays first, then every label on top of a clear margin
+        u = v / float(np.hypot(*v))
         style = "bold cyan" if name.startswith("w") else "bold magenta"
         ang = float(np.degrees(np.arctan2(u[1], u[0]))) % 180.0
         ray = "─" if ang < 22.5 or ang >= 157.5 else "│" if 67.5 <= ang < 112.5 else (
             "╱" if ang < 90 else "╲")
         for t in np.linspace(0.08, 0.92, 40):
-            r, c = cell(*(t * u))
-            grid[r][c] = ray
-            styles[r][c] = style
-        r, c = cell(*(1.0 * u))
-        for k, ch in enumerate(name):
-            cc = min(max(c - (1 if u[0] < -0.3 else 0) + k, 0), width - 1)
-            grid[r][cc] = ch
-            styles[r][cc] = style
+            canvas.put(*cell(*(t * u)), ray, style, fix=True)
+    canvas.put(*cell(0.0, 0.0), "+", fix=True)
     qn = float(np.hypot(*q))
+    if path:
+        for a, b in zip(path[:-1], path[1:], strict=True):
+            pa, pb = np.asarray(a["point"]), np.asarray(b["point"])
+            for s_ in np.linspace(0.0, 1.0, 60):
+                x = (1 - s_) * pa + s_ * pb
+                nx = float(np.hypot(*x))
+                if nx > 0:
+                    canvas.put(*cell(*(0.62 * x / nx)), "*", "bold red", fix=True)
+    for name, v in gens:
+        u = v / float(np.hypot(*v))
+        style = "bold cyan" if name.startswith("w") else "bold magenta"
+        r, c = cell(*(1.0 * u))
+        canvas.place_label(r, c, name, style, right=u[0] < -0.3)
     r, c = cell(*((0.75 * q / qn) if qn > 0 else np.zeros(2)))
-    grid[r][c] = "q"
-    styles[r][c] = "bold red"
-    text = Text()
-    for row, srow in zip(grid, styles, strict=True):
-        for ch, st in zip(row, srow, strict=True):
-            text.append(ch, style=st or None)
-        text.append("\n")
+    canvas.place_label(r, c, "q", "bold red", right=False)
+    text = canvas.text()
     text.append("1-4: the one cone r holding the region   ", style="dim")
     text.append("▒", style="yellow")
     text.append(" 2+ cones   blank: no cone   ", style="dim")
@@ -239,34 +342,59 @@ def draw_cones_text(M: Any, q: Any, width: int = 49, height: int = 21) -> Text:
     text.append(" = -M_j (unit length);  ", style="dim")
     text.append("q", style="bold red")
     text.append(f" = ({fmt(q[0])}, {fmt(q[1])}) drawn at its direction", style="dim")
+    if path:
+        text.append(";  ", style="dim")
+        text.append("*", style="bold red")
+        top = max(float(p["z0"]) for p in path)
+        text.append(f" Lemke's path q + z0 d (directions), z0 from {fmt(top)} back to "
+                    f"{fmt(path[-1]['z0'])}", style="dim")
     return text
 
 
-def plot_cones(M: Any, q: Any, target: Path, title: str = "") -> None:
-    """Write the picture of the four complementary cones and q with matplotlib (atomically).
+def plot_cones(M: Any, q: Any, target: Path, title: str = "",
+               path: list[dict[str, Any]] | None = None) -> None:
+    """Write the picture of :func:`cones_figure` with matplotlib (atomically).
 
     The format follows the file suffix (png by default).  Raises ImportError without
     matplotlib.
+    """
+    import matplotlib.pyplot as plt  # matplotlib is optional and slow to import: only here
+
+    from lcpcli.io import atomic_path
+
+    fig = cones_figure(M, q, title, path)
+    fmt_name = (target.suffix.lstrip(".") or "png").lower()
+    with atomic_path(target) as tmp:
+        fig.savefig(tmp, format=fmt_name, dpi=120, bbox_inches="tight")
+    plt.close(fig)
+
+
+def cones_figure(M: Any, q: Any, title: str = "",
+                 path: list[dict[str, Any]] | None = None) -> Any:
+    """The matplotlib figure of the four complementary cones and q (n = 2).
+
+    The legend names each cone by its number r and generators, below the axes so that it
+    hides nothing; the generator labels sit inside the axes.  ``path``: Lemke's path
+    ``q + z0 d`` (:func:`lcpcli.solvers.trace.lemke.path_points`), each state's point numbered.
     """
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from lcpcli.io import atomic_path
-
     M = np.asarray(M, dtype=float)
     q = np.asarray(q, dtype=float)
     gens = generators_2d(M)
-    qn = float(np.hypot(*q))
-    R = max(1.0, qn) * 1.25
-    fig, ax = plt.subplots(figsize=(6, 6))
+    extent = float(np.hypot(*q))
+    if path:
+        extent = max([extent] + [float(np.hypot(*p["point"])) for p in path])
+    R = max(1.0, extent) * 1.25
+    fig, ax = plt.subplots(figsize=(6.4, 7.2))
     colours = ["tab:blue", "tab:orange", "tab:green", "tab:red"]
-    names = list(gens)
-    for code in range(4):
+    for code in sorted(range(4), key=_cone_number):
         cols = [gens[f"z{j + 1}"] if (code >> j) & 1 else gens[f"w{j + 1}"] for j in range(2)]
         A = np.column_stack(cols)
-        label = "Pos(" + ", ".join(
+        label = f"r = {_cone_number(code)}: Pos(" + ", ".join(
             (f"-M{j + 1}" if (code >> j) & 1 else f"I{j + 1}") for j in range(2)) + ")"
         if abs(np.linalg.det(A)) <= 1e-12 * max(float(np.max(np.abs(A))) ** 2, 1e-300):
             ax.plot([], [], color=colours[code], label=label + " (degenerate)")
@@ -275,29 +403,42 @@ def plot_cones(M: Any, q: Any, target: Path, title: str = "") -> None:
         d = (a1 - a0) % (2 * np.pi)
         if d > np.pi:
             a0, d = a1, 2 * np.pi - d
-        t = np.linspace(a0, a0 + d, 60)
+        t = np.linspace(a0, a0 + d, 90)
         poly = np.vstack([[0, 0], np.column_stack([np.cos(t), np.sin(t)]) * R * 2.0, [0, 0]])
         ax.fill(poly[:, 0], poly[:, 1], color=colours[code], alpha=0.22, label=label)
-    for name in names:
-        v = gens[name]
+    box = {"boxstyle": "round,pad=0.15", "fc": "white", "ec": "none", "alpha": 0.8}
+    for name, v in gens.items():
         norm = float(np.hypot(*v))
         if norm == 0:
             continue
-        u = v / norm * R * 0.9
+        u = v / norm * R * 0.8
         ax.annotate("", xy=u, xytext=(0, 0),
                     arrowprops={"arrowstyle": "->", "color": "black", "lw": 1.2})
         tex = f"$I_{name[1]}$" if name[0] == "w" else f"$-M_{name[1]}$"
-        ax.text(*(u * 1.08), tex, ha="center", va="center")
+        ax.text(*(u * 1.1), tex, ha="center", va="center", bbox=box)
+    if path:
+        pts = np.array([p["point"] for p in path])
+        ax.plot(pts[:, 0], pts[:, 1], "--", color="crimson", lw=1.2,
+                label="Lemke's path q + z0 d")
+        for p in path[1:]:
+            if p["z0"] == 0.0:  # back at q: named in q's label
+                continue
+            x, y = p["point"]
+            ax.plot([x], [y], "s", color="crimson", ms=4)
+            ax.annotate(f"{p['step']}: z0 = {fmt(p['z0'])}", (x, y), textcoords="offset points",
+                        xytext=(6, -10), fontsize=8, color="crimson", bbox=box)
+    ends = [str(p["step"]) for p in (path or [])[1:] if p["z0"] == 0.0]
     ax.plot([q[0]], [q[1]], "o", color="crimson", ms=7)
-    ax.text(q[0], q[1], f"  q = ({fmt(q[0])}, {fmt(q[1])})", color="crimson", va="bottom")
+    ax.annotate(f"q = ({fmt(q[0])}, {fmt(q[1])})" + (f"  (step {', '.join(ends)}: z0 = 0)"
+                                                       if ends else ""),
+                (q[0], q[1]), textcoords="offset points", xytext=(8, 6), color="crimson",
+                bbox=box)
     ax.axhline(0, color="grey", lw=0.5)
     ax.axvline(0, color="grey", lw=0.5)
     ax.set_xlim(-R, R)
     ax.set_ylim(-R, R)
     ax.set_aspect("equal")
-    ax.legend(loc="lower left", fontsize=8)
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.06), ncol=2, fontsize=8,
+              frameon=False)
     ax.set_title(title or "complementary cones of M and the point q")
-    fmt_name = (target.suffix.lstrip(".") or "png").lower()
-    with atomic_path(target) as tmp:
-        fig.savefig(tmp, format=fmt_name, dpi=120, bbox_inches="tight")
-    plt.close(fig)
+    return fig

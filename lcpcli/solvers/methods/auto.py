@@ -40,6 +40,7 @@ from lcpcli.core.errors import OptionError
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, Outcome, Status
 from lcpcli.solvers import policy
 from lcpcli.solvers.options import positive_int, vector_option
+from lcpcli.solvers.pipeline import run_method
 from lcpcli.solvers.policy import Step
 from lcpcli.solvers.registry import Method, Option, methods, resolve
 from lcpcli.solvers.support import start_point
@@ -120,7 +121,7 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None,
         spec.prepare_once()
         t1 = time.perf_counter()
         try:
-            out: Outcome = spec.run(problem, tol=tol, **spec.parse_options(opts))
+            out: Outcome = run_method(spec, problem, tol, spec.parse_options(opts))
         except (np.linalg.LinAlgError, MemoryError, ValueError, RuntimeError) as exc:
             if isinstance(exc, OptionError):
                 raise

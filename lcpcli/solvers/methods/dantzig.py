@@ -28,7 +28,7 @@ import numpy as np
 from lcpcli.analysis.mlcp import polish
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, NUMERICAL, RAY, Outcome
 from lcpcli.solvers.kernels.dantzig import MAX_ITER, OK, SINGULAR, dantzig_kernel
-from lcpcli.solvers.options import positive_int
+from lcpcli.solvers.options import bool_option, positive_int
 from lcpcli.solvers.registry import Cost, Guarantee, Method, Option, when
 
 
@@ -38,8 +38,27 @@ def processing_order(lo: np.ndarray, up: np.ndarray) -> np.ndarray:
     return np.concatenate([np.flatnonzero(free), np.flatnonzero(~free)]).astype(np.int64)
 
 
-def run(problem: Any, *, tol: float, max_iter: int | None = None) -> Outcome:
-    """Solve an LCP or box LCP by principal pivoting; see the module docstring."""
+def run(problem: Any, *, tol: float, max_iter: int | None = None,
+        trace: bool = False) -> Outcome:
+    """Solve an LCP or box LCP by principal pivoting; see the module docstring.
+
+    ``trace=True`` runs the numpy replica :mod:`lcpcli.solvers.trace.dantzig` instead of the
+    kernel (same pivots) and records each pivot in ``Outcome.trace``.
+    """
+    if trace:
+        from lcpcli.solvers.trace import Recorder
+        from lcpcli.solvers.trace.dantzig import dantzig_traced
+
+        recorder = Recorder(dantzig_traced)
+        out = _run(problem, max_iter=max_iter, kernel=recorder)
+        out.trace = recorder.trace
+        return out
+    return _run(problem, max_iter=max_iter)
+
+
+def _run(problem: Any, *, max_iter: int | None, kernel: Any = None) -> Outcome:
+
+    kernel = kernel or dantzig_kernel
 
     n = problem.n
     M = np.ascontiguousarray(problem.dense_M(), dtype=np.float64)
@@ -47,8 +66,7 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None) -> Outcome:
     lo = np.ascontiguousarray(lo, dtype=np.float64)
     up = np.ascontiguousarray(up, dtype=np.float64)
     limit = max_iter or max(1000, 50 * n)
-    status, z, pivots, state = dantzig_kernel(M, problem.q, lo, up,
-                                              processing_order(lo, up), limit)
+    status, z, pivots, state = kernel(M, problem.q, lo, up, processing_order(lo, up), limit)
     clamped = int(np.sum(state == 1))
     info = {"clamped": clamped, "at_lower": int(np.sum(state == 2)),
             "at_upper": int(np.sum(state == 3))}
@@ -83,6 +101,9 @@ METHODS = [
         cost=Cost.PIVOTING,
         preference=30,
         kinds=("lcp", "box"),
-        options={"max_iter": Option(positive_int, None, "pivot limit (default max(1000, 50 n))")},
+        options={"max_iter": Option(positive_int, None, "pivot limit (default max(1000, 50 n))"),
+                 "trace": Option(bool_option, False, "record every pivot (numpy replica of "
+                                                      "the kernel, same pivots)")},
+        scaling="auto",
     ),
 ]

@@ -80,5 +80,6 @@ METHODS = [
             "all": Option(bool_option, False, "visit every cone and count the distinct solutions"),
         },
         aliases=("enumerate", "enumeration"),
+        scaling="auto",
     ),
 ]

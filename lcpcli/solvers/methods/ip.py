@@ -32,7 +32,7 @@ from lcpcli.core.certificate import matrix_norm_inf
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, NUMERICAL, Outcome
 from lcpcli.solvers.options import positive_int
 from lcpcli.solvers.registry import Cost, Guarantee, Method, Option, when
-from lcpcli.solvers.support import active_set_polish, scaled_error
+from lcpcli.solvers.support import certified_error, refine
 
 DEFAULT_MAX_ITER = 100
 #: Fraction of the step to the boundary that is taken.
@@ -100,30 +100,26 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None) -> Outcome:
     s = max(1.0, np.sqrt(qn / mu_M)) if qn > 0 else 1.0
     z = np.full(n, s)
     w = np.maximum(matvec(z) + q, s)
-    best_z, best_err = np.zeros(n), scaled_error(np.zeros(n), q.copy(), lo, up, mu_M, qn)
+    best_z, best_err = np.zeros(n), certified_error(problem, np.zeros(n))
     termination, why = ITERATION_LIMIT, f"iteration limit {limit} reached"
     it = 0
     rounded = False
     zmax0 = float(np.max(z))
     while True:
         wz = matvec(z) + q
-        err = scaled_error(z, wz, lo, up, mu_M, qn)
+        err = certified_error(problem, z)
         if err < best_err:
             best_z, best_err, rounded = z.copy(), err, False
         if best_err <= tol:
-            termination, why = CONVERGED, "scaled error below tolerance"
+            termination, why = CONVERGED, "certified error below tolerance"
             break
         if err <= ROUND_BELOW:
-            try:
-                zr = active_set_polish(problem, z, wz)
-                er = scaled_error(zr, matvec(zr) + q, lo, up, mu_M, qn)
-                if er < best_err:
-                    best_z, best_err, rounded = zr, er, True
-                if er <= tol:
-                    termination, why = CONVERGED, "scaled error below tolerance after rounding"
-                    break
-            except (np.linalg.LinAlgError, ValueError, RuntimeError):
-                pass
+            polished = refine(problem, z)
+            if polished is not None and polished[1] < best_err:
+                best_z, best_err, rounded = polished[0], polished[1], True
+            if best_err <= tol:
+                termination, why = CONVERGED, "certified error below tolerance after rounding"
+                break
         if it >= limit:
             break
         if float(np.max(z)) > 1e12 * max(zmax0, 1.0):
@@ -185,5 +181,6 @@ METHODS = [
                                f"iteration limit (default {DEFAULT_MAX_ITER})"),
         },
         aliases=("interior-point",),
+        scaling="auto",
     ),
 ]

@@ -28,11 +28,8 @@ from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, RAY, Outcome
 from lcpcli.solvers.kernels.lemke import MAX_ITER, OK, TRIVIAL, lemke_solve, polish_kernel
 from lcpcli.solvers.options import bool_option, positive_int, vector_option
 from lcpcli.solvers.registry import Cost, Guarantee, Method, Option, when
+from lcpcli.solvers.tolerances import PIVOT_TOL, TIE_TOL
 
-#: Relative pivot tolerance: entries below this fraction of the column's largest are not pivots.
-PIVOT_TOL = 1e-11
-#: Relative tolerance under which two ratios are a tie (then the lexicographic rule decides).
-TIE_TOL = 1e-9
 #: Empty pivot record (the kernel records nothing).
 NO_RECORD = np.zeros((0, 3), dtype=np.int64)
 
@@ -62,7 +59,7 @@ def run(problem: Any, *, tol: float, covering: np.ndarray | None = None,
     """Solve ``problem`` (an LCP) by Lemke's method; see the module docstring.
 
     ``trace=True`` runs the numpy replica of the kernel (same pivots) and records each pivot
-    in ``Outcome.trace`` (see :mod:`lcpcli.solvers.lemke_trace`).
+    in ``Outcome.trace`` (see :mod:`lcpcli.solvers.trace.lemke`).
     """
     n = problem.n
     M = np.ascontiguousarray(problem.dense_M(), dtype=np.float64)
@@ -70,33 +67,39 @@ def run(problem: Any, *, tol: float, covering: np.ndarray | None = None,
     d = covering_vector(n, covering)
     limit = max_iter or default_max_iter(n)
     if trace:
-        from lcpcli.solvers.lemke_trace import lemke_traced  # loads the numba kernels: lazy
+        from lcpcli.solvers.trace.lemke import lemke_traced
 
         status, z, pivots, basic, ray_dz, _, z0, steps = lemke_traced(
             M, q, np.ones(n) if d is None else d, limit, PIVOT_TOL, TIE_TOL)
         if status == OK:
             z = polish(M, q, z, basic)
-        out = finish(problem, M, q, status, z, int(pivots), ray_dz, float(z0), limit)
+        out = finish(problem, M, q, status, z, int(pivots), basic, ray_dz, float(z0), limit)
         out.trace = steps
         return out
     # kernel and final polish in one compiled call
     status, z, pivots, basic, ray_dz, z0 = lemke_solve(M, q, d, limit, PIVOT_TOL, TIE_TOL)
-    return finish(problem, M, q, status, z, pivots, ray_dz, z0, limit)
+    return finish(problem, M, q, status, z, pivots, basic, ray_dz, z0, limit)
 
 
 def finish(problem: Any, M: np.ndarray, q: np.ndarray, status: int, z: np.ndarray, pivots: int,
-           ray_dz: np.ndarray, z0: float, limit: int) -> Outcome:
+           basic: np.ndarray, ray_dz: np.ndarray, z0: float, limit: int) -> Outcome:
     """Turn a Lemke kernel's status into an :class:`Outcome` (``z`` already polished when the
     status is OK; ray classification otherwise)."""
     if status == TRIVIAL:
         return Outcome(np.zeros(problem.n), 0, CONVERGED, "q >= 0: z = 0 solves the problem")
     if status == OK:
         return Outcome(z, pivots, CONVERGED,
-                       f"artificial variable left the basis after {pivots} pivots")
+                       f"artificial variable left the basis after {pivots} pivots",
+                       info={"basis": basic_z(basic, problem.n)})
     if status == MAX_ITER:
         return Outcome(np.maximum(z, 0.0), pivots, ITERATION_LIMIT,
                        f"pivot limit {limit} reached (raise it with --max-iter)")
     return ray_outcome(problem, M, q, z, pivots, ray_dz, z0)
+
+
+def basic_z(basic: np.ndarray, n: int) -> list[int]:
+    """The 0-based indices of the z's in Lemke's final basis (codes n..2n-1; see the kernel)."""
+    return sorted(int(b) - n for b in basic if n <= b < 2 * n)
 
 
 def polish(M: np.ndarray, q: np.ndarray, z: np.ndarray, basic: np.ndarray) -> np.ndarray:
@@ -148,5 +151,6 @@ METHODS = [
             "trace": Option(bool_option, False, "record every pivot (numpy replica of the "
                                                  "kernel, same pivots; slow for large n)"),
         },
+        scaling="auto",
     ),
 ]

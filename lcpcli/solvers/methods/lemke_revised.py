@@ -28,6 +28,7 @@ from lcpcli.solvers.methods.lemke import (
     GUARANTEES,
     PIVOT_TOL,
     TIE_TOL,
+    basic_z,
     covering_vector,
     default_max_iter,
     ray_outcome,
@@ -68,12 +69,13 @@ def run(problem: Any, *, tol: float, covering: np.ndarray | None = None,
     limit = max_iter or default_max_iter(n)
     every = refactor_every or default_refactor_every(n)
     # kernel and final polish in one compiled call
-    status, z, pivots, _basic, ray_dz, z0, refactors = lemke_solve(
+    status, z, pivots, basic, ray_dz, z0, refactors = lemke_solve(
         M, q, d, limit, PIVOT_TOL, TIE_TOL, every)
     info = {"refactorisations": refactors}
     if status == TRIVIAL:
         return Outcome(np.zeros(n), 0, CONVERGED, "q >= 0: z = 0 solves the problem")
     if status == OK:
+        info["basis"] = basic_z(basic, n)
         return Outcome(z, pivots, CONVERGED, f"artificial variable left the basis after "
                                              f"{pivots} pivots ({refactors} "
                                              f"refactorisations)", info=info)
@@ -81,11 +83,23 @@ def run(problem: Any, *, tol: float, covering: np.ndarray | None = None,
         return Outcome(np.maximum(z, 0.0), pivots, ITERATION_LIMIT,
                        f"pivot limit {limit} reached (raise it with --max-iter)", info=info)
     if status == SINGULAR:
-        return Outcome(np.maximum(z, 0.0), pivots, NUMERICAL,
-                       f"basis block M^(alpha beta) became singular at a refactorisation "
-                       f"after {pivots} pivots (try --method lemke-tableau)", info=info)
-    out = ray_outcome(problem, M, q, z, pivots, ray_dz, z0)
-    out.info.update(info)
+        out = Outcome(np.maximum(z, 0.0), pivots, NUMERICAL,
+                      f"basis block M^(alpha beta) became singular at a refactorisation "
+                      f"after {pivots} pivots", info=info)
+    else:
+        out = ray_outcome(problem, M, q, z, pivots, ray_dz, z0)
+        out.info.update(info)
+        if out.proven_infeasible:
+            return out
+    # an unproven ray or a singular block can come from the drift of the updated inverse (a
+    # ray at z0 ~ 1e-13 where the tableau reaches the solution): the tableau method follows the
+    # same pivot rule with O(n^2) rank-one updates of the whole tableau; let it decide
+    again = run_tableau(problem, tol=tol, covering=covering, max_iter=max_iter)
+    if again.termination == CONVERGED or again.proven_infeasible:
+        again.message = f"{out.message}; rerun as lemke-tableau: {again.message}"
+        again.iterations += out.iterations
+        again.info.update(info)
+        return again
     return out
 
 
@@ -110,5 +124,6 @@ METHODS = [
         },
         # the faster of the two on benchmarks/bench_lemke.py (CPU time, n = 10..1000)
         aliases=("lemke",),
+        scaling="auto",
     ),
 ]

@@ -83,5 +83,6 @@ METHODS = [
             "cond_max": Option(_positive, 1e12, "largest accepted condition of the pivot block"),
             "max_iter": Option(positive_int, None, "Lemke pivot limit"),
         },
+        scaling="auto",
     ),
 ]

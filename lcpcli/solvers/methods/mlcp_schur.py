@@ -100,5 +100,6 @@ METHODS = [
             "cond_max": Option(_positive, 1e12, "largest accepted condition estimate of A"),
             "max_iter": Option(positive_int, None, "iteration limit of the inner method"),
         },
+        scaling="auto",
     ),
 ]

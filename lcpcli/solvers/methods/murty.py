@@ -27,7 +27,7 @@ import numpy as np
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, SINGULAR, Outcome
 from lcpcli.solvers.kernels.lemke import polish_kernel
 from lcpcli.solvers.kernels.murty import BAD_PIVOT, OK, murty_kernel
-from lcpcli.solvers.options import positive_int, vector_option
+from lcpcli.solvers.options import bool_option, positive_int, vector_option
 from lcpcli.solvers.registry import Cost, Guarantee, Method, Option, when
 from lcpcli.solvers.support import start_point
 
@@ -43,8 +43,27 @@ def default_max_iter(n: int) -> int:
 
 
 def run(problem: Any, *, tol: float, max_iter: int | None = None,
-        z0: np.ndarray | None = None) -> Outcome:
-    """Solve ``problem`` (an LCP) by Murty's least-index method; see the module docstring."""
+        z0: np.ndarray | None = None, trace: bool = False) -> Outcome:
+    """Solve ``problem`` (an LCP) by Murty's least-index method; see the module docstring.
+
+    ``trace=True`` runs the numpy replica :mod:`lcpcli.solvers.trace.murty` instead of the
+    kernel (same pivots) and records each principal pivot in ``Outcome.trace``.
+    """
+    if trace:
+        from lcpcli.solvers.trace import Recorder
+        from lcpcli.solvers.trace.murty import murty_traced
+
+        recorder = Recorder(murty_traced)
+        out = _run(problem, tol=tol, max_iter=max_iter, z0=z0, kernel=recorder)
+        out.trace = recorder.trace or []  # q >= 0: no pivot, nothing recorded
+        return out
+    return _run(problem, tol=tol, max_iter=max_iter, z0=z0)
+
+
+def _run(problem: Any, *, tol: float, max_iter: int | None, z0: np.ndarray | None,
+         kernel: Any = None) -> Outcome:
+    kernel = kernel or murty_kernel
+
     n = problem.n
     M = np.ascontiguousarray(problem.dense_M(), dtype=np.float64)
     q = np.ascontiguousarray(problem.q, dtype=np.float64)
@@ -57,12 +76,12 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None,
         start = start_point(problem, z0)
         basic = np.where(start > 0, basic + n, basic).astype(np.int64)
         warm = f" from the warm-start basis ({int(np.sum(start > 0))} z basic)"
-    status, z, pivots, bad = murty_kernel(M, q, limit, PIVOT_TOL, NEG_TOL, basic)
+    status, z, pivots, bad = kernel(M, q, limit, PIVOT_TOL, NEG_TOL, basic)
     if status == BAD_PIVOT and pivots == 0 and z0 is not None:
         # the warm-start basis could not be pivoted in: restart from z = 0
         basic = np.arange(n, dtype=np.int64)
         warm = " (warm-start basis singular; restarted from z = 0)"
-        status, z, pivots, bad = murty_kernel(M, q, limit, PIVOT_TOL, NEG_TOL, basic)
+        status, z, pivots, bad = kernel(M, q, limit, PIVOT_TOL, NEG_TOL, basic)
     if status == OK:
         z = polish_kernel(M, q, z, basic)  # a singular basic block keeps the kernel's z
         return Outcome(z, int(pivots), CONVERGED,
@@ -91,6 +110,9 @@ METHODS = [
         options={
             "max_iter": Option(positive_int, None, "pivot limit (default max(1000, 100 n))"),
             "z0": Option(vector_option, None, "warm start: start from the basis {i: z0_i > 0}"),
+            "trace": Option(bool_option, False, "record every principal pivot (numpy replica "
+                                                 "of the kernel, same pivots)"),
         },
+        scaling="auto",
     ),
 ]

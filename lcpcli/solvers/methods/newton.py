@@ -21,7 +21,7 @@ is singular or its solution is not a sufficient descent direction, a Levenberg-M
 ``(H^T H + lam I) d = -H^T Phi`` (``lam`` proportional to ``||Phi||``) is tried, and failing that a
 step along ``-grad Psi = -H^T Phi`` (De Luca, Facchinei and Kanzow's scheme).  Sparse M: the Newton
 systems are solved by sparse LU (``scipy.sparse.linalg.splu``), never densified.  After the
-iterations an active-set re-solve is tried (see :func:`lcpcli.solvers.support.active_set_polish`).
+iterations an active-set re-solve is tried (see :func:`lcpcli.solvers.support.refine`).
 
 Matrix classes: ``newton`` converges globally (to a stationary point of the merit, which solves
 the problem) for P0 matrices with bounded level sets, e.g. **P-matrices**, and for **monotone
@@ -43,7 +43,7 @@ from lcpcli.core.certificate import matrix_norm_inf
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, NUMERICAL, Outcome
 from lcpcli.solvers.options import positive_int, vector_option
 from lcpcli.solvers.registry import Cost, Guarantee, Method, Option, when
-from lcpcli.solvers.support import active_set_polish, scaled_error, start_point
+from lcpcli.solvers.support import certified_error, refine, start_point
 
 DEFAULT_MAX_ITER = 200
 #: Armijo constant, backtracking factor, smallest step.
@@ -183,7 +183,6 @@ def run_newton(problem: Any, *, tol: float, variant: str = "fb", max_iter: int |
                z0: np.ndarray | None = None) -> Outcome:
     """Semismooth Newton with Armijo line search; ``variant`` is ``"fb"`` or ``"min"``."""
     name = "Newton-FB" if variant == "fb" else "Newton-min"
-    n = problem.n
     M = problem.M
     sparse = problem.sparse
     if sparse:
@@ -195,7 +194,6 @@ def run_newton(problem: Any, *, tol: float, variant: str = "fb", max_iter: int |
     resid = _Residual(problem, "min" if variant == "min" else "fb")
     mu = matrix_norm_inf(M)
     mu = mu if mu > 0 else 1.0
-    qn = float(np.max(np.abs(problem.q))) if n else 0.0
     limit = max_iter or DEFAULT_MAX_ITER
 
     def matvec(x: np.ndarray) -> np.ndarray:
@@ -212,11 +210,11 @@ def run_newton(problem: Any, *, tol: float, variant: str = "fb", max_iter: int |
     lm_steps = 0
     it = 0
     termination, why = ITERATION_LIMIT, f"iteration limit {limit} reached"
-    best_z, best_err = z.copy(), scaled_error(z, w, lo, up, mu, qn)
+    best_z, best_err = z.copy(), certified_error(problem, z)
     err = best_err
     while True:
         if err <= tol:
-            termination, why = CONVERGED, "scaled error below tolerance"
+            termination, why = CONVERGED, "certified error below tolerance"
             break
         if it >= limit:
             break
@@ -262,25 +260,21 @@ def run_newton(problem: Any, *, tol: float, variant: str = "fb", max_iter: int |
         merit = 0.5 * float(phi @ phi)
         history.append(merit)
         del history[:-NONMONOTONE]
-        err = scaled_error(z, w, lo, up, mu, qn)
+        err = certified_error(problem, z)
         if err < best_err:
             best_z, best_err = z.copy(), err
     z_out, err_out = best_z, best_err
-    if np.all(np.isfinite(z_out)) and err_out > 0:
-        try:
-            zp = active_set_polish(problem, z_out)
-            ep = scaled_error(zp, problem.w(zp), lo, up, mu, qn)
-            if ep < err_out:
-                z_out, err_out = zp, ep
-                if ep <= tol and termination != CONVERGED:
-                    why += "; solved by the active-set re-solve"
-                    termination = CONVERGED
-        except (np.linalg.LinAlgError, ValueError, MemoryError):
-            pass
+    if err_out > 0:
+        polished = refine(problem, z_out)
+        if polished is not None and polished[1] < err_out:
+            z_out, err_out = polished
+            if err_out <= tol and termination != CONVERGED:
+                why += "; solved by the active-set re-solve"
+                termination = CONVERGED
     extra = f", {lm_steps} Levenberg-Marquardt steps" if lm_steps else ""
     extra += f", {grad_steps} gradient steps" if grad_steps else ""
     return Outcome(z_out, it, termination,
-                   f"{name}: {why} after {it} iterations{extra} (scaled error {err_out:.2e})",
+                   f"{name}: {why} after {it} iterations{extra} (certified error {err_out:.2e})",
                    info={"gradient_steps": grad_steps, "lm_steps": lm_steps})
 
 
@@ -320,6 +314,7 @@ METHODS = [
         sparse=True,
         options=dict(_OPTIONS),
         aliases=("newton-fb",),
+        scaling="auto",
     ),
     Method(
         name="newton-min",
@@ -334,5 +329,6 @@ METHODS = [
         kinds=("lcp", "mlcp", "box"),
         sparse=True,
         options=dict(_OPTIONS),
+        scaling="auto",
     ),
 ]

@@ -1,0 +1,447 @@
+# cython: language_level=3, boundscheck=False, wraparound=False, cdivision=True
+# cython: initializedcheck=False, nonecheck=False
+"""Compiled core of the certificate (the definition is in lcpcli/core/certificate.py).
+
+Two passes over M: (1) w = M z + q and the row scales s_i = |q_i| + (|M| |z|)_i; (2) for the
+columns that can move, kappa_j = max_i |M_ij| / s_i (what moving z_j changes, relative to each
+row's scale), and the blocks of rows coupled through significant terms (union-find).  A third,
+O(n) pass scores every complementary pair and every block.
+
+The fast path works in plain double arithmetic and reports ``status = 2`` when a product or a
+row scale leaves [2^-960, 2^960]; the Python wrapper then rescales the problem exactly by powers
+of two (the certificate does not change under row and column scaling) and calls again.
+"""
+
+from libc.math cimport fabs, isfinite, INFINITY, ldexp
+from libc.stdlib cimport free, malloc
+
+cdef double THETA = 0.0009765625           # 2^-10: a term is significant in its row above this share
+cdef double BIG = ldexp(1.0, 960)
+cdef double SMALL = ldexp(1.0, -960)
+
+
+cdef inline Py_ssize_t _find(Py_ssize_t* parent, Py_ssize_t x) noexcept nogil:
+    while parent[x] != x:
+        parent[x] = parent[parent[x]]
+        x = parent[x]
+    return x
+
+
+cdef inline void _union(Py_ssize_t* parent, Py_ssize_t a, Py_ssize_t b) noexcept nogil:
+    a = _find(parent, a)
+    b = _find(parent, b)
+    if a != b:
+        if a < b:
+            parent[b] = a
+        else:
+            parent[a] = b
+
+
+cdef inline void _bounds(Py_ssize_t i, Py_ssize_t n_eq, const double* lo, const double* up,
+                         double* l, double* u) noexcept nogil:
+    if lo != NULL:
+        l[0] = lo[i]
+        u[0] = up[i]
+    elif i < n_eq:
+        l[0] = -INFINITY
+        u[0] = INFINITY
+    else:
+        l[0] = 0.0
+        u[0] = INFINITY
+
+
+cdef inline double _rel(double v, double s) noexcept nogil:
+    """v / s with 0 / 0 = 0 and v / 0 = inf."""
+    if v == 0.0:
+        return 0.0
+    if s == 0.0:
+        return INFINITY
+    return v / s
+
+
+cdef inline double _move(double x, double kappa) noexcept nogil:
+    """What moving a variable by x changes, relative to the rows it appears in."""
+    if x == 0.0:
+        return 0.0
+    return x * kappa
+
+
+cdef int _finish(Py_ssize_t n, const double* q, const double* z, Py_ssize_t n_eq,
+                 const double* lo, const double* up, const double* w, double* work,
+                 Py_ssize_t* iwork, signed char* state, CertOut* out) noexcept nogil:
+    """Pass 3: score the pairs and the blocks (a, s, kappa filled; parent built)."""
+    cdef double* a = work
+    cdef double* s = work + n
+    cdef double* kappa = work + 2 * n
+    cdef double* compmin = work + 3 * n          # 2 n entries: one per union-find root
+    cdef Py_ssize_t* parent = iwork
+    cdef Py_ssize_t i, r, worst = -1
+    cdef double l, u, zi, wi, si, best, cost, x, g, den, e, err = 0.0, omega = 0.0
+    cdef double growth = 1.0, gi
+    cdef signed char st
+    cdef double cF, cL, cU
+    cdef double resid = 0.0, bviol = 0.0, wviol = 0.0, comp = 0.0, eqres = 0.0, t
+    for i in range(2 * n):
+        compmin[i] = INFINITY
+    for i in range(n):
+        if a[i] > 0.0:
+            den = fabs(q[i]) + fabs(w[i])
+            g = INFINITY if den == 0.0 else a[i] / den
+            r = _find(parent, i)
+            if g < compmin[r]:
+                compmin[r] = g
+    for i in range(n):
+        _bounds(i, n_eq, lo, up, &l, &u)
+        zi = z[i]
+        wi = w[i]
+        si = s[i]
+        # the three states' costs; ties go to the state that needs no move of z_i (the bound
+        # state when z_i sits exactly on it, else 'between'), which the polish relies on
+        cF = _rel(fabs(wi), si)
+        x = 0.0
+        if zi < l:
+            x = l - zi
+        elif zi > u:
+            x = zi - u
+        t = _move(x, kappa[i])
+        if t > cF:
+            cF = t
+        cL = INFINITY
+        if l > -INFINITY:
+            cL = _rel(-wi, si) if wi < 0.0 else 0.0
+            t = _move(fabs(zi - l), kappa[i])
+            if t > cL:
+                cL = t
+        cU = INFINITY
+        if u < INFINITY:
+            cU = _rel(wi, si) if wi > 0.0 else 0.0
+            t = _move(fabs(zi - u), kappa[i])
+            if t > cU:
+                cU = t
+        if zi == l:
+            best, st = cL, 0
+            if cF < best:
+                best, st = cF, 2
+            if cU < best:
+                best, st = cU, 1
+        elif zi == u:
+            best, st = cU, 1
+            if cF < best:
+                best, st = cF, 2
+            if cL < best:
+                best, st = cL, 0
+        else:
+            best, st = cF, 2
+            if cL < best:
+                best, st = cL, 0
+            if cU < best:
+                best, st = cU, 1
+        if state != NULL:
+            state[i] = st
+        if best > omega:
+            omega = best
+        gi = 1.0
+        if a[i] > 0.0:
+            gi = compmin[_find(parent, i)]
+            if gi < 1.0:
+                gi = 1.0
+        e = 0.0 if best == 0.0 else best * gi
+        if e > err or worst < 0:
+            err = e
+            worst = i
+            growth = gi
+        # the unscaled diagnostics (units of the data)
+        t = zi - l
+        if wi < t:
+            t = wi
+        if zi - u > t:
+            t = zi - u
+        if fabs(t) > resid:
+            resid = fabs(t)
+        t = l - zi
+        if zi - u > t:
+            t = zi - u
+        if t > bviol:
+            bviol = t
+        if l > -INFINITY and u == INFINITY:
+            if -wi > wviol:
+                wviol = -wi
+            t = fabs((zi - l) * wi)
+            if t > comp:
+                comp = t
+        elif l == -INFINITY and u < INFINITY:
+            if wi > wviol:
+                wviol = wi
+            t = fabs((u - zi) * wi)
+            if t > comp:
+                comp = t
+        elif l == -INFINITY and u == INFINITY:
+            if fabs(wi) > eqres:
+                eqres = fabs(wi)
+        else:
+            t = fabs(zi - l)
+            if fabs(u - zi) < t:
+                t = fabs(u - zi)
+            t = t * fabs(wi)
+            if t > comp:
+                comp = t
+    out.error = err
+    out.backward_error = omega
+    out.growth = growth
+    out.residual = resid
+    out.bound_violation = bviol
+    out.w_violation = wviol
+    out.complementarity = comp
+    out.equality_residual = eqres
+    out.worst = worst
+    out.status = 0
+    return 0
+
+
+cdef inline void _row_dot(const double* row, const double* z, Py_ssize_t n, double* dot,
+                          double* absdot) noexcept nogil:
+    """sum_j row_j z_j and sum_j |row_j z_j| with four partial sums each (SIMD lanes)."""
+    cdef double s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0
+    cdef double a0 = 0.0, a1 = 0.0, a2 = 0.0, a3 = 0.0
+    cdef double t0, t1, t2, t3
+    cdef Py_ssize_t j = 0
+    while j + 4 <= n:
+        t0 = row[j] * z[j]
+        t1 = row[j + 1] * z[j + 1]
+        t2 = row[j + 2] * z[j + 2]
+        t3 = row[j + 3] * z[j + 3]
+        s0 += t0
+        s1 += t1
+        s2 += t2
+        s3 += t3
+        a0 += fabs(t0)
+        a1 += fabs(t1)
+        a2 += fabs(t2)
+        a3 += fabs(t3)
+        j += 4
+    while j < n:
+        t0 = row[j] * z[j]
+        s0 += t0
+        a0 += fabs(t0)
+        j += 1
+    dot[0] = (s0 + s1) + (s2 + s3)
+    absdot[0] = (a0 + a1) + (a2 + a3)
+
+
+cdef inline int _needs_move(double zj, Py_ssize_t j, Py_ssize_t n_eq, const double* lo,
+                            const double* up) noexcept nogil:
+    """Can some state of pair j ask z_j to move (then kappa_j is needed)?"""
+    if lo != NULL:
+        return not (zj == lo[j] and zj == up[j])
+    if j < n_eq:
+        return 0
+    return zj != 0.0
+
+
+cdef int _fail(CertOut* out, int status) noexcept nogil:
+    out.error = INFINITY
+    out.backward_error = INFINITY
+    out.growth = INFINITY
+    out.residual = INFINITY
+    out.bound_violation = INFINITY
+    out.w_violation = INFINITY
+    out.complementarity = INFINITY
+    out.equality_residual = INFINITY
+    out.worst = -1
+    out.status = status
+    return status
+
+
+cdef int certify_dense(Py_ssize_t n, const double* M, Py_ssize_t ldm, const double* q,
+                       const double* z, Py_ssize_t n_eq, const double* lo, const double* up,
+                       double* w, double* work, Py_ssize_t* iwork, signed char* state,
+                       CertOut* out) noexcept nogil:
+    cdef double* a = work
+    cdef double* s = work + n
+    cdef double* kappa = work + 2 * n
+    cdef Py_ssize_t* parent = iwork
+    cdef Py_ssize_t* cols = iwork + 2 * n
+    cdef Py_ssize_t i, j, k, nc = 0
+    cdef const double* row
+    cdef double wi, ai, t, m, inv, thr
+    for j in range(n):
+        if not isfinite(z[j]):
+            return _fail(out, 1)
+        if z[j] != 0.0 and not (SMALL <= fabs(z[j]) <= BIG):
+            return _fail(out, 2)
+    # pass 1: w, |M||z|, s
+    for i in range(n):
+        row = M + i * ldm
+        _row_dot(row, z, n, &wi, &ai)
+        wi = wi + q[i]
+        w[i] = wi
+        a[i] = ai
+        s[i] = ai + fabs(q[i])
+        if not (isfinite(wi) and isfinite(ai)) or s[i] > BIG or 0.0 < s[i] < SMALL:
+            return _fail(out, 2)
+    # pass 2: kappa for the columns that may move, blocks through significant terms
+    for j in range(n):
+        if _needs_move(z[j], j, n_eq, lo, up) or z[j] != 0.0:
+            cols[nc] = j
+            nc += 1
+        kappa[j] = 0.0
+    for i in range(2 * n):
+        parent[i] = i
+    if nc > 0:
+        for i in range(n):
+            row = M + i * ldm
+            inv = INFINITY if s[i] == 0.0 else 1.0 / s[i]
+            thr = THETA * a[i]
+            for k in range(nc):
+                j = cols[k]
+                m = fabs(row[j])
+                if m != 0.0:
+                    t = m * inv
+                    if t > kappa[j]:
+                        kappa[j] = t
+                    t = m * fabs(z[j])
+                    if t > 0.0 and t >= thr:
+                        _union(parent, i, n + j)
+    for k in range(nc):
+        j = cols[k]
+        if kappa[j] == 0.0:      # a zero column: moving z_j is never negligible
+            kappa[j] = INFINITY
+    return _finish(n, q, z, n_eq, lo, up, w, work, iwork, state, out)
+
+
+ctypedef fused index_t:
+    int
+    long long
+
+
+cdef int certify_csr(Py_ssize_t n, const double* data, const index_t* indices,
+                     const index_t* indptr, const double* q, const double* z, Py_ssize_t n_eq,
+                     const double* lo, const double* up, double* w, double* work,
+                     Py_ssize_t* iwork, signed char* state, CertOut* out) noexcept nogil:
+    cdef double* a = work
+    cdef double* s = work + n
+    cdef double* kappa = work + 2 * n
+    cdef Py_ssize_t* parent = iwork
+    cdef Py_ssize_t* movable = iwork + 2 * n
+    cdef Py_ssize_t i, j, p
+    cdef double wi, ai, t, m, inv, thr
+    for j in range(n):
+        if not isfinite(z[j]):
+            return _fail(out, 1)
+        if z[j] != 0.0 and not (SMALL <= fabs(z[j]) <= BIG):
+            return _fail(out, 2)
+    for i in range(n):
+        wi = q[i]
+        ai = 0.0
+        for p in range(indptr[i], indptr[i + 1]):
+            t = data[p] * z[indices[p]]
+            wi = wi + t
+            ai = ai + fabs(t)
+        w[i] = wi
+        a[i] = ai
+        s[i] = ai + fabs(q[i])
+        if not (isfinite(wi) and isfinite(ai)) or s[i] > BIG or 0.0 < s[i] < SMALL:
+            return _fail(out, 2)
+    for j in range(n):
+        movable[j] = _needs_move(z[j], j, n_eq, lo, up) or z[j] != 0.0
+        kappa[j] = 0.0
+    for i in range(2 * n):
+        parent[i] = i
+    for i in range(n):
+        inv = INFINITY if s[i] == 0.0 else 1.0 / s[i]
+        thr = THETA * a[i]
+        for p in range(indptr[i], indptr[i + 1]):
+            j = indices[p]
+            if movable[j]:
+                m = fabs(data[p])
+                if m != 0.0:
+                    t = m * inv
+                    if t > kappa[j]:
+                        kappa[j] = t
+                    t = m * fabs(z[j])
+                    if t > 0.0 and t >= thr:
+                        _union(parent, i, n + j)
+    for j in range(n):
+        if movable[j] and kappa[j] == 0.0:
+            kappa[j] = INFINITY
+    return _finish(n, q, z, n_eq, lo, up, w, work, iwork, state, out)
+
+
+def certify_arrays(M, const double[::1] q, const double[::1] z, Py_ssize_t n_eq,
+                   lo, up, double[::1] w, signed char[::1] state=None):
+    """Certify z; M is a C-contiguous float64 array or a (data, indices, indptr) CSR triple.
+
+    ``lo``/``up`` are float64 arrays or None (then the first ``n_eq`` variables are free and the
+    others bounded below by 0).  Fills ``w`` (and ``state``, if given: 0 at lower bound, 1 at
+    upper bound, 2 between with w = 0, the state that pair's score came from) and returns
+    ``(status, error, backward_error, growth, residual, bound_violation, w_violation,
+    complementarity, equality_residual, worst)``.
+    """
+    cdef Py_ssize_t n = q.shape[0]
+    cdef CertOut out
+    cdef const double[::1] lov, upv
+    cdef const double* plo = NULL
+    cdef const double* pup = NULL
+    cdef double* work
+    cdef Py_ssize_t* iwork
+    cdef signed char* pst = NULL
+    if z.shape[0] != n or w.shape[0] != n:
+        raise ValueError("q, z and w must have the same length")
+    if n == 0:
+        return (0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1)
+    if lo is not None:
+        lov = lo
+        upv = up
+        plo = &lov[0]
+        pup = &upv[0]
+    if state is not None:
+        if state.shape[0] != n:
+            raise ValueError("state must have length n")
+        pst = &state[0]
+    work = <double*> malloc(5 * n * sizeof(double))
+    iwork = <Py_ssize_t*> malloc(3 * n * sizeof(Py_ssize_t))
+    if work == NULL or iwork == NULL:
+        free(work)
+        free(iwork)
+        raise MemoryError(f"certificate workspace for n = {n}")
+    try:
+        _dispatch(M, q, z, n_eq, plo, pup, w, work, iwork, pst, &out)
+    finally:
+        free(work)
+        free(iwork)
+    return (out.status, out.error, out.backward_error, out.growth, out.residual,
+            out.bound_violation, out.w_violation, out.complementarity, out.equality_residual,
+            out.worst)
+
+
+cdef void _dispatch(M, const double[::1] q, const double[::1] z, Py_ssize_t n_eq,
+                    const double* plo, const double* pup, double[::1] w, double* work,
+                    Py_ssize_t* iwork, signed char* pst, CertOut* out) except *:
+    cdef Py_ssize_t n = q.shape[0]
+    cdef const double[:, ::1] Md
+    cdef const double[::1] data
+    cdef const int[::1] ind32, ptr32
+    cdef const long long[::1] ind64, ptr64
+    if isinstance(M, tuple):
+        data = M[0]
+        if M[1].dtype.itemsize == 4:
+            ind32 = M[1]
+            ptr32 = M[2]
+            with nogil:
+                certify_csr(n, &data[0] if data.shape[0] else NULL, &ind32[0] if ind32.shape[0]
+                            else NULL, &ptr32[0], &q[0], &z[0], n_eq, plo, pup, &w[0],
+                            work, iwork, pst, out)
+        else:
+            ind64 = M[1]
+            ptr64 = M[2]
+            with nogil:
+                certify_csr(n, &data[0] if data.shape[0] else NULL, &ind64[0] if ind64.shape[0]
+                            else NULL, &ptr64[0], &q[0], &z[0], n_eq, plo, pup, &w[0],
+                            work, iwork, pst, out)
+    else:
+        Md = M
+        if Md.shape[0] != n or Md.shape[1] != n:
+            raise ValueError("M must be n x n")
+        with nogil:
+            certify_dense(n, &Md[0, 0], n, &q[0], &z[0], n_eq, plo, pup, &w[0], work,
+                          iwork, pst, out)

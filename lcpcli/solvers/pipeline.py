@@ -1,0 +1,103 @@
+"""How every method is run: equilibrate, run, map the answer back, polish.
+
+:func:`run_method` is the one place that does this, for :func:`lcpcli.solve` and for ``auto``'s
+attempts alike.  Conventions: ``w = M z + q``; options and results in the units of the problem
+the user gave.
+
+1. **Equilibrate** (:mod:`lcpcli.analysis.scaling`) when the method asks for it
+   (``Method.scaling``): ``"auto"`` scales a symmetric M as ``D M D`` (keeps symmetry and
+   definiteness) and any other M two-sided as ``D1 M D2`` (undoes arbitrary row and column
+   scalings, keeps the P property); ``"symmetric"`` always uses ``D M D``; ``"none"`` never
+   scales (methods that are invariant under diagonal scaling, such as projected Gauss-Seidel).
+   Warm starts and covering vectors are scaled with the problem; traces are never scaled (they
+   show the user's numbers).
+2. **Run** the method on the scaled problem and map ``z`` (and a Farkas vector) back exactly.
+   When a two-sided run ends with neither an answer nor a proof, the method is run once more
+   with ``D M D``, which keeps the matrix classes its guarantees are stated for (a secondary
+   ray proves infeasibility only on a copositive-plus matrix).
+3. **Polish**: when a method says it converged but its answer fails the certificate,
+   :func:`lcpcli.solvers.support.refine` re-solves the method's final basis (when it reports
+   one) or the active set the certificate names (with sign repair); the better answer is kept.
+   A method that gave up is not polished (its leftover is not an answer to refine).  The
+   verdict is always the certificate's, given by the caller.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from lcpcli.analysis.scaling import Scaling, equilibrate
+from lcpcli.core.certificate import certify
+from lcpcli.core.problem import Problem
+from lcpcli.core.result import CONVERGED, Outcome
+from lcpcli.solvers.support import refine
+
+#: Options in the units of z and of w, scaled with the problem.
+Z_OPTIONS = ("z0",)
+W_OPTIONS = ("covering",)
+
+
+def is_symmetric(problem: Problem) -> bool:
+    """Exact symmetry of M (what ``D M D`` needs to keep)."""
+    M = problem.M
+    if problem.sparse:
+        return (M != M.T).nnz == 0
+    return bool(np.array_equal(M, M.T))
+
+
+def run_method(spec: Any, problem: Problem, tol: float, options: dict[str, Any]) -> Outcome:
+    """Run ``spec`` on ``problem`` as the module docstring says; return its :class:`Outcome`."""
+    kind = "none" if options.get("trace") else getattr(spec, "scaling", "none")
+    symmetric = kind == "symmetric" or (kind == "auto" and is_symmetric(problem))
+    out = _run_scaled(spec, problem, tol, options, kind, symmetric)
+    if (kind == "auto" and not symmetric and out.termination != CONVERGED
+            and not out.proven_infeasible):
+        again = _run_scaled(spec, problem, tol, options, kind, True)
+        if again.proven_infeasible or again.termination == CONVERGED:
+            again.message += " (rerun with D M D scaling, which keeps M's class)"
+            again.iterations += out.iterations
+            out = again
+    if out.termination == CONVERGED:
+        z = np.asarray(out.z, dtype=np.float64)
+        cert = certify(problem, z, tol)
+        if not cert.passed:
+            polished = refine(problem, z, basis=out.info.get("basis"))
+            if polished is not None and polished[1] < cert.error:
+                out.z = polished[0]
+                out.message += (f"; active-set polish: certified error {cert.error:.2g} -> "
+                                f"{polished[1]:.2g}")
+                out.info["polished"] = True
+    return out
+
+
+def _run_scaled(spec: Any, problem: Problem, tol: float, options: dict[str, Any], kind: str,
+                symmetric: bool) -> Outcome:
+    scaling = equilibrate(problem, symmetric) if kind != "none" else None
+    if scaling is None:
+        return spec.run(problem, tol=tol, **options)
+    out = spec.run(scaling.apply(problem), tol=tol, **_scaled_options(options, scaling))
+    out.z = scaling.unscale_z(out.z)
+    y = out.info.get("farkas_y")
+    if y is not None:
+        out.info["farkas_y"] = scaling.unscale_w(np.asarray(y)).tolist()
+    out.message += f" [{scaling.describe()}]"
+    out.info["scaling"] = {"kind": scaling.kind, "row_exponents": [int(scaling.row.min()),
+                                                                   int(scaling.row.max())],
+                           "column_exponents": [int(scaling.col.min()), int(scaling.col.max())]}
+    return out
+
+
+def _scaled_options(options: dict[str, Any], scaling: Scaling) -> dict[str, Any]:
+    out = dict(options)
+    for key in Z_OPTIONS:
+        if out.get(key) is not None and np.size(out[key]) == scaling.col.size:
+            out[key] = scaling.scale_z(out[key])
+    for key in W_OPTIONS:
+        value = out.get(key)
+        if value is not None and np.size(value) == 1:
+            value = np.full(scaling.row.size, float(np.ravel(value)[0]))
+        if value is not None and np.size(value) == scaling.row.size:
+            out[key] = scaling.scale_w(value)
+    return out

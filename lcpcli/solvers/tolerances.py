@@ -1,0 +1,14 @@
+"""The pivoting methods' tolerances, defined once (kernel-free, so the teaching replicas can use
+them without loading a compiled kernel).
+
+Both are relative: a pivot is compared with the largest entry of its column, a ratio with the
+smallest ratio.  Scale-invariance of the verdicts comes from equilibrating the problem first
+(:mod:`lcpcli.solvers.pipeline`).
+"""
+
+from __future__ import annotations
+
+#: Relative pivot tolerance: entries below this fraction of the column's largest are not pivots.
+PIVOT_TOL = 1e-11
+#: Relative tolerance under which two ratios are a tie (then the lexicographic rule decides).
+TIE_TOL = 1e-9

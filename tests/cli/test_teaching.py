@@ -1,0 +1,381 @@
+"""Teaching in a terminal (issue 16): layouts, one step at a time, exports for lecture notes,
+principal-pivoting and sweep traces, ``pivot --driving/--follow``, clean cone pictures."""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import select
+import shutil
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+TEXT = {"NO_COLOR": "1", "COLUMNS": "120"}
+
+
+# ------------------------------------------------------------------------ solve --trace
+def test_json_trace_has_pivot_elements(cli, samples):
+    p = cli("solve", str(samples / "seed000.json"), "--trace", "--json")
+    assert p.returncode == 0, p.stderr
+    d = json.loads(p.stdout)
+    trace = d["trace"]
+    assert trace[0]["pivot"] == 0 and trace[0]["pivot_element"] is None
+    assert len(trace) == d["iterations"] + 1
+    for prev, st in zip(trace, trace[1:], strict=False):
+        pe = st["pivot_element"]
+        assert pe is not None and pe["column"] == st["entering"] and pe["row"] == st["row"]
+        assert prev["tableau"][pe["row"] - 1][prev["nonbasic"].index(st["entering"])] == \
+            pe["value"]
+        assert st["ratio_test"]["formula"] and len(st["ratio_test"]["rows"]) == 3
+    assert trace[3]["basis"] == ["z0", "w2", "z3"] and trace[3]["q_prime"] == [1, 5, 1]
+
+
+def test_murty_layout_text(cli, samples):
+    p = cli("solve", str(samples / "seed000.json"), "--layout", "murty", env=TEXT)
+    assert p.returncode == 0, p.stderr
+    assert "w - M z - d z0 = q  (murty layout)" in p.stdout
+    assert "Step 0: initial tableau" in p.stdout and "Step 5: after pivot 5" in p.stdout
+    assert "[-1]" in p.stdout  # Murty's first pivot element, on -d
+    assert "z1 enters because w1 left" in p.stdout
+    assert "q_i / a_i" in p.stdout and "never blocks" in p.stdout
+    assert "status             solved" in p.stdout
+
+
+def test_pivot_k_alone(cli, samples):
+    p = cli("solve", str(samples / "seed000.json"), "--pivot", "3", env=TEXT)
+    assert p.returncode == 0, p.stderr
+    assert p.stdout.startswith("Step 3: after pivot 3: z3 entered, z1 left")
+    assert "Step 2" not in p.stdout and "Step 4" not in p.stdout
+    assert "w2 leaves (row 2)" in p.stdout and "status" not in p.stdout
+    bad = cli("solve", str(samples / "seed000.json"), "--pivot", "9")
+    assert bad.returncode == 2 and "steps 0..5" in bad.stderr and bad.stdout == ""
+
+
+def test_degenerate_lexicographic_tie_break_is_shown(cli, samples):
+    p = cli("solve", str(samples / "degenerate_lex.json"), "--pivot", "1", "--layout", "murty",
+            env=TEXT)
+    assert p.returncode == 0, p.stderr
+    assert "Tie-break: rows of B^-1" in p.stdout
+    assert "column w2: row 2: 1, row 3: 0 -> kept row 3" in p.stdout
+    assert "w3 leaves (row 3)" in p.stdout
+
+
+def test_step_without_a_terminal_prints_every_step(cli, samples):
+    start = time.monotonic()
+    p = cli("solve", str(samples / "seed000.json"), "--step", stdin="", env=TEXT, timeout=60)
+    assert time.monotonic() - start < 60
+    assert p.returncode == 0, p.stderr
+    assert "needs a terminal" in p.stderr
+    assert all(f"Step {k}:" in p.stdout for k in range(6))
+
+
+@pytest.mark.skipif(not hasattr(os, "openpty") or sys.platform == "win32", reason="POSIX pty")
+def test_step_on_a_terminal_waits_for_keys(root, samples):
+    """Under a pseudo-terminal: one page per screen, n goes on, b goes back, q quits."""
+    import pty
+
+    pid, fd = pty.fork()
+    if pid == 0:  # child: the CLI on the terminal
+        env = dict(os.environ, PYTHONPATH=str(root), COLUMNS="100", LINES="60", TERM="dumb")
+        os.execvpe(sys.executable, [sys.executable, "-m", "lcpcli", "solve",
+                                    str(samples / "seed000.json"), "--step"], env)
+    out = b""
+
+    def read_until(needle: bytes, count: int = 1, limit: float = 60) -> None:
+        nonlocal out
+        end = time.monotonic() + limit
+        while out.count(needle) < count:
+            left = end - time.monotonic()
+            assert left > 0, out.decode(errors="replace")[-2000:]
+            ready, _, _ = select.select([fd], [], [], left)
+            if ready:
+                try:
+                    chunk = os.read(fd, 65536)
+                except OSError:  # the child closed the terminal
+                    break
+                if not chunk:
+                    break
+                out += chunk
+
+    try:
+        read_until(b"page 1 of 6")
+        assert b"Step 0: initial tableau" in out and b"Step 1:" not in out
+        os.write(fd, b"n")
+        read_until(b"page 2 of 6")
+        assert b"Step 1: after pivot 1" in out
+        os.write(fd, b"b")
+        read_until(b"page 1 of 6", count=2)  # back to the first page
+        os.write(fd, b"q")
+        read_until(b"status")  # quit: the result follows
+        _, status = os.waitpid(pid, 0)
+    finally:
+        os.close(fd)
+    assert os.WEXITSTATUS(status) == 0
+    assert b"Step 2:" not in out
+
+
+def latex_shape(text: str) -> None:
+    begins = re.findall(r"\\begin\{(\w+)\}", text)
+    ends = re.findall(r"\\end\{(\w+)\}", text)
+    assert sorted(begins) == sorted(ends)
+    stack = []
+    for m in re.finditer(r"\\(begin|end)\{(\w+)\}", text):
+        if m.group(1) == "begin":
+            stack.append(m.group(2))
+        else:
+            assert stack and stack.pop() == m.group(2)
+    assert not stack
+    assert text.count("{") == text.count("}") + text.count("\\{") - text.count("\\}")
+
+
+def test_latex_export_shape(cli, samples):
+    p = cli("solve", str(samples / "seed000.json"), "--format", "latex")
+    assert p.returncode == 0, p.stderr
+    tex = p.stdout
+    latex_shape(tex)
+    tabulars = re.findall(r"\\begin\{tabular\}.*?\\end\{tabular\}", tex, re.S)
+    assert len(tabulars) == 6  # one per step: the initial tableau and 5 pivots
+    for k, tab in enumerate(tabulars):
+        assert tab.count("\\fbox{") == (1 if k < 5 else 0)  # the pivot element, boxed
+    assert "\\fbox{$-2$}" in tabulars[2]  # pivot 3: z3 enters on -2 (dictionary signs)
+    assert tex.count("\\subsection*{Step") == 6
+    assert "status" not in tex  # the export alone on stdout
+    assert "$z_{0}$" in tex and "\\fbox{$1$}" in tabulars[0]
+    murty = cli("solve", str(samples / "seed000.json"), "--format", "tex", "--layout", "murty",
+                "--pivot", "0").stdout
+    latex_shape(murty)
+    assert "\\fbox{$-1$}" in murty and murty.count("\\begin{tabular}") == 1
+
+
+def test_markdown_export_to_file(cli, samples, tmp_path):
+    target = tmp_path / "notes.md"
+    p = cli("solve", str(samples / "seed000.json"), "--format", "markdown", "-o", str(target),
+            env=TEXT)
+    assert p.returncode == 0, p.stderr
+    md = target.read_text()
+    assert md.count("### Step ") == 6 and "| basic | q' |" in md and "**[-2]**" in md
+    assert "status             solved" in p.stdout  # the usual result on the terminal
+    assert f"wrote {target}" in p.stderr
+    assert sorted(x.name for x in tmp_path.iterdir()) == ["notes.md"]
+
+
+@pytest.mark.skipif(shutil.which("pdflatex") is None, reason="pdflatex is not installed")
+def test_latex_exports_compile(cli, samples, tmp_path):
+    """Every export of the samples, \\input{} into one document, compiles without an error."""
+    runs = {"trace": ["solve", "seed000.json", "--format", "latex"],
+            "murty": ["solve", "degenerate_lex.json", "--format", "latex", "--layout", "murty"],
+            "pivot": ["pivot", "seed000_augmented.json", "-d", "w1,w2,w3", "--driving", "z0",
+                      "--follow", "--full", "--format", "latex"],
+            "enum": ["enumerate", "seed004.json", "--all-cones", "--format", "latex"],
+            "principal": ["solve", "seed004.json", "-m", "murty", "--format", "latex"],
+            "sweeps": ["solve", "box_small.json", "-m", "psor", "--format", "latex"],
+            "events": ["solve", "seed004.json", "-m", "dantzig", "--format", "latex"]}
+    for name, (cmd, file, *rest) in runs.items():
+        p = cli(cmd, str(samples / file), *rest, "-o", str(tmp_path / f"{name}.tex"))
+        assert p.returncode == 0, (name, p.stderr)
+    body = "\n".join(f"\\input{{{name}}}" for name in runs)
+    (tmp_path / "main.tex").write_text("\\documentclass{article}\n\\begin{document}\n"
+                                       f"{body}\n\\end{{document}}\n")
+    p = subprocess.run(["pdflatex", "-interaction=nonstopmode", "-halt-on-error", "main.tex"],
+                       cwd=tmp_path, capture_output=True, text=True, timeout=120)
+    assert p.returncode == 0, p.stdout[-3000:]
+    assert (tmp_path / "main.pdf").stat().st_size > 0
+
+
+def test_export_never_overwrites_the_input(cli, samples, tmp_path):
+    src = tmp_path / "p.json"
+    src.write_text((samples / "seed000.json").read_text())
+    before = src.read_text()
+    for args in (["solve", str(src), "--format", "latex", "-o", str(src)],
+                 ["pivot", str(src), "-d", "z0,w2,z3", "--format", "latex", "-o", str(src)],
+                 ["enumerate", str(src), "--format", "markdown", "-o", str(src)]):
+        p = cli(*args)
+        assert p.returncode == 2 and "input file" in p.stderr, args
+        assert src.read_text() == before
+
+
+def test_export_and_json_cannot_share_stdout(cli, samples, tmp_path):
+    p = cli("solve", str(samples / "seed000.json"), "--format", "latex", "--json")
+    assert p.returncode == 2 and "-o FILE" in p.stderr and p.stdout == ""
+    target = tmp_path / "t.tex"
+    p = cli("solve", str(samples / "seed000.json"), "--format", "latex", "--json", "-o",
+            str(target))
+    assert p.returncode == 0 and json.loads(p.stdout)["trace"]
+    latex_shape(target.read_text())
+    p = cli("solve", str(samples / "seed000.json"), "--step", "--format", "latex")
+    assert p.returncode == 2 and "--step" in p.stderr
+
+
+@pytest.mark.parametrize("method, kind", [("murty", "principal"), ("dantzig", "dantzig"),
+                                          ("pgs", "sweep"), ("psor", "sweep")])
+def test_principal_and_sweep_traces(cli, samples, method, kind):
+    p = cli("solve", str(samples / "seed004.json"), "-m", method, "--trace", "--json")
+    assert p.returncode == 0, p.stderr
+    d = json.loads(p.stdout)
+    assert {s["kind"] for s in d["trace"]} == {kind}
+    text = cli("solve", str(samples / "seed004.json"), "-m", method, "--trace", env=TEXT).stdout
+    if kind == "principal":
+        steps = d["trace"]
+        assert [s["alpha"] for s in steps] == [[], [1], [1, 2]]
+        assert [(s["entering"], s["leaving"]) for s in steps[1:]] == [("z1", "w1"),
+                                                                      ("z2", "w2")]
+        assert "Principal pivots at a glance" in text and "alpha = beta = {1, 2}" in text
+    elif kind == "dantzig":
+        assert [s["sets"]["clamped"] for s in d["trace"]] == [[], [1], [1, 2]]
+        assert "Events at a glance" in text
+    else:
+        sweeps = [s["sweep"] for s in d["trace"]]
+        assert sweeps[0] == 0 and sweeps[-1] == d["iterations"]
+        assert "the first sweeps and the last" in text
+
+
+def test_methods_without_a_replica_refuse_trace(cli, samples):
+    p = cli("solve", str(samples / "seed004.json"), "-m", "newton", "--trace")
+    assert p.returncode == 2 and "no step-by-step replica" in p.stderr
+    assert "murty" in p.stderr and "psor" in p.stderr and "Traceback" not in p.stderr
+
+
+# ------------------------------------------------------------------------ pivot
+def test_pivot_driving_ratio_test_json(cli, samples):
+    p = cli("pivot", str(samples / "seed000_augmented.json"), "-d", "z4,w2,z3", "-i",
+            "w1,w3,z2,z1", "--driving", "z2", "--json")
+    assert p.returncode == 0, p.stderr
+    d = json.loads(p.stdout)
+    rt = d["ratio_test"]
+    assert rt["blocking"] == "z0" and rt["row"] == 1 and rt["pivot_element"]["value"] == -1
+    assert [r["eligible"] for r in rt["rows"]] == [True, True, False]
+    text = cli("pivot", str(samples / "seed000_augmented.json"), "-d", "z0,w2,z3",
+               "--driving", "w1", env=TEXT).stdout
+    text = " ".join(text.split())  # rich wraps long lines
+    assert "blocking variable: w2 (row 2 of w')" in text
+    assert "by the complementary rule z2 enters at the next Lemke step" in text
+
+
+def test_pivot_follow_is_lemkes_path(cli, samples):
+    p = cli("pivot", str(samples / "seed000_augmented.json"), "-d", "w1,w2,w3", "--driving",
+            "z0", "--follow", "--json")
+    assert p.returncode == 0, p.stderr
+    steps = json.loads(p.stdout)["steps"]
+    assert [s["dependent"] for s in steps] == [["w1", "w2", "w3"], ["z0", "w2", "w3"],
+                                               ["z0", "w2", "z1"], ["z0", "w2", "z3"],
+                                               ["z0", "w1", "z3"], ["z2", "w1", "z3"]]
+    assert [s["ratio_test"]["blocking"] for s in steps[:-1]] == ["w1", "w3", "z1", "w2", "z0"]
+    assert steps[-1]["ratio_test"] is None and steps[-1]["q_prime"] == [1, 2, 3]
+    assert steps[3]["q_prime"] == [1, 5, 1] and steps[3]["driving_column"][1] == -1
+    one = cli("pivot", str(samples / "seed000_augmented.json"), "-d", "w1,w2,w3", "--driving",
+              "z0", "--follow", "--pivot", "3", "--layout", "murty", "--full", env=TEXT)
+    assert one.returncode == 0, one.stderr
+    assert "dependent   w' = (z0, w2, z3)" in one.stdout and "Basis 4 of 6" in one.stdout
+    assert "original tableau" not in one.stdout
+
+
+def test_pivot_sequence_and_errors(cli, samples):
+    f = str(samples / "seed000_augmented.json")
+    p = cli("pivot", f, "-d", "z0,w2,w3", "-d", "z0,w2,z1", "--json")
+    assert p.returncode == 0 and len(json.loads(p.stdout)["steps"]) == 2
+    p = cli("pivot", f, "-d", "z0,w2,w3", "-d", "z0,w2,z1", "--driving", "z1")
+    assert p.returncode == 2 and "one --driving per --dependent" in p.stderr
+    p = cli("pivot", f, "-d", "z0,w2,w3", "--follow")
+    assert p.returncode == 2 and "--follow" in p.stderr
+    p = cli("pivot", f, "-d", "z0,w2,w3", "--layout", "tableau")
+    assert p.returncode == 2 and "--layout" in p.stderr
+    p = cli("pivot", f, "-d", "z0,w2,w3", "-o", "x.tex")
+    assert p.returncode == 2 and "--format" in p.stderr
+
+
+def test_pivot_latex_export(cli, samples, tmp_path):
+    target = tmp_path / "pivot.tex"
+    p = cli("pivot", str(samples / "seed000_augmented.json"), "-d", "z4,w2,z3", "-i",
+            "w1,w3,z2,z1", "--driving", "z2", "--full", "--format", "latex", "-o", str(target))
+    assert p.returncode == 0, p.stderr
+    tex = target.read_text()
+    latex_shape(tex)
+    assert "\\{$3$, $1$\\}" in tex  # beta'
+    assert tex.count("\\fbox{") >= 2  # the pivot element in the ratio test and the tableau
+
+
+# ------------------------------------------------------------------------ enumerate
+def test_enumerate_exports(cli, samples):
+    p = cli("enumerate", str(samples / "seed004.json"), "--all-cones", "--format", "latex")
+    assert p.returncode == 0, p.stderr
+    latex_shape(p.stdout)
+    assert p.stdout.count("\\begin{tabular}") == 2  # cones and solutions
+    md = cli("enumerate", str(samples / "seed004.json"), "--format", "markdown").stdout
+    assert "| 4 | [-2 -1; -1 -2] |" in md and "unique solution" in md
+
+
+def test_enumerate_lemke_path_text_and_errors(cli, samples, tmp_path):
+    p = cli("enumerate", str(samples / "seed004.json"), "--lemke-path", env=TEXT)
+    assert p.returncode == 0, p.stderr
+    assert "Lemke's path q + z0 d" in p.stdout and "*" in p.stdout
+    p = cli("enumerate", str(samples / "seed004.json"), "--lemke-path", "--json")
+    path = json.loads(p.stdout)["lemke_path"]
+    assert [x["z0"] for x in path] == [0, 6, 4, 0]
+    p = cli("enumerate", str(samples / "seed000.json"), "--lemke-path")
+    assert p.returncode == 2 and "n = 3" in p.stderr
+
+
+LABELS = ("w1", "w2", "z1", "z2", "q")
+
+
+@pytest.mark.parametrize("M, q", [([[2, 1], [1, 2]], [-5, -6]), ([[-1, 0], [0, -1]], [1, 2]),
+                                  ([[1, 2], [2, 1]], [4, 4.5]), ([[0, 0], [1, 1]], [-1, -1]),
+                                  ([[1, -1], [1, 1]], [0.3, -1]), ([[1, 0], [0, 1]], [0, 0])])
+def test_ascii_cone_labels_never_collide(M, q):
+    from lcpcli.cli.render.enumerate import draw_cones_text
+
+    rows = draw_cones_text(np.array(M, float), np.array(q, float)).plain.splitlines()[:-1]
+    found = set()
+    for row in rows:
+        for m in re.finditer(r"[wzq]\d?", row):
+            label = m.group(0)
+            if label not in LABELS:
+                continue
+            found.add(label)
+            left = row[m.start() - 1] if m.start() > 0 else " "
+            right = row[m.end()] if m.end() < len(row) else " "
+            assert left == " " and right == " ", (label, row)
+    expected = {"w1", "w2", "q"} | {f"z{j + 1}" for j in range(2) if np.any(np.array(M)[:, j])}
+    assert found == expected
+
+
+def test_png_legend_names_the_cones_and_nothing_is_clipped():
+    pytest.importorskip("matplotlib")
+    from lcpcli.cli.render.enumerate import cones_figure
+
+    M, q = np.array([[2.0, 1], [1, 2]]), np.array([-5.0, -6])
+    path = [{"step": 0, "z0": 0.0, "point": [-5, -6]}, {"step": 1, "z0": 6.0, "point": [1, 0]},
+            {"step": 2, "z0": 4.0, "point": [-1, -2]}, {"step": 3, "z0": 0.0, "point": [-5, -6]}]
+    fig = cones_figure(M, q, "seed004", path)
+    ax = fig.axes[0]
+    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert labels[:4] == ["r = 1: Pos(I1, I2)", "r = 2: Pos(I1, -M2)", "r = 3: Pos(-M1, I2)",
+                          "r = 4: Pos(-M1, -M2)"] and "Lemke's path q + z0 d" in labels
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    box = ax.get_window_extent(renderer)
+    texts = [t for t in ax.texts if t.get_text()]
+    assert {t.get_text() for t in texts} >= {"$I_1$", "$I_2$", "$-M_1$", "$-M_2$"}
+    for t in texts + [a for a in ax.get_children() if hasattr(a, "xyann") and a.get_text()]:
+        ext = t.get_window_extent(renderer)
+        assert box.x0 <= ext.x0 and ext.x1 <= box.x1 and box.y0 <= ext.y0 and ext.y1 <= box.y1, \
+            t.get_text()
+    legend = ax.get_legend().get_window_extent(renderer)
+    assert legend.y1 <= box.y0  # below the axes: it hides no cone
+    import matplotlib.pyplot as plt
+
+    plt.close(fig)
+
+
+def test_plot_with_lemke_path(cli, samples, tmp_path):
+    pytest.importorskip("matplotlib")
+    target = tmp_path / "cones.png"
+    p = cli("enumerate", str(samples / "seed004.json"), "--lemke-path", "--plot", str(target))
+    assert p.returncode == 0, p.stderr
+    assert target.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
