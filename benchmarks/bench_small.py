@@ -30,10 +30,14 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 import lcpcli  # noqa: E402
+from lcpcli.analysis.scaling import equilibrate  # noqa: E402
 from lcpcli.api import certify_outcome  # noqa: E402
-from lcpcli.core.certificate import certify, matrix_norm_inf  # noqa: E402
+from lcpcli.core.certificate import certify  # noqa: E402
 from lcpcli.core.problem import Problem  # noqa: E402
-from lcpcli.solvers.kernels.lemke_revised import lemke_solve  # noqa: E402
+from lcpcli.solvers.kernels.lemke_revised import (  # noqa: E402
+    lemke_solve,
+    lemke_solve_certified,
+)
 from lcpcli.solvers.methods.lemke import PIVOT_TOL, TIE_TOL  # noqa: E402
 from lcpcli.solvers.registry import get_method  # noqa: E402
 
@@ -92,11 +96,13 @@ def main(argv: list[str] | None = None) -> int:
         "  method run (kernel + polish + Outcome)": lambda: spec.run(prob, tol=1e-8),
         "    kernels.lemke_revised.lemke_solve": lambda: lemke_solve(
             M, prob.q, None, 1000, PIVOT_TOL, TIE_TOL, 50),
+        "one C call: kernel + polish + certificate": lambda: lemke_solve_certified(
+            M, prob.q, None, 1000, PIVOT_TOL, TIE_TOL, 50),
         "  certify_outcome (w, certificate, Result)": lambda: certify_outcome(
             prob, out, "lemke-revised", 0.0, 1e-8),
         "    certify": lambda: certify(prob, out.z, 1e-8),
         "    problem.w(z)": lambda: prob.w(out.z),
-        "    matrix_norm_inf(M)": lambda: matrix_norm_inf(prob.M),
+        "  pipeline: equilibrate (decides: no scaling)": lambda: equilibrate(prob, True),
     }
     times = {k: per_call(f, args.calls) for k, f in parts.items()}
     sic_after = siconos(prob, 2000)

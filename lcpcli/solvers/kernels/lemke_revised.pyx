@@ -32,6 +32,7 @@ from libc.stdint cimport int64_t
 from libc.stdlib cimport free, malloc
 from libc.string cimport memcpy
 
+from lcpcli.core._certificate cimport CertOut, certify_dense
 from lcpcli.solvers.kernels.dense cimport invert
 from lcpcli.solvers.kernels.lemke cimport (
     LEMKE_MAX_ITER,
@@ -624,3 +625,72 @@ def lemke_solve(M, q, d, int64_t max_iter, double piv_tol, double tie_tol,
     if rc:
         raise MemoryError()
     return out.status, z, out.pivots, basic, ray, out.z0, out.refactors
+
+
+def lemke_solve_certified(M, q, d, int64_t max_iter, double piv_tol, double tie_tol,
+                          int64_t refactor_every):
+    """Kernel, final polish and the certificate in one compiled call (the small-solve path).
+
+    As :func:`lemke_solve`, plus ``w = M z + q`` and the certificate of the returned ``z``
+    (:c:func:`lcpcli.core._certificate.certify_dense`, the project's one definition, for an
+    LCP): returns ``(status, z, w, pivots, basic, ray_dz, z0, refactors, cert)`` with ``cert``
+    the tuple of :func:`lcpcli.core._certificate.certify_arrays` (its first entry 2 means: out
+    of range, certify again with :func:`lcpcli.core.certificate.check`, which rescales).  On
+    a status other than OK, ``z`` is ``max(z, 0)`` of the kernel's answer.
+    """
+    cdef Py_ssize_t n = len(q)
+    cdef cnp.ndarray qa = f64(q, n, -1)
+    cdef cnp.ndarray Ma = f64(M, n, n)
+    cdef cnp.ndarray da
+    cdef const double* dp = NULL
+    if d is not None:
+        da = f64(d, n, -1)
+        dp = f64_ptr(da)
+    cdef cnp.ndarray z = empty_f64(n)
+    cdef cnp.ndarray w = empty_f64(n)
+    cdef cnp.ndarray ray = empty_f64(n)
+    cdef cnp.ndarray basic = empty_i64(n)
+    if n == 0:
+        return (TRIVIAL, z, w, 0, basic, ray, 0.0, 0,
+                (0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1))
+    cdef const double* Mp = f64_ptr(Ma)
+    cdef const double* qp = f64_ptr(qa)
+    cdef double* zp = f64_ptr(z)
+    cdef double* rp = f64_ptr(ray)
+    cdef int64_t* bp = <int64_t*>cnp.PyArray_DATA(basic)
+    cdef LemkeOut out
+    cdef CertOut cert
+    cdef int rc = 0
+    cdef Py_ssize_t i
+    cdef double* ones = NULL
+    cdef double* raw = <double*>malloc(6 * n * sizeof(double))
+    cdef Py_ssize_t* iwork = <Py_ssize_t*>malloc(3 * n * sizeof(Py_ssize_t))
+    with nogil:
+        if dp == NULL:
+            ones = _ones(n)
+            dp = ones
+        if dp == NULL or raw == NULL or iwork == NULL:
+            rc = -1
+        else:
+            rc = lemke_revised(Mp, qp, dp, n, max_iter, piv_tol, tie_tol, NULL, 0,
+                               refactor_every, raw, bp, rp, &out)
+        if rc == 0:
+            if out.status == LEMKE_OK:
+                rc = polish(Mp, qp, n, raw, bp, zp)
+            else:
+                for i in range(n):
+                    zp[i] = raw[i] if raw[i] > 0.0 else 0.0
+        if rc == 0 and out.status != LEMKE_TRIVIAL:
+            certify_dense(n, Mp, n, qp, zp, 0, NULL, NULL, f64_ptr(w), raw + n, iwork, NULL,
+                          &cert)
+        free(ones)
+        free(raw)
+        free(iwork)
+    if rc:
+        raise MemoryError()
+    if out.status == LEMKE_TRIVIAL:  # z = 0: the caller certifies it the ordinary way
+        return out.status, z, w, 0, basic, ray, 0.0, 0, None
+    return (out.status, z, w, out.pivots, basic, ray, out.z0, out.refactors,
+            (cert.status, cert.error, cert.backward_error, cert.growth, cert.residual,
+             cert.bound_violation, cert.w_violation, cert.complementarity,
+             cert.equality_residual, cert.worst))
