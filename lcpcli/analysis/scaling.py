@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from lcpcli.analysis._scaling import ruiz_exponents
 from lcpcli.core.problem import Problem
 
 #: A problem whose row and column maxima are all within 2^BALANCED of each other is left alone.
@@ -90,52 +91,20 @@ def equilibrate(problem: Problem, symmetric: bool) -> Scaling | None:
     """The scaling that balances ``problem`` (None when it is balanced already).
 
     ``symmetric`` asks for ``D M D`` (see the module docstring).  Zero rows and columns keep
-    factor 1.  Cost: one pass over the nonzeros to read their exponents, then O(nnz) integer
-    work per round.
+    factor 1.  Compiled (``_scaling.pyx``): one pass over the nonzeros when the problem is
+    balanced already, O(nnz) integer work per round otherwise.
     """
-    n = problem.n
-    if n == 0:
+    if problem.n == 0:
         return None
     M = problem.M
     if problem.sparse:
-        Mc = M.tocoo()
-        rows, cols, vals = Mc.row, Mc.col, Mc.data
-        keep = vals != 0
-        rows, cols, vals = rows[keep], cols[keep], vals[keep]
+        Mc = M.tocsr()
+        arg: Any = (Mc.data, Mc.indices.astype(np.intp, copy=False),
+                    Mc.indptr.astype(np.intp, copy=False))
     else:
-        rows, cols = np.nonzero(M)
-        vals = M[rows, cols]
-    e = np.frexp(vals)[1].astype(np.int64)  # |M_ij| in [2^(e-1), 2^e)
-    r = np.zeros(n, dtype=np.int64)
-    c = np.zeros(n, dtype=np.int64)
-    floor = np.iinfo(np.int64).min // 4
-    for _ in range(MAX_ROUNDS):
-        ee = e + r[rows] + c[cols]
-        rmax = np.full(n, floor)
-        cmax = np.full(n, floor)
-        np.maximum.at(rmax, rows, ee)
-        np.maximum.at(cmax, cols, ee)
-        rmax[rmax == floor] = 1   # zero rows and columns: leave them
-        cmax[cmax == floor] = 1
-        if max(np.ptp(rmax), np.ptp(cmax)) <= BALANCED and abs(int(rmax.max()) - 1) <= BALANCED:
-            break
-        if symmetric:
-            d = -(np.maximum(rmax, cmax) - 1) // 2
-            r = r + d
-            c = c + d
-        else:
-            r = r - (rmax - 1) // 2
-            ee = e + r[rows] + c[cols]
-            cmax = np.full(n, floor)
-            np.maximum.at(cmax, cols, ee)
-            cmax[cmax == floor] = 1
-            c = c - (cmax - 1) // 2
-    # a common factor normalising q (M~ unchanged: rows x 2^k, columns x 2^-k)
-    qt = np.ldexp(problem.q, r.astype(np.int32))
-    qmax = float(np.max(np.abs(qt)))
-    k = -int(np.frexp(qmax)[1]) + 1 if qmax > 0 else 0
-    if abs(k) <= Q_BALANCED and not r.any() and not c.any():
+        arg = M
+    found = ruiz_exponents(arg, problem.q, symmetric, BALANCED, Q_BALANCED, MAX_ROUNDS)
+    if found is None:
         return None
-    r = r + k
-    c = c - k
+    r, c = found
     return Scaling(row=r, col=c, kind="symmetric" if symmetric else "two-sided")

@@ -67,6 +67,8 @@ class Outcome:
 
     ``proven_infeasible`` may be set only when the method's theory proves that no solution
     exists (e.g. Lemke's secondary ray on a copositive-plus matrix); ``message`` says how.
+    ``checked`` is ``(certificate, w)`` when the method already certified ``z`` itself (``auto``
+    does, to decide whether to fall back): the caller reuses it instead of checking twice.
     """
 
     z: np.ndarray
@@ -76,6 +78,7 @@ class Outcome:
     proven_infeasible: bool = False
     trace: list[dict[str, Any]] | None = None
     info: dict[str, Any] = field(default_factory=dict)
+    checked: tuple[Certificate, np.ndarray] | None = None
 
 
 @dataclass

@@ -28,8 +28,9 @@ from typing import Any
 
 import numpy as np
 
+from lcpcli.analysis._scaling import is_symmetric_dense
 from lcpcli.analysis.scaling import Scaling, equilibrate
-from lcpcli.core.certificate import certify
+from lcpcli.core.certificate import check
 from lcpcli.core.problem import Problem
 from lcpcli.core.result import CONVERGED, Outcome
 from lcpcli.solvers.support import refine
@@ -44,7 +45,7 @@ def is_symmetric(problem: Problem) -> bool:
     M = problem.M
     if problem.sparse:
         return (M != M.T).nnz == 0
-    return bool(np.array_equal(M, M.T))
+    return is_symmetric_dense(M)
 
 
 def run_method(spec: Any, problem: Problem, tol: float, options: dict[str, Any]) -> Outcome:
@@ -59,13 +60,16 @@ def run_method(spec: Any, problem: Problem, tol: float, options: dict[str, Any])
             again.message += " (rerun with D M D scaling, which keeps M's class)"
             again.iterations += out.iterations
             out = again
-    if out.termination == CONVERGED:
+    if out.termination == CONVERGED and out.checked is None:
         z = np.asarray(out.z, dtype=np.float64)
-        cert = certify(problem, z, tol)
+        out.z = z
+        cert, w = check(problem, z, tol)
+        out.checked = (cert, w)
         if not cert.passed:
             polished = refine(problem, z, basis=out.info.get("basis"))
             if polished is not None and polished[1] < cert.error:
                 out.z = polished[0]
+                out.checked = None  # the caller certifies the polished z
                 out.message += (f"; active-set polish: certified error {cert.error:.2g} -> "
                                 f"{polished[1]:.2g}")
                 out.info["polished"] = True

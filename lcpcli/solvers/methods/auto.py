@@ -35,7 +35,7 @@ from typing import Any
 import numpy as np
 
 from lcpcli.analysis.classify import Classifier
-from lcpcli.core.certificate import certify
+from lcpcli.core.certificate import check
 from lcpcli.core.errors import OptionError
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, Outcome, Status
 from lcpcli.solvers import policy
@@ -134,7 +134,10 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None,
         t_methods += t2 - t1
         total_it += int(out.iterations)
         z = np.asarray(out.z, dtype=np.float64)
-        cert = certify(problem, z, tol)
+        if out.checked is not None and out.checked[0].tol == tol:
+            cert, w = out.checked  # the pipeline certified this z already
+        else:
+            cert, w = check(problem, z, tol)
         t_certify += time.perf_counter() - t2
         status = (Status.SOLVED if cert.passed else
                   Status.NO_SOLUTION if out.proven_infeasible else Status.UNSOLVED)
@@ -146,7 +149,7 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None,
                              for a in attempts[:-1]) if len(attempts) > 1 else ""
             return Outcome(z, total_it, CONVERGED,
                            f"auto ({c.report.describe()}): solved by {name} ({why}){failed}",
-                           info=info(name))
+                           info=info(name), checked=(cert, w))
         if status == Status.NO_SOLUTION:
             return Outcome(z, total_it, out.termination,
                            f"auto ({c.report.describe()}): {name} proved that no solution "

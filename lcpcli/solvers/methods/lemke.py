@@ -99,7 +99,7 @@ def finish(problem: Any, M: np.ndarray, q: np.ndarray, status: int, z: np.ndarra
 
 def basic_z(basic: np.ndarray, n: int) -> list[int]:
     """The 0-based indices of the z's in Lemke's final basis (codes n..2n-1; see the kernel)."""
-    return sorted(int(b) - n for b in basic if n <= b < 2 * n)
+    return sorted(b - n for b in basic.tolist() if n <= b < 2 * n)
 
 
 def polish(M: np.ndarray, q: np.ndarray, z: np.ndarray, basic: np.ndarray) -> np.ndarray:

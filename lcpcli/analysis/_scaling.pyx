@@ -1,0 +1,199 @@
+# cython: language_level=3, boundscheck=False, wraparound=False, cdivision=True
+# cython: initializedcheck=False
+"""Compiled core of :mod:`lcpcli.analysis.scaling`: Ruiz's iteration on binary exponents.
+
+Integer arithmetic only (``ilogb``): the factors are powers of two, so nothing is rounded, and a
+problem that is balanced already costs one pass over its nonzeros.
+"""
+
+from libc.math cimport ilogb
+from libc.stdlib cimport free, malloc
+
+cdef long long FLOOR = -(1 << 40)
+
+
+cdef inline long long _exp(double x) noexcept nogil:
+    """e with |x| in [2^(e-1), 2^e) (frexp's exponent); x != 0."""
+    return <long long> ilogb(x) + 1
+
+
+cdef int _ruiz(Py_ssize_t n, const double* M, Py_ssize_t ldm, const double* data,
+               const Py_ssize_t* indices, const Py_ssize_t* indptr, const double* q,
+               bint symmetric, int balanced, int q_balanced, int max_rounds,
+               long long* r, long long* c, long long* rmax, long long* cmax) noexcept nogil:
+    """Fill r, c; return 1 when a scaling is needed, 0 when the problem is balanced."""
+    cdef Py_ssize_t i, j, p, k
+    cdef long long e, lo, hi, clo, chi, d, qexp
+    cdef double qt, qmax
+    cdef bint dense = M != NULL
+    cdef int rnd, needed
+    for i in range(n):
+        r[i] = 0
+        c[i] = 0
+    for rnd in range(max_rounds):
+        for i in range(n):
+            rmax[i] = FLOOR
+            cmax[i] = FLOOR
+        for i in range(n):
+            if dense:
+                for j in range(n):
+                    if M[i * ldm + j] != 0.0:
+                        e = _exp(M[i * ldm + j]) + r[i] + c[j]
+                        if e > rmax[i]:
+                            rmax[i] = e
+                        if e > cmax[j]:
+                            cmax[j] = e
+            else:
+                for p in range(indptr[i], indptr[i + 1]):
+                    if data[p] != 0.0:
+                        j = indices[p]
+                        e = _exp(data[p]) + r[i] + c[j]
+                        if e > rmax[i]:
+                            rmax[i] = e
+                        if e > cmax[j]:
+                            cmax[j] = e
+        lo = 1 << 40
+        hi = -(1 << 40)
+        clo = 1 << 40
+        chi = -(1 << 40)
+        for i in range(n):
+            if rmax[i] == FLOOR:
+                rmax[i] = 1
+            if cmax[i] == FLOOR:
+                cmax[i] = 1
+            if rmax[i] < lo:
+                lo = rmax[i]
+            if rmax[i] > hi:
+                hi = rmax[i]
+            if cmax[i] < clo:
+                clo = cmax[i]
+            if cmax[i] > chi:
+                chi = cmax[i]
+        if hi - lo <= balanced and chi - clo <= balanced and -balanced <= hi - 1 <= balanced:
+            break
+        if symmetric:
+            for i in range(n):
+                d = rmax[i] if rmax[i] > cmax[i] else cmax[i]
+                d = _floordiv2(1 - d)
+                r[i] += d
+                c[i] += d
+        else:
+            for i in range(n):
+                r[i] -= _floordiv2(rmax[i] - 1)
+            # column maxima after the row step
+            for i in range(n):
+                cmax[i] = FLOOR
+            for i in range(n):
+                if dense:
+                    for j in range(n):
+                        if M[i * ldm + j] != 0.0:
+                            e = _exp(M[i * ldm + j]) + r[i] + c[j]
+                            if e > cmax[j]:
+                                cmax[j] = e
+                else:
+                    for p in range(indptr[i], indptr[i + 1]):
+                        if data[p] != 0.0:
+                            j = indices[p]
+                            e = _exp(data[p]) + r[i] + c[j]
+                            if e > cmax[j]:
+                                cmax[j] = e
+            for j in range(n):
+                if cmax[j] == FLOOR:
+                    cmax[j] = 1
+                c[j] -= _floordiv2(cmax[j] - 1)
+    # a common factor normalising q (M unchanged: rows x 2^k, columns x 2^-k)
+    qexp = FLOOR
+    for i in range(n):
+        if q[i] != 0.0:
+            e = _exp(q[i]) + r[i]
+            if e > qexp:
+                qexp = e
+    k = 0 if qexp == FLOOR else -qexp + 1
+    needed = 0
+    for i in range(n):
+        if r[i] != 0 or c[i] != 0:
+            needed = 1
+            break
+    if not needed and -q_balanced <= k <= q_balanced:
+        return 0
+    for i in range(n):
+        r[i] += k
+        c[i] -= k
+    return 1
+
+
+cdef inline long long _floordiv2(long long x) noexcept nogil:
+    """Floor division by 2 for negative numbers too (Python's //)."""
+    if x >= 0:
+        return x // 2
+    return -((-x + 1) // 2)
+
+
+def ruiz_exponents(M, q, bint symmetric, int balanced, int q_balanced, int max_rounds):
+    """``(row, col)`` exponent arrays (int64) of the balancing scaling, or None if balanced.
+
+    ``M``: C-contiguous float64 (n, n) array, or a ``(data, indices, indptr)`` CSR triple with
+    ``intp`` index arrays.  See :func:`lcpcli.analysis.scaling.equilibrate`.
+    """
+    import numpy as np  # arrays for the result (numpy is already loaded by every caller)
+
+    cdef const double[::1] qv = q
+    cdef Py_ssize_t n = qv.shape[0]
+    cdef const double[:, ::1] Md
+    cdef const double[::1] data
+    cdef const Py_ssize_t[::1] ind, ptr
+    cdef long long[::1] r, c
+    cdef long long* rmax
+    cdef long long* cmax
+    cdef const double* pM = NULL
+    cdef const double* pd = NULL
+    cdef const Py_ssize_t* pi = NULL
+    cdef const Py_ssize_t* pp = NULL
+    cdef int needed
+    if n == 0:
+        return None
+    if isinstance(M, tuple):
+        data = M[0]
+        ind = M[1]
+        ptr = M[2]
+        pd = &data[0] if data.shape[0] else NULL
+        pi = &ind[0] if ind.shape[0] else NULL
+        pp = &ptr[0]
+    else:
+        Md = M
+        pM = &Md[0, 0]
+    ra = np.empty(n, dtype=np.int64)
+    ca = np.empty(n, dtype=np.int64)
+    r = ra
+    c = ca
+    rmax = <long long*> malloc(n * sizeof(long long))
+    cmax = <long long*> malloc(n * sizeof(long long))
+    if rmax == NULL or cmax == NULL:
+        free(rmax)
+        free(cmax)
+        raise MemoryError(f"scaling workspace for n = {n}")
+    with nogil:
+        needed = _ruiz(n, pM, n, pd, pi, pp, &qv[0], symmetric, balanced, q_balanced,
+                       max_rounds, &r[0], &c[0], rmax, cmax)
+    free(rmax)
+    free(cmax)
+    return (ra, ca) if needed else None
+
+
+def is_symmetric_dense(M):
+    """Exact symmetry of a C-contiguous float64 square array (early exit)."""
+    cdef const double[:, ::1] Md = M
+    cdef Py_ssize_t n = Md.shape[0]
+    cdef bint sym
+    with nogil:
+        sym = _symmetric(&Md[0, 0] if n else NULL, n)
+    return bool(sym)
+
+
+cdef bint _symmetric(const double* M, Py_ssize_t n) noexcept nogil:
+    cdef Py_ssize_t i, j
+    for i in range(n):
+        for j in range(i):
+            if M[i * n + j] != M[j * n + i]:
+                return False
+    return True
