@@ -21,7 +21,7 @@ below are the thin Python wrappers.  The ratio test, the lexicographic filter an
 
 from libc.math cimport INFINITY, fabs, isfinite
 from libc.stdint cimport int64_t
-from libc.stdlib cimport free, malloc
+from libc.stdlib cimport calloc, free, malloc
 from libc.string cimport memcpy
 
 from lcpcli.solvers.kernels.dense cimport solve_refined
@@ -467,11 +467,29 @@ cdef double* _ones(Py_ssize_t n) noexcept nogil:
     return d
 
 
+cdef list basis_list(const int64_t* basic, Py_ssize_t n):
+    """The sorted 0-based indices of the z's in a final basis (codes ``n..2n-1``), as a list."""
+    cdef list out = []
+    cdef Py_ssize_t i, j
+    cdef char* mark = <char*>calloc(n + 1, 1)
+    if mark == NULL:
+        raise MemoryError()
+    for i in range(n):
+        if n <= basic[i] < 2 * n:
+            mark[basic[i] - n] = 1
+    for j in range(n):
+        if mark[j]:
+            out.append(j)
+    free(mark)
+    return out
+
+
 def lemke_solve(M, q, d, int64_t max_iter, double piv_tol, double tie_tol):
     """Kernel and final polish in one call (the small-solve path: one C call, no record).
 
     ``d`` None means the covering vector of all ones.  Returns
-    ``(status, z, pivots, basic, ray_dz, z0)``; on ``OK`` ``z`` is already polished
+    ``(status, z, pivots, basis, ray_dz, z0)`` with ``basis`` the sorted 0-based indices of
+    the basic z's (a list); on ``OK`` ``z`` is already polished
     (:func:`polish_kernel`), otherwise it is the kernel's raw ``z`` (not clipped).
     """
     cdef Py_ssize_t n = len(q)
@@ -486,7 +504,7 @@ def lemke_solve(M, q, d, int64_t max_iter, double piv_tol, double tie_tol):
     cdef cnp.ndarray ray = empty_f64(n)
     cdef cnp.ndarray basic = empty_i64(n)
     if n == 0:
-        return TRIVIAL, z, 0, basic, ray, 0.0
+        return TRIVIAL, z, 0, [], ray, 0.0
     cdef const double* Mp = f64_ptr(Ma)
     cdef const double* qp = f64_ptr(qa)
     cdef double* zp = f64_ptr(z)
@@ -515,4 +533,4 @@ def lemke_solve(M, q, d, int64_t max_iter, double piv_tol, double tie_tol):
         free(raw)
     if rc:
         raise MemoryError()
-    return out.status, z, out.pivots, basic, ray, out.z0
+    return out.status, z, out.pivots, basis_list(bp, n), ray, out.z0

@@ -43,6 +43,7 @@ from lcpcli.solvers.kernels.lemke cimport (
     LemkeOut,
     _ones,
     basic_solution,
+    basis_list,
     initial_row,
     keep_lex_min,
     lex_unit,
@@ -579,7 +580,8 @@ def lemke_solve(M, q, d, int64_t max_iter, double piv_tol, double tie_tol,
     """Revised kernel and final polish in one call (the small-solve path: one C call).
 
     ``d`` None means the covering vector of all ones.  Returns
-    ``(status, z, pivots, basic, ray_dz, z0, refactors)``; on ``OK`` ``z`` is already
+    ``(status, z, pivots, basis, ray_dz, z0, refactors)`` (``basis``: the sorted 0-based
+    indices of the basic z's, a list); on ``OK`` ``z`` is already
     polished (:func:`lcpcli.solvers.kernels.lemke.polish_kernel`), otherwise it is the
     kernel's raw ``z``.
     """
@@ -595,7 +597,7 @@ def lemke_solve(M, q, d, int64_t max_iter, double piv_tol, double tie_tol,
     cdef cnp.ndarray ray = empty_f64(n)
     cdef cnp.ndarray basic = empty_i64(n)
     if n == 0:
-        return TRIVIAL, z, 0, basic, ray, 0.0, 0
+        return TRIVIAL, z, 0, [], ray, 0.0, 0
     cdef const double* Mp = f64_ptr(Ma)
     cdef const double* qp = f64_ptr(qa)
     cdef double* zp = f64_ptr(z)
@@ -624,7 +626,7 @@ def lemke_solve(M, q, d, int64_t max_iter, double piv_tol, double tie_tol,
         free(raw)
     if rc:
         raise MemoryError()
-    return out.status, z, out.pivots, basic, ray, out.z0, out.refactors
+    return out.status, z, out.pivots, basis_list(bp, n), ray, out.z0, out.refactors
 
 
 def lemke_solve_certified(M, q, d, int64_t max_iter, double piv_tol, double tie_tol,
@@ -651,7 +653,7 @@ def lemke_solve_certified(M, q, d, int64_t max_iter, double piv_tol, double tie_
     cdef cnp.ndarray ray = empty_f64(n)
     cdef cnp.ndarray basic = empty_i64(n)
     if n == 0:
-        return (TRIVIAL, z, w, 0, basic, ray, 0.0, 0,
+        return (TRIVIAL, z, w, 0, [], ray, 0.0, 0,
                 (0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1))
     cdef const double* Mp = f64_ptr(Ma)
     cdef const double* qp = f64_ptr(qa)
@@ -689,8 +691,8 @@ def lemke_solve_certified(M, q, d, int64_t max_iter, double piv_tol, double tie_
     if rc:
         raise MemoryError()
     if out.status == LEMKE_TRIVIAL:  # z = 0: the caller certifies it the ordinary way
-        return out.status, z, w, 0, basic, ray, 0.0, 0, None
-    return (out.status, z, w, out.pivots, basic, ray, out.z0, out.refactors,
+        return out.status, z, w, 0, [], ray, 0.0, 0, None
+    return (out.status, z, w, out.pivots, basis_list(bp, n), ray, out.z0, out.refactors,
             (cert.status, cert.error, cert.backward_error, cert.growth, cert.residual,
              cert.bound_violation, cert.w_violation, cert.complementarity,
              cert.equality_residual, cert.worst))

@@ -73,24 +73,25 @@ def run(problem: Any, *, tol: float, covering: np.ndarray | None = None,
             M, q, np.ones(n) if d is None else d, limit, PIVOT_TOL, TIE_TOL)
         if status == OK:
             z = polish(M, q, z, basic)
-        out = finish(problem, M, q, status, z, int(pivots), basic, ray_dz, float(z0), limit)
+        out = finish(problem, M, q, status, z, int(pivots), basic_z(basic, n), ray_dz,
+                     float(z0), limit)
         out.trace = steps
         return out
     # kernel and final polish in one compiled call
-    status, z, pivots, basic, ray_dz, z0 = lemke_solve(M, q, d, limit, PIVOT_TOL, TIE_TOL)
-    return finish(problem, M, q, status, z, pivots, basic, ray_dz, z0, limit)
+    status, z, pivots, basis, ray_dz, z0 = lemke_solve(M, q, d, limit, PIVOT_TOL, TIE_TOL)
+    return finish(problem, M, q, status, z, pivots, basis, ray_dz, z0, limit)
 
 
 def finish(problem: Any, M: np.ndarray, q: np.ndarray, status: int, z: np.ndarray, pivots: int,
-           basic: np.ndarray, ray_dz: np.ndarray, z0: float, limit: int) -> Outcome:
+           basis: list[int], ray_dz: np.ndarray, z0: float, limit: int) -> Outcome:
     """Turn a Lemke kernel's status into an :class:`Outcome` (``z`` already polished when the
-    status is OK; ray classification otherwise)."""
+    status is OK; ray classification otherwise; ``basis``: the basic z's, 0-based)."""
     if status == TRIVIAL:
         return Outcome(np.zeros(problem.n), 0, CONVERGED, "q >= 0: z = 0 solves the problem")
     if status == OK:
         return Outcome(z, pivots, CONVERGED,
                        f"artificial variable left the basis after {pivots} pivots",
-                       info={"basis": basic_z(basic, problem.n)})
+                       info={"basis": basis})
     if status == MAX_ITER:
         return Outcome(np.maximum(z, 0.0), pivots, ITERATION_LIMIT,
                        f"pivot limit {limit} reached (raise it with --max-iter)")

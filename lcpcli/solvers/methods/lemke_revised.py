@@ -28,7 +28,6 @@ from lcpcli.solvers.methods.lemke import (
     GUARANTEES,
     PIVOT_TOL,
     TIE_TOL,
-    basic_z,
     covering_vector,
     default_max_iter,
     ray_outcome,
@@ -63,19 +62,19 @@ def run(problem: Any, *, tol: float, covering: np.ndarray | None = None,
         out.info["trace_engine"] = "tableau replica (same pivot rule)"
         return out
     n = problem.n
-    M = np.ascontiguousarray(problem.dense_M(), dtype=np.float64)
+    M = problem.dense_M()  # the kernel takes it as it is when float64 C-contiguous
     q = problem.q
     d = covering_vector(n, covering)
     limit = max_iter or default_max_iter(n)
     every = refactor_every or default_refactor_every(n)
     # kernel and final polish in one compiled call
-    status, z, pivots, basic, ray_dz, z0, refactors = lemke_solve(
+    status, z, pivots, basis, ray_dz, z0, refactors = lemke_solve(
         M, q, d, limit, PIVOT_TOL, TIE_TOL, every)
     info = {"refactorisations": refactors}
     if status == TRIVIAL:
         return Outcome(np.zeros(n), 0, CONVERGED, "q >= 0: z = 0 solves the problem")
     if status == OK:
-        info["basis"] = basic_z(basic, n)
+        info["basis"] = basis
         return Outcome(z, pivots, CONVERGED, f"artificial variable left the basis after "
                                              f"{pivots} pivots ({refactors} "
                                              f"refactorisations)", info=info)
