@@ -13,54 +13,100 @@ def contact_matrix(
     scene_file: str = typer.Argument(..., metavar="SCENE",
                                      help="Scene file (.json or .h5/.hdf5), see docs/contact.md."),
     output: Path = typer.Option(None, "--output", "-o", metavar="OUT",  # noqa: B008
-                                help="Write the LCP (M, q, contact metadata) to OUT "
+                                help="Write the whole-scene LCP (M, q, contact metadata) to OUT "
                                      "(.json, .npz, .h5, .dat; atomically)."),
     do_solve: bool = typer.Option(False, "--solve",
                                   help="Solve the LCP and report impulses, post-impact "
                                        "velocities and kinetic energies."),
     friction: int = typer.Option(0, "--friction", metavar="K",
                                  help="Polyhedral friction with K tangent directions per contact "
-                                      "with mu > 0 (3-D: K >= 3; 2-D: 2) [default: 0, "
-                                      "frictionless]."),
-    method: str = typer.Option("lemke", "--method", "-m",
-                               help="Solver method for --solve (listed below)."),
+                                      "with mu > 0 (3-D: K >= 3; 2-D and planar 3-D scenes: 2) "
+                                      "[default: 0, frictionless]."),
+    method: str = typer.Option("auto", "--method", "-m",
+                               help="Solver method for --solve, per island (listed below)."),
     tol: float = typer.Option(None, "--tol", help="Tolerance on the certificate's scaled error."),
     storage: str = typer.Option("auto", "--storage",
                                 help="M storage: auto (dense when small, sparse when large and "
                                      "sparse), dense or sparse."),
+    no_islands: bool = typer.Option(False, "--no-islands",
+                                    help="Solve the whole-scene LCP at once instead of one LCP "
+                                         "per island."),
+    jobs: int = typer.Option(1, "--jobs", "-j", metavar="N",
+                             help="Processes for the islands (used when the islands hold at "
+                                  "least 20,000 unknowns)."),
+    threshold: float = typer.Option(None, "--restitution-threshold", metavar="V",
+                                    help="Restitution only for contacts approaching faster than "
+                                         "V (replaces the scene's value; contacts with their own "
+                                         "keep it) [default: scene's, else 0]."),
+    softness: float = typer.Option(None, "--softness", metavar="S",
+                                   help="Soft contacts: add S * M_ii to each impulse row's "
+                                        "diagonal (replaces the scene's value) [default: "
+                                        "scene's, else 0 = rigid]."),
+    kinematic: list[str] = typer.Option(None, "--kinematic", metavar="NAME",  # noqa: B008
+                                        help="Make body NAME kinematic (prescribed velocity, "
+                                             "infinite mass); repeatable or comma-separated."),
+    no_planar: bool = typer.Option(False, "--no-planar",
+                                   help="Keep K friction directions even when the motion of a "
+                                        "3-D scene is planar."),
+    z0: str = typer.Option(None, "--z0", metavar="FILE",
+                           help="Warm start from previous impulses (--impulses file, "
+                                "contact-matrix --json or lcpcli solve --json output)."),
+    impulses: Path = typer.Option(None, "--impulses", metavar="FILE",  # noqa: B008
+                                  help="With --solve, write the impulses with their unknown "
+                                       "names to FILE (.json or .npz) for a later --z0."),
     as_json: bool = typer.Option(False, "--json",
                                  help="Print one JSON object on stdout and nothing else."),
 ) -> int:
-    """Build the contact LCP w = M j + q of a rigid-body scene (M = J W J^T, q = (1+eps) J v^-).
+    """Build the contact LCP w = M j + q of a rigid-body scene (M = J W J^T, q = (1+e) J v^-).
 
-    Normals point from body B to body A; approaching contacts have q < 0. Only moving bodies
-    that touch a contact get unknowns. Exit codes: 0 built (and solved with --solve); 1 not
-    solved; 2 bad scene or options; 3 internal error.
+    Normals point from body B to body A; approaching contacts have q < 0; restitution e applies
+    only to contacts approaching faster than their threshold. Only dynamic bodies that touch a
+    contact get unknowns; --solve solves one LCP per island. Exit codes: 0 built (and solved
+    with --solve); 1 not solved; 2 bad scene or options; 3 internal error.
     """
     import sys
 
     from lcpcli.cli.common import exit_code_for, write_json_line
     from lcpcli.contact import build, load_scene, solve, to_json
     from lcpcli.contact.model import check_method
+    from lcpcli.contact.scene import with_kinematic
+    from lcpcli.contact.warmstart import check_impulses_path, warm_start, write_impulses
     from lcpcli.core.errors import OptionError
 
     if friction < 0:
         raise OptionError(f"--friction K must be >= 0, got {friction}")
+    if jobs < 1:
+        raise OptionError(f"--jobs must be >= 1, got {jobs}")
+    for flag, value in (("--z0", z0), ("--impulses", impulses)):
+        if value is not None and not do_solve:
+            raise OptionError(f"{flag} needs --solve")
+    if impulses is not None:
+        check_impulses_path(impulses)
     scene = load_scene(scene_file)
+    names = [nm.strip() for item in kinematic or [] for nm in item.split(",") if nm.strip()]
+    scene = with_kinematic(scene, names)
     for w in scene.warnings:
         sys.stderr.write(f"lcpcli: warning: {scene_file}: {w}\n")
-    clcp = build(scene, friction=friction, storage=storage)
+    clcp = build(scene, friction=friction, storage=storage, restitution_threshold=threshold,
+                 softness=softness, planar=not no_planar)
     for note in clcp.notes:
         sys.stderr.write(f"lcpcli: note: {note}\n")
+    start = None
     if do_solve:
-        check_method(clcp, method)  # before anything is written
+        check_method(clcp, method, not no_islands)  # before anything is written
+        if z0 is not None:
+            start, how = warm_start(z0, clcp.unknowns)
+            sys.stderr.write(f"lcpcli: note: {how}\n")
     if output is not None:
         from lcpcli.io import save
 
         save(clcp.problem, output)
     impact = None
     if do_solve:
-        impact = solve(clcp, method, tol=tol)
+        impact = solve(clcp, method, tol=tol, islands=not no_islands, z0=start, jobs=jobs)
+        if impulses is not None:
+            write_impulses(impulses, clcp.unknowns, impact.result.z, scene.name,
+                           impact.result.status)
     if as_json:
         write_json_line(to_json(clcp, impact))
     else:
@@ -74,6 +120,11 @@ def contact_matrix(
     if impact is not None and impact.energy_increase:
         sys.stderr.write("lcpcli: warning: kinetic energy increased in the impact "
                          f"({impact.energy_before:.6g} -> {impact.energy_after:.6g})\n")
+    if impact is not None and impact.approaching.any():
+        sys.stderr.write(f"lcpcli: warning: {int(impact.approaching.sum())} contacts end "
+                         f"approaching (min v_rel+ = {impact.normal_velocity.min():.3g})"
+                         + (": soft contacts allow it" if clcp.regularisation.any() else "")
+                         + "\n")
     return exit_code_for([impact.result.status]) if impact is not None else 0
 
 

@@ -2,16 +2,26 @@
 
 * ``J`` (one row per contact) holds ``[n^T, (r_a x n)^T]`` on body A's columns and
   ``[-n^T, -(r_b x n)^T]`` on body B's (2-D: ``r x n`` is the scalar ``r_x n_y - r_y n_x``);
-  only moving bodies that touch a contact get columns (``dof`` = 6 in 3-D, 3 in 2-D).
+  only dynamic bodies (neither static nor kinematic) that touch a contact get columns
+  (``dof`` = 6 in 3-D, 3 in 2-D).
 * ``W`` is block-diagonal: ``diag(1/m, 1/m, 1/m, I_world^-1)`` per modelled body.
 * ``M = J W J^T``; entry ``(i, j)`` is non-zero only when contacts i and j share a moving body
   (the seed's ``M_ij`` written out).  It is never formed through a dense ``6n x 6n`` ``W``:
   the sparse path multiplies sparse ``J`` by sparse ``H = J W`` (only pairs of rows sharing a
   body are touched); the dense path adds ``G_k W_k G_k^T`` body by body.
-* ``q = (1 + eps) v_rel^-`` with ``v_rel^- = n . (pdot_a - pdot_b)`` the normal relative
-  velocity before impact (``pdot = v + omega x r``); approaching contacts have ``q < 0``.
-  Then ``w = v_rel^+ + eps v_rel^-`` (Newton restitution: ``w = 0`` gives
-  ``v_rel^+ = -eps v_rel^-``).
+* ``v_rel^- = n . (pdot_a - pdot_b)`` is the normal relative velocity before impact
+  (``pdot = v + omega x r``; negative = approaching).  Each contact is in one **state**:
+
+  - ``impact``: approaching faster than its restitution threshold (``v_rel^- < -threshold``):
+    Newton restitution, ``e = eps``;
+  - ``resting``: approaching at most that fast (``-threshold <= v_rel^- <= 0``): no bounce,
+    ``e = 0``;
+  - ``separating`` (``v_rel^- > 0``): no bounce, ``e = 0``.
+
+  ``q = (1 + e) v_rel^-`` and ``w = v_rel^+ + e v_rel^-``, so ``w >= 0`` means
+  ``v_rel^+ >= -eps v_rel^- > 0`` for an impact and ``v_rel^+ >= 0`` (non-penetration) for the
+  others: no contact ends approaching.  (Applying ``(1 + eps) v_rel^-`` to a separating contact,
+  as the seed's formula read literally does, lets it end with ``v_rel^+ = -eps v_rel^- < 0``.)
 * Effective mass of contact i: ``1 / (n^T K n)`` with the seed's
   ``K = (1/m_a + 1/m_b) E - (r_a* I_a^-1 r_a* + r_b* I_b^-1 r_b*)`` (static bodies drop out);
   ``n^T K n`` equals ``M_ii``.
@@ -24,9 +34,16 @@ from typing import Any
 
 import numpy as np
 
-from lcpcli.contact.scene import Scene
+from lcpcli.contact.scene import Scene, per_contact
 from lcpcli.core.errors import OptionError
 
+#: Default restitution threshold (a speed): restitution applies to every approaching contact
+#: (``v_rel^- < 0``) and to no other.  Scenes carry no units, so no engine's m/s value (Box2D
+#: 1 m/s, Bullet 0.2 m/s, set to damp resting-contact jitter in time stepping) is assumed.
+DEFAULT_RESTITUTION_THRESHOLD = 0.0
+#: Contact states (``Assembly.state`` holds the index into this tuple).
+STATES = ("impact", "resting", "separating")
+IMPACT, RESTING, SEPARATING = 0, 1, 2
 #: Up to this many LCP rows the matrix is kept dense ("auto" storage).
 DENSE_MAX_ROWS = 400
 #: Above DENSE_MAX_ROWS, dense is still used when the fill ratio exceeds this.
@@ -49,6 +66,9 @@ class Assembly:
     v_rel: np.ndarray          # (nc,) normal relative velocity before impact
     inv_eff_mass: np.ndarray   # (nc,) n^T K n
     storage: str               # "dense" or "sparse"
+    threshold: np.ndarray      # (nc,) restitution threshold used
+    state: np.ndarray          # (nc,) index into STATES
+    restitution_used: np.ndarray  # (nc,) e: eps for impacts, 0 otherwise
 
     @property
     def eff_mass(self) -> np.ndarray:
@@ -63,7 +83,7 @@ def body_columns(scene: Scene) -> tuple[np.ndarray, np.ndarray, list[str]]:
     touched = np.zeros(nb, dtype=bool)
     touched[scene.contact_a] = True
     touched[scene.contact_b] = True
-    modelled = np.flatnonzero(touched & ~scene.static)
+    modelled = np.flatnonzero(touched & ~scene.fixed)
     columns = np.full(nb, -1, dtype=np.int64)
     columns[modelled] = np.arange(modelled.size)
     reasons = []
@@ -71,6 +91,9 @@ def body_columns(scene: Scene) -> tuple[np.ndarray, np.ndarray, list[str]]:
         if scene.static[i]:
             reasons.append("static: no unknowns (infinite mass)"
                            if touched[i] else "static, in no contact")
+        elif scene.kinematic[i]:
+            reasons.append("kinematic: prescribed velocity, no unknowns (infinite mass)"
+                           if touched[i] else "kinematic, in no contact")
         elif touched[i]:
             reasons.append("moving, in contact: modelled")
         else:
@@ -244,8 +267,20 @@ def pair_count(scene: Scene, columns: np.ndarray) -> int:
     return int(np.sum(deg * deg))
 
 
-def assemble(scene: Scene, storage: str = "auto") -> Assembly:
-    """Build the frictionless contact LCP of ``scene`` (see the module docstring)."""
+def contact_states(v_rel: np.ndarray, eps: np.ndarray,
+                   threshold: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """State index (into :data:`STATES`) and restitution used ``e``, per contact."""
+    state = np.where(v_rel < -threshold, IMPACT, np.where(v_rel > 0, SEPARATING, RESTING))
+    return state.astype(np.int8), np.where(state == IMPACT, eps, 0.0)
+
+
+def assemble(scene: Scene, storage: str = "auto",
+             restitution_threshold: float | None = None) -> Assembly:
+    """Build the frictionless contact LCP of ``scene`` (see the module docstring).
+
+    ``restitution_threshold`` replaces the scene-level threshold (contacts that give their own
+    keep it); the default is :data:`DEFAULT_RESTITUTION_THRESHOLD`.
+    """
     columns, modelled, reasons = body_columns(scene)
     nc = scene.n_contacts
     contacts = np.arange(nc)
@@ -254,8 +289,14 @@ def assemble(scene: Scene, storage: str = "auto") -> Assembly:
     M = dense_gram_by_body(scene, columns, contacts, scene.normal) if kind == "dense" \
         else gram(J, H)
     v_rel = relative_velocity(scene, contacts, scene.normal)
-    q = (1.0 + scene.restitution) * v_rel
+    scene_thr = scene.threshold_default if restitution_threshold is None \
+        else restitution_threshold
+    threshold = per_contact(scene.restitution_threshold, scene_thr,
+                            DEFAULT_RESTITUTION_THRESHOLD)
+    state, e = contact_states(v_rel, scene.restitution, threshold)
+    q = (1.0 + e) * v_rel
     K = seed_K(scene)
     inv_eff = np.einsum("ci,cij,cj->c", scene.normal, K, scene.normal)
     return Assembly(scene=scene, columns=columns, modelled=modelled, reasons=reasons, J=J, H=H,
-                    M=M, q=q, v_rel=v_rel, inv_eff_mass=inv_eff, storage=kind)
+                    M=M, q=q, v_rel=v_rel, inv_eff_mass=inv_eff, storage=kind,
+                    threshold=threshold, state=state, restitution_used=e)

@@ -46,11 +46,22 @@ def tangent_basis(normals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return t1, t2
 
 
-def tangent_directions(normals: np.ndarray, k: int) -> np.ndarray:
-    """``(m, K, d)`` unit tangent directions per contact (2-D: ``+t`` and ``-t``, ``K = 2``)."""
+def tangent_directions(normals: np.ndarray, k: int,
+                       plane: np.ndarray | None = None) -> np.ndarray:
+    """``(m, K, d)`` unit tangent directions per contact.
+
+    2-D: ``+t`` and ``-t`` with ``t = (-n_y, n_x)`` (``K = 2``).  3-D with ``plane`` (the unit
+    normal ``e`` of a planar scene, see :mod:`lcpcli.contact.planar`): ``+t, -t`` with
+    ``t = e x n`` (``K = 2``).  Otherwise K directions around ``n``.
+    """
     if normals.shape[1] == 2:
         t = np.stack([-normals[:, 1], normals[:, 0]], axis=1)
         return np.stack([t, -t], axis=1)
+    if plane is not None:
+        t = np.cross(plane, normals)
+        t /= np.linalg.norm(t, axis=1)[:, None]
+        t[np.abs(t) < 1e-15] = 0.0
+        return np.stack([t, -t], axis=1) + 0.0
     t1, t2 = tangent_basis(normals)
     ang = 2.0 * np.pi * np.arange(k) / k
     c, s = np.cos(ang), np.sin(ang)
@@ -78,8 +89,10 @@ def check_directions(k: int, dimension: int) -> int:
     return k
 
 
-def friction_blocks(asm: Assembly, k: int) -> dict[str, Any]:
+def friction_blocks(asm: Assembly, k: int, plane: np.ndarray | None = None) -> dict[str, Any]:
     """Sparse blocks and data of the frictional LCP (see the module docstring).
+
+    ``plane``: the plane normal of a planar 3-D scene (two in-plane directions, ``K = 2``).
 
     Returns ``fc`` (friction contact indices), ``dirs`` ``(nf, K, d)``, ``D``/``HD`` (tangent
     rows and ``D W``), ``Dv`` (``D v^-``) and the sparse ``matrix`` and vector ``q``.
@@ -91,8 +104,10 @@ def friction_blocks(asm: Assembly, k: int) -> dict[str, Any]:
     mu = np.nan_to_num(scene.mu, nan=0.0)
     fc = np.flatnonzero(mu > 0)
     nf = fc.size
-    dirs = tangent_directions(scene.normal[fc], k) if nf else np.zeros((0, k, scene.dimension))
-    kk = dirs.shape[1] if nf else k
+    reduced = 2 if (scene.dimension == 2 or plane is not None) else k
+    dirs = tangent_directions(scene.normal[fc], k, plane) if nf \
+        else np.zeros((0, reduced, scene.dimension))
+    kk = reduced
     rows_c = np.repeat(fc, kk)
     flat_dirs = dirs.reshape(nf * kk, scene.dimension)
     D, HD = direction_rows(scene, asm.columns, asm.modelled.size, rows_c, flat_dirs)

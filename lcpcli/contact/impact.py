@@ -3,7 +3,7 @@
 With ``A`` the stacked Jacobian rows of the LCP's impulse unknowns (normal rows, then tangent
 rows) and ``x`` those impulses, the velocity jump of the modelled bodies is
 ``v^+ - v^- = W A^T x`` (computed as ``(A W)^T x``, never forming ``W`` densely).  Bodies without
-columns (static, or in no contact) keep their velocities.
+columns (static, kinematic, or in no contact) keep their velocities.
 """
 
 from __future__ import annotations
@@ -17,6 +17,9 @@ from lcpcli.contact.scene import Scene
 
 #: Relative margin above which kinetic energy after the impact counts as an increase.
 ENERGY_TOL = 1e-9
+#: A contact *ends approaching* when ``v_rel^+ < -APPROACH_TOL * max|v_rel^-|`` (the certificate
+#: allows ``w`` to miss 0 by about its tolerance times the data's scale, so well below this).
+APPROACH_TOL = 1e-6
 
 
 def post_velocities(scene: Scene, modelled: np.ndarray, HA: Any,
@@ -39,9 +42,18 @@ def normal_velocities(scene: Scene, velocity: np.ndarray, omega: np.ndarray) -> 
     return relative_velocity(scene, np.arange(scene.n_contacts), scene.normal, velocity, omega)
 
 
+def approaching(v_after: np.ndarray, v_before: np.ndarray) -> np.ndarray:
+    """Boolean mask of the contacts whose ``v_rel^+`` is negative beyond rounding."""
+    scale = float(np.max(np.abs(v_before))) if v_before.size else 0.0
+    return v_after < -APPROACH_TOL * (scale if scale > 0 else 1.0)
+
+
 def kinetic_energy(scene: Scene, velocity: np.ndarray, omega: np.ndarray) -> float:
-    """``sum over moving bodies of (m |v|^2 + omega^T I_world omega) / 2``."""
-    mv = ~scene.static
+    """``sum over dynamic bodies of (m |v|^2 + omega^T I_world omega) / 2``.
+
+    Static and kinematic bodies (infinite mass, prescribed velocity) are left out.
+    """
+    mv = ~scene.fixed
     lin = np.sum(scene.mass[mv] * np.sum(velocity[mv] ** 2, axis=1))
     ang = np.einsum("bi,bij,bj->", omega[mv], scene.inertia[mv], omega[mv])
     return 0.5 * float(lin + ang)
@@ -53,8 +65,8 @@ def energy_increased(before: float, after: float) -> bool:
 
 
 def momentum(scene: Scene, velocity: np.ndarray, omega: np.ndarray) -> tuple[np.ndarray, Any]:
-    """Total linear momentum and angular momentum about the origin of the moving bodies."""
-    mv = ~scene.static
+    """Total linear momentum and angular momentum about the origin of the dynamic bodies."""
+    mv = ~scene.fixed
     p = np.sum(scene.mass[mv][:, None] * velocity[mv], axis=0)
     Iw = np.einsum("bij,bj->bi", scene.inertia[mv], omega[mv])
     if scene.dimension == 3:

@@ -1,39 +1,59 @@
 """The contact LCP of a scene as a :class:`~lcpcli.core.problem.Problem`; its solution mapped back.
 
-``build(scene, friction=K)`` returns a :class:`ContactLCP` (the problem with contact metadata in
-``Problem.meta["contact"]``); ``solve(clcp, method)`` solves it with :func:`lcpcli.solve` (which
-certifies the answer) and returns an :class:`Impact`: impulses, post-impact velocities, normal
-velocities and kinetic energies.
+``build(scene, friction=K)`` returns a :class:`ContactLCP` (the whole-scene problem with contact
+metadata in ``Problem.meta["contact"]``, its islands, the planar reduction and the softness
+used); ``solve(clcp)`` solves it island by island with :func:`lcpcli.solve` (each island
+certified, then the merged impulses certified on the whole-scene LCP) and returns an
+:class:`Impact`: impulses, post-impact velocities, normal velocities, kinetic energies and the
+per-island report.
 """
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
-from lcpcli.contact.assembly import Assembly, assemble, choose_storage
+from lcpcli.contact.assembly import STATES, Assembly, assemble, choose_storage
 from lcpcli.contact.friction import check_directions, friction_blocks
 from lcpcli.contact.impact import (
+    approaching,
     energy_increased,
     kinetic_energy,
     normal_velocities,
     post_velocities,
 )
-from lcpcli.contact.scene import Scene
+from lcpcli.contact.islands import (
+    IslandLayout,
+    Islands,
+    find_islands,
+    island_problems,
+    layout,
+    solve_one,
+    solve_problems,
+)
+from lcpcli.contact.planar import plane_normal
+from lcpcli.contact.scene import Scene, check_nonnegative, per_contact
+from lcpcli.core.errors import OptionError, ProblemError
 from lcpcli.core.problem import Problem, is_sparse
+from lcpcli.core.result import CONVERGED, NO_SOLUTION, NUMERICAL, SOLVED, Outcome
 
-#: Default method for contact LCPs: Lemke handles the symmetric PSD (often singular) M and
-#: the non-symmetric frictional matrix.
-DEFAULT_METHOD = "lemke"
+#: Default method, per island: ``auto`` classifies each island's LCP and picks a method (Lemke
+#: for the small dense islands, iterative sparse methods for big sparse ones).
+DEFAULT_METHOD = "auto"
+#: Default softness (no regularisation: rigid contacts).
+DEFAULT_SOFTNESS = 0.0
 CONVENTION = ("w = M z + q, 0 <= z _|_ w >= 0; z = impulses; normals point from B to A; "
-              "q_n = (1 + eps) v_rel^- (approaching: q < 0); w_n = v_rel^+ + eps v_rel^-")
+              "q_n = (1 + e) v_rel^- with e = eps for contacts approaching faster than their "
+              "restitution threshold, e = 0 for the others; w_n = v_rel^+ + e v_rel^- "
+              "(+ softness * M_ii * j_n when soft)")
 
 
 @dataclass
 class ContactLCP:
-    """A scene's contact LCP: the problem, its assembly and the layout of the unknowns."""
+    """A scene's contact LCP: the problem, its assembly, islands and the layout of the unknowns."""
 
     scene: Scene
     assembly: Assembly
@@ -43,6 +63,14 @@ class ContactLCP:
     tangent_dirs: np.ndarray       # (nf, K, d)
     HA: Any                        # csr (n_impulses, dof * nm): A W for all impulse rows
     unknowns: list[str]            # names of the LCP unknowns, in order
+    unknown_contact: np.ndarray    # (n,) the contact of each unknown
+    islands: Islands
+    layout: IslandLayout
+    softness: np.ndarray           # (nc,) softness used per contact
+    regularisation: np.ndarray     # (n,) added to M's diagonal (0 for rigid rows and slacks)
+    plane: np.ndarray | None = None  # plane normal of a planar 3-D scene (friction reduced)
+    requested_friction: int = 0    # K as asked (before 2-D / planar reduction)
+    storage: str = "auto"          # as asked (islands use the same rule)
     notes: list[str] = field(default_factory=list)  # what the user should know (stderr)
 
     @property
@@ -50,12 +78,16 @@ class ContactLCP:
         """Unknowns that are impulses (normal + tangential; slacks excluded)."""
         return self.scene.n_contacts + self.friction_contacts.size * self.friction
 
+    def island_sizes(self) -> np.ndarray:
+        """Unknowns per island."""
+        return np.diff(self.layout.offsets)
+
 
 @dataclass
 class Impact:
     """A solved contact LCP mapped back onto the scene."""
 
-    result: Any                    # lcpcli.core.result.Result
+    result: Any                    # lcpcli.core.result.Result (whole scene)
     normal_impulses: np.ndarray    # (nc,)
     tangent_impulses: np.ndarray   # (nf, K)
     slacks: np.ndarray             # (nf,)
@@ -64,61 +96,110 @@ class Impact:
     normal_velocity: np.ndarray    # (nc,) after impact
     energy_before: float
     energy_after: float
+    approaching: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))  # (nc,)
+    islands: list[dict[str, Any]] | None = None  # per island report (None: whole scene solve)
 
     @property
     def energy_increase(self) -> bool:
         return energy_increased(self.energy_before, self.energy_after)
 
 
-def build(scene: Scene, friction: int = 0, storage: str = "auto") -> ContactLCP:
-    """The contact LCP of ``scene`` (``friction`` = K tangent directions, 0 = frictionless)."""
+def build(scene: Scene, friction: int = 0, storage: str = "auto", *,
+          restitution_threshold: float | None = None, softness: float | None = None,
+          planar: bool = True) -> ContactLCP:
+    """The contact LCP of ``scene`` (``friction`` = K tangent directions, 0 = frictionless).
+
+    ``restitution_threshold`` and ``softness`` replace the scene-level values (contacts that
+    give their own keep them).  ``planar``: reduce friction to the 2 in-plane directions when
+    the motion of a 3-D scene is planar (:mod:`lcpcli.contact.planar`).
+    """
     import scipy.sparse as sp
 
     k = check_directions(int(friction), scene.dimension)
     choose_storage(storage, 0, 0)  # validate the name early
-    asm = assemble(scene, storage)
+    for value, label in ((restitution_threshold, "--restitution-threshold"),
+                         (softness, "--softness")):
+        try:
+            check_nonnegative(value, label)
+        except ProblemError as exc:  # an option, not the scene file (exit 2 either way)
+            raise OptionError(str(exc)) from None
+    asm = assemble(scene, storage, restitution_threshold=restitution_threshold)
+    nc = scene.n_contacts
     names = [f"n[{c}]" for c in scene.contact_names]
+    plane = plane_normal(scene) if planar and scene.dimension == 3 else None
+    notes = []
     if k:
-        fb = friction_blocks(asm, k)
+        fb = friction_blocks(asm, k, plane)
         fc, dirs, kk = fb["fc"], fb["dirs"], fb["K"]
-        n_rows = fb["matrix"].shape[0]
-        kind = choose_storage(storage, n_rows, int(fb["matrix"].nnz))
-        M = fb["matrix"].toarray() if kind == "dense" else fb["matrix"]
+        G = fb["matrix"]
         q = fb["q"]
         HA = sp.vstack([asm.H, fb["HD"]]).tocsr()
         for f in fc:
             names += [f"t{i + 1}[{scene.contact_names[f]}]" for i in range(kk)]
         names += [f"lambda[{scene.contact_names[f]}]" for f in fc]
+        unknown_contact = np.concatenate([np.arange(nc), np.repeat(fc, kk), fc])
+        diag = G.diagonal()
     else:
         fc, dirs, kk = np.zeros(0, dtype=np.int64), np.zeros((0, 0, scene.dimension)), 0
-        M, q, HA = asm.M, asm.q, asm.H
-    notes = []
+        G, q, HA = asm.M, asm.q, asm.H
+        unknown_contact = np.arange(nc)
+        diag = asm.inv_eff_mass
+    scene_soft = scene.softness_default if softness is None else softness
+    soft = per_contact(scene.softness, scene_soft, DEFAULT_SOFTNESS)
+    n = q.shape[0]
+    reg = np.zeros(n)
+    n_imp = nc + fc.size * kk
+    reg[:n_imp] = soft[unknown_contact[:n_imp]] * diag[:n_imp]
+    if k:
+        kind = choose_storage(storage, n, int(G.nnz))
+        M = G.toarray() if kind == "dense" else G
+    else:
+        M = G
+    if np.any(reg > 0):
+        M = (M + sp.diags(reg)).tocsr() if is_sparse(M) else M + np.diag(reg)
     if scene.dimension == 2 and int(friction) not in (0, 2):
         notes.append(f"--friction {friction} in a 2-D scene: the tangent line has two "
                      f"directions (+t, -t), so K = 2 is used")
+    if plane is not None and k and fc.size:
+        full = nc + fc.size * (k + 1)
+        notes.append(f"planar motion (plane normal {_fmt_vec(plane)}): friction uses the 2 "
+                     f"in-plane directions +-(e x n) instead of K = {k} ({n} unknowns instead "
+                     f"of {full})")
     if k and fc.size == 0:
         notes.append(f"--friction {k}: no contact has a friction coefficient mu > 0, so the LCP "
                      f"is frictionless")
-    if scene.n_contacts == 0:
+    if nc == 0:
         notes.append("the scene has no contacts: the LCP is empty and no velocity changes")
-    meta = {"contact": contact_meta(scene, asm, kk, fc, names)}
+    isl = find_islands(scene)
+    lay = layout(isl, unknown_contact)
+    meta = {"contact": contact_meta(scene, asm, kk, fc, names, isl, plane, soft)}
     problem = Problem.create(M, q, name=scene.name or "contact",
                              description=f"contact LCP of scene {scene.name!r}: "
-                                         f"{scene.n_contacts} contacts, "
-                                         f"{asm.modelled.size} moving bodies"
+                                         f"{nc} contacts, {asm.modelled.size} moving bodies, "
+                                         f"{isl.count} islands"
                                          + (f", friction K={kk}" if kk else ", frictionless"),
                              meta=meta)
     return ContactLCP(scene=scene, assembly=asm, problem=problem, friction=kk,
                       friction_contacts=fc, tangent_dirs=dirs, HA=HA, unknowns=names,
-                      notes=notes)
+                      unknown_contact=unknown_contact, islands=isl, layout=lay, softness=soft,
+                      regularisation=reg, plane=plane, requested_friction=int(friction),
+                      storage=storage, notes=notes)
 
 
-def contact_meta(scene: Scene, asm: Assembly, k: int, fc: np.ndarray,
-                 names: list[str]) -> dict[str, Any]:
+def _count(n: int, word: str) -> str:
+    return f"{n} {word}" + ("" if n == 1 else "s")
+
+
+def _fmt_vec(v: np.ndarray) -> str:
+    return "(" + ", ".join(f"{x:.6g}" for x in v) + ")"
+
+
+def contact_meta(scene: Scene, asm: Assembly, k: int, fc: np.ndarray, names: list[str],
+                 isl: Islands, plane: np.ndarray | None, soft: np.ndarray) -> dict[str, Any]:
     """What a saved LCP carries so that a solution can be mapped back onto the scene."""
     names_b = scene.body_names
     return {
-        "version": 1,
+        "version": 2,
         "scene": scene.name,
         "dimension": scene.dimension,
         "convention": CONVENTION,
@@ -127,50 +208,142 @@ def contact_meta(scene: Scene, asm: Assembly, k: int, fc: np.ndarray,
         if k else "normal impulses, one per contact, in contact order",
         "friction_directions": k,
         "friction_contacts": [int(f) for f in fc],
+        "plane_normal": None if plane is None else plane.tolist(),
+        "islands": isl.count,
         "unknowns": names,
         "contacts": [{"name": nm, "a": names_b[a], "b": names_b[b], "restitution": e,
-                      "mu": None if m != m else m}
-                     for nm, a, b, e, m in zip(scene.contact_names, scene.contact_a.tolist(),
-                                               scene.contact_b.tolist(),
-                                               scene.restitution.tolist(), scene.mu.tolist(),
-                                               strict=True)],
-        "bodies": [{"name": nm, "static": st, "column_block": col if col >= 0 else None}
-                   for nm, st, col in zip(names_b, scene.static.tolist(),
-                                          asm.columns.tolist(), strict=True)],
+                      "mu": None if m != m else m, "state": STATES[st],
+                      "restitution_used": eu, "restitution_threshold": th, "softness": sf,
+                      "island": int(i)}
+                     for nm, a, b, e, m, st, eu, th, sf, i in zip(
+                         scene.contact_names, scene.contact_a.tolist(), scene.contact_b.tolist(),
+                         scene.restitution.tolist(), scene.mu.tolist(), asm.state.tolist(),
+                         asm.restitution_used.tolist(), asm.threshold.tolist(), soft.tolist(),
+                         isl.contact_island.tolist(), strict=True)],
+        "bodies": [{"name": nm, "static": st, "kinematic": kn,
+                    "column_block": col if col >= 0 else None}
+                   for nm, st, kn, col in zip(names_b, scene.static.tolist(),
+                                              scene.kinematic.tolist(), asm.columns.tolist(),
+                                              strict=True)],
     }
 
 
-def solve(clcp: ContactLCP, method: str = DEFAULT_METHOD, tol: float | None = None,
-          **options: Any) -> Impact:
-    """Solve the contact LCP with :func:`lcpcli.solve` and map the impulses back."""
-    from lcpcli.api import solve as solve_problem
-
-    check_method(clcp, method)
-    result = solve_problem(clcp.problem, method, tol=tol, **options)
-    return impact_from(clcp, result.z, result)
-
-
-def check_method(clcp: ContactLCP, method: str) -> None:
-    """OptionError for an unknown method, or a densifying method on a huge sparse LCP."""
+def check_method(clcp: ContactLCP, method: str, islands: bool = True) -> None:
+    """OptionError for an unknown method, or a densifying method on a huge sparse LCP (the
+    whole scene's, or with ``islands`` the biggest island's)."""
     from lcpcli.api import check_dense_ok
     from lcpcli.solvers.registry import get_method
 
-    check_dense_ok(clcp.problem, get_method(method))
+    spec = get_method(method)
+    if not islands or clcp.layout.count <= 1:
+        check_dense_ok(clcp.problem, spec)  # one island: its LCP is the scene's
+        return
+    sizes = clcp.island_sizes()
+    big = int(np.argmax(sizes))
+    one = IslandLayout(perm=clcp.layout.unknowns(big), offsets=np.array([0, int(sizes[big])]))
+    check_dense_ok(island_problems(clcp.problem, one, clcp.storage)[0], spec)
 
 
-def impact_from(clcp: ContactLCP, z: np.ndarray, result: Any = None) -> Impact:
+def check_z0(clcp: ContactLCP, z0: Any) -> np.ndarray:
+    """The warm start as a vector of the LCP's length (OptionError otherwise)."""
+    z = np.asarray(z0, dtype=np.float64).ravel()
+    if z.shape[0] != clcp.problem.n:
+        raise OptionError(f"--z0 has {z.shape[0]} values but the contact LCP has "
+                          f"{clcp.problem.n} unknowns ({', '.join(clcp.unknowns[:3])}"
+                          f"{', ...' if clcp.problem.n > 3 else ''})")
+    if not np.all(np.isfinite(z)):
+        raise OptionError("--z0 contains NaN or Inf")
+    return z
+
+
+def solve(clcp: ContactLCP, method: str = DEFAULT_METHOD, tol: float | None = None, *,
+          islands: bool = True, z0: Any = None, jobs: int = 1, **options: Any) -> Impact:
+    """Solve the contact LCP and map the impulses back onto the scene.
+
+    ``islands`` (default): each island's LCP is solved with :func:`lcpcli.solve` (``method``,
+    ``tol``, ``options``) through :func:`lcpcli.contact.islands.solve_problems`, the impulses
+    are merged in the scene's unknown order and certified on the whole-scene LCP (the verdict);
+    an island whose LCP is proven to have no solution proves the scene's has none.  Otherwise the
+    whole-scene LCP is solved at once.  ``z0``: warm start (a vector of the LCP's length),
+    see :func:`lcpcli.contact.islands.solve_one`.  ``jobs``: processes for the islands.
+    """
+    check_method(clcp, method, islands)
+    if jobs < 1:
+        raise OptionError(f"--jobs must be >= 1, got {jobs}")
+    z0 = None if z0 is None else check_z0(clcp, z0)
+    if not islands or clcp.layout.count == 0:
+        result = solve_one(clcp.problem, method, tol, z0, dict(options))
+        return impact_from(clcp, result.z, result)
+    return impact_from(clcp, *_solve_islands(clcp, method, tol, z0, jobs, options))
+
+
+def _solve_islands(clcp: ContactLCP, method: str, tol: float | None, z0: np.ndarray | None,
+                   jobs: int, options: dict[str, Any]) -> tuple[np.ndarray, Any, list[Any]]:
+    from lcpcli.api import certify_outcome
+    from lcpcli.solvers.registry import get_method
+
+    lay, isl = clcp.layout, clcp.islands
+    t0 = time.perf_counter()
+    problems = island_problems(clcp.problem, lay, clcp.storage, clcp.scene.name or "contact")
+    z0s = None if z0 is None else [z0[lay.unknowns(k)] for k in range(lay.count)]
+    results = solve_problems(problems, method, tol, z0s, jobs, **options)
+    seconds = time.perf_counter() - t0
+    z = np.zeros(clcp.problem.n)
+    sizes, bodies = isl.sizes(), isl.body_counts()
+    reports = []
+    used: dict[str, int] = {}
+    for k, res in enumerate(results):
+        z[lay.unknowns(k)] = res.z
+        chosen = res.info.get("chosen") or res.method
+        used[chosen] = used.get(chosen, 0) + 1
+        reports.append({"index": k + 1, "contacts": int(sizes[k]), "bodies": int(bodies[k]),
+                        "unknowns": int(problems[k].n), "method": chosen, "status": res.status,
+                        "iterations": int(res.iterations), "seconds": res.seconds,
+                        "error": _finite(res.certificate.error),
+                        "warm": bool(res.info.get("warm", False))})
+    failed = [r for r in reports if r["status"] != SOLVED]
+    infeasible = [r for r in reports if r["status"] == NO_SOLUTION]
+    mix = ", ".join(f"{m} {c}" for m, c in sorted(used.items(), key=lambda x: -x[1]))
+    n_warm = sum(r["warm"] for r in reports)
+    warm = f"; {n_warm} solved from the warm start" if z0 is not None else ""
+    if infeasible:
+        first = infeasible[0]["index"] - 1
+        msg = (f"{len(infeasible)} of {_count(lay.count, 'island')} without solution, so the "
+               f"scene has none; island {first + 1}: {results[first].message}")
+    elif failed:
+        first = failed[0]["index"] - 1
+        msg = (f"{len(failed)} of {_count(lay.count, 'island')} not solved; island {first + 1}: "
+               f"{results[first].message}")
+    else:
+        msg = f"{_count(lay.count, 'island')} solved ({mix}){warm}"
+    termination = CONVERGED
+    if failed:  # a method that "converged" to a point its certificate rejects failed numerically
+        termination = results[failed[0]["index"] - 1].termination
+        termination = NUMERICAL if termination == CONVERGED else termination
+    outcome = Outcome(z=z, iterations=sum(r["iterations"] for r in reports),
+                      termination=termination, message=msg, proven_infeasible=bool(infeasible),
+                      info={"islands": reports})
+    tol_used = get_method(method).default_tol if tol is None else float(tol)
+    result = certify_outcome(clcp.problem, outcome, method, seconds, tol_used)
+    return z, result, reports
+
+
+def impact_from(clcp: ContactLCP, z: np.ndarray, result: Any = None,
+                islands: list[dict[str, Any]] | None = None) -> Impact:
     """Post-impact state for the LCP unknowns ``z`` (see :mod:`lcpcli.contact.impact`)."""
     scene = clcp.scene
     nc, nf, k = scene.n_contacts, clcp.friction_contacts.size, clcp.friction
     z = np.asarray(z, dtype=np.float64)
     x = z[: clcp.n_impulses]
     v, w = post_velocities(scene, clcp.assembly.modelled, clcp.HA, x)
+    vn = normal_velocities(scene, v, w)
     return Impact(result=result, normal_impulses=z[:nc].copy(),
                   tangent_impulses=z[nc: nc + nf * k].reshape(nf, k).copy(),
                   slacks=z[nc + nf * k:].copy(), velocity=v, omega=w,
-                  normal_velocity=normal_velocities(scene, v, w),
+                  normal_velocity=vn,
                   energy_before=kinetic_energy(scene, scene.velocity, scene.omega),
-                  energy_after=kinetic_energy(scene, v, w))
+                  energy_after=kinetic_energy(scene, v, w),
+                  approaching=approaching(vn, clcp.assembly.v_rel), islands=islands)
 
 
 # ---------------------------------------------------------------------- JSON
@@ -184,17 +357,34 @@ def matrix_json(M: Any) -> Any:
     return np.asarray(M).tolist()
 
 
+def islands_json(clcp: ContactLCP, impact: Impact | None = None) -> dict[str, Any]:
+    """The ``islands`` object of the JSON output: count, sizes, and per island (with a solve)
+    its method, status, iterations, seconds, error and whether the warm start solved it."""
+    isl = clcp.islands
+    out: dict[str, Any] = {"count": isl.count, "solved_separately": False,
+                           "contacts": isl.sizes().tolist(),
+                           "unknowns": clcp.island_sizes().tolist()}
+    if impact is not None and impact.islands is not None:
+        out["solved_separately"] = True
+        out["per_island"] = impact.islands
+    return out
+
+
 def to_json(clcp: ContactLCP, impact: Impact | None = None) -> dict[str, Any]:
     """The ``contact-matrix --json`` object (keys listed in docs/contact.md)."""
     scene, asm = clcp.scene, clcp.assembly
     nc = scene.n_contacts
+    isl = clcp.islands
     bodies = []
     for i, nm in enumerate(scene.body_names):
         bodies.append({"name": nm, "static": bool(scene.static[i]),
+                       "kinematic": bool(scene.kinematic[i]),
                        "modelled": bool(asm.columns[i] >= 0), "reason": asm.reasons[i],
-                       "mass": None if scene.static[i] else float(scene.mass[i]),
+                       "mass": None if scene.fixed[i] else float(scene.mass[i]),
                        "velocity": scene.velocity[i].tolist(),
-                       "angular_velocity": _ang(scene, scene.omega[i])})
+                       "angular_velocity": _ang(scene, scene.omega[i]),
+                       "island": int(isl.body_island[i]) + 1 if isl.body_island[i] >= 0
+                       else None})
     contacts = []
     fpos = {int(f): i for i, f in enumerate(clcp.friction_contacts)}
     for c in range(nc):
@@ -205,17 +395,26 @@ def to_json(clcp: ContactLCP, impact: Impact | None = None) -> dict[str, Any]:
                  "restitution": float(scene.restitution[c]),
                  "mu": None if np.isnan(scene.mu[c]) else float(scene.mu[c]),
                  "normal_velocity_before": float(asm.v_rel[c]),
+                 "state": STATES[int(asm.state[c])],
+                 "restitution_threshold": float(asm.threshold[c]),
+                 "restitution_used": float(asm.restitution_used[c]),
+                 "softness": float(clcp.softness[c]),
                  "inverse_effective_mass": float(asm.inv_eff_mass[c]),
                  "effective_mass": _finite(asm.eff_mass[c]),
-                 "unknown": c}
+                 "unknown": c, "island": int(isl.contact_island[c]) + 1}
         if c in fpos:
             entry["tangent_directions"] = clcp.tangent_dirs[fpos[c]].tolist()
         contacts.append(entry)
+    states = {name: int(np.sum(asm.state == i)) for i, name in enumerate(STATES)}
     out: dict[str, Any] = {
         "scene": scene.name, "dimension": scene.dimension,
         "M": matrix_json(clcp.problem.M), "q": clcp.problem.q.tolist(),
         "unknowns": clcp.unknowns, "storage": "sparse" if clcp.problem.sparse else "dense",
         "friction_directions": clcp.friction,
+        "planar": {"plane_normal": None if clcp.plane is None else clcp.plane.tolist(),
+                   "friction_reduced": bool(clcp.plane is not None and clcp.friction
+                                            and clcp.friction_contacts.size)},
+        "states": states, "islands": islands_json(clcp, impact),
         "bodies": bodies, "contacts": contacts, "warnings": list(scene.warnings) + list(clcp.notes),
     }
     if impact is not None:
@@ -227,6 +426,8 @@ def to_json(clcp: ContactLCP, impact: Impact | None = None) -> dict[str, Any]:
                             "angular": _ang(scene, impact.omega[i])}
                            for i, nm in enumerate(scene.body_names)],
             "normal_velocities": impact.normal_velocity.tolist(),
+            "approaching_after": int(np.sum(impact.approaching)),
+            "min_normal_velocity": float(impact.normal_velocity.min()) if nc else None,
             "energy_before": impact.energy_before,
             "energy_after": impact.energy_after,
             "energy_increase": impact.energy_increase,
@@ -234,6 +435,7 @@ def to_json(clcp: ContactLCP, impact: Impact | None = None) -> dict[str, Any]:
         })
         if res is not None:
             out.update({"method": res.method, "message": res.message,
+                        "iterations": int(res.iterations), "seconds": res.seconds,
                         "residual": _finite(res.certificate.residual),
                         "error": _finite(res.certificate.error)})
     return out

@@ -7,9 +7,13 @@ Conventions (seed 004):
 * positions, velocities and the contact point are in world coordinates; ``r_a = p - x_a``;
 * a quaternion is ``[w, x, y, z]`` (scalar first); the world inertia is ``R I R^T`` where ``I``
   is the body-frame tensor;
-* ``static: true`` bodies (ground, walls) have inverse mass and inverse inertia zero: they get no
-  unknowns, but a velocity given to them (a conveyor, a moving platform) enters the relative
-  velocity of their contacts;
+* ``static: true`` bodies (ground, walls) and ``kinematic: true`` bodies (prescribed velocity: a
+  conveyor, a lift, a robot's hand) have inverse mass and inverse inertia zero: they get no
+  unknowns and keep their velocity, which enters the relative velocity of their contacts;
+  together they are the *fixed* bodies (:attr:`Scene.fixed`), the others are *dynamic*;
+* per contact, ``restitution_threshold`` (speed above which an approaching contact bounces, see
+  :mod:`lcpcli.contact.assembly`) and ``softness`` (relative compliance added to the diagonal)
+  fall back to the scene-level value of the same key, then to the defaults there;
 * 2-D scenes (``"dimension": 2``) have 3 DOF per body: positions/velocities ``(x, y)``, a scalar
   angular velocity and a scalar moment of inertia (about the axis out of the plane).
 
@@ -30,9 +34,11 @@ import numpy as np
 from lcpcli.core.errors import ProblemError
 
 BODY_KEYS = {"name", "mass", "inertia", "orientation", "position", "velocity",
-             "angular_velocity", "static"}
-CONTACT_KEYS = {"a", "b", "body_a", "body_b", "point", "normal", "restitution", "mu", "name"}
-SCENE_KEYS = {"name", "description", "dimension", "bodies", "contacts"}
+             "angular_velocity", "static", "kinematic"}
+CONTACT_KEYS = {"a", "b", "body_a", "body_b", "point", "normal", "restitution", "mu", "name",
+                "restitution_threshold", "softness"}
+SCENE_KEYS = {"name", "description", "dimension", "bodies", "contacts", "restitution_threshold",
+              "softness"}
 #: A normal whose length differs from 1 by more than this is normalised with a warning.
 UNIT_TOL = 1e-6
 #: Relative tolerance of the inertia symmetry test.
@@ -46,8 +52,11 @@ class Scene:
     """A validated scene, as arrays (``nb`` bodies, ``nc`` contacts, ``d`` = dimension).
 
     ``inertia`` / ``inv_inertia`` are the **world** tensors, shape ``(nb, r, r)`` with
-    ``r = 3`` in 3-D and ``r = 1`` in 2-D; for static bodies ``inv_mass`` and ``inv_inertia``
-    are zero and ``mass``/``inertia`` are ``inf``/zero (unused).
+    ``r = 3`` in 3-D and ``r = 1`` in 2-D; for fixed (static or kinematic) bodies ``inv_mass``
+    and ``inv_inertia`` are zero and ``mass``/``inertia`` are ``inf``/zero (unused).
+    ``restitution_threshold`` and ``softness`` hold the per-contact values, NaN where a contact
+    gives none (then ``threshold_default`` / ``softness_default``, the scene-level values, apply;
+    None when the scene gives none either).
     """
 
     dimension: int
@@ -70,6 +79,25 @@ class Scene:
     name: str = ""
     description: str = ""
     warnings: list[str] = field(default_factory=list)
+    kinematic: np.ndarray | None = None              # (nb,) bool; None: no kinematic body
+    restitution_threshold: np.ndarray | None = None  # (nc,) NaN = scene-level value
+    softness: np.ndarray | None = None               # (nc,) NaN = scene-level value
+    threshold_default: float | None = None
+    softness_default: float | None = None
+
+    def __post_init__(self) -> None:
+        nb, nc = len(self.body_names), int(self.contact_a.shape[0])
+        if self.kinematic is None:
+            self.kinematic = np.zeros(nb, dtype=bool)
+        if self.restitution_threshold is None:
+            self.restitution_threshold = np.full(nc, np.nan)
+        if self.softness is None:
+            self.softness = np.full(nc, np.nan)
+
+    @property
+    def fixed(self) -> np.ndarray:
+        """(nb,) bool: static or kinematic (infinite mass, velocity prescribed)."""
+        return self.static | self.kinematic
 
     @property
     def n_bodies(self) -> int:
@@ -162,6 +190,7 @@ def scene_from_dict(data: Any, default_name: str = "") -> Scene:
     nb = len(bodies)
     names: list[str] = []
     static = np.zeros(nb, dtype=bool)
+    kinematic = np.zeros(nb, dtype=bool)
     mass = np.full(nb, np.nan)
     inertia = np.full((nb, r, r), np.nan)
     quat = np.tile([1.0, 0.0, 0.0, 0.0], (nb, 1))
@@ -180,17 +209,22 @@ def scene_from_dict(data: Any, default_name: str = "") -> Scene:
         if not isinstance(st, bool):
             raise ProblemError(f"{where}: 'static' must be true or false")
         static[i] = st
+        kin = b.get("kinematic", False)
+        if not isinstance(kin, bool):
+            raise ProblemError(f"{where}: 'kinematic' must be true or false")
+        kinematic[i] = kin
+        fixed = st or kin
         if "mass" in b and b["mass"] is not None:
             mass[i] = _scalar(b["mass"], where, "mass")
-        elif not st:
+        elif not fixed:
             raise ProblemError(f"{where}: 'mass' is required for a moving body")
         if "inertia" in b and b["inertia"] is not None:
             inertia[i] = _inertia(b["inertia"], dim, where)
-        elif not st:
+        elif not fixed:
             raise ProblemError(f"{where}: 'inertia' is required for a moving body")
         if "position" in b:
             pos[i] = _vec(b["position"], dim, where, "position")
-        elif not st:
+        elif not fixed:
             raise ProblemError(f"{where}: 'position' is required for a moving body")
         if "velocity" in b:
             vel[i] = _vec(b["velocity"], dim, where, "velocity")
@@ -208,6 +242,8 @@ def scene_from_dict(data: Any, default_name: str = "") -> Scene:
     normal = np.zeros((nc, dim))
     eps = np.zeros(nc)
     mu = np.full(nc, np.nan)
+    threshold = np.full(nc, np.nan)
+    soft = np.full(nc, np.nan)
     index = {}
     for i, nm in enumerate(names):
         if nm in index:
@@ -216,7 +252,8 @@ def scene_from_dict(data: Any, default_name: str = "") -> Scene:
     cnames: list[str] = []
     for k, c in enumerate(contacts):
         where = f"contact {k + 1}"
-        _check_record(c, where, CONTACT_KEYS, "a, b, point, normal, restitution, mu, name")
+        _check_record(c, where, CONTACT_KEYS, "a, b, point, normal, restitution, mu, name, "
+                                              "restitution_threshold, softness")
         cnames.append(str(c.get("name", f"c{k + 1}")))
         for side, keys, arr in (("A", ("a", "body_a"), ca), ("B", ("b", "body_b"), cb)):
             given = [key for key in keys if key in c]
@@ -238,10 +275,18 @@ def scene_from_dict(data: Any, default_name: str = "") -> Scene:
             eps[k] = _scalar(c["restitution"], where, "restitution")
         if "mu" in c and c["mu"] is not None:
             mu[k] = _scalar(c["mu"], where, "mu")
+        for key, arr in (("restitution_threshold", threshold), ("softness", soft)):
+            if key in c and c[key] is not None:
+                arr[k] = _scalar(c[key], where, key)
+    defaults = {key: (_scalar(data[key], "scene", key) if data.get(key) is not None else None)
+                for key in ("restitution_threshold", "softness")}
     return build_scene(dim, names, static, mass, inertia, quat, pos, vel, omega, ca, cb, point,
                        normal, eps, mu, contact_names=cnames,
                        name=str(data.get("name") or default_name),
-                       description=str(data.get("description") or ""))
+                       description=str(data.get("description") or ""), kinematic=kinematic,
+                       restitution_threshold=threshold, softness=soft,
+                       threshold_default=defaults["restitution_threshold"],
+                       softness_default=defaults["softness"])
 
 
 def build_scene(dim: int, names: list[str], static: np.ndarray, mass: np.ndarray,
@@ -249,17 +294,28 @@ def build_scene(dim: int, names: list[str], static: np.ndarray, mass: np.ndarray
                 omega: np.ndarray, ca: np.ndarray, cb: np.ndarray, point: np.ndarray,
                 normal: np.ndarray, eps: np.ndarray, mu: np.ndarray, *,
                 contact_names: list[str] | None = None, name: str = "",
-                description: str = "") -> Scene:
+                description: str = "", kinematic: np.ndarray | None = None,
+                restitution_threshold: np.ndarray | None = None,
+                softness: np.ndarray | None = None, threshold_default: float | None = None,
+                softness_default: float | None = None) -> Scene:
     """Validate array data and derive world inertias (shared by the JSON and HDF5 readers).
 
-    ``inertia`` is ``(nb, r, r)`` in the body frame (NaN rows allowed for static bodies);
+    ``inertia`` is ``(nb, r, r)`` in the body frame (NaN rows allowed for fixed bodies);
     ``quat`` is ``(nb, 4)`` ``[w, x, y, z]`` or None (identity; ignored in 2-D).
+    ``kinematic`` (default none), ``restitution_threshold`` and ``softness`` (per contact, NaN =
+    the scene-level ``*_default``) are optional.
     """
     dim = _dimension(dim)
     r = 3 if dim == 3 else 1
     nb, nc = len(names), int(np.asarray(ca).shape[0])
     warnings: list[str] = []
     static = np.asarray(static, dtype=bool).reshape(nb)
+    kinematic = np.zeros(nb, dtype=bool) if kinematic is None \
+        else np.asarray(kinematic, dtype=bool).reshape(nb)
+    threshold = np.full(nc, np.nan) if restitution_threshold is None \
+        else np.asarray(restitution_threshold, dtype=np.float64).reshape(nc)
+    soft = np.full(nc, np.nan) if softness is None \
+        else np.asarray(softness, dtype=np.float64).reshape(nc)
     mass = np.asarray(mass, dtype=np.float64).reshape(nb)
     inertia = np.asarray(inertia, dtype=np.float64).reshape(nb, r, r)
     pos = np.asarray(pos, dtype=np.float64).reshape(nb, dim)
@@ -271,10 +327,14 @@ def build_scene(dim: int, names: list[str], static: np.ndarray, mass: np.ndarray
     normal = np.asarray(normal, dtype=np.float64).reshape(nc, dim)
     eps = np.asarray(eps, dtype=np.float64).reshape(nc)
     mu = np.asarray(mu, dtype=np.float64).reshape(nc)
-    moving = ~static
 
     def body(i: int) -> str:
         return f"body {names[int(i)]!r}"
+
+    bad = np.flatnonzero(static & kinematic)
+    if bad.size:
+        raise ProblemError(f"{body(bad[0])}: a body is either static or kinematic, not both")
+    moving = ~(static | kinematic)
 
     for arr, label in ((pos, "position"), (vel, "velocity"), (omega, "angular_velocity")):
         bad = np.flatnonzero(~np.all(np.isfinite(arr.reshape(nb, -1)), axis=1))
@@ -286,7 +346,8 @@ def build_scene(dim: int, names: list[str], static: np.ndarray, mass: np.ndarray
     bad = np.flatnonzero(moving & ~(np.isfinite(mass) & (mass > 0)))
     if bad.size:
         raise ProblemError(f"{body(bad[0])}: a moving body needs a finite positive mass, got "
-                           f"{mass[bad[0]]:g} (mark immovable bodies 'static': true)")
+                           f"{mass[bad[0]]:g} (mark immovable bodies 'static': true, bodies "
+                           f"with a prescribed velocity 'kinematic': true)")
     bad = np.flatnonzero(moving & ~np.all(np.isfinite(inertia.reshape(nb, -1)), axis=1))
     if bad.size:
         raise ProblemError(f"{body(bad[0])}: inertia contains NaN or Inf")
@@ -348,11 +409,13 @@ def build_scene(dim: int, names: list[str], static: np.ndarray, mass: np.ndarray
     if bad.size:
         raise ProblemError(f"contact {bad[0] + 1}: bodies A and B are the same body "
                            f"{names[int(ca[bad[0]])]!r}")
-    bad = np.flatnonzero(static[ca] & static[cb])
+    fixed = static | kinematic
+    bad = np.flatnonzero(fixed[ca] & fixed[cb])
     if bad.size:
         k = int(bad[0])
         raise ProblemError(f"contact {k + 1}: both bodies ({names[int(ca[k])]!r}, "
-                           f"{names[int(cb[k])]!r}) are static: no impulse can act")
+                           f"{names[int(cb[k])]!r}) are static or kinematic: no impulse can "
+                           f"act")
     norms = np.linalg.norm(normal, axis=1)
     bad = np.flatnonzero(norms < 1e-12)
     if bad.size:
@@ -369,13 +432,70 @@ def build_scene(dim: int, names: list[str], static: np.ndarray, mass: np.ndarray
     if bad.size:
         raise ProblemError(f"contact {bad[0] + 1}: friction coefficient mu = {mu[bad[0]]:g} "
                            f"must be finite and >= 0")
+    for arr, label in ((threshold, "restitution_threshold"), (soft, "softness")):
+        bad = np.flatnonzero(~np.isnan(arr) & ~(np.isfinite(arr) & (arr >= 0)))
+        if bad.size:
+            raise ProblemError(f"contact {bad[0] + 1}: {label} = {arr[bad[0]]:g} must be finite "
+                               f"and >= 0")
+    check_nonnegative(threshold_default, "scene: restitution_threshold")
+    check_nonnegative(softness_default, "scene: softness")
     if contact_names is None or len(contact_names) != nc:
         contact_names = [f"c{k + 1}" for k in range(nc)]
     return Scene(dimension=dim, body_names=list(names), static=static, mass=mass,
                  inv_mass=inv_mass, inertia=I_world, inv_inertia=I_inv, position=pos,
                  velocity=vel, omega=omega, contact_a=ca, contact_b=cb, point=point,
                  normal=normal, restitution=eps, mu=mu, contact_names=list(contact_names),
-                 name=name, description=description, warnings=warnings)
+                 name=name, description=description, warnings=warnings, kinematic=kinematic,
+                 restitution_threshold=threshold, softness=soft,
+                 threshold_default=threshold_default, softness_default=softness_default)
+
+
+def check_nonnegative(x: float | None, label: str) -> None:
+    """ProblemError unless ``x`` is None or a finite number >= 0."""
+    if x is not None and not (math.isfinite(float(x)) and float(x) >= 0):
+        raise ProblemError(f"{label} = {x:g} must be finite and >= 0")
+
+
+def per_contact(values: np.ndarray, scene_value: float | None, default: float) -> np.ndarray:
+    """A per-contact parameter: the contact's own value, else the scene's, else ``default``."""
+    fallback = default if scene_value is None else float(scene_value)
+    return np.where(np.isnan(values), fallback, values)
+
+
+def with_kinematic(scene: Scene, names: list[str]) -> Scene:
+    """A copy of ``scene`` in which the bodies ``names`` are kinematic (prescribed velocity).
+
+    Each keeps its position and velocity; its mass and inertia are no longer used.  A static body
+    named here becomes kinematic (the same thing for the LCP: no unknowns).  ProblemError for an
+    unknown name or when a contact would join two fixed bodies.
+    """
+    import dataclasses
+
+    if not names:
+        return scene
+    index = {nm: i for i, nm in enumerate(scene.body_names)}
+    kin = scene.kinematic.copy()
+    static = scene.static.copy()
+    for nm in names:
+        if nm not in index:
+            raise ProblemError(f"--kinematic: unknown body {nm!r}")
+        kin[index[nm]] = True
+        static[index[nm]] = False
+    fixed = kin | static
+    bad = np.flatnonzero(fixed[scene.contact_a] & fixed[scene.contact_b])
+    if bad.size:
+        k = int(bad[0])
+        raise ProblemError(f"contact {k + 1}: both bodies "
+                           f"({scene.body_names[int(scene.contact_a[k])]!r}, "
+                           f"{scene.body_names[int(scene.contact_b[k])]!r}) are static or "
+                           f"kinematic: no impulse can act")
+    inv_mass = np.where(fixed, 0.0, scene.inv_mass)
+    inv_inertia = np.where(fixed[:, None, None], 0.0, scene.inv_inertia)
+    mass = np.where(fixed, np.inf, scene.mass)
+    inertia = np.where(fixed[:, None, None], 0.0, scene.inertia)
+    return dataclasses.replace(scene, kinematic=kin, static=static, inv_mass=inv_mass,
+                               inv_inertia=inv_inertia, mass=mass, inertia=inertia,
+                               warnings=list(scene.warnings))
 
 
 # ---------------------------------------------------------------------- HDF5
@@ -429,6 +549,9 @@ def read_scene_hdf5(path: Path) -> Scene:
         static = np.zeros(nb, dtype=bool)
         if "static" in gb:
             static = np.asarray(gb["static"][()]).astype(bool).reshape(-1)
+        kinematic = np.zeros(nb, dtype=bool)
+        if "kinematic" in gb:
+            kinematic = np.asarray(gb["kinematic"][()]).astype(bool).reshape(-1)
         mass = ds(gb, "mass", (), nb, default=np.nan, required=False)
         inertia = ds(gb, "inertia", (), nb, default=np.nan, required=False)
         inertia = _inertia_array(inertia, nb, dim)
@@ -446,30 +569,46 @@ def read_scene_hdf5(path: Path) -> Scene:
         normal = ds(gc, "normal", (dim,), nc)
         eps = ds(gc, "restitution", (), nc, default=0.0)
         mu = ds(gc, "mu", (), nc, default=np.nan, required=False)
+        threshold = ds(gc, "restitution_threshold", (), nc, default=np.nan, required=False)
+        soft = ds(gc, "softness", (), nc, default=np.nan, required=False)
         _shape(static, (nb,), "bodies/static")
+        _shape(kinematic, (nb,), "bodies/kinematic")
         for arr, shp, label in ((mass, (nb,), "bodies/mass"), (pos, (nb, dim), "bodies/position"),
                                 (vel, (nb, dim), "bodies/velocity"),
                                 (omega.reshape(nb, -1) if omega.size == nb * r else omega,
                                  (nb, r), "bodies/angular_velocity"),
                                 (point, (nc, dim), "contacts/point"),
                                 (normal, (nc, dim), "contacts/normal"),
-                                (eps, (nc,), "contacts/restitution"), (mu, (nc,), "contacts/mu")):
+                                (eps, (nc,), "contacts/restitution"), (mu, (nc,), "contacts/mu"),
+                                (threshold, (nc,), "contacts/restitution_threshold"),
+                                (soft, (nc,), "contacts/softness")):
             _shape(arr, shp, label)
         if quat is not None:
             _shape(quat, (nb, 4), "bodies/orientation")
-        bad = np.flatnonzero(~static & np.isnan(mass))
+        dynamic = ~(static | kinematic)
+        bad = np.flatnonzero(dynamic & np.isnan(mass))
         if bad.size:
             raise ProblemError(f"body {names[bad[0]]!r}: 'mass' is required for a moving body")
-        bad = np.flatnonzero(~static & np.isnan(inertia).all(axis=(1, 2)))
+        bad = np.flatnonzero(dynamic & np.isnan(inertia).all(axis=(1, 2)))
         if bad.size:
             raise ProblemError(f"body {names[bad[0]]!r}: 'inertia' is required for a moving "
                                f"body")
         if quat is not None:
             quat = np.where(np.isnan(quat), np.array([1.0, 0, 0, 0]), quat)
+        defaults = {}
+        for key in ("restitution_threshold", "softness"):
+            value = _attr(f.attrs.get(key)) if key in f.attrs else None
+            if value is not None and (isinstance(value, (bool, str))
+                                      or not isinstance(value, (int, float))):
+                raise ProblemError(f"root attribute '{key}' must be a number")
+            defaults[key] = None if value is None else float(value)
         return build_scene(dim, names, static, mass, inertia, quat, pos, vel,
                            omega.reshape(nb, r), ca, cb, point, normal, eps, mu,
                            name=_attr(f.attrs.get("name", path.stem)),
-                           description=_attr(f.attrs.get("description", "")))
+                           description=_attr(f.attrs.get("description", "")),
+                           kinematic=kinematic, restitution_threshold=threshold, softness=soft,
+                           threshold_default=defaults["restitution_threshold"],
+                           softness_default=defaults["softness"])
 
 
 def _attr(x: Any) -> Any:
@@ -537,13 +676,19 @@ def write_scene_hdf5(scene: Scene, path: str | Path) -> None:
         f.attrs["dimension"] = scene.dimension
         if scene.name:
             f.attrs["name"] = scene.name
+        for key, value in (("restitution_threshold", scene.threshold_default),
+                           ("softness", scene.softness_default)):
+            if value is not None:
+                f.attrs[key] = float(value)
         gb = f.create_group("bodies")
         gb.create_dataset("name", data=np.array(scene.body_names, dtype=object),
                           dtype=h5py.string_dtype())
         gb.create_dataset("static", data=scene.static)
-        gb.create_dataset("mass", data=np.where(scene.static, np.nan, scene.mass))
+        if scene.kinematic.any():
+            gb.create_dataset("kinematic", data=scene.kinematic)
+        gb.create_dataset("mass", data=np.where(scene.fixed, np.nan, scene.mass))
         inertia = scene.inertia.copy()
-        inertia[scene.static] = np.nan
+        inertia[scene.fixed] = np.nan
         gb.create_dataset("inertia",
                           data=inertia.reshape(nb) if scene.dimension == 2 else inertia)
         gb.create_dataset("position", data=scene.position)
@@ -557,6 +702,10 @@ def write_scene_hdf5(scene: Scene, path: str | Path) -> None:
         gc.create_dataset("normal", data=scene.normal)
         gc.create_dataset("restitution", data=scene.restitution)
         gc.create_dataset("mu", data=scene.mu)
+        for key, arr in (("restitution_threshold", scene.restitution_threshold),
+                         ("softness", scene.softness)):
+            if not np.isnan(arr).all():
+                gc.create_dataset(key, data=arr)
 
 
 # ---------------------------------------------------------------------- JSON helpers

@@ -127,8 +127,8 @@ def check(problem: Any, z: Any, tol: float = DEFAULT_TOL, *,
         raise ValueError(f"z has length {z.shape[0]}, the problem has n = {n}")
     w = np.empty(n)
     lo, up = (problem.lower, problem.upper) if problem.lower is not None else (None, None)
-    out = _certificate.certify_arrays(_matrix_arg(problem.M), problem.q, z, problem.n_eq,
-                                      lo, up, w, state)
+    out = _certificate.certify_arrays(_matrix_arg(problem.M), _contiguous(problem.q), z,
+                                      problem.n_eq, lo, up, w, state)
     if out[0] == 2:
         out, w = _rescaled_check(problem, z, state)
     return _make(out, tol), w
@@ -163,8 +163,16 @@ def matrix_norm_inf(M: Any) -> float:
 # ---------------------------------------------------------------------- internals
 def _matrix_arg(M: Any) -> Any:
     if hasattr(M, "tocsr"):
-        return (M.data, M.indices, M.indptr)
-    return M
+        Mc = M if M.format == "csr" else M.tocsr()
+        return (_contiguous(Mc.data), Mc.indices, Mc.indptr)
+    return _contiguous(M)
+
+
+def _contiguous(a: Any) -> np.ndarray:
+    """``a`` as a C-contiguous float64 array (no copy when it is one already)."""
+    if type(a) is np.ndarray and a.dtype == np.float64 and a.flags.c_contiguous:
+        return a
+    return np.ascontiguousarray(a, dtype=np.float64)
 
 
 def _make(out: tuple, tol: float) -> Certificate:

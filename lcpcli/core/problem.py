@@ -65,7 +65,9 @@ class Problem:
     """A linear complementarity problem ``w = M z + q`` (LCP, MLCP or box LCP).
 
     Build one with :meth:`Problem.create` (validates and normalises) or read one with
-    :func:`lcpcli.io.load`.  Attributes are 0-based arrays.
+    :func:`lcpcli.io.load`.  Attributes are 0-based arrays.  Whatever the constructor is given,
+    the arrays are stored as C-contiguous float64 (a dense M) or canonical CSR (a sparse M):
+    every compiled kernel relies on that layout.
     """
 
     M: Any
@@ -76,6 +78,17 @@ class Problem:
     name: str = ""
     description: str = ""
     meta: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        self.q = _c_float(self.q)
+        if is_sparse(self.M):
+            if self.M.format != "csr" or self.M.data.dtype != np.float64:
+                self.M = self.M.tocsr().astype(np.float64)
+        else:
+            self.M = _c_float(self.M)
+        if self.lower is not None:
+            self.lower = _c_float(self.lower)
+            self.upper = _c_float(self.upper)
 
     # ------------------------------------------------------------------ construction
     @classmethod
@@ -215,6 +228,13 @@ def _bound_value(x: Any, inf: float) -> Any:
         if s in ("-inf", "-infinity"):
             return -math.inf
     return x
+
+
+def _c_float(a: Any) -> np.ndarray:
+    """``a`` as a C-contiguous float64 array (no copy when it is one already)."""
+    if type(a) is np.ndarray and a.dtype == np.float64 and a.flags.c_contiguous:
+        return a
+    return np.ascontiguousarray(a, dtype=np.float64)
 
 
 def _check_finite(M: Any, label: str) -> None:

@@ -94,10 +94,12 @@ def test_single_contact_effective_mass_matches_seed_forms() -> None:
         assert clcp.assembly.inv_eff_mass[0] == pytest.approx(qmq, rel=1e-10)
         assert clcp.problem.M[0, 0] == pytest.approx(qmq, rel=1e-10)
         assert clcp.assembly.eff_mass[0] == pytest.approx(1 / qmq, rel=1e-10)
-        # q = (1 + eps) v_rel^-: v_rel from the material point velocities
+        # q = (1 + e) v_rel^-: v_rel from the material point velocities; e = eps = 0.5 for an
+        # approaching contact (threshold 0), 0 for a separating one
         va = np.array(A["velocity"]) + np.cross(A["angular_velocity"], ra)
         vb = np.array(B["velocity"]) + np.cross(B["angular_velocity"], rb)
-        assert clcp.problem.q[0] == pytest.approx(1.5 * n @ (va - vb), rel=1e-10)
+        v = n @ (va - vb)
+        assert clcp.problem.q[0] == pytest.approx((1.5 if v < 0 else 1.0) * v, rel=1e-10)
 
 
 def test_two_contact_example_M12_written_out_and_symmetric() -> None:
@@ -208,10 +210,14 @@ def test_momentum_conserved_for_two_free_bodies(friction: int) -> None:
         p1, L1 = momentum(scene, impact.velocity, impact.omega)
         assert np.allclose(p0, p1, atol=1e-10 * (1 + np.abs(impact.result.z).max()))
         assert np.allclose(L0, L1, atol=1e-9 * (1 + np.abs(impact.result.z).max()))
-        # w of the normal rows = v_rel^+ + eps v_rel^- from the recomputed state
+        # w of the normal rows = v_rel^+ + e v_rel^- from the recomputed state (e = 0.6 for
+        # approaching contacts, 0 for separating ones)
         nc = scene.n_contacts
+        e = np.where(clcp.assembly.v_rel < 0, 0.6, 0.0)
+        assert np.array_equal(clcp.assembly.restitution_used, e)
         assert np.allclose(impact.result.w[:nc],
-                           impact.normal_velocity + 0.6 * clcp.assembly.v_rel, atol=1e-9)
+                           impact.normal_velocity + e * clcp.assembly.v_rel, atol=1e-9)
+        assert not impact.approaching.any()
         # all equal eps: Newton restitution cannot gain energy
         assert impact.energy_after <= impact.energy_before * (1 + 1e-9)
 
@@ -366,8 +372,10 @@ def test_friction_cone_respected_on_samples(samples, capsys) -> None:
         assert d["status"] == "solved"
         nc = len(d["contacts"])
         z = np.array(d["impulses"])
+        k = d["friction_directions"]  # 2 when the scene is planar (two_balls is)
+        assert k == (2 if d["planar"]["friction_reduced"] else 6)
         fcs = [i for i, c in enumerate(d["contacts"]) if c["mu"]]
-        beta = z[nc: nc + 6 * len(fcs)].reshape(len(fcs), 6)
+        beta = z[nc: nc + k * len(fcs)].reshape(len(fcs), k)
         for f, c in enumerate(fcs):
             mu = d["contacts"][c]["mu"]
             assert beta[f].sum() <= mu * z[c] + 1e-9
@@ -511,8 +519,9 @@ def test_nan_and_bad_files_exit_2(cli, capsys, tmp_path) -> None:
     assert code == 2 and "unknown method" in err
 
 
-def test_jammed_ball_with_inconsistent_restitution_exits_1(capsys, tmp_path) -> None:
-    """A ball between two parallel walls: Newton's law asks v+ >= e2 and v+ <= -e1 (e1 < e2)."""
+def test_jammed_ball_that_must_bounce_has_no_solution_exits_1(capsys, tmp_path) -> None:
+    """A ball touching two parallel walls, moving at v_x = 1 into the right one (eps 0.8): the
+    right contact asks v_x+ <= -0.8, the left one (separating: no bounce) v_x+ >= 0."""
     data = {"bodies": [{"name": "left", "static": True}, {"name": "right", "static": True},
                        {"name": "ball", "mass": 1, "inertia": [1, 1, 1], "position": [0, 0, 0],
                         "velocity": [1.0, 0, 0]}],
@@ -527,10 +536,15 @@ def test_jammed_ball_with_inconsistent_restitution_exits_1(capsys, tmp_path) -> 
     f.write_text(json.dumps(data))
     code, out, _ = run_inprocess(capsys, "contact-matrix", str(f), "--solve", "--json")
     assert code == 1 and json.loads(out)["status"] == "no_solution"
-    data["contacts"][0]["restitution"] = 0.8  # consistent: solvable
+    for c in data["contacts"]:  # no bounce asked: the walls stop the ball
+        c["restitution"] = 0.0
     impact = solve(build(scene_from_dict(data)))
     assert impact.result.solved
-    assert impact.velocity[2] == pytest.approx([-0.8, 0, 0])
+    assert impact.velocity[2] == pytest.approx([0, 0, 0], abs=1e-12)
+    data["contacts"][1]["restitution"] = 0.8  # the old law (e on the separating contact too)
+    data["contacts"][0]["restitution"] = 0.8  # had v_x+ = -0.8: the left contact approaching
+    impact = solve(build(scene_from_dict(data)))
+    assert impact.result.status == "no_solution"
 
 
 def test_same_physics_as_siconos_lemke(samples, tmp_path) -> None:
@@ -582,7 +596,13 @@ def test_sparse_lcp_json_and_dense_method_guard(monkeypatch) -> None:
 
     monkeypatch.setattr(lcpcli.solvers.registry, "MAX_DENSIFY_ENTRIES", 100)
     with pytest.raises(OptionError, match="dense 50 x 50 matrix"):
-        solve(clcp)
+        solve(clcp, "lemke", islands=False)
+    n_big = int(clcp.island_sizes().max())
+    assert 10 < n_big < 50  # the islands are smaller than the scene, but stored sparse here
+    with pytest.raises(OptionError, match=f"dense {n_big} x {n_big} matrix"):
+        solve(clcp, "lemke")
+    # auto storage keeps small islands dense: Lemke may take them
+    assert solve(build(scene), "lemke").result.solved
 
 
 def test_bad_hdf5_scenes_exit_2(samples, capsys, tmp_path) -> None:
@@ -655,16 +675,20 @@ def box_stack(n: int, seed: int, tilt: float = 0.0):
 
 @pytest.mark.parametrize("k", [4, 8])
 def test_box_stacks_with_friction_solve(k: int) -> None:
+    # the tableau Lemke: on seed 3 with K = 8 lemke-revised ends with a certificate error of
+    # 7.6e-3 (a numerical failure of the revised kernel; auto then needs ip, about 20 s)
     for seed in range(8):
         scene = box_stack(6, seed, tilt=0.05 if seed % 2 else 0.0)
         clcp = build(scene, friction=k)
         if seed % 2 == 0:  # flat: each layer of 4 coplanar corners loses one rank
             assert np.linalg.matrix_rank(build(scene).problem.M) == scene.n_contacts - 6
-        impact = solve(clcp)
+        impact = solve(clcp, "lemke-tableau")
         assert impact.result.solved, impact.result.message
         fc = clcp.friction_contacts
         assert np.all(impact.tangent_impulses.sum(axis=1)
                       <= scene.mu[fc] * impact.normal_impulses[fc] + 1e-9)
-        # no contact ends up approaching faster than Newton's law allows
-        assert np.all(impact.normal_velocity + scene.restitution * clcp.assembly.v_rel >= -1e-9)
+        # no contact ends up approaching, impacts leave at least -eps v^-
+        assert np.all(impact.normal_velocity >= -1e-9) and not impact.approaching.any()
+        e = clcp.assembly.restitution_used
+        assert np.all(impact.normal_velocity + e * clcp.assembly.v_rel >= -1e-9)
         assert impact.energy_after <= impact.energy_before * (1 + 1e-9) or impact.energy_increase

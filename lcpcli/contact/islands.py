@@ -1,0 +1,260 @@
+"""Islands: the independent sub-LCPs of a scene, solved one by one and merged back.
+
+Two contacts interact (``M_ij != 0``, or a friction row of one touches the other) only through a
+dynamic body they share; static and kinematic bodies have infinite mass, so they transmit no
+impulse.  An **island** is a connected component of the graph whose nodes are the dynamic bodies
+and whose edges are the contacts between two dynamic bodies; a contact belongs to the island of
+its dynamic body (one of its two bodies is dynamic).  Ordering the LCP's unknowns by island
+makes ``M`` block diagonal, so the LCP splits into one LCP per island, and the scene's LCP has a
+solution if and only if every island's has (the union of the islands' solutions is one).
+
+Islands are numbered in the order of their first contact; inside an island the unknowns keep
+the scene's order (normal impulses, then tangential impulses, then slacks).  Box2D, ODE
+(``dxProcessIslands``), Bullet and MuJoCo (``mj_island``) split their contact problems the same
+way.
+
+:func:`solve_problems` is the one place where the island LCPs are solved; its
+:func:`solve_cold` is the one line that a batched solver for many small LCPs replaces.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from lcpcli.contact.scene import Scene
+from lcpcli.core.problem import Problem, is_sparse
+
+#: Warm start, islands of at least WARM_NEWTON_MIN_N unknowns whose ``z0`` does not already
+#: pass the certificate: first this method from ``z0`` ...
+WARM_METHOD = "newton"
+#: ... for at most this many iterations; if its certificate fails, the island is solved cold.
+WARM_MAX_ITER = 20
+#: Below this many unknowns a cold pivoting solve costs less than Newton's set-up and final
+#: active-set polish (measured: 72-unknown islands, 0.8 ms cold with Lemke against 2.7 ms for
+#: Newton started at the solution), so a ``z0`` that does not pass is not used there.
+WARM_NEWTON_MIN_N = 1000
+#: With ``jobs > 1``, islands go to a process pool only when they hold at least this many
+#: unknowns in all and there are at least ``2 * jobs`` islands (below, forking the workers and
+#: sending the problems back and forth costs more than it saves; benchmarks/bench_contact.py).
+PARALLEL_MIN_UNKNOWNS = 20_000
+
+
+@dataclass
+class Islands:
+    """Island of every contact and body; ``count`` islands numbered by first contact."""
+
+    contact_island: np.ndarray   # (nc,) island index of each contact
+    body_island: np.ndarray      # (nb,) island of each dynamic body in contact, -1 otherwise
+    count: int
+
+    def sizes(self) -> np.ndarray:
+        """Contacts per island."""
+        return np.bincount(self.contact_island, minlength=self.count)
+
+    def body_counts(self) -> np.ndarray:
+        """Dynamic bodies per island."""
+        b = self.body_island[self.body_island >= 0]
+        return np.bincount(b, minlength=self.count)
+
+
+def find_islands(scene: Scene) -> Islands:
+    """Connected components of the contact graph through dynamic bodies (see module docstring)."""
+    import scipy.sparse as sp
+    from scipy.sparse.csgraph import connected_components
+
+    nb, nc = scene.n_bodies, scene.n_contacts
+    ca, cb = scene.contact_a, scene.contact_b
+    dyn = ~scene.fixed
+    both = np.flatnonzero(dyn[ca] & dyn[cb])
+    graph = sp.csr_matrix((np.ones(both.size), (ca[both], cb[both])), shape=(nb, nb))
+    _, labels = connected_components(graph, directed=False)
+    body_of = np.where(dyn[ca], ca, cb)        # a dynamic body of each contact
+    raw = labels[body_of]
+    # renumber: island 0 holds contact 0, island 1 the first contact not in island 0, ...
+    uniq, first = np.unique(raw, return_index=True)
+    order = np.argsort(first, kind="stable")
+    new = np.empty(uniq.size, dtype=np.int64)
+    new[order] = np.arange(uniq.size)
+    contact_island = new[np.searchsorted(uniq, raw)] if nc else np.zeros(0, dtype=np.int64)
+    body_island = np.full(nb, -1, dtype=np.int64)
+    for side in (ca, cb):
+        d = dyn[side]
+        body_island[side[d]] = contact_island[d]
+    return Islands(contact_island=contact_island, body_island=body_island, count=int(uniq.size))
+
+
+@dataclass
+class IslandLayout:
+    """The LCP's unknowns grouped by island: island ``k`` is ``perm[offsets[k]:offsets[k+1]]``."""
+
+    perm: np.ndarray
+    offsets: np.ndarray
+
+    def unknowns(self, k: int) -> np.ndarray:
+        return self.perm[self.offsets[k]: self.offsets[k + 1]]
+
+    @property
+    def count(self) -> int:
+        return int(self.offsets.size - 1)
+
+
+def layout(islands: Islands, unknown_contact: np.ndarray) -> IslandLayout:
+    """Group the unknowns (``unknown_contact[i]``: the contact of unknown ``i``) by island."""
+    isl = islands.contact_island[unknown_contact]
+    perm = np.argsort(isl, kind="stable")
+    offsets = np.searchsorted(isl[perm], np.arange(islands.count + 1))
+    return IslandLayout(perm=perm, offsets=offsets)
+
+
+def island_problems(problem: Problem, lay: IslandLayout, storage: str = "auto",
+                    name: str = "island") -> list[Problem]:
+    """The islands' LCPs: principal blocks of ``problem.M`` (dense or CSR by ``storage``)."""
+    from lcpcli.contact.assembly import choose_storage
+
+    M, q = problem.M, problem.q
+    out = []
+    if lay.count == 1 and lay.perm.size == problem.n:
+        return [problem]  # one island holding every unknown, in order (a stable sort)
+    qp = q[lay.perm]
+    if not is_sparse(M):
+        P = np.asarray(M)[np.ix_(lay.perm, lay.perm)]
+        for k in range(lay.count):
+            s, e = int(lay.offsets[k]), int(lay.offsets[k + 1])
+            block = P[s:e, s:e]
+            if storage == "sparse":
+                import scipy.sparse as sp
+
+                block = sp.csr_matrix(block)
+            out.append(Problem(M=block, q=qp[s:e].copy(), name=f"{name}#{k + 1}"))
+        return out
+    import scipy.sparse as sp
+
+    P = M.tocsr()[lay.perm][:, lay.perm].tocsr()
+    P.sum_duplicates()
+    # block diagonal: rows s..e-1 hold entries in columns s..e-1 only, so each block is a slice
+    # of P's arrays (no scipy slicing per island)
+    ptr, idx, val = P.indptr, P.indices, P.data
+    for k in range(lay.count):
+        s, e = int(lay.offsets[k]), int(lay.offsets[k + 1])
+        a, b = int(ptr[s]), int(ptr[e])
+        n = e - s
+        if choose_storage(storage, n, b - a) == "dense":
+            block = np.zeros((n, n))
+            rows = np.repeat(np.arange(n), np.diff(ptr[s:e + 1]))
+            block[rows, idx[a:b] - s] = val[a:b]
+        else:
+            block = sp.csr_matrix((val[a:b].copy(), idx[a:b] - s, ptr[s:e + 1] - a),
+                                  shape=(n, n))
+        out.append(Problem(M=block, q=qp[s:e].copy(), name=f"{name}#{k + 1}"))
+    return out
+
+
+def solve_problems(problems: list[Problem], method: str = "auto", tol: float | None = None,
+                   z0s: list[np.ndarray] | None = None, jobs: int = 1,
+                   **options: Any) -> list[Any]:
+    """Solve the island LCPs; one certified :class:`Result` per problem, in order.
+
+    ``z0s``: warm starts, one per problem (:func:`warm_attempt`); the problems they do not solve,
+    and all problems without them, go to :func:`solve_cold` (``jobs > 1``: in a process pool
+    when the work is large enough, :data:`PARALLEL_MIN_UNKNOWNS`).  ``Result.info["warm"]`` says
+    whether the warm start gave the answer.
+    """
+    results: list[Any] = [None] * len(problems)
+    todo = list(range(len(problems)))
+    if z0s is not None:
+        todo = []
+        for i, (p, z0) in enumerate(zip(problems, z0s, strict=True)):
+            res = warm_attempt(p, method, tol, z0)
+            if res is None:
+                todo.append(i)
+            else:
+                results[i] = res
+    cold = [problems[i] for i in todo]
+    total = sum(p.n for p in cold)
+    if jobs > 1 and len(cold) >= 2 * jobs and total >= PARALLEL_MIN_UNKNOWNS:
+        answers = _solve_parallel(cold, method, tol, jobs, options)
+    else:
+        answers = solve_cold(cold, method, tol, options)
+    for i, res in zip(todo, answers, strict=True):
+        res.info["warm"] = False
+        results[i] = res
+    return results
+
+
+def solve_cold(problems: list[Problem], method: str, tol: float | None,
+               options: dict[str, Any]) -> list[Any]:
+    """Each problem with :func:`lcpcli.solve` from scratch: the one line a batched solver for
+    many small LCPs (``lcpcli.solve_many``, issue 14) replaces."""
+    from lcpcli.api import solve
+
+    return [solve(p, method, tol=tol, **options) for p in problems]
+
+
+def solve_one(problem: Problem, method: str, tol: float | None, z0: np.ndarray | None,
+              options: dict[str, Any]) -> Any:
+    """One LCP (an island or the whole scene): :func:`warm_attempt`, else :func:`solve_cold`."""
+    return solve_problems([problem], method, tol, None if z0 is None else [z0], 1, **options)[0]
+
+
+def warm_attempt(problem: Problem, method: str, tol: float | None, z0: np.ndarray) -> Any:
+    """The warm start's answer, or None: ``z0`` itself if it passes the certificate (method
+    ``z0``, no iteration); otherwise, on problems of at least :data:`WARM_NEWTON_MIN_N`
+    unknowns, :data:`WARM_METHOD` from ``z0`` (at most :data:`WARM_MAX_ITER` iterations) if it
+    solves it.  The tolerance is ``tol`` or ``method``'s default."""
+    from lcpcli.api import certify_outcome, solve
+    from lcpcli.core.result import CONVERGED, Outcome
+    from lcpcli.solvers.registry import get_method
+
+    limit = get_method(method).default_tol if tol is None else float(tol)
+    given = certify_outcome(problem, Outcome(np.asarray(z0, dtype=np.float64), 0, CONVERGED,
+                                             "the warm start z0 passes the certificate"),
+                            "z0", 0.0, limit)
+    if given.solved:
+        given.info["warm"] = True
+        return given
+    if problem.n >= WARM_NEWTON_MIN_N:
+        warm = solve(problem, WARM_METHOD, tol=tol, z0=z0, max_iter=WARM_MAX_ITER)
+        if warm.solved:
+            warm.info["warm"] = True
+            return warm
+    return None
+
+
+def _chunks(sizes: list[int], parts: int) -> list[list[int]]:
+    """Split indices 0..len(sizes)-1 into ``parts`` lists of about equal summed cost n^2."""
+    order = np.argsort(-np.asarray(sizes, dtype=np.float64) ** 2, kind="stable")
+    loads = np.zeros(parts)
+    out: list[list[int]] = [[] for _ in range(parts)]
+    for i in order:
+        j = int(np.argmin(loads))
+        out[j].append(int(i))
+        loads[j] += float(sizes[i]) ** 2 + 1.0
+    return [c for c in out if c]
+
+
+def _work(args: tuple[list[Problem], str, float | None, dict[str, Any]]) -> list[Any]:
+    problems, method, tol, options = args
+    return solve_cold(problems, method, tol, options)
+
+
+def _solve_parallel(problems: list[Problem], method: str, tol: float | None, jobs: int,
+                    options: dict[str, Any]) -> list[Any]:
+    # concurrent.futures / multiprocessing only here: most runs never use a pool
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    ctx = multiprocessing.get_context("fork" if "fork" in multiprocessing.get_all_start_methods()
+                                      else "spawn")
+    groups = _chunks([p.n for p in problems], jobs * 4)
+    results: list[Any] = [None] * len(problems)
+    with ProcessPoolExecutor(max_workers=min(jobs, os.cpu_count() or 1), mp_context=ctx) as ex:
+        futures = [(g, ex.submit(_work, ([problems[i] for i in g], method, tol, options)))
+                   for g in groups]
+        for g, fut in futures:
+            for i, res in zip(g, fut.result(), strict=True):
+                results[i] = res
+    return results
