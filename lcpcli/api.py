@@ -9,7 +9,8 @@ import numpy as np
 
 from lcpcli.core.certificate import check, validate_tol
 from lcpcli.core.errors import OptionError
-from lcpcli.core.problem import Problem
+from lcpcli.core.numeric import check_dtype, real_array
+from lcpcli.core.problem import Problem, is_sparse
 from lcpcli.core.result import CONVERGED, NO_SOLUTION, SOLVED, UNSOLVED, Outcome, Result
 from lcpcli.solvers.pipeline import run_method
 from lcpcli.solvers.registry import Method, get_method
@@ -26,9 +27,15 @@ def check_dense_ok(problem: Problem, spec: Method) -> None:
                           f"choose a method for large sparse problems (see 'lcpcli methods')")
 
 
-def solve(problem: Problem, method: str = DEFAULT_METHOD, *, tol: float | None = None,
-          **options: Any) -> Result:
+def solve(problem: Problem | Any, q: Any = None, method: str | None = None, *,
+          tol: float | None = None, **options: Any) -> Result:
     """Solve ``problem`` with ``method`` and certify the answer.
+
+    Two ways to call it: ``solve(problem, "lemke", tol=...)`` with a :class:`Problem`, or
+    ``solve(M, q, method="lemke")`` with ``M`` a dense array or a scipy.sparse matrix and ``q``
+    a vector (``n_eq=``, ``lower=``, ``upper=`` then make an MLCP or a box LCP).  Arrays follow
+    the data rule of :mod:`lcpcli.core.numeric`: real numbers only (booleans, complex numbers
+    and text raise :class:`ProblemError`).
 
     ``tol`` bounds the certificate's scaled ``error`` (default: the method's own, 1e-8 for
     pivoting methods).  Method-specific ``options`` (e.g. ``covering=``, ``max_iter=``) are
@@ -39,6 +46,20 @@ def solve(problem: Problem, method: str = DEFAULT_METHOD, *, tol: float | None =
     ``seconds`` times the method (with its equilibration and final polish, see
     :mod:`lcpcli.solvers.pipeline`), not file reading or certification.
     """
+    if not isinstance(problem, Problem):  # solve(M, q, method=...): arrays, not a Problem
+        if q is None or isinstance(q, str):
+            raise TypeError("lcpcli.solve(M, q, method=...) needs q after M (or pass a Problem)")
+        data = {k: options.pop(k) for k in ("n_eq", "lower", "upper") if k in options}
+        if is_sparse(problem):
+            check_dtype(problem.dtype, "M")
+        else:
+            problem = real_array(problem, "M")
+        problem = Problem.create(problem, real_array(q, "q"), **data)
+    elif q is not None:  # solve(problem, "lemke"): the method given second
+        if method is not None or not isinstance(q, str):
+            raise TypeError("lcpcli.solve(problem, method, tol=...) takes a method name second")
+        method = q
+    method = DEFAULT_METHOD if method is None else method
     spec = get_method(method)
     if problem.kind not in spec.kinds:
         raise OptionError(f"method '{spec.name}' does not handle {problem.kind.upper()} problems "

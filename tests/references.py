@@ -143,23 +143,33 @@ def componentwise_error(M: Any, q: np.ndarray, z: np.ndarray, lo: np.ndarray | N
         col = np.abs(M[:, j])
         if not col.any():
             return float("inf")
-        worst = 0.0
+        kappa = 0.0  # the largest relative change per unit move (same rounding as the kernel)
         for i in np.flatnonzero(col):
-            worst = max(worst, float("inf") if s[i] == 0 else x * col[i] / s[i])
-        return worst
+            kappa = max(kappa, float("inf") if s[i] == 0 else col[i] * (1.0 / s[i]))
+        return x * kappa
 
     eps = np.zeros(n)
+    equation = np.zeros(n, dtype=bool)   # the pair is scored in its state "w_i = 0"
     for i in range(n):
-        states = []
-        if np.isfinite(lo[i]):
-            states.append(max(move(i, abs(z[i] - lo[i])), rel(max(-w[i], 0.0), s[i])))
-        if np.isfinite(up[i]):
-            states.append(max(move(i, abs(z[i] - up[i])), rel(max(w[i], 0.0), s[i])))
+        costs = {}
         outside = max(lo[i] - z[i], z[i] - up[i], 0.0)
-        states.append(max(move(i, outside), rel(abs(w[i]), s[i])))
-        eps[i] = min(states)
-    # rows linked when they share a column whose term is significant in both
-    significant = (terms > 0) & (terms >= 2.0 ** -10 * a[:, None])
+        costs["F"] = max(move(i, outside), rel(abs(w[i]), s[i]))
+        if np.isfinite(lo[i]):
+            costs["L"] = max(move(i, abs(z[i] - lo[i])), rel(max(-w[i], 0.0), s[i]))
+        if np.isfinite(up[i]):
+            costs["U"] = max(move(i, abs(z[i] - up[i])), rel(max(w[i], 0.0), s[i]))
+        # ties: the state needing no move of z_i (on its bound: that bound; else F)
+        order = ["L", "F", "U"] if z[i] == lo[i] else (["U", "F", "L"] if z[i] == up[i]
+                                                       else ["F", "L", "U"])
+        best = min(order, key=lambda k: (costs.get(k, np.inf), order.index(k)))
+        eps[i] = costs[best]
+        equation[i] = best == "F"
+    # rows linked through a column z_j != 0 where z_j's share of the row, |M_ij z_j| / s_i, is
+    # within 2^-10 of its largest share in any row
+    with np.errstate(divide="ignore", invalid="ignore"):
+        share = np.where(terms > 0, terms / s[:, None], 0.0)
+    top = share.max(axis=0) if n else np.zeros(0)
+    link = (terms > 0) & (share >= 2.0 ** -10 * top[None, :])
     block = -np.ones(n, dtype=int)
     for start in range(n):
         if block[start] >= 0 or a[start] == 0:
@@ -168,17 +178,23 @@ def componentwise_error(M: Any, q: np.ndarray, z: np.ndarray, lo: np.ndarray | N
         queue = [start]
         while queue:
             i = queue.pop()
-            for j in np.flatnonzero(significant[i]):
-                for k in np.flatnonzero(significant[:, j]):
+            for j in np.flatnonzero(link[i]):
+                for k in np.flatnonzero(link[:, j]):
                     if block[k] < 0:
                         block[k] = start
                         queue.append(k)
     growth = np.ones(n)
+    den = np.abs(q) + np.abs(w)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        g = np.where(den == 0, np.inf, a / np.where(den == 0, 1.0, den))
     for b in set(block[block >= 0].tolist()):
         rows = np.flatnonzero(block == b)
-        den = np.abs(q[rows]) + np.abs(w[rows])
-        with np.errstate(divide="ignore"):
-            g = np.where(den == 0, np.inf, a[rows] / np.where(den == 0, 1.0, den))
-        growth[rows] = max(1.0, float(g.min()))
+        anchors = rows[equation[rows]]
+        anchored = float(g[anchors].min()) if anchors.size else np.inf
+        for i in rows:
+            if np.isfinite(anchored):
+                growth[i] = max(1.0, anchored)
+            else:  # no equation with data: a data row answers for itself
+                growth[i] = max(1.0, float(g[i])) if q[i] != 0 else 1.0
     err = [0.0 if eps[i] == 0 else eps[i] * growth[i] for i in range(n)]
     return float(max(err)) if n else 0.0

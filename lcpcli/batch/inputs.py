@@ -10,12 +10,11 @@ from typing import Any
 
 from lcpcli.batch.records import Task, error_row
 from lcpcli.core.errors import ProblemError
+from lcpcli.io import PROBLEM_EXTENSIONS
+from lcpcli.io.files import check_input_file
 
-#: File extensions picked up when a folder is given.
-PROBLEM_EXTENSIONS = (".json", ".npz", ".h5", ".hdf5", ".hdf", ".dat")
-
-
-_GLOB_CHARS = set("*?[")
+#: Characters that make an argument a glob pattern (when no file has that name).
+GLOB_CHARS = set("*?[")
 
 
 def expand_inputs(inputs: Iterable[str], *, recursive: bool = False,
@@ -25,6 +24,10 @@ def expand_inputs(inputs: Iterable[str], *, recursive: bool = False,
     A folder contributes its problem files (by extension; sub-folders with ``recursive``); a
     glob is expanded (``**`` crosses folders with ``recursive``); an HDF5 file contributes one
     task per problem group.  Duplicates (the same file reached twice) are dropped.
+
+    Error rows (the batch then exits 2): a path that is not a regular file (FIFO, device,
+    missing), a directory named like a problem file (``x.json/``), a folder holding no problem
+    file, a glob matching nothing.
     """
     from lcpcli.io import detect_format, list_problems
 
@@ -39,14 +42,12 @@ def expand_inputs(inputs: Iterable[str], *, recursive: bool = False,
         seen.add(path)
         try:
             fmt = detect_format(path)
+            check_input_file(path)
         except ProblemError as exc:
             errors.append(error_row(path, Path(path).stem, str(exc.with_source(path))))
             return
         if fmt != "hdf5":
             tasks.append(Task(path, Path(path).stem))
-            return
-        if not Path(path).is_file():
-            errors.append(error_row(path, Path(path).stem, f"{path}: no such file"))
             return
         try:
             names = _hdf5_problem_names(path)
@@ -65,13 +66,25 @@ def expand_inputs(inputs: Iterable[str], *, recursive: bool = False,
     for item in inputs:
         item = str(item)
         p = Path(item)
-        if p.is_dir():
-            walker = p.rglob("*") if recursive else p.glob("*")
-            found = sorted(str(f) for f in walker
-                           if f.is_file() and f.suffix.lower() in PROBLEM_EXTENSIONS)
+        if p.is_dir() and p.suffix.lower() in PROBLEM_EXTENSIONS:
+            errors.append(error_row(item, p.stem, f"{item}: is a directory, not a problem file"))
+        elif p.is_dir():
+            try:
+                walker = p.rglob("*") if recursive else p.glob("*")
+                found = sorted(str(f) for f in walker
+                               if f.is_file() and f.suffix.lower() in PROBLEM_EXTENSIONS)
+                subfolders = not recursive and any(c.is_dir() for c in p.iterdir())
+            except OSError as exc:
+                errors.append(error_row(item, "", f"{item}: cannot list the folder "
+                                                  f"({exc.strerror or type(exc).__name__})"))
+                continue
+            if not found:
+                hint = " (use --recursive for its sub-folders)" if subfolders else ""
+                errors.append(error_row(item, "", f"{item}: no problem files in this folder "
+                                                  f"({', '.join(PROBLEM_EXTENSIONS)}){hint}"))
             for f in found:
                 add_file(f)
-        elif not p.exists() and _GLOB_CHARS & set(item):
+        elif not p.exists() and GLOB_CHARS & set(item):
             matches = sorted(m for m in glob.glob(item, recursive=recursive)
                              if Path(m).is_file())
             if not matches:

@@ -72,6 +72,22 @@ def _complete_lines(path: Path) -> tuple[list[bytes], int]:
     return data[:end].splitlines(), end
 
 
+def _complete_csv(path: Path) -> tuple[bytes, int]:
+    """The complete CSV records of a file and the byte length they cover.
+
+    A record ends at a newline outside quotes (names may hold quoted newlines), so a torn last
+    record is recognised even when it was cut inside a quoted field.
+    """
+    data = path.read_bytes()
+    end = pos = quotes = 0
+    for line in data.split(b"\n")[:-1]:  # the last piece has no newline: torn or empty
+        quotes += line.count(b'"')
+        pos += len(line) + 1
+        if quotes % 2 == 0:
+            end = pos
+    return data[:end], end
+
+
 def read_jsonl(path: Path) -> list[dict[str, Any]]:
     """Rows of a JSONL file; a torn last line and undecodable lines are skipped."""
     rows = []
@@ -80,7 +96,7 @@ def read_jsonl(path: Path) -> list[dict[str, Any]]:
             continue
         try:
             obj = json.loads(line)
-        except (json.JSONDecodeError, UnicodeDecodeError):
+        except (ValueError, RecursionError):  # JSON and UTF-8 errors, absurd nesting
             continue
         if isinstance(obj, dict):
             rows.append(obj)
@@ -99,12 +115,12 @@ def _csv_value(col: str, text: str) -> Any:
 
 def read_csv(path: Path) -> list[dict[str, Any]]:
     """Rows of a CSV result file (typed: ints, floats, None for empty numbers)."""
-    lines, _ = _complete_lines(path)
-    if not lines:
+    data, _ = _complete_csv(path)
+    if not data:
         return []
-    text = b"\n".join(lines).decode("utf-8", errors="replace") + "\n"
+    text = data.decode("utf-8", errors="replace")
     rows = []
-    for rec in csv.DictReader(io.StringIO(text)):
+    for rec in csv.DictReader(io.StringIO(text, newline="")):
         if None in rec or any(c not in rec for c in CSV_COLUMNS):
             continue  # not a complete record
         try:
@@ -130,7 +146,7 @@ def read_hdf5(path: Path) -> list[dict[str, Any]]:
                 row["z"] = [float(x) if math.isfinite(x) else None for x in np.asarray(g["z"])]
                 row["w"] = [float(x) if math.isfinite(x) else None for x in np.asarray(g["w"])]
                 rows.append(row)
-    except (OSError, KeyError, RuntimeError, ValueError) as exc:
+    except (OSError, KeyError, RuntimeError, ValueError, TypeError, RecursionError) as exc:
         raise ProblemError(f"unreadable HDF5 result file ({str(exc).splitlines()[0][:100]})",
                            str(path)) from None
     return rows
@@ -174,9 +190,9 @@ def _fresh_file(path: Path, text: str = "") -> None:
     write_atomic_text(path, text)
 
 
-def _truncate_torn_tail(path: Path) -> None:
-    """Cut a torn last line (an interrupted write) so appends start on a fresh line."""
-    _, end = _complete_lines(path)
+def _truncate_torn_tail(path: Path, csv_records: bool = False) -> None:
+    """Cut a torn last line or CSV record (an interrupted write) so appends start afresh."""
+    _, end = _complete_csv(path) if csv_records else _complete_lines(path)
     if end != path.stat().st_size:
         with open(path, "r+b") as f:
             f.truncate(end)
@@ -187,10 +203,13 @@ def _truncate_torn_tail(path: Path) -> None:
 class _LineWriter(ABC):
     """Append-only text file: write + flush per row, fsync at most every FSYNC_SECONDS."""
 
+    #: Records may span lines (quoted newlines in CSV): torn tails are found record-wise.
+    multiline = False
+
     def __init__(self, path: Path, resume: bool, header: str = "") -> None:
         self.path = path
         if resume and path.exists():
-            _truncate_torn_tail(path)
+            _truncate_torn_tail(path, self.multiline)
             if header and path.stat().st_size == 0:
                 path.write_text(header)
         else:
@@ -229,26 +248,37 @@ class JsonlWriter(_LineWriter):
         return json.dumps(row, allow_nan=False) + "\n"
 
 
-def _csv_text(value: Any) -> str:
+def _csv_text(col: str, value: Any) -> str:
+    """A CSV cell: names kept exactly (the csv module quotes commas, quotes and newlines, so
+    ``--resume`` finds them again); the message on one line."""
     if value is None:
         return ""
     if isinstance(value, float):
         return repr(value)
-    return " ".join(str(value).split())  # one physical line per record
+    if col == "message":
+        return " ".join(str(value).split())
+    return str(value)
 
 
 class CsvWriter(_LineWriter):
-    """Flat columns (:data:`CSV_COLUMNS`), one record per line, header first."""
+    """Flat columns (:data:`CSV_COLUMNS`), one record per row, header first (RFC 4180 quoting:
+    a name holding a newline spans two physical lines inside quotes)."""
+
+    multiline = True
 
     def __init__(self, path: Path, resume: bool) -> None:
         super().__init__(path, resume, header=",".join(CSV_COLUMNS) + "\n")
         self.buffer = io.StringIO()
         self.csv = csv.writer(self.buffer, lineterminator="\n")
+        # the csv module quotes a field holding the line terminator, not a lone "\r"
+        self.csv_quoted = csv.writer(self.buffer, lineterminator="\n", quoting=csv.QUOTE_ALL)
 
     def _line(self, row: dict[str, Any]) -> str:
         self.buffer.seek(0)
         self.buffer.truncate()
-        self.csv.writerow([_csv_text(row.get(c)) for c in CSV_COLUMNS])
+        cells = [_csv_text(c, row.get(c)) for c in CSV_COLUMNS]
+        writer = self.csv_quoted if any("\r" in cell for cell in cells) else self.csv
+        writer.writerow(cells)
         return self.buffer.getvalue()
 
 

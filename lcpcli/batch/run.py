@@ -24,20 +24,35 @@ def signals_deferred() -> Iterator[None]:
     """Hold SIGINT and SIGTERM while a result is being written (delivered right after).
 
     A write is then never cut in the middle by Ctrl-C or ``kill``: the journal line and the
-    HDF5 group of a row are written together or not at all.
+    HDF5 group of a row are written together or not at all.  The holding is done at the
+    Python level (the handlers are swapped for one that only records the signal): blocking
+    the signals in the main thread is not enough, because the kernel then delivers them to
+    another thread (BLAS, OpenMP) and Python still runs the handler in the main thread.
     """
     import threading
 
-    if not hasattr(signal, "pthread_sigmask") or \
-            threading.current_thread() is not threading.main_thread():
+    if threading.current_thread() is not threading.main_thread():
         yield
         return
-    held = {signal.SIGINT, signal.SIGTERM}
-    old = signal.pthread_sigmask(signal.SIG_BLOCK, held)
+    pending: list[int] = []
+
+    def hold(signum: int, frame: Any) -> None:
+        pending.append(signum)
+
+    held = (signal.SIGINT, signal.SIGTERM)
+    old = {sig: signal.signal(sig, hold) for sig in held}
     try:
         yield
     finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+        for sig in held:
+            signal.signal(sig, old[sig] if old[sig] is not None else signal.SIG_DFL)
+        if pending:
+            sig = pending[0]
+            handler = old[sig]
+            if callable(handler):
+                handler(sig, None)  # e.g. KeyboardInterrupt, or the batch's SIGTERM handler
+            elif handler in (signal.SIG_DFL, None):
+                os.kill(os.getpid(), sig)  # the default action, now that the write is done
 
 
 def run_batch(inputs: Iterable[str], opts: SolveOptions, *, recursive: bool = False,
@@ -68,20 +83,56 @@ def run_batch(inputs: Iterable[str], opts: SolveOptions, *, recursive: bool = Fa
 
     canonical = get_method(opts.method).name  # unknown method: OptionError before any work
     opts = SolveOptions(canonical, opts.tol, dict(opts.options))
+    inputs = [str(i) for i in inputs]
+    if output is not None:
+        from lcpcli.batch import output as batch_output
+        from lcpcli.io import check_output
+
+        batch_output.output_kind(output)
+        check_output(output, inputs=inputs)  # a link, a device, a directory or an input: refused
     prepare_method(canonical)
     tasks, bad_inputs = expand_inputs(inputs, recursive=recursive)
     if output is not None:  # never read our own result file back as an input
-        own = os.path.realpath(output)
-        tasks = [t for t in tasks if os.path.realpath(t.source) != own]
-        bad_inputs = [r for r in bad_inputs if os.path.realpath(r["source"]) != own]
+        own = _identity(output)
+        if any(_identity(t.source) == own for t in tasks):
+            from lcpcli.core.errors import ProblemError
+
+            raise ProblemError("holds problems of this batch (it was found among the inputs): "
+                               "choose another output file", str(output))
+        bad_inputs = [r for r in bad_inputs if _identity(r["source"]) != own or own is None]
     tally, stats = Tally(), BatchStats()
     report = BatchReport(tally=tally, stats=stats, total=len(tasks) + len(bad_inputs),
                          output=None if output is None else str(output))
+    with contextlib.ExitStack() as held:
+        if output is not None:
+            from lcpcli.io import output_lock
+
+            held.enter_context(output_lock(output))  # a second writer is refused here
+        return _run(tasks, bad_inputs, opts, report, output=output, resume=resume,
+                    scheduler=scheduler, jobs=jobs, timeout=timeout, start=start,
+                    on_start=on_start, on_row=on_row)
+
+
+def _identity(path: str | os.PathLike[str]) -> tuple[int, int] | None:
+    """(device, inode) of an existing file, else None."""
+    try:
+        st = os.stat(path)
+    except OSError:
+        return None
+    return (st.st_dev, st.st_ino)
+
+
+def _run(tasks: list[Any], bad_inputs: list[dict[str, Any]], opts: SolveOptions,
+         report: BatchReport, *, output: Any, resume: bool, scheduler: Any, jobs: int,
+         timeout: float | None, start: float,
+         on_start: Callable[[int, int], None] | None,
+         on_row: Callable[[dict[str, Any]], None] | None) -> BatchReport:
+    """The batch once the output (if any) is locked: resume, solve, write rows."""
+    tally, stats = report.tally, report.stats
     writer = None
     if output is not None:
         from lcpcli.batch import output as batch_output
 
-        batch_output.output_kind(output)
         if resume and Path(output).exists() or resume and \
                 batch_output.journal_path(Path(output)).exists():
             wanted = {(t.source, t.problem) for t in tasks} | {key(r) for r in bad_inputs}
@@ -134,4 +185,3 @@ def run_batch(inputs: Iterable[str], opts: SolveOptions, *, recursive: bool = Fa
             stats.write_seconds += time.perf_counter() - t0
         report.wall_seconds = time.perf_counter() - start
     return report
-

@@ -15,12 +15,13 @@ from __future__ import annotations
 import importlib
 import os
 import sys
+import warnings
 
 import typer
 import typer.core
 
 from lcpcli import __version__
-from lcpcli.cli import plain_params
+from lcpcli.cli import common, plain_params
 from lcpcli.core.errors import (
     EXIT_BAD_INPUT,
     EXIT_INTERNAL,
@@ -95,10 +96,49 @@ def error_line(message: str) -> None:
     sys.stderr.write(f"lcpcli: error: {text}\n")
 
 
-def main(argv: list[str] | None = None) -> None:
-    """Entry point: run the app, map every failure to one stderr line and an exit code."""
+def _show_warning(message: Warning | str, category: type[Warning], filename: str, lineno: int,
+                  file: object = None, line: str | None = None) -> None:
+    """Warnings as one ``lcpcli: warning:`` line (no source path, no code line)."""
+    text = " ".join(str(message).split())
+    sys.stderr.write(f"lcpcli: warning: {text}\n")
+
+
+def _print_root_help() -> None:
+    """The formatted top-level help, on stderr (bare ``lcpcli`` is a usage error)."""
+    command = typer.main.get_command(app)
+    with command.make_context("lcpcli", [], resilient_parsing=True) as ctx:
+        sys.stderr.write(ctx.get_help() + "\n")
+
+
+def _silence_stdout() -> None:
+    """After a broken pipe: send what is still buffered for stdout to /dev/null, so the
+    interpreter's final flush cannot fail (and print a traceback) on the closed pipe."""
     try:
-        code = app(args=argv, standalone_mode=False, prog_name="lcpcli")
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+    except (OSError, ValueError):
+        pass
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Entry point: run the app, map every failure to one stderr line and an exit code.
+
+    Bare ``lcpcli`` prints the formatted help on stderr and exits 2 (a usage error; ``lcpcli
+    --help`` prints it on stdout and exits 0).  A broken pipe on stdout (``lcpcli ... | head``)
+    is not a failure: the exit code is the one the finished work earned (see
+    :func:`lcpcli.cli.common.pending_exit`).
+    """
+    args = sys.argv[1:] if argv is None else list(argv)
+    warnings.showwarning = _show_warning
+    common.pending_exit(EXIT_OK)
+    if not args:
+        _print_root_help()
+        sys.exit(EXIT_BAD_INPUT)
+    stdout = sys.stdout
+    sys.stdout = common.StdoutGuard(stdout)  # type: ignore[assignment]
+    try:
+        code = app(args=args, standalone_mode=False, prog_name="lcpcli")
     except click_exc.UsageError as exc:
         hint = f" (see '{exc.ctx.command_path} --help')" if exc.ctx else ""
         error_line(f"{exc.format_message()}{hint}")
@@ -115,12 +155,19 @@ def main(argv: list[str] | None = None) -> None:
     except KeyboardInterrupt:
         error_line("interrupted")
         code = EXIT_INTERRUPTED
-    except BrokenPipeError:
-        code = EXIT_OK
+    except (common.PipeClosed, BrokenPipeError):
+        _silence_stdout()
+        code = common.pending_exit()
     except Exception as exc:  # noqa: BLE001 - last line of defence: no tracebacks for users
         if os.environ.get("LCPCLI_DEBUG"):
             raise
         error_line(f"internal error: {type(exc).__name__}: {exc} "
                    f"(set LCPCLI_DEBUG=1 for the traceback)")
         code = EXIT_INTERNAL
+    finally:
+        sys.stdout = stdout
+    try:
+        sys.stdout.flush()
+    except BrokenPipeError:  # the reader left after the last write
+        _silence_stdout()
     sys.exit(code if isinstance(code, int) else EXIT_OK)

@@ -11,32 +11,57 @@ from __future__ import annotations
 import os
 import signal
 import sys
+import time
 from pathlib import Path
 from typing import Any
 
+from lcpcli.cli.common import duration, plural
 from lcpcli.core.errors import EXIT_INTERRUPTED, EXIT_TERMINATED
 
-_GLOB_CHARS = set("*?[")
-_BATCH_SUFFIXES = (".jsonl", ".ndjson", ".csv", ".h5", ".hdf5")
+#: Up to this many problems, the batch summary lists every problem with its status.
+FEW_PROBLEMS = 20
+#: A batch expected to run longer than this (seconds) prints an estimate on stderr.
+ESTIMATE_AFTER_SECONDS = 10.0
 
 
-def wants_batch(files: list[str], output: Any, *, recursive: bool = False,
-                jobs: int | None = None, resume: bool = False, timeout: float | None = None,
-                quiet: bool = False, scheduler: str | None = None) -> bool:
+def wants_batch(files: list[str], output: Any, *, problem: str | None = None,
+                recursive: bool = False, jobs: int | None = None, resume: bool = False,
+                timeout: float | None = None, quiet: bool = False,
+                scheduler: str | None = None) -> bool:
     """True unless this is the classic one-file solve (one FILE, no batch option).
 
     Batch mode: several FILEs, a folder, a glob, a batch option (--recursive, --jobs,
-    --resume, --timeout, --quiet, --scheduler), or ``--output`` ending in .jsonl/.csv/.h5.
+    --resume, --timeout, --quiet, --scheduler), ``--output`` ending in .jsonl/.csv/.h5, or
+    an HDF5 file holding several problems without ``--problem`` (every problem is solved).
     """
+    from lcpcli.batch.inputs import GLOB_CHARS
+    from lcpcli.batch.output import is_batch_output
+
     if len(files) != 1:
         return True
     if recursive or resume or quiet or jobs is not None or timeout is not None \
             or scheduler is not None:
         return True
     f = files[0]
-    if f != "-" and (Path(f).is_dir() or (not Path(f).exists() and _GLOB_CHARS & set(f))):
+    if f == "-":
+        return False
+    if Path(f).is_dir() or (not Path(f).exists() and GLOB_CHARS & set(f)):
         return True
-    return output is not None and str(output).lower().endswith(_BATCH_SUFFIXES)
+    if output is not None and is_batch_output(output):
+        return True
+    return problem is None and _holds_several_problems(f)
+
+
+def _holds_several_problems(path: str) -> bool:
+    """An HDF5 file with more than one problem group (errors: False, the solve reports them)."""
+    from lcpcli.core.errors import ProblemError
+    from lcpcli.io import detect_format, list_problems
+
+    try:
+        return detect_format(path) == "hdf5" and Path(path).is_file() \
+            and len(list_problems(path)) > 1
+    except ProblemError:
+        return False
 
 
 class _Terminated(KeyboardInterrupt):
@@ -51,10 +76,10 @@ def run_batch_command(files: list[str], *, method: str, tol: float | None,
                       opts: dict[str, Any], problem: str | None, as_json: bool,
                       output: Any, recursive: bool, jobs: int | None, resume: bool,
                       timeout: float | None, quiet: bool, scheduler: str | None) -> int:
-    """Run the batch, show progress and the summary; return the exit code (0/1/2, 130)."""
+    """Run the batch, show progress and the summary; return the exit code (0/1/2, 130, 143)."""
     from lcpcli.batch.records import SolveOptions
     from lcpcli.batch.run import run_batch
-    from lcpcli.cli.common import stderr_console, stdout_console, write_json_line
+    from lcpcli.cli.common import pending_exit, stderr_console, stdout_console, write_json_line
     from lcpcli.core.errors import OptionError
     from lcpcli.core.result import Status  # imports numpy: not at --help time
 
@@ -70,9 +95,12 @@ def run_batch_command(files: list[str], *, method: str, tol: float | None,
     err = stderr_console()
     show_bar = not quiet and err.is_terminal
     progress = None
-    state: dict[str, Any] = {"task": None, "counts": {}}
+    state: dict[str, Any] = {"task": None, "counts": {}, "total": 0, "done": 0, "start": 0.0,
+                             "estimated": False, "rows": []}
 
     def on_start(total: int, skipped: int) -> None:
+        state["total"], state["done"] = total, skipped
+        state["start"] = time.perf_counter()
         if progress is not None:
             state["task"] = progress.add_task("solving", total=total, completed=skipped,
                                               counts="")
@@ -80,6 +108,12 @@ def run_batch_command(files: list[str], *, method: str, tol: float | None,
     def on_row(row: dict[str, Any]) -> None:
         if stream_rows:
             write_json_line(row)
+        state["done"] += 1
+        if len(state["rows"]) <= FEW_PROBLEMS:
+            state["rows"].append({k: row.get(k) for k in
+                                  ("source", "problem", "status", "method", "n", "iterations",
+                                   "error", "message")})
+        _maybe_estimate(state, quiet)
         if progress is not None and state["task"] is not None:
             c = state["counts"]
             status = row.get("status", Status.ERROR)
@@ -108,23 +142,44 @@ def run_batch_command(files: list[str], *, method: str, tol: float | None,
         if progress is not None:
             progress.stop()
         what = "terminated" if isinstance(exc, _Terminated) else "interrupted"
+        done = f" after {plural(state['done'], 'problem')} of {state['total']:,}" \
+            if state["total"] else ""
         where = f"; finished results are in {output}: run again with --resume to go on" \
             if output is not None else ""
-        sys.stderr.write(f"lcpcli: {what}{where}\n")
+        sys.stderr.write(f"lcpcli: {what}{done}{where}\n")
         return EXIT_TERMINATED if isinstance(exc, _Terminated) else EXIT_INTERRUPTED
     finally:
         if progress is not None:
             progress.stop()
         if old_term is not None:
             signal.signal(signal.SIGTERM, old_term)
+    code = pending_exit(report.exit_code)
     if as_json:
         if not stream_rows:
             write_json_line(report.as_dict())
     else:
         from lcpcli.cli.render.batch import render_summary
 
-        stdout_console().print(render_summary(report))
-    return report.exit_code
+        rows = state["rows"] if report.total <= FEW_PROBLEMS and not report.skipped else None
+        stdout_console().print(render_summary(report, rows=rows))
+    return code
+
+
+def _maybe_estimate(state: dict[str, Any], quiet: bool) -> None:
+    """Once a batch has run a second, say how long it will take if that is long (stderr)."""
+    if state["estimated"] or quiet:
+        return
+    elapsed = time.perf_counter() - state["start"]
+    done, total = state["done"], state["total"]
+    if elapsed < 1.0 or done == 0 or done >= total:
+        return
+    state["estimated"] = True
+    rate = done / elapsed
+    left = (total - done) / rate
+    if left > ESTIMATE_AFTER_SECONDS:
+        sys.stderr.write(f"lcpcli: {plural(total, 'problem')}; about {duration(left)} to go "
+                         f"at {rate:,.1f} problems per second (Ctrl-C stops and keeps what is "
+                         f"finished)\n")
 
 
 def _main_thread() -> bool:

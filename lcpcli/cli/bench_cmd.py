@@ -2,12 +2,24 @@
 
 from __future__ import annotations
 
+import math
+import sys
+import time
 from pathlib import Path
+from typing import Any
 
 import typer
 
 from lcpcli.cli.common import MethodListCommand
-from lcpcli.core.errors import EXIT_INTERNAL, EXIT_NOT_SOLVED, EXIT_OK
+from lcpcli.core.errors import EXIT_INTERNAL, EXIT_INTERRUPTED, EXIT_NOT_SOLVED, EXIT_OK
+
+#: Largest ``--n`` of each built-in suite (hard: dense 4n x 4n families, Murty's needs 2^n
+#: pivots; random: its largest size; siconos: any, it only skips larger files).
+SUITE_MAX_N = {"hard": 250, "random": 2000}
+#: Largest ``--repeat`` (the budget stops repeats anyway).
+MAX_REPEAT = 10_000
+#: A run expected to take longer than this (seconds) prints an estimate on stderr.
+ESTIMATE_AFTER_SECONDS = 10.0
 
 
 def _floats(text: str, label: str) -> list[float]:
@@ -72,15 +84,27 @@ def bench(
     from lcpcli.core.errors import OptionError
 
     tols = _floats(tol, "--tol")
-    if any(t <= 0 for t in tols):
-        raise OptionError("--tol values must be positive")
-    if repeat < 0:
-        raise OptionError("--repeat must be >= 0")
-    if budget <= 0:
-        raise OptionError("--budget must be positive")
-    if timeout < 0:
-        raise OptionError("--timeout must be >= 0")
+    if any(not (math.isfinite(t) and t > 0) for t in tols):
+        raise OptionError("--tol values must be positive and finite")
+    if not 0 <= repeat <= MAX_REPEAT:
+        raise OptionError(f"--repeat must be between 0 and {MAX_REPEAT:,}, got {repeat}")
+    if not (math.isfinite(budget) and budget > 0):
+        raise OptionError(f"--budget must be a positive number of seconds, got {budget}")
+    if not (math.isfinite(timeout) and timeout >= 0):
+        raise OptionError(f"--timeout must be a finite number of seconds >= 0, got {timeout}")
+    if seed < 0:
+        raise OptionError(f"--seed must be >= 0, got {seed}")
+    if suite is not None and n is not None:
+        limit = SUITE_MAX_N.get(suite.strip().lower())
+        if limit is not None and n > limit:
+            raise OptionError(f"--n {n} is too large for the {suite} suite (limit {limit})")
     method_list = B.resolve_methods(None if methods is None else methods.split(","))
+    inputs = list(problems or [])
+    for target in (plot, markdown):  # before any work: never an input, a link or a device
+        if target is not None:
+            from lcpcli.io import check_output
+
+            check_output(target, inputs=inputs)
     if plot is not None:
         from lcpcli.cli.render.bench import plot_available
 
@@ -112,23 +136,47 @@ def bench(
     for fam, why in missing.items():
         err.print(f"lcpcli: note: peer {fam} not used: {why}")
 
+    tracker = _Tracker(cases, method_list, tols, found, err)
+    records: list[Any] = []
+
     def on_record(rec: B.Record) -> None:
+        records.append(rec)
         if as_json:
             write_json_line(rec.to_json())
+        tracker.record(rec)
 
-    report = B.run_bench(cases, method_list, tols, repeat=repeat, budget=budget, peers=found,
-                         missing_peers=missing, timeout=timeout or None, on_record=on_record)
     title = ", ".join(titles)
-    if not as_json:
+    interrupted = False
+    try:
+        with tracker:
+            report = B.run_bench(cases, method_list, tols, repeat=repeat, budget=budget,
+                                 peers=found, missing_peers=missing, timeout=timeout or None,
+                                 on_record=on_record)
+    except KeyboardInterrupt:
+        interrupted = True
+        report = B.BenchReport(records=records, methods=list(method_list), tols=tols,
+                               problems=[(c.name, c.n, c.problem.kind, c.expected)
+                                         for c in cases],
+                               peers={p.family: p.version for p in found},
+                               missing_peers=dict(missing))
+        title += f" (interrupted after {tracker.done:,} of {tracker.total:,} runs)"
+        sys.stderr.write(f"lcpcli: interrupted after {tracker.done:,} of {tracker.total:,} "
+                         f"runs; the report below covers those\n")
+    from lcpcli.cli.common import pending_exit
+
+    code = pending_exit(EXIT_INTERRUPTED if interrupted else EXIT_NOT_SOLVED if report.defects
+                        else EXIT_INTERNAL if report.errors else EXIT_OK)
+    if not as_json and report.records:
         from lcpcli.cli.render.bench import render_report
 
-        stdout_console().print(render_report(report, title))
-    if markdown is not None:
+        console = stdout_console()
+        console.print(render_report(report, title, width=console.width))
+    if markdown is not None and report.records:
         from lcpcli.cli.render.bench import markdown_report
         from lcpcli.io import write_atomic_text
 
         write_atomic_text(markdown, markdown_report(report, title))
-    if plot is not None:
+    if plot is not None and report.records:
         from lcpcli.cli.render.bench import write_plot
 
         write_plot(report, plot)
@@ -136,9 +184,74 @@ def bench(
         err.print(f"lcpcli: DEFECT: {rec.method} on {rec.problem}: {rec.defect_reason}")
     for rec in report.errors:
         err.print(f"lcpcli: ERROR: {rec.method} on {rec.problem}: {rec.message}")
-    if report.defects:
-        return EXIT_NOT_SOLVED
-    return EXIT_INTERNAL if report.errors else EXIT_OK
+    return code
+
+
+class _Tracker:
+    """Runs done out of the total: an estimate on stderr once the first runs are timed, and a
+    progress bar on stderr when it is a terminal.  A run is one (problem, tolerance, method)
+    or one (problem, tolerance, peer family)."""
+
+    def __init__(self, cases: list[Any], methods: list[str], tols: list[float],
+                 peers: list[Any], console: Any) -> None:
+        from lcpcli.solvers.registry import get_method
+
+        kinds = {m: get_method(m).kinds for m in methods}
+        per_kind: dict[str, int] = {}
+        for c in cases:
+            k = c.problem.kind
+            if k not in per_kind:
+                per_kind[k] = sum(k in ks for ks in kinds.values()) \
+                    + sum(k in p.kinds for p in peers)
+        self.total = len(tols) * sum(per_kind[c.problem.kind] for c in cases)
+        self.done = 0
+        self.console = console
+        self._seen_peer: set[tuple[str, float, str]] = set()
+        self._start = 0.0
+        self._estimated = False
+        self._bar: Any = None
+        self._task: Any = None
+
+    def __enter__(self) -> _Tracker:
+        from lcpcli.cli.common import plural
+
+        self._start = time.perf_counter()
+        if self.console.is_terminal:
+            from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn
+
+            self._bar = Progress(TextColumn("bench"), BarColumn(), MofNCompleteColumn(),
+                                 TextColumn("{task.fields[what]}"), console=self.console,
+                                 transient=True)
+            self._task = self._bar.add_task("bench", total=self.total, what="")
+            self._bar.start()
+        if self.total > 1:
+            sys.stderr.write(f"lcpcli: bench: {plural(self.total, 'run')} (problem x "
+                             f"tolerance x method or peer); Ctrl-C stops and reports the "
+                             f"finished ones\n")
+        return self
+
+    def record(self, rec: Any) -> None:
+        from lcpcli.cli.common import duration
+
+        if rec.peer:
+            key = (rec.problem, rec.tol, rec.peer)
+            if key in self._seen_peer:
+                return
+            self._seen_peer.add(key)
+        self.done += 1
+        if self._bar is not None:
+            self._bar.update(self._task, completed=self.done,
+                             what=f"{rec.problem} {rec.method}"[:40])
+        elapsed = time.perf_counter() - self._start
+        if not self._estimated and elapsed >= 2.0 and self.done < self.total:
+            self._estimated = True
+            left = elapsed / self.done * (self.total - self.done)
+            if left > ESTIMATE_AFTER_SECONDS:
+                sys.stderr.write(f"lcpcli: bench: about {duration(left)} to go\n")
+
+    def __exit__(self, *exc: object) -> None:
+        if self._bar is not None:
+            self._bar.stop()
 
 
 def register(app: typer.Typer) -> None:

@@ -8,7 +8,77 @@ from typing import Any
 
 import typer.core
 
-from lcpcli.core.errors import EXIT_BAD_INPUT, EXIT_NOT_SOLVED, EXIT_SOLVED, OptionError
+from lcpcli.core.errors import (
+    EXIT_BAD_INPUT,
+    EXIT_NOT_SOLVED,
+    EXIT_OK,
+    EXIT_SOLVED,
+    OptionError,
+)
+from lcpcli.core.text import plural
+
+#: Largest ``--max-iter`` accepted (pivots or iterations; beyond it a run would take days).
+MAX_ITER = 2**31 - 1
+
+#: The exit code of the work finished so far (what a broken pipe on stdout exits with).
+_PENDING = {"code": EXIT_OK}
+
+
+class PipeClosed(Exception):  # noqa: N818 - the name says what happened, not "Error"
+    """The reader of stdout went away (``lcpcli ... | head``).
+
+    Deliberately not an OSError: typer turns an EPIPE OSError into exit status 1, which reads
+    as "not solved"; ``lcpcli.cli.main`` exits with :func:`pending_exit` instead.
+    """
+
+
+class StdoutGuard:
+    """sys.stdout as the commands see it: a broken pipe raises :class:`PipeClosed`."""
+
+    def __init__(self, stream: Any) -> None:
+        self._stream = stream
+
+    def write(self, text: str) -> int:
+        try:
+            return self._stream.write(text)
+        except BrokenPipeError:
+            raise PipeClosed() from None
+
+    def flush(self) -> None:
+        try:
+            self._stream.flush()
+        except BrokenPipeError:
+            raise PipeClosed() from None
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._stream, name)
+
+
+def pending_exit(code: int | None = None) -> int:
+    """Record (with ``code``) or read the exit code the finished work has earned.
+
+    Commands record it once the work is done and before printing, so that a reader that
+    closes the pipe early (``lcpcli solve p.json | head -1``) does not turn a solved problem
+    into a failure (exit 0 when solved; 1 stays 1).
+    """
+    if code is not None:
+        _PENDING["code"] = code
+    return _PENDING["code"]
+
+
+def duration(seconds: float) -> str:
+    """``"42 s"``, ``"3.5 min"``, ``"2.1 h"``, ``"3.0 days"`` (estimates on stderr)."""
+    if seconds < 120:
+        return f"{seconds:.0f} s"
+    if seconds < 2 * 3600:
+        return f"{seconds / 60:.1f} min"
+    if seconds < 2 * 86400:
+        return f"{seconds / 3600:.1f} h"
+    if seconds < 1000 * 365 * 86400:
+        return f"{seconds / 86400:,.1f} days"
+    return f"{seconds / (365 * 86400):.1e} years"
+
+
 
 
 class MethodListCommand(typer.core.TyperCommand):
@@ -39,24 +109,34 @@ def parse_key_values(pairs: list[str] | None) -> dict[str, str]:
     return out
 
 
+def _console_class() -> Any:
+    """rich's Console, except that a broken pipe raises BrokenPipeError (rich's own handler
+    exits with status 1, which reads as "not solved" under ``set -o pipefail``)."""
+    from rich.console import Console  # rich only where something is rendered (start-up)
+
+    class PipeConsole(Console):
+        def on_broken_pipe(self) -> None:
+            self.quiet = True
+            raise PipeClosed()
+
+    return PipeConsole
+
+
 def stdout_console() -> Any:
     """A rich console on stdout (colour only on a TTY and never with NO_COLOR)."""
-    from rich.console import Console
-
-    return Console(highlight=False)
+    return _console_class()(highlight=False)
 
 
 def stderr_console() -> Any:
-    from rich.console import Console
-
-    return Console(stderr=True, highlight=False)
+    return _console_class()(stderr=True, highlight=False)
 
 
 def exit_code_for(statuses: list[str]) -> int:
     """0 if every status is ``solved``, 1 otherwise (bad input is raised, not returned)."""
     from lcpcli.core.result import Status  # imports numpy: not at --help time
 
-    return EXIT_SOLVED if all(s == Status.SOLVED for s in statuses) else EXIT_NOT_SOLVED
+    code = EXIT_SOLVED if all(s == Status.SOLVED for s in statuses) else EXIT_NOT_SOLVED
+    return pending_exit(code)
 
 
 def write_json_line(obj: Any) -> None:
@@ -65,5 +145,6 @@ def write_json_line(obj: Any) -> None:
     sys.stdout.flush()
 
 
-__all__ = ["EXIT_BAD_INPUT", "MethodListCommand", "exit_code_for", "parse_key_values",
+__all__ = ["EXIT_BAD_INPUT", "MAX_ITER", "MethodListCommand", "PipeClosed", "StdoutGuard",
+           "duration", "exit_code_for", "parse_key_values", "pending_exit", "plural",
            "stderr_console", "stdout_console", "write_json_line"]

@@ -22,15 +22,16 @@ def convert(
     """Convert between JSON, NPZ, HDF5 and Siconos .dat problem files.
 
     The output is written atomically and only after the input was read and validated, so a
-    bad input never leaves a partial or damaged OUT. Exit codes: 0 done; 2 bad usage or bad
-    input.
+    bad input never leaves a partial or damaged OUT. OUT is never the input file (compared by
+    inode), a symbolic link, a directory or a device, whatever --force says. Exit codes: 0
+    done; 2 bad usage or bad input.
     """
     from lcpcli.core.errors import ProblemError
-    from lcpcli.io import atomic_path, detect_format, list_problems, load, save
+    from lcpcli.io import atomic_path, check_output, detect_format, list_problems, load, save
 
     out_fmt = detect_format(target)
-    if target != "-" and Path(target).exists() and not force:
-        raise ProblemError("exists already (use --force to overwrite)", target)
+    # before reading anything: OUT is never IN (by inode), a link, a device or a directory
+    check_output(target, inputs=[source], force=force)
     in_fmt = detect_format(source)
     if in_fmt == "hdf5" and problem is None and source != "-":
         names = list_problems(source)

@@ -2,16 +2,21 @@
 
 from __future__ import annotations
 
+import sys
+import time
 from pathlib import Path
+from typing import Any
 
 import typer
 
-from lcpcli.core.errors import EXIT_NOT_SOLVED, EXIT_SOLVED
+from lcpcli.core.errors import EXIT_INTERRUPTED, EXIT_NOT_SOLVED, EXIT_SOLVED
 
 #: Above this n, ``--all-cones`` is refused for the terminal table.
 ALL_CONES_TABLE_MAX_N = 12
 #: Above this n, ``--all-cones`` is refused even with ``--json``.
 ALL_CONES_JSON_MAX_N = 16
+#: From this many cones on (2^24), the run says up front how many and how long (stderr).
+ESTIMATE_FROM_CONES = 1 << 24
 
 
 def enumerate_command(
@@ -52,18 +57,20 @@ def enumerate_command(
     1 no solution; 2 bad usage or bad input; 3 internal error.
     """
     import json
-    import sys
 
     from lcpcli.analysis.enumeration import check_problem, covers_plane, enumerate_cones
-    from lcpcli.cli.common import write_json_line
+    from lcpcli.cli.common import pending_exit, write_json_line
     from lcpcli.cli.export import check_export_options, check_format
     from lcpcli.core.errors import OptionError
-    from lcpcli.io import load, write_atomic_text
+    from lcpcli.io import check_output, load, write_atomic_text
 
     fmt = check_format(fmt)
     plot_path = Path(plot) if plot is not None else None
     output_path = Path(output) if output is not None else None
     check_export_options(fmt, output_path, [file], as_json)
+    for target in (output_path, plot_path):  # before any work: never the input or a device
+        if target is not None:
+            check_output(target, inputs=[file], stdout=False)
     prob = load(file, problem)
     M = check_problem(prob, max_n)
     n = prob.n
@@ -88,8 +95,17 @@ def enumerate_command(
         if not plot_path.parent.is_dir():
             raise OptionError(f"--plot: folder {plot_path.parent} does not exist")
 
-    with _progress_bar() as progress:
-        res = enumerate_cones(prob, all_cones=all_cones, max_n=max_n, progress=progress)
+    tracker = _Progress(1 << n)
+    try:
+        with tracker:
+            res = enumerate_cones(prob, all_cones=all_cones, max_n=max_n, progress=tracker.update)
+    except KeyboardInterrupt:
+        sys.stderr.write(f"lcpcli: interrupted after {tracker.done:,} of {1 << n:,} cones "
+                         f"({100 * tracker.done / (1 << n):.2g} %); no verdict: every cone "
+                         f"must be visited to list all solutions or prove there is none (for "
+                         f"one solution use 'lcpcli solve')\n")
+        return EXIT_INTERRUPTED
+    code = pending_exit(EXIT_SOLVED if res.solutions else EXIT_NOT_SOLVED)
     covers = covers_plane(M) if n == 2 else None
     path = _lemke_path(prob) if lemke_path else None
     if plot_path is not None:
@@ -126,7 +142,7 @@ def enumerate_command(
                                                   covers=covers, drawing=drawing))
     if plot_path is not None and not as_json:
         sys.stderr.write(f"lcpcli: wrote {plot_path}\n")
-    return EXIT_SOLVED if res.solutions else EXIT_NOT_SOLVED
+    return code
 
 
 def _lemke_path(prob: object) -> list[dict[str, object]]:
@@ -138,26 +154,37 @@ def _lemke_path(prob: object) -> list[dict[str, object]]:
     return path_points(result.trace or [], prob.q)  # type: ignore[attr-defined]
 
 
-class _progress_bar:
-    """A rich progress bar on stderr, shown only on a TTY and only after about a second."""
+class _Progress:
+    """What a long enumeration shows: an estimate on stderr up front (from 2^24 cones on),
+    and a progress bar on stderr when it is a terminal, after about a second."""
 
-    def __init__(self) -> None:
-        self._bar = None
-        self._task = None
+    def __init__(self, total: int) -> None:
+        self.total = total
+        self.done = 0
+        self._bar: Any = None
+        self._task: Any = None
         self._start = 0.0
+        self._estimated = False
 
-    def __enter__(self):  # type: ignore[no-untyped-def]
-        import sys
-        import time
-
+    def __enter__(self) -> _Progress:
         self._start = time.perf_counter()
-        return self._update if sys.stderr.isatty() else None
+        if self.total >= ESTIMATE_FROM_CONES:
+            sys.stderr.write(f"lcpcli: enumerating 2^{self.total.bit_length() - 1} = "
+                             f"{self.total:,} complementary cones (Ctrl-C stops)\n")
+        return self
 
-    def _update(self, done: int, total: int) -> None:
-        import time
+    def update(self, done: int, total: int) -> None:
+        self.done = done
+        elapsed = time.perf_counter() - self._start
+        if not self._estimated and self.total >= ESTIMATE_FROM_CONES and 0 < done < total:
+            from lcpcli.cli.common import duration
 
+            self._estimated = True
+            rate = done / max(elapsed, 1e-9)
+            sys.stderr.write(f"lcpcli: about {duration((total - done) / rate)} to go at "
+                             f"{rate:,.0f} cones/s\n")
         if self._bar is None:
-            if time.perf_counter() - self._start < 1.0 or done >= total:
+            if elapsed < 1.0 or done >= total or not sys.stderr.isatty():
                 return
             from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 

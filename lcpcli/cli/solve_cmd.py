@@ -85,12 +85,14 @@ def solve(
     import json
 
     from lcpcli.api import solve as solve_problem
-    from lcpcli.cli.common import exit_code_for, parse_key_values, write_json_line
+    from lcpcli.cli.common import MAX_ITER, exit_code_for, parse_key_values, write_json_line
     from lcpcli.core.errors import OptionError
-    from lcpcli.io import load, write_atomic_text
+    from lcpcli.io import check_output, load, write_atomic_text
 
     opts: dict[str, object] = parse_key_values(option)
     if max_iter is not None:
+        if max_iter > MAX_ITER:
+            raise OptionError(f"--max-iter {max_iter} is too large (limit {MAX_ITER:,})")
         opts["max_iter"] = max_iter
     if covering is not None:
         opts["covering"] = covering
@@ -109,7 +111,7 @@ def solve(
 
     fmt = check_format(fmt)
     trace = trace or layout is not None or pivot_step is not None or step or fmt != "text"
-    if wants_batch(files, output, **batch):
+    if wants_batch(files, output, problem=problem, **batch):
         if trace:
             raise OptionError("--trace (and --layout, --pivot, --step, --format) shows one "
                               "problem's steps; it does not apply to a batch")
@@ -120,6 +122,8 @@ def solve(
         opts["trace"] = True
         layout = _check_layout(layout)
         check_export_options(fmt, output, [file], as_json)
+    if output is not None:  # before any work: never the input, a device or a link
+        check_output(output, inputs=[file, z0], stdout=False)
     prob = load(file, problem)
     result = solve_problem(prob, method, tol=tol, **opts)
     payload = result.to_dict(file=file)
@@ -127,6 +131,7 @@ def solve(
 
     forward = forward_error_bound(prob, result.z) if result.solved else None
     payload["forward_error_bound"] = forward.as_dict() if forward is not None else None
+    code = exit_code_for([result.status])
     if output is not None and fmt == "text":
         write_atomic_text(output, json.dumps(payload, allow_nan=False) + "\n")
     if as_json:
@@ -144,7 +149,7 @@ def solve(
                 return exit_code_for([result.status])
             console.print()
         console.print(render_result(result, prob, file, forward))
-    return exit_code_for([result.status])
+    return code
 
 
 def _traced_method(method: str) -> str:

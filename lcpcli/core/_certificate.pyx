@@ -15,7 +15,7 @@ of two (the certificate does not change under row and column scaling) and calls 
 from libc.math cimport fabs, isfinite, INFINITY, ldexp
 from libc.stdlib cimport free, malloc
 
-cdef double THETA = 0.0009765625           # 2^-10: a term is significant in its row above this share
+cdef double THETA = 0.0009765625           # 2^-10: links rows through z_j where its share counts
 cdef double BIG = ldexp(1.0, 960)
 cdef double SMALL = ldexp(1.0, -960)
 
@@ -69,27 +69,23 @@ cdef inline double _move(double x, double kappa) noexcept nogil:
 cdef int _finish(Py_ssize_t n, const double* q, const double* z, Py_ssize_t n_eq,
                  const double* lo, const double* up, const double* w, double* work,
                  Py_ssize_t* iwork, signed char* state, CertOut* out) noexcept nogil:
-    """Pass 3: score the pairs and the blocks (a, s, kappa filled; parent built)."""
+    """Pass 3: score the pairs, then the blocks (a, s, kappa filled; parent built).
+
+    ``work`` holds a, s, kappa, then 2 n entries reused: the pair errors (first n) while the
+    blocks' smallest anchor growth is gathered (one entry per union-find root, 2 n)."""
     cdef double* a = work
     cdef double* s = work + n
     cdef double* kappa = work + 2 * n
     cdef double* compmin = work + 3 * n          # 2 n entries: one per union-find root
     cdef Py_ssize_t* parent = iwork
+    cdef Py_ssize_t* anchor = iwork + 2 * n      # n entries: 1 when pair i is an equation
     cdef Py_ssize_t i, r, worst = -1
-    cdef double l, u, zi, wi, si, best, cost, x, g, den, e, err = 0.0, omega = 0.0
+    cdef double l, u, zi, wi, si, best, x, g, den, e, err = 0.0, omega = 0.0
     cdef double growth = 1.0, gi
     cdef signed char st
     cdef double cF, cL, cU
     cdef double resid = 0.0, bviol = 0.0, wviol = 0.0, comp = 0.0, eqres = 0.0, t
-    for i in range(2 * n):
-        compmin[i] = INFINITY
-    for i in range(n):
-        if a[i] > 0.0:
-            den = fabs(q[i]) + fabs(w[i])
-            g = INFINITY if den == 0.0 else a[i] / den
-            r = _find(parent, i)
-            if g < compmin[r]:
-                compmin[r] = g
+    # (a) every pair's backward error and state; the diagnostics in the units of the data
     for i in range(n):
         _bounds(i, n_eq, lo, up, &l, &u)
         zi = z[i]
@@ -138,19 +134,10 @@ cdef int _finish(Py_ssize_t n, const double* q, const double* z, Py_ssize_t n_eq
                 best, st = cU, 1
         if state != NULL:
             state[i] = st
+        anchor[i] = st == 2
+        kappa[i] = best        # kappa is not needed any more: keep eps_i there
         if best > omega:
             omega = best
-        gi = 1.0
-        if a[i] > 0.0:
-            gi = compmin[_find(parent, i)]
-            if gi < 1.0:
-                gi = 1.0
-        e = 0.0 if best == 0.0 else best * gi
-        if e > err or worst < 0:
-            err = e
-            worst = i
-            growth = gi
-        # the unscaled diagnostics (units of the data)
         t = zi - l
         if wi < t:
             t = wi
@@ -185,6 +172,34 @@ cdef int _finish(Py_ssize_t n, const double* q, const double* z, Py_ssize_t n_eq
             t = t * fabs(wi)
             if t > comp:
                 comp = t
+    # (b) each block's growth: the smallest growth among its equations (pairs scored 'between')
+    for i in range(2 * n):
+        compmin[i] = INFINITY
+    for i in range(n):
+        if a[i] > 0.0 and anchor[i]:
+            den = fabs(q[i]) + fabs(w[i])
+            g = INFINITY if den == 0.0 else a[i] / den
+            r = _find(parent, i)
+            if g < compmin[r]:
+                compmin[r] = g
+    # (c) the certified error
+    for i in range(n):
+        best = kappa[i]
+        gi = 1.0
+        if a[i] > 0.0:
+            gi = compmin[_find(parent, i)]
+            if gi == INFINITY:
+                # no equation with data anchors this block: a data row is judged by its own
+                # growth (its violation against its own data), a homogeneous row by none
+                den = fabs(q[i]) + fabs(w[i])
+                gi = a[i] / den if q[i] != 0.0 else 1.0
+            if gi < 1.0:
+                gi = 1.0
+        e = 0.0 if best == 0.0 else best * gi
+        if e > err or worst < 0:
+            err = e
+            worst = i
+            growth = gi
     out.error = err
     out.backward_error = omega
     out.growth = growth
@@ -263,7 +278,7 @@ cdef int certify_dense(Py_ssize_t n, const double* M, Py_ssize_t ldm, const doub
     cdef Py_ssize_t* cols = iwork + 2 * n
     cdef Py_ssize_t i, j, k, nc = 0
     cdef const double* row
-    cdef double wi, ai, t, m, inv, thr
+    cdef double wi, ai, t, m, inv
     for j in range(n):
         if not isfinite(z[j]):
             return _fail(out, 1)
@@ -291,7 +306,6 @@ cdef int certify_dense(Py_ssize_t n, const double* M, Py_ssize_t ldm, const doub
         for i in range(n):
             row = M + i * ldm
             inv = INFINITY if s[i] == 0.0 else 1.0 / s[i]
-            thr = THETA * a[i]
             for k in range(nc):
                 j = cols[k]
                 m = fabs(row[j])
@@ -299,9 +313,16 @@ cdef int certify_dense(Py_ssize_t n, const double* M, Py_ssize_t ldm, const doub
                     t = m * inv
                     if t > kappa[j]:
                         kappa[j] = t
-                    t = m * fabs(z[j])
-                    if t > 0.0 and t >= thr:
-                        _union(parent, i, n + j)
+        # rows are linked through a z_j != 0 wherever z_j's share of the row is within 2^-10 of
+        # its largest share in any row: |M_ij| / s_i >= 2^-10 kappa_j (invariant under scaling)
+        for i in range(n):
+            row = M + i * ldm
+            inv = INFINITY if s[i] == 0.0 else 1.0 / s[i]
+            for k in range(nc):
+                j = cols[k]
+                m = fabs(row[j])
+                if m != 0.0 and z[j] != 0.0 and m * inv >= THETA * kappa[j]:
+                    _union(parent, i, n + j)
     for k in range(nc):
         j = cols[k]
         if kappa[j] == 0.0:      # a zero column: moving z_j is never negligible
@@ -324,7 +345,7 @@ cdef int certify_csr(Py_ssize_t n, const double* data, const index_t* indices,
     cdef Py_ssize_t* parent = iwork
     cdef Py_ssize_t* movable = iwork + 2 * n
     cdef Py_ssize_t i, j, p
-    cdef double wi, ai, t, m, inv, thr
+    cdef double wi, ai, t, m, inv
     for j in range(n):
         if not isfinite(z[j]):
             return _fail(out, 1)
@@ -349,7 +370,6 @@ cdef int certify_csr(Py_ssize_t n, const double* data, const index_t* indices,
         parent[i] = i
     for i in range(n):
         inv = INFINITY if s[i] == 0.0 else 1.0 / s[i]
-        thr = THETA * a[i]
         for p in range(indptr[i], indptr[i + 1]):
             j = indices[p]
             if movable[j]:
@@ -358,9 +378,13 @@ cdef int certify_csr(Py_ssize_t n, const double* data, const index_t* indices,
                     t = m * inv
                     if t > kappa[j]:
                         kappa[j] = t
-                    t = m * fabs(z[j])
-                    if t > 0.0 and t >= thr:
-                        _union(parent, i, n + j)
+    for i in range(n):
+        inv = INFINITY if s[i] == 0.0 else 1.0 / s[i]
+        for p in range(indptr[i], indptr[i + 1]):
+            j = indices[p]
+            m = fabs(data[p])
+            if m != 0.0 and z[j] != 0.0 and m * inv >= THETA * kappa[j]:
+                _union(parent, i, n + j)
     for j in range(n):
         if movable[j] and kappa[j] == 0.0:
             kappa[j] = INFINITY

@@ -33,10 +33,13 @@ componentwise backward error is ``omega = max_i eps_i``.
 the rows balance only through the cancellation of huge terms, because then the nearby problem can
 be qualitatively different (an infeasible positive semidefinite LCP is "solved" to any backward
 error by a large enough ``z``).  Row ``i`` has growth ``g_i = (|M| |z|)_i / (|q_i| + |w_i|)``.
-Rows coupled through significant terms (``|M_ij z_j| >= 2^-10 (|M| |z|)_i``, through the same
-``z_j``) form blocks; a block's growth ``G`` is the smallest ``g_i`` in it (one row whose terms do
-not cancel anchors the scale of the whole block; rows with ``q_i = 0`` and exact cancellation,
-such as the equality chains of an MLCP, are then fine).  Rows untouched by ``z`` have ``G = 1``.
+The size of ``z`` is fixed by the *equations*, the pairs scored in state ``F``.  Rows are linked
+through ``z_j != 0`` wherever ``z_j`` counts in them (``|M_ij| / s_i >= 2^-10 kappa_j``, a share
+within ``2^-10`` of ``z_j``'s largest); linked rows form blocks, and a block's growth ``G`` is the
+smallest ``g_i`` among its equations (one equation whose terms do not cancel anchors the size of
+the ``z`` it shares; legitimate exact cancellation, such as MLCP equality chains or friction-cone
+rows, is then fine; inactive rows cannot vouch for a size).  In a block whose equations carry no
+data, a row with ``q_i != 0`` answers for its own growth; rows untouched by ``z`` have ``G = 1``.
 
 **The certificate.**  ::
 

@@ -142,6 +142,25 @@ class Result:
             out["trace"] = self.trace
         return out
 
+    def __repr__(self) -> str:
+        """One short line (z and w are in ``str()`` and ``to_dict()``, not here)."""
+        return (f"Result(status={str(self.status)!r}, method={self.method!r}, n={self.n}, "
+                f"error={float(self.certificate.error):.3g}, iterations={self.iterations})")
+
+    def __str__(self) -> str:
+        """A few lines: verdict, message, certificate and the head of z and w."""
+        head = 6
+        with np.printoptions(precision=6, threshold=2 * head, edgeitems=head // 2):
+            z, w = np.array2string(self.z), np.array2string(self.w)
+        return "\n".join([
+            f"{self.status} by {self.method} ({self.termination}), n = {self.n}, "
+            f"{self.iterations} iterations, {self.seconds * 1e3:.3f} ms",
+            f"  message:  {self.message}",
+            f"  residual: {float(self.certificate.residual):.3e}   "
+            f"error: {float(self.certificate.error):.3e} (tol {float(self.certificate.tol):.1e})",
+            f"  z = {z}",
+            f"  w = {w}"])
+
 
 def _float(x: float) -> float | None:
     """JSON has no inf/nan: map them to None."""

@@ -1,11 +1,15 @@
 """Problem files: read and write JSON, NPZ, HDF5 and Siconos ``.dat``.
 
 ``load(path)`` returns a validated :class:`~lcpcli.core.problem.Problem`; every failure (missing
-file, unknown extension, malformed content, wrong shapes, NaN/Inf, pickled NPZ, truncated HDF5,
-absurd sizes) raises :class:`~lcpcli.core.errors.ProblemError` with a one-line message that names
-the file.  ``save(problem, path)`` writes atomically: a temporary file in the same folder is
-renamed over the target only once it is complete, so a failed write leaves no partial file and
-never damages an existing one.
+or non-regular file, unknown extension, malformed content, wrong shapes or types, NaN/Inf,
+pickled NPZ, truncated HDF5, absurd sizes) raises :class:`~lcpcli.core.errors.ProblemError` with
+a one-line message that names the file.  Readers check types (:mod:`lcpcli.core.numeric`),
+shapes and sizes of every dataset from the file's headers before reading its data, and read
+only regular files, text up to :data:`~lcpcli.io.files.MAX_TEXT_BYTES` (:mod:`lcpcli.io.files`).
+``save(problem, path)`` writes atomically: a temporary file in the same folder is renamed over
+the target only once it is complete, so a failed write leaves no partial file and never damages
+an existing one; :func:`~lcpcli.io.files.check_output` is what commands call first so that an
+output is never an input, a link or a device.
 
 Formats (chosen by extension, or ``fmt=``):
 
@@ -24,15 +28,24 @@ from __future__ import annotations
 
 import os
 import sys
-import tempfile
 from collections.abc import Callable
-from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
 from lcpcli.core.errors import ProblemError
 from lcpcli.core.problem import Problem
+from lcpcli.io.files import (
+    MAX_TEXT_BYTES,
+    atomic_path,
+    check_input_file,
+    check_output,
+    decode_text,
+    output_lock,
+    read_stdin_bytes,
+    write_atomic_text,
+)
 
+#: Problem file extensions and their formats (the one list: batch inputs use it too).
 FORMATS = {
     ".json": "json",
     ".npz": "npz",
@@ -41,6 +54,8 @@ FORMATS = {
     ".hdf": "hdf5",
     ".dat": "dat",
 }
+#: The extensions of problem files (folders given to a batch are searched for these).
+PROBLEM_EXTENSIONS = tuple(FORMATS)
 
 
 def detect_format(path: str | os.PathLike[str], fmt: str | None = None) -> str:
@@ -75,21 +90,23 @@ def _module(fmt: str) -> Any:
 
 def load(path: str | os.PathLike[str], problem: str | None = None, *,
          fmt: str | None = None) -> Problem:
-    """Read one problem from ``path`` (``-`` = JSON on stdin); ``problem`` picks an HDF5 group."""
+    """Read one problem from ``path`` (``-`` = JSON on stdin); ``problem`` picks an HDF5 group.
+
+    Only regular files are read (see :mod:`lcpcli.io.files`); sizes, shapes and data types are
+    checked from headers before the data is read.
+    """
     source = str(path)
     try:
         kind = detect_format(path, fmt)
+        if problem is not None and kind != "hdf5":
+            raise ProblemError("--problem applies to HDF5 files only")
         if source == "-":
             from lcpcli.io import json_format
 
-            return json_format.read_text(sys.stdin.read(), default_name="stdin")
+            text = decode_text(read_stdin_bytes(MAX_TEXT_BYTES), "UTF-8 JSON text")
+            return json_format.read_text(text, default_name="stdin")
+        check_input_file(path)
         p = Path(path)
-        if not p.exists():
-            raise ProblemError("no such file")
-        if p.is_dir():
-            raise ProblemError("is a directory, not a problem file")
-        if problem is not None and kind != "hdf5":
-            raise ProblemError("--problem applies to HDF5 files only")
         return _module(kind).read(p, problem) if kind == "hdf5" else _module(kind).read(p)
     except ProblemError as exc:
         raise exc.with_source(source) from None
@@ -97,6 +114,8 @@ def load(path: str | os.PathLike[str], problem: str | None = None, *,
         raise ProblemError("permission denied", source) from None
     except MemoryError:
         raise ProblemError("not enough memory to read the problem", source) from None
+    except RecursionError:
+        raise ProblemError("data nested too deeply", source) from None
 
 
 def list_problems(path: str | os.PathLike[str]) -> list[str]:
@@ -106,6 +125,7 @@ def list_problems(path: str | os.PathLike[str]) -> list[str]:
         from lcpcli.io import hdf5_format
 
         try:
+            check_input_file(path)
             return hdf5_format.list_problems(Path(path))
         except ProblemError as exc:
             raise exc.with_source(str(path)) from None
@@ -125,39 +145,8 @@ def save(problem: Problem, path: str | os.PathLike[str], *, fmt: str | None = No
         writer(problem, tmp)
 
 
-@contextmanager
-def atomic_path(target: Path) -> Any:
-    """Yield a temporary path beside ``target``; rename it over ``target`` on success only."""
-    target = Path(target)
-    folder = target.parent if str(target.parent) else Path(".")
-    if not folder.is_dir():
-        raise ProblemError(f"folder {folder} does not exist", str(target))
-    fd, name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=folder)
-    os.close(fd)
-    tmp = Path(name)
-    try:
-        yield tmp
-        os.chmod(tmp, _target_mode(target))
-        os.replace(tmp, target)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
-
-
-def _target_mode(target: Path) -> int:
-    """The existing file's mode, else what a plain ``open(..., "w")`` would give (umask)."""
-    try:
-        return target.stat().st_mode & 0o777
-    except OSError:
-        umask = os.umask(0)
-        os.umask(umask)
-        return 0o666 & ~umask
-
-
-def write_atomic_text(target: Path, text: str) -> None:
-    """Write a text file atomically (used by the CLI for result files)."""
-    with atomic_path(target) as tmp:
-        tmp.write_text(text)
-
-
 Reader = Callable[..., Problem]
+
+__all__ = ["FORMATS", "MAX_TEXT_BYTES", "PROBLEM_EXTENSIONS", "atomic_path", "check_output",
+           "detect_format", "list_problems", "load", "output_lock", "save",
+           "write_atomic_text"]

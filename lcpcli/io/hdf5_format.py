@@ -10,14 +10,26 @@ with attributes ``format`` (csr/csc/coo) and ``shape`` and datasets ``data`` plu
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from lcpcli.core.errors import ProblemError
+from lcpcli.core.numeric import INDEX_KINDS, REAL_KINDS, check_dtype
 from lcpcli.core.problem import Problem, check_size
-from lcpcli.io.sparse import sparse_from_parts, sparse_parts
+from lcpcli.io.files import MAX_JSON_DEPTH, MAX_NAME_BYTES, MAX_TEXT_BYTES, check_depth, parse_json
+from lcpcli.io.sparse import (
+    check_part_sizes,
+    parse_format,
+    parse_shape,
+    sparse_from_parts,
+    sparse_parts,
+)
+
+#: The errors h5py raises on damaged or unexpected content (turned into one-line messages).
+H5_ERRORS = (OSError, KeyError, RuntimeError, TypeError, ValueError, AttributeError)
 
 
 def _open(path: Path) -> Any:
@@ -30,24 +42,65 @@ def _open(path: Path) -> Any:
         raise ProblemError(f"not a readable HDF5 file ({reason})") from None
 
 
+def _damaged(exc: BaseException) -> ProblemError:
+    first = str(exc).splitlines()[0][:100] if str(exc) else type(exc).__name__
+    return ProblemError(f"damaged HDF5 data ({first})")
+
+
+def _has(g: Any, name: str) -> bool:
+    """Whether ``g`` has a link called ``name`` (without following it)."""
+    try:
+        return g.get(name, getlink=True) is not None
+    except H5_ERRORS:
+        return False
+
+
+def _child(g: Any, name: str, label: str) -> Any:
+    """The object linked as ``name`` in ``g``; external links are refused, never opened."""
+    import h5py
+
+    link = g.get(name, getlink=True)
+    if link is None:
+        return None
+    if isinstance(link, h5py.ExternalLink):
+        raise ProblemError(f"'{label}' is an external link (to {link.filename}); a problem "
+                           f"must be stored in its own file")
+    if not isinstance(link, (h5py.HardLink, h5py.SoftLink)):
+        raise ProblemError(f"'{label}' is a user-defined link; refused")
+    node = g.get(name)
+    if node is None:
+        raise ProblemError(f"'{label}' is a dangling link")
+    return node
+
+
 def _is_problem(node: Any) -> bool:
     import h5py
 
-    return isinstance(node, h5py.Group) and "q" in node and "M" in node
+    return isinstance(node, h5py.Group) and _has(node, "q") and _has(node, "M")
 
 
 def _problem_groups(f: Any) -> list[str]:
     import h5py
 
-    return [name for name, node in f.items() if isinstance(node, h5py.Group) and _is_problem(node)]
+    names = []
+    for name in f:
+        link = f.get(name, getlink=True)
+        if isinstance(link, (h5py.HardLink, h5py.SoftLink)) and _is_problem(f.get(name)):
+            names.append(name)
+    return names
 
 
 def list_problems(path: Path) -> list[str]:
     """The problems in the file: ``["/"]`` when M and q sit at the root, else group names."""
     with _open(path) as f:
-        if _is_problem(f):
-            return [str(f.attrs.get("name", "")) or path.stem]
-        return _problem_groups(f)
+        try:
+            if _is_problem(f):
+                return [_attr_text(f, "name", MAX_NAME_BYTES) or path.stem]
+            return _problem_groups(f)
+        except ProblemError:
+            raise
+        except H5_ERRORS as exc:
+            raise _damaged(exc) from None
 
 
 def read(path: Path, problem: str | None = None) -> Problem:
@@ -67,8 +120,10 @@ def read(path: Path, problem: str | None = None) -> Problem:
             if problem not in groups:
                 raise ProblemError(f"no problem named '{problem}' (problems: {_names(groups)})")
             return _read_group(f[problem], problem)
-        except (OSError, KeyError, RuntimeError) as exc:
-            raise ProblemError(f"damaged HDF5 data ({str(exc).splitlines()[0][:100]})") from None
+        except ProblemError:
+            raise
+        except H5_ERRORS as exc:
+            raise _damaged(exc) from None
 
 
 def _names(groups: list[str], limit: int = 20) -> str:
@@ -76,42 +131,149 @@ def _names(groups: list[str], limit: int = 20) -> str:
     return shown + (f", ... ({len(groups) - limit} more)" if len(groups) > limit else "")
 
 
-def _read_group(g: Any, default_name: str) -> Problem:
+# ------------------------------------------------------------------ checked access
+def _dataset(g: Any, name: str, label: str, kinds: str = REAL_KINDS) -> Any:
+    """A dataset of ``g`` stored in this file, of an accepted type (nothing read yet)."""
     import h5py
 
-    node = g["M"]
+    node = _child(g, name, label)
+    if node is None:
+        return None
+    if not isinstance(node, h5py.Dataset):
+        raise ProblemError(f"'{label}' is a group, expected a dataset")
+    if node.shape is None:
+        raise ProblemError(f"'{label}' is an empty (null) dataset")
+    if node.is_virtual or node.id.get_create_plist().get_external_count():
+        raise ProblemError(f"'{label}' keeps its data in other files (virtual or external "
+                           f"storage); refused")
+    check_dtype(node.dtype, f"'{label}'", kinds=kinds)
+    return node
+
+
+def _read_float(d: Any) -> np.ndarray:
+    """A checked dataset's data as float64 (HDF5 converts integer types on the way)."""
+    out = np.empty(d.shape, dtype=np.float64)
+    if out.size:
+        d.read_direct(out)
+    return out
+
+
+def _read_index(d: Any) -> np.ndarray:
+    out = np.empty(d.shape, dtype=np.int64)
+    if out.size:
+        d.read_direct(out)
+    return out
+
+
+def _vector(g: Any, name: str, n: int) -> np.ndarray | None:
+    """Dataset ``name`` as a vector of length ``n`` (shape checked before reading)."""
+    d = _dataset(g, name, name)
+    if d is None:
+        return None
+    shape = tuple(d.shape)
+    if len(shape) > 2 or math.prod(shape) != n or (len(shape) == 2 and 1 not in shape
+                                                   and n != 1):
+        raise ProblemError(f"{name} has shape {shape} but M is {n} x {n}")
+    return _read_float(d).reshape(-1)
+
+
+def _attr_id(g: Any, key: str) -> Any:
+    import h5py
+
+    if key not in g.attrs:
+        return None
+    return h5py.h5a.open(g.id, key.encode())
+
+
+def _attr_int(g: Any, key: str) -> int | None:
+    aid = _attr_id(g, key)
+    if aid is None:
+        return None
+    shape = aid.shape
+    if shape is None or math.prod(shape) != 1 or aid.dtype.kind not in INDEX_KINDS:
+        raise ProblemError(f"attribute '{key}' must be one integer (got {aid.dtype} "
+                           f"of shape {shape})")
+    return int(np.asarray(g.attrs[key]).reshape(-1)[0])
+
+
+def _attr_text(g: Any, key: str, limit: int) -> str:
+    """A string attribute (fixed or variable length), at most ``limit`` bytes; '' if absent."""
+    import h5py
+
+    aid = _attr_id(g, key)
+    if aid is None:
+        return ""
+    shape = aid.shape
+    is_text = aid.dtype.kind in "SU" or h5py.check_string_dtype(aid.dtype) is not None
+    if shape is None or math.prod(shape) != 1 or not is_text:
+        raise ProblemError(f"attribute '{key}' must be one string (got {aid.dtype} "
+                           f"of shape {shape})")
+    value = g.attrs[key]
+    if isinstance(value, np.ndarray):
+        value = value.reshape(-1)[0]
+    if isinstance(value, bytes):
+        value = value.decode("utf-8", errors="replace")
+    value = str(value)
+    if len(value) > limit:
+        raise ProblemError(f"attribute '{key}' is longer than {limit:,} bytes")
+    return value
+
+
+def _read_matrix(g: Any) -> Any:
+    import h5py
+
+    node = _child(g, "M", "M")
     if isinstance(node, h5py.Group):
-        parts: dict[str, Any] = {k: node.attrs[k] for k in ("format", "shape") if k in node.attrs}
-        if "data" in node:
-            check_size(*[int(x) for x in np.asarray(parts.get("shape", (0, 0))).ravel()[:2]],
-                       sparse=True, nnz=int(node["data"].shape[0]))
-        for k in ("data", "indices", "indptr", "row", "col"):
-            if k in node:
-                parts[k] = node[k][()]
-        M: Any = sparse_from_parts(parts, "M")
-    else:
-        if len(node.shape) == 2:
-            check_size(*node.shape)
-        M = node[()]
-    q = g["q"][()]
-    attrs = g.attrs
+        return _read_sparse(node)
+    d = _dataset(g, "M", "M")
+    if len(d.shape) != 2:
+        raise ProblemError(f"M must be a 2-D matrix, got shape {tuple(d.shape)}")
+    check_size(*d.shape)
+    return _read_float(d)
+
+
+def _read_sparse(node: Any) -> Any:
+    """A sparse M group: attributes, then every part's type and length, then the data."""
+    if "format" not in node.attrs:
+        raise ProblemError("sparse M: missing attribute 'format'")
+    fmt = parse_format(_attr_text(node, "format", 16))
+    aid = _attr_id(node, "shape")
+    if aid is None:
+        raise ProblemError("sparse M: missing attribute 'shape'")
+    if aid.shape is None or math.prod(aid.shape) != 2 or aid.dtype.kind not in INDEX_KINDS:
+        raise ProblemError("sparse M: attribute 'shape' must be two integers")
+    shape = parse_shape(np.asarray(node.attrs["shape"]).reshape(-1))
+    heads = {}
+    for k in ("data", "indices", "indptr", "row", "col"):
+        d = _dataset(node, k, f"M/{k}", REAL_KINDS if k == "data" else INDEX_KINDS)
+        if d is not None:
+            if len(d.shape) != 1:
+                raise ProblemError(f"sparse M: '{k}' must be 1-D, got shape {tuple(d.shape)}")
+            heads[k] = d
+    check_part_sizes(fmt, shape, {k: int(d.shape[0]) for k, d in heads.items()})
+    parts: dict[str, Any] = {"format": fmt, "shape": shape}
+    for k, d in heads.items():
+        parts[k] = _read_float(d) if k == "data" else _read_index(d)
+    return sparse_from_parts(parts, "M")
+
+
+def _read_group(g: Any, default_name: str) -> Problem:
+    M = _read_matrix(g)
+    n = M.shape[0]
+    q = _vector(g, "q", n)
+    lower = _vector(g, "lower", n)
+    upper = _vector(g, "upper", n)
     meta: dict[str, Any] = {}
-    if "meta" in attrs:
-        try:
-            meta = json.loads(_text(attrs["meta"]))
-        except json.JSONDecodeError:
-            raise ProblemError("attribute 'meta' is not a JSON string") from None
-    return Problem.create(M, q, n_eq=int(attrs.get("n_eq", 0)),
-                          lower=g["lower"][()] if "lower" in g else None,
-                          upper=g["upper"][()] if "upper" in g else None,
-                          name=_text(attrs.get("name", "")) or default_name,
-                          description=_text(attrs.get("description", "")), meta=meta)
-
-
-def _text(x: Any) -> str:
-    if isinstance(x, bytes):
-        return x.decode()
-    return str(x)
+    text = _attr_text(g, "meta", MAX_TEXT_BYTES)
+    if text:
+        meta = parse_json(text)
+        if not isinstance(meta, dict):
+            raise ProblemError("attribute 'meta' must be a JSON object")
+        check_depth(meta, "attribute 'meta'", MAX_JSON_DEPTH)
+    n_eq = _attr_int(g, "n_eq")
+    return Problem.create(M, q, n_eq=n_eq or 0, lower=lower, upper=upper,
+                          name=_attr_text(g, "name", MAX_NAME_BYTES) or default_name,
+                          description=_attr_text(g, "description", MAX_NAME_BYTES), meta=meta)
 
 
 def write_group(g: Any, problem: Problem) -> None:
@@ -179,7 +341,7 @@ def read_many(path: Path, names: list[str]) -> Any:
                 if fast is not None:
                     yield name, fast
                     continue
-                node = f.get(name)
+                node = _child(f, name, name) if _has(f, name) else None
                 if node is not None and _is_problem(node):
                     yield name, _read_group(node, name)
                 elif root:
@@ -188,9 +350,8 @@ def read_many(path: Path, names: list[str]) -> Any:
                     yield name, ProblemError(f"no problem named '{name}'")
             except ProblemError as exc:
                 yield name, exc
-            except (OSError, KeyError, RuntimeError, ValueError) as exc:
-                yield name, ProblemError(
-                    f"damaged HDF5 data ({str(exc).splitlines()[0][:100]})")
+            except H5_ERRORS as exc:
+                yield name, _damaged(exc)
 
 
 def _read_plain_group(f: Any, name: str) -> Problem | None:
@@ -204,27 +365,41 @@ def _read_plain_group(f: Any, name: str) -> Problem | None:
     import h5py
 
     key = name.encode()
-    if not f.id.links.exists(key):
+    if not _hard_link(f.id, key):
         return None
     gid = h5py.h5o.open(f.id, key)
     if not isinstance(gid, h5py.h5g.GroupID):
         return None
     links = gid.links
-    if not (links.exists(b"M") and links.exists(b"q")) or links.exists(b"lower") \
+    if not (_hard_link(gid, b"M") and _hard_link(gid, b"q")) or links.exists(b"lower") \
             or links.exists(b"upper"):
         return None
     if h5py.h5a.exists(gid, b"n_eq") or h5py.h5a.exists(gid, b"meta"):
         return None
     arrays = []
+    n = 0
     for part, ndim in ((b"M", (2,)), (b"q", (1, 2))):
         d = h5py.h5o.open(gid, part)
-        if not isinstance(d, h5py.h5d.DatasetID) or d.dtype.kind not in "fiu" \
-                or len(d.shape) not in ndim:
+        if not isinstance(d, h5py.h5d.DatasetID) or d.dtype.kind not in REAL_KINDS \
+                or d.shape is None or len(d.shape) not in ndim:
+            return None
+        plist = d.get_create_plist()
+        if plist.get_layout() == h5py.h5d.VIRTUAL or plist.get_external_count():
             return None
         if part == b"M":
             check_size(*d.shape)
+            n = d.shape[0]
+        elif math.prod(d.shape) != n:
+            return None  # the general reader says what is wrong
         out = np.empty(d.shape, dtype=np.float64)
         if out.size:
             d.read(h5py.h5s.ALL, h5py.h5s.ALL, out)
         arrays.append(out)
     return Problem.create(arrays[0], arrays[1], name=name)
+
+
+def _hard_link(gid: Any, key: bytes) -> bool:
+    """Whether ``key`` names a hard link of the group ``gid`` (soft/external: the slow path)."""
+    import h5py
+
+    return gid.links.exists(key) and gid.links.get_info(key).type == h5py.h5l.TYPE_HARD

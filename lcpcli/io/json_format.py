@@ -1,4 +1,12 @@
-"""JSON problem files: ``{"M": [[...]], "q": [...]}`` (see :mod:`lcpcli.io` for the schema)."""
+"""JSON problem files: ``{"M": [[...]], "q": [...]}`` (see :mod:`lcpcli.io` for the schema).
+
+Values follow :mod:`lcpcli.core.numeric`: ``M``, ``q``, ``lower`` and ``upper`` hold JSON numbers
+only (``true``/``false`` and strings are refused, numeric text included); ``lower``/``upper``
+also take ``null`` (and ``"inf"``/``"-inf"``) for an infinite bound.  ``name`` and
+``description`` are strings, ``n_eq`` an integer, ``meta`` an object nested at most
+:data:`~lcpcli.io.files.MAX_JSON_DEPTH` deep.  The file is at most
+:data:`~lcpcli.io.files.MAX_TEXT_BYTES` long.
+"""
 
 from __future__ import annotations
 
@@ -10,31 +18,31 @@ from typing import Any
 import numpy as np
 
 from lcpcli.core.errors import ProblemError
+from lcpcli.core.numeric import real_array, scan_nested
 from lcpcli.core.problem import Problem, check_size
+from lcpcli.io.files import MAX_TEXT_BYTES, check_depth, decode_text, parse_json, read_input_bytes
 from lcpcli.io.sparse import sparse_from_parts, sparse_parts
 
 KNOWN_KEYS = {"M", "q", "name", "description", "n_eq", "lower", "upper", "meta"}
+#: Strings accepted for an infinite bound (as :mod:`lcpcli.core.problem` reads them).
+INF_WORDS = {"inf": math.inf, "+inf": math.inf, "infinity": math.inf, "+infinity": math.inf,
+             "-inf": -math.inf, "-infinity": -math.inf}
 
 
 def read(path: Path) -> Problem:
-    try:
-        text = path.read_text(encoding="utf-8")
-    except UnicodeDecodeError:
-        raise ProblemError("not a UTF-8 text file (is it really JSON?)") from None
-    return read_text(text, default_name=path.stem)
+    data = read_input_bytes(path, MAX_TEXT_BYTES, "a JSON problem file")
+    return read_text(decode_text(data, "a UTF-8 text file (is it really JSON?)"),
+                     default_name=path.stem)
 
 
 def read_text(text: str, default_name: str = "") -> Problem:
-    try:
-        data = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise ProblemError(f"invalid JSON: {exc.msg} at line {exc.lineno} column {exc.colno}") \
-            from None
-    return from_dict(data, default_name)
+    # booleans hide in float arrays: scan element by element only when the text has any
+    scan = "true" in text or "false" in text
+    return from_dict(parse_json(text), default_name, scan=scan)
 
 
-def from_dict(data: Any, default_name: str = "") -> Problem:
-    """Build a problem from the decoded JSON object."""
+def from_dict(data: Any, default_name: str = "", *, scan: bool = True) -> Problem:
+    """Build a problem from the decoded JSON object (``scan``: look for booleans in arrays)."""
     if not isinstance(data, dict):
         raise ProblemError("expected a JSON object with keys 'M' and 'q'")
     missing = [k for k in ("M", "q") if k not in data]
@@ -42,26 +50,81 @@ def from_dict(data: Any, default_name: str = "") -> Problem:
         raise ProblemError(f"missing key {', '.join(repr(k) for k in missing)}")
     unknown = sorted(set(data) - KNOWN_KEYS)
     if unknown:
-        raise ProblemError(f"unknown key {', '.join(repr(k) for k in unknown)} "
-                           f"(known: {', '.join(sorted(KNOWN_KEYS))})")
-    M = data["M"]
-    if isinstance(M, dict):
-        M = sparse_from_parts(M, "M")
-    elif isinstance(M, list):
-        rows = len(M)
-        cols = len(M[0]) if rows and isinstance(M[0], list) else 0
-        check_size(rows, cols)
-        if any(not isinstance(r, list) or len(r) != cols for r in M):
-            raise ProblemError("M must be a list of rows of equal length")
-    else:
-        raise ProblemError("M must be a list of rows or a sparse {'format': ...} object")
-    meta = data.get("meta") or {}
+        shown = ", ".join(repr(k[:40]) for k in unknown[:5])
+        raise ProblemError(f"unknown key {shown} (known: {', '.join(sorted(KNOWN_KEYS))})")
+    M = _matrix(data["M"], scan)
+    q = _vector(data["q"], "q", scan)
+    n_eq = data.get("n_eq")
+    if n_eq is None:
+        n_eq = 0
+    if isinstance(n_eq, bool) or not isinstance(n_eq, int):
+        raise ProblemError(f"'n_eq' must be an integer, got {json.dumps(n_eq)[:40]}")
+    meta = data.get("meta")
+    if meta is None:
+        meta = {}
     if not isinstance(meta, dict):
         raise ProblemError("'meta' must be an object")
-    return Problem.create(M, data["q"], n_eq=data.get("n_eq", 0) or 0,
-                          lower=data.get("lower"), upper=data.get("upper"),
-                          name=data.get("name") or default_name,
-                          description=data.get("description") or "", meta=meta)
+    check_depth(meta, "'meta'")
+    return Problem.create(M, q, n_eq=n_eq, lower=_bound(data.get("lower"), "lower", -math.inf),
+                          upper=_bound(data.get("upper"), "upper", math.inf),
+                          name=_text(data.get("name"), "name") or default_name,
+                          description=_text(data.get("description"), "description"),
+                          meta=meta)
+
+
+def _text(value: Any, label: str) -> str:
+    if value is None:
+        return ""
+    if not isinstance(value, str):
+        raise ProblemError(f"'{label}' must be a string")
+    return value
+
+
+def _matrix(M: Any, scan: bool) -> Any:
+    if isinstance(M, dict):
+        return sparse_from_parts(M, "M")
+    if not isinstance(M, list):
+        raise ProblemError("M must be a list of rows or a sparse {'format': ...} object")
+    rows = len(M)
+    if rows == 0:
+        return np.zeros((0, 0))
+    if not all(isinstance(r, list) for r in M):
+        raise ProblemError("M must be a list of rows (lists of numbers)")
+    cols = len(M[0])
+    check_size(rows, cols)
+    if any(len(r) != cols for r in M):
+        raise ProblemError("M must be a list of rows of equal length")
+    arr = real_array(M, "M", scan=scan)
+    if arr.ndim != 2:
+        raise ProblemError(f"M must be a list of rows of numbers, got {arr.ndim}-D data")
+    return arr
+
+
+def _vector(v: Any, label: str, scan: bool) -> np.ndarray:
+    if isinstance(v, (dict, str)):
+        raise ProblemError(f"{label} must be a list of numbers")
+    arr = real_array(v, label, scan=scan)
+    if arr.ndim > 1 and arr.size != max(arr.shape):
+        raise ProblemError(f"{label} must be a vector, got shape {arr.shape}")
+    return arr.reshape(-1)
+
+
+def _bound(v: Any, label: str, inf: float) -> Any:
+    """A bound vector: numbers, ``null`` (= ``inf`` of this side) or the words of INF_WORDS."""
+    if v is None:
+        return None
+    if not isinstance(v, list):
+        raise ProblemError(f"'{label}' must be a list of numbers (null = infinite)")
+    out = []
+    for x in v:
+        if x is None:
+            out.append(inf)
+        elif isinstance(x, str) and x.strip().lower() in INF_WORDS:
+            out.append(INF_WORDS[x.strip().lower()])
+        else:
+            out.append(x)
+    scan_nested(out, label)
+    return real_array(out, label, scan=False)
 
 
 def to_dict(problem: Problem) -> dict[str, Any]:

@@ -1,76 +1,198 @@
 """NPZ problem files: arrays ``M`` and ``q`` (or a sparse M as ``M_format``, ``M_shape``,
 ``M_data`` with ``M_indices``/``M_indptr`` or ``M_row``/``M_col``), optional ``n_eq``, ``lower``,
-``upper``, ``name``, ``description`` and ``meta`` (a JSON string).  Read with
-``allow_pickle=False``: object arrays are refused.
+``upper``, ``name``, ``description`` and ``meta`` (a JSON string).
+
+Nothing is read before it is checked: the zip directory's declared sizes and each member's
+``.npy`` header (data type under :mod:`lcpcli.core.numeric`, shape against ``n`` from M's
+header) are validated first, so a zip bomb or a mislabelled array costs no memory.  Pickled
+(object) arrays are refused; other members are ignored (never decompressed).
 """
 
 from __future__ import annotations
 
 import json
+import math
 import zipfile
 from pathlib import Path
-from typing import Any
+from typing import IO, Any
 
 import numpy as np
 
 from lcpcli.core.errors import ProblemError
+from lcpcli.core.numeric import INDEX_KINDS, REAL_KINDS, check_dtype
 from lcpcli.core.problem import Problem, check_size
-from lcpcli.io.sparse import sparse_from_parts, sparse_parts
+from lcpcli.io.files import (
+    MAX_JSON_DEPTH,
+    MAX_NAME_BYTES,
+    MAX_TEXT_BYTES,
+    check_depth,
+    open_input,
+    parse_json,
+)
+from lcpcli.io.sparse import (
+    check_part_sizes,
+    parse_format,
+    parse_shape,
+    sparse_from_parts,
+    sparse_parts,
+)
+
+#: A problem NPZ holds a handful of arrays; more zip entries than this is not one.
+MAX_MEMBERS = 1000
+_TEXT_KINDS = "US"
 
 
-def _header_shape(npz: Any, key: str) -> tuple[int, ...]:
-    """Shape of member ``key`` from its .npy header, without reading the data."""
-    with npz.zip.open(f"{key}.npy") as fh:
+def read_npy_header(fh: IO[bytes]) -> tuple[tuple[int, ...], np.dtype]:
+    """Shape and dtype from a ``.npy`` header (the file position ends after the header)."""
+    try:
         version = np.lib.format.read_magic(fh)
         if version == (1, 0):
-            shape, _, _ = np.lib.format.read_array_header_1_0(fh)
-        else:
-            shape, _, _ = np.lib.format.read_array_header_2_0(fh)
-    return tuple(shape)
+            shape, _fortran, dtype = np.lib.format.read_array_header_1_0(fh)
+        elif version == (2, 0):
+            shape, _fortran, dtype = np.lib.format.read_array_header_2_0(fh)
+        else:  # 3.0 (UTF-8 field names): numpy has no public reader of the header alone
+            shape, _fortran, dtype = np.lib.format._read_array_header(fh, version)
+    except (ValueError, TypeError, SyntaxError, EOFError) as exc:
+        raise ProblemError(f"damaged .npy header ({str(exc).splitlines()[0][:80]})") from None
+    return tuple(int(x) for x in shape), np.dtype(dtype)
+
+
+class Member:
+    """One ``.npy`` member of the zip: its header read, its data not yet."""
+
+    def __init__(self, zf: zipfile.ZipFile, info: zipfile.ZipInfo, key: str) -> None:
+        self.zf, self.info, self.key = zf, info, key
+        with zf.open(info) as fh:
+            try:
+                shape, dtype = read_npy_header(fh)
+            except ProblemError as exc:
+                raise ProblemError(f"array '{key}': {exc}") from None
+            header_len = fh.tell()
+        self.shape: tuple[int, ...] = tuple(int(x) for x in shape)
+        self.dtype = np.dtype(dtype)
+        self.size = math.prod(self.shape)
+        if self.dtype.hasobject:
+            raise ProblemError(f"array '{key}' holds pickled Python objects; refused for "
+                               f"safety (allow_pickle=False)")
+        needed = header_len + self.size * self.dtype.itemsize
+        if info.file_size != needed:
+            raise ProblemError(f"array '{key}' is damaged: its header declares "
+                               f"{needed:,} bytes, the zip entry {info.file_size:,}")
+
+    def check(self, label: str, kinds: str = REAL_KINDS) -> None:
+        check_dtype(self.dtype, label, kinds=kinds)
+
+    def read(self) -> np.ndarray:
+        with self.zf.open(self.info) as fh:
+            return _read_array(fh)
+
+    def vector(self, label: str, n: int) -> np.ndarray:
+        """A real vector of length ``n`` (shapes (n,), (n, 1), (1, n) accepted)."""
+        self.check(label)
+        if len(self.shape) > 2 or self.size != n or (len(self.shape) == 2 and 1 not in self.shape
+                                                     and n != 1):
+            raise ProblemError(f"{label} has shape {self.shape} but M is {n} x {n}")
+        return self.read().reshape(-1)
+
+    def scalar_int(self, label: str) -> int:
+        if self.size != 1 or self.dtype.kind not in INDEX_KINDS:
+            raise ProblemError(f"'{label}' must be one integer (got {self.dtype} "
+                               f"of shape {self.shape})")
+        return int(self.read().reshape(-1)[0])
+
+    def text(self, label: str, limit: int) -> str:
+        if self.size != 1 or self.dtype.kind not in _TEXT_KINDS:
+            raise ProblemError(f"'{label}' must be one string (got {self.dtype} of shape "
+                               f"{self.shape})")
+        if self.dtype.itemsize > limit:
+            raise ProblemError(f"'{label}' is longer than {limit:,} bytes")
+        value = self.read().reshape(-1)[0]
+        return value.decode("utf-8", errors="replace") if isinstance(value, bytes) else str(value)
+
+
+def _read_array(fh: IO[bytes]) -> np.ndarray:
+    try:
+        return np.lib.format.read_array(fh, allow_pickle=False)
+    except ValueError as exc:
+        raise ProblemError(f"damaged array data ({str(exc).splitlines()[0][:80]})") from None
 
 
 def read(path: Path) -> Problem:
-    try:
-        with np.load(path, allow_pickle=False) as npz:
-            return _read(npz, path)
-    except ProblemError:
-        raise
-    except (zipfile.BadZipFile, EOFError, OSError) as exc:
-        raise ProblemError(f"not a valid NPZ file ({type(exc).__name__}: {exc})") from None
-    except ValueError as exc:
-        msg = str(exc)
-        if "allow_pickle" in msg or "pickle" in msg.lower():
-            raise ProblemError("NPZ holds pickled (object) arrays; refused for safety") from None
-        raise ProblemError(f"not a valid NPZ file ({msg})") from None
-
-
-def _read(npz: Any, path: Path) -> Problem:
-    keys = set(npz.files)
-    if "q" not in keys:
-        raise ProblemError(f"missing array 'q' (arrays present: {', '.join(sorted(keys))})")
-    if "M" in keys:
-        shape = _header_shape(npz, "M")
-        if len(shape) == 2:
-            check_size(*shape)
-        M: Any = npz["M"]
-    elif "M_format" in keys:
-        parts = {k[2:]: npz[k] for k in keys if k.startswith("M_")}
-        M = sparse_from_parts(parts, "M")
-    else:
-        raise ProblemError(f"missing array 'M' (arrays present: {', '.join(sorted(keys))})")
-    meta: dict[str, Any] = {}
-    if "meta" in keys:
+    with open_input(path) as fh:
         try:
-            meta = json.loads(str(npz["meta"]))
-        except json.JSONDecodeError:
-            raise ProblemError("'meta' is not a JSON string") from None
-    n_eq = int(npz["n_eq"]) if "n_eq" in keys else 0
-    return Problem.create(M, npz["q"], n_eq=n_eq,
-                          lower=npz["lower"] if "lower" in keys else None,
-                          upper=npz["upper"] if "upper" in keys else None,
-                          name=str(npz["name"]) if "name" in keys else path.stem,
-                          description=str(npz["description"]) if "description" in keys else "",
-                          meta=meta)
+            zf = zipfile.ZipFile(fh)
+        except (zipfile.BadZipFile, EOFError, OSError, ValueError) as exc:
+            raise ProblemError(f"not a valid NPZ file ({type(exc).__name__}: {exc})") from None
+        try:
+            with zf:
+                return _read(zf, path)
+        except (zipfile.BadZipFile, EOFError, OSError, NotImplementedError,
+                RuntimeError) as exc:
+            raise ProblemError(f"not a valid NPZ file ({type(exc).__name__}: "
+                               f"{str(exc).splitlines()[0][:100]})") from None
+
+
+def _read(zf: zipfile.ZipFile, path: Path) -> Problem:
+    infos = zf.infolist()
+    if len(infos) > MAX_MEMBERS:
+        raise ProblemError(f"holds {len(infos):,} zip entries; a problem file has a few arrays")
+    entries = {i.filename[:-4]: i for i in infos if i.filename.endswith(".npy")}
+
+    def member(key: str) -> Member:
+        return Member(zf, entries[key], key)
+
+    if "q" not in entries:
+        raise ProblemError(f"missing array 'q' (arrays present: {', '.join(sorted(entries))})")
+    if "M" in entries:
+        m = member("M")
+        m.check("M")
+        if len(m.shape) != 2:
+            raise ProblemError(f"M must be a 2-D matrix, got shape {m.shape}")
+        check_size(*m.shape)
+        M: Any = m.read()
+        n = m.shape[0]
+    elif "M_format" in entries:
+        M = sparse_from_parts(_sparse_parts(entries, member), "M")
+        n = M.shape[0]
+    else:
+        raise ProblemError(f"missing array 'M' (arrays present: {', '.join(sorted(entries))})")
+    q = member("q").vector("q", n)
+    bounds = {k: member(k).vector(k, n) for k in ("lower", "upper") if k in entries}
+    meta: dict[str, Any] = {}
+    if "meta" in entries:
+        text = member("meta").text("meta", MAX_TEXT_BYTES)
+        meta = parse_json(text)
+        if not isinstance(meta, dict):
+            raise ProblemError("'meta' must be a JSON object")
+        check_depth(meta, "'meta'", MAX_JSON_DEPTH)
+    n_eq = member("n_eq").scalar_int("n_eq") if "n_eq" in entries else 0
+    name = member("name").text("name", MAX_NAME_BYTES) if "name" in entries else path.stem
+    desc = member("description").text("description", MAX_NAME_BYTES) \
+        if "description" in entries else ""
+    return Problem.create(M, q, n_eq=n_eq, lower=bounds.get("lower"), upper=bounds.get("upper"),
+                          name=name, description=desc, meta=meta)
+
+
+def _sparse_parts(entries: dict[str, zipfile.ZipInfo], member: Any) -> dict[str, Any]:
+    """The ``M_*`` members, checked from their headers before any is read."""
+    fmt = parse_format(member("M_format").text("M_format", 16))
+    if "M_shape" not in entries:
+        raise ProblemError("sparse M: missing 'M_shape'")
+    head = member("M_shape")
+    if head.size != 2 or head.dtype.kind not in INDEX_KINDS:
+        raise ProblemError("sparse M: 'M_shape' must be two integers")
+    shape = parse_shape(head.read())
+    heads = {k: member(f"M_{k}") for k in ("data", "indices", "indptr", "row", "col")
+             if f"M_{k}" in entries}
+    for k, h in heads.items():
+        h.check(f"sparse M {k}", REAL_KINDS if k == "data" else INDEX_KINDS)
+        if len(h.shape) != 1:
+            raise ProblemError(f"sparse M: 'M_{k}' must be 1-D, got shape {h.shape}")
+    check_part_sizes(fmt, shape, {k: h.size for k, h in heads.items()})
+    parts: dict[str, Any] = {"format": fmt, "shape": shape}
+    for k, h in heads.items():
+        parts[k] = h.read()
+    return parts
 
 
 def write(problem: Problem, path: Path) -> None:

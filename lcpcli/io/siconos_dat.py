@@ -11,17 +11,25 @@ The format is a whitespace-separated token stream (see ``shared/data/siconos/REA
   ``q``; if st2: A (n x n), B (m x m), C (n x m), D (m x n), a, b in row-major order.
   The problem is ``A u + C v + a = 0``, ``0 <= v _|_ D u + B v + b >= 0``.
 
-Trailing numbers (old reference solutions) are ignored.
+Trailing numbers (old reference solutions) are ignored.  Sizes and counts are checked before
+anything is allocated (integers must be finite whole numbers, block structures consistent);
+a sparse-block M with more than :data:`SBM_DENSE_MAX_ENTRIES` entries is kept sparse (CSR), and
+a sparse M is written in sparse-block storage (1 x 1 blocks), never densified.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from lcpcli.core.errors import ProblemError
-from lcpcli.core.problem import Problem, check_size
+from lcpcli.core.problem import Problem, check_size, is_sparse
+from lcpcli.io.files import MAX_TEXT_BYTES, decode_text, read_input_bytes
+
+#: A sparse-block M up to this many entries (rows x cols) is returned dense, larger as CSR.
+SBM_DENSE_MAX_ENTRIES = 4_000_000
 
 
 class _Tokens:
@@ -36,26 +44,34 @@ class _Tokens:
         self.pos += 1
         return tok
 
-    def int(self, what: str) -> int:
+    def int(self, what: str, low: int = 0, high: int | None = None) -> int:
+        """A whole number in ``[low, high]`` (``1e3`` and ``3.0`` count; nan, inf, 2.5 do not)."""
         tok = self._next(what)
         try:
-            value = float(tok)
+            value = int(tok)
         except ValueError:
-            raise ProblemError(f"expected an integer for {what}, got {tok!r}") from None
-        if value != int(value):
-            raise ProblemError(f"expected an integer for {what}, got {tok!r}")
-        return int(value)
+            try:
+                f = float(tok)
+            except ValueError:
+                raise ProblemError(f"expected an integer for {what}, got {tok[:30]!r}") from None
+            if not (np.isfinite(f) and f == int(f)):
+                raise ProblemError(f"expected an integer for {what}, got {tok[:30]!r}") from None
+            value = int(f)
+        if value < low or (high is not None and value > high):
+            bounds = f"{low}..{high}" if high is not None else f">= {low}"
+            raise ProblemError(f"{what} = {value} is out of range ({bounds})")
+        return value
 
     def floats(self, count: int, what: str) -> np.ndarray:
-        if self.pos + count > len(self.items):
+        if count < 0 or self.pos + count > len(self.items):
             raise ProblemError(f"file ends early (while reading {what})")
         chunk = self.items[self.pos:self.pos + count]
         self.pos += count
         try:
-            return np.array([float(t) for t in chunk], dtype=np.float64)
+            return np.array(chunk, dtype=np.float64)
         except ValueError:
             bad = next(t for t in chunk if not _is_float(t))
-            raise ProblemError(f"not a number in {what}: {bad!r}") from None
+            raise ProblemError(f"not a number in {what}: {bad[:30]!r}") from None
 
 
 def _is_float(tok: str) -> bool:
@@ -67,10 +83,8 @@ def _is_float(tok: str) -> bool:
 
 
 def read(path: Path) -> Problem:
-    try:
-        text = path.read_text(encoding="utf-8", errors="strict")
-    except UnicodeDecodeError:
-        raise ProblemError("not a text file (is it really a Siconos .dat?)") from None
+    data = read_input_bytes(path, MAX_TEXT_BYTES, "a Siconos .dat file")
+    text = decode_text(data, "a text file (is it really a Siconos .dat?)")
     tokens = _Tokens(text)
     if not tokens.items:
         raise ProblemError("empty file")
@@ -82,8 +96,7 @@ def read(path: Path) -> Problem:
 
 def _read_lcp(tok: _Tokens, name: str) -> Problem:
     n = tok.int("n")
-    if n <= 0:
-        raise ProblemError(f"n must be positive, got {n}")
+    check_size(n, n, sparse=True)
     M = _read_matrix(tok, "M")
     if M.shape != (n, n):
         raise ProblemError(f"M is {M.shape[0]} x {M.shape[1]} but n = {n}")
@@ -91,47 +104,78 @@ def _read_lcp(tok: _Tokens, name: str) -> Problem:
     return Problem.create(M, q, name=name, description="Siconos numerics LCP (.dat)")
 
 
-def _read_matrix(tok: _Tokens, what: str) -> np.ndarray:
+def _read_matrix(tok: _Tokens, what: str) -> Any:
     storage = tok.int(f"{what} storage type")
     rows = tok.int(f"{what} size0")
     cols = tok.int(f"{what} size1")
-    check_size(rows, cols)
     if storage == 0:
+        check_size(rows, cols)
         tok.int(f"{what} size0 (repeated)")
         tok.int(f"{what} size1 (repeated)")
         vals = tok.floats(rows * cols, f"{what} values")
         return vals.reshape((cols, rows)).T.copy()  # column-major
     if storage == 1:
+        check_size(rows, cols, sparse=True)
         return _read_sbm(tok, rows, cols, what)
     raise ProblemError(f"unknown storage type {storage} for {what} (0 dense, 1 sparse block)")
 
 
-def _read_sbm(tok: _Tokens, rows: int, cols: int, what: str) -> np.ndarray:
-    tok.int("number of blocks")
-    nbrows = tok.int("block rows")
-    nbcols = tok.int("block columns")
-    row_ends = [tok.int("block row end") for _ in range(nbrows)]
-    col_ends = [tok.int("block column end") for _ in range(nbcols)]
-    if (row_ends and row_ends[-1] != rows) or (col_ends and col_ends[-1] != cols):
-        raise ProblemError(f"{what}: block structure does not match the size {rows} x {cols}")
-    filled1 = tok.int("filled1")
-    filled2 = tok.int("filled2")
-    rowptr = [tok.int("block row pointer") for _ in range(filled1)]
-    colidx = [tok.int("block column index") for _ in range(filled2)]
-    M = np.zeros((rows, cols))
+def _ends(tok: _Tokens, count: int, size: int, what: str) -> list[int]:
+    """Cumulative block ends: strictly increasing, the last equal to ``size``."""
+    ends = [tok.int(what, 1, size) for _ in range(count)]
+    if any(b <= a for a, b in zip(ends, ends[1:], strict=False)) or (ends and ends[-1] != size) \
+            or (size and not ends):
+        raise ProblemError(f"{what}s do not split the size {size} into blocks")
+    return ends
+
+
+def _read_sbm(tok: _Tokens, rows: int, cols: int, what: str) -> Any:
+    """A sparse-block matrix (storage 1); every count and index is checked before use."""
+    nbblocks = tok.int("number of blocks", 0, rows * cols)
+    nbrows = tok.int("block rows", 0, rows)
+    nbcols = tok.int("block columns", 0, cols)
+    row_ends = _ends(tok, nbrows, rows, f"{what} block row end")
+    col_ends = _ends(tok, nbcols, cols, f"{what} block column end")
+    filled1 = tok.int("filled1", 0, nbrows + 1)
+    filled2 = tok.int("filled2", 0, nbblocks)
+    rowptr = [tok.int("block row pointer", 0, filled2) for _ in range(filled1)]
+    if any(b < a for a, b in zip(rowptr, rowptr[1:], strict=False)) \
+            or (rowptr and rowptr[0] != 0):
+        raise ProblemError(f"{what}: block row pointers must start at 0 and never decrease")
+    if filled2 and not nbcols:
+        raise ProblemError(f"{what}: blocks given but no block columns")
+    colidx = [tok.int("block column index", 0, nbcols - 1) for _ in range(filled2)]
+    if rowptr and rowptr[-1] > len(colidx):
+        raise ProblemError(f"{what}: block row pointers go past the {len(colidx)} column "
+                           f"indices")
     r_start = [0, *row_ends[:-1]]
     c_start = [0, *col_ends[:-1]]
+    ii: list[np.ndarray] = []
+    jj: list[np.ndarray] = []
+    vv: list[np.ndarray] = []
     for br in range(len(rowptr) - 1):
         for k in range(rowptr[br], rowptr[br + 1]):
             tok.int("block number")
             bc = colidx[k]
-            if not (0 <= br < nbrows and 0 <= bc < nbcols):
-                raise ProblemError(f"{what}: block index out of range")
             h = row_ends[br] - r_start[br]
             w = col_ends[bc] - c_start[bc]
-            vals = tok.floats(h * w, f"{what} block values")
-            M[r_start[br]:row_ends[br], c_start[bc]:col_ends[bc]] = vals.reshape((w, h)).T
-    return M
+            vals = tok.floats(h * w, f"{what} block values").reshape((w, h)).T  # column-major
+            r, c = np.meshgrid(np.arange(r_start[br], row_ends[br]),
+                               np.arange(c_start[bc], col_ends[bc]), indexing="ij")
+            ii.append(r.ravel())
+            jj.append(c.ravel())
+            vv.append(vals.ravel())
+    i = np.concatenate(ii) if ii else np.zeros(0, dtype=np.int64)
+    j = np.concatenate(jj) if jj else np.zeros(0, dtype=np.int64)
+    v = np.concatenate(vv) if vv else np.zeros(0)
+    if rows * cols <= SBM_DENSE_MAX_ENTRIES:
+        M = np.zeros((rows, cols))
+        M[i, j] = v  # a block given twice: the last one wins, as in a dense copy
+        return M
+    import scipy.sparse as sp  # only for large sparse-block files
+
+    check_size(rows, cols, sparse=True, nnz=v.size)
+    return sp.csr_matrix((v, (i, j)), shape=(rows, cols))
 
 
 def _read_mlcp(tok: _Tokens, name: str) -> Problem:
@@ -139,16 +183,17 @@ def _read_mlcp(tok: _Tokens, name: str) -> Problem:
     st2 = tok.int("st2")
     n = tok.int("n (equalities)")
     m = tok.int("m (complementarity rows)")
-    if n < 0 or m < 0 or n + m == 0:
+    if n + m == 0:
         raise ProblemError(f"bad MLCP sizes n = {n}, m = {m}")
     size = n + m
+    check_size(size, size, sparse=bool(st1))
     desc = "Siconos numerics MLCP (.dat)"
     if st1:
         # block boundaries, then one flag per block
-        bounds = [tok.int("block boundary")]
+        bounds = [tok.int("block boundary", 0, size)]
         while bounds[-1] < size:
-            bounds.append(tok.int("block boundary"))
-        flags = [tok.int("block flag") for _ in range(len(bounds) - 1)]
+            bounds.append(tok.int("block boundary", bounds[-1] + 1, size))
+        flags = [tok.int("block flag", 0, 1) for _ in range(len(bounds) - 1)]
         M = _read_matrix(tok, "M")
         if M.shape != (size, size):
             raise ProblemError(f"M is {M.shape[0]} x {M.shape[1]}; an MLCP with n = {n}, "
@@ -170,7 +215,9 @@ def _read_mlcp(tok: _Tokens, name: str) -> Problem:
     raise ProblemError("MLCP header has neither storage (st1 = st2 = 0)")
 
 
-def _matrix_text(M: np.ndarray) -> str:
+def _matrix_text(M: Any) -> str:
+    if is_sparse(M):
+        return _sbm_text(M)
     rows, cols = M.shape
     lines = [f"0\n{rows}\n{cols}\n{rows}\t{cols}"]
     for j in range(cols):  # one text line per column
@@ -178,10 +225,26 @@ def _matrix_text(M: np.ndarray) -> str:
     return "\n".join(lines)
 
 
+def _sbm_text(M: Any) -> str:
+    """Sparse-block storage with 1 x 1 blocks: one block per stored entry (CSR order)."""
+    csr = M.tocsr()
+    csr.sum_duplicates()
+    rows, cols = csr.shape
+    nnz = int(csr.nnz)
+    lines = [f"1\n{rows}\n{cols}\n{nnz}\n{rows}\n{cols}",
+             " ".join(str(k) for k in range(1, rows + 1)),
+             " ".join(str(k) for k in range(1, cols + 1)),
+             f"{rows + 1}\n{nnz}",
+             " ".join(str(int(k)) for k in csr.indptr),
+             " ".join(str(int(k)) for k in csr.indices)]
+    lines += [f"{k}\n{x:.17e}" for k, x in enumerate(csr.data)]
+    return "\n".join(lines)
+
+
 def write(problem: Problem, path: Path) -> None:
     if problem.kind == "box":
         raise ProblemError("the Siconos .dat format has no box LCPs; use .json, .npz or .h5")
-    M = np.asarray(problem.dense_M())
+    M = problem.M
     q = " ".join(f"{x:.17e}" for x in problem.q)
     if problem.kind == "lcp":
         text = f"{problem.n}\n{_matrix_text(M)}\n{q}\n"

@@ -309,8 +309,9 @@ def test_single_file_mode_unchanged(cli, samples, tmp_path):
     assert np.allclose(payload["z"], [4 / 3, 7 / 3])
     rng = np.random.default_rng(0)
     write_many([spd_problem(rng, 3, "x"), spd_problem(rng, 3, "y")], tmp_path / "two.h5")
-    r = cli("solve", str(tmp_path / "two.h5"))
-    assert r.returncode == 2 and "--problem" in r.stderr
+    r = cli("solve", str(tmp_path / "two.h5"), "--json")  # several problems: a batch
+    rows = [json.loads(line) for line in r.stdout.splitlines()]
+    assert r.returncode == 0 and sorted(row["problem"] for row in rows) == ["x", "y"]
     r = cli("solve", str(tmp_path / "two.h5"), "-p", "y", "--json")
     assert r.returncode == 0 and json.loads(r.stdout)["problem"] == "y"
 
@@ -429,3 +430,33 @@ def test_output_inside_input_folder_is_not_an_input(tmp_path):
     first = lib([tmp_path], jobs=1, output=out)
     again = lib([tmp_path], jobs=1, output=out, resume=True)
     assert first.total == again.total == again.skipped == 3 and again.exit_code == 0
+
+
+def test_signals_deferred_holds_a_signal_another_thread_receives():
+    """A row is written whole even when the kernel hands SIGTERM to another thread (BLAS and
+    OpenMP threads exist in every lcpcli process): the handler runs only after the block."""
+    import threading
+
+    from lcpcli.batch.run import signals_deferred
+
+    class Stop(Exception):
+        pass
+
+    def on_term(signum, frame):
+        raise Stop()
+
+    idle = threading.Event()
+    helper = threading.Thread(target=idle.wait, daemon=True)  # signals unblocked there
+    helper.start()
+    old = signal.signal(signal.SIGTERM, on_term)
+    steps = []
+    try:
+        with pytest.raises(Stop), signals_deferred():
+            os.kill(os.getpid(), signal.SIGTERM)
+            for _ in range(200):
+                time.sleep(0.001)  # the handler would run here if the signal were not held
+            steps.append("written")
+    finally:
+        signal.signal(signal.SIGTERM, old)
+        idle.set()
+    assert steps == ["written"]

@@ -50,8 +50,14 @@ def test_hdf5_problem_option(cli):
     r = cli("solve", "samples/collection.h5", "--problem", "seed000", "--json")
     assert r.returncode == 0
     np.testing.assert_allclose(json.loads(r.stdout)["z"], [0, 1, 3], atol=1e-12)
-    r = cli("solve", "samples/collection.h5")
-    assert r.returncode == 2 and "seed000" in r.stderr and "--problem" in r.stderr
+    # without --problem, a file of several problems is solved as a batch, one line each
+    r = cli("solve", "samples/collection.h5", env={"COLUMNS": "120"})
+    assert r.returncode == 0 and r.stderr == ""
+    for name in ("seed000", "seed004", "trivial", "degenerate", "sparse_chain"):
+        assert f"collection.h5 : {name}" in r.stdout
+    r = cli("solve", "samples/collection.h5", "--json")
+    rows = [json.loads(line) for line in r.stdout.splitlines()]
+    assert len(rows) == 5 and {row["status"] for row in rows} == {"solved"}
 
 
 @pytest.mark.parametrize("args,stdin,text", [

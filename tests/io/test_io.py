@@ -206,3 +206,96 @@ def test_json_bounds_null_means_infinite(tmp_path):
                  '"upper": [2, null]}')
     p = load(f)
     assert p.kind == "box" and p.lower[0] == -np.inf and p.upper[1] == np.inf
+
+
+# ---------------------------------------------------------------------- issue 17
+@pytest.mark.parametrize("ext", ["json", "npz", "h5", "dat"])
+def test_empty_problem_every_format(tmp_path, ext):
+    p0 = Problem.create(np.zeros((0, 0)), [], name="empty")
+    save(p0, tmp_path / f"e.{ext}")
+    p1 = load(tmp_path / f"e.{ext}")
+    assert p1.n == 0 and p1.M.shape == (0, 0) and p1.q.shape == (0,)
+
+
+def test_sparse_problem_to_dat_stays_sparse(tmp_path):
+    """A 30000 x 30000 sparse M goes to .dat as 1 x 1 sparse blocks (dense: 6.7 GiB)."""
+    n = 30_000
+    M = sp.diags([np.full(n - 1, -1.0), np.full(n, 4.0), np.full(n - 1, -1.0)], [-1, 0, 1],
+                 format="csr")
+    p0 = Problem.create(M, -np.ones(n), name="chain")
+    save(p0, tmp_path / "chain.dat")
+    p1 = load(tmp_path / "chain.dat")
+    assert p1.sparse and (p1.M != M).nnz == 0
+    np.testing.assert_array_equal(p1.q, p0.q)
+    small = Problem.create(sp.csr_matrix(np.array([[2.0, 0], [1, 3]])), [1.0, -1.0])
+    save(small, tmp_path / "small.dat")  # small sparse-block files come back dense
+    np.testing.assert_array_equal(load(tmp_path / "small.dat").M, [[2, 0], [1, 3]])
+
+
+@pytest.mark.parametrize("M, q, words", [
+    (np.eye(2) + 1j, [1, 1], "M holds complex numbers"),
+    (np.eye(2) > 0, [1, 1], "M holds booleans"),
+    ([["1", "0"], ["0", "1"]], [1, 1], "M holds strings"),
+    (np.eye(2), [True, False], "q holds booleans"),
+    (np.eye(2), ["1", "2"], "q holds strings"),
+    (sp.csr_matrix(np.eye(2) * (1 + 1j)), [1, 1], "M holds complex numbers"),
+    ([[1, 0], [0]], [1, 1], "M is not a rectangular array"),
+])
+def test_api_arrays_follow_the_data_rule(M, q, words):
+    with pytest.raises(ProblemError, match=words):
+        lcpcli.solve(M, q)
+
+
+def test_api_accepts_arrays_and_the_old_signature():
+    M = np.array([[2.0, 1.0], [1.0, 2.0]])
+    r1 = lcpcli.solve(M, [-5, -6], method="lemke")
+    r2 = lcpcli.solve(sp.csr_matrix(M), np.array([-5.0, -6.0]))
+    r3 = lcpcli.solve(Problem.create(M, [-5, -6]), "lemke", tol=1e-10)
+    r4 = lcpcli.solve(Problem.create(M, [-5, -6]), method="lemke")
+    for r in (r1, r2, r3, r4):
+        assert r.solved
+        np.testing.assert_allclose(r.z, [4 / 3, 7 / 3])
+    box = lcpcli.solve(np.eye(2), [1.0, -3.0], lower=[-1, -1], upper=[1, 1])
+    assert box.solved and box.z.tolist() == [-1.0, 1.0]
+    with pytest.raises(TypeError, match="needs q"):
+        lcpcli.solve(M)
+    with pytest.raises(TypeError, match="method name second"):
+        lcpcli.solve(Problem.create(M, [-5, -6]), "lemke", method="pgs")
+
+
+def test_result_repr_is_short_and_str_has_the_details():
+    n = 300
+    r = lcpcli.solve(np.eye(n) * 2, -np.ones(n))
+    text = repr(r)
+    assert len(text) < 120 and text.startswith("Result(status='solved'")
+    for part in ("method=", "n=300", "error=", "iterations="):
+        assert part in text
+    details = str(r)
+    assert "message:" in details and "z = [" in details and len(details) < 2000
+
+
+def test_non_regular_inputs_refused_without_reading(tmp_path):
+    import os
+
+    os.mkfifo(tmp_path / "p.json")
+    with pytest.raises(ProblemError, match="is a FIFO"):
+        load(tmp_path / "p.json")  # returns at once: never opened for reading
+    (tmp_path / "d.npz").mkdir()
+    with pytest.raises(ProblemError, match="is a directory"):
+        load(tmp_path / "d.npz")
+    os.symlink("/dev/zero", tmp_path / "z.dat")
+    with pytest.raises(ProblemError, match="is a character device"):
+        load(tmp_path / "z.dat")
+
+
+def test_header_checks_before_reading(tmp_path):
+    """Every dataset is checked against M's size from the header, nothing is allocated."""
+    with h5py.File(tmp_path / "lazy.h5", "w") as f:
+        f["M"] = np.eye(2)
+        f["q"] = np.ones(2)
+        f.create_dataset("upper", shape=(10**9,), dtype="f8")  # 8 GB declared, none stored
+    with pytest.raises(ProblemError, match=r"upper has shape \(1000000000,\) but M is 2 x 2"):
+        load(tmp_path / "lazy.h5")
+    np.savez(tmp_path / "c.npz", M=np.eye(2), q=np.ones(2), lower=np.zeros(2, dtype=np.complex64))
+    with pytest.raises(ProblemError, match="lower holds complex numbers"):
+        load(tmp_path / "c.npz")

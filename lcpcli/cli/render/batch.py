@@ -18,6 +18,7 @@ from rich.text import Text
 
 from lcpcli.cli.render.common import STATUS_STYLE as COMMON_STATUS_STYLE
 from lcpcli.core.result import Status
+from lcpcli.core.text import plural
 
 STATUS_STYLE = {**COMMON_STATUS_STYLE, Status.ERROR: "bold magenta"}
 
@@ -43,8 +44,33 @@ def _where(source: str, problem: str) -> str:
     return source if Path(source).stem == problem else f"{source} : {problem}"
 
 
-def render_summary(report: Any) -> Group:
-    """Counts by status, the slowest problems, the worst certificates and the first errors."""
+def problems_table(rows: list[dict[str, Any]]) -> Table:
+    """One line per problem of a small batch: where, status, n, iterations, error, and for a
+    problem not solved the reason (``--json`` has every field)."""
+    table = Table(title="problems", title_justify="left")
+    table.add_column("problem", overflow="fold", ratio=1)
+    table.add_column("status", no_wrap=True)
+    table.add_column("n", justify="right", no_wrap=True)
+    table.add_column("iterations", justify="right", no_wrap=True)
+    table.add_column("error", justify="right", no_wrap=True)
+    table.add_column("why not solved", overflow="fold", ratio=2)
+    for row in sorted(rows, key=lambda r: (str(r.get("source")), str(r.get("problem")))):
+        status = str(row.get("status") or "")
+        err = row.get("error")
+        table.add_row(Text(_where(str(row.get("source") or ""), str(row.get("problem") or ""))),
+                      Text(status, style=STATUS_STYLE.get(status, "")),
+                      "" if row.get("n") is None else str(row["n"]),
+                      "" if row.get("n") is None else str(row.get("iterations")),
+                      "" if err is None else f"{err:.1e}",
+                      Text("" if status == Status.SOLVED else str(row.get("message") or "")))
+    return table
+
+
+def render_summary(report: Any, rows: list[dict[str, Any]] | None = None) -> Group:
+    """Counts by status, the slowest problems, the worst certificates and the first errors.
+
+    ``rows`` (a small batch): one table line per problem instead of the extremes.
+    """
     summary = report.tally.as_dict()
     total = max(1, summary["total"])
     counts = Table(title="batch summary", title_justify="left")
@@ -56,14 +82,16 @@ def render_summary(report: Any) -> Group:
                        f"{100 * count / total:.1f} %")
     counts.add_row("total", str(summary["total"]), "")
     parts: list[Any] = [counts]
-    if summary["slowest"]:
+    if rows:
+        parts.append(problems_table(rows))
+    if summary["slowest"] and not rows:
         slow = Table(title="slowest problems (method time)", title_justify="left")
         slow.add_column("problem")
         slow.add_column("seconds", justify="right")
         for item in summary["slowest"]:
             slow.add_row(_where(item["source"], item["problem"]), f"{item['seconds']:.3g}")
         parts.append(slow)
-    if summary["worst"]:
+    if summary["worst"] and not rows:
         worst = Table(title="worst certificates (scaled error)", title_justify="left")
         worst.add_column("problem")
         worst.add_column("error", justify="right")
@@ -72,17 +100,18 @@ def render_summary(report: Any) -> Group:
             worst.add_row(_where(item["source"], item["problem"]),
                           "inf/nan" if e is None else f"{e:.3e}")
         parts.append(worst)
-    if summary["errors"]:
+    if summary["errors"] and not rows:
         errs = Table(title="bad inputs (first few)", title_justify="left")
         errs.add_column("message")
         for item in summary["errors"]:
-            errs.add_row(item["message"])
+            errs.add_row(Text(item["message"]))
         parts.append(errs)
     wall = report.wall_seconds
     rate = report.new / wall if wall > 0 else 0.0
-    line = f"{report.new} problems done in this run in {wall:.2f} s ({rate:,.0f} problems/s)"
+    line = (f"{plural(report.new, 'problem')} done in this run in {wall:.2f} s "
+            f"({plural(round(rate), 'problem')}/s)")
     if report.skipped:
-        line += f"; {report.skipped} already in the output (--resume)"
+        line += f"; {report.skipped:,} already in the output (--resume)"
     if report.output:
         line += f"; results in {report.output}"
     parts.append(Text(line))

@@ -70,131 +70,165 @@ def header(report: BenchReport, title: str) -> Table:
     return grid
 
 
-def summary_table(rows: list[MethodSummary]) -> Table:
-    table = Table(title=f"per method (shifted geometric mean: shift {SHIFT * 1e3:g} ms, a "
-                        f"failure counts {PENALTY:g}x the slowest time on its problem)",
-                  title_justify="left")
-    table.add_column("method", no_wrap=True)
-    for name, just in (("tol", "right"), ("success", "right"),
-                       ("sgm ms", "right"), ("median ms", "right"),
-                       ("median error", "right"), ("worst error", "right"),
-                       ("defects", "right")):
-        table.add_column(name, justify=just)
+#: Width assumed when none is given (rich's own default off a terminal).
+DEFAULT_WIDTH = 80
+Cell = str | Text
+
+
+def _plain(cell: Cell) -> str:
+    return cell.plain if isinstance(cell, Text) else str(cell)
+
+
+def fit_tables(title: str, keys: list[tuple[str, str]], columns: list[tuple[str, str]],
+               rows: list[list[Cell]], width: int | None, **table_args: Any) -> list[Table]:
+    """``rows`` as one table, or as several that each fit ``width`` (narrow terminals).
+
+    ``keys`` (name, justify) start every table (e.g. the method); the other ``columns`` are
+    dealt out so that no number or name is cut: a table holds as many whole columns as fit,
+    the next table the rest (titled "1/2", "2/2").  A column wider than the terminal alone
+    is folded onto several lines, never truncated with an ellipsis.
+    """
+    width = width or DEFAULT_WIDTH
+    nk = len(keys)
+
+    def col_width(i: int, name: str) -> int:
+        return max([len(name), *(len(_plain(r[i])) for r in rows)]) + 3  # padding and rule
+
+    key_w = 1 + sum(col_width(i, name) for i, (name, _) in enumerate(keys))
+    groups: list[list[int]] = []
+    used = key_w
+    for j, (name, _) in enumerate(columns):
+        w = col_width(nk + j, name)
+        if groups and groups[-1] and used + w <= width:
+            groups[-1].append(j)
+            used += w
+        else:
+            groups.append([j])
+            used = key_w + w
+    groups = groups or [[]]
+    tables = []
+    for g, group in enumerate(groups):
+        part = f" ({g + 1}/{len(groups)})" if len(groups) > 1 else ""
+        table = Table(title=title + part, title_justify="left", **table_args)
+        for name, just in keys + [columns[j] for j in group]:
+            table.add_column(name, justify=just, overflow="fold")  # type: ignore[arg-type]
+        for r in rows:
+            table.add_row(*r[:nk], *(r[nk + j] for j in group))
+        tables.append(table)
+    return tables
+
+
+def summary_table(rows: list[MethodSummary], width: int | None = None) -> list[Table]:
+    title = (f"per method (shifted geometric mean: shift {SHIFT * 1e3:g} ms, a failure "
+             f"counts {PENALTY:g}x the slowest time on its problem)")
+    columns = [(name, "right") for name in ("tol", "success", "sgm ms", "median ms",
+                                            "median error", "worst error", "defects")]
+    cells: list[list[Cell]] = []
     for s in rows:
         name = s.method + (" (peer)" if s.peer else "")
         defects = Text(str(s.defects), style="bold red" if s.defects else "")
-        table.add_row(name, f"{s.tol:g}", f"{s.successes}/{s.runs}", ms(s.sgm_seconds),
-                      ms(s.median_seconds), sci(s.median_error), sci(s.worst_error), defects)
-    return table
+        cells.append([name, f"{s.tol:g}", f"{s.successes}/{s.runs}", ms(s.sgm_seconds),
+                      ms(s.median_seconds), sci(s.median_error), sci(s.worst_error), defects])
+    return fit_tables(title, [("method", "left")], columns, cells, width)
 
 
-def problem_table(report: BenchReport, tol: float | None = None) -> Table:
+def problem_table(report: BenchReport, tol: float | None = None,
+                  width: int | None = None) -> list[Table]:
     """Per problem: for each method, time (ms), error and verdict at ``tol``."""
     tol = report.tols[0] if tol is None else tol
     methods = report.all_methods()
     by = {(r.problem, r.method): r for r in report.records if r.tol == tol}
-    table = Table(title=f"per problem at tol {tol:g}: time ms, error, verdict",
-                  title_justify="left")
-    table.add_column("problem", no_wrap=True)
-    table.add_column("n", justify="right")
-    table.add_column("expected")
-    for m in methods:
-        table.add_column(m, justify="right", overflow="fold")
+    cells: list[list[Cell]] = []
     for name, n, _kind, expected in report.problems:
-        cells = []
+        row: list[Cell] = [name, str(n), expected]
         for m in methods:
             r = by.get((name, m))
             if r is None:
-                cells.append(Text("n/a", style="dim"))
+                row.append(Text("n/a", style="dim"))
                 continue
             style = "bold red" if r.defect else ("green" if r.success else "yellow")
-            cells.append(Text(f"{ms(r.seconds)} {sci(r.error)} {mark(r)}", style=style))
-        table.add_row(name, str(n), expected, *cells)
-    return table
+            row.append(Text(f"{ms(r.seconds)} {sci(r.error)} {mark(r)}", style=style))
+        cells.append(row)
+    return fit_tables(f"per problem at tol {tol:g}: time ms, error, verdict",
+                      [("problem", "left"), ("n", "right"), ("expected", "left")],
+                      [(m, "right") for m in methods], cells, width)
 
 
-def tolerance_table(rows: list[MethodSummary]) -> Table:
+def tolerance_table(rows: list[MethodSummary], width: int | None = None) -> list[Table]:
     """Time to reach each tolerance: success count and median time of successes per tol."""
     tols = sorted({s.tol for s in rows}, reverse=True)
-    table = Table(title="time to reach each tolerance (successes, median ms of successes)",
-                  title_justify="left")
-    table.add_column("method")
-    for t in tols:
-        table.add_column(f"tol {t:g}", justify="right")
+    cells: list[list[Cell]] = []
     for m in dict.fromkeys(s.method for s in rows):
-        cells = []
+        row: list[Cell] = [m]
         for t in tols:
             s = next((x for x in rows if x.method == m and x.tol == t), None)
-            cells.append("-" if s is None else f"{s.successes}/{s.runs}, {ms(s.median_seconds)}")
-        table.add_row(m, *cells)
-    return table
+            row.append("-" if s is None else f"{s.successes}/{s.runs}, {ms(s.median_seconds)}")
+        cells.append(row)
+    return fit_tables("time to reach each tolerance (successes, median ms of successes)",
+                      [("method", "left")], [(f"tol {t:g}", "right") for t in tols], cells,
+                      width)
 
 
-def peer_table(report: BenchReport) -> Table | None:
+def peer_table(report: BenchReport, width: int | None = None) -> list[Table]:
     ratios = peer_ratios(report)
     if not ratios:
-        return None
-    claims = {}
+        return []
+    claims: dict[str, int] = {}
     for r in report.records:
         if r.peer and r.tol == report.tols[0] and r.claimed and r.status != Status.SOLVED:
             claims[r.method] = claims.get(r.method, 0) + 1
-    table = Table(title="peer ratios: time(ours) / time(peer), geometric mean over problems both "
-                        "solved (< 1: ours faster)", title_justify="left")
-    for name in ("method", "peer", "problems", "geomean ratio", "min", "max",
-                 "peer claims failing our certificate"):
-        table.add_column(name, justify="left" if name in ("method", "peer") else "right")
-    for d in ratios:
-        table.add_row(d["method"], d["peer"], str(d["problems"]), f"{d['geomean_ratio']:.3g}",
-                      f"{d['min_ratio']:.3g}", f"{d['max_ratio']:.3g}",
-                      str(claims.get(d["peer"], 0)))
-    return table
+    cells: list[list[Cell]] = [
+        [d["method"], d["peer"], str(d["problems"]), f"{d['geomean_ratio']:.3g}",
+         f"{d['min_ratio']:.3g}", f"{d['max_ratio']:.3g}", str(claims.get(d["peer"], 0))]
+        for d in ratios]
+    return fit_tables("peer ratios: time(ours) / time(peer), geometric mean over problems both "
+                      "solved (< 1: ours faster)", [("method", "left"), ("peer", "left")],
+                      [(name, "right") for name in ("problems", "geomean ratio", "min", "max",
+                                                    "peer claims failing our certificate")],
+                      cells, width)
 
 
-def profile_table(report: BenchReport) -> Table:
+def profile_table(report: BenchReport, width: int | None = None) -> list[Table]:
     prof = performance_profile(report)
-    table = Table(title=f"performance profile (Dolan-More) at tol {prof['tol']:g} over "
-                        f"{len(prof['problems'])} problems: fraction solved within tau x the "
-                        "best time", title_justify="left")
-    table.add_column("method")
-    for tau in PROFILE_TAUS:
-        table.add_column(f"tau={tau:g}", justify="right")
-    table.add_column("ever", justify="right")
+    cells: list[list[Cell]] = []
     for m, ratios in prof["ratios"].items():
         vals = list(ratios)
         cnt = len(vals) or 1
-        cells = [f"{sum(1 for x in vals if x is not None and x <= tau) / cnt:.2f}"
-                 for tau in PROFILE_TAUS]
-        cells.append(f"{sum(1 for x in vals if x is not None) / cnt:.2f}")
-        table.add_row(m, *cells)
-    return table
+        row: list[Cell] = [m]
+        row += [f"{sum(1 for x in vals if x is not None and x <= tau) / cnt:.2f}"
+                for tau in PROFILE_TAUS]
+        row.append(f"{sum(1 for x in vals if x is not None) / cnt:.2f}")
+        cells.append(row)
+    return fit_tables(f"performance profile (Dolan-More) at tol {prof['tol']:g} over "
+                      f"{len(prof['problems'])} problems: fraction solved within tau x the "
+                      "best time", [("method", "left")],
+                      [(f"tau={tau:g}", "right") for tau in PROFILE_TAUS] + [("ever", "right")],
+                      cells, width)
 
 
-def defect_table(report: BenchReport) -> Table | None:
+def defect_table(report: BenchReport, width: int | None = None) -> list[Table]:
     if not report.defects:
-        return None
-    table = Table(title="DEFECTS (a method claimed something false)", title_justify="left",
-                  style="red")
-    for name in ("problem", "method", "tol", "status", "why"):
-        table.add_column(name)
-    for r in report.defects:
-        table.add_row(r.problem, r.method, f"{r.tol:g}", r.status, r.defect_reason)
-    return table
+        return []
+    cells: list[list[Cell]] = [[r.problem, r.method, f"{r.tol:g}", r.status, r.defect_reason]
+                               for r in report.defects]
+    return fit_tables("DEFECTS (a method claimed something false)",
+                      [("problem", "left"), ("method", "left")],
+                      [("tol", "left"), ("status", "left"), ("why", "left")], cells, width,
+                      style="red")
 
 
-def render_report(report: BenchReport, title: str) -> Group:
-    """Everything the terminal shows for a benchmark run."""
+def render_report(report: BenchReport, title: str, width: int | None = None) -> Group:
+    """Everything the terminal shows for a benchmark run (tables split to fit ``width``)."""
     rows = summarize(report)
-    parts: list[Any] = [header(report, title), Text(""), summary_table(rows), Text(""),
-                        problem_table(report)]
+    parts: list[Any] = [header(report, title), Text("")]
+    sections = [summary_table(rows, width), problem_table(report, width=width)]
     if len(report.tols) > 1:
-        parts += [Text(""), tolerance_table(rows)]
-    parts += [Text(""), profile_table(report)]
-    peers = peer_table(report)
-    if peers is not None:
-        parts += [Text(""), peers]
-    defects = defect_table(report)
-    if defects is not None:
-        parts += [Text(""), defects]
+        sections.append(tolerance_table(rows, width))
+    sections += [profile_table(report, width), peer_table(report, width),
+                 defect_table(report, width)]
+    for tables in sections:
+        for table in tables:
+            parts += [table, Text("")]
     if report.skipped:
         skipped = sorted({f"{m} ({why})" for _, m, why in report.skipped})
         parts += [Text(f"skipped {len(report.skipped)} (problem, method) pairs: "

@@ -1,0 +1,112 @@
+"""The typed rule for problem data: which values count as numbers (one definition).
+
+Problem data (``M``, ``q``, ``lower``, ``upper``, the parts of a sparse ``M``, a warm start ``z0``)
+must be **real numbers**: integer (signed or unsigned) or floating-point values, converted to
+float64.  Everything else is refused with a one-line :class:`ProblemError`, never converted:
+
+* booleans: ``true`` is not 1 in a matrix (usually a mask stored in the wrong place);
+* complex numbers: numpy would drop the imaginary part with a warning;
+* strings, even numeric text (``"1.5"`` is text, not a number);
+* Python objects, structured records, dates and time spans.
+
+Index arrays of sparse matrices must be integers (:data:`INDEX_KINDS`).  Readers check the
+dtype from a file's header (NPZ, HDF5) before reading the data; JSON values are checked as
+decoded.  ``lcpcli.solve(M, q)`` applies the same rule to arrays given from Python.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from lcpcli.core.errors import ProblemError
+
+#: numpy dtype kinds accepted as real numbers (signed int, unsigned int, float).
+REAL_KINDS = "iuf"
+#: numpy dtype kinds accepted for sparse index arrays.
+INDEX_KINDS = "iu"
+#: What the refused kinds are called in messages.
+KIND_NAMES = {"b": "booleans", "c": "complex numbers", "U": "strings", "S": "byte strings",
+              "O": "mixed or non-numeric values", "V": "structured records", "M": "dates",
+              "m": "time spans", "T": "strings", "f": "floating-point numbers",
+              "i": "integers", "u": "integers"}
+
+
+def kind_name(kind: str) -> str:
+    """A readable name for a numpy dtype kind (``"c"`` -> ``"complex numbers"``)."""
+    return KIND_NAMES.get(kind, f"values of type {kind!r}")
+
+
+def check_dtype(dtype: Any, label: str, *, kinds: str = REAL_KINDS) -> None:
+    """ProblemError unless ``dtype`` is of one of ``kinds`` (default: real numbers)."""
+    try:
+        kind = np.dtype(dtype).kind
+    except TypeError:
+        raise ProblemError(f"{label} has an unsupported data type ({dtype})") from None
+    if kind not in kinds:
+        want = "integers" if kinds == INDEX_KINDS else "real numbers (integers or floats)"
+        raise ProblemError(f"{label} holds {kind_name(kind)}; expected {want}")
+
+
+def _python_kind(x: Any) -> str | None:
+    """The refused kind of one Python scalar (None when it is a real number)."""
+    if isinstance(x, (bool, np.bool_)):
+        return "b"
+    if isinstance(x, (int, float, np.integer, np.floating)):
+        return None
+    if isinstance(x, (complex, np.complexfloating)):
+        return "c"
+    if isinstance(x, (str, bytes)):
+        return "U"
+    return "O"
+
+
+def scan_nested(value: Any, label: str, *, allow_none: bool = False) -> None:
+    """Check every scalar of nested lists/tuples (iteratively: no recursion on deep data).
+
+    ``allow_none`` accepts ``None`` (JSON ``null``: an infinite bound).  Used where numpy's
+    inferred dtype cannot tell (``[True, 2.5]`` becomes a float array).
+    """
+    stack = [value]
+    while stack:
+        item = stack.pop()
+        if isinstance(item, (list, tuple)):
+            stack.extend(item)
+            continue
+        if item is None and allow_none:
+            continue
+        kind = _python_kind(item)
+        if kind is not None:
+            raise ProblemError(f"{label} holds {kind_name(kind)}; expected real numbers "
+                               f"(integers or floats)")
+
+
+def real_array(value: Any, label: str, *, scan: bool = True) -> np.ndarray:
+    """``value`` as a float64 array under the rule above (ProblemError otherwise).
+
+    ``scan`` checks the elements of Python lists one by one (booleans hide in float arrays);
+    callers that already know the list holds no booleans pass ``scan=False``.
+    """
+    if isinstance(value, (list, tuple)) and scan:
+        scan_nested(value, label)
+    elif not isinstance(value, (list, tuple, np.ndarray)) and not hasattr(value, "dtype") \
+            and _python_kind(value) is not None:
+        raise ProblemError(f"{label} must be real numbers, got a {type(value).__name__}")
+    try:
+        arr = np.asarray(value)
+    except (ValueError, TypeError) as exc:  # ragged nesting
+        raise ProblemError(f"{label} is not a rectangular array of numbers "
+                           f"({str(exc).splitlines()[0][:80]})") from None
+    if arr.dtype.kind == "O" and isinstance(value, (list, tuple)):
+        # Python ints beyond int64 land here: convert them, or say they overflow float64
+        try:
+            arr = np.asarray(value, dtype=np.float64)
+        except OverflowError:
+            raise ProblemError(f"{label} holds an integer too large for a float") from None
+        except (ValueError, TypeError) as exc:
+            raise ProblemError(f"{label} is not a rectangular array of numbers "
+                               f"({str(exc).splitlines()[0][:80]})") from None
+    check_dtype(arr.dtype, label)
+    with np.errstate(over="ignore"):  # float128 beyond float64 becomes inf: refused later
+        return np.asarray(arr, dtype=np.float64)
