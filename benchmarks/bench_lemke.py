@@ -17,16 +17,23 @@ Writes ``benchmarks/results/lemke.json``.
 
 from __future__ import annotations
 
-import argparse
-import json
-import statistics
-import subprocess
-import sys
-import tempfile
-import time
-from pathlib import Path
+import os
 
-import numpy as np
+# One BLAS thread (ours and the peer's), as the other benchmarks: on a shared machine a
+# multi-threaded OpenBLAS makes mid-size LU solves up to 100x slower; BENCH_THREADS=k overrides.
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ[_var] = os.environ.get("BENCH_THREADS", "1")
+
+import argparse  # noqa: E402
+import json  # noqa: E402
+import statistics  # noqa: E402
+import subprocess  # noqa: E402
+import sys  # noqa: E402
+import tempfile  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import numpy as np  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -36,8 +43,8 @@ from lcpcli.core.certificate import certify  # noqa: E402
 from lcpcli.core.problem import Problem  # noqa: E402
 from lcpcli.solvers.registry import get_method  # noqa: E402
 
-#: The shared Siconos runner, beside the checkout (``../shared``).
-PEER = ROOT.parent / "shared" / "peers" / "siconos_peer.py"
+#: The shared Siconos runner, beside the checkout (``../shared``; ``LCPCLI_SHARED`` overrides).
+PEER = Path(os.environ.get("LCPCLI_SHARED", ROOT.parent / "shared")) / "peers" / "siconos_peer.py"
 METHODS = ("lemke-tableau", "lemke-revised")
 
 

@@ -168,3 +168,31 @@ def test_bench_reports_methods_that_error():
     assert len(rep.errors) == 1
     rep = runner.run_bench([suites.kostreva()], ["lemke"], repeat=0)
     assert not rep.errors
+
+
+def test_fused_call_certifies_like_the_certificate_module():
+    """Kernel + polish + certificate in one C call: the same z as the method, the same
+    certificate as lcpcli.core.certificate.check (the one definition)."""
+    from lcpcli.core.certificate import check
+    from lcpcli.solvers.kernels.lemke_revised import OK, lemke_solve, lemke_solve_certified
+
+    rng = np.random.default_rng(8)
+    for trial in range(40):
+        n = int(rng.integers(1, 30))
+        A = rng.standard_normal((n, n))
+        scale = 10.0 ** rng.integers(-3, 4)
+        M = [A @ A.T + 0.1 * np.eye(n), A - A.T + np.eye(n)][trial % 2] * scale
+        q = rng.standard_normal(n)
+        status, z, w, pivots, *_, cert = lemke_solve_certified(M, q, None, 5000, PIVOT_TOL,
+                                                               TIE_TOL, 50)
+        ref = lemke_solve(M, q, None, 5000, PIVOT_TOL, TIE_TOL, 50)
+        assert status == ref[0] and pivots == ref[2]
+        if status == OK:
+            np.testing.assert_array_equal(z, ref[1])
+        if cert is None:  # trivial: z = 0
+            continue
+        c, w_ref = check(Problem.create(M, q), z, 1e-8)
+        np.testing.assert_array_equal(w, w_ref)
+        assert cert[0] == 0
+        assert cert[1:] == (c.error, c.backward_error, c.growth, c.residual, c.bound_violation,
+                            c.w_violation, c.complementarity, c.equality_residual, c.worst)

@@ -27,8 +27,20 @@ from libc.stdint cimport int64_t
 from libc.stdlib cimport free, malloc
 
 from lcpcli.solvers.kernels.dense cimport invert
+from lcpcli.solvers.kernels.simd cimport axpy, axpy_scaled, big_alloc
 
-import numpy as np
+cimport numpy as cnp
+
+from lcpcli.solvers.kernels.arrays cimport (
+    f64,
+    f64_ptr,
+    i64,
+    i64_ptr,
+    zeros_f64,
+    zeros_i64,
+)
+
+cnp.import_array()
 
 cdef enum:
     DZ_OK = 0
@@ -88,8 +100,7 @@ cdef bint _add(double* Binv, Py_ssize_t n, int64_t* C, Py_ssize_t k, const doubl
         return False
     inv = 1.0 / s
     for a in range(k):
-        for b in range(k):
-            Binv[a * n + b] += x[a] * y[b] * inv
+        axpy_scaled(Binv + a * n, y, x[a], inv, k)  # += x[a] * y[b] * inv
         Binv[a * n + k] = -x[a] * inv
         Binv[k * n + a] = -y[a] * inv
     Binv[k * n + k] = inv
@@ -119,8 +130,7 @@ cdef void _remove(double* Binv, Py_ssize_t n, int64_t* C, int64_t* pos, Py_ssize
     for a in range(last):
         f = Binv[a * n + last] / h
         if f != 0.0:
-            for b in range(last):
-                Binv[a * n + b] -= f * Binv[last * n + b]
+            axpy(Binv + a * n, Binv + last * n, -f, last)
 
 
 cdef int _refactor(double* Binv, Py_ssize_t n, const int64_t* C, Py_ssize_t k,
@@ -160,7 +170,7 @@ cdef int dantzig(const double* M, const double* q, const double* lo, const doubl
     cdef int status = DZ_OK, event
     cdef double mscale = 0.0, v, wi, zscale, qs, tolw, direc, s, dmax, epsz, epsw, tmin, tt, d
     cdef double* space = NULL
-    cdef double* work = <double*>malloc((n * n + 9 * n + 1) * sizeof(double))
+    cdef double* work = <double*>big_alloc((n * n + 9 * n + 1) * sizeof(double))
     cdef int64_t* iwork = <int64_t*>malloc((2 * n + 1) * sizeof(int64_t))
     if work == NULL or iwork == NULL:
         free(work)
@@ -394,26 +404,22 @@ def dantzig_kernel(M, q, lo, up, order, int64_t max_piv, int64_t refactor_period
     (off by default, the periodic refactorisation bounds the drift and the caller re-solves
     the final active set).
     """
-    cdef const double[:, ::1] Mv = M
-    cdef const double[::1] qv = q
-    cdef const double[::1] lv = lo
-    cdef const double[::1] uv = up
-    cdef const int64_t[::1] ov = order
-    cdef Py_ssize_t n = qv.shape[0]
-    if Mv.shape[0] != n or Mv.shape[1] != n or lv.shape[0] != n or uv.shape[0] != n \
-            or ov.shape[0] != n:
-        raise ValueError("dantzig_kernel: inconsistent shapes")
-    z = np.zeros(n)
-    state = np.zeros(n, dtype=np.int64)
-    cdef double[::1] zv = z
-    cdef int64_t[::1] sv = state
+    cdef Py_ssize_t n = len(q)
+    cdef cnp.ndarray qa = f64(q, n, -1)
+    cdef cnp.ndarray Ma = f64(M, n, n)
+    cdef cnp.ndarray la = f64(lo, n, -1)
+    cdef cnp.ndarray ua = f64(up, n, -1)
+    cdef cnp.ndarray oa = i64(order, n, -1)
+    cdef cnp.ndarray z = zeros_f64(n)
+    cdef cnp.ndarray state = zeros_i64(n)
     cdef int status = DZ_OK, rc
     cdef int64_t pivots = 0
     if n == 0:
         return status, z, 0, state
     with nogil:
-        rc = dantzig(&Mv[0, 0], &qv[0], &lv[0], &uv[0], &ov[0], n, max_piv, refactor_period,
-                     refine, &zv[0], &sv[0], &status, &pivots)
+        rc = dantzig(f64_ptr(Ma), f64_ptr(qa), f64_ptr(la), f64_ptr(ua), i64_ptr(oa), n,
+                     max_piv, refactor_period, refine, f64_ptr(z), i64_ptr(state), &status,
+                     &pivots)
     if rc:
         raise MemoryError()
     return status, z, pivots, state

@@ -24,6 +24,12 @@ from libc.math cimport fabs
 from libc.stdlib cimport free, malloc
 from libc.string cimport memcpy
 
+cimport numpy as cnp
+
+from lcpcli.solvers.kernels.arrays cimport f64, f64_ptr
+
+cnp.import_array()
+
 ctypedef void (*dgetrf_t)(int* m, int* n, double* a, int* lda, int* ipiv,
                           int* info) noexcept nogil
 ctypedef void (*dgetrs_t)(char* trans, int* n, int* nrhs, double* a, int* lda, int* ipiv,
@@ -294,13 +300,9 @@ def solve(a, b):
     A thin wrapper for tests: the kernels call the C functions directly.
     """
     import numpy as np
-    cdef double[:, ::1] A = np.ascontiguousarray(a, dtype=np.float64)
-    cdef Py_ssize_t m = A.shape[0]
-    if A.shape[1] != m:
-        raise ValueError("a must be square")
-    x = np.array(b, dtype=np.float64).reshape(m)
-    cdef double[::1] X = x
-    need(m)
+    cdef Py_ssize_t m = len(b)
+    cdef cnp.ndarray A = f64(a, m, m)
+    cdef cnp.ndarray x = f64(b, m, -1).copy()
     cdef double* lu = <double*>malloc((m * m + m + 1) * sizeof(double))
     cdef int* ipiv = <int*>malloc((m + 1) * sizeof(int))
     cdef int info
@@ -309,8 +311,7 @@ def solve(a, b):
         free(ipiv)
         raise MemoryError()
     with nogil:
-        info = solve_refined(&A[0, 0] if m else NULL, m, &X[0] if m else NULL, lu, lu + m * m,
-                             ipiv)
+        info = solve_refined(f64_ptr(A), m, f64_ptr(x), lu, lu + m * m, ipiv)
     free(lu)
     free(ipiv)
     if info:
@@ -321,13 +322,14 @@ def solve(a, b):
 def inv(a):
     """``inv(a)``; ``LinAlgError`` when singular (a thin wrapper for tests)."""
     import numpy as np
-    cdef double[:, ::1] A = np.ascontiguousarray(a, dtype=np.float64)
-    cdef Py_ssize_t m = A.shape[0]
-    out = np.empty((m, m))
-    cdef double[:, ::1] O = out
+    cdef Py_ssize_t m = len(a)
+    cdef cnp.ndarray A = f64(a, m, m)
+    cdef cnp.npy_intp dims[2]
+    dims[0] = m
+    dims[1] = m
+    cdef cnp.ndarray out = cnp.PyArray_EMPTY(2, dims, cnp.NPY_FLOAT64, 0)
     if m == 0:
         return out
-    need(m)
     cdef double* work = <double*>malloc((m * m + m) * sizeof(double))
     cdef int* ipiv = <int*>malloc(m * sizeof(int))
     cdef int info
@@ -336,7 +338,7 @@ def inv(a):
         free(ipiv)
         raise MemoryError()
     with nogil:
-        info = invert(&A[0, 0], m, &O[0, 0], work, ipiv)
+        info = invert(f64_ptr(A), m, f64_ptr(out), work, ipiv)
     free(work)
     free(ipiv)
     if info:

@@ -30,6 +30,19 @@ from libc.stdlib cimport free, malloc
 
 import numpy as np
 
+cimport numpy as cnp
+
+from lcpcli.solvers.kernels.arrays cimport (
+    f64,
+    f64_ptr,
+    i64,
+    i64_ptr,
+    inout,
+    u8_ptr,
+)
+
+cnp.import_array()
+
 cdef enum:
     E_INFEASIBLE = 0
     E_FEASIBLE = 1
@@ -233,21 +246,21 @@ cdef int classify_range(const Data* D, int64_t start, int64_t lo, int64_t hi,
 
 
 cdef int _fill(Data* D, M, q, pos_mask, neg_mask, double piv_tol, double feas_rel, double mu,
-               double qnorm, double prune_tol, object keep) except -1:
-    cdef const double[:, ::1] Mv = M
-    cdef const double[::1] qv = q
-    cdef const int64_t[::1] pv = pos_mask
-    cdef const int64_t[::1] nv = neg_mask
-    cdef Py_ssize_t n = qv.shape[0]
-    if n == 0 or Mv.shape[0] != n or Mv.shape[1] != n or pv.shape[0] != n or nv.shape[0] != n:
-        raise ValueError("enum: inconsistent shapes")
+               double qnorm, double prune_tol, list keep) except -1:
+    cdef Py_ssize_t n = len(q)
+    cdef cnp.ndarray qa = f64(q, n, -1)
+    cdef cnp.ndarray Ma = f64(M, n, n)
+    cdef cnp.ndarray pa = i64(pos_mask, n, -1)
+    cdef cnp.ndarray na = i64(neg_mask, n, -1)
+    if n == 0:
+        raise ValueError("enum: empty problem")
     if n > 62:
         raise ValueError("enum: n > 62 does not fit the bit coding")
-    keep.extend((Mv, qv, pv, nv))  # the views (and the buffers) outlive the call
-    D.M = &Mv[0, 0]
-    D.q = &qv[0]
-    D.pos_mask = &pv[0]
-    D.neg_mask = &nv[0]
+    keep.extend((Ma, qa, pa, na))  # the arrays outlive the call
+    D.M = f64_ptr(Ma)
+    D.q = f64_ptr(qa)
+    D.pos_mask = i64_ptr(pa)
+    D.neg_mask = i64_ptr(na)
     D.n = n
     D.piv_tol = piv_tol
     D.feas_rel = feas_rel
@@ -263,8 +276,9 @@ def classify_chunk(M, q, int64_t start, int64_t count, pos_mask, neg_mask, doubl
     cdef Data D
     keep = []
     _fill(&D, M, q, pos_mask, neg_mask, piv_tol, feas_rel, mu, qnorm, prune_tol, keep)
-    cdef uint8_t[::1] ov = out
-    if ov.shape[0] < count:
+    cdef cnp.ndarray oa = inout(out, cnp.NPY_UINT8, -1, -1)
+    cdef uint8_t* op = u8_ptr(oa)
+    if cnp.PyArray_DIM(oa, 0) < count:
         raise ValueError("classify_chunk: out is too short")
     cdef int64_t nblocks, blk, lo, hi
     cdef int failed = 0
@@ -272,13 +286,13 @@ def classify_chunk(M, q, int64_t start, int64_t count, pos_mask, neg_mask, doubl
         return
     if count < SERIAL_BELOW:
         with nogil:
-            failed = classify_range(&D, start, 0, count, &ov[0])
+            failed = classify_range(&D, start, 0, count, op)
     else:
         nblocks = (count + _BLOCK - 1) // _BLOCK
         for blk in prange(nblocks, nogil=True, schedule="dynamic"):
             lo = blk * _BLOCK
             hi = min(count, lo + _BLOCK)
-            if classify_range(&D, start, lo, hi, &ov[0]):
+            if classify_range(&D, start, lo, hi, op):
                 failed = 1
     if failed:
         raise MemoryError()
@@ -446,11 +460,12 @@ def classify_chunk_fast(M, q, int64_t start, int64_t count, pos_mask, neg_mask,
     cdef Data D
     keep = []
     _fill(&D, M, q, pos_mask, neg_mask, piv_tol, feas_rel, mu, qnorm, prune_tol, keep)
-    cdef uint8_t[::1] ov = out
+    cdef cnp.ndarray oa = inout(out, cnp.NPY_UINT8, -1, -1)
+    cdef uint8_t* op = u8_ptr(oa)
     cdef Py_ssize_t k = int(count).bit_length() - 1
     if count <= 0 or count != (<int64_t>1) << k or start % count:
         raise ValueError("classify_chunk_fast needs an aligned power-of-two block")
-    if ov.shape[0] < count:
+    if cnp.PyArray_DIM(oa, 0) < count:
         raise ValueError("classify_chunk_fast: out is too short")
     amax = float(np.max(np.abs(M)))
     cdef double base = max(amax, 1.0 / max(amax, 1e-300), 1.0)
@@ -459,11 +474,11 @@ def classify_chunk_fast(M, q, int64_t start, int64_t count, pos_mask, neg_mask,
     cdef int failed = 0
     if k == sub:
         with nogil:
-            failed = ppt_block(&D, start, k, &ov[0], 0, base)
+            failed = ppt_block(&D, start, k, op, 0, base)
     else:
         ntasks = (<int64_t>1) << (k - sub)
         for task in prange(ntasks, nogil=True, schedule="dynamic"):
-            if ppt_block(&D, start + (task << sub), sub, &ov[0], task << sub, base):
+            if ppt_block(&D, start + (task << sub), sub, op, task << sub, base):
                 failed = 1
     if failed:
         raise MemoryError()

@@ -38,3 +38,5 @@ cdef double min_residual(const double* M, const double* q, const double* z,
                          Py_ssize_t n) noexcept nogil
 cdef int polish(const double* M, const double* q, Py_ssize_t n, const double* z,
                 const int64_t* basic, double* out) noexcept nogil
+cdef double* _ones(Py_ssize_t n) noexcept nogil
+cdef list basis_list(const int64_t* basic, Py_ssize_t n)

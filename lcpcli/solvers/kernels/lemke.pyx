@@ -21,11 +21,28 @@ below are the thin Python wrappers.  The ratio test, the lexicographic filter an
 
 from libc.math cimport INFINITY, fabs, isfinite
 from libc.stdint cimport int64_t
-from libc.stdlib cimport free, malloc
+from libc.stdlib cimport calloc, free, malloc
+from libc.string cimport memcpy
 
 from lcpcli.solvers.kernels.dense cimport solve_refined
+from lcpcli.solvers.kernels.simd cimport axpy, big_alloc
 
 import numpy as np
+
+cimport numpy as cnp
+
+from lcpcli.solvers.kernels.arrays cimport (
+    empty_f64,
+    empty_i64,
+    f64,
+    f64_ptr,
+    i64,
+    i64_ptr,
+    inout,
+    zeros_f64,
+)
+
+cnp.import_array()
 
 # status codes returned by the kernel
 OK = LEMKE_OK
@@ -60,8 +77,7 @@ cdef void pivot(double* T, double* qb, Py_ssize_t nrows, Py_ssize_t ncols, Py_ss
         f = Ti[c]
         if f != 0.0:
             qb[i] += f * qr
-            for j in range(ncols):
-                Ti[j] += f * rowr[j]
+            axpy(Ti, rowr, f, ncols)
             Ti[c] = f * inv
     for j in range(ncols):
         T[r * ncols + j] = rowr[j]
@@ -216,7 +232,7 @@ cdef int lemke_tableau(const double* M, const double* q, const double* d, Py_ssi
     cdef int64_t entering, leaving, pivots, loc
     cdef int status
     cdef double colmax, unit, key
-    cdef double* work = <double*>malloc((n * m + 4 * n + 2 * m + 1) * sizeof(double))
+    cdef double* work = <double*>big_alloc((n * m + 4 * n + 2 * m + 1) * sizeof(double))
     cdef int64_t* iwork = <int64_t*>malloc((2 * n + 1 + m + n + 1) * sizeof(int64_t))
     if work == NULL or iwork == NULL:
         free(work)
@@ -396,30 +412,26 @@ cdef int polish(const double* M, const double* q, Py_ssize_t n, const double* z,
 def lemke_kernel(M, q, d, int64_t max_iter, double piv_tol, double tie_tol, record):
     """Run Lemke's method; return (status, z, pivots, basic, ray_dz, ray_dz0, z0).
 
-    ``M`` (n x n), ``q``, ``d`` (n): float64, C-contiguous.  ``record`` (int64, shape (k, 3))
-    receives (entering, leaving, row) of the first k pivots.
+    ``M`` (n x n), ``q``, ``d`` (n): float64 (converted when needed).  ``record`` (int64,
+    C-contiguous, shape (k, 3)) receives (entering, leaving, row) of the first k pivots.
     """
-    cdef const double[:, ::1] Mv = M
-    cdef const double[::1] qv = q
-    cdef const double[::1] dv = d
-    cdef int64_t[:, ::1] rv = record
-    cdef Py_ssize_t n = qv.shape[0]
-    if Mv.shape[0] != n or Mv.shape[1] != n or dv.shape[0] != n or rv.shape[1] != 3:
-        raise ValueError("lemke_kernel: inconsistent shapes")
-    z = np.zeros(n)
-    ray = np.zeros(n)
-    basic = np.empty(n, dtype=np.int64)
-    cdef double[::1] zv = z
-    cdef double[::1] rayv = ray
-    cdef int64_t[::1] bv = basic
-    cdef Py_ssize_t nrec = rv.shape[0]
+    cdef Py_ssize_t n = len(q)
+    cdef cnp.ndarray qa = f64(q, n, -1)
+    cdef cnp.ndarray Ma = f64(M, n, n)
+    cdef cnp.ndarray da = f64(d, n, -1)
+    cdef cnp.ndarray ra = inout(record, cnp.NPY_INT64, -1, 3)
+    cdef Py_ssize_t nrec = cnp.PyArray_DIM(ra, 0)
+    cdef cnp.ndarray z = zeros_f64(n)
+    cdef cnp.ndarray ray = zeros_f64(n)
+    cdef cnp.ndarray basic = empty_i64(n)
     cdef LemkeOut out
     cdef int rc
     if n == 0:
         return TRIVIAL, z, 0, basic, ray, 0.0, 0.0
     with nogil:
-        rc = lemke_tableau(&Mv[0, 0], &qv[0], &dv[0], n, max_iter, piv_tol, tie_tol,
-                           &rv[0, 0] if nrec else NULL, nrec, &zv[0], &bv[0], &rayv[0], &out)
+        rc = lemke_tableau(f64_ptr(Ma), f64_ptr(qa), f64_ptr(da), n, max_iter, piv_tol,
+                           tie_tol, i64_ptr(ra) if nrec else NULL, nrec, f64_ptr(z),
+                           i64_ptr(basic), f64_ptr(ray), &out)
     if rc:
         raise MemoryError()
     return out.status, z, out.pivots, basic, ray, out.dz0, out.z0
@@ -430,20 +442,95 @@ def polish_kernel(M, q, z, basic):
 
     See :c:func:`polish`; a singular basic block keeps ``max(z, 0)``.
     """
-    cdef const double[:, ::1] Mv = M
-    cdef const double[::1] qv = q
-    cdef const double[::1] zv = z
-    cdef const int64_t[::1] bv = basic
-    cdef Py_ssize_t n = qv.shape[0]
-    if Mv.shape[0] != n or Mv.shape[1] != n or zv.shape[0] != n or bv.shape[0] != n:
-        raise ValueError("polish_kernel: inconsistent shapes")
-    res = np.empty(n)
-    cdef double[::1] ov = res
+    cdef Py_ssize_t n = len(q)
+    cdef cnp.ndarray qa = f64(q, n, -1)
+    cdef cnp.ndarray Ma = f64(M, n, n)
+    cdef cnp.ndarray za = f64(z, n, -1)
+    cdef cnp.ndarray ba = i64(basic, n, -1)
+    cdef cnp.ndarray res = empty_f64(n)
     cdef int rc
     if n == 0:
         return res
     with nogil:
-        rc = polish(&Mv[0, 0], &qv[0], n, &zv[0], &bv[0], &ov[0])
+        rc = polish(f64_ptr(Ma), f64_ptr(qa), n, f64_ptr(za), i64_ptr(ba), f64_ptr(res))
     if rc:
         raise MemoryError()
     return res
+
+
+cdef double* _ones(Py_ssize_t n) noexcept nogil:
+    cdef double* d = <double*>malloc(n * sizeof(double))
+    cdef Py_ssize_t i
+    if d != NULL:
+        for i in range(n):
+            d[i] = 1.0
+    return d
+
+
+cdef list basis_list(const int64_t* basic, Py_ssize_t n):
+    """The sorted 0-based indices of the z's in a final basis (codes ``n..2n-1``), as a list."""
+    cdef list out = []
+    cdef Py_ssize_t i, j
+    cdef char* mark = <char*>calloc(n + 1, 1)
+    if mark == NULL:
+        raise MemoryError()
+    for i in range(n):
+        if n <= basic[i] < 2 * n:
+            mark[basic[i] - n] = 1
+    for j in range(n):
+        if mark[j]:
+            out.append(j)
+    free(mark)
+    return out
+
+
+def lemke_solve(M, q, d, int64_t max_iter, double piv_tol, double tie_tol):
+    """Kernel and final polish in one call (the small-solve path: one C call, no record).
+
+    ``d`` None means the covering vector of all ones.  Returns
+    ``(status, z, pivots, basis, ray_dz, z0)`` with ``basis`` the sorted 0-based indices of
+    the basic z's (a list); on ``OK`` ``z`` is already polished
+    (:func:`polish_kernel`), otherwise it is the kernel's raw ``z`` (not clipped).
+    """
+    cdef Py_ssize_t n = len(q)
+    cdef cnp.ndarray qa = f64(q, n, -1)
+    cdef cnp.ndarray Ma = f64(M, n, n)
+    cdef cnp.ndarray da
+    cdef const double* dp = NULL
+    if d is not None:
+        da = f64(d, n, -1)
+        dp = f64_ptr(da)
+    cdef cnp.ndarray z = empty_f64(n)
+    cdef cnp.ndarray ray = empty_f64(n)
+    cdef cnp.ndarray basic = empty_i64(n)
+    if n == 0:
+        return TRIVIAL, z, 0, [], ray, 0.0
+    cdef const double* Mp = f64_ptr(Ma)
+    cdef const double* qp = f64_ptr(qa)
+    cdef double* zp = f64_ptr(z)
+    cdef double* rp = f64_ptr(ray)
+    cdef int64_t* bp = <int64_t*>cnp.PyArray_DATA(basic)
+    cdef LemkeOut out
+    cdef int rc = 0
+    cdef double* ones = NULL
+    cdef double* raw = NULL
+    with nogil:
+        if dp == NULL:
+            ones = _ones(n)
+            dp = ones
+        raw = <double*>malloc(n * sizeof(double))
+        if dp == NULL or raw == NULL:
+            rc = -1
+        else:
+            rc = lemke_tableau(Mp, qp, dp, n, max_iter, piv_tol, tie_tol, NULL, 0,
+                               raw, bp, rp, &out)
+        if rc == 0:
+            if out.status == LEMKE_OK:
+                rc = polish(Mp, qp, n, raw, bp, zp)
+            else:
+                memcpy(zp, raw, n * sizeof(double))
+        free(ones)
+        free(raw)
+    if rc:
+        raise MemoryError()
+    return out.status, z, out.pivots, basis_list(bp, n), ray, out.z0

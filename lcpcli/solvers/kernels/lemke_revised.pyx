@@ -30,7 +30,9 @@ C level (``lemke_revised.pxd``): :c:func:`lemke_revised` on raw row-major buffer
 from libc.math cimport fabs, isfinite
 from libc.stdint cimport int64_t
 from libc.stdlib cimport free, malloc
+from libc.string cimport memcpy
 
+from lcpcli.core._certificate cimport CertOut, certify_dense
 from lcpcli.solvers.kernels.dense cimport invert
 from lcpcli.solvers.kernels.lemke cimport (
     LEMKE_MAX_ITER,
@@ -39,14 +41,34 @@ from lcpcli.solvers.kernels.lemke cimport (
     LEMKE_SINGULAR,
     LEMKE_TRIVIAL,
     LemkeOut,
+    _ones,
     basic_solution,
+    basis_list,
     initial_row,
     keep_lex_min,
     lex_unit,
+    polish,
     ratio_candidates,
 )
 
+from lcpcli.solvers.kernels.simd cimport axpy, big_alloc, dot4
+
 import numpy as np
+
+cimport numpy as cnp
+
+from lcpcli.solvers.kernels.arrays cimport (
+    empty_f64,
+    empty_i64,
+    f64,
+    f64_ptr,
+    i64,
+    i64_ptr,
+    inout,
+    zeros_f64,
+)
+
+cnp.import_array()
 
 OK = LEMKE_OK
 RAY = LEMKE_RAY
@@ -128,15 +150,12 @@ cdef void _combine_rows(const double* Ct, const double* xb, Py_ssize_t m, Py_ssi
     """``tmp[:n] = sum_s xb[s] * Ct[s, :n]`` (M[:, beta] times the beta part)."""
     cdef Py_ssize_t i, s
     cdef double x
-    cdef const double* row
     for i in range(n):
         tmp[i] = 0.0
     for s in range(m):
         x = xb[s]
         if x != 0.0:
-            row = Ct + s * n
-            for i in range(n):
-                tmp[i] += row[i] * x
+            axpy(tmp, Ct + s * n, x, n)
 
 
 cdef void _q_prime(State* S) noexcept nogil:
@@ -158,22 +177,6 @@ cdef void _q_prime(State* S) noexcept nogil:
         S.qb[S.where[n + S.beta[s]]] = S.xb[s]
 
 
-cdef inline double _dot(const double* Bs, const double* v, Py_ssize_t m) noexcept nogil:
-    """sum_p Bs[p] v[p] with four partial sums (lets the compiler use SIMD lanes)."""
-    cdef double a0 = 0.0, a1 = 0.0, a2 = 0.0, a3 = 0.0
-    cdef Py_ssize_t p = 0
-    while p + 4 <= m:
-        a0 += Bs[p] * v[p]
-        a1 += Bs[p + 1] * v[p + 1]
-        a2 += Bs[p + 2] * v[p + 2]
-        a3 += Bs[p + 3] * v[p + 3]
-        p += 4
-    while p < m:
-        a0 += Bs[p] * v[p]
-        p += 1
-    return (a0 + a1) + (a2 + a3)
-
-
 cdef void _column(State* S, int64_t e, double* col) noexcept nogil:
     """Column of M' for entering code ``e``, row order (eqs 5-6 or 7-8); S.xb = its beta part."""
     cdef Py_ssize_t m = S.m, n = S.n, s, p, r
@@ -187,7 +190,7 @@ cdef void _column(State* S, int64_t e, double* col) noexcept nogil:
         for p in range(m):
             S.tmp[p] = S.MT[j * n + S.alpha[p]]
         for s in range(m):
-            S.xb[s] = -_dot(S.B + s * n, S.tmp, m)
+            S.xb[s] = -dot4(S.B + s * n, S.tmp, m)  # four partial sums (SIMD lanes)
     _combine_rows(S.Ct, S.xb, m, n, S.tmp)
     for r in range(n):
         b = S.basic[r]
@@ -247,15 +250,12 @@ cdef void _row_times_B(const double* Ct, const double* B, Py_ssize_t m, Py_ssize
     """out[:m] = Maug[i, beta] @ B (row access of B only)."""
     cdef Py_ssize_t p, s
     cdef double c
-    cdef const double* Bs
     for p in range(m):
         out[p] = 0.0
     for s in range(m):
         c = Ct[s * n + i]
         if c != 0.0:
-            Bs = B + s * n
-            for p in range(m):
-                out[p] += c * Bs[p]
+            axpy(out, B + s * n, c, m)
 
 
 cdef double _wcol_entry(State* S, int64_t k, Py_ssize_t r) noexcept nogil:
@@ -281,7 +281,7 @@ cdef int lemke_revised(const double* M, const double* q, const double* d, Py_ssi
     cdef int status
     cdef double colmax, unit, key, piv, qr, inv, bu, f, y0, x0, bsp
     cdef State S
-    cdef double* work = <double*>malloc(((n + 1) * n + 2 * n * n + 8 * n + 1) * sizeof(double))
+    cdef double* work = <double*>big_alloc(((n + 1) * n + 2 * n * n + 8 * n + 1) * sizeof(double))
     cdef int64_t* iwork = <int64_t*>malloc((2 * n + 1 + 4 * n + 1 + n) * sizeof(int64_t))
     if work == NULL or iwork == NULL:
         free(work)
@@ -422,8 +422,7 @@ cdef int lemke_revised(const double* M, const double* q, const double* d, Py_ssi
             for s in range(m):
                 bu = -S.xb[s]
                 f = bu * inv
-                for p in range(m):
-                    S.B[s * n + p] += f * w1[p]
+                axpy(S.B + s * n, w1, f, m)
                 S.B[s * n + m] = -f
             for p in range(m):
                 S.B[m * n + p] = -w1[p] * inv
@@ -445,8 +444,7 @@ cdef int lemke_revised(const double* M, const double* q, const double* d, Py_ssi
                 if s != s0:
                     f = -S.xb[s]
                     if f != 0.0:
-                        for p in range(m):
-                            S.B[s * n + p] -= f * S.B[s0 * n + p]
+                        axpy(S.B + s * n, S.B + s0 * n, -f, m)
             S.beta[s0] = jj
             S.bpos[leaving - n] = -1
             S.bpos[jj] = s0
@@ -462,8 +460,7 @@ cdef int lemke_revised(const double* M, const double* q, const double* d, Py_ssi
             for s in range(m):
                 bsp = S.B[s * n + p0]
                 if bsp != 0.0:
-                    for p in range(m):
-                        S.B[s * n + p] -= w1[p] * bsp
+                    axpy(S.B + s * n, w1, -bsp, m)
             S.alpha[p0] = leaving
             S.apos[entering] = -1
             S.apos[leaving] = p0
@@ -477,8 +474,7 @@ cdef int lemke_revised(const double* M, const double* q, const double* d, Py_ssi
                 if s != s0:
                     f = S.B[s * n + p0]
                     if f != 0.0:
-                        for p in range(m):
-                            S.B[s * n + p] -= f * w2[p]
+                        axpy(S.B + s * n, w2, -f, m)
             last = m - 1
             # move the last row into s0 and the last column into p0
             if s0 != last:
@@ -536,30 +532,26 @@ def lemke_revised_kernel(M, q, d, int64_t max_iter, double piv_tol, double tie_t
                          int64_t refactor_every):
     """Revised Lemke; return (status, z, pivots, basic, ray_dz, ray_dz0, z0, refactors).
 
-    ``record`` (int64, shape (k, 3)) receives (entering, leaving, row) of the first k pivots.
+    ``record`` (int64, C-contiguous, shape (k, 3)) receives (entering, leaving, row) of the
+    first k pivots.
     """
-    cdef const double[:, ::1] Mv = M
-    cdef const double[::1] qv = q
-    cdef const double[::1] dv = d
-    cdef int64_t[:, ::1] rv = record
-    cdef Py_ssize_t n = qv.shape[0]
-    if Mv.shape[0] != n or Mv.shape[1] != n or dv.shape[0] != n or rv.shape[1] != 3:
-        raise ValueError("lemke_revised_kernel: inconsistent shapes")
-    z = np.zeros(n)
-    ray = np.zeros(n)
-    basic = np.empty(n, dtype=np.int64)
-    cdef double[::1] zv = z
-    cdef double[::1] rayv = ray
-    cdef int64_t[::1] bv = basic
-    cdef Py_ssize_t nrec = rv.shape[0]
+    cdef Py_ssize_t n = len(q)
+    cdef cnp.ndarray qa = f64(q, n, -1)
+    cdef cnp.ndarray Ma = f64(M, n, n)
+    cdef cnp.ndarray da = f64(d, n, -1)
+    cdef cnp.ndarray ra = inout(record, cnp.NPY_INT64, -1, 3)
+    cdef Py_ssize_t nrec = cnp.PyArray_DIM(ra, 0)
+    cdef cnp.ndarray z = zeros_f64(n)
+    cdef cnp.ndarray ray = zeros_f64(n)
+    cdef cnp.ndarray basic = empty_i64(n)
     cdef LemkeOut out
     cdef int rc
     if n == 0:
         return TRIVIAL, z, 0, basic, ray, 0.0, 0.0, 0
     with nogil:
-        rc = lemke_revised(&Mv[0, 0], &qv[0], &dv[0], n, max_iter, piv_tol, tie_tol,
-                           &rv[0, 0] if nrec else NULL, nrec, refactor_every, &zv[0], &bv[0],
-                           &rayv[0], &out)
+        rc = lemke_revised(f64_ptr(Ma), f64_ptr(qa), f64_ptr(da), n, max_iter, piv_tol,
+                           tie_tol, i64_ptr(ra) if nrec else NULL, nrec, refactor_every,
+                           f64_ptr(z), i64_ptr(basic), f64_ptr(ray), &out)
     if rc:
         raise MemoryError()
     return out.status, z, out.pivots, basic, ray, out.dz0, out.z0, out.refactors
@@ -567,15 +559,140 @@ def lemke_revised_kernel(M, q, d, int64_t max_iter, double piv_tol, double tie_t
 
 def _column_residual(MT, Ct, alpha, apos, Py_ssize_t m, int64_t e, Py_ssize_t n, xb, acc,
                      size):
-    """Python access to :c:func:`column_residual` (for tests); ``Ct`` is ``m x n``."""
-    cdef const double[:, ::1] MTv = np.ascontiguousarray(MT, dtype=np.float64)
-    cdef const double[:, ::1] Ctv = np.ascontiguousarray(Ct, dtype=np.float64)
-    cdef const int64_t[::1] av = np.ascontiguousarray(alpha, dtype=np.int64)
-    cdef const int64_t[::1] pv = np.ascontiguousarray(apos, dtype=np.int64)
-    cdef const double[::1] xv = np.ascontiguousarray(xb, dtype=np.float64)
-    cdef double[::1] accv = acc
-    cdef double[::1] sizev = size
-    if Ctv.shape[1] != n or MTv.shape[1] != n or Ctv.shape[0] < m:
+    """Python access to :c:func:`column_residual` (for tests); ``Ct`` is ``m x n``; ``acc``
+    and ``size`` are work vectors (float64, length >= m)."""
+    cdef cnp.ndarray MTa = f64(MT, -1, n)
+    cdef cnp.ndarray Cta = f64(Ct, -1, n)
+    cdef cnp.ndarray aa = i64(alpha, -1, -1)
+    cdef cnp.ndarray pa = i64(apos, -1, -1)
+    cdef cnp.ndarray xa = f64(xb, -1, -1)
+    cdef cnp.ndarray acca = inout(acc, cnp.NPY_FLOAT64, -1, -1)
+    cdef cnp.ndarray sizea = inout(size, cnp.NPY_FLOAT64, -1, -1)
+    if cnp.PyArray_DIM(Cta, 0) < m or cnp.PyArray_DIM(aa, 0) < m or cnp.PyArray_DIM(xa, 0) < m \
+            or cnp.PyArray_DIM(acca, 0) < m or cnp.PyArray_DIM(sizea, 0) < m:
         raise ValueError("_column_residual: inconsistent shapes")
-    return column_residual(&MTv[0, 0], &Ctv[0, 0], &av[0], &pv[0], m, e, n, &xv[0], &accv[0],
-                           &sizev[0])
+    return column_residual(f64_ptr(MTa), f64_ptr(Cta), i64_ptr(aa), i64_ptr(pa), m, e, n,
+                           f64_ptr(xa), f64_ptr(acca), f64_ptr(sizea))
+
+
+def lemke_solve(M, q, d, int64_t max_iter, double piv_tol, double tie_tol,
+                int64_t refactor_every):
+    """Revised kernel and final polish in one call (the small-solve path: one C call).
+
+    ``d`` None means the covering vector of all ones.  Returns
+    ``(status, z, pivots, basis, ray_dz, z0, refactors)`` (``basis``: the sorted 0-based
+    indices of the basic z's, a list); on ``OK`` ``z`` is already
+    polished (:func:`lcpcli.solvers.kernels.lemke.polish_kernel`), otherwise it is the
+    kernel's raw ``z``.
+    """
+    cdef Py_ssize_t n = len(q)
+    cdef cnp.ndarray qa = f64(q, n, -1)
+    cdef cnp.ndarray Ma = f64(M, n, n)
+    cdef cnp.ndarray da
+    cdef const double* dp = NULL
+    if d is not None:
+        da = f64(d, n, -1)
+        dp = f64_ptr(da)
+    cdef cnp.ndarray z = empty_f64(n)
+    cdef cnp.ndarray ray = empty_f64(n)
+    cdef cnp.ndarray basic = empty_i64(n)
+    if n == 0:
+        return TRIVIAL, z, 0, [], ray, 0.0, 0
+    cdef const double* Mp = f64_ptr(Ma)
+    cdef const double* qp = f64_ptr(qa)
+    cdef double* zp = f64_ptr(z)
+    cdef double* rp = f64_ptr(ray)
+    cdef int64_t* bp = <int64_t*>cnp.PyArray_DATA(basic)
+    cdef LemkeOut out
+    cdef int rc = 0
+    cdef double* ones = NULL
+    cdef double* raw = NULL
+    with nogil:
+        if dp == NULL:
+            ones = _ones(n)
+            dp = ones
+        raw = <double*>malloc(n * sizeof(double))
+        if dp == NULL or raw == NULL:
+            rc = -1
+        else:
+            rc = lemke_revised(Mp, qp, dp, n, max_iter, piv_tol, tie_tol, NULL, 0,
+                               refactor_every, raw, bp, rp, &out)
+        if rc == 0:
+            if out.status == LEMKE_OK:
+                rc = polish(Mp, qp, n, raw, bp, zp)
+            else:
+                memcpy(zp, raw, n * sizeof(double))
+        free(ones)
+        free(raw)
+    if rc:
+        raise MemoryError()
+    return out.status, z, out.pivots, basis_list(bp, n), ray, out.z0, out.refactors
+
+
+def lemke_solve_certified(M, q, d, int64_t max_iter, double piv_tol, double tie_tol,
+                          int64_t refactor_every):
+    """Kernel, final polish and the certificate in one compiled call (the small-solve path).
+
+    As :func:`lemke_solve`, plus ``w = M z + q`` and the certificate of the returned ``z``
+    (:c:func:`lcpcli.core._certificate.certify_dense`, the project's one definition, for an
+    LCP): returns ``(status, z, w, pivots, basic, ray_dz, z0, refactors, cert)`` with ``cert``
+    the tuple of :func:`lcpcli.core._certificate.certify_arrays` (its first entry 2 means: out
+    of range, certify again with :func:`lcpcli.core.certificate.check`, which rescales).  On
+    a status other than OK, ``z`` is ``max(z, 0)`` of the kernel's answer.
+    """
+    cdef Py_ssize_t n = len(q)
+    cdef cnp.ndarray qa = f64(q, n, -1)
+    cdef cnp.ndarray Ma = f64(M, n, n)
+    cdef cnp.ndarray da
+    cdef const double* dp = NULL
+    if d is not None:
+        da = f64(d, n, -1)
+        dp = f64_ptr(da)
+    cdef cnp.ndarray z = empty_f64(n)
+    cdef cnp.ndarray w = empty_f64(n)
+    cdef cnp.ndarray ray = empty_f64(n)
+    cdef cnp.ndarray basic = empty_i64(n)
+    if n == 0:
+        return (TRIVIAL, z, w, 0, [], ray, 0.0, 0,
+                (0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1))
+    cdef const double* Mp = f64_ptr(Ma)
+    cdef const double* qp = f64_ptr(qa)
+    cdef double* zp = f64_ptr(z)
+    cdef double* rp = f64_ptr(ray)
+    cdef int64_t* bp = <int64_t*>cnp.PyArray_DATA(basic)
+    cdef LemkeOut out
+    cdef CertOut cert
+    cdef int rc = 0
+    cdef Py_ssize_t i
+    cdef double* ones = NULL
+    cdef double* raw = <double*>malloc(6 * n * sizeof(double))
+    cdef Py_ssize_t* iwork = <Py_ssize_t*>malloc(3 * n * sizeof(Py_ssize_t))
+    with nogil:
+        if dp == NULL:
+            ones = _ones(n)
+            dp = ones
+        if dp == NULL or raw == NULL or iwork == NULL:
+            rc = -1
+        else:
+            rc = lemke_revised(Mp, qp, dp, n, max_iter, piv_tol, tie_tol, NULL, 0,
+                               refactor_every, raw, bp, rp, &out)
+        if rc == 0:
+            if out.status == LEMKE_OK:
+                rc = polish(Mp, qp, n, raw, bp, zp)
+            else:
+                for i in range(n):
+                    zp[i] = raw[i] if raw[i] > 0.0 else 0.0
+        if rc == 0 and out.status != LEMKE_TRIVIAL:
+            certify_dense(n, Mp, n, qp, zp, 0, NULL, NULL, f64_ptr(w), raw + n, iwork, NULL,
+                          &cert)
+        free(ones)
+        free(raw)
+        free(iwork)
+    if rc:
+        raise MemoryError()
+    if out.status == LEMKE_TRIVIAL:  # z = 0: the caller certifies it the ordinary way
+        return out.status, z, w, 0, [], ray, 0.0, 0, None
+    return (out.status, z, w, out.pivots, basis_list(bp, n), ray, out.z0, out.refactors,
+            (cert.status, cert.error, cert.backward_error, cert.growth, cert.residual,
+             cert.bound_violation, cert.w_violation, cert.complementarity,
+             cert.equality_residual, cert.worst))

@@ -19,8 +19,19 @@ from libc.stdlib cimport free, malloc
 from libc.string cimport memcpy
 
 from lcpcli.solvers.kernels.lemke cimport pivot
+from lcpcli.solvers.kernels.simd cimport big_alloc
 
-import numpy as np
+cimport numpy as cnp
+
+from lcpcli.solvers.kernels.arrays cimport (
+    f64,
+    f64_ptr,
+    i64_ptr,
+    inout,
+    zeros_f64,
+)
+
+cnp.import_array()
 
 cdef enum:
     MURTY_OK = 0
@@ -41,7 +52,7 @@ cdef int murty(const double* M, const double* q, Py_ssize_t n, int64_t max_iter,
     cdef Py_ssize_t i, j, r
     cdef int64_t pivots = 0, bad = -1
     cdef double qscale = 0.0, p, scale
-    cdef double* work = <double*>malloc((n * n + 2 * n) * sizeof(double))
+    cdef double* work = <double*>big_alloc((n * n + 2 * n) * sizeof(double))
     if work == NULL:
         return -1
     cdef double* T = work
@@ -98,23 +109,20 @@ cdef int murty(const double* M, const double* q, Py_ssize_t n, int64_t max_iter,
 
 
 def murty_kernel(M, q, int64_t max_iter, double piv_tol, double neg_tol, basic):
-    """Run the least-index rule from the complementary basis ``basic`` (int64 codes, updated
-    in place).  Returns (status, z, pivots, failing row)."""
-    cdef const double[:, ::1] Mv = M
-    cdef const double[::1] qv = q
-    cdef int64_t[::1] bv = basic
-    cdef Py_ssize_t n = qv.shape[0]
-    if Mv.shape[0] != n or Mv.shape[1] != n or bv.shape[0] != n:
-        raise ValueError("murty_kernel: inconsistent shapes")
-    z = np.zeros(n)
-    cdef double[::1] zv = z
+    """Run the least-index rule from the complementary basis ``basic`` (int64 codes,
+    C-contiguous, updated in place).  Returns (status, z, pivots, failing row)."""
+    cdef Py_ssize_t n = len(q)
+    cdef cnp.ndarray qa = f64(q, n, -1)
+    cdef cnp.ndarray Ma = f64(M, n, n)
+    cdef cnp.ndarray ba = inout(basic, cnp.NPY_INT64, n, -1)
+    cdef cnp.ndarray z = zeros_f64(n)
     cdef int status = MURTY_OK, rc
     cdef int64_t pivots = 0, bad = -1
     if n == 0:
         return status, z, 0, -1
     with nogil:
-        rc = murty(&Mv[0, 0], &qv[0], n, max_iter, piv_tol, neg_tol, &bv[0], &zv[0], &status,
-                   &pivots, &bad)
+        rc = murty(f64_ptr(Ma), f64_ptr(qa), n, max_iter, piv_tol, neg_tol, i64_ptr(ba),
+                   f64_ptr(z), &status, &pivots, &bad)
     if rc:
         raise MemoryError()
     return status, z, pivots, bad

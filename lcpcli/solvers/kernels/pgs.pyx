@@ -17,6 +17,18 @@ from libc.math cimport INFINITY, fabs, isfinite
 from libc.stdint cimport int64_t
 from libc.stdlib cimport free, malloc
 
+cimport numpy as cnp
+
+from lcpcli.solvers.kernels.arrays cimport (
+    f64,
+    f64_ptr,
+    i64,
+    i64_ptr,
+    inout,
+)
+
+cnp.import_array()
+
 cdef enum:
     PGS_CONVERGED = 0
     PGS_LIMIT = 1
@@ -131,60 +143,45 @@ cdef int pgs_sweeps(const double* M, const int64_t* indptr, const int64_t* indic
 
 def pgs_dense(M, q, diag, lo, up, z, double omega, int64_t max_iter, double tol, double mu,
               double qnorm):
-    """PGS/PSOR on a dense M; ``z`` is updated in place. Returns (status, sweeps, error)."""
-    cdef const double[:, ::1] Mv = M
-    cdef Py_ssize_t n = Mv.shape[0]
-    if Mv.shape[1] != n:
-        raise ValueError("pgs_dense: M must be square")
-    return _run(Mv, None, None, None, n, q, diag, lo, up, z, omega, max_iter, tol, mu, qnorm)
+    """PGS/PSOR on a dense M; ``z`` (float64, C-contiguous) is updated in place.  Returns
+    (status, sweeps, error)."""
+    cdef Py_ssize_t n = len(q)
+    cdef cnp.ndarray Ma = f64(M, n, n)
+    return _run(f64_ptr(Ma), NULL, NULL, NULL, n, q, diag, lo, up, z, omega, max_iter, tol,
+                mu, qnorm)
 
 
 def pgs_csr(indptr, indices, data, q, diag, lo, up, z, double omega, int64_t max_iter,
             double tol, double mu, double qnorm):
-    """PGS/PSOR on a CSR matrix (int64 ``indptr``/``indices``; the diagonal entry is included
-    in the row product)."""
-    cdef const int64_t[::1] ip = indptr
-    cdef const int64_t[::1] ix = indices
-    cdef const double[::1] dv = data
-    cdef Py_ssize_t n = ip.shape[0] - 1
-    if n < 0 or ix.shape[0] < ip[n] or dv.shape[0] < ip[n]:
+    """PGS/PSOR on a CSR matrix (the diagonal entry is included in the row product)."""
+    cdef Py_ssize_t n = len(q)
+    cdef cnp.ndarray ip = i64(indptr, n + 1, -1)
+    cdef int64_t nnz = i64_ptr(ip)[n]
+    cdef cnp.ndarray ix = i64(indices, -1, -1)
+    cdef cnp.ndarray dv = f64(data, -1, -1)
+    if cnp.PyArray_DIM(ix, 0) < nnz or cnp.PyArray_DIM(dv, 0) < nnz:
         raise ValueError("pgs_csr: inconsistent CSR arrays")
-    return _run(None, ip, ix, dv, n, q, diag, lo, up, z, omega, max_iter, tol, mu, qnorm)
+    return _run(NULL, i64_ptr(ip), i64_ptr(ix), f64_ptr(dv), n, q, diag, lo, up, z, omega,
+                max_iter, tol, mu, qnorm)
 
 
-def _run(M, indptr, indices, data, Py_ssize_t n, q, diag, lo, up, z, double omega,
-         int64_t max_iter, double tol, double mu, double qnorm):
-    cdef const double[:, ::1] Mv = M
-    cdef const int64_t[::1] ip = indptr
-    cdef const int64_t[::1] ix = indices
-    cdef const double[::1] dv = data
-    cdef const double[::1] qv = q
-    cdef const double[::1] dg = diag
-    cdef const double[::1] lv = lo
-    cdef const double[::1] uv = up
-    cdef double[::1] zv = z
-    if qv.shape[0] != n or dg.shape[0] != n or lv.shape[0] != n or uv.shape[0] != n \
-            or zv.shape[0] != n:
-        raise ValueError("pgs: inconsistent vector lengths")
+cdef object _run(const double* M, const int64_t* indptr, const int64_t* indices,
+                 const double* data, Py_ssize_t n, q, diag, lo, up, z, double omega,
+                 int64_t max_iter, double tol, double mu, double qnorm):
+    cdef cnp.ndarray qa = f64(q, n, -1)
+    cdef cnp.ndarray dg = f64(diag, n, -1)
+    cdef cnp.ndarray la = f64(lo, n, -1)
+    cdef cnp.ndarray ua = f64(up, n, -1)
+    cdef cnp.ndarray za = inout(z, cnp.NPY_FLOAT64, n, -1)
     cdef int64_t sweeps = 0
     cdef double err = 0.0
     cdef int status
-    cdef const double* Mp = NULL
-    cdef const int64_t* ipp = NULL
-    cdef const int64_t* ixp = NULL
-    cdef const double* dvp = NULL
     if n == 0:
         return PGS_CONVERGED, 1, 0.0
-    if Mv is not None:
-        Mp = &Mv[0, 0]
-    else:
-        ipp = &ip[0]
-        if ix.shape[0]:
-            ixp = &ix[0]
-            dvp = &dv[0]
     with nogil:
-        status = pgs_sweeps(Mp, ipp, ixp, dvp, &qv[0], &dg[0], &lv[0], &uv[0], &zv[0],
-                            n, omega, max_iter, tol, mu, qnorm, &sweeps, &err)
+        status = pgs_sweeps(M, indptr, indices, data, f64_ptr(qa), f64_ptr(dg), f64_ptr(la),
+                            f64_ptr(ua), f64_ptr(za), n, omega, max_iter, tol, mu, qnorm,
+                            &sweeps, &err)
     if status < 0:
         raise MemoryError()
     return status, sweeps, err

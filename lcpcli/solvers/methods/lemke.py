@@ -26,7 +26,7 @@ from lcpcli.analysis.classify import farkas_certificate, is_psd
 from lcpcli.core.errors import OptionError
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, RAY, Outcome
 from lcpcli.core.text import plural
-from lcpcli.solvers.kernels.lemke import MAX_ITER, OK, TRIVIAL, lemke_kernel, polish_kernel
+from lcpcli.solvers.kernels.lemke import MAX_ITER, OK, TRIVIAL, lemke_solve, polish_kernel
 from lcpcli.solvers.options import bool_option, positive_int, vector_option
 from lcpcli.solvers.registry import Cost, Guarantee, Method, Option, when
 from lcpcli.solvers.tolerances import PIVOT_TOL, TIE_TOL
@@ -35,10 +35,11 @@ from lcpcli.solvers.tolerances import PIVOT_TOL, TIE_TOL
 NO_RECORD = np.zeros((0, 3), dtype=np.int64)
 
 
-def covering_vector(n: int, covering: np.ndarray | None) -> np.ndarray:
-    """The covering vector ``d``: all ones by default; must be positive and of length n."""
+def covering_vector(n: int, covering: np.ndarray | None) -> np.ndarray | None:
+    """The covering vector ``d`` (length n, positive); None for the default, all ones (the
+    kernels take None as all ones, one allocation less on the small-solve path)."""
     if covering is None:
-        return np.ones(n)
+        return None
     d = np.asarray(covering, dtype=np.float64).ravel()
     if d.size == 1:
         d = np.full(n, float(d[0]))
@@ -66,35 +67,36 @@ def run(problem: Any, *, tol: float, covering: np.ndarray | None = None,
     q = problem.q
     d = covering_vector(n, covering)
     limit = max_iter or default_max_iter(n)
-    steps = None
     if trace:
         from lcpcli.solvers.trace.lemke import lemke_traced
 
-        status, z, pivots, basic, ray_dz, ray_dz0, z0, steps = lemke_traced(
-            M, q, d, limit, PIVOT_TOL, TIE_TOL)
-    else:
-        status, z, pivots, basic, ray_dz, ray_dz0, z0 = lemke_kernel(M, q, d, limit, PIVOT_TOL,
-                                                                     TIE_TOL, NO_RECORD)
-    out = finish(problem, M, q, status, z, int(pivots), basic, ray_dz, float(z0), limit)
-    out.trace = steps
-    return out
+        status, z, pivots, basic, ray_dz, _, z0, steps = lemke_traced(
+            M, q, np.ones(n) if d is None else d, limit, PIVOT_TOL, TIE_TOL)
+        if status == OK:
+            z = polish(M, q, z, basic)
+        out = finish(problem, M, q, status, z, int(pivots), basic_z(basic, n), ray_dz,
+                     float(z0), limit)
+        out.trace = steps
+        return out
+    # kernel and final polish in one compiled call
+    status, z, pivots, basis, ray_dz, z0 = lemke_solve(M, q, d, limit, PIVOT_TOL, TIE_TOL)
+    return finish(problem, M, q, status, z, pivots, basis, ray_dz, z0, limit)
 
 
 def finish(problem: Any, M: np.ndarray, q: np.ndarray, status: int, z: np.ndarray, pivots: int,
-           basic: np.ndarray, ray_dz: np.ndarray, z0: float, limit: int) -> Outcome:
-    """Turn a Lemke kernel's status into an :class:`Outcome` (polish, ray classification)."""
-    n = problem.n
+           basis: list[int], ray_dz: np.ndarray, z0: float, limit: int) -> Outcome:
+    """Turn a Lemke kernel's status into an :class:`Outcome` (``z`` already polished when the
+    status is OK; ray classification otherwise; ``basis``: the basic z's, 0-based)."""
     if status == TRIVIAL:
-        return Outcome(np.zeros(n), 0, CONVERGED, "q >= 0: z = 0 solves the problem")
+        return Outcome(np.zeros(problem.n), 0, CONVERGED, "q >= 0: z = 0 solves the problem")
     if status == OK:
-        z = polish(M, q, z, basic)
-        return Outcome(z, int(pivots), CONVERGED, f"artificial variable left the basis "
-                                                  f"after {plural(pivots, 'pivot')}",
-                       info={"basis": basic_z(basic, n)})
+        return Outcome(z, pivots, CONVERGED,
+                       f"artificial variable left the basis after {plural(pivots, 'pivot')}",
+                       info={"basis": basis})
     if status == MAX_ITER:
-        return Outcome(np.maximum(z, 0.0), int(pivots), ITERATION_LIMIT,
+        return Outcome(np.maximum(z, 0.0), pivots, ITERATION_LIMIT,
                        f"pivot limit {limit} reached (raise it with --max-iter)")
-    return ray_outcome(problem, M, q, z, int(pivots), ray_dz, float(z0))
+    return ray_outcome(problem, M, q, z, pivots, ray_dz, z0)
 
 
 def basic_z(basic: np.ndarray, n: int) -> list[int]:

@@ -24,22 +24,13 @@ import numpy as np
 
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, NUMERICAL, Outcome
 from lcpcli.core.text import plural
-from lcpcli.solvers.kernels.lemke_revised import (
-    MAX_ITER,
-    OK,
-    SINGULAR,
-    TRIVIAL,
-    lemke_revised_kernel,
-)
+from lcpcli.solvers.kernels.lemke_revised import MAX_ITER, OK, SINGULAR, TRIVIAL, lemke_solve
 from lcpcli.solvers.methods.lemke import (
     GUARANTEES,
-    NO_RECORD,
     PIVOT_TOL,
     TIE_TOL,
-    basic_z,
     covering_vector,
     default_max_iter,
-    polish,
     ray_outcome,
 )
 from lcpcli.solvers.methods.lemke import run as run_tableau
@@ -72,31 +63,31 @@ def run(problem: Any, *, tol: float, covering: np.ndarray | None = None,
         out.info["trace_engine"] = "tableau replica (same pivot rule)"
         return out
     n = problem.n
-    M = np.ascontiguousarray(problem.dense_M(), dtype=np.float64)
+    M = problem.dense_M()  # the kernel takes it as it is when float64 C-contiguous
     q = problem.q
     d = covering_vector(n, covering)
     limit = max_iter or default_max_iter(n)
     every = refactor_every or default_refactor_every(n)
-    status, z, pivots, basic, ray_dz, _dz0, z0, refactors = lemke_revised_kernel(
-        M, q, d, limit, PIVOT_TOL, TIE_TOL, NO_RECORD, every)
-    info = {"refactorisations": int(refactors)}
+    # kernel and final polish in one compiled call
+    status, z, pivots, basis, ray_dz, z0, refactors = lemke_solve(
+        M, q, d, limit, PIVOT_TOL, TIE_TOL, every)
+    info = {"refactorisations": refactors}
     if status == TRIVIAL:
         return Outcome(np.zeros(n), 0, CONVERGED, "q >= 0: z = 0 solves the problem")
     if status == OK:
-        z = polish(M, q, z, basic)
-        info["basis"] = basic_z(basic, n)
-        return Outcome(z, int(pivots), CONVERGED, f"artificial variable left the basis after "
-                                                  f"{plural(pivots, 'pivot')} ({refactors} "
-                                                  f"refactorisations)", info=info)
+        info["basis"] = basis
+        return Outcome(z, pivots, CONVERGED, f"artificial variable left the basis after "
+                                             f"{plural(pivots, 'pivot')} ({refactors} "
+                                             f"refactorisations)", info=info)
     if status == MAX_ITER:
-        return Outcome(np.maximum(z, 0.0), int(pivots), ITERATION_LIMIT,
+        return Outcome(np.maximum(z, 0.0), pivots, ITERATION_LIMIT,
                        f"pivot limit {limit} reached (raise it with --max-iter)", info=info)
     if status == SINGULAR:
-        out = Outcome(np.maximum(z, 0.0), int(pivots), NUMERICAL,
+        out = Outcome(np.maximum(z, 0.0), pivots, NUMERICAL,
                       f"basis block M^(alpha beta) became singular at a refactorisation "
                       f"after {plural(pivots, 'pivot')}", info=info)
     else:
-        out = ray_outcome(problem, M, q, z, int(pivots), ray_dz, float(z0))
+        out = ray_outcome(problem, M, q, z, pivots, ray_dz, z0)
         out.info.update(info)
         if out.proven_infeasible:
             return out
