@@ -96,15 +96,25 @@ def equilibrate(problem: Problem, symmetric: bool) -> Scaling | None:
     """
     if problem.n == 0:
         return None
-    M = problem.M
-    if problem.sparse:
-        Mc = M.tocsr()
-        arg: Any = (Mc.data, Mc.indices.astype(np.intp, copy=False),
-                    Mc.indptr.astype(np.intp, copy=False))
-    else:
-        arg = M
-    found = ruiz_exponents(arg, problem.q, symmetric, BALANCED, Q_BALANCED, MAX_ROUNDS)
+    found = ruiz_exponents(_matrix_arg(problem.M), problem.q, symmetric, BALANCED, Q_BALANCED,
+                           MAX_ROUNDS)
     if found is None:
         return None
     r, c = found
     return Scaling(row=r, col=c, kind="symmetric" if symmetric else "two-sided")
+
+
+def is_balanced(problem: Problem) -> bool:
+    """True when :func:`equilibrate` would leave ``problem`` alone (one compiled pass; the
+    answer does not depend on the ``symmetric`` choice)."""
+    if problem.n == 0:
+        return True
+    return ruiz_exponents(_matrix_arg(problem.M), problem.q, False, BALANCED, Q_BALANCED,
+                          1) is None
+
+
+def _matrix_arg(M: Any) -> Any:
+    if type(M) is np.ndarray:
+        return M
+    Mc = M.tocsr()
+    return (Mc.data, Mc.indices.astype(np.intp, copy=False), Mc.indptr.astype(np.intp, copy=False))

@@ -15,6 +15,12 @@ of two (the certificate does not change under row and column scaling) and calls 
 from libc.math cimport fabs, isfinite, INFINITY, ldexp
 from libc.stdlib cimport free, malloc
 
+cimport numpy as cnp
+
+from lcpcli.core.arrays cimport _as, f64, f64_ptr, inout
+
+cnp.import_array()
+
 cdef double THETA = 0.0009765625           # 2^-10: links rows through z_j where its share counts
 cdef double BIG = ldexp(1.0, 960)
 cdef double SMALL = ldexp(1.0, -960)
@@ -391,81 +397,74 @@ cdef int certify_csr(Py_ssize_t n, const double* data, const index_t* indices,
     return _finish(n, q, z, n_eq, lo, up, w, work, iwork, state, out)
 
 
-def certify_arrays(M, const double[::1] q, const double[::1] z, Py_ssize_t n_eq,
-                   lo, up, double[::1] w, signed char[::1] state=None):
+def certify_arrays(M, q, z, Py_ssize_t n_eq, lo, up, w, state=None):
     """Certify z; M is a C-contiguous float64 array or a (data, indices, indptr) CSR triple.
 
     ``lo``/``up`` are float64 arrays or None (then the first ``n_eq`` variables are free and the
     others bounded below by 0).  Fills ``w`` (and ``state``, if given: 0 at lower bound, 1 at
     upper bound, 2 between with w = 0, the state that pair's score came from) and returns
     ``(status, error, backward_error, growth, residual, bound_violation, w_violation,
-    complementarity, equality_residual, worst)``.
+    complementarity, equality_residual, worst)``.  Arguments go through numpy's C API (a flag
+    check and a pointer: typed memoryviews would cost a microsecond each on the small-solve
+    path); inputs of another dtype or layout are converted, ``w`` and ``state`` must be
+    writeable C-contiguous arrays of float64 and int8.
     """
-    cdef Py_ssize_t n = q.shape[0]
+    cdef cnp.ndarray qa = f64(q, -1, -1)
+    cdef Py_ssize_t n = cnp.PyArray_DIM(qa, 0)
+    cdef cnp.ndarray za = f64(z, n, -1)
+    cdef cnp.ndarray wa = inout(w, cnp.NPY_FLOAT64, n, -1)
+    cdef cnp.ndarray sa, loa, upa, Ma, da, ia, pa
     cdef CertOut out
-    cdef const double[::1] lov, upv
     cdef const double* plo = NULL
     cdef const double* pup = NULL
+    cdef signed char* pst = NULL
     cdef double* work
     cdef Py_ssize_t* iwork
-    cdef signed char* pst = NULL
-    if z.shape[0] != n or w.shape[0] != n:
-        raise ValueError("q, z and w must have the same length")
+    cdef bint is_csr = isinstance(M, tuple)
+    cdef int itype = 0
     if n == 0:
         return (0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1)
     if lo is not None:
-        lov = lo
-        upv = up
-        plo = &lov[0]
-        pup = &upv[0]
+        loa = f64(lo, n, -1)
+        upa = f64(up, n, -1)
+        plo = f64_ptr(loa)
+        pup = f64_ptr(upa)
     if state is not None:
-        if state.shape[0] != n:
-            raise ValueError("state must have length n")
-        pst = &state[0]
+        sa = inout(state, cnp.NPY_INT8, n, -1)
+        pst = <signed char*> cnp.PyArray_DATA(sa)
+    if is_csr:
+        da = f64(M[0], -1, -1)
+        pa = M[2]
+        itype = cnp.PyArray_TYPE(<cnp.ndarray> M[1]) if cnp.PyArray_Check(M[1]) else 0
+        if itype == cnp.NPY_INT32:
+            ia = _as(M[1], cnp.NPY_INT32, -1, -1)
+            pa = _as(M[2], cnp.NPY_INT32, n + 1, -1)
+        else:
+            itype = cnp.NPY_INT64
+            ia = _as(M[1], cnp.NPY_INT64, -1, -1)
+            pa = _as(M[2], cnp.NPY_INT64, n + 1, -1)
+    else:
+        Ma = f64(M, n, n)
     work = <double*> malloc(5 * n * sizeof(double))
     iwork = <Py_ssize_t*> malloc(3 * n * sizeof(Py_ssize_t))
     if work == NULL or iwork == NULL:
         free(work)
         free(iwork)
         raise MemoryError(f"certificate workspace for n = {n}")
-    try:
-        _dispatch(M, q, z, n_eq, plo, pup, w, work, iwork, pst, &out)
-    finally:
-        free(work)
-        free(iwork)
+    with nogil:
+        if not is_csr:
+            certify_dense(n, f64_ptr(Ma), n, f64_ptr(qa), f64_ptr(za), n_eq, plo, pup,
+                          f64_ptr(wa), work, iwork, pst, &out)
+        elif itype == cnp.NPY_INT32:
+            certify_csr(n, f64_ptr(da), <const int*> cnp.PyArray_DATA(ia),
+                        <const int*> cnp.PyArray_DATA(pa), f64_ptr(qa), f64_ptr(za), n_eq,
+                        plo, pup, f64_ptr(wa), work, iwork, pst, &out)
+        else:
+            certify_csr(n, f64_ptr(da), <const long long*> cnp.PyArray_DATA(ia),
+                        <const long long*> cnp.PyArray_DATA(pa), f64_ptr(qa), f64_ptr(za),
+                        n_eq, plo, pup, f64_ptr(wa), work, iwork, pst, &out)
+    free(work)
+    free(iwork)
     return (out.status, out.error, out.backward_error, out.growth, out.residual,
             out.bound_violation, out.w_violation, out.complementarity, out.equality_residual,
             out.worst)
-
-
-cdef void _dispatch(M, const double[::1] q, const double[::1] z, Py_ssize_t n_eq,
-                    const double* plo, const double* pup, double[::1] w, double* work,
-                    Py_ssize_t* iwork, signed char* pst, CertOut* out) except *:
-    cdef Py_ssize_t n = q.shape[0]
-    cdef const double[:, ::1] Md
-    cdef const double[::1] data
-    cdef const int[::1] ind32, ptr32
-    cdef const long long[::1] ind64, ptr64
-    if isinstance(M, tuple):
-        data = M[0]
-        if M[1].dtype.itemsize == 4:
-            ind32 = M[1]
-            ptr32 = M[2]
-            with nogil:
-                certify_csr(n, &data[0] if data.shape[0] else NULL, &ind32[0] if ind32.shape[0]
-                            else NULL, &ptr32[0], &q[0], &z[0], n_eq, plo, pup, &w[0],
-                            work, iwork, pst, out)
-        else:
-            ind64 = M[1]
-            ptr64 = M[2]
-            with nogil:
-                certify_csr(n, &data[0] if data.shape[0] else NULL, &ind64[0] if ind64.shape[0]
-                            else NULL, &ptr64[0], &q[0], &z[0], n_eq, plo, pup, &w[0],
-                            work, iwork, pst, out)
-    else:
-        Md = M
-        if Md.shape[0] != n or Md.shape[1] != n:
-            raise ValueError("M must be n x n")
-        with nogil:
-            certify_dense(n, &Md[0, 0], n, &q[0], &z[0], n_eq, plo, pup, &w[0], work,
-                          iwork, pst, out)

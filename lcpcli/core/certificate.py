@@ -134,7 +134,7 @@ def check(problem: Any, z: Any, tol: float = DEFAULT_TOL, *,
                                       problem.n_eq, lo, up, w, state)
     if out[0] == 2:
         out, w = _rescaled_check(problem, z, state)
-    return _make(out, tol), w
+    return from_kernel(out, tol), w
 
 
 def certify(problem: Any, z: Any, tol: float = DEFAULT_TOL) -> Certificate:
@@ -178,14 +178,14 @@ def _contiguous(a: Any) -> np.ndarray:
     return np.ascontiguousarray(a, dtype=np.float64)
 
 
-def _make(out: tuple, tol: float) -> Certificate:
-    status, error, omega, growth, resid, bviol, wviol, comp, eqres, worst = out
-    finite = status == 0 and math.isfinite(error)
-    return Certificate(error=float(error), backward_error=float(omega), growth=float(growth),
-                       residual=float(resid), bound_violation=float(bviol),
-                       w_violation=float(wviol), complementarity=float(comp),
-                       equality_residual=float(eqres), worst=int(worst), tol=float(tol),
-                       passed=bool(finite and error <= tol))
+def from_kernel(out: tuple, tol: float) -> Certificate:
+    """The :class:`Certificate` of a compiled certify call's tuple (``certify_arrays``, or a
+    kernel that certifies inside its own call with ``certify_dense``): its numbers are Python
+    floats and an int already, taken as they are (this is on the small-solve path)."""
+    error = out[1]
+    # error < inf also refuses NaN; status 0 means z and w finite and in range
+    return Certificate(error, out[2], out[3], out[4], out[5], out[6], out[7], out[8], out[9],
+                       float(tol), out[0] == 0 and error <= tol and error < math.inf)
 
 
 def _pow2_at_least(x: float) -> float:

@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 
 from lcpcli.analysis._scaling import is_symmetric_dense
-from lcpcli.analysis.scaling import Scaling, equilibrate
+from lcpcli.analysis.scaling import Scaling, equilibrate, is_balanced
 from lcpcli.core.certificate import check
 from lcpcli.core.problem import Problem
 from lcpcli.core.result import CONVERGED, Outcome
@@ -51,6 +51,8 @@ def is_symmetric(problem: Problem) -> bool:
 def run_method(spec: Any, problem: Problem, tol: float, options: dict[str, Any]) -> Outcome:
     """Run ``spec`` on ``problem`` as the module docstring says; return its :class:`Outcome`."""
     kind = "none" if options.get("trace") else getattr(spec, "scaling", "none")
+    if kind != "none" and is_balanced(problem):
+        kind = "none"  # nothing to equilibrate (one compiled pass; no symmetry test needed)
     symmetric = kind == "symmetric" or (kind == "auto" and is_symmetric(problem))
     out = _run_scaled(spec, problem, tol, options, kind, symmetric)
     if (kind == "auto" and not symmetric and out.termination != CONVERGED
@@ -60,11 +62,13 @@ def run_method(spec: Any, problem: Problem, tol: float, options: dict[str, Any])
             again.message += " (rerun with D M D scaling, which keeps M's class)"
             again.iterations += out.iterations
             out = again
-    if out.termination == CONVERGED and out.checked is None:
-        z = np.asarray(out.z, dtype=np.float64)
-        out.z = z
-        cert, w = check(problem, z, tol)
-        out.checked = (cert, w)
+    if out.termination == CONVERGED:
+        z = out.z
+        if type(z) is not np.ndarray or z.dtype != np.float64:
+            z = out.z = np.asarray(z, dtype=np.float64)
+        if out.checked is None or out.checked[0].tol != tol:
+            out.checked = check(problem, z, tol)
+        cert = out.checked[0]
         if not cert.passed:
             polished = refine(problem, z, basis=out.info.get("basis"))
             if polished is not None and polished[1] < cert.error:
@@ -83,6 +87,7 @@ def _run_scaled(spec: Any, problem: Problem, tol: float, options: dict[str, Any]
         return spec.run(problem, tol=tol, **options)
     out = spec.run(scaling.apply(problem), tol=tol, **_scaled_options(options, scaling))
     out.z = scaling.unscale_z(out.z)
+    out.checked = None  # a method's own certificate is of the scaled problem: w, units differ
     y = out.info.get("farkas_y")
     if y is not None:
         out.info["farkas_y"] = scaling.unscale_w(np.asarray(y)).tolist()

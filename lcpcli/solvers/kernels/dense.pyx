@@ -26,7 +26,7 @@ from libc.string cimport memcpy
 
 cimport numpy as cnp
 
-from lcpcli.solvers.kernels.arrays cimport f64, f64_ptr
+from lcpcli.core.arrays cimport f64, f64_ptr
 
 cnp.import_array()
 

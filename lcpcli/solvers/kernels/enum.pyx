@@ -32,7 +32,7 @@ import numpy as np
 
 cimport numpy as cnp
 
-from lcpcli.solvers.kernels.arrays cimport (
+from lcpcli.core.arrays cimport (
     f64,
     f64_ptr,
     i64,

@@ -57,7 +57,7 @@ import numpy as np
 
 cimport numpy as cnp
 
-from lcpcli.solvers.kernels.arrays cimport (
+from lcpcli.core.arrays cimport (
     empty_f64,
     empty_i64,
     f64,

@@ -23,7 +23,7 @@ from lcpcli.solvers.kernels.simd cimport big_alloc
 
 cimport numpy as cnp
 
-from lcpcli.solvers.kernels.arrays cimport (
+from lcpcli.core.arrays cimport (
     f64,
     f64_ptr,
     i64_ptr,

@@ -19,7 +19,7 @@ from libc.stdlib cimport free, malloc
 
 cimport numpy as cnp
 
-from lcpcli.solvers.kernels.arrays cimport (
+from lcpcli.core.arrays cimport (
     f64,
     f64_ptr,
     i64,

@@ -22,9 +22,16 @@ from typing import Any
 
 import numpy as np
 
+from lcpcli.core.certificate import from_kernel
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, NUMERICAL, Outcome
 from lcpcli.core.text import plural
-from lcpcli.solvers.kernels.lemke_revised import MAX_ITER, OK, SINGULAR, TRIVIAL, lemke_solve
+from lcpcli.solvers.kernels.lemke_revised import (
+    MAX_ITER,
+    OK,
+    SINGULAR,
+    TRIVIAL,
+    lemke_solve_certified,
+)
 from lcpcli.solvers.methods.lemke import (
     GUARANTEES,
     PIVOT_TOL,
@@ -65,20 +72,23 @@ def run(problem: Any, *, tol: float, covering: np.ndarray | None = None,
     n = problem.n
     M = problem.dense_M()  # the kernel takes it as it is when float64 C-contiguous
     q = problem.q
-    d = covering_vector(n, covering)
+    d = None if covering is None else covering_vector(n, covering)  # None: all ones
     limit = max_iter or default_max_iter(n)
     every = refactor_every or default_refactor_every(n)
-    # kernel and final polish in one compiled call
-    status, z, pivots, basis, ray_dz, z0, refactors = lemke_solve(
+    # kernel, final polish and the certificate in one compiled call
+    status, z, w, pivots, basis, ray_dz, z0, refactors, cert = lemke_solve_certified(
         M, q, d, limit, PIVOT_TOL, TIE_TOL, every)
     info = {"refactorisations": refactors}
     if status == TRIVIAL:
         return Outcome(np.zeros(n), 0, CONVERGED, "q >= 0: z = 0 solves the problem")
     if status == OK:
         info["basis"] = basis
+        # the certificate of this z for this problem, as check() computes it (out of range:
+        # status 2, left to check(), which rescales)
+        checked = (from_kernel(cert, tol), w) if cert[0] != 2 else None
         return Outcome(z, pivots, CONVERGED, f"artificial variable left the basis after "
                                              f"{plural(pivots, 'pivot')} ({refactors} "
-                                             f"refactorisations)", info=info)
+                                             f"refactorisations)", info=info, checked=checked)
     if status == MAX_ITER:
         return Outcome(np.maximum(z, 0.0), pivots, ITERATION_LIMIT,
                        f"pivot limit {limit} reached (raise it with --max-iter)", info=info)
