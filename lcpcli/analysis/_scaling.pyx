@@ -7,6 +7,8 @@ problem that is balanced already costs one pass over its nonzeros.
 """
 
 from libc.math cimport ilogb
+from libc.stdint cimport uint64_t
+from libc.string cimport memcpy
 from libc.stdlib cimport free, malloc
 
 cimport numpy as cnp
@@ -19,8 +21,16 @@ cdef long long FLOOR = -(1 << 40)
 
 
 cdef inline long long _exp(double x) noexcept nogil:
-    """e with |x| in [2^(e-1), 2^e) (frexp's exponent); x != 0."""
-    return <long long> ilogb(x) + 1
+    """e with |x| in [2^(e-1), 2^e) (frexp's exponent); x != 0, finite.
+
+    Read from the IEEE-754 exponent bits (a shift and a mask: ilogb is a library call per
+    entry, a third of a small solve's time); subnormals go through ilogb."""
+    cdef uint64_t bits
+    memcpy(&bits, &x, 8)
+    cdef long long field = <long long> ((bits >> 52) & 0x7ff)
+    if field == 0:
+        return <long long> ilogb(x) + 1
+    return field - 1022
 
 
 cdef int _ruiz(Py_ssize_t n, const double* M, Py_ssize_t ldm, const double* data,
