@@ -31,6 +31,8 @@ _LAZY = {
     "certify": "lcpcli.core.certificate",
     "forward_error_bound": "lcpcli.analysis.bounds",
     "solve": "lcpcli.api",
+    "solve_many": "lcpcli.api",
+    "StackResult": "lcpcli.core.result",
     "load": "lcpcli.io",
     "save": "lcpcli.io",
     "list_problems": "lcpcli.io",

@@ -3,15 +3,26 @@
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from lcpcli.core.certificate import check, validate_tol
-from lcpcli.core.errors import OptionError
+from lcpcli.core.errors import LcpError, OptionError
 from lcpcli.core.numeric import check_dtype, real_array
 from lcpcli.core.problem import Problem, is_sparse
-from lcpcli.core.result import CONVERGED, NO_SOLUTION, SOLVED, UNSOLVED, Outcome, Result
+from lcpcli.core.result import (
+    CONVERGED,
+    NO_SOLUTION,
+    SOLVED,
+    STATUS_CODES,
+    UNSOLVED,
+    Outcome,
+    Result,
+    StackResult,
+    Status,
+)
 from lcpcli.solvers.pipeline import run_method
 from lcpcli.solvers.registry import Method, get_method
 
@@ -108,3 +119,268 @@ def _why(cert: Any) -> str:
     if cert.worst >= 0:
         return f" (worst at pair {cert.worst + 1})"
     return ""
+
+
+# ------------------------------------------------------------------------------- stacks
+#: Problems of a stack that ``auto`` classifies to choose the stack's method.
+AUTO_SAMPLE = 8
+
+
+@dataclass(frozen=True)
+class StackPlan:
+    """How :func:`solve_many` runs a stack: ``method`` (the registered method asked for, which
+    also solves the retried problems), ``kernel_method`` (the method whose batched kernel runs
+    the stack, None: one problem at a time) and the kernel's parsed ``kernel_options``.
+    Made by :func:`plan_stack`; pass it back to :func:`solve_many` (``plan=``) to solve more
+    chunks of the same stack without sampling again."""
+
+    method: str
+    kernel_method: str | None
+    kernel_options: dict[str, Any]
+
+
+def plan_stack(M: Any, q: Any, method: str | None = None, *, lower: Any = None,
+               upper: Any = None, n_eq: int = 0, **options: Any) -> StackPlan:
+    """The :class:`StackPlan` of :func:`solve_many` for this stack (same arguments)."""
+    M, q, lower, upper, n_eq, spec, kind = _check_stack(M, q, method, lower, upper, n_eq,
+                                                        options)
+    finite = np.isfinite(M).all(axis=(1, 2)) & np.isfinite(q).all(axis=1)
+    run_spec, kernel_options = _batched_method(spec, kind, options, M, q, lower, upper,
+                                               np.flatnonzero(finite))
+    return StackPlan(spec.name, None if run_spec is None else run_spec.name, kernel_options)
+
+
+def _check_stack(M: Any, q: Any, method: str | None, lower: Any, upper: Any, n_eq: Any,
+                 options: dict[str, Any]) -> tuple[Any, ...]:
+    """Arrays, bounds, n_eq, method and kind of a stack, checked (ProblemError/OptionError)."""
+    from lcpcli.core.errors import ProblemError
+    from lcpcli.core.problem import check_size
+
+    M = _stack_array(M, 3, "M")
+    q = _stack_array(q, 2, "q")
+    K, n = q.shape
+    if M.shape != (K, n, n):
+        raise ProblemError(f"a stack needs M of shape (K, n, n) and q of shape (K, n); got M "
+                           f"{M.shape} and q {q.shape}")
+    check_size(n, n)
+    lower, upper = _stack_bounds(lower, upper, K, n, n_eq)
+    n_eq = _stack_n_eq(n_eq, n)
+    kind = "mlcp" if n_eq else ("box" if lower is not None else "lcp")
+    spec = get_method(DEFAULT_METHOD if method is None else method)
+    if kind not in spec.kinds:
+        raise OptionError(f"method '{spec.name}' does not handle {kind.upper()} problems "
+                          f"(it handles: {', '.join(k.upper() for k in spec.kinds)})")
+    spec.parse_options(options)  # unknown options and bad values: OptionError before any work
+    return M, q, lower, upper, n_eq, spec, kind
+
+
+def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None = None,
+               lower: Any = None, upper: Any = None, n_eq: int = 0, threads: int | None = None,
+               backend: str = "cpu", on_error: str = "raise", plan: StackPlan | None = None,
+               **options: Any) -> StackResult:
+    """Solve a stack of K problems of one size n and certify every answer.
+
+    ``M`` has shape (K, n, n) and ``q`` (K, n): problem ``k`` (0-based) is ``w = M[k] z +
+    q[k]``, ``z >= 0``, ``w >= 0``, ``z^T w = 0``; ``lower``/``upper`` of shape (n,) or (K, n)
+    make box LCPs, ``n_eq`` MLCPs (the first ``n_eq`` variables free).  ``method``, ``tol`` and
+    method ``options`` as in :func:`solve`.
+
+    A method with a batched kernel (``lcpcli methods``: Lemke, PGS, PSOR) solves the whole
+    stack in one compiled call, in ``threads`` threads (default: the cores this process may
+    use) of ``backend`` (see :mod:`lcpcli.solvers.batched`); the certificate is checked
+    inside the same call.  Every problem whose answer fails it (or whose method stopped) goes
+    through the full one-problem pipeline, :func:`solve`, so the verdicts follow the same rules:
+    ``solved`` only with a passed certificate, ``no_solution`` only with a proof.  ``auto``
+    classifies a sample of up to :data:`AUTO_SAMPLE` problems, runs the method auto would try
+    first on them for the whole stack when it has a batched kernel, and retries the rest with
+    ``auto`` itself.  Without a batched kernel (or with options the kernel does not take, or an
+    MLCP) every problem is solved by :func:`solve`.
+
+    ``on_error``: ``"raise"`` (a problem with NaN or Inf data raises :class:`ProblemError`
+    naming its index) or ``"mark"`` (its status is ``error``; batch runs use this).
+    """
+    from lcpcli.core.errors import ProblemError
+    from lcpcli.solvers.batched import KERNEL_SOLVED, StackOut, default_threads, get_backend
+    from lcpcli.solvers.batched import residuals as natural_residuals
+
+    start = time.perf_counter()
+    if on_error not in ("raise", "mark"):
+        raise OptionError(f"on_error must be 'raise' or 'mark', got {on_error!r}")
+    M, q, lower, upper, n_eq, spec, kind = _check_stack(M, q, method, lower, upper, n_eq,
+                                                        options)
+    K, n = q.shape
+    if plan is not None and plan.method != spec.name:
+        raise OptionError(f"plan= was made for method '{plan.method}', not '{spec.name}'")
+    tol = validate_tol(spec.default_tol if tol is None else tol)
+    if threads is None:
+        threads = default_threads()
+    elif not (isinstance(threads, int) and threads >= 1):
+        raise OptionError(f"threads must be a positive integer, got {threads!r}")
+    finite = np.isfinite(M).all(axis=(1, 2)) & np.isfinite(q).all(axis=1)
+    bad = np.flatnonzero(~finite)
+    if bad.size and on_error == "raise":
+        raise ProblemError(f"problem {int(bad[0])} of the stack: M or q contains NaN or Inf "
+                           f"({bad.size} such problem{'s' if bad.size > 1 else ''})")
+    codes = STATUS_CODES
+    z = np.full((K, n), np.nan)
+    w = np.full((K, n), np.nan)
+    status = np.full(K, codes[Status.ERROR], np.int8)
+    iterations = np.zeros(K, np.int64)
+    error = np.full(K, np.inf)
+    messages: dict[int, str] = {int(k): "M or q contains NaN or Inf" for k in bad}
+    methods_of: dict[int, str] = {}
+    good = np.flatnonzero(finite)
+    if plan is None:
+        run_spec, kernel_options = _batched_method(spec, kind, options, M, q, lower, upper,
+                                                   good)
+    else:
+        run_spec = None if plan.kernel_method is None else get_method(plan.kernel_method)
+        kernel_options = plan.kernel_options
+    retry = good
+    name = spec.name
+    if run_spec is not None:
+        kernel = get_backend(backend).kernel(run_spec.batch.kernel)
+        if kernel is None:
+            raise OptionError(f"batch backend '{backend}' has no '{run_spec.batch.kernel}' "
+                              f"kernel (method '{run_spec.name}')")
+        name = run_spec.batch.runs_as or run_spec.name
+        whole = good.size == K
+        sub = (lambda a: a) if whole else (lambda a: None if a is None else a[good])
+        out = StackOut.empty(good.size, n)
+        run_spec.prepare_once()
+        kernel(sub(M), sub(q), sub(lower), sub(upper), tol=tol, options=kernel_options,
+               out=out, threads=threads)
+        z[good], w[good] = out.z, out.w
+        iterations[good], error[good] = out.iterations, out.error
+        ok = out.code == KERNEL_SOLVED
+        status[good[ok]] = codes[Status.SOLVED]
+        retry = good[~ok]
+    for k in retry.tolist():
+        problem = Problem.create(M[k], q[k], n_eq=n_eq,
+                                 lower=None if lower is None else lower[k],
+                                 upper=None if upper is None else upper[k])
+        try:
+            r = solve(problem, spec.name, tol=tol, **options)
+        except LcpError as exc:
+            messages[k] = str(exc)
+            continue
+        z[k], w[k] = r.z, r.w
+        status[k] = codes[r.status]
+        iterations[k], error[k] = r.iterations, r.error
+        messages[k] = r.message
+        methods_of[k] = r.method
+    retried = np.zeros(K, bool)
+    retried[retry] = run_spec is not None
+    return StackResult(z=z, w=w, status=status, iterations=iterations, error=error,
+                       residual=natural_residuals(z, w, lower, upper), method=name, tol=tol,
+                       seconds=time.perf_counter() - start, retried=retried,
+                       messages=messages, methods=methods_of, batched=run_spec is not None)
+
+
+def _stack_array(a: Any, ndim: int, label: str) -> np.ndarray:
+    """``a`` as a C-contiguous float64 array of ``ndim`` dimensions (the data rule of
+    :mod:`lcpcli.core.numeric`: real numbers only)."""
+    from lcpcli.core.errors import ProblemError
+
+    arr = np.asarray(a)
+    check_dtype(arr.dtype, label)
+    if arr.ndim != ndim:
+        shape = "(K, n, n)" if ndim == 3 else "(K, n)"
+        raise ProblemError(f"{label} of a stack must have shape {shape}, got {arr.shape}")
+    return np.ascontiguousarray(arr, dtype=np.float64)
+
+
+def _stack_bounds(lower: Any, upper: Any, K: int, n: int,
+                  n_eq: Any) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """Bounds of shape (n,) or (K, n) as (K, n) arrays, checked as :meth:`Problem.create`
+    checks one problem's (missing lower: 0; missing upper: +inf)."""
+    from lcpcli.core.errors import ProblemError
+
+    if lower is None and upper is None:
+        return None, None
+    if n_eq:
+        raise ProblemError("give either n_eq (MLCP) or bounds (box LCP), not both")
+    out = []
+    for value, label, default in ((lower, "lower", 0.0), (upper, "upper", np.inf)):
+        if value is None:
+            out.append(np.full((K, n), default))
+            continue
+        arr = np.asarray(value)
+        check_dtype(arr.dtype, label)
+        arr = arr.astype(np.float64)
+        if arr.shape not in ((n,), (K, n)):
+            raise ProblemError(f"{label} of a stack must have shape ({n},) or ({K}, {n}), "
+                               f"got {arr.shape}")
+        out.append(np.ascontiguousarray(np.broadcast_to(arr, (K, n))))
+    lo, up = out
+    if np.isnan(lo).any() or np.isnan(up).any():
+        raise ProblemError("bounds contain NaN")
+    if (lo == np.inf).any() or (up == -np.inf).any():
+        raise ProblemError("bounds must satisfy lower < inf and upper > -inf")
+    wrong = np.argwhere(lo > up)
+    if wrong.size:
+        k, i = (int(x) for x in wrong[0])
+        raise ProblemError(f"problem {k}: lower > upper at index {i + 1} "
+                           f"({lo[k, i]:g} > {up[k, i]:g})")
+    return lo, up
+
+
+def _stack_n_eq(n_eq: Any, n: int) -> int:
+    from lcpcli.core.errors import ProblemError
+
+    if isinstance(n_eq, bool) or not isinstance(n_eq, (int, np.integer)):
+        raise ProblemError(f"n_eq must be an integer, got {n_eq!r}")
+    if not 0 <= int(n_eq) <= n:
+        raise ProblemError(f"n_eq = {n_eq} is outside 0..{n}")
+    return int(n_eq)
+
+
+def _batched_method(spec: Method, kind: str, options: dict[str, Any], M: np.ndarray,
+                    q: np.ndarray, lower: np.ndarray | None, upper: np.ndarray | None,
+                    good: np.ndarray) -> tuple[Method | None, dict[str, Any]]:
+    """The method whose batched kernel runs the stack and the kernel's options, or
+    (None, {}) when the stack is solved one problem at a time (see :func:`solve_many`)."""
+    given = {k.replace("-", "_"): v for k, v in options.items()
+             if v is not None and v is not False}
+    if spec.planner:
+        if set(given) - {"max_iter"} or good.size == 0:
+            return None, {}  # order=, z0=: auto's own per-problem logic
+        chosen = _auto_choice(M, q, lower, upper, good)
+        if chosen is None:
+            return None, {}
+        spec = get_method(chosen)
+        given = {k: v for k, v in given.items() if k in spec.options}
+    batch = spec.batch
+    if batch is None or kind not in batch.kinds or set(given) - set(batch.options):
+        return None, {}
+    return spec, spec.parse_options(given)
+
+
+def _auto_choice(M: np.ndarray, q: np.ndarray, lower: np.ndarray | None,
+                 upper: np.ndarray | None, good: np.ndarray) -> str | None:
+    """The method ``auto`` would try first on most of a sample of the stack (problems with
+    ``q >= 0`` and no bounds are skipped: z = 0 solves them), or None."""
+    from collections import Counter
+
+    from lcpcli.analysis.classify import Classifier
+    from lcpcli.solvers import policy
+
+    candidates = good if lower is not None else good[(q[good] < 0).any(axis=1)]
+    if candidates.size == 0:
+        return None
+    picks = candidates[np.linspace(0, candidates.size - 1,
+                                   min(AUTO_SAMPLE, candidates.size)).astype(int)]
+    votes: Counter[str] = Counter()
+    for k in dict.fromkeys(picks.tolist()):
+        problem = Problem.create(M[k], q[k], lower=None if lower is None else lower[k],
+                                 upper=None if upper is None else upper[k])
+        c = Classifier(problem)
+        regime = policy.regime_of(c)
+        if regime.optimistic:
+            steps = iter(policy.plan(problem, c, optimistic=True, first=True, regime=regime))
+        else:
+            steps = policy.iter_plan(problem, c, regime=regime)
+        step = next(steps, None)
+        if step is not None:
+            votes[step.method] += 1
+    return votes.most_common(1)[0][0] if votes else None

@@ -53,6 +53,15 @@ UNSOLVED = Status.UNSOLVED
 #: The three verdicts a solve can return.
 STATUSES = (SOLVED, NO_SOLUTION, UNSOLVED)
 
+#: The integer code of each status in stacked results (``StackResult.status``, the ``status``
+#: dataset of a stacked result file); -1 in a result file: not solved yet.
+STATUS_CODES: dict[Status, int] = {Status.SOLVED: 0, Status.UNSOLVED: 1,
+                                   Status.NO_SOLUTION: 2, Status.ERROR: 3}
+#: Code -> status (the inverse of :data:`STATUS_CODES`).
+STATUS_OF_CODE: dict[int, Status] = {v: k for k, v in STATUS_CODES.items()}
+#: The code of a problem not solved yet (result files written chunk by chunk).
+NOT_DONE = -1
+
 CONVERGED = Termination.CONVERGED
 RAY = Termination.RAY
 ITERATION_LIMIT = Termination.ITERATION_LIMIT
@@ -171,3 +180,69 @@ def _float(x: float) -> float | None:
 
 def _floats(v: np.ndarray) -> list[float | None]:
     return [_float(x) for x in np.asarray(v, dtype=float)]
+
+
+@dataclass
+class StackResult:
+    """The certified results of a stack of K problems of size n (:func:`lcpcli.solve_many`).
+
+    Arrays, indexed by the 0-based problem index k: ``z`` and ``w = M z + q`` (K, n),
+    ``status`` (K,) int8 codes of :data:`STATUS_CODES` (``solved`` only when the certificate
+    passed, ``no_solution`` only with a proof, as :func:`lcpcli.solve`), ``iterations`` (K,)
+    (pivots or sweeps), ``error`` (K,) the certified error (inf where none could be computed,
+    e.g. for an ``error`` row), ``residual`` (K,) ``||mid(z - l, z - u, w)||_inf``.
+    ``method`` is the method that ran on the stack (``auto``: the one its sample chose;
+    ``batched`` False: no batched kernel applied and every problem was solved on its own);
+    ``retried`` marks the problems the batched kernel handed to the full one-problem
+    pipeline, whose ``messages`` and ``methods`` (k -> text) say what happened; ``seconds``
+    is wall time.
+    """
+
+    z: np.ndarray
+    w: np.ndarray
+    status: np.ndarray
+    iterations: np.ndarray
+    error: np.ndarray
+    residual: np.ndarray
+    method: str
+    tol: float
+    seconds: float = 0.0
+    retried: np.ndarray | None = None
+    messages: dict[int, str] = field(default_factory=dict)
+    methods: dict[int, str] = field(default_factory=dict)
+    batched: bool = True
+
+    def method_of(self, k: int) -> str:
+        """The method that produced problem k's answer."""
+        return self.methods.get(k, self.method)
+
+    def __len__(self) -> int:
+        return int(self.status.shape[0])
+
+    @property
+    def solved(self) -> np.ndarray:
+        """Boolean mask of the certified answers."""
+        return self.status == STATUS_CODES[Status.SOLVED]
+
+    def statuses(self) -> list[Status]:
+        """The status of every problem, as :class:`Status` values."""
+        return [STATUS_OF_CODE[int(c)] for c in self.status.tolist()]
+
+    def counts(self) -> dict[str, int]:
+        """How many problems have each status (only the statuses that occur)."""
+        codes, numbers = np.unique(self.status, return_counts=True)
+        return {str(STATUS_OF_CODE[int(c)]): int(k) for c, k in zip(codes, numbers,
+                                                                      strict=True)}
+
+    def message(self, k: int) -> str:
+        """Problem k's message (the kernel's summary unless it was retried)."""
+        if k in self.messages:
+            return self.messages[k]
+        if self.status[k] == STATUS_CODES[Status.SOLVED]:
+            return f"{self.method} (batched): certified error {float(self.error[k]):.2e}"
+        return f"{self.method} (batched): not certified"
+
+    def __repr__(self) -> str:
+        n = self.z.shape[1] if self.z.ndim == 2 else 0
+        return (f"StackResult(K={len(self)}, n={n}, method={self.method!r}, "
+                f"counts={self.counts()}, seconds={self.seconds:.3g})")

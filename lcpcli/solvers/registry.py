@@ -141,6 +141,9 @@ class Method:
     #: How :mod:`lcpcli.solvers.pipeline` equilibrates the problem first: ``"auto"`` (``D M D``
     #: for a symmetric M, two-sided otherwise), ``"symmetric"`` (always ``D M D``) or ``"none"``.
     scaling: str = "none"
+    #: The batched kernel for stacks of problems (:class:`lcpcli.solvers.batched.BatchSpec`),
+    #: or None: :func:`lcpcli.solve_many` then solves the stack one problem at a time.
+    batch: Any = None
 
     @property
     def matrix_classes(self) -> str:

@@ -29,11 +29,6 @@ from lcpcli.core.arrays cimport (
 
 cnp.import_array()
 
-cdef enum:
-    PGS_CONVERGED = 0
-    PGS_LIMIT = 1
-    PGS_DIVERGED = 2
-
 CONVERGED = PGS_CONVERGED
 LIMIT = PGS_LIMIT
 DIVERGED = PGS_DIVERGED

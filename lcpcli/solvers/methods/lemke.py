@@ -26,6 +26,7 @@ from lcpcli.analysis.classify import farkas_certificate, is_psd
 from lcpcli.core.errors import OptionError
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, RAY, Outcome
 from lcpcli.core.text import plural
+from lcpcli.solvers.batched import BatchSpec
 from lcpcli.solvers.kernels.lemke import MAX_ITER, OK, TRIVIAL, lemke_solve, polish_kernel
 from lcpcli.solvers.options import bool_option, positive_int, vector_option
 from lcpcli.solvers.registry import Cost, Guarantee, Method, Option, when
@@ -154,5 +155,6 @@ METHODS = [
                                                  "kernel, same pivots; slow for large n)"),
         },
         scaling="auto",
+        batch=BatchSpec("lemke", ("covering", "max_iter")),
     ),
 ]

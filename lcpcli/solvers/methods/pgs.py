@@ -28,6 +28,7 @@ import numpy as np
 from lcpcli.core.certificate import matrix_norm_inf
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, NOT_APPLICABLE, NUMERICAL, Outcome
 from lcpcli.core.text import plural
+from lcpcli.solvers.batched import BatchSpec
 from lcpcli.solvers.kernels import pgs as K
 from lcpcli.solvers.options import bool_option, omega_option, positive_int, vector_option
 from lcpcli.solvers.registry import Cost, Guarantee, Method, Option, Requirement, when
@@ -167,6 +168,7 @@ METHODS = [
         kinds=("lcp", "box"),
         sparse=True,
         options=dict(_COMMON),
+        batch=BatchSpec("sor", ("max_iter",), kinds=("lcp", "box")),
     ),
     Method(
         name="psor",
@@ -186,5 +188,6 @@ METHODS = [
         options={"omega": Option(omega_option, DEFAULT_OMEGA,
                                  f"relaxation, 0 < omega < 2 (default {DEFAULT_OMEGA})"),
                  **_COMMON},
+        batch=BatchSpec("sor", ("omega", "max_iter"), kinds=("lcp", "box")),
     ),
 ]

@@ -1,0 +1,154 @@
+"""Batched solves: the interface between stacks of problems and the batched kernels.
+
+A **stack** is ``M`` of shape (K, n, n) and ``q`` of shape (K, n) (problem ``k``, 0-based, is
+``w = M[k] z + q[k]``), optionally with bounds ``lower``/``upper`` of shape (K, n) (a box LCP).
+A method that has a batched kernel declares it in its registry record
+(:attr:`lcpcli.solvers.registry.Method.batch`, a :class:`BatchSpec`): the kernel's name and
+the method options it understands.  Nothing here names a method.
+
+**Backends.**  A backend maps kernel names to callables with one signature
+(:class:`StackKernel`)::
+
+    kernel(M, q, lower, upper, *, tol, options, out, threads) -> None
+
+that fills the preallocated :class:`StackOut` (``z``, ``w``, ``code``, ``iterations``,
+``error``); ``code[k]`` is :data:`KERNEL_SOLVED` only when problem k's answer passed the
+certificate (:mod:`lcpcli.core.certificate`'s definition, at ``tol``), else
+:data:`KERNEL_RETRY` and the caller runs the full one-problem pipeline on it.  The CPU backend
+(``"cpu"``) is :mod:`lcpcli.solvers.kernels.batch` (OpenMP threads).  A GPU backend (CuPy or
+CUDA) registers itself with :func:`register_backend` and is chosen with ``backend=`` in
+:func:`lcpcli.solve_many`; callers do not change.  It may take device arrays and must fill
+``out`` with host arrays (or arrays ``numpy.asarray`` accepts).
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+import numpy as np
+
+#: Kernel ``code`` of a certified answer / of a problem handed back to the full pipeline.
+KERNEL_SOLVED = 0
+KERNEL_RETRY = 1
+
+
+@dataclass(frozen=True)
+class BatchSpec:
+    """A method's batched kernel: its ``kernel`` name in every backend, the method ``options``
+    it understands (any other option given means: solve one problem at a time), and the
+    problem ``kinds`` it handles.  Kernel-free (registry records import it)."""
+
+    kernel: str
+    options: tuple[str, ...] = ()
+    kinds: tuple[str, ...] = ("lcp",)
+    #: The registered method whose algorithm the kernel runs, when it is not the method that
+    #: declares it (results name it).
+    runs_as: str | None = None
+
+
+@dataclass
+class StackOut:
+    """Preallocated outputs of a stacked kernel (C-contiguous, host memory)."""
+
+    z: np.ndarray           # (K, n) float64
+    w: np.ndarray           # (K, n) float64, M z + q
+    code: np.ndarray        # (K,) int8: KERNEL_SOLVED or KERNEL_RETRY
+    iterations: np.ndarray  # (K,) int64: pivots or sweeps
+    error: np.ndarray       # (K,) float64: the certified error (inf: not computed)
+
+    @classmethod
+    def empty(cls, K: int, n: int) -> StackOut:
+        return cls(np.zeros((K, n)), np.zeros((K, n)), np.full(K, KERNEL_RETRY, np.int8),
+                   np.zeros(K, np.int64), np.full(K, np.inf))
+
+
+class StackKernel(Protocol):
+    """The signature every backend's kernels share (see the module docstring)."""
+
+    def __call__(self, M: Any, q: Any, lower: Any, upper: Any, *, tol: float,
+                 options: Mapping[str, Any], out: StackOut, threads: int) -> None: ...
+
+
+def default_threads() -> int:
+    """The cores this process may run on."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except (AttributeError, OSError):
+        return os.cpu_count() or 1
+
+
+# ------------------------------------------------------------------------------ CPU backend
+def _cpu_lemke(M: Any, q: Any, lower: Any, upper: Any, *, tol: float,
+               options: Mapping[str, Any], out: StackOut, threads: int) -> None:
+    from lcpcli.solvers.kernels import batch
+    from lcpcli.solvers.methods.lemke import covering_vector, default_max_iter
+    from lcpcli.solvers.tolerances import PIVOT_TOL, TIE_TOL
+
+    n = M.shape[1]
+    d = covering_vector(n, options.get("covering"))
+    limit = options.get("max_iter") or default_max_iter(n)
+    batch.lemke_stack(M, q, d, limit, PIVOT_TOL, TIE_TOL, tol, out.z, out.w, out.code,
+                      out.iterations, out.error, threads)
+
+
+def _cpu_sor(M: Any, q: Any, lower: Any, upper: Any, *, tol: float,
+             options: Mapping[str, Any], out: StackOut, threads: int) -> None:
+    from lcpcli.solvers.kernels import batch
+    from lcpcli.solvers.methods.pgs import DEFAULT_MAX_ITER
+
+    if lower is None:
+        out.z[...] = 0.0
+    else:
+        np.clip(0.0, lower, upper, out=out.z)  # the start point, projected onto the box
+    limit = options.get("max_iter") or DEFAULT_MAX_ITER
+    omega = float(options.get("omega") or 1.0)
+    batch.sor_stack(M, q, lower, upper, omega, limit, tol, out.z, out.w, out.code,
+                    out.iterations, out.error, threads)
+
+
+@dataclass
+class Backend:
+    """A named set of stacked kernels (``kernels``: kernel name -> :class:`StackKernel`)."""
+
+    name: str
+    kernels: dict[str, StackKernel] = field(default_factory=dict)
+
+    def kernel(self, name: str) -> StackKernel | None:
+        return self.kernels.get(name)
+
+
+_BACKENDS: dict[str, Callable[[], Backend]] = {
+    "cpu": lambda: Backend("cpu", {"lemke": _cpu_lemke, "sor": _cpu_sor}),
+}
+_LOADED: dict[str, Backend] = {}
+
+
+def register_backend(name: str, factory: Callable[[], Backend]) -> None:
+    """Add a backend (e.g. a GPU one): ``factory()`` is called on first use."""
+    _BACKENDS[name] = factory
+    _LOADED.pop(name, None)
+
+
+def get_backend(name: str) -> Backend:
+    """The backend called ``name``; OptionError if there is none."""
+    from lcpcli.core.errors import OptionError
+
+    if name not in _LOADED:
+        if name not in _BACKENDS:
+            raise OptionError(f"unknown batch backend '{name}' (available: "
+                              f"{', '.join(sorted(_BACKENDS))})")
+        _LOADED[name] = _BACKENDS[name]()
+    return _LOADED[name]
+
+
+def residuals(z: np.ndarray, w: np.ndarray, lower: np.ndarray | None = None,
+              upper: np.ndarray | None = None) -> np.ndarray:
+    """Per problem ``||mid(z - l, z - u, w)||_inf`` (LCP: ``||min(z, w)||_inf``), shape (K,):
+    the natural residual in the units of the data, as :attr:`Certificate.residual`."""
+    if z.shape[1] == 0:
+        return np.zeros(z.shape[0])
+    r = np.minimum(z, w) if lower is None else np.maximum(np.minimum(z - lower, w), z - upper)
+    return np.abs(r).max(axis=1)

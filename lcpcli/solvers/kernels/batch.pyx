@@ -1,0 +1,285 @@
+# cython: language_level=3, boundscheck=False, wraparound=False, cdivision=True
+"""Batched kernels: one compiled call solves and certifies a stack of equal-size problems.
+
+A stack is ``M`` of shape (K, n, n) and ``q`` of shape (K, n), row-major float64 (problem ``k``
+is ``w = M[k] z + q[k]``, 0-based ``k``).  Each problem runs the same C code as the one-problem
+kernels (:c:func:`lemke_tableau` and :c:func:`polish`, :c:func:`pgs_sweeps`) and its answer is
+judged by :c:func:`certify_dense`, the project's one certificate.  The loop over problems runs
+in OpenMP threads (``prange``; serial where the compiler has no OpenMP); every problem
+allocates its own scratch, so threads share nothing but the read-only stack.
+
+Per problem the kernels write ``z`` and ``w`` (K, n), ``code`` (K,) int8, ``iterations`` (K,)
+int64 and ``error`` (K,) float64 (the certified error; ``inf`` when it could not be computed
+here).  ``code`` is :data:`SOLVED` when the certificate passed at ``tol``, else :data:`RETRY`:
+the kernel has no verdict and the caller runs the full one-problem pipeline (equilibration,
+ray classification, Farkas proofs; :func:`lcpcli.api.solve`) on that problem.  A batched
+kernel therefore never says ``no_solution`` and never says ``solved`` without the certificate.
+"""
+
+from cython.parallel cimport prange
+from libc.math cimport INFINITY, fabs
+from libc.stdint cimport int64_t
+from libc.stdlib cimport free, malloc
+
+cimport numpy as cnp
+
+from lcpcli.core._certificate cimport CertOut, certify_dense
+from lcpcli.core.arrays cimport f64_ptr, inout
+from lcpcli.solvers.kernels.lemke cimport (
+    LEMKE_OK,
+    LEMKE_TRIVIAL,
+    LemkeOut,
+    lemke_tableau,
+    polish,
+)
+from lcpcli.solvers.kernels.pgs cimport PGS_CONVERGED, pgs_sweeps
+
+cnp.import_array()
+
+cdef enum:
+    B_SOLVED = 0
+    B_RETRY = 1
+
+#: ``code`` of a problem whose answer passed the certificate.
+SOLVED = B_SOLVED
+#: ``code`` of a problem the kernel could not certify: run the full pipeline on it.
+RETRY = B_RETRY
+
+
+cdef inline bint _passed(const CertOut* c, double tol) noexcept nogil:
+    return c.status == 0 and c.error <= tol
+
+
+cdef void _lemke_one(const double* M, const double* q, const double* d, Py_ssize_t n,
+                     int64_t max_iter, double piv_tol, double tie_tol, double tol, double* z,
+                     double* w, signed char* code, int64_t* iters,
+                     double* err) noexcept nogil:
+    """Lemke (tableau), polish and certificate of one problem (see the module docstring)."""
+    cdef double* work = <double*>malloc((8 * n + 1) * sizeof(double))
+    cdef int64_t* basic = <int64_t*>malloc((n + 1) * sizeof(int64_t))
+    cdef Py_ssize_t* iwork = <Py_ssize_t*>malloc((3 * n + 1) * sizeof(Py_ssize_t))
+    cdef double* raw
+    cdef double* ray
+    cdef double* cwork
+    cdef LemkeOut out
+    cdef CertOut cert
+    cdef Py_ssize_t i
+    cdef int rc
+    code[0] = B_RETRY
+    iters[0] = 0
+    err[0] = INFINITY
+    if work == NULL or basic == NULL or iwork == NULL:
+        free(work)
+        free(basic)
+        free(iwork)
+        return
+    raw = work
+    ray = work + n
+    cwork = work + 2 * n  # 5 n for the certificate
+    rc = lemke_tableau(M, q, d, n, max_iter, piv_tol, tie_tol, NULL, 0, raw, basic, ray, &out)
+    if rc == 0:
+        iters[0] = out.pivots
+        if out.status == LEMKE_OK:
+            rc = polish(M, q, n, raw, basic, z)
+        elif out.status == LEMKE_TRIVIAL:
+            for i in range(n):
+                z[i] = 0.0
+        else:
+            for i in range(n):
+                z[i] = raw[i] if raw[i] > 0.0 else 0.0
+    if rc == 0:
+        certify_dense(n, M, n, q, z, 0, NULL, NULL, w, cwork, iwork, NULL, &cert)
+        if cert.status == 0:
+            err[0] = cert.error
+        if (out.status == LEMKE_OK or out.status == LEMKE_TRIVIAL) and _passed(&cert, tol):
+            code[0] = B_SOLVED
+    free(work)
+    free(basic)
+    free(iwork)
+
+
+cdef void _sor_one(const double* M, const double* q, const double* lo_in, const double* up_in,
+                   Py_ssize_t n, double omega, int64_t max_iter, double tol, double* z,
+                   double* w, signed char* code, int64_t* iters, double* err) noexcept nogil:
+    """Projected SOR from ``z`` (already inside the bounds), sweeping until the certificate
+    passes (the sweep's own stopping test is normwise: the target is tightened tenfold until
+    the componentwise certificate is met, as :mod:`lcpcli.solvers.methods.pgs` does)."""
+    cdef double* work = <double*>malloc((8 * n + 1) * sizeof(double))
+    cdef Py_ssize_t* iwork = <Py_ssize_t*>malloc((3 * n + 1) * sizeof(Py_ssize_t))
+    cdef double* diag
+    cdef double* lo
+    cdef double* up
+    cdef double* cwork
+    cdef Py_ssize_t i, j
+    cdef double mu = 0.0, qnorm = 0.0, rowsum, target = tol, e
+    cdef int64_t sweeps = 0, done = 0
+    cdef int status
+    cdef CertOut cert
+    code[0] = B_RETRY
+    iters[0] = 0
+    err[0] = INFINITY
+    if work == NULL or iwork == NULL:
+        free(work)
+        free(iwork)
+        return
+    diag = work
+    lo = work + n
+    up = work + 2 * n
+    cwork = work + 3 * n
+    for i in range(n):
+        lo[i] = lo_in[i] if lo_in != NULL else 0.0
+        up[i] = up_in[i] if up_in != NULL else INFINITY
+        diag[i] = M[i * n + i]
+        if not (diag[i] > 0.0):
+            if lo[i] < up[i]:  # the update divides by M_ii: the full pipeline says so
+                free(work)
+                free(iwork)
+                return
+            diag[i] = 1.0
+        rowsum = 0.0
+        for j in range(n):
+            rowsum = rowsum + fabs(M[i * n + j])
+        if rowsum > mu:
+            mu = rowsum
+        if fabs(q[i]) > qnorm:
+            qnorm = fabs(q[i])
+    if mu == 0.0:
+        mu = 1.0
+    while True:
+        status = pgs_sweeps(M, NULL, NULL, NULL, q, diag, lo, up, z, n, omega,
+                            max_iter - sweeps, target, mu, qnorm, &done, &e)
+        sweeps = sweeps + done
+        if status < 0:
+            break
+        if status != PGS_CONVERGED and sweeps < max_iter:
+            break
+        certify_dense(n, M, n, q, z, 0, lo_in, up_in, w, cwork, iwork, NULL, &cert)
+        if cert.status == 0:
+            err[0] = cert.error
+        if _passed(&cert, tol):
+            code[0] = B_SOLVED
+            break
+        if status != PGS_CONVERGED or sweeps >= max_iter or target < 1e-15:
+            break
+        target = target * 0.1
+    iters[0] = sweeps
+    free(work)
+    free(iwork)
+
+
+def _outputs(z, w, code, iters, err, Py_ssize_t K, Py_ssize_t n):
+    return (inout(z, cnp.NPY_FLOAT64, K, n), inout(w, cnp.NPY_FLOAT64, K, n),
+            inout(code, cnp.NPY_INT8, K, -1), inout(iters, cnp.NPY_INT64, K, -1),
+            inout(err, cnp.NPY_FLOAT64, K, -1))
+
+
+cdef cnp.ndarray _stack(object a, Py_ssize_t ndim):
+    """``a`` as a C-contiguous float64 array of ``ndim`` dimensions (a view when it is one)."""
+    return cnp.PyArray_FROMANY(a, cnp.NPY_FLOAT64, ndim, ndim,
+                               cnp.NPY_ARRAY_C_CONTIGUOUS | cnp.NPY_ARRAY_ALIGNED)
+
+
+def lemke_stack(M, q, d, int64_t max_iter, double piv_tol, double tie_tol, double tol,
+                z, w, code, iters, err, int threads):
+    """Lemke (tableau) on every problem of the stack ``M`` (K, n, n), ``q`` (K, n).
+
+    ``d``: the covering vector (n,), or None for all ones.  Outputs (preallocated,
+    C-contiguous): ``z``, ``w`` (K, n) float64, ``code`` (K,) int8, ``iters`` (K,) int64,
+    ``err`` (K,) float64; see the module docstring.  ``threads``: OpenMP threads (>= 1).
+    """
+    cdef cnp.ndarray Ma = _stack(M, 3)
+    cdef Py_ssize_t K = cnp.PyArray_DIM(Ma, 0), n = cnp.PyArray_DIM(Ma, 1)
+    cdef cnp.ndarray qa = _stack(q, 2)
+    if cnp.PyArray_DIM(Ma, 2) != n or cnp.PyArray_DIM(qa, 0) != K or cnp.PyArray_DIM(qa, 1) != n:
+        raise ValueError("lemke_stack: M must be (K, n, n) and q (K, n)")
+    zo, wo, co, io, eo = _outputs(z, w, code, iters, err, K, n)
+    cdef cnp.ndarray da
+    cdef double* dp = NULL
+    cdef double* ones = NULL
+    cdef Py_ssize_t i, k
+    if d is not None:
+        da = _stack(d, 1)
+        if cnp.PyArray_DIM(da, 0) != n:
+            raise ValueError("lemke_stack: the covering vector must have length n")
+        dp = f64_ptr(da)
+    if K == 0:
+        return
+    if n == 0:
+        for k in range(K):
+            (<signed char*>cnp.PyArray_DATA(co))[k] = B_SOLVED
+            (<int64_t*>cnp.PyArray_DATA(io))[k] = 0
+            (<double*>cnp.PyArray_DATA(eo))[k] = 0.0
+        return
+    if dp == NULL:
+        ones = <double*>malloc(n * sizeof(double))
+        if ones == NULL:
+            raise MemoryError()
+        for i in range(n):
+            ones[i] = 1.0
+        dp = ones
+    cdef const double* Mp = f64_ptr(Ma)
+    cdef const double* qp = f64_ptr(qa)
+    cdef double* zp = f64_ptr(zo)
+    cdef double* wp = f64_ptr(wo)
+    cdef signed char* cp = <signed char*>cnp.PyArray_DATA(co)
+    cdef int64_t* ip = <int64_t*>cnp.PyArray_DATA(io)
+    cdef double* ep = f64_ptr(eo)
+    cdef Py_ssize_t nn = n * n
+    try:
+        for k in prange(K, nogil=True, schedule="dynamic", chunksize=16,
+                        num_threads=threads if threads > 0 else 1):
+            _lemke_one(Mp + k * nn, qp + k * n, dp, n, max_iter, piv_tol, tie_tol, tol,
+                       zp + k * n, wp + k * n, cp + k, ip + k, ep + k)
+    finally:
+        free(ones)
+
+
+def sor_stack(M, q, lo, up, double omega, int64_t max_iter, double tol, z, w, code, iters,
+              err, int threads):
+    """Projected SOR (``omega = 1``: Gauss-Seidel) on every problem of the stack.
+
+    ``lo``/``up``: None (LCP: ``z >= 0``) or bounds of shape (K, n) (box LCP).  ``z`` (K, n)
+    holds the start points (inside the bounds) and receives the answers; the other outputs
+    as :func:`lemke_stack`.
+    """
+    cdef cnp.ndarray Ma = _stack(M, 3)
+    cdef Py_ssize_t K = cnp.PyArray_DIM(Ma, 0), n = cnp.PyArray_DIM(Ma, 1)
+    cdef cnp.ndarray qa = _stack(q, 2)
+    if cnp.PyArray_DIM(Ma, 2) != n or cnp.PyArray_DIM(qa, 0) != K or cnp.PyArray_DIM(qa, 1) != n:
+        raise ValueError("sor_stack: M must be (K, n, n) and q (K, n)")
+    zo, wo, co, io, eo = _outputs(z, w, code, iters, err, K, n)
+    cdef cnp.ndarray la, ua
+    cdef const double* lp = NULL
+    cdef const double* up_ = NULL
+    if (lo is None) != (up is None):
+        raise ValueError("sor_stack: give both bounds or neither")
+    if lo is not None:
+        la = _stack(lo, 2)
+        ua = _stack(up, 2)
+        if cnp.PyArray_DIM(la, 0) != K or cnp.PyArray_DIM(la, 1) != n \
+                or cnp.PyArray_DIM(ua, 0) != K or cnp.PyArray_DIM(ua, 1) != n:
+            raise ValueError("sor_stack: bounds must be (K, n)")
+        lp = f64_ptr(la)
+        up_ = f64_ptr(ua)
+    cdef Py_ssize_t k
+    if K == 0:
+        return
+    if n == 0:
+        for k in range(K):
+            (<signed char*>cnp.PyArray_DATA(co))[k] = B_SOLVED
+            (<int64_t*>cnp.PyArray_DATA(io))[k] = 0
+            (<double*>cnp.PyArray_DATA(eo))[k] = 0.0
+        return
+    cdef const double* Mp = f64_ptr(Ma)
+    cdef const double* qp = f64_ptr(qa)
+    cdef double* zp = f64_ptr(zo)
+    cdef double* wp = f64_ptr(wo)
+    cdef signed char* cp = <signed char*>cnp.PyArray_DATA(co)
+    cdef int64_t* ip = <int64_t*>cnp.PyArray_DATA(io)
+    cdef double* ep = f64_ptr(eo)
+    cdef Py_ssize_t nn = n * n
+    for k in prange(K, nogil=True, schedule="dynamic", chunksize=16,
+                    num_threads=threads if threads > 0 else 1):
+        _sor_one(Mp + k * nn, qp + k * n, lp + k * n if lp != NULL else NULL,
+                 up_ + k * n if up_ != NULL else NULL, n, omega, max_iter, tol, zp + k * n,
+                 wp + k * n, cp + k, ip + k, ep + k)

@@ -1,0 +1,192 @@
+"""lcpcli.solve_many: batched kernels, the same verdict rules as lcpcli.solve, backends."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import lcpcli
+from lcpcli.api import plan_stack, solve_many
+from lcpcli.core.errors import OptionError, ProblemError
+from lcpcli.core.result import STATUS_CODES, Status
+from lcpcli.solvers import batched
+from tests.references import componentwise_error
+
+SOLVED = STATUS_CODES[Status.SOLVED]
+
+
+def pd_stack(K: int, n: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """K random positive definite (non-symmetric) problems: one solution each."""
+    rng = np.random.default_rng(seed)
+    A = rng.standard_normal((K, n, n))
+    B = rng.standard_normal((K, n, n)) * 0.3
+    M = A @ A.transpose(0, 2, 1) / n + np.eye(n) + (B - B.transpose(0, 2, 1))
+    return M, rng.standard_normal((K, n))
+
+
+def assert_honest(M, q, res, lower=None, upper=None):
+    """Every 'solved' answer passes the independent reference check at the result's tol."""
+    for k in np.flatnonzero(res.solved):
+        lo = None if lower is None else np.broadcast_to(lower, q.shape)[k]
+        up = None if upper is None else np.broadcast_to(upper, q.shape)[k]
+        err = componentwise_error(M[k], q[k], res.z[k], lo, up)
+        assert err <= res.tol * (1 + 1e-6), (k, err)
+        scale = np.abs(M[k]) @ np.abs(res.z[k]) + np.abs(q[k])  # w row by row, to rounding
+        assert np.all(np.abs(res.w[k] - (M[k] @ res.z[k] + q[k])) <= 1e-12 * scale), k
+
+
+@pytest.mark.parametrize("method", ["lemke", "lemke-tableau", "pgs", "psor", "auto"])
+def test_batched_answers_match_one_problem_solves(method):
+    M, q = pd_stack(60, 7, seed=1)
+    if method in ("pgs", "psor"):  # their class: symmetric positive definite
+        M = (M + M.transpose(0, 2, 1)) / 2
+    res = solve_many(M, q, method=method)
+    assert res.batched
+    assert res.solved.all()
+    assert_honest(M, q, res)
+    for k in range(0, 60, 7):
+        one = lcpcli.solve(M[k], q[k], method=method)
+        assert one.solved
+        np.testing.assert_allclose(res.z[k], one.z, rtol=1e-6, atol=1e-8)
+
+
+def test_threads_do_not_change_results():
+    M, q = pd_stack(500, 9, seed=2)
+    one = solve_many(M, q, method="lemke", threads=1)
+    two = solve_many(M, q, method="lemke", threads=2)
+    np.testing.assert_array_equal(one.z, two.z)
+    np.testing.assert_array_equal(one.status, two.status)
+    np.testing.assert_array_equal(one.iterations, two.iterations)
+
+
+def test_verdicts_follow_solve_rules_on_a_mixed_stack():
+    """Solvable, infeasible (M = 0, q < 0: Farkas), badly scaled rows and q >= 0 in one stack."""
+    n = 2
+    M = np.zeros((5, n, n))
+    q = np.zeros((5, n))
+    M[0], q[0] = [[2.0, 1.0], [1.0, 2.0]], [-1.0, -1.0]
+    M[1], q[1] = 0.0, [-1.0, 2.0]  # no z >= 0 has w = q >= 0
+    M[2], q[2] = np.diag([1e8, 1e-8]), [-1e8, -1e-8]  # solution (1, 1)
+    M[3], q[3] = [[2.0, 1.0], [1.0, 2.0]], [1.0, 0.0]  # z = 0
+    M[4], q[4] = np.array([[2.0, 1.0], [1.0, 2.0]]) * 1e-300, [-1e-300, -1e-300]
+    res = solve_many(M, q, method="lemke")
+    statuses = res.statuses()
+    assert statuses == [Status.SOLVED, Status.NO_SOLUTION, Status.SOLVED, Status.SOLVED,
+                        Status.SOLVED]
+    np.testing.assert_allclose(res.z[2], [1.0, 1.0], rtol=1e-12)
+    np.testing.assert_allclose(res.z[4], [1 / 3, 1 / 3], rtol=1e-12)
+    assert "Farkas" in res.message(1)
+    assert res.retried[1] and not res.retried[0]
+    assert_honest(M, q, res)
+    # the same verdicts one by one
+    for k in range(5):
+        assert lcpcli.solve(M[k], q[k], method="lemke").status == statuses[k]
+
+
+def test_diverging_psor_is_not_solved():
+    """A non-symmetric PD stack outside PSOR's class: never 'solved' without the certificate."""
+    rng = np.random.default_rng(5)
+    n = 30
+    S = rng.standard_normal((n, n)) * 3
+    M = np.stack([np.eye(n) + S - S.T] * 4)
+    q = rng.standard_normal((4, n))
+    res = solve_many(M, q, method="psor", max_iter=200)
+    assert_honest(M, q, res)
+    assert not res.solved.all()
+
+
+def test_nan_problems_are_marked_or_raise():
+    M, q = pd_stack(10, 4)
+    M[3, 1, 1] = np.nan
+    with pytest.raises(ProblemError, match="problem 3"):
+        solve_many(M, q)
+    res = solve_many(M, q, on_error="mark")
+    assert res.statuses()[3] == Status.ERROR
+    assert res.counts() == {"solved": 9, "error": 1}
+    assert np.isinf(res.error[3])
+
+
+def test_box_stacks_use_the_sor_kernel_and_match_solve():
+    M, q = pd_stack(40, 6, seed=3)
+    M = (M + M.transpose(0, 2, 1)) / 2
+    lo, up = -np.ones(6), np.ones(6)
+    res = solve_many(M, q * 3, method="pgs", lower=lo, upper=up)
+    assert res.batched and res.solved.all()
+    assert_honest(M, q * 3, res, lo, up)
+    for k in (0, 17, 39):
+        one = lcpcli.solve(M[k], q[k] * 3, method="pgs", lower=lo, upper=up)
+        np.testing.assert_allclose(res.z[k], one.z, atol=1e-6)
+
+
+def test_options_the_kernel_does_not_take_solve_one_by_one():
+    M, q = pd_stack(5, 4)
+    res = solve_many(M, q, method="pgs", z0=np.zeros(4))
+    assert not res.batched and res.solved.all()
+    res = solve_many(M, q, n_eq=1)
+    assert not res.batched and res.solved.all()
+
+
+def test_bad_arguments():
+    M, q = pd_stack(3, 4)
+    with pytest.raises(ProblemError, match="shape"):
+        solve_many(M[0], q)
+    with pytest.raises(ProblemError, match="shape"):
+        solve_many(M, q[:, :3])
+    with pytest.raises(OptionError, match="no option"):
+        solve_many(M, q, method="lemke", omega=1.5)
+    with pytest.raises(OptionError, match="tol"):
+        solve_many(M, q, tol=1.0)
+    with pytest.raises(OptionError, match="threads"):
+        solve_many(M, q, threads=0)
+    with pytest.raises(OptionError, match="backend"):
+        solve_many(M, q, backend="no-such")
+    with pytest.raises(ProblemError, match="lower > upper"):
+        solve_many(M, q, method="pgs", lower=np.ones(4), upper=np.zeros(4))
+    with pytest.raises(ProblemError):
+        solve_many(M.astype(complex), q)
+
+
+def test_auto_routes_by_a_sample_and_the_plan_can_be_reused():
+    M, q = pd_stack(200, 8, seed=4)
+    plan = plan_stack(M, q)
+    assert plan.method == "auto" and plan.kernel_method is not None
+    res = solve_many(M, q, plan=plan)
+    assert res.solved.all() and res.batched
+    with pytest.raises(OptionError, match="plan"):
+        solve_many(M, q, method="pgs", plan=plan)
+
+
+def test_a_backend_that_certifies_nothing_still_gives_honest_results():
+    """The backend interface: a kernel handing everything back costs speed, not verdicts."""
+
+    def lazy(M, q, lower, upper, *, tol, options, out, threads):
+        out.code[:] = batched.KERNEL_RETRY
+
+    batched.register_backend("lazy-test", lambda: batched.Backend("lazy-test",
+                                                                   {"lemke": lazy}))
+    M, q = pd_stack(20, 5)
+    res = solve_many(M, q, method="lemke", backend="lazy-test")
+    assert res.solved.all() and res.retried.all()
+    ref = solve_many(M, q, method="lemke")
+    np.testing.assert_allclose(res.z, ref.z, atol=1e-9)
+    with pytest.raises(OptionError, match="no 'sor' kernel"):
+        solve_many(M, q, method="pgs", backend="lazy-test")
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(1, 6), st.integers(1, 5), st.integers(0, 2**31 - 1),
+       st.sampled_from(["lemke", "pgs", "auto"]), st.floats(-200, 200))
+def test_no_false_solved_on_random_stacks(n, K, seed, method, log_scale):
+    """Any matrices (not only P), rows scaled by 2^k: every 'solved' passes the reference."""
+    rng = np.random.default_rng(seed)
+    M = rng.standard_normal((K, n, n))
+    q = rng.standard_normal((K, n))
+    rows = 2.0 ** np.round(rng.uniform(-abs(log_scale), abs(log_scale), (K, n)))
+    M *= rows[:, :, None]
+    q *= rows
+    res = solve_many(M, q, method=method)
+    assert_honest(M, q, res)
+    for k in range(K):
+        assert res.statuses()[k] == lcpcli.solve(M[k], q[k], method=method).status
