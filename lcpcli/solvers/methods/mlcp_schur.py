@@ -24,6 +24,7 @@ from lcpcli.core.errors import OptionError, ProblemError
 from lcpcli.core.problem import Problem
 from lcpcli.core.result import CONVERGED, NUMERICAL, Outcome
 from lcpcli.solvers.options import positive_int
+from lcpcli.solvers.pipeline import run_method
 from lcpcli.solvers.registry import Cost, Guarantee, Method, Option, get_method, when
 
 #: Largest pivot-block condition under which an infeasibility proof on the reduced LCP is
@@ -50,7 +51,7 @@ def solve_reduced(problem: Any, red: Any, inner: str, tol: float,
         opts["max_iter"] = max_iter
     opts = spec.parse_options(opts)
     spec.prepare_once()
-    out = spec.run(sub, tol=tol, **opts)
+    out = run_method(spec, sub, tol, opts)  # equilibrated, polished: as lcpcli.solve runs it
     x = np.asarray(out.z, dtype=np.float64)
     M = np.asarray(problem.dense_M(), dtype=np.float64)
     if not np.all(np.isfinite(x)):
