@@ -42,21 +42,23 @@ from lcpcli.core.errors import OptionError, ProblemError
 FSYNC_SECONDS = 1.0
 #: Flat columns of the CSV output.
 CSV_COLUMNS = ("source", "problem", "status", "method", "n", "iterations", "seconds",
-               "residual", "error", "message")
-_KINDS = {".jsonl": "jsonl", ".ndjson": "jsonl", ".csv": "csv", ".h5": "hdf5", ".hdf5": "hdf5"}
+               "residual", "error", "message", "index")
+_KINDS = {".jsonl": "jsonl", ".ndjson": "jsonl", ".csv": "csv", ".h5": "hdf5", ".hdf5": "hdf5",
+          ".npz": "npz"}
 
 
 def output_kind(path: str | os.PathLike[str]) -> str:
-    """``jsonl``, ``csv`` or ``hdf5`` from the extension; anything else is an OptionError."""
+    """``jsonl``, ``csv``, ``hdf5`` or ``npz`` (stacked inputs only) from the extension;
+    anything else is an OptionError."""
     ext = Path(path).suffix.lower()
     if ext not in _KINDS:
         raise OptionError(f"--output {path}: unknown result file type {ext or '(none)'} "
-                          f"(expected .jsonl, .csv, .h5)")
+                          f"(expected .jsonl, .csv, .h5, or .npz for stacked inputs)")
     return _KINDS[ext]
 
 
 def is_batch_output(path: str | os.PathLike[str]) -> bool:
-    """True when ``path`` names a batch result file (.jsonl, .ndjson, .csv, .h5, .hdf5)."""
+    """True when ``path`` names a batch result file (.jsonl, .ndjson, .csv, .h5, .hdf5, .npz)."""
     return Path(path).suffix.lower() in _KINDS
 
 
@@ -106,7 +108,7 @@ def read_jsonl(path: Path) -> list[dict[str, Any]]:
 def _csv_value(col: str, text: str) -> Any:
     if text == "":
         return None if col not in ("source", "problem", "status", "method", "message") else ""
-    if col in ("n", "iterations"):
+    if col in ("n", "iterations", "index"):
         return int(text)
     if col in ("seconds", "residual", "error"):
         return float(text)
@@ -409,6 +411,9 @@ def open_writer(path: str | os.PathLike[str], *, resume: bool = False) -> Any:
         return JsonlWriter(path, resume)
     if kind == "csv":
         return CsvWriter(path, resume)
+    if kind == "npz":
+        raise OptionError(f"--output {path}: an .npz result file is written for stacked inputs "
+                          f"only (see docs/batch.md); use .jsonl, .csv or .h5")
     return Hdf5Writer(path, resume)
 
 

@@ -60,13 +60,19 @@ def run_batch(inputs: Iterable[str], opts: SolveOptions, *, recursive: bool = Fa
               output: str | os.PathLike[str] | None = None, resume: bool = False,
               scheduler: Any = None,
               on_start: Callable[[int, int], None] | None = None,
-              on_row: Callable[[dict[str, Any]], None] | None = None) -> BatchReport:
+              on_row: Callable[[dict[str, Any]], None] | None = None,
+              on_progress: Callable[[int, dict[str, int]], None] | None = None) -> BatchReport:
     """Expand ``inputs``, skip what ``output`` already holds (``resume``), solve the rest.
 
     Rows are written to ``output`` as they complete (see :mod:`lcpcli.batch.output`) and passed
     to ``on_row``; ``on_start(total, skipped)`` is called once the work is known.  Local worker
     processes (``jobs``, default the number of cores) unless ``scheduler`` (a Dask address or
     Client) is given.  On KeyboardInterrupt the output is closed cleanly, then it propagates.
+
+    Stacked inputs (:mod:`lcpcli.io.stack`) are solved chunk by chunk in this process, the
+    batched kernels running ``jobs`` threads (:mod:`lcpcli.batch.stacked`); ``on_row`` then
+    gets rows only when given, and ``on_progress(count, counts)`` follows each chunk.  A batch
+    is either all stacks or no stack.
     """
     from lcpcli.core.errors import OptionError
 
@@ -84,12 +90,23 @@ def run_batch(inputs: Iterable[str], opts: SolveOptions, *, recursive: bool = Fa
     canonical = get_method(opts.method).name  # unknown method: OptionError before any work
     opts = SolveOptions(canonical, opts.tol, dict(opts.options))
     inputs = [str(i) for i in inputs]
+    stacked = _stacked_inputs(inputs, timeout=timeout, scheduler=scheduler)
     if output is not None:
         from lcpcli.batch import output as batch_output
         from lcpcli.io import check_output
 
         batch_output.output_kind(output)
         check_output(output, inputs=inputs)  # a link, a device, a directory or an input: refused
+    if stacked:
+        return _run_stacked(inputs, opts, output=output, resume=resume, threads=jobs,
+                            start=start, on_start=on_start, on_row=on_row,
+                            on_progress=on_progress)
+    if output is not None:
+        from lcpcli.batch import output as batch_output
+
+        if batch_output.output_kind(output) == "npz":
+            raise OptionError(f"--output {output}: an .npz result file is written for stacked "
+                              f"inputs only (see docs/batch.md); use .jsonl, .csv or .h5")
     prepare_method(canonical)
     tasks, bad_inputs = expand_inputs(inputs, recursive=recursive)
     if output is not None:  # never read our own result file back as an input
@@ -111,6 +128,59 @@ def run_batch(inputs: Iterable[str], opts: SolveOptions, *, recursive: bool = Fa
         return _run(tasks, bad_inputs, opts, report, output=output, resume=resume,
                     scheduler=scheduler, jobs=jobs, timeout=timeout, start=start,
                     on_start=on_start, on_row=on_row)
+
+
+def _stacked_inputs(inputs: list[str], *, timeout: float | None, scheduler: Any) -> bool:
+    """Whether this is a batch of stacked files (all of them; a mix is refused)."""
+    from lcpcli.core.errors import OptionError
+    from lcpcli.io.stack import is_stack
+
+    flags = [is_stack(i) for i in inputs]
+    if not any(flags):
+        return False
+    if not all(flags):
+        first = inputs[flags.index(True)]
+        raise OptionError(f"{first} is a stacked file: a batch of stacks takes stacked files "
+                          f"only (convert the others with 'lcpcli convert DIR OUT.h5 --stack')")
+    if timeout is not None:
+        raise OptionError("--timeout does not apply to stacked inputs (their chunks are solved "
+                          "by compiled threads); bound the work with --max-iter")
+    if scheduler is not None:
+        raise OptionError("--scheduler does not apply to stacked inputs (solved by compiled "
+                          "threads in this process)")
+    return True
+
+
+def _run_stacked(inputs: list[str], opts: SolveOptions, *, output: Any, resume: bool,
+                 threads: int, start: float, on_start: Any, on_row: Any,
+                 on_progress: Any) -> BatchReport:
+    """A batch of stacked files (see :mod:`lcpcli.batch.stacked`), output locked."""
+    from lcpcli.batch.stacked import run_stacks
+
+    report = BatchReport(tally=Tally(), stats=BatchStats(), total=0,
+                         output=None if output is None else str(output))
+
+    def write(fn: Callable[[], None]) -> None:
+        t0 = time.perf_counter()
+        with signals_deferred():
+            fn()
+        report.stats.write_seconds += time.perf_counter() - t0
+
+    with contextlib.ExitStack() as held:
+        if output is not None:
+            from lcpcli.io import output_lock
+
+            held.enter_context(output_lock(output))
+        report.setup_seconds = time.perf_counter() - start
+        try:
+            run_stacks(inputs, opts, report, output=output, resume=resume, threads=threads,
+                       on_start=on_start, on_progress=on_progress, on_row=on_row, write=write)
+        except KeyboardInterrupt:
+            report.interrupted = True
+            raise
+        finally:
+            report.wall_seconds = time.perf_counter() - start
+    return report
 
 
 def _identity(path: str | os.PathLike[str]) -> tuple[int, int] | None:

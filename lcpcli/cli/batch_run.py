@@ -31,8 +31,9 @@ def wants_batch(files: list[str], output: Any, *, problem: str | None = None,
     """True unless this is the classic one-file solve (one FILE, no batch option).
 
     Batch mode: several FILEs, a folder, a glob, a batch option (--recursive, --jobs,
-    --resume, --timeout, --quiet, --scheduler), ``--output`` ending in .jsonl/.csv/.h5, or
-    an HDF5 file holding several problems without ``--problem`` (every problem is solved).
+    --resume, --timeout, --quiet, --scheduler), ``--output`` ending in .jsonl/.csv/.h5/.npz,
+    a stacked file (:mod:`lcpcli.io.stack`), or an HDF5 file holding several problems without
+    ``--problem`` (every problem is solved).
     """
     from lcpcli.batch.inputs import GLOB_CHARS
     from lcpcli.batch.output import is_batch_output
@@ -45,6 +46,10 @@ def wants_batch(files: list[str], output: Any, *, problem: str | None = None,
     f = files[0]
     if f == "-":
         return False
+    from lcpcli.io.stack import is_stack
+
+    if is_stack(f):
+        return True
     if Path(f).is_dir() or (not Path(f).exists() and GLOB_CHARS & set(f)):
         return True
     if output is not None and is_batch_output(output):
@@ -124,6 +129,21 @@ def run_batch_command(files: list[str], *, method: str, tol: float | None,
                             counts=f"solved {c.get('solved', 0)}  unsolved "
                                    f"{c.get('unsolved', 0)}  failed {c.get('failed', 0)}")
 
+    def on_progress(count: int, counts: dict[str, int]) -> None:
+        state["done"] += count
+        _maybe_estimate(state, quiet)
+        if progress is not None and state["task"] is not None:
+            failed = counts.get(Status.ERROR, 0)
+            solved = counts.get(Status.SOLVED, 0)
+            unsolved = sum(counts.values()) - failed - solved
+            progress.update(state["task"], advance=count,
+                            counts=f"solved {solved}  unsolved {unsolved}  failed {failed}")
+
+    from lcpcli.io.stack import is_stack
+
+    # stacks: rows only for the --json stream (building them costs more than solving)
+    stacked = any(is_stack(f) for f in files)
+    row_sink = (write_json_line if stream_rows else None) if stacked else on_row
     if show_bar:
         from lcpcli.cli.render.batch import make_progress
 
@@ -137,7 +157,7 @@ def run_batch_command(files: list[str], *, method: str, tol: float | None,
         report = run_batch(files, SolveOptions(method=method, tol=tol, options=dict(opts)),
                            recursive=recursive, jobs=jobs, timeout=timeout, output=output,
                            resume=resume, scheduler=scheduler, on_start=on_start,
-                           on_row=on_row)
+                           on_row=row_sink, on_progress=on_progress)
     except KeyboardInterrupt as exc:
         if progress is not None:
             progress.stop()

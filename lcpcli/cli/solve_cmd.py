@@ -45,7 +45,8 @@ def solve(
     recursive: bool = typer.Option(False, "--recursive", "-r",
                                    help="Batch: look for problem files in sub-folders too."),
     jobs: int = typer.Option(None, "--jobs", "-j", min=1,
-                             help="Batch: worker processes [default: number of cores]."),
+                             help="Batch: worker processes (stacked files: threads) "
+                                  "[default: number of cores]."),
     resume: bool = typer.Option(False, "--resume",
                                 help="Batch: skip problems already in --output."),
     timeout: float = typer.Option(None, "--timeout",

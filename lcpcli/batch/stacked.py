@@ -1,0 +1,187 @@
+"""Batches of stacked problem files: read a chunk, solve it in one call, write it.
+
+Each input is a stack (:mod:`lcpcli.io.stack`: ``M`` (K, n, n), ``q`` (K, n), ...).  Chunks of
+:func:`lcpcli.io.stack.chunk_size` problems are read in order and solved by
+:func:`lcpcli.api.solve_many` (the batched kernel in threads, the certificate inside the same
+call, the full one-problem pipeline for what it could not certify; the method is planned once
+per stack by :func:`lcpcli.api.plan_stack`).  Results go to the output as stacked datasets
+(``.h5``, ``.npz``: :mod:`lcpcli.batch.stack_output`) or as rows (``.jsonl``, ``.csv``, and the
+``--json`` stream; row ``problem`` is the stacked problem's name), and ``--resume`` skips the
+problems the output already holds.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from lcpcli.batch.records import SolveOptions, error_row
+from lcpcli.batch.report import BatchReport, BatchStats, Tally
+from lcpcli.core.errors import LcpError
+
+
+def _problem_name(stem: str, k: int, names: list[str] | None, i: int) -> str:
+    """Problem k of the stack, entry i of the chunk's ``names`` (io.stack's naming rule)."""
+    from lcpcli.io.stack import problem_name
+
+    return problem_name(stem, names, k, start=k - i)
+
+
+def result_rows(source: str, stem: str, positions: np.ndarray, names: list[str] | None,
+                res: Any) -> list[dict[str, Any]]:
+    """The batch rows of a solved chunk (the ``solve --json`` fields a stack keeps, plus
+    ``source``, ``problem`` and ``index``, the 0-based position in the stack)."""
+    from lcpcli.core.result import STATUS_OF_CODE
+
+    per = res.seconds / max(1, len(res))
+    n = int(res.z.shape[1])
+    rows = []
+    for i, k in enumerate(positions.tolist()):
+        err, resid = float(res.error[i]), float(res.residual[i])
+        status = STATUS_OF_CODE[int(res.status[i])]
+        rows.append({
+            "file": source, "status": status, "method": res.method_of(i),
+            "n": n if status != "error" else None,
+            "z": [x if np.isfinite(x) else None for x in res.z[i].tolist()],
+            "w": [x if np.isfinite(x) else None for x in res.w[i].tolist()],
+            "iterations": int(res.iterations[i]), "seconds": per,
+            "residual": resid if np.isfinite(resid) else None,
+            "error": err if np.isfinite(err) else None,
+            "message": res.message(i), "problem": _problem_name(stem, k, names, i),
+            "index": k, "source": source})
+    return rows
+
+
+def run_stacks(inputs: list[str], opts: SolveOptions, report: BatchReport, *,
+               output: Any, resume: bool, threads: int,
+               on_start: Callable[[int, int], None] | None,
+               on_progress: Callable[[int, dict[str, int]], None] | None,
+               on_row: Callable[[dict[str, Any]], None] | None,
+               write: Callable[[Callable[[], None]], None]) -> None:
+    """Solve every problem of the stacked ``inputs`` into ``report`` (see the module docstring).
+
+    ``write(fn)`` runs an output write (the caller holds signals around it and times it);
+    ``on_progress(count, counts)`` after each chunk with the number of problems it finished
+    and the status counts so far; ``on_row`` gets each row when given (the ``--json`` stream).
+    """
+    from lcpcli.batch import stack_output
+    from lcpcli.io.stack import chunk_size, open_stack, stack_info
+
+    tally, stats = report.tally, report.stats
+    infos: list[Any] = []
+    for path in inputs:
+        try:
+            infos.append(stack_info(path))
+        except LcpError as exc:
+            infos.append(None)
+            row = error_row(path, Path(path).stem, str(exc), opts.method)
+            tally.add(row)
+            report.new += 1
+            if on_row:
+                on_row(row)
+    report.total = sum(i.K for i in infos if i is not None) + infos.count(None)
+    writer = None
+    if output is not None:
+        writer = stack_output.open_stack_writer(output, [i for i in infos if i is not None],
+                                                resume=resume)
+    done_masks = {}
+    for path, info in zip(inputs, infos, strict=True):
+        if info is not None:
+            done = writer.done(info) if (writer is not None and resume) else \
+                np.zeros(info.K, bool)
+            done_masks[path] = done
+            if resume and done.any():
+                report.skipped += int(done.sum())
+                writer.tally_done(info, tally)
+    if on_start:
+        on_start(report.total, report.skipped + infos.count(None))
+    try:
+        for path, info in zip(inputs, infos, strict=True):
+            if info is None:
+                continue
+            _run_one(path, info, opts, report, tally, stats, writer, done_masks[path],
+                     threads=threads, chunk=chunk_size(info.n), open_stack=open_stack,
+                     on_progress=on_progress, on_row=on_row, write=write)
+    finally:
+        if writer is not None:
+            write(writer.close)
+
+
+def _run_one(path: str, info: Any, opts: SolveOptions, report: BatchReport, tally: Tally,
+             stats: BatchStats, writer: Any, done: np.ndarray, *, threads: int, chunk: int,
+             open_stack: Any, on_progress: Any, on_row: Any, write: Any) -> None:
+    from lcpcli.api import plan_stack, solve_many
+
+    stem = Path(path).stem
+    plan = None
+    options = dict(opts.options)
+    with open_stack(path) as reader:
+        for start in range(0, info.K, chunk):
+            stop = min(info.K, start + chunk)
+            todo = np.flatnonzero(~done[start:stop])
+            if todo.size == 0:
+                continue
+            t0 = time.perf_counter()
+            part = reader.read(start, stop)
+            t1 = time.perf_counter()
+            stats.read_seconds += t1 - t0
+            M, q = part.M, part.q
+            lo, up = part.lower, part.upper
+            if todo.size != stop - start:
+                M, q = M[todo], q[todo]
+                lo = None if lo is None else lo[todo]
+                up = None if up is None else up[todo]
+            names = part.names if todo.size == stop - start or part.names is None else \
+                [part.names[i] for i in todo.tolist()]
+            if plan is None:
+                plan = plan_stack(M, q, opts.method, lower=lo, upper=up, n_eq=info.n_eq,
+                                  **options)
+            res = solve_many(M, q, opts.method, tol=opts.tol, lower=lo, upper=up,
+                             n_eq=info.n_eq, threads=threads, on_error="mark", plan=plan,
+                             **options)
+            t2 = time.perf_counter()
+            stats.solve_seconds += t2 - t1
+            stats.method_seconds += res.seconds
+            stats.problems += len(res)
+            positions = todo + start
+            rows = result_rows(path, stem, positions, names, res) \
+                if (on_row is not None or (writer is not None and writer.wants_rows)) else None
+            if writer is not None:
+                write(lambda: writer.write(info, positions, names, res, rows))  # noqa: B023
+            add_to_tally(tally, path, stem, positions, names, res)
+            report.new += len(res)
+            if rows is not None and on_row is not None:
+                for row in rows:
+                    on_row(row)
+            if on_progress:
+                on_progress(len(res), dict(tally.counts))
+
+
+def add_to_tally(tally: Tally, source: str, stem: str, positions: np.ndarray,
+                 names: list[str] | None, res: Any) -> None:
+    """Counts, the worst errors and the first error messages of a chunk, without rows."""
+    import heapq
+
+    from lcpcli.core.result import STATUS_CODES, Status
+
+    for status, count in res.counts().items():
+        tally.counts[status] = tally.counts.get(status, 0) + count
+    ok = res.status != STATUS_CODES[Status.ERROR]
+    err = np.where(np.isfinite(res.error), res.error, np.inf)
+    idx = np.flatnonzero(ok)
+    if idx.size:
+        worst = idx[np.argsort(-err[idx], kind="stable")[:tally.top]]
+        for i in worst.tolist():
+            k = int(positions[i])
+            heapq.heappush(tally.worst, (float(err[i]), source,
+                                         _problem_name(stem, k, names, i)))
+            if len(tally.worst) > tally.top:
+                heapq.heappop(tally.worst)
+    for i in np.flatnonzero(~ok).tolist()[:max(0, tally.top - len(tally.errors))]:
+        k = int(positions[i])
+        tally.errors.append((source, _problem_name(stem, k, names, i), res.message(i)))
+
