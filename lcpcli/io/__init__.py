@@ -119,7 +119,8 @@ def load(path: str | os.PathLike[str], problem: str | None = None, *,
 
 
 def list_problems(path: str | os.PathLike[str]) -> list[str]:
-    """Names of the problems a file holds (HDF5: the groups; other formats: one name)."""
+    """Names of the problems a file holds (HDF5: the groups; a stacked file: its K names, see
+    :mod:`lcpcli.io.stack`; other formats: one name)."""
     kind = detect_format(path)
     if kind == "hdf5":
         from lcpcli.io import hdf5_format
@@ -129,6 +130,14 @@ def list_problems(path: str | os.PathLike[str]) -> list[str]:
             return hdf5_format.list_problems(Path(path))
         except ProblemError as exc:
             raise exc.with_source(str(path)) from None
+    if kind == "npz":
+        from lcpcli.io.stack import is_stack, list_names
+
+        if is_stack(path):
+            try:
+                return list_names(path)
+            except ProblemError as exc:
+                raise exc.with_source(str(path)) from None
     return [Path(path).stem]
 
 

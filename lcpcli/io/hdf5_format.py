@@ -32,11 +32,12 @@ from lcpcli.io.sparse import (
 H5_ERRORS = (OSError, KeyError, RuntimeError, TypeError, ValueError, AttributeError)
 
 
-def _open(path: Path) -> Any:
+def _open(path: Path, **kwargs: Any) -> Any:
+    """The file opened read-only (``kwargs`` go to ``h5py.File``, e.g. the chunk cache)."""
     import h5py
 
     try:
-        return h5py.File(path, "r")
+        return h5py.File(path, "r", **kwargs)
     except OSError as exc:
         reason = str(exc).split("(")[0].strip() or "unreadable"
         raise ProblemError(f"not a readable HDF5 file ({reason})") from None
@@ -90,8 +91,29 @@ def _problem_groups(f: Any) -> list[str]:
     return names
 
 
+def _is_stacked(f: Any) -> bool:
+    """Whether the root holds a stack (a dataset M of 3 dimensions; see :mod:`.stack`)."""
+    import h5py
+
+    try:
+        link = f.get("M", getlink=True)
+        node = f.get("M") if isinstance(link, (h5py.HardLink, h5py.SoftLink)) else None
+        return isinstance(node, h5py.Dataset) and node.shape is not None \
+            and len(node.shape) == 3
+    except H5_ERRORS:
+        return False
+
+
 def list_problems(path: Path) -> list[str]:
-    """The problems in the file: ``["/"]`` when M and q sit at the root, else group names."""
+    """The problems in the file: the root problem's name when M and q sit at the root, the
+    stacked problems' names for a stack (:func:`lcpcli.io.stack.list_names`), else the
+    group names."""
+    with _open(path) as f:
+        stacked = _is_problem(f) and _is_stacked(f)
+    if stacked:
+        from lcpcli.io.stack import list_names
+
+        return list_names(path)
     with _open(path) as f:
         try:
             if _is_problem(f):
@@ -104,6 +126,12 @@ def list_problems(path: Path) -> list[str]:
 
 
 def read(path: Path, problem: str | None = None) -> Problem:
+    with _open(path) as f:
+        stacked = _is_problem(f) and _is_stacked(f)
+    if stacked:  # one stacked problem is read; several are refused (lcpcli.io.stack)
+        from lcpcli.io.stack import read_single
+
+        return read_single(path, problem)
     with _open(path) as f:
         try:
             if _is_problem(f) and problem is None:
@@ -132,8 +160,11 @@ def _names(groups: list[str], limit: int = 20) -> str:
 
 
 # ------------------------------------------------------------------ checked access
-def _dataset(g: Any, name: str, label: str, kinds: str = REAL_KINDS) -> Any:
-    """A dataset of ``g`` stored in this file, of an accepted type (nothing read yet)."""
+def _dataset(g: Any, name: str, label: str, kinds: str | None = REAL_KINDS) -> Any:
+    """A dataset of ``g`` stored in this file, of an accepted type (nothing read yet).
+
+    ``kinds=None`` skips the type check (the caller checks a non-numeric type itself).
+    """
     import h5py
 
     node = _child(g, name, label)
@@ -146,7 +177,8 @@ def _dataset(g: Any, name: str, label: str, kinds: str = REAL_KINDS) -> Any:
     if node.is_virtual or node.id.get_create_plist().get_external_count():
         raise ProblemError(f"'{label}' keeps its data in other files (virtual or external "
                            f"storage); refused")
-    check_dtype(node.dtype, f"'{label}'", kinds=kinds)
+    if kinds is not None:
+        check_dtype(node.dtype, f"'{label}'", kinds=kinds)
     return node
 
 
@@ -226,6 +258,10 @@ def _read_matrix(g: Any) -> Any:
     if isinstance(node, h5py.Group):
         return _read_sparse(node)
     d = _dataset(g, "M", "M")
+    if len(d.shape) == 3:
+        from lcpcli.io.stack import stacked_message
+
+        raise ProblemError(stacked_message(d.shape[0]))
     if len(d.shape) != 2:
         raise ProblemError(f"M must be a 2-D matrix, got shape {tuple(d.shape)}")
     check_size(*d.shape)

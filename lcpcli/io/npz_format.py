@@ -44,17 +44,23 @@ _TEXT_KINDS = "US"
 
 def read_npy_header(fh: IO[bytes]) -> tuple[tuple[int, ...], np.dtype]:
     """Shape and dtype from a ``.npy`` header (the file position ends after the header)."""
+    shape, _fortran, dtype = read_npy_header_full(fh)
+    return shape, dtype
+
+
+def read_npy_header_full(fh: IO[bytes]) -> tuple[tuple[int, ...], bool, np.dtype]:
+    """Shape, Fortran order and dtype from a ``.npy`` header (position: after the header)."""
     try:
         version = np.lib.format.read_magic(fh)
         if version == (1, 0):
-            shape, _fortran, dtype = np.lib.format.read_array_header_1_0(fh)
+            shape, fortran, dtype = np.lib.format.read_array_header_1_0(fh)
         elif version == (2, 0):
-            shape, _fortran, dtype = np.lib.format.read_array_header_2_0(fh)
+            shape, fortran, dtype = np.lib.format.read_array_header_2_0(fh)
         else:  # 3.0 (UTF-8 field names): numpy has no public reader of the header alone
-            shape, _fortran, dtype = np.lib.format._read_array_header(fh, version)
+            shape, fortran, dtype = np.lib.format._read_array_header(fh, version)
     except (ValueError, TypeError, SyntaxError, EOFError) as exc:
         raise ProblemError(f"damaged .npy header ({str(exc).splitlines()[0][:80]})") from None
-    return tuple(int(x) for x in shape), np.dtype(dtype)
+    return tuple(int(x) for x in shape), bool(fortran), np.dtype(dtype)
 
 
 class Member:
@@ -64,10 +70,12 @@ class Member:
         self.zf, self.info, self.key = zf, info, key
         with zf.open(info) as fh:
             try:
-                shape, dtype = read_npy_header(fh)
+                shape, fortran, dtype = read_npy_header_full(fh)
             except ProblemError as exc:
                 raise ProblemError(f"array '{key}': {exc}") from None
             header_len = fh.tell()
+        #: Bytes before the data in the member; whether the data are in Fortran order.
+        self.header_len, self.fortran = header_len, fortran
         self.shape: tuple[int, ...] = tuple(int(x) for x in shape)
         self.dtype = np.dtype(dtype)
         self.size = math.prod(self.shape)
@@ -170,6 +178,10 @@ def _read(zf: zipfile.ZipFile, path: Path) -> Problem:
     if "M" in entries:
         m = member("M")
         m.check("M")
+        if len(m.shape) == 3:  # a stack: its one problem, or refused (lcpcli.io.stack)
+            from lcpcli.io.stack import read_single
+
+            return read_single(path)
         if len(m.shape) != 2:
             raise ProblemError(f"M must be a 2-D matrix, got shape {m.shape}")
         check_size(*m.shape)
