@@ -144,9 +144,7 @@ def plan_stack(M: Any, q: Any, method: str | None = None, *, lower: Any = None,
     """The :class:`StackPlan` of :func:`solve_many` for this stack (same arguments)."""
     M, q, lower, upper, n_eq, spec, kind = _check_stack(M, q, method, lower, upper, n_eq,
                                                         options)
-    finite = np.isfinite(M).all(axis=(1, 2)) & np.isfinite(q).all(axis=1)
-    run_spec, kernel_options = _batched_method(spec, kind, options, M, q, lower, upper,
-                                               np.flatnonzero(finite))
+    run_spec, kernel_options = _batched_method(spec, kind, options, M, q, lower, upper)
     return StackPlan(spec.name, None if run_spec is None else run_spec.name, kernel_options)
 
 
@@ -197,7 +195,8 @@ def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None =
     MLCP) every problem is solved by :func:`solve`.
 
     ``on_error``: ``"raise"`` (a problem with NaN or Inf data raises :class:`ProblemError`
-    naming its index) or ``"mark"`` (its status is ``error``; batch runs use this).
+    naming its index; problems before it are solved first) or ``"mark"`` (its status is
+    ``error``; batch runs use this).
     """
     from lcpcli.core.errors import ProblemError
     from lcpcli.solvers.batched import KERNEL_SOLVED, StackOut, default_threads, get_backend
@@ -216,27 +215,14 @@ def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None =
         threads = default_threads()
     elif not (isinstance(threads, int) and threads >= 1):
         raise OptionError(f"threads must be a positive integer, got {threads!r}")
-    finite = np.isfinite(M).all(axis=(1, 2)) & np.isfinite(q).all(axis=1)
-    bad = np.flatnonzero(~finite)
-    if bad.size and on_error == "raise":
-        raise ProblemError(f"problem {int(bad[0])} of the stack: M or q contains NaN or Inf "
-                           f"({bad.size} such problem{'s' if bad.size > 1 else ''})")
     codes = STATUS_CODES
-    z = np.full((K, n), np.nan)
-    w = np.full((K, n), np.nan)
-    status = np.full(K, codes[Status.ERROR], np.int8)
-    iterations = np.zeros(K, np.int64)
-    error = np.full(K, np.inf)
-    messages: dict[int, str] = {int(k): "M or q contains NaN or Inf" for k in bad}
+    messages: dict[int, str] = {}
     methods_of: dict[int, str] = {}
-    good = np.flatnonzero(finite)
     if plan is None:
-        run_spec, kernel_options = _batched_method(spec, kind, options, M, q, lower, upper,
-                                                   good)
+        run_spec, kernel_options = _batched_method(spec, kind, options, M, q, lower, upper)
     else:
         run_spec = None if plan.kernel_method is None else get_method(plan.kernel_method)
         kernel_options = plan.kernel_options
-    retry = good
     name = spec.name
     if run_spec is not None:
         kernel = get_backend(backend).kernel(run_spec.batch.kernel)
@@ -244,24 +230,34 @@ def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None =
             raise OptionError(f"batch backend '{backend}' has no '{run_spec.batch.kernel}' "
                               f"kernel (method '{run_spec.name}')")
         name = run_spec.batch.runs_as or run_spec.name
-        whole = good.size == K
-        sub = (lambda a: a) if whole else (lambda a: None if a is None else a[good])
-        out = StackOut.empty(good.size, n)
+        out = StackOut.empty(K, n)  # the kernel writes the final arrays
         run_spec.prepare_once()
-        kernel(sub(M), sub(q), sub(lower), sub(upper), tol=tol, options=kernel_options,
-               out=out, threads=threads)
-        z[good], w[good] = out.z, out.w
-        iterations[good], error[good] = out.iterations, out.error
-        ok = out.code == KERNEL_SOLVED
-        status[good[ok]] = codes[Status.SOLVED]
-        retry = good[~ok]
+        kernel(M, q, lower, upper, tol=tol, options=kernel_options, out=out, threads=threads)
+        z, w, iterations, error = out.z, out.w, out.iterations, out.error
+        status = np.where(out.code == KERNEL_SOLVED, codes[Status.SOLVED],
+                          codes[Status.UNSOLVED]).astype(np.int8)
+        retry = np.flatnonzero(out.code != KERNEL_SOLVED)
+    else:
+        z, w = np.full((K, n), np.nan), np.full((K, n), np.nan)
+        status = np.full(K, codes[Status.UNSOLVED], np.int8)
+        iterations, error = np.zeros(K, np.int64), np.full(K, np.inf)
+        retry = np.arange(K)
     for k in retry.tolist():
-        problem = Problem.create(M[k], q[k], n_eq=n_eq,
-                                 lower=None if lower is None else lower[k],
-                                 upper=None if upper is None else upper[k])
+        try:  # NaN or Inf data: never certified by a kernel, refused here
+            problem = Problem.create(M[k], q[k], n_eq=n_eq,
+                                     lower=None if lower is None else lower[k],
+                                     upper=None if upper is None else upper[k])
+        except ProblemError as exc:
+            if on_error == "raise":
+                raise ProblemError(f"problem {k} of the stack: {exc}") from None
+            status[k], error[k], iterations[k] = codes[Status.ERROR], np.inf, 0
+            z[k], w[k] = np.nan, np.nan
+            messages[k] = str(exc)
+            continue
         try:
             r = solve(problem, spec.name, tol=tol, **options)
         except LcpError as exc:
+            status[k], error[k] = codes[Status.ERROR], np.inf
             messages[k] = str(exc)
             continue
         z[k], w[k] = r.z, r.w
@@ -336,16 +332,16 @@ def _stack_n_eq(n_eq: Any, n: int) -> int:
 
 
 def _batched_method(spec: Method, kind: str, options: dict[str, Any], M: np.ndarray,
-                    q: np.ndarray, lower: np.ndarray | None, upper: np.ndarray | None,
-                    good: np.ndarray) -> tuple[Method | None, dict[str, Any]]:
+                    q: np.ndarray, lower: np.ndarray | None,
+                    upper: np.ndarray | None) -> tuple[Method | None, dict[str, Any]]:
     """The method whose batched kernel runs the stack and the kernel's options, or
     (None, {}) when the stack is solved one problem at a time (see :func:`solve_many`)."""
     given = {k.replace("-", "_"): v for k, v in options.items()
              if v is not None and v is not False}
     if spec.planner:
-        if set(given) - {"max_iter"} or good.size == 0:
+        if set(given) - {"max_iter"} or q.shape[0] == 0:
             return None, {}  # order=, z0=: auto's own per-problem logic
-        chosen = _auto_choice(M, q, lower, upper, good)
+        chosen = _auto_choice(M, q, lower, upper)
         if chosen is None:
             return None, {}
         spec = get_method(chosen)
@@ -357,21 +353,25 @@ def _batched_method(spec: Method, kind: str, options: dict[str, Any], M: np.ndar
 
 
 def _auto_choice(M: np.ndarray, q: np.ndarray, lower: np.ndarray | None,
-                 upper: np.ndarray | None, good: np.ndarray) -> str | None:
+                 upper: np.ndarray | None) -> str | None:
     """The method ``auto`` would try first on most of a sample of the stack (problems with
-    ``q >= 0`` and no bounds are skipped: z = 0 solves them), or None."""
+    ``q >= 0`` and no bounds are skipped: z = 0 solves them; so are problems with NaN or Inf
+    data), or None."""
     from collections import Counter
 
     from lcpcli.analysis.classify import Classifier
     from lcpcli.solvers import policy
 
-    candidates = good if lower is not None else good[(q[good] < 0).any(axis=1)]
+    candidates = np.arange(q.shape[0]) if lower is not None else \
+        np.flatnonzero((q < 0).any(axis=1))
     if candidates.size == 0:
         return None
     picks = candidates[np.linspace(0, candidates.size - 1,
                                    min(AUTO_SAMPLE, candidates.size)).astype(int)]
     votes: Counter[str] = Counter()
     for k in dict.fromkeys(picks.tolist()):
+        if not (np.isfinite(M[k]).all() and np.isfinite(q[k]).all()):
+            continue
         problem = Problem.create(M[k], q[k], lower=None if lower is None else lower[k],
                                  upper=None if upper is None else upper[k])
         c = Classifier(problem)

@@ -241,7 +241,6 @@ def test_deltasigma_is_fast_and_accurate():
     for method in ("mlcp-schur", "mlcp-lemke"):
         r = solve(p, method)
         assert r.solved
-        assert r.seconds < 5.0  # generous: shared 2-core machine; the bench reports real times
 
 
 @needs_data
