@@ -84,7 +84,13 @@ def run_batch_command(files: list[str], *, method: str, tol: float | None,
     """Run the batch, show progress and the summary; return the exit code (0/1/2, 130, 143)."""
     from lcpcli.batch.records import SolveOptions
     from lcpcli.batch.run import run_batch
-    from lcpcli.cli.common import pending_exit, stderr_console, stdout_console, write_json_line
+    from lcpcli.cli.common import (
+        pending_exit,
+        stderr_console,
+        stderr_is_terminal,
+        stdout_console,
+        write_json_line,
+    )
     from lcpcli.core.errors import OptionError
     from lcpcli.core.result import Status  # imports numpy: not at --help time
 
@@ -97,8 +103,7 @@ def run_batch_command(files: list[str], *, method: str, tol: float | None,
         raise OptionError("--resume needs --output (the file whose finished problems are "
                           "skipped)")
     stream_rows = as_json and output is None
-    err = stderr_console()
-    show_bar = not quiet and err.is_terminal
+    show_bar = not quiet and stderr_is_terminal()
     progress = None
     state: dict[str, Any] = {"task": None, "counts": {}, "total": 0, "done": 0, "start": 0.0,
                              "estimated": False, "rows": []}
@@ -147,7 +152,7 @@ def run_batch_command(files: list[str], *, method: str, tol: float | None,
     if show_bar:
         from lcpcli.cli.render.batch import make_progress
 
-        progress = make_progress(err)
+        progress = make_progress(stderr_console())
     old_term = signal.signal(signal.SIGTERM, _on_sigterm) \
         if _main_thread() else None
     report = None

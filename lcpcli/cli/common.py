@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import sys
 from typing import Any
 
@@ -129,6 +130,18 @@ def stderr_console() -> Any:
     return _console_class()(stderr=True, highlight=False)
 
 
+def stderr_is_terminal() -> bool:
+    """Whether stderr is a terminal, as rich decides it (``FORCE_TERMINAL`` too), without
+    importing rich when it is not (progress bars are for terminals only)."""
+    force = os.environ.get("FORCE_TERMINAL")
+    if force is not None:
+        return force.lower() not in ("", "0", "false", "no")
+    try:
+        return sys.stderr.isatty()
+    except (AttributeError, ValueError):
+        return False
+
+
 def exit_code_for(statuses: list[str]) -> int:
     """0 if every status is ``solved``, 1 otherwise (bad input is raised, not returned)."""
     from lcpcli.core.result import Status  # imports numpy: not at --help time
@@ -145,4 +158,4 @@ def write_json_line(obj: Any) -> None:
 
 __all__ = ["EXIT_BAD_INPUT", "MAX_ITER", "MethodListCommand", "PipeClosed", "StdoutGuard",
            "duration", "exit_code_for", "parse_key_values", "pending_exit", "plural",
-           "stderr_console", "stdout_console", "write_json_line"]
+           "stderr_console", "stderr_is_terminal", "stdout_console", "write_json_line"]

@@ -54,7 +54,9 @@ cdef void _lemke_one(const double* M, const double* q, const double* d, Py_ssize
                      int64_t max_iter, double piv_tol, double tie_tol, double tol, double* z,
                      double* w, signed char* code, int64_t* iters,
                      double* err) noexcept nogil:
-    """Lemke (tableau), polish and certificate of one problem (see the module docstring)."""
+    """Lemke (tableau) and the certificate of one problem; the end basis is re-solved (polish)
+    only when the tableau's answer fails the certificate (a fifth of the time at n = 12, and
+    the answer is certified either way)."""
     cdef double* work = <double*>malloc((8 * n + 1) * sizeof(double))
     cdef int64_t* basic = <int64_t*>malloc((n + 1) * sizeof(int64_t))
     cdef Py_ssize_t* iwork = <Py_ssize_t*>malloc((3 * n + 1) * sizeof(Py_ssize_t))
@@ -79,20 +81,20 @@ cdef void _lemke_one(const double* M, const double* q, const double* d, Py_ssize
     rc = lemke_tableau(M, q, d, n, max_iter, piv_tol, tie_tol, NULL, 0, raw, basic, ray, &out)
     if rc == 0:
         iters[0] = out.pivots
-        if out.status == LEMKE_OK:
-            rc = polish(M, q, n, raw, basic, z)
-        elif out.status == LEMKE_TRIVIAL:
-            for i in range(n):
-                z[i] = 0.0
-        else:
-            for i in range(n):
-                z[i] = raw[i] if raw[i] > 0.0 else 0.0
-    if rc == 0:
+        for i in range(n):
+            z[i] = 0.0 if out.status == LEMKE_TRIVIAL or raw[i] < 0.0 else raw[i]
         certify_dense(n, M, n, q, z, 0, NULL, NULL, w, cwork, iwork, NULL, &cert)
-        if cert.status == 0:
-            err[0] = cert.error
-        if (out.status == LEMKE_OK or out.status == LEMKE_TRIVIAL) and _passed(&cert, tol):
-            code[0] = B_SOLVED
+        if out.status == LEMKE_OK and not _passed(&cert, tol):
+            # the end basis re-solved by LU with one refinement step (polish keeps the better
+            # of that and the tableau's answer), then certified again
+            rc = polish(M, q, n, raw, basic, z)
+            if rc == 0:
+                certify_dense(n, M, n, q, z, 0, NULL, NULL, w, cwork, iwork, NULL, &cert)
+        if rc == 0:
+            if cert.status == 0:
+                err[0] = cert.error
+            if (out.status == LEMKE_OK or out.status == LEMKE_TRIVIAL) and _passed(&cert, tol):
+                code[0] = B_SOLVED
     free(work)
     free(basic)
     free(iwork)

@@ -1,0 +1,171 @@
+"""`lcpcli solve STACK`: stacked inputs solved chunk by chunk, stacked and row outputs, resume."""
+
+from __future__ import annotations
+
+import json
+
+import h5py
+import numpy as np
+import pytest
+
+from lcpcli.api import solve_many
+from lcpcli.batch.output import read_rows
+from lcpcli.core.result import NOT_DONE, STATUS_CODES
+from lcpcli.io.stack import write_stack
+
+
+def pd_stack(K: int, n: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    rng = np.random.default_rng(seed)
+    A = rng.standard_normal((K, n, n))
+    return A @ A.transpose(0, 2, 1) / n + np.eye(n), rng.standard_normal((K, n))
+
+
+@pytest.fixture
+def stack(tmp_path):
+    M, q = pd_stack(300, 6)
+    M[7] = 0.0  # M = 0, q with a negative entry: no solution (Farkas)
+    q[7] = -1.0
+    path = tmp_path / "s.h5"
+    write_stack(path, M, q)
+    return path, M, q
+
+
+def summary(res) -> dict:
+    return json.loads(res.stdout.splitlines()[-1])
+
+
+def test_stack_to_stacked_hdf5_results(cli, stack, tmp_path):
+    path, M, q = stack
+    out = tmp_path / "r.h5"
+    res = cli("solve", str(path), "-o", str(out), "--json", "-j", "2")
+    assert res.returncode == 1, res.stderr  # one problem has no solution
+    s = summary(res)
+    assert s["summary"]["counts"] == {"no_solution": 1, "solved": 299}
+    ref = solve_many(M, q)
+    with h5py.File(out) as f:
+        g = f["s"]
+        assert g.attrs["source"] == str(path) and g.attrs["K"] == 300
+        assert g["z"].shape == (300, 6) and g["status"].dtype == np.int8
+        np.testing.assert_allclose(g["z"][...], ref.z, atol=1e-12)
+        np.testing.assert_array_equal(g["status"][...], ref.status)
+        assert g["status"][7] == STATUS_CODES["no_solution"]
+        assert np.all(g["error"][...][ref.solved] <= 1e-8)
+        assert json.loads(g.attrs["status_codes"])["solved"] == 0
+
+
+def test_stack_rows_stream_and_row_files(cli, stack, tmp_path):
+    path, M, q = stack
+    res = cli("solve", str(path), "--json")
+    rows = [json.loads(line) for line in res.stdout.splitlines()]
+    assert len(rows) == 300
+    assert rows[7]["status"] == "no_solution" and rows[7]["index"] == 7
+    assert rows[0]["problem"] == "s[0]" and rows[0]["source"] == str(path)
+    for ext in ("jsonl", "csv"):
+        out = tmp_path / f"r.{ext}"
+        res = cli("solve", str(path), "-o", str(out), "--json")
+        assert res.returncode == 1
+        got = read_rows(out)
+        assert sorted(r["index"] for r in got) == list(range(300))
+
+
+def test_npz_results_and_resume(cli, stack, tmp_path):
+    path, M, q = stack
+    out = tmp_path / "r.npz"
+    assert cli("solve", str(path), "-o", str(out), "--json").returncode == 1
+    with np.load(out) as d:
+        status = d["status"].copy()
+        arrays = {k: d[k].copy() for k in d.files}
+    assert (status != NOT_DONE).all()
+    # as if interrupted: the last 100 not done yet
+    arrays["status"][200:] = NOT_DONE
+    arrays["z"][200:] = np.nan
+    np.savez(out, **arrays)
+    res = cli("solve", str(path), "-o", str(out), "--json", "--resume")
+    s = summary(res)
+    assert s["skipped"] == 200 and s["new"] == 100
+    assert s["summary"]["counts"] == {"no_solution": 1, "solved": 299}
+    with np.load(out) as d:
+        np.testing.assert_array_equal(d["status"], status)
+        assert np.isfinite(d["z"]).all()
+
+
+def test_hdf5_resume_by_chunk(cli, stack, tmp_path):
+    path, M, q = stack
+    out = tmp_path / "r.h5"
+    cli("solve", str(path), "-o", str(out), "--json")
+    with h5py.File(out, "a") as f:
+        f["s"]["status"][150:] = NOT_DONE
+    res = cli("solve", str(path), "-o", str(out), "--json", "--resume")
+    s = summary(res)
+    assert (s["skipped"], s["new"]) == (150, 150)
+    assert s["summary"]["counts"]["solved"] == 299
+    with h5py.File(out) as f:
+        assert (f["s"]["status"][...] != NOT_DONE).all()
+
+
+def test_jsonl_resume(cli, stack, tmp_path):
+    path, M, q = stack
+    out = tmp_path / "r.jsonl"
+    cli("solve", str(path), "-o", str(out), "--json")
+    lines = out.read_text().splitlines()
+    out.write_text("\n".join(lines[:120]) + "\n" + lines[120][:30])  # a torn last line
+    res = cli("solve", str(path), "-o", str(out), "--json", "--resume")
+    s = summary(res)
+    assert (s["skipped"], s["new"]) == (120, 180)
+    assert sorted(r["index"] for r in read_rows(out)) == list(range(300))
+
+
+def test_nan_problem_is_an_error_row_and_the_rest_is_solved(cli, tmp_path):
+    M, q = pd_stack(20, 4)
+    M[3, 0, 0] = np.nan
+    path = tmp_path / "bad.h5"
+    write_stack(path, M, q)
+    res = cli("solve", str(path), "--json", "-o", str(tmp_path / "r.h5"))
+    assert res.returncode == 2
+    s = summary(res)
+    assert s["summary"]["counts"] == {"error": 1, "solved": 19}
+    assert "NaN" in s["summary"]["errors"][0]["message"]
+
+
+@pytest.mark.parametrize("extra,match", [
+    (["--timeout", "5"], "--timeout"),
+    (["--scheduler", "tcp://localhost:1"], "--scheduler"),
+])
+def test_options_that_do_not_apply_to_stacks(cli, stack, extra, match):
+    res = cli("solve", str(stack[0]), *extra)
+    assert res.returncode == 2
+    assert match in res.stderr and len(res.stderr.strip().splitlines()) == 1
+
+
+def test_mixed_inputs_and_npz_outputs_refused(cli, stack, tmp_path, samples):
+    path = stack[0]
+    res = cli("solve", str(path), str(samples / "seed004.json"))
+    assert res.returncode == 2 and "stacked" in res.stderr
+    other = tmp_path / "t.npz"
+    write_stack(other, *pd_stack(3, 6))
+    res = cli("solve", str(path), str(other), "-o", str(tmp_path / "r.npz"))
+    assert res.returncode == 2 and "one stack" in res.stderr
+    res = cli("solve", str(samples / "seed004.json"), "-o", str(tmp_path / "r2.npz"))
+    assert res.returncode == 2 and "stacked inputs only" in res.stderr
+    assert not (tmp_path / "r2.npz").exists()
+
+
+def test_two_stacks_into_one_hdf5_file(cli, stack, tmp_path):
+    path = stack[0]
+    other = tmp_path / "t.npz"
+    write_stack(other, *pd_stack(3, 5), names=["a", "b", "c"])
+    out = tmp_path / "r.h5"
+    res = cli("solve", str(path), str(other), "-o", str(out), "--json", "-m", "lemke")
+    assert summary(res)["summary"]["counts"] == {"no_solution": 1, "solved": 302}
+    with h5py.File(out) as f:
+        assert sorted(f) == ["s", "t"]
+        assert [x.decode() for x in f["t"]["names"][...]] == ["a", "b", "c"]
+        assert f["t"]["z"].shape == (3, 5)
+
+
+def test_methods_without_a_batched_kernel_still_work(cli, tmp_path):
+    path = tmp_path / "s.h5"
+    write_stack(path, *pd_stack(5, 4))
+    res = cli("solve", str(path), "-m", "newton", "--json", "-o", str(tmp_path / "r.h5"))
+    assert res.returncode == 0, res.stderr
+    assert summary(res)["summary"]["counts"] == {"solved": 5}
