@@ -77,7 +77,7 @@ def convert(
                                f"of its problems; write it elsewhere", target)
         stacked.write_stack_from(source, target)
         return EXIT_OK
-    if src_dir:
+    if src_dir and Path(source).suffix.lower() not in PROBLEM_EXTENSIONS:
         raise ProblemError("is a folder: add --stack to write its problems as one stacked "
                            "file", source)
     in_fmt = detect_format(source)
