@@ -61,7 +61,7 @@ H5_CACHE_BYTES = 16 * 2**20
 H5_CACHE_SLOTS = 10_007
 #: Most bytes of fixed-width names decoded at once.
 _NAME_BLOCK_BYTES = 8 * 2**20
-#: Problem files of a folder given to :func:`source_problems` (io's one list).
+#: Default bytes of M in one chunk read by :meth:`StackReader.chunks` / :func:`chunk_size`.
 _CHUNK_BUDGET = 32 * 2**20
 
 

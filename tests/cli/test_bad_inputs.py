@@ -550,7 +550,7 @@ def _npz_cases() -> list[Case]:
         ("dates", "exit-code", "q holds dates"),
         ("q_len", "exit-code", "q has shape (3,) but M is 2 x 2"),
         ("q_matrix", "exit-code", "q has shape (2, 2) but M is 2 x 2"),
-        ("M_3d", "exit-code", "M must be a 2-D matrix"),
+        ("M_3d", "exit-code", "q has shape (2,); expected (2, 2) for M of shape (2, 2, 2)"),
         ("M_1d", "exit-code", "M must be a 2-D matrix"),
         ("no_q", "exit-code", "missing array 'q'"),
         ("no_M", "exit-code", "missing array 'M'"),

@@ -1,0 +1,273 @@
+"""Stacked problem files (lcpcli.io.stack): round trips, chunked reads, header-only refusals."""
+
+from __future__ import annotations
+
+import zipfile
+
+import h5py
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from lcpcli.core.errors import ProblemError
+from lcpcli.io import list_problems, load
+from lcpcli.io.stack import (
+    MAX_STACK_PROBLEMS,
+    StackInfo,
+    chunk_size,
+    is_stack,
+    iter_problems,
+    open_stack,
+    stack_info,
+    write_stack,
+)
+
+RNG = np.random.default_rng(7)
+
+
+def data(K: int = 7, n: int = 4) -> tuple[np.ndarray, np.ndarray]:
+    M = RNG.normal(size=(K, n, n)) + 4 * np.eye(n)
+    return M, RNG.normal(size=(K, n))
+
+
+def refused(path, text: str) -> None:
+    assert is_stack(path) in (True, False)  # never raises
+    with pytest.raises(ProblemError) as err:
+        stack_info(path)
+    msg = str(err.value)
+    assert "\n" not in msg and text in msg, msg
+
+
+@pytest.mark.parametrize("ext", ["h5", "npz"])
+def test_round_trip_names_and_chunks(tmp_path, ext):
+    M, q = data(50, 3)
+    names = [f"p{k}" for k in range(50)]
+    path = tmp_path / f"s.{ext}"
+    write_stack(path, M, q, names=names)
+    assert is_stack(path)
+    info = stack_info(path)
+    assert info == StackInfo(str(path), "hdf5" if ext == "h5" else "npz", 50, 3, 0, True, None)
+    with open_stack(path) as r:
+        whole = r.read(0, 50)
+        np.testing.assert_array_equal(whole.M, M)
+        np.testing.assert_array_equal(whole.q, q)
+        assert whole.names == names and whole.lower is None
+        for a, b in [(0, 1), (1, 17), (17, 49), (49, 50), (3, 3), (40, 10 + 35)]:
+            ch = r.read(a, b)
+            assert ch.start == a and ch.M.flags.c_contiguous and ch.M.dtype == np.float64
+            np.testing.assert_array_equal(ch.M, M[a:b])
+            np.testing.assert_array_equal(ch.q, q[a:b])
+            assert ch.names == names[a:b]
+        with pytest.raises(IndexError):
+            r.read(10, 51)
+    problems = list(iter_problems(path))
+    assert [p.name for p in problems] == names
+    np.testing.assert_array_equal(problems[13].M, M[13])
+    assert list_problems(path) == names
+
+
+def test_npz_compressed_and_default_names(tmp_path):
+    M, q = data(30, 5)
+    path = tmp_path / "c.npz"
+    np.savez_compressed(path, M=M.astype(np.float32), q=q.astype(np.int32))
+    with open_stack(path) as r:
+        for a, b in [(0, 4), (4, 20), (2, 3), (25, 30)]:  # backwards too
+            ch = r.read(a, b)
+            np.testing.assert_array_equal(ch.M, M[a:b].astype(np.float32))
+            np.testing.assert_array_equal(ch.q, q[a:b].astype(np.int32))
+            assert ch.names is None
+    assert [p.name for p in iter_problems(path)][:2] == ["c[0]", "c[1]"]
+
+
+@settings(max_examples=15, deadline=None)
+@given(K=st.integers(1, 40), n=st.integers(1, 6), c=st.integers(1, 41),
+       ext=st.sampled_from(["h5", "npz"]))
+def test_chunked_reads_equal_whole_read(tmp_path_factory, K, n, c, ext):
+    path = tmp_path_factory.mktemp("h") / f"s.{ext}"
+    M, q = data(K, n)
+    write_stack(path, M, q)
+    with open_stack(path) as r:
+        parts = [r.read(a, min(K, a + c)) for a in range(0, K, c)]
+    np.testing.assert_array_equal(np.concatenate([p.M for p in parts]), M)
+    np.testing.assert_array_equal(np.concatenate([p.q for p in parts]), q)
+
+
+@pytest.mark.parametrize("ext", ["h5", "npz"])
+def test_bounds_shared_and_per_problem_and_n_eq(tmp_path, ext):
+    M, q = data(6, 3)
+    lo, up = -np.ones(3), np.array([1.0, np.inf, 2.0])
+    write_stack(tmp_path / f"a.{ext}", M, q, lower=lo, upper=up)
+    assert stack_info(tmp_path / f"a.{ext}").bounds == "shared"
+    with open_stack(tmp_path / f"a.{ext}") as r:
+        ch = r.read(2, 5)
+        np.testing.assert_array_equal(ch.lower, np.tile(lo, (3, 1)))
+        np.testing.assert_array_equal(ch.upper, np.tile(up, (3, 1)))
+    LO = -RNG.random((6, 3))
+    UP = RNG.random((6, 3))
+    write_stack(tmp_path / f"b.{ext}", M, q, lower=LO, upper=UP)
+    assert stack_info(tmp_path / f"b.{ext}").bounds == "per_problem"
+    ps = list(iter_problems(tmp_path / f"b.{ext}"))
+    np.testing.assert_array_equal(ps[4].lower, LO[4])
+    np.testing.assert_array_equal(ps[5].upper, UP[5])
+    write_stack(tmp_path / f"c.{ext}", M, q, n_eq=2)
+    assert stack_info(tmp_path / f"c.{ext}").n_eq == 2
+    assert {p.n_eq for p in iter_problems(tmp_path / f"c.{ext}")} == {2}
+
+
+@pytest.mark.parametrize("ext", ["h5", "npz"])
+def test_load_one_or_refuse_many(tmp_path, ext):
+    M, q = data(1, 3)
+    write_stack(tmp_path / f"one.{ext}", M, q, names=["only"])
+    p = load(tmp_path / f"one.{ext}")
+    assert p.name == "only"
+    np.testing.assert_array_equal(p.M, M[0])
+    M, q = data(3, 3)
+    write_stack(tmp_path / f"three.{ext}", M, q)
+    with pytest.raises(ProblemError, match="holds 3 stacked problems; solve them as a batch"):
+        load(tmp_path / f"three.{ext}")
+
+
+def test_nan_values_are_read_and_refused_per_problem(tmp_path):
+    M, q = data(3, 2)
+    M[1, 0, 0] = np.nan
+    write_stack(tmp_path / "n.h5", M, q)
+    with open_stack(tmp_path / "n.h5") as r:
+        assert np.isnan(r.read(0, 3).M[1, 0, 0])
+    with pytest.raises(ProblemError, match=r"problem 1 \(n\[1\]\)"):
+        list(iter_problems(tmp_path / "n.h5"))
+
+
+def test_chunk_size():
+    assert chunk_size(1000) == 4 and chunk_size(10**5) == 1 and chunk_size(2) == 2**20
+    assert chunk_size(4, budget_bytes=1) == 1
+
+
+# ------------------------------------------------------------------------- refusals
+def h5(path, **arrays):
+    with h5py.File(path, "w") as f:
+        for k, v in arrays.items():
+            f.create_dataset(k, data=v)
+    return path
+
+
+@pytest.mark.parametrize("ext", ["h5", "npz"])
+def test_header_refusals(tmp_path, ext):
+    M, q = data(4, 3)
+
+    def make(name, **arrays):
+        path = tmp_path / f"{name}.{ext}"
+        if ext == "h5":
+            return h5(path, **arrays)
+        np.savez(path, **arrays)
+        return path
+
+    refused(make("q", M=M, q=np.zeros((4, 4))), "q has shape (4, 4); expected (4, 3)")
+    refused(make("k0", M=np.zeros((0, 3, 3)), q=np.zeros((0, 3))), "holds no problem")
+    refused(make("sq", M=np.zeros((4, 3, 2)), q=q), "square")
+    refused(make("cx", M=M.astype(complex), q=q), "'M' holds complex numbers")
+    refused(make("bo", M=M, q=q > 0), "'q' holds booleans")
+    refused(make("nm", M=M, q=q, names=np.arange(4)), "'names' holds integers; expected strings")
+    refused(make("nk", M=M, q=q, names=np.array([b"a", b"b"])), "names has shape (2,)")
+    refused(make("lo", M=M, q=q, lower=np.zeros(3)), "'lower' without 'upper'")
+    refused(make("bs", M=M, q=q, lower=np.zeros(3), upper=np.ones((4, 3))), "one shape")
+    refused(make("bn", M=M, q=q, lower=np.zeros(5), upper=np.ones(5)), "lower has shape (5,)")
+    if ext == "npz":
+        refused(make("ne", M=M, q=q, n_eq=np.asarray(4)), "n_eq = 4 is outside 0..3")
+        refused(make("ob", M=M, q=np.array([[1, "x"]] * 4, dtype=object)), "pickled")
+    else:
+        path = make("ne", M=M, q=q)
+        with h5py.File(path, "a") as f:
+            f.attrs["n_eq"] = -1
+        refused(path, "n_eq = -1 is outside 0..3")
+
+
+def test_h5_huge_declared_stack(tmp_path):
+    path = tmp_path / "big.h5"
+    with h5py.File(path, "w") as f:  # nothing written: 8 EB declared, a few KB on disk
+        f.create_dataset("M", shape=(10**9, 1000, 1000), chunks=(1, 1000, 1000), dtype="f8")
+        f.create_dataset("q", shape=(10**9, 1000), chunks=(1, 1000), dtype="f8")
+    assert is_stack(path)
+    refused(path, f"M declares 1,000,000,000 problems (limit {MAX_STACK_PROBLEMS:,})")
+    # within the limit: declared 80 TB, read lazily one chunk at a time
+    with h5py.File(path, "w") as f:
+        f.create_dataset("M", shape=(10**7, 1000, 1000), chunks=(1, 1000, 1000), dtype="f8")
+        f.create_dataset("q", shape=(10**7, 1000), chunks=(1, 1000), dtype="f8")
+    with open_stack(path) as r:
+        assert r.info.K == 10**7
+        ch = r.read(10**7 - 2, 10**7)
+        assert ch.M.shape == (2, 1000, 1000) and not ch.M.any()
+
+
+def test_h5_dense_size_limit_from_header(tmp_path):
+    path = tmp_path / "wide.h5"
+    with h5py.File(path, "w") as f:
+        f.create_dataset("M", shape=(2, 20000, 20000), chunks=(1, 100, 100), dtype="f8")
+        f.create_dataset("q", shape=(2, 20000), dtype="f8")
+    refused(path, "dense 20000 x 20000 matrix would need")
+
+
+def test_h5_external_link_and_virtual_dataset_refused(tmp_path):
+    M, q = data(3, 2)
+    other = h5(tmp_path / "other.h5", M=M, q=q)
+    path = tmp_path / "ext.h5"
+    with h5py.File(path, "w") as f:
+        f["M"] = h5py.ExternalLink(str(other), "M")
+        f.create_dataset("q", data=q)
+    refused(path, "'M' is an external link")
+    assert not is_stack(path)
+    path = tmp_path / "virt.h5"
+    layout = h5py.VirtualLayout(shape=M.shape, dtype="f8")
+    layout[:] = h5py.VirtualSource(str(other), "M", shape=M.shape)
+    with h5py.File(path, "w") as f:
+        f.create_virtual_dataset("M", layout)
+        f.create_dataset("q", data=q)
+    refused(path, "virtual or external storage")
+
+
+def test_h5_names_of_fixed_and_variable_length(tmp_path):
+    M, q = data(3, 2)
+    path = h5(tmp_path / "fixed.h5", M=M, q=q, names=np.array([b"a", b"bb", b""]))
+    assert [p.name for p in iter_problems(path)] == ["a", "bb", "fixed[2]"]
+
+
+def test_npz_member_larger_than_its_zip_entry(tmp_path):
+    M, q = data(2, 2)
+    path = tmp_path / "lie.npz"
+    with zipfile.ZipFile(path, "w") as zf:
+        header = np.lib.format.header_data_from_array_1_0(M)
+        header["shape"] = (2000, 2, 2)
+        with zf.open("M.npy", "w") as out:
+            np.lib.format.write_array_header_1_0(out, header)
+            out.write(M.tobytes())
+        with zf.open("q.npy", "w") as out:
+            np.lib.format.write_array(out, q)
+    assert is_stack(path)
+    refused(path, "array 'M' is damaged: its header declares")
+
+
+def test_npz_fortran_order_and_not_a_stack(tmp_path):
+    M, q = data(3, 2)
+    np.savez(tmp_path / "f.npz", M=np.asfortranarray(M), q=q)
+    refused(tmp_path / "f.npz", "Fortran order")
+    np.savez(tmp_path / "plain.npz", M=M[0], q=q[0])
+    assert not is_stack(tmp_path / "plain.npz")
+    assert not is_stack(tmp_path / "missing.h5")
+    (tmp_path / "junk.npz").write_bytes(b"not a zip")
+    assert not is_stack(tmp_path / "junk.npz")
+    refused(tmp_path / "junk.npz", "not a valid NPZ file")
+    refused(tmp_path / "plain.npz", "a stack needs M of shape (K, n, n)")
+
+
+def test_write_stack_checks_its_arguments(tmp_path):
+    M, q = data(3, 2)
+    with pytest.raises(ProblemError, match="q has shape"):
+        write_stack(tmp_path / "x.h5", M, q[:, :1])
+    with pytest.raises(ProblemError, match="booleans"):
+        write_stack(tmp_path / "x.h5", M > 0, q)
+    with pytest.raises(ProblemError, match=r"\.npz"):
+        write_stack(tmp_path / "x.json", M, q)
+    assert not (tmp_path / "x.h5").exists()
+    write_stack(tmp_path / "x.h5", M, q)
+    with h5py.File(tmp_path / "x.h5") as f:
+        assert f["M"].chunks == (3, 2, 2) and f["M"].compression is None
