@@ -256,9 +256,10 @@ def h_matrix_positive_diagonal(M: Any) -> bool | None:
 
     Row-scaled to a unit diagonal (``B = diag(m_ii)^-1 |offdiag M|``), M is an H-matrix iff
     the comparison matrix ``C = I - B`` is a nonsingular M-matrix, iff some ``x > 0`` has
-    ``C x > 0``.  ``x = e`` (strict diagonal dominance) is tried, then ``x = C^-1 e``; the
-    answer is the sign test on ``x`` and ``C x`` (the same on ``D1 M D2``).  None when too
-    large to test.
+    ``C x > 0``.  ``x = e`` (strict diagonal dominance) is tried, then Collatz-Wielandt bounds,
+    then ``x = C^-1 e``; the answer is the sign test on ``x`` and ``C x`` (the same on
+    ``D1 M D2``), and False when ``rho(B)`` is within :data:`RHO_MARGIN` of 1 (singular to
+    rounding).  None when too large to test.
     """
     n = M.shape[0]
     if n == 0:
@@ -307,6 +308,10 @@ def h_matrix_positive_diagonal(M: Any) -> bool | None:
 
 #: Power iterations tried on the comparison matrix before the O(n^3) solve.
 CW_ITERATIONS = 30
+#: ``rho(B)`` within this of 1 counts as 1 (a singular comparison matrix: not an H-matrix).
+#: Rounding decides such cases, and it differs between M and its scaled copies ``D1 M D2``
+#: (which have the same rho); the safe answer is "not known to be H".
+RHO_MARGIN = 1e-10
 
 
 def _collatz_wielandt(B: np.ndarray) -> bool | None:
@@ -318,9 +323,9 @@ def _collatz_wielandt(B: np.ndarray) -> bool | None:
     for _ in range(CW_ITERATIONS):
         y = B @ x
         ratio = y / x
-        if ratio.max() < 1.0:
+        if ratio.max() < 1.0 - RHO_MARGIN:
             return True
-        if ratio.min() >= 1.0:
+        if ratio.min() >= 1.0 - RHO_MARGIN:
             return False
         x = x + y
         x /= x.max()
