@@ -35,7 +35,7 @@ from lcpcli.analysis.scaling import Scaling, equilibrate
 from lcpcli.core.certificate import DEFAULT_TOL, Certificate, certify, matrix_norm_inf
 from lcpcli.core.errors import OptionError, ProblemError
 from lcpcli.core.result import Status
-from lcpcli.solvers.kernels.enum import (
+from lcpcli.analysis._enum import (
     CANDIDATE,
     FEASIBLE,
     PRUNED,
