@@ -31,10 +31,6 @@ from typing import Any
 
 import numpy as np
 
-from lcpcli.analysis.scaling import Scaling, equilibrate
-from lcpcli.core.certificate import DEFAULT_TOL, Certificate, certify, matrix_norm_inf
-from lcpcli.core.errors import OptionError, ProblemError
-from lcpcli.core.result import Status
 from lcpcli.analysis._enum import (
     CANDIDATE,
     FEASIBLE,
@@ -44,6 +40,10 @@ from lcpcli.analysis._enum import (
     classify_chunk,
     classify_chunk_fast,
 )
+from lcpcli.analysis.scaling import Scaling, equilibrate
+from lcpcli.core.certificate import DEFAULT_TOL, Certificate, certify, matrix_norm_inf
+from lcpcli.core.errors import OptionError, ProblemError
+from lcpcli.core.result import Status
 
 #: Default refusal threshold (2^24 = 16.7 million cones).
 DEFAULT_MAX_N = 24

@@ -77,6 +77,8 @@ def run_stacks(inputs: list[str], opts: SolveOptions, report: BatchReport, *,
         try:
             infos.append(stack_info(path))
         except LcpError as exc:
+            if len(inputs) == 1:  # one input: its one-line error, as for a single problem
+                raise exc.with_source(path) if hasattr(exc, "with_source") else exc from None
             infos.append(None)
             row = error_row(path, Path(path).stem, str(exc), opts.method)
             tally.add(row)

@@ -1,7 +1,8 @@
 """Compiled kernels of the solver methods (Cython extensions built at install; no Python
 objects inside the hot loops, the GIL released).  See docs/kernels.md.
 
-The enumeration kernel runs OpenMP threads.  GNU OpenMP does not survive ``fork()``: a child
+The enumeration kernel (:mod:`lcpcli.analysis._enum`) and the stacked kernels (:mod:`.batch`)
+run OpenMP threads.  GNU OpenMP does not survive ``fork()``: a child
 forked from a process that has run a parallel region hangs or dies in its first one.  Worker
 pools therefore start their processes with :func:`process_context` (``forkserver`` where the
 platform has it, else ``spawn``), never with a bare ``fork``.
