@@ -7,8 +7,9 @@ problems; time and certified error per (method, problem), with Siconos peers in 
     python benchmarks/bench_methods.py --no-peers # skip Siconos
 
 Timings are the method's own wall time as ``lcpcli.solve`` measures it (kernels compiled before,
-no file reading, certification excluded); the median of the repeats.  ``error`` is the project's
-scaled error (:mod:`lcpcli.core.certificate`) of the returned z; for a Siconos peer it is the same
+no file reading, certification excluded); the median of the repeats.  ``error`` is the
+project's certified error (:mod:`lcpcli.core.certificate`) of the returned z; for a Siconos peer
+it is the same
 certificate applied to the z the peer returned (so the errors are comparable).  A method whose
 previous size took more than ``--budget`` seconds is skipped at larger sizes (shown as "skip").
 Writes ``benchmarks/results/methods.json``.
@@ -260,7 +261,7 @@ def print_table(rows: list[dict]) -> None:
         from rich.table import Table
     except ImportError:  # pragma: no cover
         return
-    t = Table(title="LCP methods: median time (status, scaled error); x = ours / Siconos")
+    t = Table(title="LCP methods: median time (status, certified error); x = ours / Siconos")
     for col in ("family", "n", "method", "status", "time", "error", "iters", "siconos",
                 "siconos err", "x"):
         t.add_column(col, justify="right" if col not in ("family", "method", "status") else "left")

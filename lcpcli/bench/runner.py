@@ -20,7 +20,7 @@ Conventions (all stated once here; ``docs/bench.md`` repeats them for users):
 * **Performance profile** (Dolan and More 2002): over the problems every compared method was
   run on, ``r[p, s] = t[p, s] / min_s t[p, s]`` with failures infinite;
   ``rho_s(tau) = fraction of problems with r[p, s] <= tau``.
-* **Errors** are the certificate's scaled error (:mod:`lcpcli.core.certificate`); ``z_error`` is the
+* **Errors** are the certificate's error (:mod:`lcpcli.core.certificate`); ``z_error`` is the
   forward error ``||z - z*||_inf / max(1, ||z*||_inf)`` when the case has a unique known z*.
 """
 
@@ -176,7 +176,7 @@ def judge(case: Case, status: str, z: np.ndarray | None, tol: float) -> tuple[bo
         reason = "claimed no_solution on a problem known to be solvable"
     elif case.expected == INFEASIBLE and passed and status == Status.SOLVED:
         defect = True
-        reason = ("claimed solved on a problem proven infeasible: the scaled error "
+        reason = ("claimed solved on a problem proven infeasible: the certified error "
                   f"{cert.error:.2g} passes only because ||z||_inf = "
                   f"{float(np.max(np.abs(z))):.2g} (residual {cert.residual:.2g})")
     if case.expected == INFEASIBLE:
@@ -431,6 +431,10 @@ class MethodSummary:
     median_error: float
     worst_error: float
     peer: str | None = None
+    #: Over the successful runs on problems with a unique known z*: the forward error
+    #: ``||z - z*||_inf / max(1, ||z*||_inf)`` (median and worst; NaN when there is none).
+    median_z_error: float = float("nan")
+    worst_z_error: float = float("nan")
 
     @property
     def success_rate(self) -> float:
@@ -456,6 +460,8 @@ def summarize(report: BenchReport) -> list[MethodSummary]:
             errs = [r.error for r in rs if r.error is not None and r.expected != INFEASIBLE
                     and math.isfinite(r.error)]
             ok_times = [r.seconds for r in rs if r.success and r.seconds is not None]
+            zerrs = [r.z_error for r in rs if r.success and r.z_error is not None
+                     and math.isfinite(r.z_error)]
             out.append(MethodSummary(
                 method=method, tol=tol, runs=len(rs), successes=sum(r.success for r in rs),
                 defects=sum(r.defect for r in rs),
@@ -463,7 +469,9 @@ def summarize(report: BenchReport) -> list[MethodSummary]:
                 median_seconds=statistics.median(ok_times) if ok_times else float("nan"),
                 median_error=statistics.median(errs) if errs else float("nan"),
                 worst_error=max(errs) if errs else float("nan"),
-                peer=rs[0].peer))
+                peer=rs[0].peer,
+                median_z_error=statistics.median(zerrs) if zerrs else float("nan"),
+                worst_z_error=max(zerrs) if zerrs else float("nan")))
     return out
 
 
@@ -520,7 +528,9 @@ def peer_ratios(report: BenchReport, tol: float | None = None) -> list[dict[str,
 
 
 def work_precision(report: BenchReport) -> list[dict[str, Any]]:
-    """Points (method, tol, problem, seconds, error, success) for the work-precision scatter."""
+    """Points (method, tol, problem, seconds, error, z_error, success) for the work-precision
+    scatters (``z_error``: the forward error where the case has a unique known z*, else None)."""
     return [{"method": r.method, "tol": r.tol, "problem": r.problem, "seconds": r.seconds,
-             "error": r.error, "success": r.success} for r in report.records
+             "error": r.error, "z_error": r.z_error, "success": r.success}
+            for r in report.records
             if r.seconds is not None and r.error is not None and r.expected != INFEASIBLE]

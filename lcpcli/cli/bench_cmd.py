@@ -49,7 +49,7 @@ def bench(
                                "largest size, default 2000; siconos: skip larger problems)."),
     seed: int = typer.Option(0, "--seed", help="Seed of the generated suites."),
     tol: str = typer.Option("1e-8", "--tol",
-                            help="Comma-separated tolerances on the scaled error; each method "
+                            help="Comma-separated tolerances on the certified error; each method "
                                  "runs once per tolerance."),
     repeat: int = typer.Option(5, "--repeat", "-r",
                                help="Timed repeats after the untimed warm-up (median reported)."),
@@ -67,8 +67,9 @@ def bench(
                                  help="One JSON object per line per (problem, method, tol) on "
                                       "stdout, nothing else."),
     plot: Path = typer.Option(None, "--plot",  # noqa: B008
-                              help="Write a PNG with the performance profile and the "
-                                   "work-precision scatter (needs matplotlib: extra 'plot')."),
+                              help="Write a PNG with the performance profile, the "
+                                   "work-precision scatter and time against forward error "
+                                   "where z* is known (needs matplotlib: extra 'plot')."),
     markdown: Path = typer.Option(None, "--markdown",  # noqa: B008
                                   help="Also write the report as Markdown tables to this file."),
 ) -> int:

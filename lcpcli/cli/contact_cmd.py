@@ -24,7 +24,8 @@ def contact_matrix(
                                       "[default: 0, frictionless]."),
     method: str = typer.Option("auto", "--method", "-m",
                                help="Solver method for --solve, per island (listed below)."),
-    tol: float = typer.Option(None, "--tol", help="Tolerance on the certificate's scaled error."),
+    tol: float = typer.Option(None, "--tol",
+                              help="Tolerance on the certified error (see the README)."),
     storage: str = typer.Option("auto", "--storage",
                                 help="M storage: auto (dense when small, sparse when large and "
                                      "sparse), dense or sparse."),

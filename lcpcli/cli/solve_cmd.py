@@ -18,7 +18,7 @@ def solve(
                                                 "(see docs/batch.md)."),
     method: str = typer.Option("auto", "--method", "-m", help="Solver method (listed below)."),
     tol: float = typer.Option(None, "--tol",
-                              help="Tolerance on the scaled error for the verdict 'solved' "
+                              help="Tolerance on the certified error for the verdict 'solved' "
                                    "[default: the method's, 1e-8 for pivoting]."),
     max_iter: int = typer.Option(None, "--max-iter", help="Pivot / iteration limit."),
     covering: str = typer.Option(None, "--covering",

@@ -233,6 +233,16 @@ def register(method: Method) -> None:
     _VERSION[0] += 1
 
 
+def unregister(name: str) -> None:
+    """Remove the method called ``name`` (and its aliases) from the registry; KeyError if it
+    is not registered."""
+    registry = _load()
+    method = registry.pop(name)
+    for alias in method.aliases:
+        _ALIASES.pop(alias, None)
+    _VERSION[0] += 1
+
+
 def methods() -> Mapping[str, Method]:
     """All registered methods by name (sorted; a read-only view, no copy)."""
     return MappingProxyType(_load())

@@ -373,3 +373,26 @@ def test_siconos_peer_is_certified_like_our_methods() -> None:
     lemke = next(r for r in recs if r.method == "siconos-lemke")
     assert lemke.success and lemke.peer == "siconos" and lemke.error is not None
     assert lemke.iterations == 2 ** 5 - 1  # Siconos counts the complementary pivots only
+
+
+def test_cli_exits_1_when_a_method_claims_a_false_proof(capsys) -> None:
+    """`lcpcli bench` exits non-zero when it finds a defect: a registered method that
+    'proves' infeasibility of solvable problems (the verdict solve gives it is no_solution)."""
+    from lcpcli.cli import main
+    from lcpcli.core.errors import EXIT_NOT_SOLVED
+    from lcpcli.core.result import RAY, Outcome
+    from lcpcli.solvers.registry import Method, register, unregister
+
+    def false_proof(problem, *, tol):
+        return Outcome(np.zeros(problem.n), 1, RAY, "a made-up proof", proven_infeasible=True)
+
+    register(Method(name="false-proof-test", run=false_proof, summary="lies (test)"))
+    try:
+        with pytest.raises(SystemExit) as exc:
+            main(["bench", "--suite", "hard", "--n", "3", "-m", "false-proof-test",
+                  "--no-peers", "--repeat", "1", "--timeout", "0", "--json"])
+    finally:
+        unregister("false-proof-test")
+    assert exc.value.code == EXIT_NOT_SOLVED
+    rows = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
+    assert any(r["defect"] for r in rows)

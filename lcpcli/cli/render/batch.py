@@ -92,7 +92,7 @@ def render_summary(report: Any, rows: list[dict[str, Any]] | None = None) -> Gro
             slow.add_row(_where(item["source"], item["problem"]), f"{item['seconds']:.3g}")
         parts.append(slow)
     if summary["worst"] and not rows:
-        worst = Table(title="worst certificates (scaled error)", title_justify="left")
+        worst = Table(title="worst certificates (certified error)", title_justify="left")
         worst.add_column("problem")
         worst.add_column("error", justify="right")
         for item in summary["worst"]:

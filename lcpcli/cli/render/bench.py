@@ -122,13 +122,15 @@ def summary_table(rows: list[MethodSummary], width: int | None = None) -> list[T
     title = (f"per method (shifted geometric mean: shift {SHIFT * 1e3:g} ms, a failure "
              f"counts {PENALTY:g}x the slowest time on its problem)")
     columns = [(name, "right") for name in ("tol", "success", "sgm ms", "median ms",
-                                            "median error", "worst error", "defects")]
+                                            "median error", "worst error", "median fwd",
+                                            "worst fwd", "defects")]
     cells: list[list[Cell]] = []
     for s in rows:
         name = s.method + (" (peer)" if s.peer else "")
         defects = Text(str(s.defects), style="bold red" if s.defects else "")
         cells.append([name, f"{s.tol:g}", f"{s.successes}/{s.runs}", ms(s.sgm_seconds),
-                      ms(s.median_seconds), sci(s.median_error), sci(s.worst_error), defects])
+                      ms(s.median_seconds), sci(s.median_error), sci(s.worst_error),
+                      sci(s.median_z_error), sci(s.worst_z_error), defects])
     return fit_tables(title, [("method", "left")], columns, cells, width)
 
 
@@ -246,7 +248,9 @@ def plot_available() -> bool:
 
 
 def write_plot(report: BenchReport, path: Path) -> None:
-    """PNG with the performance profile (left) and the work-precision scatter (right)."""
+    """PNG with the performance profile (left), the certified error against time (middle) and
+    the forward error ``||z - z*||_inf / max(1, ||z*||_inf)`` against time where z* is known
+    (right)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -256,7 +260,7 @@ def write_plot(report: BenchReport, path: Path) -> None:
     from lcpcli.io import atomic_path
 
     prof = performance_profile(report)
-    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(12, 4.8))
+    fig, (ax1, ax2, ax3) = plt.subplots(1, 3, figsize=(17, 4.8))
     taus = prof["tau"]
     top = max(taus[-1] * 1.5, 2.0)
     for m, rho in prof["rho"].items():
@@ -269,19 +273,26 @@ def write_plot(report: BenchReport, path: Path) -> None:
     ax1.legend(fontsize=8, loc="lower right")
     pts = work_precision(report)
     floor = 1e-18
-    for m in report.all_methods():
-        xs = [p["seconds"] for p in pts if p["method"] == m]
-        ys = [max(p["error"], floor) for p in pts if p["method"] == m]
-        if xs:
-            ax2.scatter(xs, ys, s=14, alpha=0.7, label=m)
+    for key, ax in (("error", ax2), ("z_error", ax3)):
+        for m in report.all_methods():
+            sel = [p for p in pts if p["method"] == m and p[key] is not None
+                   and (key == "error" or p["success"])]
+            if sel:
+                ax.scatter([p["seconds"] for p in sel], [max(p[key], floor) for p in sel],
+                           s=14, alpha=0.7, label=m)
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel("seconds (median, method only)")
     for t in report.tols:
         ax2.axhline(t, color="grey", lw=0.6, ls="--")
-    ax2.set_xscale("log")
-    ax2.set_yscale("log")
-    ax2.set_xlabel("seconds (median, method only)")
-    ax2.set_ylabel(f"scaled error (floored at {floor:g})")
+    ax2.set_ylabel(f"certified error (floored at {floor:g})")
     ax2.set_title("work-precision (all runs; dashed: tolerances)")
     ax2.legend(fontsize=8, loc="upper right")
+    known = sum(1 for p in pts if p["z_error"] is not None and p["success"])
+    ax3.set_ylabel(f"forward error ||z - z*|| / max(1, ||z*||) (floored at {floor:g})")
+    ax3.set_title(f"speed against forward error (z* known: {known} solved runs)")
+    if known:
+        ax3.legend(fontsize=8, loc="upper right")
     fig.tight_layout()
     with atomic_path(Path(path)) as tmp:
         fig.savefig(tmp, format="png", dpi=110)
@@ -297,11 +308,15 @@ def markdown_report(report: BenchReport, title: str) -> str:
                f"peers: {', '.join(f'{k} {v}' for k, v in report.peers.items()) or 'none'}"
                + "".join(f"; not used: {k} ({v})" for k, v in report.missing_peers.items()))
     out += ["", "| method | tol | success | sgm ms | median ms | median error | worst error "
-                "| defects |", "|---|---|---|---|---|---|---|---|"]
+                "| median fwd error | worst fwd error | defects |",
+            "|---|---|---|---|---|---|---|---|---|---|"]
     for s in rows:
         out.append(f"| {s.method}{' (peer)' if s.peer else ''} | {s.tol:g} | "
                    f"{s.successes}/{s.runs} | {ms(s.sgm_seconds)} | {ms(s.median_seconds)} | "
-                   f"{sci(s.median_error)} | {sci(s.worst_error)} | {s.defects} |")
+                   f"{sci(s.median_error)} | {sci(s.worst_error)} | {sci(s.median_z_error)} | "
+                   f"{sci(s.worst_z_error)} | {s.defects} |")
+    out += ["", "fwd error: ||z - z*||_inf / max(1, ||z*||_inf) over the solved runs on problems "
+                "with a unique known z* (the certified error bounds the backward error only)."]
     ratios = peer_ratios(report)
     if ratios:
         out += ["", "| method | peer | problems both solved | geomean time ratio ours/peer "
@@ -313,7 +328,7 @@ def markdown_report(report: BenchReport, title: str) -> str:
     methods = report.all_methods()
     tol = report.tols[0]
     by = {(r.problem, r.method): r for r in report.records if r.tol == tol}
-    out += ["", f"Per problem at tol {tol:g} (time ms / scaled error / verdict: ok = right "
+    out += ["", f"Per problem at tol {tol:g} (time ms / certified error / verdict: ok = right "
                 "outcome, fail = unsolved, wrong = a verdict that is not the expected one):", "",
             "| problem | n | expected | " + " | ".join(methods) + " |",
             "|---|---|---|" + "---|" * len(methods)]

@@ -268,7 +268,7 @@ def sweep_table(trace: list[dict[str, Any]]) -> Grid:
     """The recorded sweeps of PGS/PSOR: z, the largest change, the estimate, the error."""
     show_z = bool(trace) and trace[0].get("z") is not None
     header = ["sweep", *(["z"] if show_z else []), "max |change|", "estimate",
-              "scaled error", "exact check"]
+              "normwise error", "exact check"]
     rows = []
     last = None
     for st in trace:

@@ -2,12 +2,14 @@
 """Compiled kernels of projected Gauss-Seidel / SOR (Cython, ``nogil``).
 
 One sweep updates ``z_i <- proj_[lo_i, up_i](z_i - omega * r_i / M_ii)`` for i = 0..n-1 in order,
-with ``r_i = (M z + q)_i`` evaluated at the current (partly updated) z.  The stopping test is the
-certificate's scaled error; during a sweep it is *estimated* from ``w_i ~ r_i + M_ii dz_i``, and
+with ``r_i = (M z + q)_i`` evaluated at the current (partly updated) z.  The stopping test is a
+normwise scaled error ``||mid(mu (z - lo), mu (z - up), w)||_inf / (mu ||z||_inf + ||q||_inf)``
+(the caller tightens ``tol`` until the componentwise certificate passes); during a sweep it is
+*estimated* from ``w_i ~ r_i + M_ii dz_i``, and
 only when the estimate is below ``tol / 2`` is the exact error computed (one more product
 ``M z``), so the exact check costs about one sweep and runs rarely.
 
-Status codes: 0 converged (exact scaled error <= tol), 1 iteration limit, 2 non-finite iterate.
+Status codes: 0 converged (exact normwise error <= tol), 1 iteration limit, 2 non-finite iterate.
 
 C level: :c:func:`pgs_sweeps` runs either storage (dense row-major, or CSR when ``indptr`` is
 not NULL) on raw buffers without the GIL.

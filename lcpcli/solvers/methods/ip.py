@@ -38,7 +38,7 @@ from lcpcli.solvers.support import certified_error, refine
 DEFAULT_MAX_ITER = 100
 #: Fraction of the step to the boundary that is taken.
 STEP_FRACTION = 0.99995
-#: Try the active-set rounding when the scaled error of the iterate is below this.
+#: Try the active-set rounding when the certified error of the iterate is below this.
 ROUND_BELOW = 1e-3
 
 
@@ -160,7 +160,7 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None) -> Outcome:
     note = ", active-set rounding" if rounded else ""
     return Outcome(best_z, it, termination,
                    f"interior point: {why} after {plural(it, 'iteration')}{note} "
-                   f"(scaled error {best_err:.2e})")
+                   f"(certified error {best_err:.2e})")
 
 
 METHODS = [

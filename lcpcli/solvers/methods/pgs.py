@@ -15,8 +15,8 @@ saying so.
 
 Storage: a dense ``numpy`` M or a ``scipy.sparse`` CSR M (the sweep runs over the CSR arrays,
 O(nnz) per sweep, never densified).  Warm start: option ``z0`` (projected onto the box first).
-Stopping: the certificate's scaled error (estimated during the sweep, confirmed by one exact
-product ``M z`` before stopping).
+Stopping: a normwise scaled error (estimated during the sweep, confirmed by one exact product
+``M z``), its target tightened tenfold until the componentwise certificate passes.
 """
 
 from __future__ import annotations

@@ -2,14 +2,16 @@
 
 One sweep sets, for ``i = 1..n`` in order, ``z_i <- proj_[l_i, u_i](z_i - omega r_i / M_ii)``
 with ``r_i = (M z + q)_i`` at the current (partly updated) ``z``.  The stopping test is the
-kernels': an in-sweep estimate of the certificate's scaled error, confirmed by one exact
-product ``M z`` (every 1, 2, 4, ... 32 sweeps) before stopping.  Row sums are accumulated left
-to right as in the kernels, so the iterates, and the sweep count, are the same (one
+kernels': an in-sweep estimate of a normwise scaled error ``||mid(z - l, z - u, w)|| / (mu
+||z|| + ||q||)``, confirmed by one exact product ``M z`` (every 1, 2, 4, ... 32 sweeps) before
+stopping; the method then tightens that target until the componentwise certificate passes.
+Row sums are accumulated left to right as in the kernels, so the iterates, and the sweep count,
+are the same (one
 exception: a NaN iterate is ``DIVERGED`` here at once, as the kernels' docstring says, while
 the numba kernels' comparisons let a NaN through to the stopping test).
 
 The trace keeps the first :data:`FIRST_SWEEPS` sweeps and the last one: ``z`` (n <= 8), the
-largest change of a component, the kernel's estimate and the exact scaled error (for the
+largest change of a component, the kernel's estimate and the exact normwise error (for the
 display only; it does not steer the iteration).
 """
 
