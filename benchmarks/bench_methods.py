@@ -9,9 +9,9 @@ problems; time and certified error per (method, problem), with Siconos peers in 
 Timings are the method's own wall time as ``lcpcli.solve`` measures it (kernels compiled before,
 no file reading, certification excluded); the median of the repeats.  ``error`` is the
 project's certified error (:mod:`lcpcli.core.certificate`) of the returned z; for a Siconos peer
-it is the same
-certificate applied to the z the peer returned (so the errors are comparable).  A method whose
-previous size took more than ``--budget`` seconds is skipped at larger sizes (shown as "skip").
+it is the same certificate applied to the z the peer returned (so the errors are comparable).  A
+method whose previous size took more than ``--budget`` seconds is skipped at larger sizes (shown
+as "skip").
 Writes ``benchmarks/results/methods.json``.
 """
 
