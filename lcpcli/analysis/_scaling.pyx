@@ -6,7 +6,7 @@ Integer arithmetic only (``ilogb``): the factors are powers of two, so nothing i
 problem that is balanced already costs one pass over its nonzeros.
 """
 
-from libc.math cimport ilogb
+from libc.math cimport INFINITY, ilogb
 from libc.stdint cimport uint64_t
 from libc.string cimport memcpy
 from libc.stdlib cimport free, malloc
@@ -214,3 +214,25 @@ cdef bint _symmetric(const double* M, Py_ssize_t n) noexcept nogil:
             if M[i * n + j] != M[j * n + i]:
                 return False
     return True
+
+
+def dense_minima(M, q):
+    """``(min_i M_ii, min_i q_i)`` of a dense float64 (n, n) ``M`` and ``q`` in one call (inf
+    for n = 0; NaN propagates): the first facts ``auto`` looks at, without two numpy
+    reductions (about a microsecond each on a small problem)."""
+    cdef cnp.ndarray qa = f64(q, -1, -1)
+    cdef Py_ssize_t n = cnp.PyArray_DIM(qa, 0)
+    cdef cnp.ndarray Ma = f64(M, n, n)
+    cdef const double* pM = f64_ptr(Ma)
+    cdef const double* pq = f64_ptr(qa)
+    cdef double dmin = INFINITY, qmin = INFINITY, v
+    cdef Py_ssize_t i
+    with nogil:
+        for i in range(n):
+            v = pM[i * n + i]
+            if v < dmin or v != v:
+                dmin = v
+            v = pq[i]
+            if v < qmin or v != v:
+                qmin = v
+    return dmin, qmin

@@ -25,6 +25,9 @@ from typing import Any
 
 import numpy as np
 
+from lcpcli.analysis._scaling import dense_minima
+from lcpcli.core.problem import is_sparse
+
 #: Relative tolerance of the symmetry test: ``|m_ij - m_ji| <= SYM_TOL (max(|m_ij|, |m_ji|)
 #: + sqrt(|m_ii m_jj|))`` for every pair (invariant under ``D M D`` and global scaling).
 SYM_TOL = 1e-10
@@ -46,8 +49,7 @@ PD, PSD, INDEFINITE = "pd", "psd", "indefinite"
 
 
 # ---------------------------------------------------------------------------- helpers
-def _is_sparse(M: Any) -> bool:
-    return hasattr(M, "tocsr")
+_is_sparse = is_sparse  # core.problem's test (one definition)
 
 
 def max_abs(M: Any) -> float:
@@ -484,7 +486,7 @@ def farkas_certificate(M: np.ndarray, q: np.ndarray,
 
 
 # ---------------------------------------------------------------------------- class report
-@dataclass
+@dataclass(slots=True)
 class ClassReport:
     """What is known about ``problem.M`` (``lcpcli info`` prints it; ``auto`` plans on it).
 
@@ -592,9 +594,28 @@ class Classifier:
 
     def __init__(self, problem: Any) -> None:
         self.problem = problem
-        self.report = ClassReport(kind=problem.kind, n=problem.n, n_eq=problem.n_eq,
-                                  sparse=problem.sparse)
+        self.report = ClassReport(kind=problem.kind, n=int(problem.q.shape[0]),
+                                  n_eq=problem.n_eq, sparse=_is_sparse(problem.M))
         self._done: set[str] = set()
+        self._minima: tuple[float, float] | None = None
+
+    @property
+    def tests_run(self) -> frozenset[str]:
+        """The tests run so far (names of the test methods)."""
+        return frozenset(self._done)
+
+    def minima(self) -> tuple[float, float]:
+        """``(min_i m_ii, min_i q_i)`` (inf for n = 0), computed once (one compiled pass for a
+        dense M: these are the first facts ``auto`` looks at)."""
+        if self._minima is None:
+            M, q = self.problem.M, self.problem.q
+            if not self.report.sparse:
+                self._minima = dense_minima(M, q)
+            else:
+                d = diagonal(M)
+                self._minima = (float(d.min()) if d.size else np.inf,
+                                float(q.min()) if q.size else np.inf)
+        return self._minima
 
     #: The test (method name) that decides each property, in the order :meth:`complete` runs.
     _TESTS = {
@@ -613,12 +634,14 @@ class Classifier:
 
     def _diagonal(self) -> None:
         r = self.report
-        M = self.problem.M
-        d = diagonal(M) if r.sparse else M.diagonal()
-        r.diagonal_min = float(d.min()) if d.size else None
-        r.positive_diagonal = d.size == 0 or r.diagonal_min > 0
-        r.zero_diagonal = 0 if r.positive_diagonal else int(np.count_nonzero(d == 0))
+        dmin = self.minima()[0]
+        r.diagonal_min = float(dmin) if r.n else None
+        r.positive_diagonal = r.n == 0 or dmin > 0
+        r.zero_diagonal = 0
         if not r.positive_diagonal:  # a 1 x 1 principal minor (of M and of S) is <= 0
+            M = self.problem.M
+            d = diagonal(M) if r.sparse else M.diagonal()
+            r.zero_diagonal = int(np.count_nonzero(d == 0))
             r.h_matrix = False
             r.p_matrix, r.p_matrix_reason = False, ("a diagonal entry (a 1 x 1 principal "
                                                     "minor) is <= 0")

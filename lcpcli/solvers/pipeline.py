@@ -51,6 +51,8 @@ def is_symmetric(problem: Problem) -> bool:
 def run_method(spec: Any, problem: Problem, tol: float, options: dict[str, Any]) -> Outcome:
     """Run ``spec`` on ``problem`` as the module docstring says; return its :class:`Outcome`."""
     kind = "none" if options.get("trace") else getattr(spec, "scaling", "none")
+    if kind == "none" and spec.planner:  # auto runs this pipeline for each of its attempts
+        return spec.run(problem, tol=tol, **options)
     if kind != "none" and is_balanced(problem):
         kind = "none"  # nothing to equilibrate (one compiled pass; no symmetry test needed)
     symmetric = kind == "symmetric" or (kind == "auto" and is_symmetric(problem))

@@ -201,6 +201,35 @@ def plan(problem: Any, c: Classifier, registry: Mapping[str, Method] | None = No
     return list(islice(steps, 1)) if first else list(steps)
 
 
+#: First steps of optimistic plans, by what decided them (see :func:`first_step`).
+_FIRST_CACHE: dict[tuple[Any, ...], Step | None] = {}
+_FIRST_CACHE_MAX = 4096
+
+
+def first_step(problem: Any, c: Classifier, regime: Regime) -> Step | None:
+    """``plan(problem, c, optimistic=True, first=True, regime=regime)``'s step, memoised.
+
+    An optimistic first step of a dense problem whose rows needed only the O(n) diagonal test
+    is decided by the problem's kind, n, the regime, the registry and the facts that test
+    established; those are the key (so a repeated small solve skips the row walk).  Anything
+    else is planned afresh."""
+    r = c.report
+    if r.sparse:
+        steps = plan(problem, c, optimistic=True, first=True, regime=regime)
+        return steps[0] if steps else None
+    c.run("positive_diagonal")
+    key = (r.kind, r.n, regime.name, registry_version(), r.positive_diagonal, r.h_matrix,
+           r.p_matrix, r.definiteness)
+    if key in _FIRST_CACHE:
+        return _FIRST_CACHE[key]
+    before = c.tests_run
+    steps = plan(problem, c, optimistic=True, first=True, regime=regime)
+    step = steps[0] if steps else None
+    if c.tests_run == before and len(_FIRST_CACHE) < _FIRST_CACHE_MAX:
+        _FIRST_CACHE[key] = step
+    return step
+
+
 def iter_plan(problem: Any, c: Classifier, registry: Mapping[str, Method] | None = None, *,
               optimistic: bool = False, skip: Iterable[str] = (),
               regime: Regime | None = None) -> Iterator[Step]:

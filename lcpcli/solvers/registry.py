@@ -25,6 +25,9 @@ from lcpcli.core.errors import OptionError
 MAX_DENSIFY_ENTRIES = 10_000 ** 2
 #: Names of the methods whose ``prepare`` hook already ran in this process.
 _PREPARED: set[str] = set()
+#: Each method's option defaults (id -> (method, defaults)): parse_options is on the small-solve
+#: path, and a frozen record cannot cache them itself.
+_DEFAULTS: dict[int, tuple[Any, dict[str, Any]]] = {}
 
 
 @dataclass(frozen=True)
@@ -171,7 +174,13 @@ class Method:
 
     def parse_options(self, given: Mapping[str, Any]) -> dict[str, Any]:
         """Defaults merged with ``given``; unknown names or bad values raise OptionError."""
-        out = {k: opt.default for k, opt in self.options.items()}
+        defaults = _DEFAULTS.get(id(self))
+        if defaults is None or defaults[0] is not self:
+            defaults = _DEFAULTS[id(self)] = (self, {k: opt.default
+                                                     for k, opt in self.options.items()})
+        out = dict(defaults[1])
+        if not given:
+            return out
         for key, value in given.items():
             key_norm = key.replace("-", "_")
             if key_norm not in self.options:
@@ -258,6 +267,10 @@ def resolve(name: str) -> str | None:
 
 def get_method(name: str) -> Method:
     """The method called ``name`` (or one of its aliases); OptionError if unknown."""
+    if _REGISTRY is not None:  # a registered name or alias as given: one lookup or two
+        found = _REGISTRY.get(name) or _REGISTRY.get(_ALIASES.get(name, ""))
+        if found is not None:
+            return found
     key = resolve(name)
     if key is None:
         raise OptionError(f"unknown method '{name}' (available: {', '.join(_load())})")

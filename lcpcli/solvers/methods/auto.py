@@ -71,18 +71,19 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None,
     n = problem.n
     if z0 is not None:
         z0 = start_point(problem, z0)  # length check before any method runs
-    if problem.kind == "lcp" and (n == 0 or problem.q.min() >= 0):
+    t_start = time.perf_counter()
+    c = Classifier(problem)
+    if problem.kind == "lcp" and (n == 0 or c.minima()[1] >= 0):
         return Outcome(np.zeros(n), 0, CONVERGED, "auto: q >= 0, so z = 0 solves the problem",
                        info={"chosen": None, "attempts": []})
-    t_start = time.perf_counter()
     registry = methods()
-    c = Classifier(problem)
     regime = policy.regime_of(c)
     queue: Iterator[Step]
     if order:
         queue, replanned = iter(_given_order(order, problem.kind, registry)), True
     elif regime.optimistic:
-        queue = iter(policy.plan(problem, c, optimistic=True, first=True, regime=regime))
+        first = policy.first_step(problem, c, regime)
+        queue = iter(() if first is None else (first,))
         replanned = False
     else:
         queue, replanned = policy.iter_plan(problem, c, regime=regime), True
@@ -90,13 +91,6 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None,
     best: tuple[float, np.ndarray, Any] | None = None
     total_it = 0
     t_methods = t_certify = 0.0
-
-    def info(chosen: str | None) -> dict[str, Any]:
-        spent = time.perf_counter() - t_start
-        return {"chosen": chosen, "attempts": attempts, "classification": c.report,
-                "regime": regime.name,
-                "classify_seconds": spent - t_methods - t_certify,
-                "certify_seconds": t_certify}
 
     while True:
         step = next(queue, None)
@@ -109,7 +103,7 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None,
             break
         name, why, _ = step
         spec = registry[name]
-        if spec.densifies(problem):
+        if c.report.sparse and spec.densifies(problem):
             continue  # it would densify a huge sparse M (api.check_dense_ok refuses that too)
         opts: dict[str, Any] = {}
         if "max_iter" in spec.options:
@@ -149,18 +143,29 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None,
                              for a in attempts[:-1]) if len(attempts) > 1 else ""
             return Outcome(z, total_it, CONVERGED,
                            f"auto ({c.report.describe()}): solved by {name} ({why}){failed}",
-                           info=info(name), checked=(cert, w))
+                           info=_info(name, attempts, c, regime, t_start, t_methods, t_certify),
+                           checked=(cert, w))
         if status == Status.NO_SOLUTION:
             return Outcome(z, total_it, out.termination,
                            f"auto ({c.report.describe()}): {name} proved that no solution "
-                           f"exists: {out.message}", proven_infeasible=True, info=info(name))
+                           f"exists: {out.message}", proven_infeasible=True,
+                           info=_info(name, attempts, c, regime, t_start, t_methods, t_certify))
         if best is None or cert.error < best[0]:
             best = (cert.error, z, out.termination)
     tried = "; ".join(f"{a['method']}: {a['message']}" for a in attempts) or "no method applies"
     z = best[1] if best else np.clip(np.zeros(n), problem.bounds()[0], None)
     return Outcome(z, total_it, best[2] if best else ITERATION_LIMIT,
                    f"auto ({c.report.describe()}): every suitable method failed ({tried})",
-                   info=info(None))
+                   info=_info(None, attempts, c, regime, t_start, t_methods, t_certify))
+
+
+def _info(chosen: str | None, attempts: list[dict[str, Any]], c: Classifier, regime: Any,
+          t_start: float, t_methods: float, t_certify: float) -> dict[str, Any]:
+    """``Outcome.info`` of auto (see the module docstring)."""
+    spent = time.perf_counter() - t_start
+    return {"chosen": chosen, "attempts": attempts, "classification": c.report,
+            "regime": regime.name, "classify_seconds": spent - t_methods - t_certify,
+            "certify_seconds": t_certify}
 
 
 METHODS = [
