@@ -35,9 +35,6 @@ def wants_batch(files: list[str], output: Any, *, problem: str | None = None,
     a stacked file (:mod:`lcpcli.io.stack`), or an HDF5 file holding several problems without
     ``--problem`` (every problem is solved).
     """
-    from lcpcli.batch.inputs import GLOB_CHARS
-    from lcpcli.batch.output import is_batch_output
-
     if len(files) != 1:
         return True
     if recursive or resume or quiet or jobs is not None or timeout is not None \
@@ -46,15 +43,27 @@ def wants_batch(files: list[str], output: Any, *, problem: str | None = None,
     f = files[0]
     if f == "-":
         return False
-    from lcpcli.io.stack import is_stack
+    from lcpcli.io import FORMATS
 
-    if is_stack(f):
+    binary = FORMATS.get(Path(f).suffix.lower()) in ("hdf5", "npz")
+    if binary:  # only these can be stacks (the import is skipped for a JSON one-liner)
+        from lcpcli.io.stack import is_stack
+
+        if is_stack(f):
+            return True
+    if Path(f).is_dir():
         return True
-    if Path(f).is_dir() or (not Path(f).exists() and GLOB_CHARS & set(f)):
-        return True
-    if output is not None and is_batch_output(output):
-        return True
-    return problem is None and _holds_several_problems(f)
+    if not Path(f).exists():
+        from lcpcli.batch.inputs import GLOB_CHARS
+
+        if GLOB_CHARS & set(f):
+            return True
+    if output is not None:
+        from lcpcli.batch.output import is_batch_output
+
+        if is_batch_output(output):
+            return True
+    return problem is None and binary and _holds_several_problems(f)
 
 
 def _holds_several_problems(path: str) -> bool:

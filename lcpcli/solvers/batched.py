@@ -26,27 +26,15 @@ from __future__ import annotations
 import os
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import Any, Protocol
+from typing import Any
 
 import numpy as np
+
+from lcpcli.solvers.registry import BatchSpec  # noqa: F401  (the record methods declare)
 
 #: Kernel ``code`` of a certified answer / of a problem handed back to the full pipeline.
 KERNEL_SOLVED = 0
 KERNEL_RETRY = 1
-
-
-@dataclass(frozen=True)
-class BatchSpec:
-    """A method's batched kernel: its ``kernel`` name in every backend, the method ``options``
-    it understands (any other option given means: solve one problem at a time), and the
-    problem ``kinds`` it handles.  Kernel-free (registry records import it)."""
-
-    kernel: str
-    options: tuple[str, ...] = ()
-    kinds: tuple[str, ...] = ("lcp",)
-    #: The registered method whose algorithm the kernel runs, when it is not the method that
-    #: declares it (results name it).
-    runs_as: str | None = None
 
 
 @dataclass
@@ -65,11 +53,10 @@ class StackOut:
                    np.zeros(K, np.int64), np.full(K, np.inf))
 
 
-class StackKernel(Protocol):
-    """The signature every backend's kernels share (see the module docstring)."""
-
-    def __call__(self, M: Any, q: Any, lower: Any, upper: Any, *, tol: float,
-                 options: Mapping[str, Any], out: StackOut, threads: int) -> None: ...
+#: A stacked kernel: ``kernel(M, q, lower, upper, *, tol, options, out, threads) -> None``
+#: (see the module docstring; a plain alias, not a Protocol class: this module is imported by
+#: the registry records, on every one-liner's path).
+StackKernel = Callable[..., None]
 
 
 def default_threads() -> int:

@@ -96,6 +96,20 @@ class Requirement:
     why: str
 
 
+@dataclass(frozen=True)
+class BatchSpec:
+    """A method's batched kernel: its ``kernel`` name in every backend, the method ``options``
+    it understands (any other option given means: solve one problem at a time), and the
+    problem ``kinds`` it handles.  Kernels live in :mod:`lcpcli.solvers.batched`'s backends."""
+
+    kernel: str
+    options: tuple[str, ...] = ()
+    kinds: tuple[str, ...] = ("lcp",)
+    #: The registered method whose algorithm the kernel runs, when it is not the method that
+    #: declares it (results name it).
+    runs_as: str | None = None
+
+
 class Cost(enum.Enum):
     """How a method's work grows: the policy orders methods by cost class per regime."""
 
@@ -144,9 +158,9 @@ class Method:
     #: How :mod:`lcpcli.solvers.pipeline` equilibrates the problem first: ``"auto"`` (``D M D``
     #: for a symmetric M, two-sided otherwise), ``"symmetric"`` (always ``D M D``) or ``"none"``.
     scaling: str = "none"
-    #: The batched kernel for stacks of problems (:class:`lcpcli.solvers.batched.BatchSpec`),
+    #: The batched kernel for stacks of problems (:class:`BatchSpec`),
     #: or None: :func:`lcpcli.solve_many` then solves the stack one problem at a time.
-    batch: Any = None
+    batch: BatchSpec | None = None
 
     @property
     def matrix_classes(self) -> str:

@@ -25,7 +25,6 @@ import numpy as np
 from lcpcli.core.certificate import check, from_kernel
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, NUMERICAL, Outcome
 from lcpcli.core.text import plural
-from lcpcli.solvers.batched import BatchSpec
 from lcpcli.solvers.kernels.lemke_revised import (
     MAX_ITER,
     OK,
@@ -43,7 +42,7 @@ from lcpcli.solvers.methods.lemke import (
 )
 from lcpcli.solvers.methods.lemke import run as run_tableau
 from lcpcli.solvers.options import bool_option, positive_int, vector_option
-from lcpcli.solvers.registry import Cost, Method, Option
+from lcpcli.solvers.registry import BatchSpec, Cost, Method, Option
 
 
 def _refactor_every(value: Any) -> int:

@@ -28,10 +28,9 @@ import numpy as np
 from lcpcli.core.certificate import matrix_norm_inf
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, NOT_APPLICABLE, NUMERICAL, Outcome
 from lcpcli.core.text import plural
-from lcpcli.solvers.batched import BatchSpec
 from lcpcli.solvers.kernels import pgs as K
 from lcpcli.solvers.options import bool_option, omega_option, positive_int, vector_option
-from lcpcli.solvers.registry import Cost, Guarantee, Method, Option, Requirement, when
+from lcpcli.solvers.registry import BatchSpec, Cost, Guarantee, Method, Option, Requirement, when
 from lcpcli.solvers.support import certified_error, diagonal, start_point
 
 #: Sweep limit when none is given.
