@@ -32,6 +32,7 @@ _LAZY = {
     "forward_error_bound": "lcpcli.analysis.bounds",
     "solve": "lcpcli.api",
     "solve_many": "lcpcli.api",
+    "solve_each": "lcpcli.api",
     "StackResult": "lcpcli.core.result",
     "load": "lcpcli.io",
     "save": "lcpcli.io",

@@ -22,6 +22,7 @@ from lcpcli.core.result import (
     Result,
     StackResult,
     Status,
+    Termination,
 )
 from lcpcli.solvers.pipeline import run_method
 from lcpcli.solvers.registry import Method, get_method
@@ -218,6 +219,7 @@ def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None =
     codes = STATUS_CODES
     messages: dict[int, str] = {}
     methods_of: dict[int, str] = {}
+    results: dict[int, Result] = {}
     if plan is None:
         run_spec, kernel_options = _batched_method(spec, kind, options, M, q, lower, upper)
     else:
@@ -265,12 +267,61 @@ def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None =
         iterations[k], error[k] = r.iterations, r.error
         messages[k] = r.message
         methods_of[k] = r.method
+        results[k] = r
     retried = np.zeros(K, bool)
     retried[retry] = run_spec is not None
     return StackResult(z=z, w=w, status=status, iterations=iterations, error=error,
                        residual=natural_residuals(z, w, lower, upper), method=name, tol=tol,
                        seconds=time.perf_counter() - start, retried=retried,
-                       messages=messages, methods=methods_of, batched=run_spec is not None)
+                       messages=messages, methods=methods_of, batched=run_spec is not None,
+                       results=results)
+
+
+#: Problems of one size a list needs before :func:`solve_each` stacks them.
+STACK_MIN = 8
+
+
+def solve_each(problems: list[Problem], method: str | None = None, *, tol: float | None = None,
+               threads: int | None = None, **options: Any) -> list[Result]:
+    """``[solve(p, method, tol=tol, **options) for p in problems]``, faster for many small ones.
+
+    Dense LCPs of one size, at least :data:`STACK_MIN` of them, are stacked and solved by
+    :func:`solve_many` (one compiled call in ``threads`` threads); each answer's certificate is
+    recomputed for its :class:`Result` (the same definition the kernel checked), and the
+    problems the kernel handed back come with the Result of their own :func:`solve`.  Other
+    problems are solved one by one.  ``seconds`` of a stacked problem is its share of the
+    stack's time; ``info["batched"]`` marks them.
+    """
+    out: list[Result | None] = [None] * len(problems)
+    groups: dict[int, list[int]] = {}
+    for i, p in enumerate(problems):
+        if p.kind == "lcp" and not p.sparse:
+            groups.setdefault(p.n, []).append(i)
+    for idx in groups.values():
+        if len(idx) < STACK_MIN:
+            continue
+        res = solve_many(np.stack([problems[i].M for i in idx]),
+                         np.stack([problems[i].q for i in idx]), method, tol=tol,
+                         threads=threads, **options)
+        share = res.seconds / len(idx)
+        for j, i in enumerate(idx):
+            p = problems[i]
+            if j in res.results:  # solved on its own (the kernel handed it back)
+                out[i] = res.results[j]
+                out[i].problem_name = p.name
+                continue
+            z = res.z[j].copy()
+            cert, w = check(p, z, res.tol)
+            status = SOLVED if cert.passed else UNSOLVED
+            out[i] = Result(status=status, method=res.method_of(j), z=z, w=w,
+                            iterations=int(res.iterations[j]), seconds=share,
+                            certificate=cert, message=res.message(j),
+                            termination=CONVERGED if cert.passed else Termination.NUMERICAL,
+                            problem_name=p.name, info={"batched": True})
+    for i, p in enumerate(problems):
+        if out[i] is None:
+            out[i] = solve(p, method, tol=tol, **options)
+    return out  # type: ignore[return-value]
 
 
 def _stack_array(a: Any, ndim: int, label: str) -> np.ndarray:

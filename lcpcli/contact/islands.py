@@ -14,7 +14,7 @@ the scene's order (normal impulses, then tangential impulses, then slacks).  Box
 way.
 
 :func:`solve_problems` is the one place where the island LCPs are solved; its
-:func:`solve_cold` is the one line that a batched solver for many small LCPs replaces.
+:func:`solve_cold` stacks the islands of one size for the batched solver (``solve_each``).
 """
 
 from __future__ import annotations
@@ -186,12 +186,12 @@ def solve_problems(problems: list[Problem], method: str = "auto", tol: float | N
 
 
 def solve_cold(problems: list[Problem], method: str, tol: float | None,
-               options: dict[str, Any]) -> list[Any]:
-    """Each problem with :func:`lcpcli.solve` from scratch: the one line a batched solver for
-    many small LCPs (``lcpcli.solve_many``, issue 14) replaces."""
-    from lcpcli.api import solve
+               options: dict[str, Any], threads: int | None = None) -> list[Any]:
+    """Each problem from scratch, certified: :func:`lcpcli.api.solve_each` (islands of one size,
+    8 or more, go through the batched kernels of ``lcpcli.solve_many`` in one call)."""
+    from lcpcli.api import solve_each
 
-    return [solve(p, method, tol=tol, **options) for p in problems]
+    return solve_each(problems, method, tol=tol, threads=threads, **options)
 
 
 def solve_one(problem: Problem, method: str, tol: float | None, z0: np.ndarray | None,
@@ -238,7 +238,7 @@ def _chunks(sizes: list[int], parts: int) -> list[list[int]]:
 
 def _work(args: tuple[list[Problem], str, float | None, dict[str, Any]]) -> list[Any]:
     problems, method, tol, options = args
-    return solve_cold(problems, method, tol, options)
+    return solve_cold(problems, method, tol, options, threads=1)  # one thread per worker
 
 
 def _solve_parallel(problems: list[Problem], method: str, tol: float | None, jobs: int,

@@ -211,6 +211,8 @@ class StackResult:
     messages: dict[int, str] = field(default_factory=dict)
     methods: dict[int, str] = field(default_factory=dict)
     batched: bool = True
+    #: The :class:`Result` of each problem solved on its own (retried, or no batched kernel).
+    results: dict[int, Result] = field(default_factory=dict)
 
     def method_of(self, k: int) -> str:
         """The method that produced problem k's answer."""

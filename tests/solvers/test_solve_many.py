@@ -190,3 +190,26 @@ def test_no_false_solved_on_random_stacks(n, K, seed, method, log_scale):
     assert_honest(M, q, res)
     for k in range(K):
         assert res.statuses()[k] == lcpcli.solve(M[k], q[k], method=method).status
+
+
+def test_solve_each_matches_solve_one_by_one():
+    """Equal-size dense LCPs are stacked (>= STACK_MIN), the rest solved alone; same verdicts."""
+    from lcpcli.api import STACK_MIN, solve_each
+    from lcpcli.core.problem import Problem
+
+    M, q = pd_stack(STACK_MIN + 2, 5, seed=8)
+    problems = [Problem.create(M[k], q[k], name=f"p{k}") for k in range(len(q))]
+    problems.append(Problem.create(np.zeros((2, 2)), [-1.0, 1.0], name="infeasible"))
+    problems += [Problem.create(np.zeros((5, 5)), -np.ones(5), name="stacked-infeasible")]
+    M3, q3 = pd_stack(3, 3, seed=9)
+    problems += [Problem.create(M3[k], q3[k]) for k in range(3)]  # too few of size 3
+    results = solve_each(problems, "lemke")
+    for p, r in zip(problems, results, strict=True):
+        one = lcpcli.solve(p, "lemke")
+        assert r.status == one.status, p.name
+        assert r.problem_name == p.name
+        if one.solved:
+            np.testing.assert_allclose(r.z, one.z, atol=1e-9)
+            assert r.certificate.passed and r.error <= 1e-8
+    assert results[0].info.get("batched") and not results[-1].info.get("batched")
+    assert "Farkas" in results[STACK_MIN + 3].message
