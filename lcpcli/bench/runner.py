@@ -296,7 +296,15 @@ def run_isolated(case: Case, method: str, tol: float, *, timeout: float,
 def _child(conn: Any, case: Case, method: str, tol: float, repeat: int, budget: float,
            solve_fn: SolveFn | None) -> None:
     try:
-        conn.send(run_one(case, method, tol, repeat=repeat, budget=budget, solve_fn=solve_fn))
+        try:
+            rec = run_one(case, method, tol, repeat=repeat, budget=budget, solve_fn=solve_fn)
+        except Exception as exc:  # noqa: BLE001 - a row saying why, never a child's traceback
+            prob = case.problem
+            success, defect, reason, _ = judge(case, ERROR, None, tol)
+            rec = Record(prob.name, prob.n, method, ERROR, None, None, None, case.expected,
+                         defect, tol, prob.kind, success, reason,
+                         message=" ".join(f"{type(exc).__name__}: {exc}".split()))
+        conn.send(rec)
     finally:
         conn.close()
 
@@ -353,12 +361,13 @@ def run_bench(cases: list[Case], methods: list[str], tols: Iterable[float] = DEF
     for case in cases:
         for tol in tols:
             for method in methods:
-                kinds = _kinds(method, get_method)
-                if case.problem.kind not in kinds:
+                kinds, max_n = _kinds(method, get_method)
+                if case.problem.kind not in kinds or (max_n is not None and case.n > max_n):
                     if tol == tols[0]:
-                        report.skipped.append((case.name, method,
-                                               f"{method} does not handle "
-                                               f"{case.problem.kind.upper()}"))
+                        why = (f"{method} does not handle {case.problem.kind.upper()}"
+                               if case.problem.kind not in kinds else
+                               f"n = {case.n} is above {method}'s limit max_n = {max_n}")
+                        report.skipped.append((case.name, method, why))
                     continue
                 if timeout:
                     rec = run_isolated(case, method, tol, timeout=timeout, repeat=repeat,
@@ -383,12 +392,14 @@ def run_bench(cases: list[Case], methods: list[str], tols: Iterable[float] = DEF
     return report
 
 
-def _kinds(method: str, get_method: Callable[[str], Any]) -> tuple[str, ...]:
-    """The problem kinds a method handles (all kinds for a name not in the registry)."""
+def _kinds(method: str, get_method: Callable[[str], Any]) -> tuple[tuple[str, ...], int | None]:
+    """The problem kinds a method handles and its ``max_n`` (all kinds and no limit for a name
+    not in the registry)."""
     try:
-        return tuple(get_method(method).kinds)
+        spec = get_method(method)
     except OptionError:
-        return ("lcp", "mlcp", "box")
+        return ("lcp", "mlcp", "box"), None
+    return tuple(spec.kinds), spec.max_n
 
 
 # ---------------------------------------------------------------------- statistics

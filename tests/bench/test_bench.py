@@ -396,3 +396,19 @@ def test_cli_exits_1_when_a_method_claims_a_false_proof(capsys) -> None:
     assert exc.value.code == EXIT_NOT_SOLVED
     rows = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
     assert any(r["defect"] for r in rows)
+
+
+def test_methods_above_their_size_limit_are_skipped_not_errors() -> None:
+    """enum refuses n > max_n: the bench lists the pair as skipped (no error row, no child
+    traceback), in process and isolated."""
+    rng = np.random.default_rng(0)
+    n = 30
+    A = rng.standard_normal((n, n))
+    from lcpcli.core.problem import Problem
+
+    case = suites.Case(Problem.create(A @ A.T + n * np.eye(n), rng.standard_normal(n),
+                                      name="big-pd"))
+    for timeout in (None, 20.0):
+        rep = bench.run_bench([case], ["enum", "lemke-tableau"], repeat=1, timeout=timeout)
+        assert [r.method for r in rep.records] == ["lemke-tableau"]
+        assert rep.skipped and "max_n" in rep.skipped[0][2]
