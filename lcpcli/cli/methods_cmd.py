@@ -13,7 +13,8 @@ def methods_command(
     """List the solver methods, the matrix classes they handle and their options.
 
     With --json: one list of objects with the declared policy data too (guarantees: the
-    properties of the class report that must hold and the claim; needs; max_n; cost; fallback).
+    properties of the class report that must hold and the claim; needs; max_n; cost; fallback;
+    batch: the batched kernel that solves stacks, see docs/batch.md).
     """
     from lcpcli.solvers.registry import methods
 
@@ -30,7 +31,11 @@ def methods_command(
                                          for g in m.guarantees],
                           "needs": [{"when": list(r.when.props), "why": r.why}
                                     for r in m.needs],
-                          "max_n": m.max_n, "cost": m.cost.value, "fallback": m.fallback}
+                          "max_n": m.max_n, "cost": m.cost.value, "fallback": m.fallback,
+                          "batch": None if m.batch is None else {
+                              "kernel": m.batch.kernel, "options": list(m.batch.options),
+                              "kinds": list(m.batch.kinds),
+                              "runs_as": m.batch.runs_as or m.name}}
                          for m in registry.values()])
         return EXIT_OK
     from lcpcli.cli.common import stdout_console

@@ -79,6 +79,8 @@ def render_methods(registry: dict[str, Any]) -> Table:
         table.add_column(name)
     for name, m in registry.items():
         label = name + (f" ({', '.join(m.aliases)})" if m.aliases else "")
-        table.add_row(label, "/".join(k.upper() for k in m.kinds), m.matrix_classes,
-                      ", ".join(m.options) or "-")
+        kinds = "/".join(k.upper() for k in m.kinds)
+        if m.batch is not None:  # stacks of problems: one compiled call (lcpcli.solve_many)
+            kinds += f"; stacks: batched ({'/'.join(k.upper() for k in m.batch.kinds)})"
+        table.add_row(label, kinds, m.matrix_classes, ", ".join(m.options) or "-")
     return table
