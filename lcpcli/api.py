@@ -11,7 +11,7 @@ import numpy as np
 from lcpcli.core.certificate import check, validate_tol
 from lcpcli.core.errors import LcpError, OptionError
 from lcpcli.core.numeric import check_dtype, real_array
-from lcpcli.core.problem import Problem, is_sparse
+from lcpcli.core.problem import Problem, is_sparse, problem_kind
 from lcpcli.core.result import (
     CONVERGED,
     NO_SOLUTION,
@@ -164,7 +164,7 @@ def _check_stack(M: Any, q: Any, method: str | None, lower: Any, upper: Any, n_e
     check_size(n, n)
     lower, upper = _stack_bounds(lower, upper, K, n, n_eq)
     n_eq = _stack_n_eq(n_eq, n)
-    kind = "mlcp" if n_eq else ("box" if lower is not None else "lcp")
+    kind = problem_kind(n_eq, lower is not None)
     spec = get_method(DEFAULT_METHOD if method is None else method)
     if kind not in spec.kinds:
         raise OptionError(f"method '{spec.name}' does not handle {kind.upper()} problems "

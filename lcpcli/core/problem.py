@@ -55,6 +55,14 @@ def check_size(n_rows: int, n_cols: int, *, sparse: bool = False, nnz: int | Non
             f"(limit {MAX_DENSE_ENTRIES} entries); store M sparse (CSR/COO) instead")
 
 
+def problem_kind(n_eq: int, bounded: bool) -> str:
+    """The kind of a problem (or of a stack): ``"box"`` when bounds are given, ``"mlcp"`` when
+    ``n_eq > 0``, else ``"lcp"`` (bounds and n_eq together are refused by the validation)."""
+    if bounded:
+        return "box"
+    return "mlcp" if n_eq else "lcp"
+
+
 def is_sparse(M: Any) -> bool:
     """True for a ``scipy.sparse`` matrix or array (checked without importing scipy)."""
     return hasattr(M, "tocsr") and hasattr(M, "nnz")
@@ -143,9 +151,7 @@ class Problem:
     @property
     def kind(self) -> str:
         """``"lcp"``, ``"mlcp"`` (n_eq > 0) or ``"box"`` (bounds given)."""
-        if self.lower is not None:
-            return "box"
-        return "mlcp" if self.n_eq else "lcp"
+        return problem_kind(self.n_eq, self.lower is not None)
 
     @property
     def sparse(self) -> bool:
