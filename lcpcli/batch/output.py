@@ -396,17 +396,23 @@ def _write_group(f: Any, row: dict[str, Any], names: set[str]) -> None:
     g.attrs["json"] = json.dumps(rest, allow_nan=False)
 
 
+def checked_output(path: str | os.PathLike[str]) -> tuple[Path, str]:
+    """``(path, kind)`` of a batch result file whose folder exists (else OptionError)."""
+    path = Path(path)
+    kind = output_kind(path)
+    folder = path.parent if str(path.parent) else Path(".")
+    if not folder.is_dir():
+        raise OptionError(f"--output {path}: folder {folder} does not exist")
+    return path, kind
+
+
 def open_writer(path: str | os.PathLike[str], *, resume: bool = False) -> Any:
     """A writer for ``path`` (kind from the extension): ``write(rows)``, ``sync()``, ``close()``.
 
     Without ``resume`` an existing file is replaced; with it, rows are appended after the
     finished ones (a torn tail is cut, an HDF5 file is repaired from its journal).
     """
-    path = Path(path)
-    kind = output_kind(path)
-    folder = path.parent if str(path.parent) else Path(".")
-    if not folder.is_dir():
-        raise OptionError(f"--output {path}: folder {folder} does not exist")
+    path, kind = checked_output(path)
     if kind == "jsonl":
         return JsonlWriter(path, resume)
     if kind == "csv":

@@ -250,13 +250,9 @@ class RowStackWriter:
 
 def open_stack_writer(path: str | Any, infos: list[Any], *, resume: bool) -> Any:
     """The writer for a stacked batch's ``--output`` (kind by extension)."""
-    from lcpcli.batch.output import output_kind
+    from lcpcli.batch.output import checked_output
 
-    path = Path(path)
-    kind = output_kind(path)
-    folder = path.parent if str(path.parent) else Path(".")
-    if not folder.is_dir():
-        raise OptionError(f"--output {path}: folder {folder} does not exist")
+    path, kind = checked_output(path)
     if kind == "hdf5":
         return Hdf5StackWriter(path, infos, resume)
     if kind == "npz":
