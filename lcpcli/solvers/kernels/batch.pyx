@@ -169,6 +169,15 @@ cdef void _sor_one(const double* M, const double* q, const double* lo_in, const 
     free(iwork)
 
 
+cdef void _empty_problems(cnp.ndarray co, cnp.ndarray io, cnp.ndarray eo, Py_ssize_t K):
+    """Problems of size 0: solved by z = () (code, iterations and error of each)."""
+    cdef Py_ssize_t k
+    for k in range(K):
+        (<signed char*>cnp.PyArray_DATA(co))[k] = B_SOLVED
+        (<int64_t*>cnp.PyArray_DATA(io))[k] = 0
+        (<double*>cnp.PyArray_DATA(eo))[k] = 0.0
+
+
 def _outputs(z, w, code, iters, err, Py_ssize_t K, Py_ssize_t n):
     return (inout(z, cnp.NPY_FLOAT64, K, n), inout(w, cnp.NPY_FLOAT64, K, n),
             inout(code, cnp.NPY_INT8, K, -1), inout(iters, cnp.NPY_INT64, K, -1),
@@ -204,13 +213,8 @@ def lemke_stack(M, q, d, int64_t max_iter, double piv_tol, double tie_tol, doubl
         if cnp.PyArray_DIM(da, 0) != n:
             raise ValueError("lemke_stack: the covering vector must have length n")
         dp = f64_ptr(da)
-    if K == 0:
-        return
-    if n == 0:
-        for k in range(K):
-            (<signed char*>cnp.PyArray_DATA(co))[k] = B_SOLVED
-            (<int64_t*>cnp.PyArray_DATA(io))[k] = 0
-            (<double*>cnp.PyArray_DATA(eo))[k] = 0.0
+    if K == 0 or n == 0:
+        _empty_problems(co, io, eo, K)
         return
     if dp == NULL:
         ones = <double*>malloc(n * sizeof(double))
@@ -264,13 +268,8 @@ def sor_stack(M, q, lo, up, double omega, int64_t max_iter, double tol, z, w, co
         lp = f64_ptr(la)
         up_ = f64_ptr(ua)
     cdef Py_ssize_t k
-    if K == 0:
-        return
-    if n == 0:
-        for k in range(K):
-            (<signed char*>cnp.PyArray_DATA(co))[k] = B_SOLVED
-            (<int64_t*>cnp.PyArray_DATA(io))[k] = 0
-            (<double*>cnp.PyArray_DATA(eo))[k] = 0.0
+    if K == 0 or n == 0:
+        _empty_problems(co, io, eo, K)
         return
     cdef const double* Mp = f64_ptr(Ma)
     cdef const double* qp = f64_ptr(qa)
