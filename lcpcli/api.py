@@ -234,7 +234,8 @@ def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None =
         name = run_spec.batch.runs_as or run_spec.name
         out = StackOut.empty(K, n)  # the kernel writes the final arrays
         run_spec.prepare_once()
-        kernel(M, q, lower, upper, tol=tol, options=kernel_options, out=out, threads=threads)
+        kernel(M, q, lower, upper, tol=tol, options=kernel_options, out=out, threads=threads,
+               scaling=run_spec.scaling)
         z, w, iterations, error = out.z, out.w, out.iterations, out.error
         status = np.where(out.code == KERNEL_SOLVED, codes[Status.SOLVED],
                           codes[Status.UNSOLVED]).astype(np.int8)

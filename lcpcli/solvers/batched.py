@@ -9,11 +9,13 @@ the method options it understands.  Nothing here names a method.
 **Backends.**  A backend maps kernel names to callables with one signature
 (:class:`StackKernel`)::
 
-    kernel(M, q, lower, upper, *, tol, options, out, threads) -> None
+    kernel(M, q, lower, upper, *, tol, options, out, threads, scaling) -> None
 
-that fills the preallocated :class:`StackOut` (``z``, ``w``, ``code``, ``iterations``,
-``error``); ``code[k]`` is :data:`KERNEL_SOLVED` only when problem k's answer passed the
-certificate (:mod:`lcpcli.core.certificate`'s definition, at ``tol``), else
+(``scaling``: the method's equilibration policy, :attr:`Method.scaling`; anything but
+``"none"`` asks the kernel to equilibrate each problem that is not balanced, as the one-problem
+pipeline does) that fills the preallocated :class:`StackOut` (``z``, ``w``, ``code``,
+``iterations``, ``error``); ``code[k]`` is :data:`KERNEL_SOLVED` only when problem k's answer
+passed the certificate (:mod:`lcpcli.core.certificate`'s definition, at ``tol``), else
 :data:`KERNEL_RETRY` and the caller runs the full one-problem pipeline on it.  The CPU backend
 (``"cpu"``) is :mod:`lcpcli.solvers.kernels.batch` (OpenMP threads).  A GPU backend (CuPy or
 CUDA) registers itself with :func:`register_backend` and is chosen with ``backend=`` in
@@ -53,7 +55,7 @@ class StackOut:
                    np.zeros(K, np.int64), np.full(K, np.inf))
 
 
-#: A stacked kernel: ``kernel(M, q, lower, upper, *, tol, options, out, threads) -> None``
+#: A stacked kernel: ``kernel(M, q, lower, upper, *, tol, options, out, threads, scaling)``
 #: (see the module docstring; a plain alias, not a Protocol class: this module is imported by
 #: the registry records, on every one-liner's path).
 StackKernel = Callable[..., None]
@@ -69,7 +71,9 @@ def default_threads() -> int:
 
 # ------------------------------------------------------------------------------ CPU backend
 def _cpu_lemke(M: Any, q: Any, lower: Any, upper: Any, *, tol: float,
-               options: Mapping[str, Any], out: StackOut, threads: int) -> None:
+               options: Mapping[str, Any], out: StackOut, threads: int,
+               scaling: str = "none") -> None:
+    from lcpcli.analysis.scaling import BALANCED, MAX_ROUNDS, Q_BALANCED
     from lcpcli.solvers.kernels import batch
     from lcpcli.solvers.methods.lemke import covering_vector, default_max_iter
     from lcpcli.solvers.tolerances import PIVOT_TOL, TIE_TOL
@@ -77,12 +81,14 @@ def _cpu_lemke(M: Any, q: Any, lower: Any, upper: Any, *, tol: float,
     n = M.shape[1]
     d = covering_vector(n, options.get("covering"))
     limit = options.get("max_iter") or default_max_iter(n)
+    balance = None if scaling == "none" else (BALANCED, Q_BALANCED, MAX_ROUNDS)
     batch.lemke_stack(M, q, d, limit, PIVOT_TOL, TIE_TOL, tol, out.z, out.w, out.code,
-                      out.iterations, out.error, threads)
+                      out.iterations, out.error, threads, balance)
 
 
 def _cpu_sor(M: Any, q: Any, lower: Any, upper: Any, *, tol: float,
-             options: Mapping[str, Any], out: StackOut, threads: int) -> None:
+             options: Mapping[str, Any], out: StackOut, threads: int,
+             scaling: str = "none") -> None:
     from lcpcli.solvers.kernels import batch
     from lcpcli.solvers.methods.pgs import DEFAULT_MAX_ITER
 

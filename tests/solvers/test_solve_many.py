@@ -161,7 +161,7 @@ def test_auto_routes_by_a_sample_and_the_plan_can_be_reused():
 def test_a_backend_that_certifies_nothing_still_gives_honest_results():
     """The backend interface: a kernel handing everything back costs speed, not verdicts."""
 
-    def lazy(M, q, lower, upper, *, tol, options, out, threads):
+    def lazy(M, q, lower, upper, *, tol, options, out, threads, scaling):
         out.code[:] = batched.KERNEL_RETRY
 
     batched.register_backend("lazy-test", lambda: batched.Backend("lazy-test",

@@ -17,12 +17,13 @@ kernel therefore never says ``no_solution`` and never says ``solved`` without th
 """
 
 from cython.parallel cimport prange
-from libc.math cimport INFINITY, fabs
+from libc.math cimport INFINITY, fabs, ldexp
 from libc.stdint cimport int64_t
 from libc.stdlib cimport free, malloc
 
 cimport numpy as cnp
 
+from lcpcli.analysis._scaling cimport _ruiz, _symmetric
 from lcpcli.core._certificate cimport CertOut, certify_dense
 from lcpcli.core.arrays cimport f64_ptr, inout
 from lcpcli.solvers.kernels.lemke cimport (
@@ -40,6 +41,10 @@ cdef enum:
     B_SOLVED = 0
     B_RETRY = 1
 
+#: The tableau's answer is polished unless its certified error is at most this (rounding
+#: level: about 4,500 eps): most answers are, and polishing them costs a fifth of the time.
+cdef double POLISH_ABOVE = 1e-12
+
 #: ``code`` of a problem whose answer passed the certificate.
 SOLVED = B_SOLVED
 #: ``code`` of a problem the kernel could not certify: run the full pipeline on it.
@@ -50,43 +55,93 @@ cdef inline bint _passed(const CertOut* c, double tol) noexcept nogil:
     return c.status == 0 and c.error <= tol
 
 
+cdef int _balance(const double* M, const double* q, const double* d, Py_ssize_t n,
+                  const int* eq, double* Ms, double* qs, double* ds,
+                  long long* r, long long* c) noexcept nogil:
+    """Equilibrate one problem as :func:`lcpcli.analysis.scaling.equilibrate` does (``D M D``
+    for a symmetric M, two-sided otherwise; ``eq`` = (balanced, q_balanced, max_rounds)):
+    fill ``Ms = D_r M D_c``, ``qs = D_r q`` and the covering vector ``ds`` (``D_r d``, or ones
+    when ``d`` is NULL, as the pipeline leaves a default covering vector alone) and return 1,
+    or return 0 when the problem is balanced already.  ``r``, ``c``: 4 n long longs."""
+    cdef Py_ssize_t i, j
+    # balanced already (one pass, as lcpcli.analysis.scaling.is_balanced): nothing to do, and
+    # no symmetry test (it only chooses between D M D and two-sided scaling)
+    if not _ruiz(n, M, n, NULL, NULL, NULL, q, False, eq[0], eq[1], 1, r, c, r + 2 * n,
+                 r + 3 * n):
+        return 0
+    if not _ruiz(n, M, n, NULL, NULL, NULL, q, _symmetric(M, n), eq[0], eq[1], eq[2], r, c,
+                 r + 2 * n, r + 3 * n):
+        return 0
+    for i in range(n):
+        for j in range(n):
+            Ms[i * n + j] = ldexp(M[i * n + j], <int>(r[i] + c[j]))
+        qs[i] = ldexp(q[i], <int>r[i])
+        ds[i] = 1.0 if d == NULL else ldexp(d[i], <int>r[i])
+    return 1
+
+
 cdef void _lemke_one(const double* M, const double* q, const double* d, Py_ssize_t n,
-                     int64_t max_iter, double piv_tol, double tie_tol, double tol, double* z,
-                     double* w, signed char* code, int64_t* iters,
+                     int64_t max_iter, double piv_tol, double tie_tol, double tol,
+                     const int* eq, double* z, double* w, signed char* code, int64_t* iters,
                      double* err) noexcept nogil:
-    """Lemke (tableau) and the certificate of one problem; the end basis is re-solved (polish)
-    only when the tableau's answer fails the certificate (a fifth of the time at n = 12, and
-    the answer is certified either way)."""
-    cdef double* work = <double*>malloc((8 * n + 1) * sizeof(double))
+    """Lemke (tableau) and the certificate of one problem.  The problem is equilibrated first
+    when it is not balanced (as the one-problem pipeline does; the answer is mapped back
+    exactly and certified on the problem as given); the end basis is re-solved (polish) only
+    when the tableau's answer is not certified at rounding level (:data:`POLISH_ABOVE`)."""
+    cdef double* work = <double*>malloc((10 * n + n * n + 1) * sizeof(double))
     cdef int64_t* basic = <int64_t*>malloc((n + 1) * sizeof(int64_t))
     cdef Py_ssize_t* iwork = <Py_ssize_t*>malloc((3 * n + 1) * sizeof(Py_ssize_t))
+    cdef long long* rc_exp = <long long*>malloc((4 * n + 1) * sizeof(long long))
     cdef double* raw
     cdef double* ray
     cdef double* cwork
+    cdef double* Ms
+    cdef double* qs
+    cdef double* ds
+    cdef const double* Mu = M
+    cdef const double* qu = q
+    cdef const double* du = d
     cdef LemkeOut out
     cdef CertOut cert
     cdef Py_ssize_t i
     cdef int rc
+    cdef bint scaled = False
     code[0] = B_RETRY
     iters[0] = 0
     err[0] = INFINITY
-    if work == NULL or basic == NULL or iwork == NULL:
+    if work == NULL or basic == NULL or iwork == NULL or rc_exp == NULL:
         free(work)
         free(basic)
         free(iwork)
+        free(rc_exp)
         return
     raw = work
     ray = work + n
     cwork = work + 2 * n  # 5 n for the certificate
-    rc = lemke_tableau(M, q, d, n, max_iter, piv_tol, tie_tol, NULL, 0, raw, basic, ray, &out)
+    qs = work + 7 * n
+    ds = work + 8 * n
+    Ms = work + 10 * n
+    if eq != NULL and _balance(M, q, d, n, eq, Ms, qs, ds, rc_exp, rc_exp + n):
+        scaled = True
+        Mu, qu, du = Ms, qs, ds
+    elif d == NULL:  # the default covering vector: all ones
+        for i in range(n):
+            ds[i] = 1.0
+        du = ds
+    rc = lemke_tableau(Mu, qu, du, n, max_iter, piv_tol, tie_tol, NULL, 0, raw, basic, ray,
+                       &out)
+    if rc == 0 and scaled:  # z = D_c z~ (exact)
+        for i in range(n):
+            raw[i] = ldexp(raw[i], <int>rc_exp[n + i])
     if rc == 0:
         iters[0] = out.pivots
         for i in range(n):
             z[i] = 0.0 if out.status == LEMKE_TRIVIAL or raw[i] < 0.0 else raw[i]
         certify_dense(n, M, n, q, z, 0, NULL, NULL, w, cwork, iwork, NULL, &cert)
-        if out.status == LEMKE_OK and not _passed(&cert, tol):
-            # the end basis re-solved by LU with one refinement step (polish keeps the better
-            # of that and the tableau's answer), then certified again
+        if out.status == LEMKE_OK and not (cert.status == 0 and cert.error <= POLISH_ABOVE):
+            # not at rounding level (cancellation in the tableau updates, or a failure): the
+            # end basis re-solved by LU with one refinement step (polish keeps the better of
+            # that and the tableau's answer), then certified again
             rc = polish(M, q, n, raw, basic, z)
             if rc == 0:
                 certify_dense(n, M, n, q, z, 0, NULL, NULL, w, cwork, iwork, NULL, &cert)
@@ -98,6 +153,7 @@ cdef void _lemke_one(const double* M, const double* q, const double* d, Py_ssize
     free(work)
     free(basic)
     free(iwork)
+    free(rc_exp)
 
 
 cdef void _sor_one(const double* M, const double* q, const double* lo_in, const double* up_in,
@@ -191,13 +247,20 @@ cdef cnp.ndarray _stack(object a, Py_ssize_t ndim):
 
 
 def lemke_stack(M, q, d, int64_t max_iter, double piv_tol, double tie_tol, double tol,
-                z, w, code, iters, err, int threads):
+                z, w, code, iters, err, int threads, balance=None):
     """Lemke (tableau) on every problem of the stack ``M`` (K, n, n), ``q`` (K, n).
 
     ``d``: the covering vector (n,), or None for all ones.  Outputs (preallocated,
     C-contiguous): ``z``, ``w`` (K, n) float64, ``code`` (K,) int8, ``iters`` (K,) int64,
     ``err`` (K,) float64; see the module docstring.  ``threads``: OpenMP threads (>= 1).
+    ``balance``: None (no equilibration) or ``(balanced, q_balanced, max_rounds)`` of
+    :mod:`lcpcli.analysis.scaling`: each problem that is not balanced is equilibrated first.
     """
+    cdef int eqv[3]
+    cdef const int* eq = NULL
+    if balance is not None:
+        eqv[0], eqv[1], eqv[2] = balance
+        eq = eqv
     cdef cnp.ndarray Ma = _stack(M, 3)
     cdef Py_ssize_t K = cnp.PyArray_DIM(Ma, 0), n = cnp.PyArray_DIM(Ma, 1)
     cdef cnp.ndarray qa = _stack(q, 2)
@@ -206,8 +269,7 @@ def lemke_stack(M, q, d, int64_t max_iter, double piv_tol, double tie_tol, doubl
     zo, wo, co, io, eo = _outputs(z, w, code, iters, err, K, n)
     cdef cnp.ndarray da
     cdef double* dp = NULL
-    cdef double* ones = NULL
-    cdef Py_ssize_t i, k
+    cdef Py_ssize_t k
     if d is not None:
         da = _stack(d, 1)
         if cnp.PyArray_DIM(da, 0) != n:
@@ -216,13 +278,6 @@ def lemke_stack(M, q, d, int64_t max_iter, double piv_tol, double tie_tol, doubl
     if K == 0 or n == 0:
         _empty_problems(co, io, eo, K)
         return
-    if dp == NULL:
-        ones = <double*>malloc(n * sizeof(double))
-        if ones == NULL:
-            raise MemoryError()
-        for i in range(n):
-            ones[i] = 1.0
-        dp = ones
     cdef const double* Mp = f64_ptr(Ma)
     cdef const double* qp = f64_ptr(qa)
     cdef double* zp = f64_ptr(zo)
@@ -231,13 +286,10 @@ def lemke_stack(M, q, d, int64_t max_iter, double piv_tol, double tie_tol, doubl
     cdef int64_t* ip = <int64_t*>cnp.PyArray_DATA(io)
     cdef double* ep = f64_ptr(eo)
     cdef Py_ssize_t nn = n * n
-    try:
-        for k in prange(K, nogil=True, schedule="dynamic", chunksize=16,
-                        num_threads=threads if threads > 0 else 1):
-            _lemke_one(Mp + k * nn, qp + k * n, dp, n, max_iter, piv_tol, tie_tol, tol,
-                       zp + k * n, wp + k * n, cp + k, ip + k, ep + k)
-    finally:
-        free(ones)
+    for k in prange(K, nogil=True, schedule="dynamic", chunksize=16,
+                    num_threads=threads if threads > 0 else 1):
+        _lemke_one(Mp + k * nn, qp + k * n, dp, n, max_iter, piv_tol, tie_tol, tol, eq,
+                   zp + k * n, wp + k * n, cp + k, ip + k, ep + k)
 
 
 def sor_stack(M, q, lo, up, double omega, int64_t max_iter, double tol, z, w, code, iters,
@@ -284,3 +336,4 @@ def sor_stack(M, q, lo, up, double omega, int64_t max_iter, double tol, z, w, co
         _sor_one(Mp + k * nn, qp + k * n, lp + k * n if lp != NULL else NULL,
                  up_ + k * n if up_ != NULL else NULL, n, omega, max_iter, tol, zp + k * n,
                  wp + k * n, cp + k, ip + k, ep + k)
+
