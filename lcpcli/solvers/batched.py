@@ -76,14 +76,14 @@ def _cpu_lemke(M: Any, q: Any, lower: Any, upper: Any, *, tol: float,
     from lcpcli.analysis.scaling import BALANCED, MAX_ROUNDS, Q_BALANCED
     from lcpcli.solvers.kernels import batch
     from lcpcli.solvers.methods.lemke import covering_vector, default_max_iter
-    from lcpcli.solvers.tolerances import PIVOT_TOL, TIE_TOL
+    from lcpcli.solvers.tolerances import PIVOT_TOL, POLISHED, TIE_TOL
 
     n = M.shape[1]
     d = covering_vector(n, options.get("covering"))
     limit = options.get("max_iter") or default_max_iter(n)
     balance = None if scaling == "none" else (BALANCED, Q_BALANCED, MAX_ROUNDS)
     batch.lemke_stack(M, q, d, limit, PIVOT_TOL, TIE_TOL, tol, out.z, out.w, out.code,
-                      out.iterations, out.error, threads, balance)
+                      out.iterations, out.error, threads, balance, POLISHED)
 
 
 def _cpu_sor(M: Any, q: Any, lower: Any, upper: Any, *, tol: float,

@@ -14,6 +14,7 @@ import numpy as np
 
 from lcpcli.core.certificate import AT_LOWER, AT_UPPER, BETWEEN, certify, check
 from lcpcli.core.errors import OptionError
+from lcpcli.solvers.tolerances import POLISHED
 
 
 def start_point(problem: Any, z0: np.ndarray | None, default: float = 0.0) -> np.ndarray:
@@ -45,8 +46,8 @@ def diagonal(M: Any) -> np.ndarray:
     return np.asarray(M.diagonal(), dtype=np.float64).ravel()
 
 
-def refine(problem: Any, z: np.ndarray, rounds: int = 4,
-           basis: list[int] | None = None) -> tuple[np.ndarray, float] | None:
+def refine(problem: Any, z: np.ndarray, rounds: int = 4, basis: list[int] | None = None,
+           good_enough: float = POLISHED) -> tuple[np.ndarray, float] | None:
     """Polish ``z`` by re-solving the equations its active set implies; None if nothing better.
 
     The certificate names each pair's state (at a bound, or between with ``w_i = 0``).  The first
@@ -61,7 +62,8 @@ def refine(problem: Any, z: np.ndarray, rounds: int = 4,
 
     ``basis`` (a pivoting method's final basic z's, nonsingular by construction) is tried before
     the certificate's states: on degenerate, rank-deficient problems (coplanar contacts) the
-    states can name a singular set while the method's basis is not.
+    states can name a singular set while the method's basis is not.  The search stops at the
+    first candidate certified at ``good_enough`` (rounding level by default).
     """
     if not np.all(np.isfinite(z)):
         return None
@@ -75,6 +77,8 @@ def refine(problem: Any, z: np.ndarray, rounds: int = 4,
         err = certify(problem, snapped).error
         if err < best_err:
             best, best_err = snapped, err
+    if best is not None and best_err <= good_enough:
+        return best, best_err
     if basis is not None:
         hinted = np.where(np.isfinite(lo), AT_LOWER, BETWEEN).astype(np.int8)
         hinted[np.asarray(basis, dtype=np.intp)] = BETWEEN
@@ -83,6 +87,8 @@ def refine(problem: Any, z: np.ndarray, rounds: int = 4,
             err = certify(problem, zc).error
             if err < best_err:
                 best, best_err = zc, err
+    if best is not None and best_err <= good_enough:
+        return best, best_err
     seen: set[bytes] = set()
     for _ in range(rounds):
         key = state.tobytes()
@@ -95,6 +101,8 @@ def refine(problem: Any, z: np.ndarray, rounds: int = 4,
         cert, w = check(problem, zc)
         if cert.error < best_err:
             best, best_err = zc, cert.error
+            if best_err <= good_enough:
+                break
         new = state.copy()
         basic = new == BETWEEN
         new[basic & (zc < lo)] = AT_LOWER

@@ -12,3 +12,6 @@ from __future__ import annotations
 PIVOT_TOL = 1e-11
 #: Relative tolerance under which two ratios are a tie (then the lexicographic rule decides).
 TIE_TOL = 1e-9
+#: A certified error at or below this is rounding level: such an answer is not polished further
+#: (the batched Lemke kernel's re-solve of the end basis, the active-set polish's later rounds).
+POLISHED = 1e-12

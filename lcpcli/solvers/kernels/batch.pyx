@@ -41,10 +41,6 @@ cdef enum:
     B_SOLVED = 0
     B_RETRY = 1
 
-#: The tableau's answer is polished unless its certified error is at most this (rounding
-#: level: about 4,500 eps): most answers are, and polishing them costs a fifth of the time.
-cdef double POLISH_ABOVE = 1e-12
-
 #: ``code`` of a problem whose answer passed the certificate.
 SOLVED = B_SOLVED
 #: ``code`` of a problem the kernel could not certify: run the full pipeline on it.
@@ -82,12 +78,13 @@ cdef int _balance(const double* M, const double* q, const double* d, Py_ssize_t 
 
 cdef void _lemke_one(const double* M, const double* q, const double* d, Py_ssize_t n,
                      int64_t max_iter, double piv_tol, double tie_tol, double tol,
-                     const int* eq, double* z, double* w, signed char* code, int64_t* iters,
-                     double* err) noexcept nogil:
+                     double polished, const int* eq, double* z, double* w, signed char* code,
+                     int64_t* iters, double* err) noexcept nogil:
     """Lemke (tableau) and the certificate of one problem.  The problem is equilibrated first
     when it is not balanced (as the one-problem pipeline does; the answer is mapped back
     exactly and certified on the problem as given); the end basis is re-solved (polish) only
-    when the tableau's answer is not certified at rounding level (:data:`POLISH_ABOVE`)."""
+    when the tableau's answer is not certified at rounding level (``polished``: most answers
+    are, and polishing them costs a fifth of the time)."""
     cdef double* work = <double*>malloc((10 * n + n * n + 1) * sizeof(double))
     cdef int64_t* basic = <int64_t*>malloc((n + 1) * sizeof(int64_t))
     cdef Py_ssize_t* iwork = <Py_ssize_t*>malloc((3 * n + 1) * sizeof(Py_ssize_t))
@@ -138,7 +135,7 @@ cdef void _lemke_one(const double* M, const double* q, const double* d, Py_ssize
         for i in range(n):
             z[i] = 0.0 if out.status == LEMKE_TRIVIAL or raw[i] < 0.0 else raw[i]
         certify_dense(n, M, n, q, z, 0, NULL, NULL, w, cwork, iwork, NULL, &cert)
-        if out.status == LEMKE_OK and not (cert.status == 0 and cert.error <= POLISH_ABOVE):
+        if out.status == LEMKE_OK and not (cert.status == 0 and cert.error <= polished):
             # not at rounding level (cancellation in the tableau updates, or a failure): the
             # end basis re-solved by LU with one refinement step (polish keeps the better of
             # that and the tableau's answer), then certified again
@@ -247,7 +244,7 @@ cdef cnp.ndarray _stack(object a, Py_ssize_t ndim):
 
 
 def lemke_stack(M, q, d, int64_t max_iter, double piv_tol, double tie_tol, double tol,
-                z, w, code, iters, err, int threads, balance=None):
+                z, w, code, iters, err, int threads, balance=None, double polished=0.0):
     """Lemke (tableau) on every problem of the stack ``M`` (K, n, n), ``q`` (K, n).
 
     ``d``: the covering vector (n,), or None for all ones.  Outputs (preallocated,
@@ -255,6 +252,8 @@ def lemke_stack(M, q, d, int64_t max_iter, double piv_tol, double tie_tol, doubl
     ``err`` (K,) float64; see the module docstring.  ``threads``: OpenMP threads (>= 1).
     ``balance``: None (no equilibration) or ``(balanced, q_balanced, max_rounds)`` of
     :mod:`lcpcli.analysis.scaling`: each problem that is not balanced is equilibrated first.
+    ``polished``: the end basis is re-solved unless the certified error is at most this
+    (:data:`lcpcli.solvers.tolerances.POLISHED`; 0: always).
     """
     cdef int eqv[3]
     cdef const int* eq = NULL
@@ -288,8 +287,8 @@ def lemke_stack(M, q, d, int64_t max_iter, double piv_tol, double tie_tol, doubl
     cdef Py_ssize_t nn = n * n
     for k in prange(K, nogil=True, schedule="dynamic", chunksize=16,
                     num_threads=threads if threads > 0 else 1):
-        _lemke_one(Mp + k * nn, qp + k * n, dp, n, max_iter, piv_tol, tie_tol, tol, eq,
-                   zp + k * n, wp + k * n, cp + k, ip + k, ep + k)
+        _lemke_one(Mp + k * nn, qp + k * n, dp, n, max_iter, piv_tol, tie_tol, tol, polished,
+                   eq, zp + k * n, wp + k * n, cp + k, ip + k, ep + k)
 
 
 def sor_stack(M, q, lo, up, double omega, int64_t max_iter, double tol, z, w, code, iters,

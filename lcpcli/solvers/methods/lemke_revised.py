@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from lcpcli.core.certificate import check, from_kernel
+from lcpcli.core.certificate import from_kernel
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, NUMERICAL, Outcome
 from lcpcli.core.text import plural
 from lcpcli.solvers.kernels.lemke_revised import (
@@ -86,24 +86,9 @@ def run(problem: Any, *, tol: float, covering: np.ndarray | None = None,
         # the certificate of this z for this problem, as check() computes it (out of range:
         # status 2, left to check(), which rescales)
         checked = (from_kernel(cert, tol), w) if cert[0] != 2 else None
-        out = Outcome(z, pivots, CONVERGED, f"artificial variable left the basis after "
-                                            f"{plural(pivots, 'pivot')} ({refactors} "
-                                            f"refactorisations)", info=info, checked=checked)
-        if checked is None or checked[0].passed:
-            return out
-        # the end basis, re-solved, fails the certificate: the updated inverse drifted on the
-        # way (seen on Siconos' deltasigma MLCP); the tableau method decides, the better kept
-        again = run_tableau(problem, tol=tol, covering=covering, max_iter=max_iter)
-        if again.termination == CONVERGED:
-            cert_again, w_again = check(problem, np.asarray(again.z, dtype=np.float64), tol)
-            if cert_again.error < checked[0].error:
-                again.message = (f"{out.message}, certified error {checked[0].error:.2g}; "
-                                 f"rerun as lemke-tableau: {again.message}")
-                again.iterations += out.iterations
-                again.info.update(info)
-                again.checked = (cert_again, w_again)
-                return again
-        return out
+        return Outcome(z, pivots, CONVERGED, f"artificial variable left the basis after "
+                                             f"{plural(pivots, 'pivot')} ({refactors} "
+                                             f"refactorisations)", info=info, checked=checked)
     if status == MAX_ITER:
         return Outcome(np.maximum(z, 0.0), pivots, ITERATION_LIMIT,
                        f"pivot limit {limit} reached (raise it with --max-iter)", info=info)
