@@ -222,19 +222,52 @@ cdef void _sor_one(const double* M, const double* q, const double* lo_in, const 
     free(iwork)
 
 
-cdef void _empty_problems(cnp.ndarray co, cnp.ndarray io, cnp.ndarray eo, Py_ssize_t K):
-    """Problems of size 0: solved by z = () (code, iterations and error of each)."""
+cdef bint _empty(_Stack a):
+    """True (and the outputs filled) when there is nothing to solve: K = 0, or problems of size
+    0 (solved by z = ())."""
     cdef Py_ssize_t k
-    for k in range(K):
-        (<signed char*>cnp.PyArray_DATA(co))[k] = B_SOLVED
-        (<int64_t*>cnp.PyArray_DATA(io))[k] = 0
-        (<double*>cnp.PyArray_DATA(eo))[k] = 0.0
+    if a.K and a.n:
+        return False
+    for k in range(a.K):
+        a.code[k] = B_SOLVED
+        a.iters[k] = 0
+        a.err[k] = 0.0
+    return True
 
 
-def _outputs(z, w, code, iters, err, Py_ssize_t K, Py_ssize_t n):
-    return (inout(z, cnp.NPY_FLOAT64, K, n), inout(w, cnp.NPY_FLOAT64, K, n),
-            inout(code, cnp.NPY_INT8, K, -1), inout(iters, cnp.NPY_INT64, K, -1),
-            inout(err, cnp.NPY_FLOAT64, K, -1))
+cdef class _Stack:
+    """A stack's checked arrays (kept alive here) and their data pointers."""
+    cdef cnp.ndarray Ma, qa, zo, wo, co, io, eo
+    cdef Py_ssize_t K, n
+    cdef const double* M
+    cdef const double* q
+    cdef double* z
+    cdef double* w
+    cdef signed char* code
+    cdef int64_t* iters
+    cdef double* err
+
+
+cdef _Stack _checked(M, q, z, w, code, iters, err, str name):
+    """``M`` (K, n, n) and ``q`` (K, n) as float64 (views when they are), and the preallocated
+    outputs (``inout``: no silent copies); ValueError on a wrong shape."""
+    cdef _Stack a = _Stack()
+    a.Ma = _stack(M, 3)
+    a.qa = _stack(q, 2)
+    a.K, a.n = cnp.PyArray_DIM(a.Ma, 0), cnp.PyArray_DIM(a.Ma, 1)
+    if cnp.PyArray_DIM(a.Ma, 2) != a.n or cnp.PyArray_DIM(a.qa, 0) != a.K \
+            or cnp.PyArray_DIM(a.qa, 1) != a.n:
+        raise ValueError(f"{name}: M must be (K, n, n) and q (K, n)")
+    a.zo = inout(z, cnp.NPY_FLOAT64, a.K, a.n)
+    a.wo = inout(w, cnp.NPY_FLOAT64, a.K, a.n)
+    a.co = inout(code, cnp.NPY_INT8, a.K, -1)
+    a.io = inout(iters, cnp.NPY_INT64, a.K, -1)
+    a.eo = inout(err, cnp.NPY_FLOAT64, a.K, -1)
+    a.M, a.q = f64_ptr(a.Ma), f64_ptr(a.qa)
+    a.z, a.w, a.err = f64_ptr(a.zo), f64_ptr(a.wo), f64_ptr(a.eo)
+    a.code = <signed char*>cnp.PyArray_DATA(a.co)
+    a.iters = <int64_t*>cnp.PyArray_DATA(a.io)
+    return a
 
 
 cdef cnp.ndarray _stack(object a, Py_ssize_t ndim):
@@ -260,35 +293,21 @@ def lemke_stack(M, q, d, int64_t max_iter, double piv_tol, double tie_tol, doubl
     if balance is not None:
         eqv[0], eqv[1], eqv[2] = balance
         eq = eqv
-    cdef cnp.ndarray Ma = _stack(M, 3)
-    cdef Py_ssize_t K = cnp.PyArray_DIM(Ma, 0), n = cnp.PyArray_DIM(Ma, 1)
-    cdef cnp.ndarray qa = _stack(q, 2)
-    if cnp.PyArray_DIM(Ma, 2) != n or cnp.PyArray_DIM(qa, 0) != K or cnp.PyArray_DIM(qa, 1) != n:
-        raise ValueError("lemke_stack: M must be (K, n, n) and q (K, n)")
-    zo, wo, co, io, eo = _outputs(z, w, code, iters, err, K, n)
+    cdef _Stack a = _checked(M, q, z, w, code, iters, err, "lemke_stack")
+    cdef Py_ssize_t K = a.K, n = a.n, nn = a.n * a.n, k
     cdef cnp.ndarray da
     cdef double* dp = NULL
-    cdef Py_ssize_t k
     if d is not None:
         da = _stack(d, 1)
         if cnp.PyArray_DIM(da, 0) != n:
             raise ValueError("lemke_stack: the covering vector must have length n")
         dp = f64_ptr(da)
-    if K == 0 or n == 0:
-        _empty_problems(co, io, eo, K)
+    if _empty(a):
         return
-    cdef const double* Mp = f64_ptr(Ma)
-    cdef const double* qp = f64_ptr(qa)
-    cdef double* zp = f64_ptr(zo)
-    cdef double* wp = f64_ptr(wo)
-    cdef signed char* cp = <signed char*>cnp.PyArray_DATA(co)
-    cdef int64_t* ip = <int64_t*>cnp.PyArray_DATA(io)
-    cdef double* ep = f64_ptr(eo)
-    cdef Py_ssize_t nn = n * n
     for k in prange(K, nogil=True, schedule="dynamic", chunksize=16,
                     num_threads=threads if threads > 0 else 1):
-        _lemke_one(Mp + k * nn, qp + k * n, dp, n, max_iter, piv_tol, tie_tol, tol, polished,
-                   eq, zp + k * n, wp + k * n, cp + k, ip + k, ep + k)
+        _lemke_one(a.M + k * nn, a.q + k * n, dp, n, max_iter, piv_tol, tie_tol, tol, polished,
+                   eq, a.z + k * n, a.w + k * n, a.code + k, a.iters + k, a.err + k)
 
 
 def sor_stack(M, q, lo, up, double omega, int64_t max_iter, double tol, z, w, code, iters,
@@ -299,12 +318,8 @@ def sor_stack(M, q, lo, up, double omega, int64_t max_iter, double tol, z, w, co
     holds the start points (inside the bounds) and receives the answers; the other outputs
     as :func:`lemke_stack`.
     """
-    cdef cnp.ndarray Ma = _stack(M, 3)
-    cdef Py_ssize_t K = cnp.PyArray_DIM(Ma, 0), n = cnp.PyArray_DIM(Ma, 1)
-    cdef cnp.ndarray qa = _stack(q, 2)
-    if cnp.PyArray_DIM(Ma, 2) != n or cnp.PyArray_DIM(qa, 0) != K or cnp.PyArray_DIM(qa, 1) != n:
-        raise ValueError("sor_stack: M must be (K, n, n) and q (K, n)")
-    zo, wo, co, io, eo = _outputs(z, w, code, iters, err, K, n)
+    cdef _Stack a = _checked(M, q, z, w, code, iters, err, "sor_stack")
+    cdef Py_ssize_t K = a.K, n = a.n, nn = a.n * a.n, k
     cdef cnp.ndarray la, ua
     cdef const double* lp = NULL
     cdef const double* up_ = NULL
@@ -318,21 +333,11 @@ def sor_stack(M, q, lo, up, double omega, int64_t max_iter, double tol, z, w, co
             raise ValueError("sor_stack: bounds must be (K, n)")
         lp = f64_ptr(la)
         up_ = f64_ptr(ua)
-    cdef Py_ssize_t k
-    if K == 0 or n == 0:
-        _empty_problems(co, io, eo, K)
+    if _empty(a):
         return
-    cdef const double* Mp = f64_ptr(Ma)
-    cdef const double* qp = f64_ptr(qa)
-    cdef double* zp = f64_ptr(zo)
-    cdef double* wp = f64_ptr(wo)
-    cdef signed char* cp = <signed char*>cnp.PyArray_DATA(co)
-    cdef int64_t* ip = <int64_t*>cnp.PyArray_DATA(io)
-    cdef double* ep = f64_ptr(eo)
-    cdef Py_ssize_t nn = n * n
     for k in prange(K, nogil=True, schedule="dynamic", chunksize=16,
                     num_threads=threads if threads > 0 else 1):
-        _sor_one(Mp + k * nn, qp + k * n, lp + k * n if lp != NULL else NULL,
-                 up_ + k * n if up_ != NULL else NULL, n, omega, max_iter, tol, zp + k * n,
-                 wp + k * n, cp + k, ip + k, ep + k)
+        _sor_one(a.M + k * nn, a.q + k * n, lp + k * n if lp != NULL else NULL,
+                 up_ + k * n if up_ != NULL else NULL, n, omega, max_iter, tol, a.z + k * n,
+                 a.w + k * n, a.code + k, a.iters + k, a.err + k)
 
