@@ -42,7 +42,7 @@ from lcpcli.solvers import policy
 from lcpcli.solvers.options import positive_int, vector_option
 from lcpcli.solvers.pipeline import run_method
 from lcpcli.solvers.policy import Step
-from lcpcli.solvers.registry import Method, Option, methods, resolve
+from lcpcli.solvers.registry import Method, Option, get_method, methods, resolve
 from lcpcli.solvers.support import start_point
 
 
@@ -76,11 +76,10 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None,
     if problem.kind == "lcp" and (n == 0 or c.minima()[1] >= 0):
         return Outcome(np.zeros(n), 0, CONVERGED, "auto: q >= 0, so z = 0 solves the problem",
                        info={"chosen": None, "attempts": []})
-    registry = methods()
     regime = policy.regime_of(c)
     queue: Iterator[Step]
     if order:
-        queue, replanned = iter(_given_order(order, problem.kind, registry)), True
+        queue, replanned = iter(_given_order(order, problem.kind, methods())), True
     elif regime.optimistic:
         first = policy.first_step(problem, c, regime)
         queue = iter(() if first is None else (first,))
@@ -102,7 +101,7 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None,
         if step is None:
             break
         name, why, _ = step
-        spec = registry[name]
+        spec = get_method(name)
         if c.report.sparse and spec.densifies(problem):
             continue  # it would densify a huge sparse M (api.check_dense_ok refuses that too)
         opts: dict[str, Any] = {}
@@ -126,8 +125,11 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None,
             continue
         t2 = time.perf_counter()
         t_methods += t2 - t1
-        total_it += int(out.iterations)
-        z = np.asarray(out.z, dtype=np.float64)
+        iterations = int(out.iterations)
+        total_it += iterations
+        z = out.z
+        if type(z) is not np.ndarray or z.dtype != np.float64:
+            z = np.asarray(z, dtype=np.float64)
         if out.checked is not None and out.checked[0].tol == tol:
             cert, w = out.checked  # the pipeline certified this z already
         else:
@@ -136,7 +138,7 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None,
         status = (Status.SOLVED if cert.passed else
                   Status.NO_SOLUTION if out.proven_infeasible else Status.UNSOLVED)
         attempts.append({"method": name, "reason": why, "status": status,
-                         "termination": out.termination, "iterations": int(out.iterations),
+                         "termination": out.termination, "iterations": iterations,
                          "error": cert.error, "seconds": t2 - t1, "message": out.message})
         if status == Status.SOLVED:
             failed = "".join(f"; {a['method']} failed first ({a['message']})"
