@@ -416,18 +416,20 @@ def _read_plain_group(f: Any, name: str) -> Problem | None:
     n = 0
     for part, ndim in ((b"M", (2,)), (b"q", (1, 2))):
         d = h5py.h5o.open(gid, part)
-        if not isinstance(d, h5py.h5d.DatasetID) or d.dtype.kind not in REAL_KINDS \
-                or d.shape is None or len(d.shape) not in ndim:
+        if not isinstance(d, h5py.h5d.DatasetID):
+            return None
+        shape = d.shape  # each property call asks HDF5 again: read them once
+        if shape is None or len(shape) not in ndim or d.dtype.kind not in REAL_KINDS:
             return None
         plist = d.get_create_plist()
         if plist.get_layout() == h5py.h5d.VIRTUAL or plist.get_external_count():
             return None
         if part == b"M":
-            check_size(*d.shape)
-            n = d.shape[0]
-        elif math.prod(d.shape) != n:
+            check_size(*shape)
+            n = shape[0]
+        elif math.prod(shape) != n:
             return None  # the general reader says what is wrong
-        out = np.empty(d.shape, dtype=np.float64)
+        out = np.empty(shape, dtype=np.float64)
         if out.size:
             d.read(h5py.h5s.ALL, h5py.h5s.ALL, out)
         arrays.append(out)
