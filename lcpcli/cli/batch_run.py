@@ -95,8 +95,8 @@ def run_batch_command(files: list[str], *, method: str, tol: float | None,
     from lcpcli.batch.run import run_batch
     from lcpcli.cli.common import (
         pending_exit,
+        progress_allowed,
         stderr_console,
-        stderr_is_terminal,
         stdout_console,
         write_json_line,
     )
@@ -112,7 +112,7 @@ def run_batch_command(files: list[str], *, method: str, tol: float | None,
         raise OptionError("--resume needs --output (the file whose finished problems are "
                           "skipped)")
     stream_rows = as_json and output is None
-    show_bar = not quiet and stderr_is_terminal()
+    show_bar = not quiet and progress_allowed()
     progress = None
     state: dict[str, Any] = {"task": None, "counts": {}, "total": 0, "done": 0, "start": 0.0,
                              "estimated": False, "rows": []}

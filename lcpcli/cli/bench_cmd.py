@@ -217,7 +217,9 @@ class _Tracker:
         from lcpcli.cli.common import plural
 
         self._start = time.perf_counter()
-        if self.console.is_terminal:
+        from lcpcli.cli.common import progress_allowed
+
+        if progress_allowed():
             from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn
 
             self._bar = Progress(TextColumn("bench"), BarColumn(), MofNCompleteColumn(),

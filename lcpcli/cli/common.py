@@ -130,9 +130,15 @@ def stderr_console() -> Any:
     return _console_class()(stderr=True, highlight=False)
 
 
+def progress_allowed() -> bool:
+    """Whether a progress bar may be drawn on stderr: a terminal, and no ``NO_COLOR`` (the one
+    rule of every command's live display)."""
+    return stderr_is_terminal() and not os.environ.get("NO_COLOR")
+
+
 def stderr_is_terminal() -> bool:
     """Whether stderr is a terminal, as rich decides it (``FORCE_TERMINAL`` too), without
-    importing rich when it is not (progress bars are for terminals only)."""
+    importing rich when it is not."""
     force = os.environ.get("FORCE_TERMINAL")
     if force is not None:
         return force.lower() not in ("", "0", "false", "no")
@@ -158,4 +164,5 @@ def write_json_line(obj: Any) -> None:
 
 __all__ = ["EXIT_BAD_INPUT", "MAX_ITER", "MethodListCommand", "PipeClosed", "StdoutGuard",
            "duration", "exit_code_for", "parse_key_values", "pending_exit", "plural",
-           "stderr_console", "stderr_is_terminal", "stdout_console", "write_json_line"]
+           "progress_allowed", "stderr_console", "stderr_is_terminal", "stdout_console",
+           "write_json_line"]

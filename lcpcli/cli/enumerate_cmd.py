@@ -184,7 +184,9 @@ class _Progress:
             sys.stderr.write(f"lcpcli: about {duration((total - done) / rate)} to go at "
                              f"{rate:,.0f} cones/s\n")
         if self._bar is None:
-            if elapsed < 1.0 or done >= total or not sys.stderr.isatty():
+            from lcpcli.cli.common import progress_allowed
+
+            if elapsed < 1.0 or done >= total or not progress_allowed():
                 return
             from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
