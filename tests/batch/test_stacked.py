@@ -169,3 +169,12 @@ def test_methods_without_a_batched_kernel_still_work(cli, tmp_path):
     res = cli("solve", str(path), "-m", "newton", "--json", "-o", str(tmp_path / "r.h5"))
     assert res.returncode == 0, res.stderr
     assert summary(res)["summary"]["counts"] == {"solved": 5}
+
+
+def test_progress_bar_only_on_a_terminal_and_never_with_no_color(cli, stack):
+    path = str(stack[0])
+    shown = cli("solve", path, env={"FORCE_TERMINAL": "1"})
+    assert "solving" in shown.stderr
+    for env in ({"FORCE_TERMINAL": "1", "NO_COLOR": "1"}, {}):
+        res = cli("solve", path, env=env)
+        assert "solving" not in res.stderr, env
