@@ -173,8 +173,8 @@ def test_methods_without_a_batched_kernel_still_work(cli, tmp_path):
 
 def test_progress_bar_only_on_a_terminal_and_never_with_no_color(cli, stack):
     path = str(stack[0])
-    shown = cli("solve", path, env={"FORCE_TERMINAL": "1"})
+    shown = cli("solve", path, env={"FORCE_TERMINAL": "1", "NO_COLOR": ""})
     assert "solving" in shown.stderr
-    for env in ({"FORCE_TERMINAL": "1", "NO_COLOR": "1"}, {}):
+    for env in ({"FORCE_TERMINAL": "1", "NO_COLOR": "1"}, {"FORCE_TERMINAL": "0"}):
         res = cli("solve", path, env=env)
         assert "solving" not in res.stderr, env
