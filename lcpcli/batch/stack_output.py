@@ -9,9 +9,11 @@ attributes ``source`` (the input as given), ``n``, ``K``, ``method``, ``tol`` an
 -1: not solved yet), ``iterations`` (K,) int64, ``error`` and ``residual`` (K,) float64 (NaN
 where none), and ``names`` (K,) when the input has names.  Each chunk is written (``status``
 last) and flushed before the next is read, and Ctrl-C / SIGTERM close the file cleanly, so
-``--resume`` finds every finished chunk.  HDF5 is not safe against ``kill -9`` in the middle of
-a write: a file damaged that way is refused by ``--resume`` with a message (run again without
-it).
+``--resume`` finds every finished chunk.  The datasets are allocated in full when the file is
+created (``ALLOC_TIME_EARLY``), so writing a chunk changes data only, never HDF5's metadata: a
+``kill -9`` leaves a readable file whose ``status`` says which problems finished (a chunk cut
+in the middle has ``status`` -1 and is solved again).  A file that is still unreadable is
+refused by ``--resume`` with a message (run again without it).
 
 **NPZ** (``results.npz``, one input stack): the same arrays at the top level plus ``source``;
 held in memory and written atomically when the batch ends (also on Ctrl-C / SIGTERM), so the
@@ -113,8 +115,12 @@ class Hdf5StackWriter:
             shape = (K, n) if value.ndim == 2 else (K,)
             chunks = (rows, n) if value.ndim == 2 and n else (min(K, 1 << 16),)
             fill = NOT_DONE if key == "status" else (0 if key == "iterations" else np.nan)
+            # every chunk allocated (and filled) now: later writes change data, never the
+            # file's metadata, so a kill -9 between or during them leaves a readable file
+            dcpl = h5py.h5p.create(h5py.h5p.DATASET_CREATE)
+            dcpl.set_alloc_time(h5py.h5d.ALLOC_TIME_EARLY)
             g.create_dataset(key, shape=shape, dtype=value.dtype, fillvalue=fill,
-                             chunks=chunks if K and (value.ndim == 1 or n) else None)
+                             chunks=chunks if K and (value.ndim == 1 or n) else None, dcpl=dcpl)
         if info.has_names:
             g.create_dataset("names", shape=(K,), dtype=h5py.string_dtype())
         g.attrs.update({"source": info.path, "n": n, "K": K, "method": "", "tol": np.nan,

@@ -178,3 +178,38 @@ def test_progress_bar_only_on_a_terminal_and_never_with_no_color(cli, stack):
     for env in ({"FORCE_TERMINAL": "1", "NO_COLOR": "1"}, {"FORCE_TERMINAL": "0"}):
         res = cli("solve", path, env=env)
         assert "solving" not in res.stderr, env
+
+
+def test_hdf5_results_survive_kill_9_and_resume(cli, stack, tmp_path):
+    """A writer killed (os._exit, no close) after one chunk and in the middle of the next
+    leaves a readable results.h5; --resume solves what its status does not mark done."""
+    import subprocess
+    import sys
+
+    path, M, q = stack
+    out = tmp_path / "r.h5"
+    code = f"""
+import os
+import numpy as np
+from pathlib import Path
+from lcpcli.api import solve_many
+from lcpcli.batch.stack_output import Hdf5StackWriter
+from lcpcli.io.stack import stack_info, open_stack
+
+info = stack_info({str(path)!r})
+w = Hdf5StackWriter(Path({str(out)!r}), [info], resume=False)
+with open_stack(info.path) as r:
+    part = r.read(0, 100)
+res = solve_many(part.M, part.q, on_error="mark")
+w.write(info, np.arange(100), None, res, None)
+w.groups[info.path]["z"][100:200] = 7.0  # the next chunk, cut before its status
+os._exit(9)
+"""
+    subprocess.run([sys.executable, "-c", code], check=False)
+    with h5py.File(out) as f:
+        assert (f["s"]["status"][...] != NOT_DONE).sum() == 100
+    res = cli("solve", str(path), "-o", str(out), "--json", "--resume")
+    s = summary(res)
+    assert (s["skipped"], s["new"]) == (100, 200)
+    with h5py.File(out) as f:
+        np.testing.assert_allclose(f["s"]["z"][...], solve_many(M, q).z, atol=1e-12)
