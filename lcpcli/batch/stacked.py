@@ -21,7 +21,7 @@ import numpy as np
 
 from lcpcli.batch.records import SolveOptions, error_row
 from lcpcli.batch.report import BatchReport, BatchStats, Tally
-from lcpcli.core.errors import LcpError
+from lcpcli.core.errors import ProblemError
 
 
 def _problem_name(stem: str, k: int, names: list[str] | None, i: int) -> str:
@@ -69,16 +69,16 @@ def run_stacks(inputs: list[str], opts: SolveOptions, report: BatchReport, *,
     and the status counts so far; ``on_row`` gets each row when given (the ``--json`` stream).
     """
     from lcpcli.batch import stack_output
-    from lcpcli.io.stack import chunk_size, open_stack, stack_info
+    from lcpcli.io.stack import chunk_size, stack_info
 
     tally, stats = report.tally, report.stats
     infos: list[Any] = []
     for path in inputs:
         try:
             infos.append(stack_info(path))
-        except LcpError as exc:
+        except ProblemError as exc:
             if len(inputs) == 1:  # one input: its one-line error, as for a single problem
-                raise exc.with_source(path) if hasattr(exc, "with_source") else exc from None
+                raise exc.with_source(path) from None
             infos.append(None)
             row = error_row(path, Path(path).stem, str(exc), opts.method)
             tally.add(row)
@@ -106,8 +106,8 @@ def run_stacks(inputs: list[str], opts: SolveOptions, report: BatchReport, *,
             if info is None:
                 continue
             _run_one(path, info, opts, report, tally, stats, writer, done_masks[path],
-                     threads=threads, chunk=chunk_size(info.n), open_stack=open_stack,
-                     on_progress=on_progress, on_row=on_row, write=write)
+                     threads=threads, chunk=chunk_size(info.n), on_progress=on_progress,
+                     on_row=on_row, write=write)
     finally:
         if writer is not None:
             write(writer.close)
@@ -115,8 +115,10 @@ def run_stacks(inputs: list[str], opts: SolveOptions, report: BatchReport, *,
 
 def _run_one(path: str, info: Any, opts: SolveOptions, report: BatchReport, tally: Tally,
              stats: BatchStats, writer: Any, done: np.ndarray, *, threads: int, chunk: int,
-             open_stack: Any, on_progress: Any, on_row: Any, write: Any) -> None:
+             on_progress: Any, on_row: Any, write: Any) -> None:
+    """One stacked input, chunk by chunk (the plan is made on the first chunk solved)."""
     from lcpcli.api import plan_stack, solve_many
+    from lcpcli.io.stack import open_stack
 
     stem = Path(path).stem
     plan = None
