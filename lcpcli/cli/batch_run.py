@@ -50,7 +50,7 @@ def wants_batch(files: list[str], output: Any, *, problem: str | None = None,
         from lcpcli.io.stack import is_stack
 
         if is_stack(f):
-            return True
+            return problem is None  # --problem picks one stacked problem: a single solve
     if Path(f).is_dir():
         return True
     if not Path(f).exists():

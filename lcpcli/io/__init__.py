@@ -98,8 +98,8 @@ def load(path: str | os.PathLike[str], problem: str | None = None, *,
     source = str(path)
     try:
         kind = detect_format(path, fmt)
-        if problem is not None and kind != "hdf5":
-            raise ProblemError("--problem applies to HDF5 files only")
+        if problem is not None and kind not in ("hdf5", "npz"):
+            raise ProblemError("--problem applies to HDF5 files and stacked files only")
         if source == "-":
             from lcpcli.io import json_format
 
@@ -107,6 +107,12 @@ def load(path: str | os.PathLike[str], problem: str | None = None, *,
             return json_format.read_text(text, default_name="stdin")
         check_input_file(path)
         p = Path(path)
+        if problem is not None and kind == "npz":  # an NPZ holds one problem, or a stack
+            from lcpcli.io.stack import is_stack, read_single
+
+            if not is_stack(p):
+                raise ProblemError("--problem applies to HDF5 files and stacked files only")
+            return read_single(p, problem)
         return _module(kind).read(p, problem) if kind == "hdf5" else _module(kind).read(p)
     except ProblemError as exc:
         raise exc.with_source(source) from None

@@ -67,8 +67,8 @@ _CHUNK_BUDGET = 32 * 2**20
 
 def stacked_message(K: int) -> str:
     """What ``io.load`` says about a stack of ``K > 1`` problems."""
-    return (f"holds {K:,} stacked problems; solve them as a batch (lcpcli solve FILE) or "
-            f"convert them (lcpcli convert)")
+    return (f"holds {K:,} stacked problems; solve them as a batch (lcpcli solve FILE), pick one "
+            f"with --problem NAME (or its index), or convert them (lcpcli convert)")
 
 
 @dataclass(frozen=True)
@@ -544,15 +544,32 @@ def iter_problems(path: str | Path) -> Iterator[Problem]:
 
 
 def read_single(path: str | Path, problem: str | None = None) -> Problem:
-    """``io.load`` of a stack: its problem when it holds one, else ProblemError."""
+    """``io.load`` of a stack: its problem when it holds one, or the one ``problem`` names (a
+    name by the naming rule, ``STEM[k]``, or the 0-based index ``k``), else ProblemError."""
     with open_stack(path) as reader:
         K = reader.info.K
-        if K > 1:
-            raise ProblemError(stacked_message(K))
-        if problem is not None:
-            raise ProblemError("--problem picks a group of a multi-group HDF5 file; this is a "
-                               "stacked file")
-        return reader.problem(reader.read(0, 1), 0)
+        if problem is None:
+            if K > 1:
+                raise ProblemError(stacked_message(K))
+            return reader.problem(reader.read(0, 1), 0)
+        k = _find(reader, str(problem))
+        return reader.problem(reader.read(k, k + 1), 0)
+
+
+def _find(reader: StackReader, problem: str) -> int:
+    """The index of the problem called ``problem`` (first match), or of index ``problem``."""
+    K, stem = reader.info.K, reader.path.stem
+    step = 100_000
+    for a in range(0, K, step):
+        b = min(K, a + step)
+        names = reader.read_names(a, b)
+        for k in range(a, b):
+            if problem_name(stem, names, k, a) == problem:
+                return k
+    if problem.isdigit() and int(problem) < K:
+        return int(problem)
+    raise ProblemError(f"no problem named '{problem}' among its {K:,} stacked problems (a name, "
+                       f"{stem}[k] or an index 0..{K - 1})")
 
 
 def list_names(path: str | Path) -> list[str]:

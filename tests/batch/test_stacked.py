@@ -213,3 +213,17 @@ os._exit(9)
     assert (s["skipped"], s["new"]) == (100, 200)
     with h5py.File(out) as f:
         np.testing.assert_allclose(f["s"]["z"][...], solve_many(M, q).z, atol=1e-12)
+
+
+def test_problem_picks_one_stacked_problem(cli, tmp_path):
+    M, q = pd_stack(4, 3, seed=5)
+    for ext in ("h5", "npz"):
+        path = tmp_path / f"named.{ext}"
+        write_stack(path, M, q, names=["a", "b", "", "d"])
+        for pick, k in (("b", 1), ("named[2]", 2), ("3", 3)):
+            res = cli("solve", str(path), "--problem", pick, "--json")
+            assert res.returncode == 0, res.stderr
+            row = json.loads(res.stdout)
+            np.testing.assert_allclose(row["z"], solve_many(M, q).z[k], atol=1e-12)
+        res = cli("solve", str(path), "--problem", "zz")
+        assert res.returncode == 2 and "no problem named 'zz'" in res.stderr
