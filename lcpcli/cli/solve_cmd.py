@@ -33,7 +33,8 @@ def solve(
     option: list[str] = typer.Option(None, "--option", "-O", metavar="KEY=VALUE",
                                      help="Other method option (repeatable)."),
     problem: str = typer.Option(None, "--problem", "-p",
-                                help="Problem (group) name inside an HDF5 file."),
+                                help="Problem (group) name inside an HDF5 file, or one problem "
+                                     "of a stacked file (name or index)."),
     as_json: bool = typer.Option(False, "--json",
                                  help="Print one JSON object on stdout and nothing else. "
                                       "Batch: one object per problem per line (with "
