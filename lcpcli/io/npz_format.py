@@ -39,6 +39,9 @@ from lcpcli.io.sparse import (
 
 #: A problem NPZ holds a handful of arrays; more zip entries than this is not one.
 MAX_MEMBERS = 1000
+#: What zipfile raises on a damaged or unsupported archive (NotImplementedError: a compression
+#: method it does not implement); readers turn these into one-line ProblemErrors.
+ZIP_ERRORS = (zipfile.BadZipFile, EOFError, OSError, NotImplementedError, RuntimeError)
 _TEXT_KINDS = "US"
 
 
@@ -134,10 +137,14 @@ def read(path: Path) -> Problem:
         try:
             with zf:
                 return _read(zf, path)
-        except (zipfile.BadZipFile, EOFError, OSError, NotImplementedError,
-                RuntimeError) as exc:
-            raise ProblemError(f"not a valid NPZ file ({type(exc).__name__}: "
-                               f"{str(exc).splitlines()[0][:100]})") from None
+        except ZIP_ERRORS as exc:
+            raise zip_error(exc) from None
+
+
+def zip_error(exc: BaseException) -> ProblemError:
+    """The one-line error of a damaged or unsupported NPZ archive."""
+    first = str(exc).splitlines()[0][:100] if str(exc) else ""
+    return ProblemError(f"not a valid NPZ file ({type(exc).__name__}: {first})")
 
 
 def read_augmented(path: Path) -> tuple[np.ndarray, np.ndarray] | None:
@@ -159,8 +166,7 @@ def read_augmented(path: Path) -> tuple[np.ndarray, np.ndarray] | None:
                 m.check("M")
                 check_size(m.shape[0], m.shape[1])
                 return m.read(), Member(zf, entries["q"], "q").vector("q", m.shape[0])
-        except (zipfile.BadZipFile, EOFError, OSError, NotImplementedError, RuntimeError,
-                ValueError):
+        except (*ZIP_ERRORS, ValueError):
             return None  # the regular reader gives the proper message
 
 

@@ -49,6 +49,7 @@ from lcpcli.core.errors import ProblemError
 from lcpcli.core.numeric import kind_name, real_array
 from lcpcli.core.problem import Problem, check_size
 from lcpcli.io.files import MAX_NAME_BYTES, atomic_path, check_input_file, open_input
+from lcpcli.io.npz_format import ZIP_ERRORS, zip_error
 
 #: Extensions of stack files and their formats.
 STACK_FORMATS = {".h5": "hdf5", ".hdf5": "hdf5", ".hdf": "hdf5", ".npz": "npz"}
@@ -277,13 +278,8 @@ class _H5Source:
 
 
 # ------------------------------------------------------------------------------- NPZ
-_ZIP_ERRORS = (zipfile.BadZipFile, EOFError, OSError, NotImplementedError, RuntimeError,
-               ValueError, struct.error)
-
-
-def _zip_error(exc: BaseException) -> ProblemError:
-    return ProblemError(f"not a valid NPZ file ({type(exc).__name__}: "
-                        f"{str(exc).splitlines()[0][:100] if str(exc) else ''})")
+#: npz_format's zip errors, plus what seeking and reading inside a member can raise.
+_ZIP_ERRORS = (*ZIP_ERRORS, ValueError, struct.error)
 
 
 class _NpzSource:
@@ -295,7 +291,7 @@ class _NpzSource:
         try:
             self.zf = zipfile.ZipFile(self.fh)
         except _ZIP_ERRORS as exc:
-            raise _zip_error(exc) from None
+            raise zip_error(exc) from None
         stack.callback(self.zf.close)
         self.ext: dict[str, Any] = {}
         stack.callback(self._close_members)
@@ -304,7 +300,7 @@ class _NpzSource:
         except ProblemError:
             raise
         except _ZIP_ERRORS as exc:
-            raise _zip_error(exc) from None
+            raise zip_error(exc) from None
 
     def _scan(self, path: Path) -> None:
         from lcpcli.io.npz_format import MAX_MEMBERS, Member
@@ -392,7 +388,7 @@ class _NpzSource:
             except ProblemError:
                 raise
             except _ZIP_ERRORS as exc:
-                raise _zip_error(exc) from None
+                raise zip_error(exc) from None
         if raw is not out:
             out[...] = raw
 
