@@ -11,7 +11,7 @@ import numpy as np
 from lcpcli.core.certificate import check, validate_tol
 from lcpcli.core.errors import LcpError, OptionError
 from lcpcli.core.numeric import check_dtype, real_array
-from lcpcli.core.problem import Problem, is_sparse, problem_kind
+from lcpcli.core.problem import Problem, check_bounds, is_sparse, problem_kind
 from lcpcli.core.result import (
     CONVERGED,
     NO_SOLUTION,
@@ -340,8 +340,8 @@ def _stack_array(a: Any, ndim: int, label: str) -> np.ndarray:
 
 def _stack_bounds(lower: Any, upper: Any, K: int, n: int,
                   n_eq: Any) -> tuple[np.ndarray | None, np.ndarray | None]:
-    """Bounds of shape (n,) or (K, n) as (K, n) arrays, checked as :meth:`Problem.create`
-    checks one problem's (missing lower: 0; missing upper: +inf)."""
+    """Bounds of shape (n,) or (K, n) as (K, n) arrays, checked by the rules of one problem's
+    (:func:`lcpcli.core.problem.check_bounds`; missing lower: 0; missing upper: +inf)."""
     from lcpcli.core.errors import ProblemError
 
     if lower is None and upper is None:
@@ -361,15 +361,7 @@ def _stack_bounds(lower: Any, upper: Any, K: int, n: int,
                                f"got {arr.shape}")
         out.append(np.ascontiguousarray(np.broadcast_to(arr, (K, n))))
     lo, up = out
-    if np.isnan(lo).any() or np.isnan(up).any():
-        raise ProblemError("bounds contain NaN")
-    if (lo == np.inf).any() or (up == -np.inf).any():
-        raise ProblemError("bounds must satisfy lower < inf and upper > -inf")
-    wrong = np.argwhere(lo > up)
-    if wrong.size:
-        k, i = (int(x) for x in wrong[0])
-        raise ProblemError(f"problem {k}: lower > upper at index {i + 1} "
-                           f"({lo[k, i]:g} > {up[k, i]:g})")
+    check_bounds(lo, up)
     return lo, up
 
 

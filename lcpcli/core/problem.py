@@ -55,6 +55,23 @@ def check_size(n_rows: int, n_cols: int, *, sparse: bool = False, nnz: int | Non
             f"(limit {MAX_DENSE_ENTRIES} entries); store M sparse (CSR/COO) instead")
 
 
+def check_bounds(lower: np.ndarray, upper: np.ndarray) -> None:
+    """The rules on box bounds, for one problem (shape (n,)) or a stack ((K, n)): no NaN,
+    ``lower < inf``, ``upper > -inf``, ``lower <= upper`` (ProblemError naming the first
+    offending index, 1-based, and for a stack the 0-based problem)."""
+    for vec, label in ((lower, "lower"), (upper, "upper")):
+        if np.isnan(vec).any():
+            raise ProblemError(f"{label} contains NaN")
+    if np.any(lower == np.inf) or np.any(upper == -np.inf):
+        raise ProblemError("bounds must satisfy lower < inf and upper > -inf")
+    bad = np.argwhere(lower > upper)
+    if bad.size:
+        at = tuple(int(x) for x in bad[0])
+        where = f"problem {at[0]}: " if len(at) == 2 else ""
+        raise ProblemError(f"{where}lower > upper at index {at[-1] + 1} "
+                           f"({lower[at]:g} > {upper[at]:g})")
+
+
 def problem_kind(n_eq: int, bounded: bool) -> str:
     """The kind of a problem (or of a stack): ``"box"`` when bounds are given, ``"mlcp"`` when
     ``n_eq > 0``, else ``"lcp"`` (bounds and n_eq together are refused by the validation)."""
@@ -130,15 +147,7 @@ class Problem:
             for vec, label in ((lower, "lower"), (upper, "upper")):
                 if vec.shape[0] != n:
                     raise ProblemError(f"{label} has length {vec.shape[0]} but M is {n} x {n}")
-                if np.isnan(vec).any():
-                    raise ProblemError(f"{label} contains NaN")
-            if np.any(lower == np.inf) or np.any(upper == -np.inf):
-                raise ProblemError("bounds must satisfy lower < inf and upper > -inf")
-            bad = np.flatnonzero(lower > upper)
-            if bad.size:
-                i = int(bad[0])
-                raise ProblemError(f"lower > upper at index {i + 1} "
-                                   f"({lower[i]:g} > {upper[i]:g})")
+            check_bounds(lower, upper)
         return cls(M=M, q=q, n_eq=n_eq, lower=lower, upper=upper, name=str(name or ""),
                    description=str(description or ""), meta=dict(meta or {}))
 
