@@ -201,7 +201,6 @@ def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None =
     """
     from lcpcli.core.errors import ProblemError
     from lcpcli.solvers.batched import KERNEL_SOLVED, StackOut, default_threads, get_backend
-    from lcpcli.solvers.batched import residuals as natural_residuals
 
     start = time.perf_counter()
     if on_error not in ("raise", "mark"):
@@ -236,7 +235,8 @@ def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None =
         run_spec.prepare_once()
         kernel(M, q, lower, upper, tol=tol, options=kernel_options, out=out, threads=threads,
                scaling=run_spec.scaling)
-        z, w, iterations, error = out.z, out.w, out.iterations, out.error
+        z, w, iterations, error, residual = out.z, out.w, out.iterations, out.error, \
+            out.residual
         status = np.where(out.code == KERNEL_SOLVED, codes[Status.SOLVED],
                           codes[Status.UNSOLVED]).astype(np.int8)
         retry = np.flatnonzero(out.code != KERNEL_SOLVED)
@@ -244,6 +244,7 @@ def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None =
         z, w = np.full((K, n), np.nan), np.full((K, n), np.nan)
         status = np.full(K, codes[Status.UNSOLVED], np.int8)
         iterations, error = np.zeros(K, np.int64), np.full(K, np.inf)
+        residual = np.full(K, np.nan)
         retry = np.arange(K)
     for k in retry.tolist():
         try:  # NaN or Inf data: never certified by a kernel, refused here
@@ -254,25 +255,25 @@ def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None =
             if on_error == "raise":
                 raise ProblemError(f"problem {k} of the stack: {exc}") from None
             status[k], error[k], iterations[k] = codes[Status.ERROR], np.inf, 0
-            z[k], w[k] = np.nan, np.nan
+            z[k], w[k], residual[k] = np.nan, np.nan, np.nan
             messages[k] = str(exc)
             continue
         try:
             r = solve(problem, spec.name, tol=tol, **options)
         except LcpError as exc:
-            status[k], error[k] = codes[Status.ERROR], np.inf
+            status[k], error[k], residual[k] = codes[Status.ERROR], np.inf, np.nan
             messages[k] = str(exc)
             continue
         z[k], w[k] = r.z, r.w
         status[k] = codes[r.status]
-        iterations[k], error[k] = r.iterations, r.error
+        iterations[k], error[k], residual[k] = r.iterations, r.error, r.residual
         messages[k] = r.message
         methods_of[k] = r.method
         results[k] = r
     retried = np.zeros(K, bool)
     retried[retry] = run_spec is not None
     return StackResult(z=z, w=w, status=status, iterations=iterations, error=error,
-                       residual=natural_residuals(z, w, lower, upper), method=name, tol=tol,
+                       residual=residual, method=name, tol=tol,
                        seconds=time.perf_counter() - start, retried=retried,
                        messages=messages, methods=methods_of, batched=run_spec is not None,
                        results=results)

@@ -14,8 +14,8 @@ the method options it understands.  Nothing here names a method.
 (``scaling``: the method's equilibration policy, :attr:`Method.scaling`; anything but
 ``"none"`` asks the kernel to equilibrate each problem that is not balanced, as the one-problem
 pipeline does) that fills the preallocated :class:`StackOut` (``z``, ``w``, ``code``,
-``iterations``, ``error``); ``code[k]`` is :data:`KERNEL_SOLVED` only when problem k's answer
-passed the certificate (:mod:`lcpcli.core.certificate`'s definition, at ``tol``), else
+``iterations``, ``error``, ``residual``); ``code[k]`` is :data:`KERNEL_SOLVED` only when problem
+k's answer passed the certificate (:mod:`lcpcli.core.certificate`'s definition, at ``tol``), else
 :data:`KERNEL_RETRY` and the caller runs the full one-problem pipeline on it.  The CPU backend
 (``"cpu"``) is :mod:`lcpcli.solvers.kernels.batch` (OpenMP threads).  A GPU backend (CuPy or
 CUDA) registers itself with :func:`register_backend` and is chosen with ``backend=`` in
@@ -48,11 +48,12 @@ class StackOut:
     code: np.ndarray        # (K,) int8: KERNEL_SOLVED or KERNEL_RETRY
     iterations: np.ndarray  # (K,) int64: pivots or sweeps
     error: np.ndarray       # (K,) float64: the certified error (inf: not computed)
+    residual: np.ndarray    # (K,) float64: the certificate's residual (NaN: not computed)
 
     @classmethod
     def empty(cls, K: int, n: int) -> StackOut:
         return cls(np.zeros((K, n)), np.zeros((K, n)), np.full(K, KERNEL_RETRY, np.int8),
-                   np.zeros(K, np.int64), np.full(K, np.inf))
+                   np.zeros(K, np.int64), np.full(K, np.inf), np.full(K, np.nan))
 
 
 #: A stacked kernel: ``kernel(M, q, lower, upper, *, tol, options, out, threads, scaling)``
@@ -83,7 +84,7 @@ def _cpu_lemke(M: Any, q: Any, lower: Any, upper: Any, *, tol: float,
     limit = options.get("max_iter") or default_max_iter(n)
     balance = None if scaling == "none" else (BALANCED, Q_BALANCED, MAX_ROUNDS)
     batch.lemke_stack(M, q, d, limit, PIVOT_TOL, TIE_TOL, tol, out.z, out.w, out.code,
-                      out.iterations, out.error, threads, balance, POLISHED)
+                      out.iterations, out.error, out.residual, threads, balance, POLISHED)
 
 
 def _cpu_sor(M: Any, q: Any, lower: Any, upper: Any, *, tol: float,
@@ -99,7 +100,7 @@ def _cpu_sor(M: Any, q: Any, lower: Any, upper: Any, *, tol: float,
     limit = options.get("max_iter") or DEFAULT_MAX_ITER
     omega = float(options.get("omega") or 1.0)
     batch.sor_stack(M, q, lower, upper, omega, limit, tol, out.z, out.w, out.code,
-                    out.iterations, out.error, threads)
+                    out.iterations, out.error, out.residual, threads)
 
 
 @dataclass
@@ -135,13 +136,3 @@ def get_backend(name: str) -> Backend:
                               f"{', '.join(sorted(_BACKENDS))})")
         _LOADED[name] = _BACKENDS[name]()
     return _LOADED[name]
-
-
-def residuals(z: np.ndarray, w: np.ndarray, lower: np.ndarray | None = None,
-              upper: np.ndarray | None = None) -> np.ndarray:
-    """Per problem ``||mid(z - l, z - u, w)||_inf`` (LCP: ``||min(z, w)||_inf``), shape (K,):
-    the natural residual in the units of the data, as :attr:`Certificate.residual`."""
-    if z.shape[1] == 0:
-        return np.zeros(z.shape[0])
-    r = np.minimum(z, w) if lower is None else np.maximum(np.minimum(z - lower, w), z - upper)
-    return np.abs(r).max(axis=1)

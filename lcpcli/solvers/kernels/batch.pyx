@@ -17,7 +17,7 @@ kernel therefore never says ``no_solution`` and never says ``solved`` without th
 """
 
 from cython.parallel cimport prange
-from libc.math cimport INFINITY, fabs, ldexp
+from libc.math cimport INFINITY, NAN, fabs, ldexp
 from libc.stdint cimport int64_t
 from libc.stdlib cimport free, malloc
 
@@ -79,7 +79,7 @@ cdef int _balance(const double* M, const double* q, const double* d, Py_ssize_t 
 cdef void _lemke_one(const double* M, const double* q, const double* d, Py_ssize_t n,
                      int64_t max_iter, double piv_tol, double tie_tol, double tol,
                      double polished, const int* eq, double* z, double* w, signed char* code,
-                     int64_t* iters, double* err) noexcept nogil:
+                     int64_t* iters, double* err, double* res) noexcept nogil:
     """Lemke (tableau) and the certificate of one problem.  The problem is equilibrated first
     when it is not balanced (as the one-problem pipeline does; the answer is mapped back
     exactly and certified on the problem as given); the end basis is re-solved (polish) only
@@ -106,6 +106,7 @@ cdef void _lemke_one(const double* M, const double* q, const double* d, Py_ssize
     code[0] = B_RETRY
     iters[0] = 0
     err[0] = INFINITY
+    res[0] = NAN
     if work == NULL or basic == NULL or iwork == NULL or rc_exp == NULL:
         free(work)
         free(basic)
@@ -145,6 +146,7 @@ cdef void _lemke_one(const double* M, const double* q, const double* d, Py_ssize
         if rc == 0:
             if cert.status == 0:
                 err[0] = cert.error
+            res[0] = cert.residual
             if (out.status == LEMKE_OK or out.status == LEMKE_TRIVIAL) and _passed(&cert, tol):
                 code[0] = B_SOLVED
     free(work)
@@ -155,7 +157,8 @@ cdef void _lemke_one(const double* M, const double* q, const double* d, Py_ssize
 
 cdef void _sor_one(const double* M, const double* q, const double* lo_in, const double* up_in,
                    Py_ssize_t n, double omega, int64_t max_iter, double tol, double* z,
-                   double* w, signed char* code, int64_t* iters, double* err) noexcept nogil:
+                   double* w, signed char* code, int64_t* iters, double* err,
+                   double* res) noexcept nogil:
     """Projected SOR from ``z`` (already inside the bounds), sweeping until the certificate
     passes (the sweep's own stopping test is normwise: the target is tightened tenfold until
     the componentwise certificate is met, as :mod:`lcpcli.solvers.methods.pgs` does)."""
@@ -173,6 +176,7 @@ cdef void _sor_one(const double* M, const double* q, const double* lo_in, const 
     code[0] = B_RETRY
     iters[0] = 0
     err[0] = INFINITY
+    res[0] = NAN
     if work == NULL or iwork == NULL:
         free(work)
         free(iwork)
@@ -211,6 +215,7 @@ cdef void _sor_one(const double* M, const double* q, const double* lo_in, const 
         certify_dense(n, M, n, q, z, 0, lo_in, up_in, w, cwork, iwork, NULL, &cert)
         if cert.status == 0:
             err[0] = cert.error
+            res[0] = cert.residual
         if _passed(&cert, tol):
             code[0] = B_SOLVED
             break
@@ -232,12 +237,13 @@ cdef bint _empty(_Stack a):
         a.code[k] = B_SOLVED
         a.iters[k] = 0
         a.err[k] = 0.0
+        a.residual[k] = 0.0
     return True
 
 
 cdef class _Stack:
     """A stack's checked arrays (kept alive here) and their data pointers."""
-    cdef cnp.ndarray Ma, qa, zo, wo, co, io, eo
+    cdef cnp.ndarray Ma, qa, zo, wo, co, io, eo, ro
     cdef Py_ssize_t K, n
     cdef const double* M
     cdef const double* q
@@ -246,9 +252,10 @@ cdef class _Stack:
     cdef signed char* code
     cdef int64_t* iters
     cdef double* err
+    cdef double* residual
 
 
-cdef _Stack _checked(M, q, z, w, code, iters, err, str name):
+cdef _Stack _checked(M, q, z, w, code, iters, err, residual, str name):
     """``M`` (K, n, n) and ``q`` (K, n) as float64 (views when they are), and the preallocated
     outputs (``inout``: no silent copies); ValueError on a wrong shape."""
     cdef _Stack a = _Stack()
@@ -263,8 +270,9 @@ cdef _Stack _checked(M, q, z, w, code, iters, err, str name):
     a.co = inout(code, cnp.NPY_INT8, a.K, -1)
     a.io = inout(iters, cnp.NPY_INT64, a.K, -1)
     a.eo = inout(err, cnp.NPY_FLOAT64, a.K, -1)
+    a.ro = inout(residual, cnp.NPY_FLOAT64, a.K, -1)
     a.M, a.q = f64_ptr(a.Ma), f64_ptr(a.qa)
-    a.z, a.w, a.err = f64_ptr(a.zo), f64_ptr(a.wo), f64_ptr(a.eo)
+    a.z, a.w, a.err, a.residual = f64_ptr(a.zo), f64_ptr(a.wo), f64_ptr(a.eo), f64_ptr(a.ro)
     a.code = <signed char*>cnp.PyArray_DATA(a.co)
     a.iters = <int64_t*>cnp.PyArray_DATA(a.io)
     return a
@@ -277,12 +285,14 @@ cdef cnp.ndarray _stack(object a, Py_ssize_t ndim):
 
 
 def lemke_stack(M, q, d, int64_t max_iter, double piv_tol, double tie_tol, double tol,
-                z, w, code, iters, err, int threads, balance=None, double polished=0.0):
+                z, w, code, iters, err, residual, int threads, balance=None,
+                double polished=0.0):
     """Lemke (tableau) on every problem of the stack ``M`` (K, n, n), ``q`` (K, n).
 
     ``d``: the covering vector (n,), or None for all ones.  Outputs (preallocated,
     C-contiguous): ``z``, ``w`` (K, n) float64, ``code`` (K,) int8, ``iters`` (K,) int64,
-    ``err`` (K,) float64; see the module docstring.  ``threads``: OpenMP threads (>= 1).
+    ``err`` and ``residual`` (K,) float64 (the certificate's; inf / NaN where none); see the
+    module docstring.  ``threads``: OpenMP threads (>= 1).
     ``balance``: None (no equilibration) or ``(balanced, q_balanced, max_rounds)`` of
     :mod:`lcpcli.analysis.scaling`: each problem that is not balanced is equilibrated first.
     ``polished``: the end basis is re-solved unless the certified error is at most this
@@ -293,7 +303,7 @@ def lemke_stack(M, q, d, int64_t max_iter, double piv_tol, double tie_tol, doubl
     if balance is not None:
         eqv[0], eqv[1], eqv[2] = balance
         eq = eqv
-    cdef _Stack a = _checked(M, q, z, w, code, iters, err, "lemke_stack")
+    cdef _Stack a = _checked(M, q, z, w, code, iters, err, residual, "lemke_stack")
     cdef Py_ssize_t K = a.K, n = a.n, nn = a.n * a.n, k
     cdef cnp.ndarray da
     cdef double* dp = NULL
@@ -307,18 +317,19 @@ def lemke_stack(M, q, d, int64_t max_iter, double piv_tol, double tie_tol, doubl
     for k in prange(K, nogil=True, schedule="dynamic", chunksize=16,
                     num_threads=threads if threads > 0 else 1):
         _lemke_one(a.M + k * nn, a.q + k * n, dp, n, max_iter, piv_tol, tie_tol, tol, polished,
-                   eq, a.z + k * n, a.w + k * n, a.code + k, a.iters + k, a.err + k)
+                   eq, a.z + k * n, a.w + k * n, a.code + k, a.iters + k, a.err + k,
+                   a.residual + k)
 
 
 def sor_stack(M, q, lo, up, double omega, int64_t max_iter, double tol, z, w, code, iters,
-              err, int threads):
+              err, residual, int threads):
     """Projected SOR (``omega = 1``: Gauss-Seidel) on every problem of the stack.
 
     ``lo``/``up``: None (LCP: ``z >= 0``) or bounds of shape (K, n) (box LCP).  ``z`` (K, n)
     holds the start points (inside the bounds) and receives the answers; the other outputs
     as :func:`lemke_stack`.
     """
-    cdef _Stack a = _checked(M, q, z, w, code, iters, err, "sor_stack")
+    cdef _Stack a = _checked(M, q, z, w, code, iters, err, residual, "sor_stack")
     cdef Py_ssize_t K = a.K, n = a.n, nn = a.n * a.n, k
     cdef cnp.ndarray la, ua
     cdef const double* lp = NULL
@@ -339,5 +350,5 @@ def sor_stack(M, q, lo, up, double omega, int64_t max_iter, double tol, z, w, co
                     num_threads=threads if threads > 0 else 1):
         _sor_one(a.M + k * nn, a.q + k * n, lp + k * n if lp != NULL else NULL,
                  up_ + k * n if up_ != NULL else NULL, n, omega, max_iter, tol, a.z + k * n,
-                 a.w + k * n, a.code + k, a.iters + k, a.err + k)
+                 a.w + k * n, a.code + k, a.iters + k, a.err + k, a.residual + k)
 
