@@ -62,6 +62,11 @@ class Tally:
         if status == ERROR and len(self.errors) < self.top:
             self.errors.append((src, prob, str(row.get("message", ""))))
 
+    def add_counts(self, counts: dict[str, int]) -> None:
+        """Add status counts of rows not passed one by one (a stacked chunk)."""
+        for status, k in counts.items():
+            self.counts[status] = self.counts.get(status, 0) + k
+
     @property
     def total(self) -> int:
         return sum(self.counts.values())

@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 
 from lcpcli.core.errors import OptionError, ProblemError
-from lcpcli.core.result import NOT_DONE, STATUS_CODES, STATUS_OF_CODE
+from lcpcli.core.result import NOT_DONE, STATUS_CODES, status_counts
 
 #: Root attribute marking an HDF5 file as stacked results.
 MARK = "lcpcli_stacked_results"
@@ -49,13 +49,6 @@ def _chunk_arrays(res: Any) -> dict[str, np.ndarray]:
     return {"z": res.z, "w": res.w, "status": res.status, "iterations": res.iterations,
             "error": np.where(np.isfinite(res.error), res.error, np.nan),
             "residual": res.residual}
-
-
-def _tally_status(status: np.ndarray, tally: Any) -> None:
-    codes, counts = np.unique(status[status != NOT_DONE], return_counts=True)
-    for c, k in zip(codes.tolist(), counts.tolist(), strict=True):
-        name = str(STATUS_OF_CODE[int(c)])
-        tally.counts[name] = tally.counts.get(name, 0) + int(k)
 
 
 class Hdf5StackWriter:
@@ -132,7 +125,7 @@ class Hdf5StackWriter:
         return self.groups[info.path]["status"][...] != NOT_DONE
 
     def tally_done(self, info: Any, tally: Any) -> None:
-        _tally_status(self.groups[info.path]["status"][...], tally)
+        tally.add_counts(status_counts(self.groups[info.path]["status"][...]))
 
     def write(self, info: Any, positions: np.ndarray, names: list[str] | None, res: Any,
               rows: Any) -> None:
@@ -193,7 +186,7 @@ class NpzStackWriter:
         return self.arrays["status"] != NOT_DONE
 
     def tally_done(self, info: Any, tally: Any) -> None:
-        _tally_status(self.arrays["status"], tally)
+        tally.add_counts(status_counts(self.arrays["status"]))
 
     def write(self, info: Any, positions: np.ndarray, names: list[str] | None, res: Any,
               rows: Any) -> None:

@@ -172,8 +172,7 @@ def add_to_tally(tally: Tally, source: str, stem: str, positions: np.ndarray,
 
     from lcpcli.core.result import STATUS_CODES, Status
 
-    for status, count in res.counts().items():
-        tally.counts[status] = tally.counts.get(status, 0) + count
+    tally.add_counts(res.counts())
     ok = res.status != STATUS_CODES[Status.ERROR]
     err = np.where(np.isfinite(res.error), res.error, np.inf)
     idx = np.flatnonzero(ok)

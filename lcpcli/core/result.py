@@ -232,9 +232,7 @@ class StackResult:
 
     def counts(self) -> dict[str, int]:
         """How many problems have each status (only the statuses that occur)."""
-        codes, numbers = np.unique(self.status, return_counts=True)
-        return {str(STATUS_OF_CODE[int(c)]): int(k) for c, k in zip(codes, numbers,
-                                                                      strict=True)}
+        return status_counts(self.status)
 
     def message(self, k: int) -> str:
         """Problem k's message (the kernel's summary unless it was retried)."""
@@ -248,3 +246,10 @@ class StackResult:
         n = self.z.shape[1] if self.z.ndim == 2 else 0
         return (f"StackResult(K={len(self)}, n={n}, method={self.method!r}, "
                 f"counts={self.counts()}, seconds={self.seconds:.3g})")
+
+
+def status_counts(codes: np.ndarray) -> dict[str, int]:
+    """How many entries of an array of :data:`STATUS_CODES` have each status (the statuses
+    that occur; :data:`NOT_DONE` entries are not counted)."""
+    found, numbers = np.unique(codes[codes != NOT_DONE], return_counts=True)
+    return {str(STATUS_OF_CODE[int(c)]): int(k) for c, k in zip(found, numbers, strict=True)}
