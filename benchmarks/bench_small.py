@@ -30,7 +30,7 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 import lcpcli  # noqa: E402
-from lcpcli.analysis.scaling import equilibrate  # noqa: E402
+from lcpcli.analysis.scaling import BALANCE, equilibrate  # noqa: E402
 from lcpcli.api import certify_outcome  # noqa: E402
 from lcpcli.core.certificate import certify  # noqa: E402
 from lcpcli.core.problem import Problem  # noqa: E402
@@ -39,6 +39,7 @@ from lcpcli.solvers.kernels.lemke_revised import (  # noqa: E402
     lemke_solve_certified,
 )
 from lcpcli.solvers.methods.lemke import PIVOT_TOL, TIE_TOL  # noqa: E402
+from lcpcli.solvers.pipeline import run_method  # noqa: E402
 from lcpcli.solvers.registry import get_method  # noqa: E402
 
 SHARED = Path(os.environ.get("LCPCLI_SHARED", ROOT.parent / "shared"))
@@ -89,31 +90,34 @@ def main(argv: list[str] | None = None) -> int:
     sic_before = siconos(prob, 2000)
     spec = get_method("lemke")
     M = np.ascontiguousarray(prob.M)
-    out = spec.run(prob, tol=1e-8)
+    out = run_method(spec, prob, 1e-8, spec.parse_options({}))
+    opts = spec.parse_options({})
     parts = {
         "lcpcli.solve(p, 'lemke')": lambda: lcpcli.solve(prob, "lemke"),
         "  get_method + parse_options": lambda: get_method("lemke").parse_options({}),
-        "  method run (kernel + polish + Outcome)": lambda: spec.run(prob, tol=1e-8),
-        "    kernels.lemke_revised.lemke_solve": lambda: lemke_solve(
+        "  pipeline small path (Method.fast -> Outcome)": lambda: run_method(spec, prob, 1e-8,
+                                                                             opts),
+        "    one C call: balance test, kernel, polish, certificate": lambda:
+            lemke_solve_certified(M, prob.q, None, 1000, PIVOT_TOL, TIE_TOL, 50, BALANCE),
+        "  certify_outcome (Result)": lambda: certify_outcome(prob, out, "lemke-revised", 0.0,
+                                                              1e-8),
+        "for comparison:": None,
+        "  kernels.lemke_revised.lemke_solve (no certificate)": lambda: lemke_solve(
             M, prob.q, None, 1000, PIVOT_TOL, TIE_TOL, 50),
-        "one C call: kernel + polish + certificate": lambda: lemke_solve_certified(
-            M, prob.q, None, 1000, PIVOT_TOL, TIE_TOL, 50),
-        "  certify_outcome (w, certificate, Result)": lambda: certify_outcome(
-            prob, out, "lemke-revised", 0.0, 1e-8),
-        "    certify": lambda: certify(prob, out.z, 1e-8),
-        "    problem.w(z)": lambda: prob.w(out.z),
-        "  pipeline: equilibrate (decides: no scaling)": lambda: equilibrate(prob, True),
+        "  method run without the small path": lambda: spec.run(prob, tol=1e-8),
+        "  certify (w and certificate, from Python)": lambda: certify(prob, out.z, 1e-8),
+        "  equilibrate (decides: no scaling)": lambda: equilibrate(prob, True),
     }
-    times = {k: per_call(f, args.calls) for k, f in parts.items()}
+    times = {k: per_call(f, args.calls) for k, f in parts.items() if f is not None}
     sic_after = siconos(prob, 2000)
     sic = [s["seconds_median"] for s in (sic_before, sic_after) if s and s.get("seconds_median")]
     ref = sum(sic) / len(sic) if sic else None
     print(f"n = {args.n}, Lemke, pivots {out.iterations}")
     for k, t in times.items():
         ratio = f"{t / ref:7.1f}x Siconos" if ref else ""
-        print(f"{k:46s} {t * 1e6:9.2f} us  {ratio}")
+        print(f"{k:58s} {t * 1e6:9.2f} us  {ratio}")
     if ref:
-        print(f"{'Siconos Lemke (C driver, median)':46s} {ref * 1e6:9.2f} us  "
+        print(f"{'Siconos Lemke (C driver, median)':58s} {ref * 1e6:9.2f} us  "
               f"(before {sic[0] * 1e6:.2f}, after {sic[-1] * 1e6:.2f})")
     payload = {"benchmark": "small", "n": args.n, "us": {k: t * 1e6 for k, t in times.items()},
                "siconos_us": None if ref is None else ref * 1e6,

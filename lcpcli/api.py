@@ -76,7 +76,8 @@ def solve(problem: Problem | Any, q: Any = None, method: str | None = None, *,
     if problem.kind not in spec.kinds:
         raise OptionError(f"method '{spec.name}' does not handle {problem.kind.upper()} problems "
                           f"(it handles: {', '.join(k.upper() for k in spec.kinds)})")
-    check_dense_ok(problem, spec)
+    if problem.sparse:
+        check_dense_ok(problem, spec)
     opts = spec.parse_options(options)
     tol = validate_tol(spec.default_tol if tol is None else tol)
     spec.prepare_once()
@@ -89,7 +90,9 @@ def solve(problem: Problem | Any, q: Any = None, method: str | None = None, *,
 def certify_outcome(problem: Problem, outcome: Outcome, method: str, seconds: float,
                     tol: float) -> Result:
     """Turn a method's raw :class:`Outcome` into a verdict by checking its answer."""
-    z = np.asarray(outcome.z, dtype=np.float64)
+    z = outcome.z
+    if type(z) is not np.ndarray or z.dtype != np.float64:
+        z = np.asarray(z, dtype=np.float64)
     if outcome.checked is not None and outcome.checked[0].tol == tol:
         cert, w = outcome.checked  # the method certified this very z (auto does)
     else:
@@ -106,10 +109,9 @@ def certify_outcome(problem: Problem, outcome: Outcome, method: str, seconds: fl
         if outcome.termination == CONVERGED:
             message = (f"{message}, but the certificate failed: error {cert.error:.3g} > "
                        f"tol {tol:.3g}{_why(cert)}")
-    return Result(status=status, method=method, z=z, w=w, iterations=outcome.iterations,
-                  seconds=seconds, certificate=cert, message=message,
-                  termination=outcome.termination, problem_name=problem.name,
-                  trace=outcome.trace, info=dict(outcome.info))
+    # positional, in the order of Result's fields (this is on the small-solve path)
+    return Result(status, method, z, w, outcome.iterations, seconds, cert, message,
+                  outcome.termination, problem.name, outcome.trace, dict(outcome.info))
 
 
 def _why(cert: Any) -> str:

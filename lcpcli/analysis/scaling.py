@@ -33,6 +33,9 @@ BALANCED = 4
 Q_BALANCED = 8
 #: Ruiz iterations at most (each halves the spread of the exponents; 12 covers 2^4000).
 MAX_ROUNDS = 12
+#: The balance test's thresholds as one argument for compiled callers (``is_balanced`` inside
+#: a kernel's own call).
+BALANCE = (BALANCED, Q_BALANCED)
 
 
 @dataclass(frozen=True)

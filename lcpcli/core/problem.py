@@ -165,7 +165,7 @@ class Problem:
     @property
     def sparse(self) -> bool:
         """True when M is stored as a scipy.sparse matrix."""
-        return is_sparse(self.M)
+        return type(self.M) is not np.ndarray and is_sparse(self.M)
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """The box ``[l, u]`` of the equivalent mixed complementarity problem."""

@@ -20,6 +20,11 @@ the user gave.
    one) or the active set the certificate names (with sign repair); the better answer is kept.
    A method that gave up is not polished (its leftover is not an answer to refine).  The
    verdict is always the certificate's, given by the caller.
+
+Small path: a method that declares ``Method.fast`` is first asked for its answer from one
+compiled call (balance test, kernel, polish, certificate).  It answers only when the steps
+above would do nothing more (the problem is balanced and the answer passes the certificate),
+so the result is the same; otherwise it returns None and the steps above run.
 """
 
 from __future__ import annotations
@@ -50,9 +55,14 @@ def is_symmetric(problem: Problem) -> bool:
 
 def run_method(spec: Any, problem: Problem, tol: float, options: dict[str, Any]) -> Outcome:
     """Run ``spec`` on ``problem`` as the module docstring says; return its :class:`Outcome`."""
+    if spec.planner and getattr(spec, "scaling", "none") == "none":
+        return spec.run(problem, tol=tol, **options)  # auto runs this pipeline per attempt
+    fast = getattr(spec, "fast", None)
+    if fast is not None and type(problem.M) is np.ndarray:
+        out = fast(problem, tol, options)  # a balanced problem, certified: nothing else to do
+        if out is not None:
+            return out
     kind = "none" if options.get("trace") else getattr(spec, "scaling", "none")
-    if kind == "none" and spec.planner:  # auto runs this pipeline for each of its attempts
-        return spec.run(problem, tol=tol, **options)
     if kind != "none" and is_balanced(problem):
         kind = "none"  # nothing to equilibrate (one compiled pass; no symmetry test needed)
     symmetric = kind == "symmetric" or (kind == "auto" and is_symmetric(problem))

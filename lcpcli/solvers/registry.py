@@ -161,6 +161,11 @@ class Method:
     #: The batched kernel for stacks of problems (:class:`BatchSpec`),
     #: or None: :func:`lcpcli.solve_many` then solves the stack one problem at a time.
     batch: BatchSpec | None = None
+    #: The small path of :func:`lcpcli.solvers.pipeline.run_method` for a dense problem:
+    #: ``fast(problem, tol, options)`` returns the method's certified :class:`Outcome` from one
+    #: compiled call when the problem needs no equilibration (the call makes the balance test)
+    #: and the answer passes the certificate, or None: the full pipeline then runs.
+    fast: Callable[..., Any] | None = None
 
     @property
     def matrix_classes(self) -> str:

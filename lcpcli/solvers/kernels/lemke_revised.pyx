@@ -32,6 +32,7 @@ from libc.stdint cimport int64_t
 from libc.stdlib cimport free, malloc
 from libc.string cimport memcpy
 
+from lcpcli.analysis._scaling cimport _ruiz
 from lcpcli.core._certificate cimport CertOut, certify_dense
 from lcpcli.solvers.kernels.dense cimport invert
 from lcpcli.solvers.kernels.lemke cimport (
@@ -629,20 +630,42 @@ def lemke_solve(M, q, d, int64_t max_iter, double piv_tol, double tie_tol,
     return out.status, z, out.pivots, basis_list(bp, n), ray, out.z0, out.refactors
 
 
+cdef bint _balanced(const double* M, const double* q, Py_ssize_t n, int balanced,
+                    int q_balanced) except -1:
+    """One pass of the equilibration's test (as :func:`lcpcli.analysis.scaling.is_balanced`)."""
+    cdef long long* work = <long long*>malloc(4 * n * sizeof(long long))
+    cdef int needed
+    if work == NULL:
+        raise MemoryError()
+    with nogil:
+        needed = _ruiz(n, M, n, NULL, NULL, NULL, q, False, balanced, q_balanced, 1, work,
+                       work + n, work + 2 * n, work + 3 * n)
+    free(work)
+    return not needed
+
+
 def lemke_solve_certified(M, q, d, int64_t max_iter, double piv_tol, double tie_tol,
-                          int64_t refactor_every):
+                          int64_t refactor_every, balance=None):
     """Kernel, final polish and the certificate in one compiled call (the small-solve path).
 
     As :func:`lemke_solve`, plus ``w = M z + q`` and the certificate of the returned ``z``
     (:c:func:`lcpcli.core._certificate.certify_dense`, the project's one definition, for an
     LCP): returns ``(status, z, w, pivots, basic, ray_dz, z0, refactors, cert)`` with ``cert``
     the tuple of :func:`lcpcli.core._certificate.certify_arrays` (its first entry 2 means: out
-    of range, certify again with :func:`lcpcli.core.certificate.check`, which rescales).  On
-    a status other than OK, ``z`` is ``max(z, 0)`` of the kernel's answer.
+    of range, certify again with :func:`lcpcli.core.certificate.check`, which rescales) and
+    ``ray_dz`` None unless the status is RAY.  On a status other than OK, ``z`` is
+    ``max(z, 0)`` of the kernel's answer.
+
+    ``balance``: None, or ``(balanced, q_balanced)`` of :mod:`lcpcli.analysis.scaling`: then
+    the call first makes the test of :func:`lcpcli.analysis.scaling.is_balanced` and returns
+    None, solving nothing, when the problem would be equilibrated (the pipeline's small path).
     """
     cdef Py_ssize_t n = len(q)
     cdef cnp.ndarray qa = f64(q, n, -1)
     cdef cnp.ndarray Ma = f64(M, n, n)
+    if balance is not None and n > 0 and not _balanced(f64_ptr(Ma), f64_ptr(qa), n,
+                                                       balance[0], balance[1]):
+        return None
     cdef cnp.ndarray da
     cdef const double* dp = NULL
     if d is not None:
@@ -650,32 +673,31 @@ def lemke_solve_certified(M, q, d, int64_t max_iter, double piv_tol, double tie_
         dp = f64_ptr(da)
     cdef cnp.ndarray z = empty_f64(n)
     cdef cnp.ndarray w = empty_f64(n)
-    cdef cnp.ndarray ray = empty_f64(n)
-    cdef cnp.ndarray basic = empty_i64(n)
     if n == 0:
-        return (TRIVIAL, z, w, 0, [], ray, 0.0, 0,
+        return (TRIVIAL, z, w, 0, [], None, 0.0, 0,
                 (0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1))
     cdef const double* Mp = f64_ptr(Ma)
     cdef const double* qp = f64_ptr(qa)
     cdef double* zp = f64_ptr(z)
-    cdef double* rp = f64_ptr(ray)
-    cdef int64_t* bp = <int64_t*>cnp.PyArray_DATA(basic)
     cdef LemkeOut out
     cdef CertOut cert
     cdef int rc = 0
     cdef Py_ssize_t i
-    cdef double* ones = NULL
-    cdef double* raw = <double*>malloc(6 * n * sizeof(double))
-    cdef Py_ssize_t* iwork = <Py_ssize_t*>malloc(3 * n * sizeof(Py_ssize_t))
+    # one block of 8-byte words: raw z (6 n doubles, the kernel's workspace), the ray (n), the
+    # covering vector of ones (n), the basis (n int64) and the certificate's 3 n indices
+    cdef double* raw = <double*>malloc(12 * n * sizeof(double))
+    if raw == NULL:
+        raise MemoryError()
+    cdef double* rp = raw + 6 * n
+    cdef int64_t* bp = <int64_t*>(raw + 8 * n)
+    cdef Py_ssize_t* iwork = <Py_ssize_t*>(raw + 9 * n)
     with nogil:
         if dp == NULL:
-            ones = _ones(n)
-            dp = ones
-        if dp == NULL or raw == NULL or iwork == NULL:
-            rc = -1
-        else:
-            rc = lemke_revised(Mp, qp, dp, n, max_iter, piv_tol, tie_tol, NULL, 0,
-                               refactor_every, raw, bp, rp, &out)
+            for i in range(n):
+                rp[n + i] = 1.0
+            dp = rp + n
+        rc = lemke_revised(Mp, qp, dp, n, max_iter, piv_tol, tie_tol, NULL, 0,
+                           refactor_every, raw, bp, rp, &out)
         if rc == 0:
             if out.status == LEMKE_OK:
                 rc = polish(Mp, qp, n, raw, bp, zp)
@@ -685,14 +707,18 @@ def lemke_solve_certified(M, q, d, int64_t max_iter, double piv_tol, double tie_
         if rc == 0 and out.status != LEMKE_TRIVIAL:
             certify_dense(n, Mp, n, qp, zp, 0, NULL, NULL, f64_ptr(w), raw + n, iwork, NULL,
                           &cert)
-        free(ones)
-        free(raw)
-        free(iwork)
     if rc:
+        free(raw)
         raise MemoryError()
+    cdef cnp.ndarray ray = None
+    if out.status == LEMKE_RAY:
+        ray = empty_f64(n)
+        memcpy(f64_ptr(ray), rp, n * sizeof(double))
+    cdef list basis = basis_list(bp, n) if out.status != LEMKE_TRIVIAL else []
+    free(raw)
     if out.status == LEMKE_TRIVIAL:  # z = 0: the caller certifies it the ordinary way
-        return out.status, z, w, 0, [], ray, 0.0, 0, None
-    return (out.status, z, w, out.pivots, basis_list(bp, n), ray, out.z0, out.refactors,
+        return out.status, z, w, 0, basis, ray, 0.0, 0, None
+    return (out.status, z, w, out.pivots, basis, ray, out.z0, out.refactors,
             (cert.status, cert.error, cert.backward_error, cert.growth, cert.residual,
              cert.bound_violation, cert.w_violation, cert.complementarity,
              cert.equality_residual, cert.worst))

@@ -22,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from lcpcli.analysis.scaling import BALANCE
 from lcpcli.core.certificate import from_kernel
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, NUMERICAL, Outcome
 from lcpcli.core.text import plural
@@ -74,21 +75,17 @@ def run(problem: Any, *, tol: float, covering: np.ndarray | None = None,
     q = problem.q
     d = None if covering is None else covering_vector(n, covering)  # None: all ones
     limit = max_iter or default_max_iter(n)
-    every = refactor_every or default_refactor_every(n)
     # kernel, final polish and the certificate in one compiled call
     status, z, w, pivots, basis, ray_dz, z0, refactors, cert = lemke_solve_certified(
-        M, q, d, limit, PIVOT_TOL, TIE_TOL, every)
-    info = {"refactorisations": refactors}
+        M, q, d, limit, PIVOT_TOL, TIE_TOL, refactor_every or default_refactor_every(n))
     if status == TRIVIAL:
         return Outcome(np.zeros(n), 0, CONVERGED, "q >= 0: z = 0 solves the problem")
     if status == OK:
-        info["basis"] = basis
         # the certificate of this z for this problem, as check() computes it (out of range:
         # status 2, left to check(), which rescales)
-        checked = (from_kernel(cert, tol), w) if cert[0] != 2 else None
-        return Outcome(z, pivots, CONVERGED, f"artificial variable left the basis after "
-                                             f"{plural(pivots, 'pivot')} ({refactors} "
-                                             f"refactorisations)", info=info, checked=checked)
+        return _converged(z, w, pivots, basis, refactors,
+                          from_kernel(cert, tol) if cert[0] != 2 else None)
+    info = {"refactorisations": refactors}
     if status == MAX_ITER:
         return Outcome(np.maximum(z, 0.0), pivots, ITERATION_LIMIT,
                        f"pivot limit {limit} reached (raise it with --max-iter)", info=info)
@@ -113,6 +110,40 @@ def run(problem: Any, *, tol: float, covering: np.ndarray | None = None,
     return out
 
 
+def _converged(z: np.ndarray, w: np.ndarray, pivots: int, basis: list[int], refactors: int,
+               cert: Any) -> Outcome:
+    """The Outcome of a run whose artificial variable left the basis."""
+    # positional, in the order of Outcome's fields (this is on the small-solve path)
+    return Outcome(z, pivots, CONVERGED, f"artificial variable left the basis after "
+                                         f"{plural(pivots, 'pivot')} ({refactors} "
+                                         f"refactorisations)", False, None,
+                   {"refactorisations": refactors, "basis": basis},
+                   None if cert is None else (cert, w))
+
+
+def fast(problem: Any, tol: float, options: dict[str, Any]) -> Outcome | None:
+    """The pipeline's small path (``Method.fast``) for a dense LCP: the equilibration's balance
+    test, kernel, final polish and certificate in one compiled call.  Returns the Outcome when
+    the problem needs no equilibration and the answer passes the certificate (what
+    :func:`run` and the pipeline would return then); None otherwise (a trace, a problem to
+    equilibrate, a ray, a failed certificate): the pipeline then takes its full path."""
+    if options.get("trace"):
+        return None
+    q = problem.q
+    n = len(q)
+    covering = options.get("covering")
+    got = lemke_solve_certified(
+        problem.M, q, None if covering is None else covering_vector(n, covering),
+        options.get("max_iter") or default_max_iter(n), PIVOT_TOL, TIE_TOL,
+        options.get("refactor_every") or default_refactor_every(n), BALANCE)
+    if got is None or got[0] != OK:
+        return None
+    cert = from_kernel(got[8], tol)
+    if not cert.passed:
+        return None
+    return _converged(got[1], got[2], got[3], got[4], got[7], cert)
+
+
 METHODS = [
     Method(
         name="lemke-revised",
@@ -135,6 +166,7 @@ METHODS = [
         # the faster of the two on benchmarks/bench_lemke.py (CPU time, n = 10..1000)
         aliases=("lemke",),
         scaling="auto",
+        fast=fast,
         # stacks: the tableau kernel (same lexicographic pivot rule; faster for small n)
         batch=BatchSpec("lemke", ("covering", "max_iter"), runs_as="lemke-tableau"),
     ),
