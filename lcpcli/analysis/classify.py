@@ -594,8 +594,7 @@ class Classifier:
 
     def __init__(self, problem: Any) -> None:
         self.problem = problem
-        self.report = ClassReport(kind=problem.kind, n=int(problem.q.shape[0]),
-                                  n_eq=problem.n_eq, sparse=_is_sparse(problem.M))
+        self.report = ClassReport(problem.kind, len(problem.q), problem.n_eq, problem.sparse)
         self._done: set[str] = set()
         self._minima: tuple[float, float] | None = None
 
@@ -606,7 +605,8 @@ class Classifier:
 
     def minima(self) -> tuple[float, float]:
         """``(min_i m_ii, min_i q_i)`` (inf for n = 0), computed once (one compiled pass for a
-        dense M: these are the first facts ``auto`` looks at)."""
+        dense M: these are the first facts ``auto`` looks at), with the O(n) diagonal test
+        that they decide."""
         if self._minima is None:
             M, q = self.problem.M, self.problem.q
             if not self.report.sparse:
@@ -615,6 +615,8 @@ class Classifier:
                 d = diagonal(M)
                 self._minima = (float(d.min()) if d.size else np.inf,
                                 float(q.min()) if q.size else np.inf)
+            self._done.add("_diagonal")
+            self._diagonal()
         return self._minima
 
     #: The test (method name) that decides each property, in the order :meth:`complete` runs.

@@ -204,6 +204,7 @@ def plan(problem: Any, c: Classifier, registry: Mapping[str, Method] | None = No
 #: First steps of optimistic plans, by what decided them (see :func:`first_step`).
 _FIRST_CACHE: dict[tuple[Any, ...], Step | None] = {}
 _FIRST_CACHE_MAX = 4096
+_UNPLANNED = Step("", "", None)  # a cache miss (None is a cached "no method applies")
 
 
 def first_step(problem: Any, c: Classifier, regime: Regime) -> Step | None:
@@ -217,11 +218,13 @@ def first_step(problem: Any, c: Classifier, regime: Regime) -> Step | None:
     if r.sparse:
         steps = plan(problem, c, optimistic=True, first=True, regime=regime)
         return steps[0] if steps else None
-    c.run("positive_diagonal")
+    if r.positive_diagonal is None:
+        c.run("positive_diagonal")
     key = (r.kind, r.n, regime.name, registry_version(), r.positive_diagonal, r.h_matrix,
            r.p_matrix, r.definiteness)
-    if key in _FIRST_CACHE:
-        return _FIRST_CACHE[key]
+    step = _FIRST_CACHE.get(key, _UNPLANNED)
+    if step is not _UNPLANNED:
+        return step
     before = c.tests_run
     steps = plan(problem, c, optimistic=True, first=True, regime=regime)
     step = steps[0] if steps else None

@@ -28,8 +28,8 @@ Matrix classes: any; the guarantees are those of the methods it picks (see docs/
 
 from __future__ import annotations
 
-import time
 from collections.abc import Iterator, Mapping
+from time import perf_counter
 from typing import Any
 
 import numpy as np
@@ -37,12 +37,21 @@ import numpy as np
 from lcpcli.analysis.classify import Classifier
 from lcpcli.core.certificate import check
 from lcpcli.core.errors import OptionError
-from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, Outcome, Status
+from lcpcli.core.result import (
+    CONVERGED,
+    ITERATION_LIMIT,
+    NO_SOLUTION,
+    SOLVED,
+    UNSOLVED,
+    Outcome,
+    Status,
+)
 from lcpcli.solvers import policy
 from lcpcli.solvers.options import positive_int, vector_option
 from lcpcli.solvers.pipeline import run_method
 from lcpcli.solvers.policy import Step
 from lcpcli.solvers.registry import Method, Option, get_method, methods, resolve
+from lcpcli.solvers.registry import version as registry_version
 from lcpcli.solvers.support import start_point
 
 
@@ -65,15 +74,42 @@ def _given_order(order: str, kind: str, registry: Mapping[str, Method]) -> list[
     return steps
 
 
+#: The method and parsed options of an attempt without a warm start, by (method, max_iter,
+#: registry version): the same on every call (a small solve would otherwise spend a
+#: microsecond here).
+_ATTEMPTS: dict[tuple[Any, ...], tuple[Method, dict[str, Any]]] = {}
+
+
+def _attempt(name: str, max_iter: int | None, z0: np.ndarray | None
+             ) -> tuple[Method, dict[str, Any]]:
+    """The method called ``name`` and its options for an attempt (prepared once)."""
+    key = (name, max_iter, registry_version())
+    if z0 is None and key in _ATTEMPTS:
+        return _ATTEMPTS[key]
+    spec = get_method(name)
+    opts: dict[str, Any] = {}
+    if "max_iter" in spec.options:
+        cap = max_iter if max_iter is not None else spec.auto_max_iter
+        if cap is not None:
+            opts["max_iter"] = cap
+    if z0 is not None and "z0" in spec.options:
+        opts["z0"] = z0
+    spec.prepare_once()
+    found = spec, spec.parse_options(opts)
+    if z0 is None and len(_ATTEMPTS) < 1024:
+        _ATTEMPTS[key] = found
+    return found
+
+
 def run(problem: Any, *, tol: float, max_iter: int | None = None,
         z0: np.ndarray | None = None, order: str | None = None) -> Outcome:
     """Plan, try and certify methods until one's answer passes; see the module docstring."""
-    n = problem.n
     if z0 is not None:
         z0 = start_point(problem, z0)  # length check before any method runs
-    t_start = time.perf_counter()
+    t_start = perf_counter()
     c = Classifier(problem)
-    if problem.kind == "lcp" and (n == 0 or c.minima()[1] >= 0):
+    n = c.report.n
+    if c.report.kind == "lcp" and (n == 0 or c.minima()[1] >= 0):
         return Outcome(np.zeros(n), 0, CONVERGED, "auto: q >= 0, so z = 0 solves the problem",
                        info={"chosen": None, "attempts": []})
     regime = policy.regime_of(c)
@@ -101,29 +137,21 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None,
         if step is None:
             break
         name, why, _ = step
-        spec = get_method(name)
+        spec, opts = _attempt(name, max_iter, z0)
         if c.report.sparse and spec.densifies(problem):
             continue  # it would densify a huge sparse M (api.check_dense_ok refuses that too)
-        opts: dict[str, Any] = {}
-        if "max_iter" in spec.options:
-            cap = max_iter if max_iter is not None else spec.auto_max_iter
-            if cap is not None:
-                opts["max_iter"] = cap
-        if z0 is not None and "z0" in spec.options:
-            opts["z0"] = z0
-        spec.prepare_once()
-        t1 = time.perf_counter()
+        t1 = perf_counter()
         try:
-            out: Outcome = run_method(spec, problem, tol, spec.parse_options(opts))
+            out: Outcome = run_method(spec, problem, tol, opts)
         except (np.linalg.LinAlgError, MemoryError, ValueError, RuntimeError) as exc:
             if isinstance(exc, OptionError):
                 raise
-            t2 = time.perf_counter()
+            t2 = perf_counter()
             t_methods += t2 - t1
             attempts.append({"method": name, "reason": why, "status": Status.ERROR,
                              "message": f"{type(exc).__name__}: {exc}", "seconds": t2 - t1})
             continue
-        t2 = time.perf_counter()
+        t2 = perf_counter()
         t_methods += t2 - t1
         iterations = int(out.iterations)
         total_it += iterations
@@ -134,20 +162,21 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None,
             cert, w = out.checked  # the pipeline certified this z already
         else:
             cert, w = check(problem, z, tol)
-        t_certify += time.perf_counter() - t2
-        status = (Status.SOLVED if cert.passed else
-                  Status.NO_SOLUTION if out.proven_infeasible else Status.UNSOLVED)
+            t_certify += perf_counter() - t2
+        status = (SOLVED if cert.passed else
+                  NO_SOLUTION if out.proven_infeasible else UNSOLVED)
         attempts.append({"method": name, "reason": why, "status": status,
                          "termination": out.termination, "iterations": iterations,
                          "error": cert.error, "seconds": t2 - t1, "message": out.message})
-        if status == Status.SOLVED:
+        if status is SOLVED:
             failed = "".join(f"; {a['method']} failed first ({a['message']})"
                              for a in attempts[:-1]) if len(attempts) > 1 else ""
             return Outcome(z, total_it, CONVERGED,
                            f"auto ({c.report.describe()}): solved by {name} ({why}){failed}",
-                           info=_info(name, attempts, c, regime, t_start, t_methods, t_certify),
-                           checked=(cert, w))
-        if status == Status.NO_SOLUTION:
+                           False, None,
+                           _info(name, attempts, c, regime, t_start, t_methods, t_certify),
+                           (cert, w))
+        if status is NO_SOLUTION:
             return Outcome(z, total_it, out.termination,
                            f"auto ({c.report.describe()}): {name} proved that no solution "
                            f"exists: {out.message}", proven_infeasible=True,
@@ -164,7 +193,7 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None,
 def _info(chosen: str | None, attempts: list[dict[str, Any]], c: Classifier, regime: Any,
           t_start: float, t_methods: float, t_certify: float) -> dict[str, Any]:
     """``Outcome.info`` of auto (see the module docstring)."""
-    spent = time.perf_counter() - t_start
+    spent = perf_counter() - t_start
     return {"chosen": chosen, "attempts": attempts, "classification": c.report,
             "regime": regime.name, "classify_seconds": spent - t_methods - t_certify,
             "certify_seconds": t_certify}
