@@ -62,7 +62,7 @@ w)||_inf`` (``||min(z, w)||_inf`` for the LCP), ``bound_violation``, ``w_violati
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -95,7 +95,8 @@ class Certificate:
     passed: bool
 
     def as_dict(self) -> dict[str, Any]:
-        return asdict(self)
+        # the fields by name (dataclasses.asdict deep-copies each value: 50 us per row)
+        return {name: getattr(self, name) for name in self.__slots__}
 
 
 def validate_tol(tol: Any) -> float:

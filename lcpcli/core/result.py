@@ -179,7 +179,12 @@ def _float(x: float) -> float | None:
 
 
 def _floats(v: np.ndarray) -> list[float | None]:
-    return [_float(x) for x in np.asarray(v, dtype=float)]
+    """``v`` as a list of floats, inf/nan as None (one pass in numpy when all are finite)."""
+    a = np.asarray(v, dtype=np.float64).ravel()
+    out = a.tolist()
+    if not np.isfinite(a).all():
+        out = [x if np.isfinite(x) else None for x in out]
+    return out
 
 
 @dataclass
