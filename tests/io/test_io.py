@@ -299,3 +299,42 @@ def test_header_checks_before_reading(tmp_path):
     np.savez(tmp_path / "c.npz", M=np.eye(2), q=np.ones(2), lower=np.zeros(2, dtype=np.complex64))
     with pytest.raises(ProblemError, match="lower holds complex numbers"):
         load(tmp_path / "c.npz")
+
+
+def test_read_many_fast_path_refuses_data_outside_the_file(tmp_path):
+    """The per-group fast reader takes only plain contiguous data of this file; chunked data
+    is read too, and external or virtual storage is refused by name, as by ``read``."""
+    from lcpcli.io.hdf5_format import read_many
+
+    M = np.array([[2.0, 1.0], [1.0, 2.0]])
+    q = np.array([-1.0, -1.0])
+    M.tofile(tmp_path / "raw.bin")
+    path = tmp_path / "groups.h5"
+    with h5py.File(path, "w") as f:
+        f.create_group("plain").update({"M": M, "q": q})
+        g = f.create_group("chunked")
+        g.create_dataset("M", data=M, chunks=(1, 2))
+        g["q"] = q
+        g = f.create_group("external")
+        g.create_dataset("M", shape=(2, 2), dtype="f8",
+                         external=[(str(tmp_path / "raw.bin"), 0, 32)])
+        g["q"] = q
+        g = f.create_group("virtual")
+        layout = h5py.VirtualLayout(shape=(2, 2), dtype="f8")
+        layout[:] = h5py.VirtualSource(str(tmp_path / "other.h5"), "M", shape=(2, 2))
+        g.create_virtual_dataset("M", layout)
+        g["q"] = q
+        g = f.create_group("text")
+        g["M"] = np.array([[b"a", b"b"], [b"c", b"d"]])
+        g["q"] = q
+        f["soft"] = h5py.SoftLink("/plain")
+    got = dict(read_many(path, ["plain", "chunked", "external", "virtual", "text", "soft",
+                                "missing"]))
+    for name in ("plain", "chunked", "soft"):
+        np.testing.assert_array_equal(got[name].M, M)
+        np.testing.assert_array_equal(got[name].q, q)
+    for name in ("external", "virtual"):
+        assert isinstance(got[name], ProblemError)
+        assert "virtual or external" in str(got[name])
+    assert isinstance(got["text"], ProblemError)
+    assert isinstance(got["missing"], ProblemError) and "missing" in str(got["missing"])
