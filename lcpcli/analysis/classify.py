@@ -548,7 +548,11 @@ class ClassReport:
     def describe(self) -> str:
         """A short phrase naming what is known, e.g. ``dense, n=4, non-symmetric, 4 zero
         diagonal entries``."""
-        parts = ["sparse" if self.sparse else "dense", f"n={self.n}"]
+        head = f"{'sparse' if self.sparse else 'dense'}, n={self.n}"
+        if self.symmetric is None and self.definiteness is None and not self.p_matrix \
+                and not self.h_matrix and not self.z_matrix and not self.zero_diagonal:
+            return head  # nothing else known (auto's first attempt on a small problem)
+        parts = [head]
         if self.symmetric is not None:
             parts.append("symmetric" if self.symmetric else "non-symmetric")
         if self.definiteness is not None:
@@ -616,7 +620,7 @@ class Classifier:
                 self._minima = (float(d.min()) if d.size else np.inf,
                                 float(q.min()) if q.size else np.inf)
             self._done.add("_diagonal")
-            self._diagonal()
+            self._diagonal_test(self._minima[0])
         return self._minima
 
     #: The test (method name) that decides each property, in the order :meth:`complete` runs.
@@ -635,8 +639,10 @@ class Classifier:
         r.q_nonnegative = bool(n == 0 or np.min(self.problem.q) >= 0)
 
     def _diagonal(self) -> None:
+        self.minima()  # which runs the test
+
+    def _diagonal_test(self, dmin: float) -> None:
         r = self.report
-        dmin = self.minima()[0]
         r.diagonal_min = float(dmin) if r.n else None
         r.positive_diagonal = r.n == 0 or dmin > 0
         r.zero_diagonal = 0
