@@ -711,11 +711,15 @@ def lemke_solve_certified(M, q, d, int64_t max_iter, double piv_tol, double tie_
         free(raw)
         raise MemoryError()
     cdef cnp.ndarray ray = None
-    if out.status == LEMKE_RAY:
-        ray = empty_f64(n)
-        memcpy(f64_ptr(ray), rp, n * sizeof(double))
-    cdef list basis = basis_list(bp, n) if out.status != LEMKE_TRIVIAL else []
-    free(raw)
+    cdef list basis = []
+    try:
+        if out.status == LEMKE_RAY:
+            ray = empty_f64(n)
+            memcpy(f64_ptr(ray), rp, n * sizeof(double))
+        if out.status != LEMKE_TRIVIAL:
+            basis = basis_list(bp, n)
+    finally:
+        free(raw)
     if out.status == LEMKE_TRIVIAL:  # z = 0: the caller certifies it the ordinary way
         return out.status, z, w, 0, basis, ray, 0.0, 0, None
     return (out.status, z, w, out.pivots, basis, ray, out.z0, out.refactors,
