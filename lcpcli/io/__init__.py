@@ -105,8 +105,9 @@ def load(path: str | os.PathLike[str], problem: str | None = None, *,
 
             text = decode_text(read_stdin_bytes(MAX_TEXT_BYTES), "UTF-8 JSON text")
             return json_format.read_text(text, default_name="stdin")
-        check_input_file(path)
-        p = Path(path)
+        if kind == "hdf5":  # the other readers open it with io.files.open_input, which checks
+            check_input_file(path)
+        p = path if isinstance(path, Path) else Path(path)
         if problem is not None and kind == "npz":  # an NPZ holds one problem, or a stack
             from lcpcli.io.stack import is_stack, read_single
 

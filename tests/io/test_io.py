@@ -338,3 +338,24 @@ def test_read_many_fast_path_refuses_data_outside_the_file(tmp_path):
         assert "virtual or external" in str(got[name])
     assert isinstance(got["text"], ProblemError)
     assert isinstance(got["missing"], ProblemError) and "missing" in str(got["missing"])
+
+
+def test_read_input_bytes_a_file_that_grows_after_the_size_check(tmp_path, monkeypatch):
+    """The size is read once (fstat); a file longer by the time it is read is read on to the
+    limit, and refused beyond it, never cut."""
+    import os as _os
+
+    from lcpcli.io import files
+
+    path = tmp_path / "grown.json"
+    path.write_bytes(b"x" * 100)
+    real_fstat = _os.fstat
+
+    class Shrunk:
+        def __init__(self, st):
+            self.st_mode, self.st_size = st.st_mode, 10  # as if it had 10 bytes at the fstat
+
+    monkeypatch.setattr(files.os, "fstat", lambda fd: Shrunk(real_fstat(fd)))
+    assert files.read_input_bytes(path, limit=1000) == b"x" * 100
+    with pytest.raises(ProblemError, match="too large|larger|exceeds|limit"):
+        files.read_input_bytes(path, limit=50)
