@@ -10,7 +10,7 @@ import numpy as np
 
 from lcpcli.core.certificate import check, validate_tol
 from lcpcli.core.errors import LcpError, OptionError
-from lcpcli.core.numeric import check_dtype, real_array
+from lcpcli.core.numeric import check_dtype, float64_array, real_array
 from lcpcli.core.problem import Problem, check_bounds, is_sparse, problem_kind
 from lcpcli.core.result import (
     CONVERGED,
@@ -90,9 +90,7 @@ def solve(problem: Problem | Any, q: Any = None, method: str | None = None, *,
 def certify_outcome(problem: Problem, outcome: Outcome, method: str, seconds: float,
                     tol: float) -> Result:
     """Turn a method's raw :class:`Outcome` into a verdict by checking its answer."""
-    z = outcome.z
-    if type(z) is not np.ndarray or z.dtype != np.float64:
-        z = np.asarray(z, dtype=np.float64)
+    z = float64_array(outcome.z)
     if outcome.checked is not None and outcome.checked[0].tol == tol:
         cert, w = outcome.checked  # the method certified this very z (auto does)
     else:

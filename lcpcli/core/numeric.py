@@ -110,3 +110,11 @@ def real_array(value: Any, label: str, *, scan: bool = True) -> np.ndarray:
     check_dtype(arr.dtype, label)
     with np.errstate(over="ignore"):  # float128 beyond float64 becomes inf: refused later
         return np.asarray(arr, dtype=np.float64)
+
+
+def float64_array(x: Any) -> np.ndarray:
+    """``x`` as a float64 ndarray: ``x`` itself when it already is one (no call into numpy:
+    this is on the small-solve path), else a converted copy."""
+    if type(x) is np.ndarray and x.dtype == np.float64:
+        return x
+    return np.asarray(x, dtype=np.float64)

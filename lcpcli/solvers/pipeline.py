@@ -36,6 +36,7 @@ import numpy as np
 from lcpcli.analysis._scaling import is_symmetric_dense
 from lcpcli.analysis.scaling import Scaling, equilibrate, is_balanced
 from lcpcli.core.certificate import check
+from lcpcli.core.numeric import float64_array
 from lcpcli.core.problem import Problem
 from lcpcli.core.result import CONVERGED, Outcome
 from lcpcli.solvers.support import refine
@@ -75,9 +76,7 @@ def run_method(spec: Any, problem: Problem, tol: float, options: dict[str, Any])
             again.iterations += out.iterations
             out = again
     if out.termination == CONVERGED:
-        z = out.z
-        if type(z) is not np.ndarray or z.dtype != np.float64:
-            z = out.z = np.asarray(z, dtype=np.float64)
+        z = out.z = float64_array(out.z)
         if out.checked is None or out.checked[0].tol != tol:
             out.checked = check(problem, z, tol)
         cert = out.checked[0]

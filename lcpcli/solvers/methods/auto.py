@@ -37,6 +37,7 @@ import numpy as np
 from lcpcli.analysis.classify import Classifier
 from lcpcli.core.certificate import check
 from lcpcli.core.errors import OptionError
+from lcpcli.core.numeric import float64_array
 from lcpcli.core.result import (
     CONVERGED,
     ITERATION_LIMIT,
@@ -155,9 +156,7 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None,
         t_methods += t2 - t1
         iterations = int(out.iterations)
         total_it += iterations
-        z = out.z
-        if type(z) is not np.ndarray or z.dtype != np.float64:
-            z = np.asarray(z, dtype=np.float64)
+        z = float64_array(out.z)
         if out.checked is not None and out.checked[0].tol == tol:
             cert, w = out.checked  # the pipeline certified this z already
         else:
