@@ -6,6 +6,8 @@ import json
 import re
 from pathlib import Path
 
+import numpy as np
+
 import lcpcli
 import lcpcli.core.errors as errors
 from lcpcli.core.result import STATUSES, Status, Termination
@@ -44,3 +46,29 @@ def test_the_version_is_defined_once():
     assert re.search(r'^dynamic = \["version"\]', text, re.M)
     assert re.search(r'^version = \{ attr = "lcpcli.__version__" \}', text, re.M)
     assert re.fullmatch(r"\d+\.\d+\.\d+", lcpcli.__version__)
+
+
+def test_plural_words_and_thousands():
+    from lcpcli.core.text import plural
+
+    assert plural(1, "pivot") == "1 pivot"
+    assert plural(0, "problem") == "0 problems"
+    assert plural(999, "pivot") == "999 pivots"
+    assert plural(1000, "pivot") == "1,000 pivots"
+    assert plural(-1500, "step") == "-1,500 steps"
+    assert plural(np.int64(1234567), "cone") == "1,234,567 cones"
+    assert plural(2, "matrix", "matrices") == "2 matrices"
+
+
+def test_result_rows_map_non_finite_numbers_to_null():
+    import dataclasses
+
+    from lcpcli.core.certificate import Certificate
+    from lcpcli.core.result import _floats
+
+    assert _floats(np.array([1.5, np.inf, -np.inf, np.nan, 0.0])) == [1.5, None, None, None, 0.0]
+    assert _floats(np.arange(3)) == [0.0, 1.0, 2.0]
+    assert all(type(x) is float for x in _floats(np.ones(4, dtype=np.float32)))
+    c = Certificate(1e-17, 1e-17, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1, 1e-8, True)
+    assert c.as_dict() == dataclasses.asdict(c)
+    assert list(c.as_dict()) == [f.name for f in dataclasses.fields(c)]
