@@ -420,12 +420,9 @@ def _auto_choice(M: np.ndarray, q: np.ndarray, lower: np.ndarray | None,
         problem = Problem.create(M[k], q[k], lower=None if lower is None else lower[k],
                                  upper=None if upper is None else upper[k])
         c = Classifier(problem)
-        regime = policy.regime_of(c)
-        if regime.optimistic:
-            steps = iter(policy.plan(problem, c, optimistic=True, first=True, regime=regime))
-        else:
-            steps = policy.iter_plan(problem, c, regime=regime)
-        step = next(steps, None)
+        regime, step = policy.opening(problem, c)  # auto's first step, as auto.run takes it
+        if not regime.optimistic:
+            step = next(policy.iter_plan(problem, c, regime=regime), None)
         if step is not None:
             votes[step.method] += 1
     return votes.most_common(1)[0][0] if votes else None

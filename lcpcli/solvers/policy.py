@@ -201,36 +201,39 @@ def plan(problem: Any, c: Classifier, registry: Mapping[str, Method] | None = No
     return list(islice(steps, 1)) if first else list(steps)
 
 
-#: First steps of optimistic plans, by what decided them (see :func:`first_step`).
-_FIRST_CACHE: dict[tuple[Any, ...], Step | None] = {}
-_FIRST_CACHE_MAX = 4096
-_UNPLANNED = Step("", "", None)  # a cache miss (None is a cached "no method applies")
+#: Openings of dense problems, by what decided them (see :func:`opening`).
+_OPENINGS: dict[tuple[Any, ...], tuple[Regime, Step | None]] = {}
+_OPENINGS_MAX = 4096
 
 
-def first_step(problem: Any, c: Classifier, regime: Regime) -> Step | None:
-    """``plan(problem, c, optimistic=True, first=True, regime=regime)``'s step, memoised.
+def opening(problem: Any, c: Classifier) -> tuple[Regime, Step | None]:
+    """The problem's regime and, when the regime is optimistic, the step tried first
+    (``plan(problem, c, optimistic=True, first=True, regime=regime)``'s; None otherwise, or
+    when no method applies).
 
-    An optimistic first step of a dense problem whose rows needed only the O(n) diagonal test
-    is decided by the problem's kind, n, the regime, the registry and the facts that test
-    established; those are the key (so a repeated small solve skips the row walk).  Anything
-    else is planned afresh."""
+    Memoised for a dense problem whose plan needed only the O(n) diagonal test: then the
+    problem's kind, n, the registry and the facts that test established decide both (the
+    dense regimes depend on n only), and they are the key, so a repeated small solve skips the
+    regime and row walks.  Anything else is planned afresh."""
     r = c.report
-    if r.sparse:
-        steps = plan(problem, c, optimistic=True, first=True, regime=regime)
-        return steps[0] if steps else None
-    if r.positive_diagonal is None:
-        c.run("positive_diagonal")
-    key = (r.kind, r.n, regime.name, registry_version(), r.positive_diagonal, r.h_matrix,
-           r.p_matrix, r.definiteness)
-    step = _FIRST_CACHE.get(key, _UNPLANNED)
-    if step is not _UNPLANNED:
-        return step
+    key = None
+    if not r.sparse:
+        if r.positive_diagonal is None:
+            c.run("positive_diagonal")
+        key = (r.kind, r.n, registry_version(), r.positive_diagonal, r.h_matrix, r.p_matrix,
+               r.definiteness)
+        found = _OPENINGS.get(key)
+        if found is not None:
+            return found
     before = c.tests_run
-    steps = plan(problem, c, optimistic=True, first=True, regime=regime)
-    step = steps[0] if steps else None
-    if c.tests_run == before and len(_FIRST_CACHE) < _FIRST_CACHE_MAX:
-        _FIRST_CACHE[key] = step
-    return step
+    regime = regime_of(c)
+    step = None
+    if regime.optimistic:
+        steps = plan(problem, c, optimistic=True, first=True, regime=regime)
+        step = steps[0] if steps else None
+    if key is not None and c.tests_run == before and len(_OPENINGS) < _OPENINGS_MAX:
+        _OPENINGS[key] = (regime, step)
+    return regime, step
 
 
 def iter_plan(problem: Any, c: Classifier, registry: Mapping[str, Method] | None = None, *,

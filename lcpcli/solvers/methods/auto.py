@@ -113,12 +113,11 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None,
     if c.report.kind == "lcp" and (n == 0 or c.minima()[1] >= 0):
         return Outcome(np.zeros(n), 0, CONVERGED, "auto: q >= 0, so z = 0 solves the problem",
                        info={"chosen": None, "attempts": []})
-    regime = policy.regime_of(c)
+    regime, first = policy.opening(problem, c)
     queue: Iterator[Step]
     if order:
         queue, replanned = iter(_given_order(order, problem.kind, methods())), True
     elif regime.optimistic:
-        first = policy.first_step(problem, c, regime)
         queue = iter(() if first is None else (first,))
         replanned = False
     else:
