@@ -596,6 +596,8 @@ class Classifier:
     :meth:`complete` runs them all.
     """
 
+    __slots__ = ("problem", "report", "_done", "_minima")
+
     def __init__(self, problem: Any) -> None:
         self.problem = problem
         self.report = ClassReport(problem.kind, len(problem.q), problem.n_eq, problem.sparse)

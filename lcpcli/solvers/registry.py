@@ -223,7 +223,7 @@ _VERSION = [0]
 def version() -> tuple[int, int]:
     """Changes whenever the registry does (loading, :func:`register`, a replaced registry):
     a cache key for tables derived from it."""
-    return (id(_load()), _VERSION[0])
+    return (id(_REGISTRY if _REGISTRY is not None else _load()), _VERSION[0])
 
 
 def _load() -> dict[str, Method]:
