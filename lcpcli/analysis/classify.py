@@ -486,7 +486,7 @@ def farkas_certificate(M: np.ndarray, q: np.ndarray,
 
 
 # ---------------------------------------------------------------------------- class report
-@dataclass(slots=True)
+@dataclass(init=False)
 class ClassReport:
     """What is known about ``problem.M`` (``lcpcli info`` prints it; ``auto`` plans on it).
 
@@ -519,6 +519,11 @@ class ClassReport:
     h_matrix: bool | None = None
     p_matrix: bool | None = None
     p_matrix_reason: str = "not tested"
+
+    def __init__(self, kind: str, n: int, n_eq: int, sparse: bool) -> None:
+        # the four facts known at the start; every other field reads its class default
+        # (None: not tested) until a test sets it (a generated __init__ would assign all 23)
+        self.kind, self.n, self.n_eq, self.sparse = kind, n, n_eq, sparse
 
     @property
     def pd(self) -> bool | None:
