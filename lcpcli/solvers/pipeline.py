@@ -56,8 +56,11 @@ def is_symmetric(problem: Problem) -> bool:
 
 def run_method(spec: Any, problem: Problem, tol: float, options: dict[str, Any]) -> Outcome:
     """Run ``spec`` on ``problem`` as the module docstring says; return its :class:`Outcome`."""
-    if spec.planner and getattr(spec, "scaling", "none") == "none":
-        return spec.run(problem, tol=tol, **options)  # auto runs this pipeline per attempt
+    if spec.planner and getattr(spec, "scaling", "none") == "none":  # auto runs this pipeline
+        plan_run = getattr(spec, "plan_run", None)                    # for each of its attempts
+        if plan_run is not None:
+            return plan_run(problem, tol, options)
+        return spec.run(problem, tol=tol, **options)
     fast = getattr(spec, "fast", None)
     if fast is not None and type(problem.M) is np.ndarray:
         out = fast(problem, tol, options)  # a balanced problem, certified: nothing else to do

@@ -155,6 +155,9 @@ class Method:
     #: Prose beyond the guarantees (shown after them in ``lcpcli methods``).
     notes: str = ""
     planner: bool = False
+    #: A planner's ``run`` with the parsed options as one mapping: ``plan_run(problem, tol,
+    #: options)`` (what :func:`lcpcli.solvers.pipeline.run_method` calls; None: ``run``).
+    plan_run: Callable[..., Any] | None = None
     #: How :mod:`lcpcli.solvers.pipeline` equilibrates the problem first: ``"auto"`` (``D M D``
     #: for a symmetric M, two-sided otherwise), ``"symmetric"`` (always ``D M D``) or ``"none"``.
     scaling: str = "none"

@@ -105,6 +105,13 @@ def _attempt(name: str, max_iter: int | None, z0: np.ndarray | None
 def run(problem: Any, *, tol: float, max_iter: int | None = None,
         z0: np.ndarray | None = None, order: str | None = None) -> Outcome:
     """Plan, try and certify methods until one's answer passes; see the module docstring."""
+    return plan_and_run(problem, tol, {"max_iter": max_iter, "z0": z0, "order": order})
+
+
+def plan_and_run(problem: Any, tol: float, options: Mapping[str, Any]) -> Outcome:
+    """:func:`run` with the parsed options as one mapping (how the pipeline calls a planner:
+    ``Method.plan_run``, without binding them as keywords on every small solve)."""
+    max_iter, z0, order = options.get("max_iter"), options.get("z0"), options.get("order")
     if z0 is not None:
         z0 = start_point(problem, z0)  # length check before any method runs
     t_start = perf_counter()
@@ -207,6 +214,7 @@ METHODS = [
         kinds=("lcp", "mlcp", "box"),
         sparse=True,
         planner=True,
+        plan_run=plan_and_run,
         options={
             "max_iter": Option(positive_int, None,
                                "iteration / pivot limit passed to each method tried"),
