@@ -275,3 +275,45 @@ def test_large_problems_are_tested_before_the_first_attempt_but_only_as_needed()
     r = solve(Problem.create(Md, qd))
     assert r.solved and r.info["regime"] == "large" and len(r.info["attempts"]) == 1
     assert r.info["classification"].pd is True and r.info["classification"].h_matrix is None
+
+
+def _fresh_opening(problem: Problem) -> tuple:
+    """What policy.opening plans without its memo."""
+    c = Classifier(problem)
+    regime = policy.regime_of(c)
+    if not regime.optimistic:
+        return regime, None
+    steps = policy.plan(problem, c, optimistic=True, first=True, regime=regime)
+    return regime, steps[0] if steps else None
+
+
+@pytest.mark.parametrize("diag", [1.0, 0.0, -1.0])
+@pytest.mark.parametrize("n", [1, 3, 12, 30])
+def test_opening_memo_gives_what_planning_afresh_gives(n, diag, monkeypatch):
+    """The memoised opening (auto's regime and first step) equals a fresh plan, for positive,
+    zero and negative diagonals and for sizes below and above enum's limit, hit or miss."""
+    rng = np.random.default_rng(n)
+    A = rng.standard_normal((n, n))
+    M = A - np.diag(np.diag(A)) + diag * np.eye(n) * n
+    q = -rng.random(n)
+    monkeypatch.setattr(policy, "_OPENINGS", {})
+    for _ in range(2):  # a miss, then a hit
+        p = Problem.create(M, q)
+        assert policy.opening(p, Classifier(p)) == _fresh_opening(p)
+
+
+def test_opening_memo_follows_the_registry(monkeypatch):
+    """A method registered after a problem was planned is planned from then on (the registry
+    version is part of the memo key)."""
+    M, q = rand_pd(6, 3)
+    p = Problem.create(M, q)
+    before = policy.opening(p, Classifier(p))
+    assert policy.opening(p, Classifier(p)) == before  # from the memo
+    monkeypatch.setattr(registry, "_REGISTRY", dict(registry._load()))
+    monkeypatch.setattr(registry, "_ALIASES", dict(registry._ALIASES))
+    registry.register(Method(name="first-fake", run=_fake_run, summary="tried first",
+                             guarantees=(Guarantee(when(), "always tried first"),),
+                             cost=Cost.PIVOTING, preference=-1))
+    regime, step = policy.opening(p, Classifier(p))
+    assert step.method == "first-fake" and before[1].method != "first-fake"
+    assert (regime, step) == _fresh_opening(p)
