@@ -91,6 +91,21 @@ cdef struct Data:
     double prune_tol
 
 
+cdef inline void _eliminate_below(double* A, double* b, Py_ssize_t k,
+                                  Py_ssize_t p) noexcept nogil:
+    """One step of Gaussian elimination on the k x k ``A`` and ``b``: subtract multiples of
+    row ``p`` (pivot ``A[p, p]``, nonzero) from the rows below it."""
+    cdef Py_ssize_t i, j
+    cdef double piv = A[p * k + p]
+    cdef double f
+    for i in range(p + 1, k):
+        f = A[i * k + p] / piv
+        if f != 0.0:
+            for j in range(p + 1, k):
+                A[i * k + j] -= f * A[p * k + j]
+            b[i] -= f * b[p]
+
+
 cdef bint _complete_pivot_consistent(double* A, double* b, Py_ssize_t k, double piv_tol,
                                      double cons_tol) noexcept nogil:
     """Gaussian elimination with complete pivoting on the k x k A (overwritten).
@@ -98,7 +113,7 @@ cdef bint _complete_pivot_consistent(double* A, double* b, Py_ssize_t k, double 
     Returns True when ``A x = b`` is consistent (remaining right-hand side below cons_tol).
     """
     cdef Py_ssize_t p, i, j, bi, bj
-    cdef double best, a, t, piv, f
+    cdef double best, a, t
     for p in range(k):
         best = 0.0
         bi = p
@@ -128,13 +143,7 @@ cdef bint _complete_pivot_consistent(double* A, double* b, Py_ssize_t k, double 
                 t = A[i * k + p]
                 A[i * k + p] = A[i * k + bj]
                 A[i * k + bj] = t
-        piv = A[p * k + p]
-        for i in range(p + 1, k):
-            f = A[i * k + p] / piv
-            if f != 0.0:
-                for j in range(p + 1, k):
-                    A[i * k + j] -= f * A[p * k + j]
-                b[i] -= f * b[p]
+        _eliminate_below(A, b, k, p)
     return True
 
 
@@ -144,7 +153,7 @@ cdef uint8_t one_cone(const Data* D, int64_t code, int64_t* idx, double* A, doub
     cdef Py_ssize_t n = D.n, i, j, k = 0, r, c, p, bi
     cdef const double* M = D.M
     cdef const double* q = D.q
-    cdef double best, a, t, piv, f, s, zmax, tau, bmax, cons_tol
+    cdef double best, a, t, s, zmax, tau, bmax, cons_tol
     cdef bint singular = False
     # ---- cheap sign tests (exact zero/sign patterns of M, q beyond the tolerance)
     for i in range(n):
@@ -185,13 +194,7 @@ cdef uint8_t one_cone(const Data* D, int64_t code, int64_t* idx, double* A, doub
             t = b[p]
             b[p] = b[bi]
             b[bi] = t
-        piv = A[p * k + p]
-        for i in range(p + 1, k):
-            f = A[i * k + p] / piv
-            if f != 0.0:
-                for j in range(p + 1, k):
-                    A[i * k + j] -= f * A[p * k + j]
-                b[i] -= f * b[p]
+        _eliminate_below(A, b, k, p)
     if singular:
         bmax = 0.0
         for r in range(k):
