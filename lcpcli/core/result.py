@@ -71,7 +71,7 @@ NUMERICAL = Termination.NUMERICAL
 NOT_APPLICABLE = Termination.NOT_APPLICABLE
 
 
-@dataclass
+@dataclass(slots=True)
 class Outcome:
     """What a solver method hands back before certification.
 
@@ -91,7 +91,7 @@ class Outcome:
     checked: tuple[Certificate, np.ndarray] | None = None
 
 
-@dataclass
+@dataclass(slots=True)
 class Result:
     """A certified solve: the verdict, the solution and its certificate.
 
