@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from lcpcli.analysis._scaling import dense_minima
-from lcpcli.core.problem import is_sparse
+from lcpcli.core.problem import is_sparse, problem_kind
 
 #: Relative tolerance of the symmetry test: ``|m_ij - m_ji| <= SYM_TOL (max(|m_ij|, |m_ji|)
 #: + sqrt(|m_ii m_jj|))`` for every pair (invariant under ``D M D`` and global scaling).
@@ -605,7 +605,9 @@ class Classifier:
 
     def __init__(self, problem: Any) -> None:
         self.problem = problem
-        self.report = ClassReport(problem.kind, len(problem.q), problem.n_eq, problem.sparse)
+        M, n_eq = problem.M, problem.n_eq  # Problem.kind and .sparse, without their frames
+        self.report = ClassReport(problem_kind(n_eq, problem.lower is not None), len(problem.q),
+                                  n_eq, type(M) is not np.ndarray and _is_sparse(M))
         self._done: set[str] = set()
         self._minima: tuple[float, float] | None = None
 
