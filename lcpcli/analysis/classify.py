@@ -652,6 +652,9 @@ class Classifier:
 
     def _diagonal_test(self, dmin: float) -> None:
         r = self.report
+        if dmin > 0 and r.n:  # the usual case, in one step
+            r.diagonal_min, r.positive_diagonal, r.zero_diagonal = float(dmin), True, 0
+            return
         r.diagonal_min = float(dmin) if r.n else None
         r.positive_diagonal = r.n == 0 or dmin > 0
         r.zero_diagonal = 0
