@@ -15,7 +15,7 @@ from fractions import Fraction
 import numpy as np
 import pytest
 import scipy.sparse as sp
-from hypothesis import assume, given, settings
+from hypothesis import assume, example, given, settings
 from hypothesis import strategies as st
 
 import lcpcli.analysis.classify as classify_module
@@ -133,14 +133,19 @@ def eig_definiteness(M: np.ndarray) -> str:
     return PSD if ev[0] >= -1e-8 * big else INDEFINITE
 
 
-def comparison_is_m_matrix(M: np.ndarray) -> bool:
-    """H-matrix with positive diagonal by the spectral radius of the Jacobi matrix of |M|."""
+def comparison_is_m_matrix(M: np.ndarray) -> bool | None:
+    """H-matrix with positive diagonal by the spectral radius of the Jacobi matrix of |M|;
+    None when that radius is 1 to within rounding (RHO_MARGIN: the classifier then answers
+    "not known to be H", and an eigenvalue routine's answer is rounding too)."""
     d = np.diagonal(M)
     if np.any(d <= 0):
         return False
     B = np.abs(M) / d[:, None]
     np.fill_diagonal(B, 0.0)
-    return bool(np.max(np.abs(np.linalg.eigvals(B))) < 1.0)
+    rho = float(np.max(np.abs(np.linalg.eigvals(B))))
+    if abs(rho - 1.0) <= 1e-9:
+        return None
+    return rho < 1.0
 
 
 # ---------------------------------------------------------------------------- the classes
@@ -225,10 +230,13 @@ def test_exact_p_test_on_small_integer_matrices(n, seed):
 
 @settings(max_examples=40, deadline=None)
 @given(n=st.integers(2, 30), seed=st.integers(0, 10_000), family=st.integers(0, 5))
+@example(n=2, seed=259, family=1)  # a rank-1 PSD M: rho(B) = 1 - 2e-16
 def test_definiteness_and_h_matrix_agree_with_spectral_references(n, seed, family):
     M = FAMILIES[family](n, seed)
     assert definiteness(M).kind == eig_definiteness(M)
-    assert h_matrix_positive_diagonal(M) == comparison_is_m_matrix(M)
+    expected = comparison_is_m_matrix(M)
+    got = h_matrix_positive_diagonal(M)
+    assert got == expected or (expected is None and got is not True)
 
 
 def test_symmetry_tolerance_is_relative_to_the_entries():
