@@ -144,7 +144,7 @@ def test_bench_tables_fit_narrow_terminals():
 def test_second_writer_of_one_output_is_refused(tmp_path):
     """Two batches, one output: the second is refused at once; the first loses no row."""
     for k in range(4):  # Murty's problems: 2^n pivots for Lemke, slow enough to overlap
-        n = 21
+        n = 20
         M = np.tril(2.0 * np.ones((n, n)), -1) + np.eye(n)
         save(Problem.create(M, -np.ones(n)), tmp_path / f"m{k}.json")
     first = popen("solve", *[f"m{k}.json" for k in range(4)], "-m", "lemke-tableau", "-j", "1",
