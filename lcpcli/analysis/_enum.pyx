@@ -91,6 +91,20 @@ cdef struct Data:
     double prune_tol
 
 
+cdef inline void _swap_rows(double* A, double* b, Py_ssize_t k, Py_ssize_t p, Py_ssize_t bi,
+                            Py_ssize_t start) noexcept nogil:
+    """Swap rows ``p`` and ``bi`` of the k x k ``A`` (columns ``start`` on) and of ``b``."""
+    cdef Py_ssize_t j
+    cdef double t
+    for j in range(start, k):
+        t = A[p * k + j]
+        A[p * k + j] = A[bi * k + j]
+        A[bi * k + j] = t
+    t = b[p]
+    b[p] = b[bi]
+    b[bi] = t
+
+
 cdef inline void _eliminate_below(double* A, double* b, Py_ssize_t k,
                                   Py_ssize_t p) noexcept nogil:
     """One step of Gaussian elimination on the k x k ``A`` and ``b``: subtract multiples of
@@ -131,13 +145,7 @@ cdef bint _complete_pivot_consistent(double* A, double* b, Py_ssize_t k, double 
                     return False
             return True
         if bi != p:
-            for j in range(k):
-                t = A[p * k + j]
-                A[p * k + j] = A[bi * k + j]
-                A[bi * k + j] = t
-            t = b[p]
-            b[p] = b[bi]
-            b[bi] = t
+            _swap_rows(A, b, k, p, bi, 0)
         if bj != p:
             for i in range(k):
                 t = A[i * k + p]
@@ -187,13 +195,7 @@ cdef uint8_t one_cone(const Data* D, int64_t code, int64_t* idx, double* A, doub
             singular = True
             break
         if bi != p:
-            for j in range(p, k):
-                t = A[p * k + j]
-                A[p * k + j] = A[bi * k + j]
-                A[bi * k + j] = t
-            t = b[p]
-            b[p] = b[bi]
-            b[bi] = t
+            _swap_rows(A, b, k, p, bi, p)
         _eliminate_below(A, b, k, p)
     if singular:
         bmax = 0.0

@@ -119,9 +119,8 @@ cdef int _ruiz(Py_ssize_t n, const double* M, Py_ssize_t ldm, const double* data
                bint symmetric, int balanced, int q_balanced, int max_rounds,
                long long* r, long long* c, long long* rmax, long long* cmax) noexcept nogil:
     """Fill r, c; return 1 when a scaling is needed, 0 when the problem is balanced."""
-    cdef Py_ssize_t i, j, p, k
+    cdef Py_ssize_t i, j, k
     cdef long long e, lo, hi, clo, chi, d, qexp
-    cdef double qt, qmax
     cdef bint dense = M != NULL
     cdef int rnd, needed
     for i in range(n):
@@ -160,23 +159,8 @@ cdef int _ruiz(Py_ssize_t n, const double* M, Py_ssize_t ldm, const double* data
         else:
             for i in range(n):
                 r[i] -= _floordiv2(rmax[i] - 1)
-            # column maxima after the row step
-            for i in range(n):
-                cmax[i] = FLOOR
-            for i in range(n):
-                if dense:
-                    for j in range(n):
-                        if M[i * ldm + j] != 0.0:
-                            e = _exp(M[i * ldm + j]) + r[i] + c[j]
-                            if e > cmax[j]:
-                                cmax[j] = e
-                else:
-                    for p in range(indptr[i], indptr[i + 1]):
-                        if data[p] != 0.0:
-                            j = indices[p]
-                            e = _exp(data[p]) + r[i] + c[j]
-                            if e > cmax[j]:
-                                cmax[j] = e
+            # column maxima after the row step (the row maxima it also fills are not used)
+            _maxima(n, M, ldm, data, indices, indptr, r, c, rmax, cmax)
             for j in range(n):
                 if cmax[j] == FLOOR:
                     cmax[j] = 1
