@@ -23,6 +23,8 @@ from rich.console import Group
 from rich.table import Table
 from rich.text import Text
 
+from lcpcli.cli.render.common import fit
+
 #: Formats of :func:`write` (``text`` is the terminal rendering).
 FORMATS = ("text", "markdown", "latex")
 
@@ -97,7 +99,7 @@ def _rich_block(block: Block) -> object:
             else:
                 cells.append(Text(c))
         table.add_row(*cells)
-    return table
+    return fit(table)
 
 
 # ------------------------------------------------------------------------------- markdown

@@ -27,7 +27,7 @@ from lcpcli.analysis.enumeration import (
     complementary_matrix,
     generators_2d,
 )
-from lcpcli.cli.render.common import fmt
+from lcpcli.cli.render.common import fit, fmt
 from lcpcli.cli.render.doc import Grid, Heading, Page, Para
 
 #: Show the complementary matrix in the table up to this n.
@@ -141,11 +141,11 @@ def render_enumeration(res: Enumeration, problem: Any, file: str | None, *,
     head.add_row("cones", f"{c['feasible']:,} contain q, {c['singular']:,} singular "
                           f"({c['singular_with_q']:,} of them contain q){pruned}")
     head.add_row("time", f"{res.seconds * 1e3:.3f} ms")
-    parts: list[Any] = [head, Text("")]
+    parts: list[Any] = [fit(head), Text("")]
     if res.cones or all_cones:
-        parts.append(cone_table(res, M, all_cones))
+        parts.append(fit(cone_table(res, M, all_cones)))
     if res.solutions:
-        parts.append(solutions_table(res))
+        parts.append(fit(solutions_table(res)))
     text, style = VERDICT_TEXT[res.verdict]
     parts.append(Text.assemble(("verdict: ", "bold"), (text, style)))
     if covers is not None:

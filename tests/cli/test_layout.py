@@ -1,0 +1,201 @@
+"""The layout rule (issue 27): at 60, 80 and 120 columns no number or word is ever cut.
+
+Every sample through every trace (Lemke in both layouts, Murty in both, Dantzig, PGS, PSOR),
+``pivot --follow --full``, ``enumerate --all-cones``, ``methods`` and the result table are
+rendered on a recording rich console of each width: no "…" anywhere, no line wider than the
+console, and every number of the trace appears whole in the output.
+"""
+
+from __future__ import annotations
+
+import io
+import re
+from functools import cache
+from pathlib import Path
+
+import pytest
+from rich.console import Console
+from rich.table import Table
+
+from lcpcli.api import solve
+from lcpcli.cli.render.common import fit, fit_table, fmt, render_methods, render_result
+from lcpcli.cli.render.pivot import full_pages, step_pages
+from lcpcli.core.errors import OptionError
+from lcpcli.io import load
+
+SAMPLES = Path(__file__).resolve().parents[2] / "samples"
+WIDTHS = (60, 80, 120)
+TRACES = [("lemke", "dictionary"), ("lemke", "murty"), ("murty", "dictionary"),
+          ("murty", "murty"), ("dantzig", "dictionary"), ("pgs", "dictionary"),
+          ("psor", "dictionary")]
+#: Pages rendered of a long trace (n = 200): the first and the last few.
+HEAD, TAIL = 3, 2
+
+
+def _problems() -> list[tuple[str, str | None]]:
+    """Every sample file that holds a problem (the contact scenes are not LCP files), each
+    problem of the HDF5 collection by name."""
+    out: list[tuple[str, str | None]] = []
+    for path in sorted(SAMPLES.iterdir()):
+        if path.suffix in (".py",) or path.name.startswith("scene_"):
+            continue
+        if path.suffix == ".h5":
+            import h5py
+
+            with h5py.File(path) as f:
+                out += [(path.name, name) for name in f]
+            continue
+        out.append((path.name, None))
+    return out
+
+
+PROBLEMS = _problems()
+
+
+@cache
+def _load(name: str, problem: str | None):
+    try:
+        return load(str(SAMPLES / name), problem)
+    except Exception:  # noqa: BLE001 - the augmented seed file is read by `pivot` only
+        return None
+
+
+def render(renderable: object, width: int) -> str:
+    console = Console(width=width, record=True, file=io.StringIO(), color_system=None,
+                      highlight=False)
+    console.print(renderable)
+    return console.export_text()
+
+
+def assert_fits(text: str, width: int, where: str) -> None:
+    assert "…" not in text, (where, [x for x in text.splitlines() if "…" in x][:3])
+    long = [x for x in text.splitlines() if len(x) > width]
+    assert not long, (where, long[:3])
+
+
+def _pages(pages: list) -> list:
+    return pages if len(pages) <= HEAD + TAIL else pages[:HEAD] + pages[-TAIL:]
+
+
+def test_every_sample_is_covered():
+    names = {n for n, _ in PROBLEMS}
+    assert {"seed000.json", "seed004.json", "degenerate_lex.json", "box_small.json",
+            "collection.h5", "sparse_chain.npz", "mlcp_small.json"} <= names
+
+
+@pytest.mark.parametrize("name, problem", PROBLEMS)
+@pytest.mark.parametrize("method, layout", TRACES)
+def test_traces_fit_every_width(name, problem, method, layout):
+    from lcpcli.cli.render.doc import to_rich
+
+    prob = _load(name, problem)
+    if prob is None:
+        pytest.skip(f"{name} is not a problem file")
+    try:
+        result = solve(prob, method, trace=True)
+    except OptionError:
+        pytest.skip(f"{method} does not take a {prob.kind} problem")
+    trace = result.trace or []
+    if not trace:
+        pytest.skip("no step to show")
+    pages = _pages(full_pages(trace, layout)) + _pages(step_pages(trace, layout))
+    numbers = {fmt(v) for st in trace[:HEAD] for v in (st.get("q_prime") or st.get("z") or [])
+               if v is not None}
+    for width in WIDTHS:
+        text = render(to_rich(pages), width)
+        assert_fits(text, width, (name, problem, method, layout, width))
+        flat = text.replace("\n", " ")
+        for x in numbers:  # every value whole, not broken over two lines
+            assert re.search(rf"(?<![\w.]){re.escape(x)}(?![\w.])", flat), (x, width)
+        assert_fits(render(render_result(result, prob, name), width), width, (name, width))
+
+
+@pytest.mark.parametrize("name, problem", PROBLEMS)
+def test_enumerate_fits_every_width(name, problem):
+    from lcpcli.analysis.enumeration import covers_plane, enumerate_cones
+    from lcpcli.cli.render.enumerate import draw_cones_text, render_enumeration
+
+    prob = _load(name, problem)
+    if prob is None or prob.kind != "lcp" or prob.n > 8:
+        pytest.skip("enumerate takes small LCPs")
+    res = enumerate_cones(prob, all_cones=True, max_n=8)
+    M = prob.dense_M()
+    drawing = draw_cones_text(M, prob.q) if prob.n == 2 else None
+    covers = covers_plane(M) if prob.n == 2 else None
+    for width in WIDTHS:
+        text = render(render_enumeration(res, prob, name, all_cones=True, covers=covers,
+                                         drawing=drawing), width)
+        assert_fits(text, width, (name, width))
+
+
+@pytest.mark.parametrize("layout", ["dictionary", "murty"])
+def test_pivot_pages_fit_every_width(layout):
+    from lcpcli.analysis.pivoting import parse_tuple, parse_var
+    from lcpcli.cli.pivot_cmd import load_augmented
+    from lcpcli.cli.render.doc import to_rich
+    from lcpcli.cli.render.pivot import pivot_pages
+    from lcpcli.solvers.trace.path import follow
+
+    for name in ("seed000_augmented.json", "degenerate_lex.json", "degenerate.json"):
+        Maug, q, source = load_augmented(str(SAMPLES / name))
+        n = q.shape[0]
+        dep = parse_tuple(",".join(f"w{i + 1}" for i in range(n)), n)
+        items = follow(Maug, q, dep, None, parse_var("z0", n), full=True)
+        pages = pivot_pages(items, Maug, q, source, layout)
+        for width in WIDTHS:
+            assert_fits(render(to_rich(pages), width), width, (name, layout, width))
+
+
+def test_methods_fit_every_width():
+    from lcpcli.solvers.registry import methods
+
+    for width in WIDTHS:
+        text = render(render_methods(methods()), width)
+        assert_fits(text, width, width)
+        assert "copositive-plus/PSD)" in text
+
+
+def test_wide_tableau_splits_into_column_blocks_with_a_note():
+    """A table wider than the screen whose words cannot wrap is cut into column blocks,
+    each repeating the row names, every cell present exactly once outside the names."""
+    table = Table(title="tableau")
+    names = ["basic", *[f"x{j}" for j in range(1, 15)]]
+    for h in names:
+        table.add_column(h, justify="right")
+    values = [[f"r{i}", *[f"{-(i + 1) * j / 3:.6g}" for j in range(1, 15)]] for i in range(3)]
+    for row in values:
+        table.add_row(*row)
+    text = render(fit(table), 60)
+    assert_fits(text, 60, "blocks")
+    assert "split into column blocks to fit 60 columns" in " ".join(text.split())
+    parts = text.count("part ")
+    assert parts >= 2 and text.count("r0") == parts  # the row names repeat in every block
+    for row in values:
+        for v in row[1:]:
+            assert v in text
+
+
+@pytest.mark.parametrize("width", WIDTHS)
+def test_fit_table_keeps_a_table_that_fits(width):
+    table = Table()
+    table.add_column("a")
+    table.add_row("1")
+    console = Console(width=width, file=io.StringIO())
+    assert fit_table(table, console, console.options) == [table]
+
+
+def test_cli_examples_of_the_issue(cli, samples):
+    """The issue's own examples, through the command line at 80 and 60 columns."""
+    runs = [("solve", "degenerate_lex.json", "--trace", "--layout", "murty"),
+            ("solve", "seed004.json", "-m", "dantzig", "--trace"),
+            ("solve", "degenerate_lex.json", "--trace"),
+            ("methods",)]
+    for width in (60, 80):
+        for cmd, *rest in runs:
+            args = [cmd, *([str(samples / rest[0]), *rest[1:]] if rest else [])]
+            p = cli(*args, env={"COLUMNS": str(width), "NO_COLOR": "1"})
+            assert p.returncode == 0, p.stderr
+            assert_fits(p.stdout, width, (args, width))
+    p = cli("solve", str(samples / "seed004.json"), "-m", "dantzig", "--trace",
+            env={"COLUMNS": "80", "NO_COLOR": "1"})
+    assert "clamp_driving" in p.stdout  # the event names whole
