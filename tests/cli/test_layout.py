@@ -167,9 +167,8 @@ def test_wide_tableau_splits_into_column_blocks_with_a_note():
         table.add_row(*row)
     text = render(fit(table), 60)
     assert_fits(text, 60, "blocks")
-    assert "split into column blocks to fit 60 columns" in " ".join(text.split())
-    parts = text.count("part ")
-    assert parts >= 2 and text.count("r0") == parts  # the row names repeat in every block
+    assert "tableau: 14 columns in 3 blocks to fit 60 columns" in " ".join(text.split())
+    assert text.count("columns x") == 3 and text.count("r0") == 3  # the names in every block
     for row in values:
         for v in row[1:]:
             assert v in text
@@ -199,3 +198,64 @@ def test_cli_examples_of_the_issue(cli, samples):
     p = cli("solve", str(samples / "seed004.json"), "-m", "dantzig", "--trace",
             env={"COLUMNS": "80", "NO_COLOR": "1"})
     assert "clamp_driving" in p.stdout  # the event names whole
+
+
+# ------------------------------------------------------------------------ --step screens
+def _step_screens(pages: list, labels: list[str], width: int, height: int) -> list[str]:
+    """Every screen ``--step`` shows, going forward to the end (a scripted key reader)."""
+    from lcpcli.cli.stepper import step_through
+
+    console = Console(width=width, height=height, record=True, file=io.StringIO(),
+                      color_system=None, highlight=False)
+    shots: list[str] = []
+
+    def keys() -> str:
+        shots.append(console.export_text(clear=True))
+        return "n"
+
+    step_through(console, pages, labels, keys=keys)
+    return shots
+
+
+@pytest.mark.parametrize("name", ["seed000.json", "seed004.json", "degenerate_lex.json",
+                                  "box_small.json"])
+@pytest.mark.parametrize("method, layout", TRACES)
+@pytest.mark.parametrize("width", [60, 80])
+def test_step_screens_fit_24_lines(name, method, layout, width):
+    """At 80 x 24 (and 60 x 24) every screen fits, the step title comes first and the
+    tableau whole on the step's first screen; nothing of a page is lost or repeated."""
+    from lcpcli.cli.render.doc import to_rich
+    from lcpcli.cli.render.pivot import step_labels
+
+    prob = _load(name, None)
+    try:
+        result = solve(prob, method, trace=True)
+    except OptionError:
+        pytest.skip(f"{method} does not take a {prob.kind} problem")
+    trace = result.trace or []
+    if not trace:
+        pytest.skip("no step to show")
+    pages = step_pages(trace, layout)
+    labels = step_labels(trace)
+    shots = _step_screens(pages, labels, width, 24)
+    assert len(shots) >= len(pages)
+    k = -1
+    body = []
+    for shot in shots:
+        lines = shot.rstrip("\n").split("\n")
+        assert len(lines) <= 24, (len(lines), shot)
+        assert_fits(shot, width, (name, method))
+        start = max(i for i, x in enumerate(lines) if x.startswith(("step ", "sweep ")))
+        assert lines[start - 1] == ""
+        footer = " ".join(lines[start:])
+        body += lines[:start - 1]
+        if "screen" not in footer or ", screen 1 of" in footer:  # a step's first screen
+            k += 1
+            assert lines[0].startswith(("Step", "Sweep")), lines[0]
+            if prob.n <= 3 and width == 80 and "┏" in shot:
+                assert "└" in shot[shot.index("┏"):]  # the tableau whole on its first screen
+        assert f"(page {k + 1} of {len(pages)})" in footer
+    assert k == len(pages) - 1
+    body = "\n".join(body)
+    whole = render(to_rich(pages), width)
+    assert sorted(x for x in body.split() if x) == sorted(x for x in whole.split() if x)

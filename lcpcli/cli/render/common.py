@@ -83,13 +83,15 @@ def _with_columns(table: Table, picks: list[int], widths: list[int], title: str 
     return out
 
 
-def fit_table(table: Table, console: Console, options: ConsoleOptions) -> list[Table]:
+def fit_table(table: Table, console: Console,
+              options: ConsoleOptions) -> list[RenderableType]:
     """The layout rule of every table on the terminal: no number or word is ever cut.
 
     A table that fits ``options.max_width`` is kept; otherwise its wrappable columns (text
     with spaces) are narrowed down to their longest word; if even that does not fit, the
     table is split into column blocks, as printed books do with wide tableaux: each block
-    repeats the first column (the row names) and its title says which columns it holds.
+    repeats the first column (the row names), a note above them says so and each block's
+    title names its columns.
     Only a single word wider than the whole screen is folded (broken, never elided).
     """
     width = options.max_width
@@ -121,9 +123,12 @@ def fit_table(table: Table, console: Console, options: ConsoleOptions) -> list[T
         current.append(j)
         used += need
     blocks.append(current)
-    out = []
     names = [str(c.header) for c in table.columns]
-    for k, block in enumerate(blocks, 1):
+    note = (f"{table.title}: " if table.title else "") + (
+        f"{n - 1} columns in {len(blocks)} blocks to fit {width} columns (each block repeats "
+        f"the column {names[0]})")
+    out: list[RenderableType] = [Text(note, style="italic")]
+    for block in blocks:
         picks = [0, *block]
         inner = width - edge - sep * (len(picks) - 1) - pad * len(picks)
         ws = _allocate([mins[j] for j in picks], [maxs[j] for j in picks], inner)
@@ -131,10 +136,7 @@ def fit_table(table: Table, console: Console, options: ConsoleOptions) -> list[T
             ws = _squeeze([mins[j] for j in picks], max(len(picks), inner))
         label = (f"columns {names[block[0]]} to {names[block[-1]]}" if len(block) > 1
                  else f"column {names[block[0]]}")
-        note = (f"part {k} of {len(blocks)} ({label}): split into column blocks to fit "
-                f"{width} columns")
-        title = f"{table.title}, {note}" if table.title else note.capitalize()
-        out.append(_with_columns(table, picks, ws, title, fold=True))
+        out.append(_with_columns(table, picks, ws, label, fold=True))
     return out
 
 
@@ -157,7 +159,7 @@ class Fitted:
                          options: ConsoleOptions) -> Iterator[RenderableType]:
         parts = fit_table(self.table, console, options)
         for k, part in enumerate(parts):
-            if k:
+            if k > 1:
                 yield Text("")
             yield part
 
