@@ -116,9 +116,9 @@ def screens(console: Any, page: Page, below: int = 2) -> list[list[Line]]:
     avail = max(1, console.height - below)
     units: list[list[Any]] = []
     for block in page:  # a heading or paragraph stays with the table it introduces
-        if isinstance(block, Grid) and units and isinstance(units[-1][-1], (Heading, Para)):
-            units[-1].append(block)
-        elif units and isinstance(units[-1][-1], Heading):
+        last = units[-1][-1] if units else None
+        glue = isinstance(last, Heading) or (isinstance(block, Grid) and isinstance(last, Para))
+        if glue:
             units[-1].append(block)
         else:
             units.append([block])
