@@ -7,6 +7,7 @@ from typing import Any
 
 import typer
 
+from lcpcli.cli.export import EXACT_HELP
 from lcpcli.core.errors import EXIT_OK
 
 
@@ -52,6 +53,8 @@ def pivot(
                                 help="Problem (group) name inside an HDF5 file."),
     as_json: bool = typer.Option(False, "--json",
                                  help="Print one JSON object on stdout and nothing else."),
+    exact: bool = typer.Option(None, "--exact/--no-exact", show_default=False,
+                               help=EXACT_HELP),
 ) -> int:
     """Principal pivoting transform (seed 000): q' and M'_driving of w' = q' + M' z'.
 
@@ -117,6 +120,7 @@ def pivot(
     from lcpcli.cli.common import stdout_console
     from lcpcli.cli.render.pivot import pivot_pages
 
+    items, Maug, q = _exact_items(items, Maug, q, exact)
     pages = pivot_pages(items, Maug, q, source, layout)
     emit(pages, fmt=fmt, output=output, inputs=[file], pivot=pivot_step,
          numbers=list(range(len(pages))), labels=[f"step {k}" for k in range(len(pages))],
@@ -125,6 +129,40 @@ def pivot(
     if output is not None:
         sys.stderr.write(f"lcpcli: wrote {output}\n")
     return EXIT_OK
+
+
+def _exact_items(items: list[tuple[Any, Any]], Maug: Any, q: Any,
+                 flag: bool | None) -> tuple[list[tuple[Any, Any]], Any, Any]:
+    """The bases recomputed in fractions for the pages (``--exact``, or by default on small
+    rational data), with Lemke's rule applied again on the exact numbers."""
+    from lcpcli.cli.export import note
+    from lcpcli.solvers.trace.exact import (
+        AUTO_MAX_N,
+        FLAG_MAX_ABS,
+        FLAG_MAX_DENOMINATOR,
+        exact_transform,
+        rational_array,
+    )
+    from lcpcli.solvers.trace.path import driving_step
+
+    if flag is False or (flag is None and q.shape[0] > AUTO_MAX_N):
+        return items, Maug, q
+    limits = (FLAG_MAX_DENOMINATOR, FLAG_MAX_ABS) if flag else ()
+    Me, qe = rational_array(Maug, *limits), rational_array(q, *limits)
+    if Me is None or qe is None:
+        if flag:
+            note("--exact: the data are not fractions with small denominators; the pages "
+                 "stay in decimals")
+        return items, Maug, q
+    out = []
+    for t, step in items:
+        te = exact_transform(t, Me, qe)
+        se = driving_step(te, Me) if step is not None else None
+        if se is not None and se.get("blocking") != step.get("blocking"):
+            note("--exact: in exact arithmetic Lemke's rule blocks a different variable than "
+                 "in floating point (a tie decided by rounding)")
+        out.append((te, se))
+    return out, Me, qe
 
 
 def load_augmented(path: str, covering: str | None = None,

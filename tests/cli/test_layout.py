@@ -22,6 +22,7 @@ from lcpcli.cli.render.common import fit, fit_table, fmt, render_methods, render
 from lcpcli.cli.render.pivot import full_pages, step_pages
 from lcpcli.core.errors import OptionError
 from lcpcli.io import load
+from lcpcli.solvers.trace.exact import EXACT_METHODS, exact_trace, wants_exact
 
 SAMPLES = Path(__file__).resolve().parents[2] / "samples"
 WIDTHS = (60, 80, 120)
@@ -98,6 +99,9 @@ def test_traces_fit_every_width(name, problem, method, layout):
     trace = result.trace or []
     if not trace:
         pytest.skip("no step to show")
+    data = wants_exact(prob, None) if method in EXACT_METHODS else None
+    if data is not None:  # the trace as shown by default: in fractions
+        trace = exact_trace(prob, method, data)
     pages = _pages(full_pages(trace, layout)) + _pages(step_pages(trace, layout))
     numbers = {fmt(v) for st in trace[:HEAD] for v in (st.get("q_prime") or st.get("z") or [])
                if v is not None}

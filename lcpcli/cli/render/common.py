@@ -8,6 +8,7 @@ from __future__ import annotations
 import copy
 import dataclasses
 from collections.abc import Iterator
+from fractions import Fraction
 from typing import Any
 
 from rich.console import Console, ConsoleOptions, Group, RenderableType
@@ -24,8 +25,10 @@ STATUS_STYLE = {Status.SOLVED: "bold green", Status.NO_SOLUTION: "bold yellow",
 MAX_ROWS = 40
 
 
-def fmt(x: float) -> str:
-    """Compact number: 6 significant digits."""
+def fmt(x: Any) -> str:
+    """Compact number: 6 significant digits; an exact trace's fraction as ``p/q`` (``4/3``)."""
+    if isinstance(x, Fraction):
+        return str(x)
     return f"{x + 0.0:.6g}"
 
 

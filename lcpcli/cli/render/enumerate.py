@@ -7,6 +7,7 @@ Variable names are 1-based (``w1``, ``z2``); the complementary matrix ``A_r`` ha
 
 from __future__ import annotations
 
+from fractions import Fraction
 from pathlib import Path
 from typing import Any
 
@@ -52,6 +53,22 @@ VERDICT_TEXT = {
 }
 
 
+def _complementary(M: np.ndarray, cone: Any) -> np.ndarray:
+    """``A_r`` of ``cone``, in fractions when the enumeration was made exact (``--exact``)."""
+    if isinstance(cone.det, Fraction):
+        from lcpcli.solvers.trace.exact import (
+            FLAG_MAX_ABS,
+            FLAG_MAX_DENOMINATOR,
+            complementary,
+            rational_array,
+        )
+
+        exact = rational_array(M, FLAG_MAX_DENOMINATOR, FLAG_MAX_ABS)
+        if exact is not None:
+            return complementary(exact, cone.code)
+    return complementary_matrix(M, cone.code)
+
+
 def _matrix_text(A: np.ndarray) -> str:
     cells = [[fmt(x) for x in row] for row in A]
     width = max(len(c) for row in cells for c in row)
@@ -83,7 +100,7 @@ def cone_table(res: Enumeration, M: np.ndarray, all_cones: bool) -> Table:
     shown = res.cones[:MAX_ROWS]
     for c in shown:
         row: list[Any] = [str(c.r)]
-        row.append(_matrix_text(complementary_matrix(M, c.code)) if small
+        row.append(_matrix_text(_complementary(M, c)) if small
                    else " ".join(c.basis_names()))
         det = fmt(c.det) if c.det is not None else "-"
         rank = "-" if c.rank is None else str(c.rank)
@@ -181,7 +198,7 @@ def enumeration_pages(res: Enumeration, problem: Any, file: str | None, *, all_c
         rows = []
         for cone in res.cones[:MAX_ROWS]:
             row = [str(cone.r),
-                   _matrix_inline(complementary_matrix(M, cone.code)) if small
+                   _matrix_inline(_complementary(M, cone)) if small
                    else " ".join(cone.basis_names()),
                    fmt(cone.det) if cone.det is not None else "-",
                    "-" if cone.rank is None else str(cone.rank) + (" (singular)"

@@ -44,7 +44,7 @@ def view_grid(view: TableauView, title: str = "") -> Grid:
 
 
 def _pivot_text(pe: dict[str, Any], layout: str) -> str:
-    value = float(pe["value"]) if layout == "dictionary" else -float(pe["value"])
+    value = pe["value"] if layout == "dictionary" else -pe["value"]
     return (f"pivot element {fmt(value)}: row {pe['row']}, column {pe['column']} "
             f"(marked above)")
 
@@ -65,7 +65,7 @@ def ratio_grid(test: dict[str, Any], entering: str, layout: str, leaving_row: in
         header = ["row", "basic", "q'", f"c_i ({entering} column)", "q'_i / (-c_i)", ""]
     rows, marked = [], set()
     for k, x in enumerate(test["rows"]):
-        c = float(x["column"])
+        c = x["column"]
         shown = -c if murty else c
         if x["ratio"] is None:
             note = x["why"] or "not eligible"
@@ -383,7 +383,7 @@ def pivot_pages(items: list[tuple[Any, dict[str, Any] | None]], M: Any, q: Any,
     pages: list[Page] = []
     start = {"basis": [f"w{i + 1}" for i in range(n)],
              "nonbasic": [*(f"z{j + 1}" for j in range(n)), ARTIFICIAL],
-             "q_prime": list(map(float, q)), "tableau": np.asarray(M, dtype=float).tolist()}
+             "q_prime": list(q), "tableau": [list(row) for row in M]}
     for k, (t, step) in enumerate(items):
         page: Page = []
         if len(items) > 1:
@@ -438,7 +438,7 @@ def _driving_blocks(t: Any, step: dict[str, Any] | None, layout: str) -> Page:
                         f"g^{{alpha-bar}} = {_vec(t.g_alpha_bar)}"))
     rows = []
     for k, v in enumerate(t.dependent):
-        c = float(t.driving_column[k])
+        c = t.driving_column[k]
         trend = "rises" if c > 0 else ("falls" if c < 0 else "unchanged")
         rows.append([f"{k + 1}: {t.names((v,))[0]}", fmt(c),
                      f"{trend}{' by ' + fmt(abs(c)) if c else ''}"])
