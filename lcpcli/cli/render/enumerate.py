@@ -188,7 +188,8 @@ def enumeration_pages(res: Enumeration, problem: Any, file: str | None, *, all_c
     M = np.asarray(problem.dense_M(), dtype=float)
     n = res.n
     c = res.counts
-    page: Page = [Heading(f"Complementary cones of {file or problem.name or 'the problem'}"),
+    name = Path(file).name if file and file != "-" else (problem.name or "the problem")
+    page: Page = [Heading(f"Complementary cones of {name}"),
                   Para(f"{problem.summary()}, 2^{n} = {res.total:,} complementary cones; "
                        f"{c['feasible']:,} contain q, {c['singular']:,} singular.")]
     if res.cones or all_cones:
@@ -214,7 +215,7 @@ def enumeration_pages(res: Enumeration, problem: Any, file: str | None, *, all_c
         page.append(Grid(header, rows, ["r", "l", "r", "l", "l", "l"][:len(header)],
                          f"complementary cones ({what})"))
     if res.solutions:
-        page.append(Grid(["#", "z", "w = Mz + q", "cones", "error"],
+        page.append(Grid(["#", "z", "w = M z + q", "cones", "error"],
                          [[str(k), _vec(sol.z) + (" (+ a continuum)" if sol.continuum else ""),
                            _vec(sol.w), str(len(sol.cones)), f"{sol.certificate.error:.1e}"]
                           for k, sol in enumerate(res.solutions[:MAX_ROWS], 1)],

@@ -108,7 +108,8 @@ def ratio_test(col: np.ndarray, qb: np.ndarray, basis: list[str], entering: str,
         elif c == 0:
             rec["why"] = f"entry 0: {basis[i]} does not change as {entering} rises"
         elif abs(c) <= ptol:
-            rec["why"] = f"|entry| <= {piv_tol:g} of the column's largest: counts as 0"
+            rec["why"] = (f"entry below {piv_tol:g} times the column's largest in "
+                          f"magnitude: counts as 0")
         else:
             rec["why"] = f"{basis[i]} grows as {entering} rises: never blocks"
         rows.append(rec)
