@@ -1,4 +1,5 @@
-"""``lcpcli pivot``: the principal pivoting transform of seed 000, for one basis or a sequence."""
+"""``lcpcli pivot``: Dai & Drumwright's principal pivoting transform, for one basis or a
+sequence of bases."""
 
 from __future__ import annotations
 
@@ -56,10 +57,10 @@ def pivot(
     exact: bool = typer.Option(None, "--exact/--no-exact", show_default=False,
                                help=EXACT_HELP),
 ) -> int:
-    """Principal pivoting transform (seed 000): q' and M'_driving of w' = q' + M' z'.
+    """Principal pivoting transform (Dai & Drumwright): q' and M'_driving of w' = q' + M' z'.
 
     Variable names are 1-based: w1..wn, z1..zn; z0 is the artificial variable (alias
-    z{n+1}, its position in the seed's z). With --driving, Lemke's ratio test on M'_driving
+    z{n+1}, its position in Dai & Drumwright's z). With --driving, Lemke's ratio test on M'_driving
     names the blocking variable and the next Lemke step. Exit codes: 0 done; 2 bad input
     (bad basis, singular M^{alpha beta}, bad file, bad option).
     """
@@ -170,7 +171,7 @@ def load_augmented(path: str, covering: str | None = None,
     """Read ``q`` and the ``n x (n+1)`` matrix ``[M, d]`` of a problem file.
 
     JSON and NPZ files may store ``M`` with ``n + 1`` columns (the artificial column last,
-    as in seed 000); otherwise the file holds an ordinary LCP and ``covering`` (text such as
+    as in Dai & Drumwright); otherwise the file holds an ordinary LCP and ``covering`` (text such as
     ``"1,2,1"``; default all ones) supplies the artificial column.  Returns ``(Maug, q, where)``
     with ``where`` saying where the artificial column came from.
     """

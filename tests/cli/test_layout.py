@@ -9,6 +9,7 @@ console, and every number of the trace appears whole in the output.
 from __future__ import annotations
 
 import io
+import json
 import re
 from functools import cache
 from pathlib import Path
@@ -263,3 +264,64 @@ def test_step_screens_fit_24_lines(name, method, layout, width):
     body = "\n".join(body)
     whole = render(to_rich(pages), width)
     assert sorted(x for x in body.split() if x) == sorted(x for x in whole.split() if x)
+
+
+# ------------------------------------------------------------------------ one notation
+def _flat(text: str) -> str:
+    return " ".join(text.split())
+
+
+def test_murty_names_its_pivot_element_one_way(cli, samples):
+    """M'_rr is the dictionary's diagonal entry; Murty's tableau shows -M'_rr: every mention
+    says which, with the same number."""
+    for layout, shown in (("dictionary", "pivot element M'_rr = 2:"),
+                          ("murty", "pivot element -M'_rr = -2 (M'_rr = 2; Murty's tableau "
+                                    "holds -M')")):
+        p = cli("solve", str(samples / "seed004.json"), "-m", "murty", "--trace", "--layout",
+                layout, env={"NO_COLOR": "1", "COLUMNS": "100"})
+        text = _flat(p.stdout)
+        assert shown in text, text
+        assert "principal pivot on the diagonal entry M'_rr = 2)" in text
+        assert "pivot element -2" not in text
+
+
+def test_lemke_tie_break_names_the_entry_of_its_layout(cli, samples):
+    base = ["solve", str(samples / "degenerate_lex.json"), "--pivot", "1"]
+    env = {"NO_COLOR": "1", "COLUMNS": "100"}
+    dic = _flat(cli(*base, env=env).stdout)
+    assert "divided by -c_i" in dic and "pivot element c_3 = -1" in dic and "a_i" not in dic
+    mur = _flat(cli(*base, "--layout", "murty", env=env).stdout)
+    assert "divided by a_i" in mur and "pivot element a_3 = 1" in mur and "c_i" not in mur
+
+
+def test_sweep_table_has_no_dead_column(cli, samples):
+    p = cli("solve", str(samples / "seed004.json"), "-m", "pgs", "--trace", "--json")
+    assert all(s["estimate"] in (None, 0.0) for s in json.loads(p.stdout)["trace"])
+    text = cli("solve", str(samples / "seed004.json"), "-m", "pgs", "--trace",
+               env={"NO_COLOR": "1", "COLUMNS": "100"}).stdout
+    assert "estimate" not in text and "normwise error" in text
+
+
+def test_no_solution_is_shown_as_such(cli, tmp_path):
+    f = tmp_path / "none.json"
+    f.write_text(json.dumps({"M": [[1, -1], [-1, 1]], "q": [-1, -1]}))
+    p = cli("solve", str(f), env={"NO_COLOR": "1", "COLUMNS": "80"})
+    assert p.returncode == 1 and "no_solution" in p.stdout
+    assert "no solution (n = 2)" in p.stdout and "solution (n = 2)" not in \
+        p.stdout.replace("no solution (n = 2)", "")
+
+
+def test_no_seed_numbers_in_teaching_output(cli, samples):
+    env = {"NO_COLOR": "1", "COLUMNS": "100"}
+    runs = [("pivot", "seed000_augmented.json", "-d", "z0,w2,z3", "--driving", "w1", "--full"),
+            ("pivot", "seed000_augmented.json", "-d", "z0,w2,z3", "--driving", "z2"),
+            ("solve", "degenerate_lex.json", "-m", "murty", "--trace"),
+            ("solve", "seed000.json", "--trace", "--format", "latex"),
+            ("enumerate", "seed004.json", "--all-cones", "--format", "markdown")]
+    for cmd, name, *rest in runs:
+        out = cli(cmd, str(samples / name), *rest, env=env).stdout
+        text = out.replace(str(samples), "").replace("seed000_augmented.json", "") \
+            .replace("seed000.json", "").replace("seed004.json", "")
+        assert not re.search(r"(?i)\bseeds?\b", text), (cmd, re.findall(r".{40}seed.{20}", text))
+    assert "Dai & Drumwright" in cli("pivot", "--help", env=env).stdout
+    assert "seed" not in cli("pivot", "--help", env=env).stdout

@@ -1,6 +1,6 @@
 """Rich renderables for the terminal (no computing here: results come in, tables go out).
 
-Variable names are shown 1-based (``z1``, ``w1``) as in the seeds and textbooks.
+Variable names are shown 1-based (``z1``, ``w1``) as in the papers and textbooks.
 """
 
 from __future__ import annotations
@@ -202,13 +202,20 @@ def render_result(result: Any, problem: Any, file: str | None = None,
         head.add_row("bounds / equalities",
                      f"bound violation {cert.bound_violation:.2e}, "
                      f"equality residual {cert.equality_residual:.2e}")
-    return Group(fit(head), Text(""), fit(solution_table(result.z, result.w)))
+    if result.status == Status.NO_SOLUTION:  # no table of values that are not a solution
+        return Group(fit(head), Text(""), Text.assemble(
+            ("no solution", STATUS_STYLE[Status.NO_SOLUTION]),
+            f" (n = {problem.n}): " + ("no z >= 0 gives w = Mz + q >= 0 with z^T w = 0; "
+                                       if problem.kind == "lcp" else "") +
+            "the message above says how that was proved"))
+    title = None if result.solved else "last point, not a solution (the certificate fails)"
+    return Group(fit(head), Text(""), fit(solution_table(result.z, result.w, title)))
 
 
-def solution_table(z: Any, w: Any) -> Table:
+def solution_table(z: Any, w: Any, title: str | None = None) -> Table:
     """``i, z_i, w_i, z_i w_i`` rows (head and tail only for large n)."""
     n = len(z)
-    table = Table(title=f"solution (n = {n})", title_justify="left")
+    table = Table(title=f"{title or 'solution'} (n = {n})", title_justify="left")
     for name in ("i", "z", "w = Mz + q", "z*w"):
         table.add_column(name, justify="right")
     rows = list(range(n))

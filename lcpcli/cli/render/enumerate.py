@@ -2,7 +2,8 @@
 for n = 2 the classic picture of the four cones and the point q (terminal or matplotlib).
 
 Variable names are 1-based (``w1``, ``z2``); the complementary matrix ``A_r`` has column
-``I_j`` for ``w_j`` basic and ``-M_j`` for ``z_j`` basic (seed 004).
+``I_j`` for ``w_j`` basic and ``-M_j`` for ``z_j`` basic (Murty, "Linear Complementarity, Linear and
+Nonlinear Programming", chapter 1).
 """
 
 from __future__ import annotations
@@ -249,7 +250,8 @@ def _cone_membership(M: np.ndarray, pts: np.ndarray) -> np.ndarray:
 
 
 def _cone_number(code: int) -> int:
-    """The seed's number r of the 2 x 2 cone with code bits (bit j = z_{j+1} basic)."""
+    """The number r of the 2 x 2 cone with code bits ``code`` (bit j = z_{j+1} basic), as the
+    rigid-body collision article numbers them in its enumeration."""
     return 1 + sum(1 << (1 - b) for b in range(2) if (code >> b) & 1)
 
 

@@ -289,7 +289,7 @@ def lemke_traced(M: np.ndarray, q: np.ndarray, d: np.ndarray, max_iter: int, piv
             rule = "lexicographic"
             decided = lex["decided_by"]
             reason = (f"{len(cand)} rows tie at the minimum ratio {num(tmin)}; lexicographic "
-                      f"tie-break on the rows of the basis inverse divided by the pivot "
+                      f"tie-break on the rows of the basis inverse divided by the pivot entry, "
                       + (f"decided at column {decided[1:]} (variable {decided})"
                          if decided else "left a tie: the first row wins"))
         leaving = int(basic[r])

@@ -7,7 +7,7 @@ always holds ``w_i`` or ``z_i`` and column ``i`` its complement, so a principal 
 positive: a principal pivot transform of a P-matrix has a positive diagonal).  Same
 operations and tolerances as the kernel, hence the same pivots.
 
-In seed 000's terms every basis is complementary: ``alpha = beta`` is the set of ``i`` with
+In Dai & Drumwright's terms every basis is complementary: ``alpha = beta`` is the set of ``i`` with
 ``z_i`` basic, and ``q'`` is eqs (2)-(3) with ``M^{alpha alpha}``.
 """
 

@@ -1,4 +1,5 @@
-"""Lemke's pivot rule on seed 000's transform: ``lcpcli pivot --driving`` and ``--follow``.
+"""Lemke's pivot rule on Dai & Drumwright's principal pivoting transform (``lcpcli pivot
+--driving`` and ``--follow``).
 
 Given a basis (dependent tuple ``w'``) and a driving variable, :func:`driving_step` applies
 Lemke's ratio test (:func:`lcpcli.solvers.trace.lemke.ratio_test`, the same rule and
@@ -162,7 +163,7 @@ def follow(Maug: np.ndarray, q: np.ndarray, dependent: tuple[Var, ...],
            independent: tuple[Var, ...] | None, driving: Var, *, full: bool = False,
            any_basis: bool = False, max_steps: int = FOLLOW_MAX_STEPS
            ) -> list[tuple[PivotTransform, dict[str, Any]]]:
-    """Lemke's path through seed 000's transforms, from a basis and a driving variable.
+    """Lemke's path through Dai & Drumwright's transforms, from a basis and a driving variable.
 
     Each item is the transform of one basis (with its driving column) and its
     :func:`driving_step`; when ``z0`` leaves, a last item holds the final basis (the solution)

@@ -3,7 +3,7 @@
 A recorded *state* holds the basic variable of each row (``basis``), their values ``q_prime``,
 the nonbasic variables (``nonbasic``, in the original variable order: ``w1..wn``, ``z1..zn``,
 then ``z0``) and the tableau ``M'`` (rows as ``basis``, columns as ``nonbasic``) of the
-dictionary ``x_B = q' + M' x_N`` (seed 000's ``w' = q' + M' z'``, sign convention
+dictionary ``x_B = q' + M' x_N`` (Dai & Drumwright's ``w' = q' + M' z'``, sign convention
 ``w = M z + q``).  Two layouts of the same state:
 
 * ``dictionary``: columns ``q'`` and the nonbasic variables; the entries are ``M'``;
