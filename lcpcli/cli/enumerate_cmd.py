@@ -124,11 +124,9 @@ def enumerate_command(
     if output_path is not None and fmt == "text":
         write_atomic_text(output_path, json.dumps(payload, allow_nan=False) + "\n")
     if not as_json or fmt != "text":  # the tables in fractions; the JSON above keeps floats
-        from lcpcli.solvers.trace.exact import exact_enumeration, wants_exact
+        from lcpcli.cli.export import exact_cones
 
-        data = wants_exact(prob, exact)
-        if data is not None:
-            res, M = exact_enumeration(res, data), data.M
+        res, M = exact_cones(prob, exact, res, M)
     if fmt != "text":
         from lcpcli.cli.render.doc import write
         from lcpcli.cli.render.enumerate import enumeration_pages

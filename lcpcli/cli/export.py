@@ -128,3 +128,18 @@ def exact_view(problem: Any, method: str, flag: bool | None, opts: dict[str, Any
              "answer is the floating-point run's")
     return exact
 
+
+def exact_cones(problem: Any, flag: bool | None, res: Any, M: Any) -> tuple[Any, Any]:
+    """``enumerate``'s tables in fractions (``--exact``, or by default on small rational
+    data): the enumeration with exact ``det A_r``, ``y``, ``z``, ``w``, and ``M`` as
+    fractions; ``(res, M)`` unchanged otherwise (with a note when ``--exact`` was asked)."""
+    from lcpcli.solvers.trace.exact import exact_enumeration, wants_exact
+
+    data = wants_exact(problem, flag)
+    if data is None:
+        if flag:
+            note("--exact: the data are not fractions with small denominators; the tables "
+                 "stay in decimals")
+        return res, M
+    return exact_enumeration(res, data), data.M
+

@@ -174,6 +174,8 @@ def test_exact_notes(cli, samples, tmp_path):
     odd.write_text(json.dumps({"M": [[2, 1], [1, 2]], "q": [-3.14159265358979, -6]}))
     p = cli("solve", str(odd), "--trace", "--exact", env=TEXT)
     assert p.returncode == 0 and "not fractions" in p.stderr
+    p = cli("enumerate", str(odd), "--exact", env=TEXT)
+    assert p.returncode == 0 and "not fractions" in p.stderr and "3.14159" in p.stdout
     tenth = tmp_path / "tenth.json"
     tenth.write_text(json.dumps({"M": [[2, 1], [1, 2]], "q": [-0.1, -0.3]}))
     p = cli("solve", str(tenth), "--trace", env=TEXT)
