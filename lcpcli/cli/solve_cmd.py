@@ -78,7 +78,7 @@ def solve(
                             help="Trace output: text, markdown or latex (lecture notes; on "
                                  "stdout, or in the -o FILE). Implies --trace unless text."),
     exact: bool = typer.Option(None, "--exact/--no-exact", show_default=False,
-                               help="Trace: " + EXACT_HELP),
+                               help="Trace: " + EXACT_HELP + " --exact implies --trace."),
 ) -> int:
     """Solve an LCP: find z >= 0 with w = M z + q >= 0 and z^T w = 0.
 
@@ -115,7 +115,8 @@ def solve(
     from lcpcli.cli.export import check_export_options, check_format
 
     fmt = check_format(fmt)
-    trace = trace or layout is not None or pivot_step is not None or step or fmt != "text"
+    trace = (trace or layout is not None or pivot_step is not None or step or fmt != "text"
+             or bool(exact))
     if wants_batch(files, output, problem=problem, **batch):
         if trace:
             raise OptionError("--trace (and --layout, --pivot, --step, --format) shows one "
