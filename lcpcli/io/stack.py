@@ -198,7 +198,7 @@ class _H5Source:
     def __init__(self, path: Path) -> None:
         from lcpcli.io import hdf5_format as h5
 
-        self.f = h5._open(path, rdcc_nbytes=H5_CACHE_BYTES, rdcc_nslots=H5_CACHE_SLOTS,
+        self.f = h5.open_file(path, rdcc_nbytes=H5_CACHE_BYTES, rdcc_nslots=H5_CACHE_SLOTS,
                           rdcc_w0=1.0)
         try:
             self._scan(path)
@@ -215,11 +215,11 @@ class _H5Source:
         try:
             self.d: dict[str, Any] = {}
             for key in ("M", "q", "lower", "upper"):
-                self.d[key] = h5._dataset(f, key, key)
+                self.d[key] = h5.dataset(f, key, key)
             if self.d["M"] is None:
                 raise ProblemError("no dataset 'M' at the root (a stack holds M of shape "
                                    "(K, n, n) and q of (K, n))")
-            names = h5._dataset(f, "names", "names", kinds=None)
+            names = h5.dataset(f, "names", "names", kinds=None)
             if names is not None:
                 sd = h5py.check_string_dtype(names.dtype)
                 if sd is None:
@@ -236,11 +236,11 @@ class _H5Source:
 
             self.info = _layout(str(path), "hdf5", shape("M"), shape("q"),
                                 names_shape=shape("names"), lower=shape("lower"),
-                                upper=shape("upper"), n_eq=h5._attr_int(f, "n_eq"))
+                                upper=shape("upper"), n_eq=h5.attr_int(f, "n_eq"))
         except ProblemError:
             raise
         except h5.H5_ERRORS as exc:
-            raise h5._damaged(exc) from None
+            raise h5.damaged(exc) from None
 
     def rows(self, key: str, start: int, stop: int, out: np.ndarray) -> None:
         from lcpcli.io import hdf5_format as h5
@@ -249,7 +249,7 @@ class _H5Source:
             try:
                 self.d[key].read_direct(out, source_sel=np.s_[start:stop])
             except h5.H5_ERRORS as exc:
-                raise h5._damaged(exc) from None
+                raise h5.damaged(exc) from None
 
     def whole(self, key: str, out: np.ndarray) -> None:
         from lcpcli.io import hdf5_format as h5
@@ -258,7 +258,7 @@ class _H5Source:
             try:
                 self.d[key].read_direct(out)
             except h5.H5_ERRORS as exc:
-                raise h5._damaged(exc) from None
+                raise h5.damaged(exc) from None
 
     def names(self, start: int, stop: int) -> list[str]:
         from lcpcli.io import hdf5_format as h5
@@ -270,7 +270,7 @@ class _H5Source:
             for a in range(start, stop, step):
                 out.extend(_check_names([str(x) for x in view[a:min(stop, a + step)]]))
         except h5.H5_ERRORS as exc:
-            raise h5._damaged(exc) from None
+            raise h5.damaged(exc) from None
         return out
 
     def close(self) -> None:
