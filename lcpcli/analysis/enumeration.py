@@ -43,6 +43,7 @@ from lcpcli.analysis._enum import (
 from lcpcli.analysis.scaling import Scaling, equilibrate
 from lcpcli.core.certificate import DEFAULT_TOL, Certificate, certify, matrix_norm_inf
 from lcpcli.core.errors import OptionError, ProblemError
+from lcpcli.core.limits import ENUM_ANNOUNCE_N, announce
 from lcpcli.core.result import Status
 
 #: Default refusal threshold (2^24 = 16.7 million cones).
@@ -298,6 +299,9 @@ def enumerate_cones(problem: Any, *, stop_at_first: bool = False, all_cones: boo
     unsafe pivots sent to it); ``fast=False`` uses the direct kernel for every cone.
     """
     check_problem(problem, max_n)
+    if problem.n >= ENUM_ANNOUNCE_N:  # the work budget of lcpcli.core.limits: say the cost first
+        announce(f"enumerating up to 2^{problem.n} = {2 ** problem.n:,} complementary cones "
+                 f"(each extra variable doubles the time; --max-n / -O max-n={max_n} allows it)")
     scaling = equilibrate(problem, symmetric=False)
     work = scaling.apply(problem) if scaling is not None else problem
     found = _enumerate(work, stop_at_first=stop_at_first, all_cones=all_cones, max_n=max_n,

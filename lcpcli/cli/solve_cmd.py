@@ -88,7 +88,7 @@ def solve(
 
     from lcpcli.api import solve as solve_problem
     from lcpcli.cli.common import MAX_ITER, exit_code_for, parse_key_values, write_json_line
-    from lcpcli.core.errors import OptionError
+    from lcpcli.core.errors import OptionError, ProblemError
     from lcpcli.io import check_output, load, write_atomic_text
 
     opts: dict[str, object] = parse_key_values(option)
@@ -127,7 +127,10 @@ def solve(
     if output is not None:  # before any work: never the input, a device or a link
         check_output(output, inputs=[file, z0], stdout=False)
     prob = load(file, problem)
-    result = solve_problem(prob, method, tol=tol, **opts)
+    try:
+        result = solve_problem(prob, method, tol=tol, **opts)
+    except ProblemError as exc:  # a work budget (lcpcli.core.limits) refused it: name the file
+        raise exc.with_source(file) from None
     payload = result.to_dict(file=file)
     from lcpcli.analysis.bounds import forward_error_bound
 

@@ -452,6 +452,28 @@ def per_contact(values: np.ndarray, scene_value: float | None, default: float) -
     return np.where(np.isnan(values), fallback, values)
 
 
+def check_coupling(scene: Scene, rows_per_contact: int = 1) -> None:
+    """Refuse, before any assembly, a scene whose contact LCP would be too large to store.
+
+    M couples every pair of contact rows that share a moving body, so
+    ``rows_per_contact^2 * sum over moving bodies of (contacts on it)^2`` bounds its stored
+    entries (a star of 200,000 contacts on one body: 4e10).  Above the sparse-matrix limit of
+    problem files (:data:`lcpcli.core.problem.MAX_SPARSE_NNZ`) it is a ProblemError; O(nc).
+    """
+    from lcpcli.core.problem import MAX_SPARSE_NNZ
+
+    nb = scene.n_bodies
+    deg = np.bincount(scene.contact_a, minlength=nb) + np.bincount(scene.contact_b, minlength=nb)
+    deg[scene.fixed] = 0
+    bound = int(np.sum(deg.astype(np.int64) ** 2)) * rows_per_contact ** 2
+    if bound > MAX_SPARSE_NNZ:
+        hub = int(np.argmax(deg))
+        raise ProblemError(f"the contact LCP would hold up to {bound:,} stored entries (limit "
+                           f"{MAX_SPARSE_NNZ:,}): body {scene.body_names[hub]!r} touches "
+                           f"{int(deg[hub]):,} contacts and M couples every pair of rows on a "
+                           f"moving body")
+
+
 def with_kinematic(scene: Scene, names: list[str]) -> Scene:
     """A copy of ``scene`` in which the bodies ``names`` are kinematic (prescribed velocity).
 
