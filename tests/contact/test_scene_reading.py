@@ -1,0 +1,232 @@
+"""Scenes read under the rules of every input (issue 23, docs/files.md "Reading").
+
+Each hostile scene is a fixture built in ``tmp_path`` and run through ``contact-matrix`` in this
+process (or, where the old reader allocated gigabytes, in a subprocess under the 1 GiB limit of
+tests/cli/test_bad_inputs.py): exit 2, one ``lcpcli: error: FILE: ...`` line, no traceback.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from lcpcli.contact.scene import check_coupling, load_scene, scene_from_dict, write_scene_hdf5
+from lcpcli.core.errors import ProblemError
+from tests.cli.test_bad_inputs import BAD, Case, problems, run_in_process, run_subprocess
+
+h5py = pytest.importorskip("h5py")
+
+SCENE = {"bodies": [{"name": "ground", "static": True},
+                    {"name": "ball", "mass": 1.0, "inertia": [0.4, 0.4, 0.4],
+                     "position": [0, 0, 1], "velocity": [0, 0, -1]}],
+         "contacts": [{"a": "ball", "b": "ground", "point": [0, 0, 0], "normal": [0, 0, 1]}]}
+
+
+def _variants(d: Path) -> dict[str, Callable[..., None]]:
+    """HDF5 scenes: the valid one with one dataset replaced (name -> edit of the open file)."""
+    outside = d / "outside.h5"
+    with h5py.File(outside, "w") as f:
+        f["position"] = np.array([[0, 0, 0], [0, 0, 1.0]])
+        f["x"] = np.zeros(6)
+    (d / "raw.bin").write_bytes(np.zeros(3).tobytes())
+
+    def replace(group: str, key: str, **kwargs: object) -> Callable[..., None]:
+        def edit(f: h5py.File) -> None:
+            del f[f"{group}/{key}"]
+            f[group].create_dataset(key, **kwargs)
+        return edit
+
+    def extlink(f: h5py.File) -> None:
+        del f["bodies/position"]
+        f["bodies/position"] = h5py.ExternalLink(str(outside), "position")
+
+    def vds(f: h5py.File) -> None:
+        del f["bodies/velocity"]
+        layout = h5py.VirtualLayout(shape=(2, 3), dtype="f8")
+        layout[0, :] = h5py.VirtualSource(str(outside), "x", shape=(6,))[:3]
+        f["bodies"].create_virtual_dataset("velocity", layout, fillvalue=0)
+
+    def vds_passwd(f: h5py.File) -> None:
+        del f["bodies/velocity"]
+        layout = h5py.VirtualLayout(shape=(2, 3), dtype="u1")
+        layout[0, :] = h5py.VirtualSource("/etc/passwd", "x", shape=(3,))
+        f["bodies"].create_virtual_dataset("velocity", layout, fillvalue=0)
+
+    def linked_group(f: h5py.File) -> None:
+        del f["contacts"]
+        f["contacts"] = h5py.ExternalLink(str(outside), "/")
+
+    return {
+        "extlink": extlink,
+        "external_storage": replace("contacts", "point", shape=(1, 3), dtype="<f8",
+                                    external=[(str(d / "raw.bin"), 0, 24)]),
+        "dev_zero": replace("bodies", "angular_velocity", shape=(2, 3), dtype="<f8",
+                            external=[("/dev/zero", 0, 48)]),
+        "vds": vds,
+        "vds_passwd": vds_passwd,
+        "linked_group": linked_group,
+        "huge_static": replace("bodies", "static", shape=(4 * 10**9,), dtype="u1",
+                               chunks=(2**20,)),
+        "huge_name": replace("bodies", "name", shape=(12 * 10**8,), dtype="S10",
+                             chunks=(2**16,)),
+        "huge_contacts": replace("contacts", "a", shape=(10**9,), dtype="i8", chunks=(2**20,)),
+        "complex_mass": replace("bodies", "mass", data=np.array([np.nan, 1.0 + 1j])),
+        "text_normal": replace("contacts", "normal", data=np.array([[b"0", b"0", b"1"]])),
+        "float_static": replace("bodies", "static", data=np.array([1.0, 0.0])),
+        "bool_mass": replace("bodies", "mass", data=np.array([False, True])),
+        "float_refs": replace("contacts", "a", data=np.array([1.0])),
+        "wrong_shape": replace("bodies", "position", data=np.zeros((3, 3))),
+        "scalar_dimension": lambda f: f.attrs.__setitem__("dimension", np.array([3, 3])),
+    }
+
+
+#: What each HDF5 scene must be refused with (the start of the reason after the file name).
+H5_WORDS = {
+    "extlink": "'bodies/position' is an external link",
+    "external_storage": "'contacts/point' keeps its data in other files",
+    "dev_zero": "'bodies/angular_velocity' keeps its data in other files",
+    "vds": "'bodies/velocity' keeps its data in other files",
+    "vds_passwd": "'bodies/velocity' keeps its data in other files",
+    "linked_group": "'contacts' is an external link",
+    "huge_static": "dataset 'bodies/static' has shape (4000000000,), expected (2,)",
+    "huge_name": "dataset 'bodies/name' declares 1,200,000,000 rows",
+    "huge_contacts": "dataset 'contacts/a' declares 1,000,000,000 rows",
+    "complex_mass": "'bodies/mass' holds complex numbers",
+    "text_normal": "'contacts/normal' holds byte strings",
+    "float_static": "'bodies/static' holds floating-point numbers",
+    "bool_mass": "'bodies/mass' holds booleans",
+    "float_refs": "dataset 'contacts/a' must hold body names or 0-based indices",
+    "wrong_shape": "dataset 'bodies/position' has shape (3, 3), expected (2, 3)",
+    "scalar_dimension": "attribute 'dimension' must be one integer",
+}
+#: The cases the old reader spent gigabytes on: run under the 1 GiB address-space limit.
+SUBPROCESS = {"huge_static", "huge_name", "huge_contacts"}
+
+JSON_SCENES = {
+    "deep": ('{"bodies": ' + "[" * 100_000 + "]" * 100_000 + "}",
+             "invalid JSON: arrays or objects nested too deeply"),
+    "int_401_digits": (json.dumps(SCENE).replace('"mass": 1.0', '"mass": ' + "9" * 401),
+                       "body 'ball': 'mass' is an integer too large for a float"),
+    "int_700_digits": (json.dumps(SCENE).replace('"mass": 1.0', '"mass": ' + "9" * 700),
+                       "invalid JSON: Exceeds the limit of 640 digits"),
+    "duplicate_key": (json.dumps(SCENE)[:-1] + ', "contacts": []}',
+                      "invalid JSON: key 'contacts' appears twice"),
+    "duplicate_body_key": (json.dumps(SCENE).replace('"mass": 1.0', '"mass": 1.0, "mass": 2'),
+                           "invalid JSON: key 'mass' appears twice"),
+    "numeric_text_mass": (json.dumps(SCENE).replace('"mass": 1.0', '"mass": "1.0"'),
+                          "body 'ball': 'mass' must be a number"),
+    "bool_normal": (json.dumps(SCENE).replace('"normal": [0, 0, 1]', '"normal": [0, 0, true]'),
+                    "contact 1: 'normal' must be a number"),
+}
+
+
+@pytest.fixture(scope="module")
+def scenes(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    d = tmp_path_factory.mktemp("scenes")
+    (d / "scene.json").write_text(json.dumps(SCENE))
+    write_scene_hdf5(load_scene(d / "scene.json"), d / "scene.h5")
+    for name, edit in _variants(d).items():
+        shutil.copy(d / "scene.h5", d / f"{name}.h5")
+        with h5py.File(d / f"{name}.h5", "a") as f:
+            edit(f)
+    for name, (text, _words) in JSON_SCENES.items():
+        (d / f"{name}.json").write_text(text)
+    return d
+
+
+def _refused(d: Path, file: str, words: str, sub: bool = False) -> None:
+    case = Case(file, "lenient", ["contact-matrix", f"{{d}}/{file}"], BAD, f"{{d}}/{file}: {words}",
+                sub=sub, memory=sub)
+    out = run_subprocess(case, d) if sub else run_in_process(case, d)
+    assert problems(case, out, d, {}) == []
+
+
+def test_the_valid_scenes_are_read(scenes: Path) -> None:
+    a, b = load_scene(scenes / "scene.json"), load_scene(scenes / "scene.h5")
+    assert a.n_bodies == b.n_bodies == 2 and a.n_contacts == b.n_contacts == 1
+    np.testing.assert_array_equal(a.normal, b.normal)
+    np.testing.assert_array_equal(a.static, b.static)
+
+
+@pytest.mark.parametrize("name", sorted(H5_WORDS))
+def test_hdf5_scene_refused(scenes: Path, name: str) -> None:
+    _refused(scenes, f"{name}.h5", H5_WORDS[name], sub=name in SUBPROCESS)
+
+
+@pytest.mark.parametrize("name", sorted(JSON_SCENES))
+def test_json_scene_refused(scenes: Path, name: str) -> None:
+    _refused(scenes, f"{name}.json", JSON_SCENES[name][1])
+
+
+def test_static_flags_as_integers_are_read(tmp_path: Path) -> None:
+    """0/1 integers are flags too (anything else is not)."""
+    path = tmp_path / "s.h5"
+    write_scene_hdf5(scene_from_dict(SCENE), path)
+    with h5py.File(path, "a") as f:
+        del f["bodies/static"]
+        f["bodies/static"] = np.array([1, 0], dtype=np.int8)
+    assert load_scene(path).static.tolist() == [True, False]
+    with h5py.File(path, "a") as f:
+        del f["bodies/static"]
+        f["bodies/static"] = np.array([2, 0], dtype=np.int8)
+    with pytest.raises(ProblemError, match="must hold booleans"):
+        load_scene(path)
+
+
+def _star(n_contacts: int, dynamic_leaves: bool = False) -> dict:
+    leaf = ({"mass": 1.0, "inertia": [1, 1, 1], "position": [0, 0, -1]} if dynamic_leaves
+            else {"static": True})
+    return {"bodies": [{"name": "hub", "mass": 1.0, "inertia": [1, 1, 1],
+                        "position": [0, 0, 0], "velocity": [0, 0, -1]}]
+            + [{"name": f"g{i}", **leaf} for i in range(n_contacts)],
+            "contacts": [{"a": "hub", "b": f"g{i}", "point": [0, 0, 0], "normal": [0, 0, 1]}
+                         for i in range(n_contacts)]}
+
+
+@pytest.mark.parametrize("n", [1, 7, 40])
+def test_coupling_bound_is_an_upper_bound_on_the_stored_entries(n: int) -> None:
+    """check_coupling's bound (rows^2 * sum of squared contact counts on moving bodies) is
+    never below what assembly stores, and it refuses above the sparse limit."""
+    import lcpcli.core.problem as problem_module
+    from lcpcli.contact import build
+
+    for dynamic in (False, True):
+        scene = scene_from_dict(_star(n, dynamic))
+        deg = np.bincount(scene.contact_a, minlength=scene.n_bodies) \
+            + np.bincount(scene.contact_b, minlength=scene.n_bodies)
+        deg[scene.fixed] = 0
+        bound = int(np.sum(deg ** 2))
+        M = build(scene, storage="sparse").problem.M
+        assert M.nnz <= bound
+        limit = problem_module.MAX_SPARSE_NNZ
+        try:
+            problem_module.MAX_SPARSE_NNZ = bound - 1
+            with pytest.raises(ProblemError, match="would hold up to"):
+                check_coupling(scene)
+            problem_module.MAX_SPARSE_NNZ = bound
+            check_coupling(scene)
+        finally:
+            problem_module.MAX_SPARSE_NNZ = limit
+
+
+def test_star_scene_refused_before_assembly(tmp_path: Path) -> None:
+    """A 30,000-contact star couples 9e8 pairs, over the 5e8 limit: one line, exit 2."""
+    nb = 30_001
+    path = tmp_path / "star.h5"
+    with h5py.File(path, "w") as f:
+        gb, gc = f.create_group("bodies"), f.create_group("contacts")
+        gb["static"] = np.r_[False, np.ones(nb - 1, dtype=bool)]
+        gb["mass"] = np.r_[1.0, np.full(nb - 1, np.nan)]
+        gb["inertia"] = np.r_[[[1.0, 1, 1]], np.full((nb - 1, 3), np.nan)]
+        gb["position"] = np.zeros((nb, 3))
+        gb["velocity"] = np.r_[[[0, 0, -1.0]], np.zeros((nb - 1, 3))]
+        gc["a"] = np.zeros(nb - 1, dtype=np.int64)
+        gc["b"] = np.arange(1, nb)
+        gc["point"] = np.zeros((nb - 1, 3))
+        gc["normal"] = np.tile([0, 0, 1.0], (nb - 1, 1))
+    _refused(tmp_path, "star.h5", "the contact LCP would hold up to 900,000,000 stored entries")
