@@ -36,6 +36,7 @@ from lcpcli.core.errors import ProblemError
 from lcpcli.core.problem import Problem
 from lcpcli.io.files import (
     MAX_TEXT_BYTES,
+    StackedFile,
     atomic_path,
     check_input_file,
     check_output,
@@ -109,12 +110,15 @@ def load(path: str | os.PathLike[str], problem: str | None = None, *,
             check_input_file(path)
         p = path if isinstance(path, Path) else Path(path)
         if problem is not None and kind == "npz":  # an NPZ holds one problem, or a stack
-            from lcpcli.io.stack import is_stack, read_single
+            from lcpcli.io.stack import is_stack
 
             if not is_stack(p):
                 raise ProblemError("--problem applies to HDF5 files and stacked files only")
-            return read_single(p, problem)
-        return _module(kind).read(p, problem) if kind == "hdf5" else _module(kind).read(p)
+            return _read_stacked(p, problem)
+        try:
+            return _module(kind).read(p, problem) if kind == "hdf5" else _module(kind).read(p)
+        except StackedFile:  # the format reader found a stack: the stack reader takes over
+            return _read_stacked(p, problem)
     except ProblemError as exc:
         raise exc.with_source(source) from None
     except PermissionError:
@@ -123,6 +127,14 @@ def load(path: str | os.PathLike[str], problem: str | None = None, *,
         raise ProblemError("not enough memory to read the problem", source) from None
     except RecursionError:
         raise ProblemError("data nested too deeply", source) from None
+
+
+def _read_stacked(path: Path, problem: str | None) -> Problem:
+    """One problem of a stacked file (several without ``problem``: refused, see
+    :func:`lcpcli.io.stack.read_single`)."""
+    from lcpcli.io.stack import read_single
+
+    return read_single(path, problem)
 
 
 def list_problems(path: str | os.PathLike[str]) -> list[str]:
@@ -134,7 +146,12 @@ def list_problems(path: str | os.PathLike[str]) -> list[str]:
 
         try:
             check_input_file(path)
-            return hdf5_format.list_problems(Path(path))
+            try:
+                return hdf5_format.list_problems(Path(path))
+            except StackedFile:
+                from lcpcli.io.stack import list_names
+
+                return list_names(path)
         except ProblemError as exc:
             raise exc.with_source(str(path)) from None
     if kind == "npz":

@@ -57,6 +57,17 @@ _KINDS = ((stat.S_ISDIR, "a directory"), (stat.S_ISFIFO, "a FIFO (named pipe)"),
           (stat.S_ISSOCK, "a socket"), (stat.S_ISLNK, "a symbolic link"))
 
 
+class StackedFile(ProblemError):
+    """A format reader's signal: the file holds a stack (``M`` of shape ``(K, n, n)`` at its
+    root), not the one problem it reads.  :func:`lcpcli.io.load` and
+    :func:`lcpcli.io.list_problems` catch it and read the file with :mod:`lcpcli.io.stack`, so
+    the format modules never import that module (it imports them: no import circle)."""
+
+    def __init__(self) -> None:
+        super().__init__("holds stacked problems (M of shape (K, n, n)); read it with "
+                         "lcpcli.io.load")
+
+
 def file_kind(mode: int) -> str:
     """``"a directory"``, ``"a FIFO (named pipe)"``, ... for a non-regular ``st_mode``."""
     for test, name in _KINDS:

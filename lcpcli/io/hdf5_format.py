@@ -19,7 +19,14 @@ import numpy as np
 from lcpcli.core.errors import ProblemError
 from lcpcli.core.numeric import INDEX_KINDS, REAL_KINDS, check_dtype
 from lcpcli.core.problem import Problem, check_size
-from lcpcli.io.files import MAX_JSON_DEPTH, MAX_NAME_BYTES, MAX_TEXT_BYTES, check_depth, parse_json
+from lcpcli.io.files import (
+    MAX_JSON_DEPTH,
+    MAX_NAME_BYTES,
+    MAX_TEXT_BYTES,
+    StackedFile,
+    check_depth,
+    parse_json,
+)
 from lcpcli.io.sparse import (
     check_part_sizes,
     parse_format,
@@ -98,8 +105,9 @@ def _problem_groups(f: Any) -> list[str]:
     return names
 
 
-def _is_stacked(f: Any) -> bool:
-    """Whether the root holds a stack (a dataset M of 3 dimensions; see :mod:`.stack`)."""
+def is_stacked_root(f: Any) -> bool:
+    """Whether the root holds a stack: a dataset M of 3 dimensions, linked in the file (the one
+    HDF5 test; :func:`lcpcli.io.stack.is_stack` uses it).  Reads headers only; never raises."""
     import h5py
 
     try:
@@ -112,18 +120,14 @@ def _is_stacked(f: Any) -> bool:
 
 
 def list_problems(path: Path) -> list[str]:
-    """The problems in the file: the root problem's name when M and q sit at the root, the
-    stacked problems' names for a stack (:func:`lcpcli.io.stack.list_names`), else the
-    group names."""
-    with open_file(path) as f:
-        stacked = _is_problem(f) and _is_stacked(f)
-    if stacked:
-        from lcpcli.io.stack import list_names
-
-        return list_names(path)
+    """The problems in the file: the root problem's name when M and q sit at the root, else the
+    group names; a stack raises :class:`~lcpcli.io.files.StackedFile` (``lcpcli.io`` lists it
+    with :mod:`lcpcli.io.stack`)."""
     with open_file(path) as f:
         try:
             if _is_problem(f):
+                if is_stacked_root(f):
+                    raise StackedFile()
                 return [attr_text(f, "name", MAX_NAME_BYTES) or path.stem]
             return _problem_groups(f)
         except ProblemError:
@@ -133,14 +137,13 @@ def list_problems(path: Path) -> list[str]:
 
 
 def read(path: Path, problem: str | None = None) -> Problem:
-    with open_file(path) as f:
-        stacked = _is_problem(f) and _is_stacked(f)
-    if stacked:  # one stacked problem is read; several are refused (lcpcli.io.stack)
-        from lcpcli.io.stack import read_single
-
-        return read_single(path, problem)
+    """One problem (``problem``: a group name); a stack raises
+    :class:`~lcpcli.io.files.StackedFile` (``lcpcli.io.load`` reads it with
+    :mod:`lcpcli.io.stack`).  The file is opened once."""
     with open_file(path) as f:
         try:
+            if _is_problem(f) and is_stacked_root(f):
+                raise StackedFile()
             if _is_problem(f) and problem is None:
                 return _read_group(f, path.stem)
             groups = _problem_groups(f)
@@ -266,9 +269,8 @@ def _read_matrix(g: Any) -> Any:
         return _read_sparse(node)
     d = dataset(g, "M", "M")
     if len(d.shape) == 3:
-        from lcpcli.io.stack import stacked_message
-
-        raise ProblemError(stacked_message(d.shape[0]))
+        raise ProblemError(f"M has shape {tuple(d.shape)}: a stack of problems (M of shape "
+                           f"(K, n, n)) is stored at the root of its own file, not in a group")
     if len(d.shape) != 2:
         raise ProblemError(f"M must be a 2-D matrix, got shape {tuple(d.shape)}")
     check_size(*d.shape)

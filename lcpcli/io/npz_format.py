@@ -25,6 +25,7 @@ from lcpcli.io.files import (
     MAX_JSON_DEPTH,
     MAX_NAME_BYTES,
     MAX_TEXT_BYTES,
+    StackedFile,
     check_depth,
     open_input,
     parse_json,
@@ -129,6 +130,8 @@ def _read_array(fh: IO[bytes]) -> np.ndarray:
 
 
 def read(path: Path) -> Problem:
+    """One problem; a stack raises :class:`~lcpcli.io.files.StackedFile` (``lcpcli.io.load``
+    reads it with :mod:`lcpcli.io.stack`)."""
     with open_input(path) as fh:
         try:
             zf = zipfile.ZipFile(fh)
@@ -184,10 +187,8 @@ def _read(zf: zipfile.ZipFile, path: Path) -> Problem:
     if "M" in entries:
         m = member("M")
         m.check("M")
-        if len(m.shape) == 3:  # a stack: its one problem, or refused (lcpcli.io.stack)
-            from lcpcli.io.stack import read_single
-
-            return read_single(path)
+        if len(m.shape) == 3:  # a stack: lcpcli.io.load reads it with lcpcli.io.stack
+            raise StackedFile()
         if len(m.shape) != 2:
             raise ProblemError(f"M must be a 2-D matrix, got shape {m.shape}")
         check_size(*m.shape)

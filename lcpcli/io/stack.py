@@ -124,15 +124,10 @@ def is_stack(path: str | Path) -> bool:
         fmt = _stack_format(path)
         check_input_file(path)
         if fmt == "hdf5":
-            import h5py
+            from lcpcli.io.hdf5_format import is_stacked_root, open_file
 
-            with h5py.File(path, "r") as f:
-                link = f.get("M", getlink=True)
-                if not isinstance(link, (h5py.HardLink, h5py.SoftLink)):
-                    return False
-                node = f.get("M")
-                return isinstance(node, h5py.Dataset) and node.shape is not None \
-                    and len(node.shape) == 3
+            with open_file(Path(path)) as f:
+                return is_stacked_root(f)
         from lcpcli.io.npz_format import read_npy_header
 
         with open_input(path) as fh, zipfile.ZipFile(fh) as zf, zf.open("M.npy") as m:
