@@ -127,7 +127,7 @@ def build(scene: Scene, friction: int = 0, storage: str = "auto", *,
     check_coupling(scene, 1 + k)  # M's size from the contact counts, before assembling it
     if storage == "dense":
         check_dense_work(scene.n_contacts * (2 + k if k else 1), "--storage dense builds M as a "
-                         "dense matrix", instead="use --storage sparse")
+                         "dense matrix", instead="use --storage sparse", cubic=False)
     asm = assemble(scene, storage, restitution_threshold=restitution_threshold)
     nc = scene.n_contacts
     names = [f"n[{c}]" for c in scene.contact_names]

@@ -66,16 +66,19 @@ def dense_n_budget() -> int:
     return value
 
 
-def dense_cost(n: int) -> str:
-    """What dense work on an n x n matrix costs, in words (memory of one copy, operations)."""
-    return f"{n * n * 8 / 2**30:,.2f} GiB per copy of M, about {float(n) ** 3:.1e} operations"
+def dense_cost(n: int, cubic: bool = True) -> str:
+    """What dense work on an n x n matrix costs, in words: the memory of one copy and, for a
+    factorisation or pivoting (``cubic``), about n^3 operations."""
+    memory = f"{n * n * 8 / 2**30:,.2f} GiB per copy of M"
+    return f"{memory}, about {float(n) ** 3:.1e} operations" if cubic else memory
 
 
-def check_dense_work(n: int, step: str, *, instead: str = "") -> None:
+def check_dense_work(n: int, step: str, *, instead: str = "", cubic: bool = True) -> None:
     """ProblemError (exit 2) when ``step`` -- dense work on an n x n matrix -- is over the budget.
 
     ``step`` names the work (``"method 'lemke' pivots on the dense M"``); ``instead`` suggests
-    another way (appended to the message).  Called before the step allocates anything.
+    another way (appended to the message); ``cubic``: the step does O(n^3) operations (else
+    only its memory is named).  Called before the step allocates anything.
     """
     if n <= DENSE_N_FLOOR:
         return
@@ -83,5 +86,5 @@ def check_dense_work(n: int, step: str, *, instead: str = "") -> None:
     if n <= budget:
         return
     hint = f", or {instead}" if instead else ""
-    raise ProblemError(f"n = {n:,}: {step} ({dense_cost(n)}): over the dense-work budget "
+    raise ProblemError(f"n = {n:,}: {step} ({dense_cost(n, cubic)}): over the dense-work budget "
                        f"n <= {budget:,}; set {DENSE_N_ENV}={n} to run it anyway{hint}")

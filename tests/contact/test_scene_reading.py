@@ -230,3 +230,18 @@ def test_star_scene_refused_before_assembly(tmp_path: Path) -> None:
         gc["point"] = np.zeros((nb - 1, 3))
         gc["normal"] = np.tile([0, 0, 1.0], (nb - 1, 1))
     _refused(tmp_path, "star.h5", "the contact LCP would hold up to 900,000,000 stored entries")
+
+
+def test_dense_storage_checked_against_the_dense_work_budget(tmp_path: Path) -> None:
+    """--storage dense on 120 contacts with the budget at 100: refused, naming the override."""
+    from lcpcli.core.limits import DENSE_N_ENV, DENSE_N_FLOOR
+
+    (tmp_path / "star.json").write_text(json.dumps(_star(120)))
+    case = Case("dense", "lenient", ["contact-matrix", "{d}/star.json", "--storage", "dense"],
+                BAD, "{d}/star.json: n = 120: --storage dense builds M as a dense matrix",
+                env={DENSE_N_ENV: str(DENSE_N_FLOOR)})
+    out = run_in_process(case, tmp_path)
+    assert problems(case, out, tmp_path, {}) == []
+    ok = Case("ok", "lenient", ["contact-matrix", "{d}/star.json", "--storage", "dense"], 0, None,
+              env={DENSE_N_ENV: "120"})
+    assert problems(ok, run_in_process(ok, tmp_path), tmp_path, {}) == []

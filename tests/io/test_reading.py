@@ -188,20 +188,29 @@ def test_api_checks_the_method_before_dense_work(method: str, refused: bool) -> 
                      get_method(method))
 
 
-def test_cli_refuses_dense_work_over_the_budget(tmp_path: Path) -> None:
+@pytest.mark.parametrize(("command", "words"), [
+    ("solve", "method 'auto' factorises or pivots on the dense M"),
+    ("info", "the classification works on dense copies of M"),
+])
+def test_cli_refuses_dense_work_over_the_budget(tmp_path: Path, command: str,
+                                                words: str) -> None:
     n = 120
     M = np.eye(n) * 2 + np.full((n, n), 0.01)
     (tmp_path / "p.json").write_text(json.dumps({"M": M.tolist(), "q": [-1.0] * n}))
-    case = Case("budget", "lenient", ["solve", "{d}/p.json"], BAD,
-                f"{{d}}/p.json: n = {n}: method 'auto'",
-                env={limits.DENSE_N_ENV: str(limits.DENSE_N_FLOOR)})
+    env = {limits.DENSE_N_ENV: str(limits.DENSE_N_FLOOR)}
+    case = Case("budget", "lenient", [command, "{d}/p.json"], BAD,
+                f"{{d}}/p.json: n = {n}: {words}", env=env)
     out = run_in_process(case, tmp_path)
     assert problems(case, out, tmp_path, {}) == []
-    assert f"{limits.DENSE_N_ENV}={n}" in out.stderr
-    ok = Case("pgs", "lenient", ["solve", "{d}/p.json", "-m", "pgs"], 0, None,
-              env={limits.DENSE_N_ENV: str(limits.DENSE_N_FLOOR)})
-    out = run_in_process(ok, tmp_path)
-    assert problems(ok, out, tmp_path, {}) == []
+    assert f"set {limits.DENSE_N_ENV}={n} to run it anyway" in out.stderr
+    # the override runs it; a sweeping method (O(n^2) a sweep) is not limited
+    runs = [([command, "{d}/p.json"], {limits.DENSE_N_ENV: str(n)})]
+    if command == "solve":
+        runs.append((["solve", "{d}/p.json", "-m", "pgs"], env))
+    for args, run_env in runs:
+        ok = Case("ok", "lenient", args, 0, None, env=run_env)
+        out = run_in_process(ok, tmp_path)
+        assert problems(ok, out, tmp_path, {}) == []
 
 
 @pytest.mark.parametrize("command", ["info", "solve"])
