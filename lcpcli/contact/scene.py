@@ -653,9 +653,9 @@ def _scene_from_hdf5(f: Any, path: Path) -> Scene:
     else:
         inertia = _h5_real(gb, "inertia", ((nb, 3), (nb, 3, 3)), np.nan, (nb,))
     inertia = _inertia_array(inertia, nb, dim)
-    quat = _h5_real(gb, "orientation", ((nb, 4),), np.nan, (nb, 4)) if dim == 3 else None
-    if quat is not None and _h5_head(gb, "orientation") is None:
-        quat = None
+    quat = None  # identity; 2-D scenes have no orientation
+    if dim == 3 and _h5_head(gb, "orientation") is not None:
+        quat = _h5_real(gb, "orientation", ((nb, 4),), None, (nb, 4))
     pos = _h5_real(gb, "position", ((nb, dim),), 0.0, (nb, dim))
     vel = _h5_real(gb, "velocity", ((nb, dim),), 0.0, (nb, dim))
     omega = _h5_real(gb, "angular_velocity", ((nb, r), (nb,)) if r == 1 else ((nb, r),), 0.0,

@@ -6,6 +6,10 @@ pickled NPZ, truncated HDF5, absurd sizes) raises :class:`~lcpcli.core.errors.Pr
 a one-line message that names the file.  Readers check types (:mod:`lcpcli.core.numeric`),
 shapes and sizes of every dataset from the file's headers before reading its data, and read
 only regular files, text up to :data:`~lcpcli.io.files.MAX_TEXT_BYTES` (:mod:`lcpcli.io.files`).
+Scenes (:mod:`lcpcli.contact.scene`) and warm starts (:mod:`lcpcli.io.warmstart`) are read with
+the same helpers under the same rules, stated once in docs/files.md ("Reading").  A stacked file
+is detected by the format readers (:class:`~lcpcli.io.files.StackedFile`) and read here with
+:mod:`lcpcli.io.stack`.
 ``save(problem, path)`` writes atomically: a temporary file in the same folder is renamed over
 the target only once it is complete, so a failed write leaves no partial file and never damages
 an existing one; :func:`~lcpcli.io.files.check_output` is what commands call first so that an

@@ -245,3 +245,47 @@ def test_dense_storage_checked_against_the_dense_work_budget(tmp_path: Path) -> 
     ok = Case("ok", "lenient", ["contact-matrix", "{d}/star.json", "--storage", "dense"], 0, None,
               env={DENSE_N_ENV: "120"})
     assert problems(ok, run_in_process(ok, tmp_path), tmp_path, {}) == []
+
+
+def test_every_hdf5_column_reads_as_its_json_twin(tmp_path: Path) -> None:
+    """Orientation, body-frame inertia, angular velocity, kinematic flags, name references and
+    per-contact parameters: the checked HDF5 reader gives the scene the JSON reader gives."""
+    rng = np.random.default_rng(3)
+    quat = rng.normal(size=4)
+    quat /= np.linalg.norm(quat)
+    inertia = np.diag([1.0, 2.0, 3.0])
+    scene = {"bodies": [{"name": "ground", "static": True},
+                        {"name": "belt", "kinematic": True, "velocity": [1.0, 0, 0],
+                         "position": [0, 0, 0]},
+                        {"name": "box", "mass": 2.0, "inertia": inertia.tolist(),
+                         "orientation": quat.tolist(), "position": [0, 0, 1],
+                         "velocity": [0, 0.5, -1], "angular_velocity": [0.1, 0.2, 0.3]}],
+             "contacts": [{"a": "box", "b": "ground", "point": [0, 0, 0.5],
+                           "normal": [0, 0, 1], "restitution": 0.5, "mu": 0.3},
+                          {"a": "box", "b": "belt", "point": [0.1, 0, 0.5],
+                           "normal": [0, 0, 1], "softness": 0.01}]}
+    path = tmp_path / "full.h5"
+    with h5py.File(path, "w") as f:
+        gb, gc = f.create_group("bodies"), f.create_group("contacts")
+        gb["name"] = np.array([b["name"] for b in scene["bodies"]], dtype=h5py.string_dtype())
+        gb["static"] = np.array([True, False, False])
+        gb["kinematic"] = np.array([0, 1, 0], dtype=np.uint8)
+        gb["mass"] = np.array([np.nan, np.nan, 2.0])
+        gb["inertia"] = np.stack([np.full((3, 3), np.nan), np.full((3, 3), np.nan), inertia])
+        gb["orientation"] = np.array([[np.nan] * 4, [np.nan] * 4, quat])
+        gb["position"] = np.array([[0, 0, 0], [0, 0, 0], [0, 0, 1.0]])
+        gb["velocity"] = np.array([[0, 0, 0], [1.0, 0, 0], [0, 0.5, -1]])
+        gb["angular_velocity"] = np.array([[0, 0, 0], [0, 0, 0], [0.1, 0.2, 0.3]])
+        gc["a"] = np.array([b"box", b"box"])
+        gc["b"] = np.array([0, 1], dtype=np.int32)
+        gc["point"] = np.array([[0, 0, 0.5], [0.1, 0, 0.5]])
+        gc["normal"] = np.array([[0, 0, 1.0], [0, 0, 1.0]])
+        gc["restitution"] = np.array([0.5, 0.0])
+        gc["mu"] = np.array([0.3, np.nan])
+        gc["softness"] = np.array([np.nan, 0.01])
+    a, b = scene_from_dict(scene), load_scene(path)
+    for key in ("static", "kinematic", "mass", "inv_mass", "inertia", "inv_inertia", "position",
+                "velocity", "omega", "contact_a", "contact_b", "point", "normal", "restitution",
+                "mu", "softness"):
+        np.testing.assert_allclose(getattr(a, key), getattr(b, key), rtol=1e-14, atol=0,
+                                   err_msg=key)
