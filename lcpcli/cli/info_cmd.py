@@ -21,18 +21,14 @@ def info(
     once its first, optimistic attempt has failed.
     Exit codes: 0 done; 2 bad usage or bad input; 3 internal error.
     """
-    from lcpcli.core.errors import ProblemError
     from lcpcli.core.limits import check_dense_work
     from lcpcli.io import load
     from lcpcli.solvers.policy import info_report
 
     prob = load(file, problem)
     if not prob.sparse:  # the work budget (docs/files.md): the tests copy a dense M
-        try:
-            check_dense_work(prob.n, "the classification works on dense copies of M",
-                             cubic=False)
-        except ProblemError as exc:
-            raise exc.with_source(file) from None
+        check_dense_work(prob.n, "the classification works on dense copies of M", cubic=False,
+                         source=file)
     report = info_report(prob, file)
     if as_json:
         from lcpcli.cli.common import write_json_line

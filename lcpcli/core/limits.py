@@ -51,6 +51,12 @@ def announce(text: str) -> None:
     warnings.warn_explicit(text, CostNote, "lcpcli", 0, module="lcpcli")
 
 
+def power_of_two(n: int) -> str:
+    """``"2^20 = 1,048,576"``; from 2^64 on the exponent alone (2^30000 has 9,000 digits, more
+    than Python converts to text by default)."""
+    return f"2^{n} = {2 ** n:,}" if n < 64 else f"2^{n:,}"
+
+
 def dense_n_budget() -> int:
     """The largest n for dense work: ``$LCPCLI_MAX_DENSE_N`` if set, else DENSE_N_BUDGET."""
     raw = os.environ.get(DENSE_N_ENV)
@@ -73,12 +79,14 @@ def dense_cost(n: int, cubic: bool = True) -> str:
     return f"{memory}, about {float(n) ** 3:.1e} operations" if cubic else memory
 
 
-def check_dense_work(n: int, step: str, *, instead: str = "", cubic: bool = True) -> None:
+def check_dense_work(n: int, step: str, *, instead: str = "", cubic: bool = True,
+                     source: str | None = None) -> None:
     """ProblemError (exit 2) when ``step`` -- dense work on an n x n matrix -- is over the budget.
 
     ``step`` names the work (``"method 'lemke' pivots on the dense M"``); ``instead`` suggests
     another way (appended to the message); ``cubic``: the step does O(n^3) operations (else
-    only its memory is named).  Called before the step allocates anything.
+    only its memory is named); ``source`` (the file) prefixes the message.  Called before the
+    step allocates anything.
     """
     if n <= DENSE_N_FLOOR:
         return
@@ -87,4 +95,4 @@ def check_dense_work(n: int, step: str, *, instead: str = "", cubic: bool = True
         return
     hint = f", or {instead}" if instead else ""
     raise ProblemError(f"n = {n:,}: {step} ({dense_cost(n, cubic)}): over the dense-work budget "
-                       f"n <= {budget:,}; set {DENSE_N_ENV}={n} to run it anyway{hint}")
+                       f"n <= {budget:,}; set {DENSE_N_ENV}={n} to run it anyway{hint}", source)

@@ -218,11 +218,7 @@ def test_large_sparse_with_zero_diagonal_is_never_densified(tmp_path: Path,
                                                             command: str) -> None:
     """n = 200,000, three entries, zero diagonal (the issue's sparse30k/sparse5e7): a dense copy
     would need 298 GiB; under the 1 GiB limit the run finishes with a verdict, not exit 3."""
-    n = 200_000
-    indptr = np.r_[0, 1, 2, 3, np.full(n - 3, 3)]
-    np.savez_compressed(tmp_path / "s.npz", M_format=np.array("csr"), M_shape=np.array([n, n]),
-                        M_data=np.ones(3), M_indices=np.array([1, 2, 0]), M_indptr=indptr,
-                        q=np.ones(n))
+    _sparse_file(tmp_path / "s.npz", 200_000)
     case = Case("sparse", "memory", [command, "{d}/s.npz"], 0, None, sub=True, memory=True)
     out = run_subprocess(case, tmp_path)
     assert problems(case, out, tmp_path, {}) == []
@@ -246,3 +242,28 @@ def test_enumeration_cost_is_announced_once(tmp_path: Path, n: int) -> None:
                          f"allows it)"]
     else:
         assert notes == []
+
+
+def _sparse_file(path: Path, n: int) -> None:
+    """A sparse n x n M with three entries and a zero diagonal, q = 1."""
+    indptr = np.r_[0, 1, 2, 3, np.full(n - 3, 3)]
+    np.savez_compressed(path, M_format=np.array("csr"), M_shape=np.array([n, n]),
+                        M_data=np.ones(3), M_indices=np.array([1, 2, 0]), M_indptr=indptr,
+                        q=np.ones(n))
+
+
+def test_pivot_checks_the_dense_budget(tmp_path: Path) -> None:
+    _sparse_file(tmp_path / "s.npz", 150)
+    case = Case("pivot", "lenient", ["pivot", "{d}/s.npz", "-d", "z1"], BAD,
+                "{d}/s.npz: n = 150: pivot works on a dense tableau of M",
+                env={limits.DENSE_N_ENV: str(limits.DENSE_N_FLOOR)})
+    assert problems(case, run_in_process(case, tmp_path), tmp_path, {}) == []
+
+
+def test_enumeration_refusal_of_a_huge_n_is_one_line(tmp_path: Path) -> None:
+    """2^20000 has more digits than Python turns into text: the message gives the exponent."""
+    _sparse_file(tmp_path / "s.npz", 20_000)
+    case = Case("enum", "lenient", ["enumerate", "{d}/s.npz"], BAD,
+                "n = 20000 means 2^20,000 complementary cones, above the limit --max-n 24")
+    assert problems(case, run_in_process(case, tmp_path), tmp_path, {}) == []
+    assert limits.power_of_two(20) == "2^20 = 1,048,576"
