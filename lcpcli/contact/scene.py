@@ -578,15 +578,21 @@ def _h5_text_kind(d: Any) -> bool:
 
 
 def _h5_text(d: Any, label: str) -> list[str]:
-    """A 1-D string column (names) of at most MAX_ITEMS rows and, for fixed-length strings,
-    MAX_TEXT_BYTES declared in all (checked from the header before reading)."""
+    """A 1-D string column (names) of at most MAX_ITEMS rows and MAX_TEXT_BYTES declared in all
+    (fixed-length strings: rows x size; variable-length: rows x fill value), checked from the
+    header before reading."""
     from lcpcli.io.files import MAX_TEXT_BYTES, too_big
 
     count = _h5_count(d, label)
     if not _h5_text_kind(d):
         raise ProblemError(f"dataset '{label}' must hold strings, not {d.dtype}")
-    if d.dtype.kind in "SU" and count * d.dtype.itemsize > MAX_TEXT_BYTES:
-        raise too_big(count * d.dtype.itemsize, MAX_TEXT_BYTES, f"dataset '{label}'")
+    # fixed-length strings: the item size; variable-length ones may repeat a long fill value
+    # in every row never written (a 100 KB file can declare 100 GB that way)
+    fill = d.fillvalue if d.dtype.kind not in "SU" else None
+    per_row = d.dtype.itemsize if d.dtype.kind in "SU" else \
+        len(fill) if isinstance(fill, (bytes, str)) else 0
+    if count * per_row > MAX_TEXT_BYTES:
+        raise too_big(count * per_row, MAX_TEXT_BYTES, f"dataset '{label}'")
     raw = d[()] if count else np.zeros(0, dtype=object)
     return [x.decode("utf-8", errors="replace") if isinstance(x, bytes) else str(x)
             for x in np.ravel(raw)]

@@ -75,6 +75,8 @@ def _variants(d: Path) -> dict[str, Callable[..., None]]:
         "huge_name": replace("bodies", "name", shape=(12 * 10**8,), dtype="S10",
                              chunks=(2**16,)),
         "huge_contacts": replace("contacts", "a", shape=(10**9,), dtype="i8", chunks=(2**20,)),
+        "long_fill_names": replace("bodies", "name", shape=(10**4,), chunks=(1000,),
+                                   dtype=h5py.string_dtype(), fillvalue="x" * 10**5),
         "complex_mass": replace("bodies", "mass", data=np.array([np.nan, 1.0 + 1j])),
         "text_normal": replace("contacts", "normal", data=np.array([[b"0", b"0", b"1"]])),
         "float_static": replace("bodies", "static", data=np.array([1.0, 0.0])),
@@ -96,6 +98,7 @@ H5_WORDS = {
     "huge_static": "dataset 'bodies/static' has shape (4000000000,), expected (2,)",
     "huge_name": "dataset 'bodies/name' declares 1,200,000,000 rows",
     "huge_contacts": "dataset 'contacts/a' declares 1,000,000,000 rows",
+    "long_fill_names": "dataset 'bodies/name' of 954 MiB is over the limit of 256 MiB",
     "complex_mass": "'bodies/mass' holds complex numbers",
     "text_normal": "'contacts/normal' holds byte strings",
     "float_static": "'bodies/static' holds floating-point numbers",
@@ -105,7 +108,7 @@ H5_WORDS = {
     "scalar_dimension": "attribute 'dimension' must be one integer",
 }
 #: The cases the old reader spent gigabytes on: run under the 1 GiB address-space limit.
-SUBPROCESS = {"huge_static", "huge_name", "huge_contacts"}
+SUBPROCESS = {"huge_static", "huge_name", "huge_contacts", "long_fill_names"}
 
 JSON_SCENES = {
     "deep": ('{"bodies": ' + "[" * 100_000 + "]" * 100_000 + "}",
