@@ -62,6 +62,9 @@ H5_CACHE_BYTES = 16 * 2**20
 H5_CACHE_SLOTS = 10_007
 #: Most bytes of fixed-width names decoded at once.
 _NAME_BLOCK_BYTES = 8 * 2**20
+#: Largest size of a stack's ``names`` as declared by the HDF5 header: rows x fixed length, or
+#: x the fill value that the rows never written repeat (1 GiB: 16.7 million 64-byte names).
+MAX_NAMES_DECLARED = 2**30
 #: Default bytes of M in one chunk read by :meth:`StackReader.chunks` / :func:`chunk_size`.
 _CHUNK_BUDGET = 32 * 2**20
 
@@ -220,9 +223,12 @@ class _H5Source:
                 if sd is None:
                     raise ProblemError(f"'names' holds {kind_name(names.dtype.kind)}; "
                                        f"expected strings")
-                if sd.length is not None and sd.length > MAX_NAME_BYTES:
+                # variable length: rows never written hold the fill value, of any length
+                fill = names.fillvalue if sd.length is None else None
+                longest = sd.length or (len(fill) if isinstance(fill, (bytes, str)) else 0)
+                if longest > MAX_NAME_BYTES:
                     raise ProblemError(f"'names' are longer than {MAX_NAME_BYTES:,} bytes")
-                self.name_bytes = sd.length or 64
+                self.name_bytes = sd.length or max(longest, 64)
             self.d["names"] = names
 
             def shape(key: str) -> tuple[int, ...] | None:
@@ -232,6 +238,11 @@ class _H5Source:
             self.info = _layout(str(path), "hdf5", shape("M"), shape("q"),
                                 names_shape=shape("names"), lower=shape("lower"),
                                 upper=shape("upper"), n_eq=h5.attr_int(f, "n_eq"))
+            if names is not None and self.info.K * longest > MAX_NAMES_DECLARED:
+                from lcpcli.io.files import too_big
+
+                raise too_big(self.info.K * longest, MAX_NAMES_DECLARED,
+                              "the declared 'names' (rows x longest name or fill value)")
         except ProblemError:
             raise
         except h5.H5_ERRORS as exc:
@@ -318,6 +329,11 @@ class _NpzSource:
                     width = member.dtype.itemsize // (4 if member.dtype.kind == "U" else 1)
                     if width > MAX_NAME_BYTES:
                         raise ProblemError(f"'names' are longer than {MAX_NAME_BYTES:,} bytes")
+                    declared = member.size * member.dtype.itemsize
+                    if declared > MAX_NAMES_DECLARED:
+                        from lcpcli.io.files import too_big
+
+                        raise too_big(declared, MAX_NAMES_DECLARED, "the declared 'names'")
                 else:
                     member.check(f"'{key}'")
                 if member.fortran and len(member.shape) > 1:

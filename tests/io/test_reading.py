@@ -23,6 +23,7 @@ import pytest
 from lcpcli.core import limits
 from lcpcli.core.errors import OptionError, ProblemError
 from lcpcli.io.files import MAX_JSON_INT_DIGITS, parse_json
+from lcpcli.io.stack import open_stack
 from lcpcli.io.warmstart import read_warm_start
 from tests.cli.test_bad_inputs import (
     BAD,
@@ -267,3 +268,27 @@ def test_enumeration_refusal_of_a_huge_n_is_one_line(tmp_path: Path) -> None:
                 "n = 20000 means 2^20,000 complementary cones, above the limit --max-n 24")
     assert problems(case, run_in_process(case, tmp_path), tmp_path, {}) == []
     assert limits.power_of_two(20) == "2^20 = 1,048,576"
+
+
+def test_stack_names_declared_huge_are_refused_unread(tmp_path: Path) -> None:
+    """A 500 KB HDF5 stack whose never-written names repeat a 500 KB fill value (95 GB
+    declared), and an NPZ stack whose names member is a zip bomb (1.1 GB declared): refused
+    from the headers, under the 1 GiB limit (MemoryError, exit 3, before)."""
+    import h5py
+
+    K = 200_000
+    with h5py.File(tmp_path / "fill.h5", "w") as f:
+        f.create_dataset("M", shape=(K, 2, 2), dtype="f8", chunks=(10_000, 2, 2), fillvalue=1.0)
+        f.create_dataset("q", shape=(K, 2), dtype="f8", chunks=(10_000, 2), fillvalue=-1.0)
+        f.create_dataset("names", shape=(K,), dtype=h5py.string_dtype(), chunks=(10_000,),
+                         fillvalue="x" * 500_000)
+    K = 3_000_000
+    _zip_bomb(tmp_path / "bomb.npz", {
+        "M.npy": (_npy_header((K, 2, 2)), K * 32), "q.npy": (_npy_header((K, 2)), K * 16),
+        "names.npy": (_text_header((K,), 99), K * 99 * 4)})
+    for name, size in (("fill.h5", "95,367 MiB"), ("bomb.npz", "1,133 MiB")):
+        _refused(tmp_path, ["solve", f"{{d}}/{name}"],
+                 f"{{d}}/{name}: the declared 'names'", sub=True)
+        with pytest.raises(ProblemError, match=f"of {size} is over the limit of 1,024 MiB"), \
+                open_stack(tmp_path / name):
+            pass
