@@ -187,11 +187,13 @@ def parse_json(text: str | bytes, *, parse_constant: Any = None) -> Any:
     """``json.loads`` under the JSON bounds of this module (duplicate keys, integer length,
     nesting), every failure as one ProblemError line; ``parse_constant`` handles NaN/Infinity
     literals as ``json.loads`` does."""
-    old = getattr(sys, "get_int_max_str_digits", lambda: None)()
-    if old is not None and (old == 0 or old > MAX_JSON_INT_DIGITS):
-        sys.set_int_max_str_digits(MAX_JSON_INT_DIGITS)
-    else:
-        old = None
+    old = None  # a text shorter than the limit holds no longer integer: no toggle (1 us)
+    if len(text) > MAX_JSON_INT_DIGITS and hasattr(sys, "get_int_max_str_digits"):
+        old = sys.get_int_max_str_digits()
+        if old == 0 or old > MAX_JSON_INT_DIGITS:
+            sys.set_int_max_str_digits(MAX_JSON_INT_DIGITS)
+        else:
+            old = None
     try:
         return json.loads(text, parse_constant=parse_constant, object_pairs_hook=_unique_keys)
     except ProblemError:
