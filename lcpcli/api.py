@@ -42,15 +42,14 @@ def check_dense_ok(problem: Problem, spec: Method) -> None:
                           f"or set {DENSE_N_ENV}={n} to densify it anyway")
 
 
-def check_dense_work(problem: Problem, spec: Method) -> None:
-    """ProblemError when ``spec`` factorises or pivots on a dense M above the dense-work budget
-    of :mod:`lcpcli.core.limits` (``auto`` included: it factorises; sweeping methods, O(n^2)
-    per sweep, are not checked).  Costs one comparison below ``DENSE_N_FLOOR``."""
-    if problem.n > DENSE_N_FLOOR and (spec.planner or spec.cost in (Cost.PIVOTING,
-                                                                    Cost.FACTORING)):
-        limits.check_dense_work(problem.n, f"method '{spec.name}' factorises or pivots on the "
-                                           f"dense M", instead="use a sweeping method (-m pgs, "
-                                           "-m psor: O(n^2) per sweep)")
+def check_dense_work(n: int, spec: Method) -> None:
+    """ProblemError when ``spec`` factorises or pivots on a dense n x n M above the dense-work
+    budget of :mod:`lcpcli.core.limits` (``auto`` included: it factorises; sweeping methods,
+    O(n^2) per sweep, are not checked).  One comparison up to ``DENSE_N_FLOOR``."""
+    if n > DENSE_N_FLOOR and (spec.planner or spec.cost in (Cost.PIVOTING, Cost.FACTORING)):
+        limits.check_dense_work(n, f"method '{spec.name}' factorises or pivots on the dense M",
+                                instead="use a sweeping method (-m pgs, -m psor: O(n^2) per "
+                                        "sweep)")
 
 
 def solve(problem: Problem | Any, q: Any = None, method: str | None = None, *,
@@ -93,7 +92,7 @@ def solve(problem: Problem | Any, q: Any = None, method: str | None = None, *,
     if problem.sparse:
         check_dense_ok(problem, spec)
     else:
-        check_dense_work(problem, spec)
+        check_dense_work(problem.n, spec)
     opts = spec.parse_options(options)
     tol = validate_tol(spec.default_tol if tol is None else tol)
     spec.prepare_once()
@@ -186,6 +185,7 @@ def _check_stack(M: Any, q: Any, method: str | None, lower: Any, upper: Any, n_e
         raise OptionError(f"method '{spec.name}' does not handle {kind.upper()} problems "
                           f"(it handles: {', '.join(k.upper() for k in spec.kinds)})")
     spec.parse_options(options)  # unknown options and bad values: OptionError before any work
+    check_dense_work(n, spec)  # K problems of dense work each: the budget of one
     return M, q, lower, upper, n_eq, spec, kind
 
 

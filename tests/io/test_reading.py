@@ -14,7 +14,6 @@ import io
 import json
 import re
 import tracemalloc
-import types
 from pathlib import Path
 
 import numpy as np
@@ -175,18 +174,28 @@ def test_dense_budget_default_and_override(monkeypatch: pytest.MonkeyPatch) -> N
                                                  ("newton", True), ("pgs", False)])
 def test_api_checks_the_method_before_dense_work(method: str, refused: bool) -> None:
     """Pivoting, factoring and auto are checked; sweeping methods (O(n^2) a sweep) are not.
-    The check reads only n: a declared 15,000 x 15,000 problem costs nothing to test."""
+    The check takes only n: the issue's dense15k.h5 (n = 15,000) costs nothing to test."""
     from lcpcli.api import check_dense_work
     from lcpcli.solvers.registry import get_method
 
-    big = types.SimpleNamespace(n=15_000, sparse=False)
     if refused:
         with pytest.raises(ProblemError, match="over the dense-work budget"):
-            check_dense_work(big, get_method(method))
+            check_dense_work(15_000, get_method(method))
     else:
-        check_dense_work(big, get_method(method))
-    check_dense_work(types.SimpleNamespace(n=limits.DENSE_N_FLOOR, sparse=False),
-                     get_method(method))
+        check_dense_work(15_000, get_method(method))
+    check_dense_work(limits.DENSE_N_FLOOR, get_method(method))
+
+
+def test_solve_many_checks_the_budget_of_one_problem(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A stack of K dense problems: the budget applies to each (checked before any work)."""
+    import lcpcli
+
+    monkeypatch.setenv(limits.DENSE_N_ENV, str(limits.DENSE_N_FLOOR))
+    n = limits.DENSE_N_FLOOR + 1
+    M, q = np.tile(np.eye(n), (2, 1, 1)), -np.ones((2, n))
+    with pytest.raises(ProblemError, match=f"n = {n}: method 'lemke"):
+        lcpcli.solve_many(M, q, "lemke")
+    assert lcpcli.solve_many(M, q, "pgs").status.shape == (2,)
 
 
 @pytest.mark.parametrize(("command", "words"), [
