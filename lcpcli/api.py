@@ -52,6 +52,19 @@ def check_dense_work(n: int, spec: Method) -> None:
                                         "sweep)")
 
 
+def dense_check(method: str | None) -> Any:
+    """:func:`check_dense_work` for ``method`` as a one-argument hook for
+    :func:`lcpcli.io.load` (``check_dense=``: refused from the file's header, before a dense M
+    is read); None when the method is not limited or unknown (:func:`solve` says so)."""
+    try:
+        spec = get_method(DEFAULT_METHOD if method is None else method)
+    except OptionError:
+        return None
+    if not (spec.planner or spec.cost in (Cost.PIVOTING, Cost.FACTORING)):
+        return None
+    return lambda n: check_dense_work(n, spec)
+
+
 def solve(problem: Problem | Any, q: Any = None, method: str | None = None, *,
           tol: float | None = None, **options: Any) -> Result:
     """Solve ``problem`` with ``method`` and certify the answer.

@@ -25,10 +25,10 @@ def info(
     from lcpcli.io import load
     from lcpcli.solvers.policy import info_report
 
-    prob = load(file, problem)
-    if not prob.sparse:  # the work budget (docs/files.md): the tests copy a dense M
-        check_dense_work(prob.n, "the classification works on dense copies of M", cubic=False,
-                         source=file)
+    def budget(n: int) -> None:  # the work budget (docs/files.md): the tests copy a dense M
+        check_dense_work(n, "the classification works on dense copies of M", cubic=False)
+
+    prob = load(file, problem, check_dense=budget)  # from the header, before M is read
     report = info_report(prob, file)
     if as_json:
         from lcpcli.cli.common import write_json_line

@@ -126,7 +126,9 @@ def solve(
         check_export_options(fmt, output, [file], as_json)
     if output is not None:  # before any work: never the input, a device or a link
         check_output(output, inputs=[file, z0], stdout=False)
-    prob = load(file, problem)
+    from lcpcli.api import dense_check
+
+    prob = load(file, problem, check_dense=dense_check(method))  # the budget, from the header
     try:
         result = solve_problem(prob, method, tol=tol, **opts)
     except ProblemError as exc:  # a work budget (lcpcli.core.limits) refused it: name the file

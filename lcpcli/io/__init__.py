@@ -94,11 +94,14 @@ def _module(fmt: str) -> Any:
 
 
 def load(path: str | os.PathLike[str], problem: str | None = None, *,
-         fmt: str | None = None) -> Problem:
+         fmt: str | None = None, check_dense: Callable[[int], None] | None = None) -> Problem:
     """Read one problem from ``path`` (``-`` = JSON on stdin); ``problem`` picks an HDF5 group.
 
     Only regular files are read (see :mod:`lcpcli.io.files`); sizes, shapes and data types are
-    checked from headers before the data is read.
+    checked from headers before the data is read.  ``check_dense(n)`` (a caller's work budget,
+    :mod:`lcpcli.core.limits`) is called with the size of a dense M before it is read, from
+    the header in HDF5 and NPZ files (a lazily allocated 15,000 x 15,000 M costs nothing), after
+    parsing in the text formats; a sparse M is not checked.
     """
     source = str(path)
     try:
@@ -109,20 +112,12 @@ def load(path: str | os.PathLike[str], problem: str | None = None, *,
             from lcpcli.io import json_format
 
             text = decode_text(read_stdin_bytes(MAX_TEXT_BYTES), "UTF-8 JSON text")
-            return json_format.read_text(text, default_name="stdin")
-        if kind == "hdf5":  # the other readers open it with io.files.open_input, which checks
-            check_input_file(path)
-        p = path if isinstance(path, Path) else Path(path)
-        if problem is not None and kind == "npz":  # an NPZ holds one problem, or a stack
-            from lcpcli.io.stack import is_stack
-
-            if not is_stack(p):
-                raise ProblemError("--problem applies to HDF5 files and stacked files only")
-            return _read_stacked(p, problem)
-        try:
-            return _module(kind).read(p, problem) if kind == "hdf5" else _module(kind).read(p)
-        except StackedFile:  # the format reader found a stack: the stack reader takes over
-            return _read_stacked(p, problem)
+            prob = json_format.read_text(text, default_name="stdin")
+        else:
+            prob = _read_file(path, kind, problem, check_dense)
+        if check_dense is not None and not prob.sparse:
+            check_dense(prob.n)  # text formats and stacks: after reading (HDF5/NPZ: done)
+        return prob
     except ProblemError as exc:
         raise exc.with_source(source) from None
     except PermissionError:
@@ -131,6 +126,28 @@ def load(path: str | os.PathLike[str], problem: str | None = None, *,
         raise ProblemError("not enough memory to read the problem", source) from None
     except RecursionError:
         raise ProblemError("data nested too deeply", source) from None
+
+
+def _read_file(path: str | os.PathLike[str], kind: str, problem: str | None,
+               check_dense: Callable[[int], None] | None) -> Problem:
+    """:func:`load` of a file of format ``kind`` (a stack handed to :mod:`lcpcli.io.stack`)."""
+    if kind == "hdf5":  # the other readers open it with io.files.open_input, which checks
+        check_input_file(path)
+    p = path if isinstance(path, Path) else Path(path)
+    if problem is not None and kind == "npz":  # an NPZ holds one problem, or a stack
+        from lcpcli.io.stack import is_stack
+
+        if not is_stack(p):
+            raise ProblemError("--problem applies to HDF5 files and stacked files only")
+        return _read_stacked(p, problem)
+    try:
+        if kind == "hdf5":
+            return _module(kind).read(p, problem, check_dense)
+        if kind == "npz":
+            return _module(kind).read(p, check_dense)
+        return _module(kind).read(p)
+    except StackedFile:  # the format reader found a stack: the stack reader takes over
+        return _read_stacked(p, problem)
 
 
 def _read_stacked(path: Path, problem: str | None) -> Problem:

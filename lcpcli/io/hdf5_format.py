@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -35,6 +36,8 @@ from lcpcli.io.sparse import (
     sparse_parts,
 )
 
+#: A reader's hook for the caller's work budget: called with n of a dense M from its header.
+DenseCheck = Callable[[int], None] | None
 #: The errors h5py raises on damaged or unexpected content (turned into one-line messages).
 H5_ERRORS = (OSError, KeyError, RuntimeError, TypeError, ValueError, AttributeError)
 
@@ -136,20 +139,21 @@ def list_problems(path: Path) -> list[str]:
             raise damaged(exc) from None
 
 
-def read(path: Path, problem: str | None = None) -> Problem:
+def read(path: Path, problem: str | None = None, check_dense: DenseCheck = None) -> Problem:
     """One problem (``problem``: a group name); a stack raises
     :class:`~lcpcli.io.files.StackedFile` (``lcpcli.io.load`` reads it with
-    :mod:`lcpcli.io.stack`).  The file is opened once."""
+    :mod:`lcpcli.io.stack`).  The file is opened once.  ``check_dense(n)`` is called with the
+    size of a dense M from its header, before its data is read (a caller's work budget)."""
     with open_file(path) as f:
         try:
             if _is_problem(f) and is_stacked_root(f):
                 raise StackedFile()
             if _is_problem(f) and problem is None:
-                return _read_group(f, path.stem)
+                return _read_group(f, path.stem, check_dense)
             groups = _problem_groups(f)
             if problem is None:
                 if len(groups) == 1:
-                    return _read_group(f[groups[0]], groups[0])
+                    return _read_group(f[groups[0]], groups[0], check_dense)
                 if not groups:
                     raise ProblemError("no problem found (expected datasets M and q at the root "
                                        "or in groups)")
@@ -157,7 +161,7 @@ def read(path: Path, problem: str | None = None) -> Problem:
                                    f"pick one with --problem NAME")
             if problem not in groups:
                 raise ProblemError(f"no problem named '{problem}' (problems: {_names(groups)})")
-            return _read_group(f[problem], problem)
+            return _read_group(f[problem], problem, check_dense)
         except ProblemError:
             raise
         except H5_ERRORS as exc:
@@ -261,7 +265,7 @@ def attr_text(g: Any, key: str, limit: int) -> str:
     return value
 
 
-def _read_matrix(g: Any) -> Any:
+def _read_matrix(g: Any, check_dense: DenseCheck = None) -> Any:
     import h5py
 
     node = child(g, "M", "M")
@@ -274,6 +278,8 @@ def _read_matrix(g: Any) -> Any:
     if len(d.shape) != 2:
         raise ProblemError(f"M must be a 2-D matrix, got shape {tuple(d.shape)}")
     check_size(*d.shape)
+    if check_dense is not None:
+        check_dense(int(d.shape[0]))
     return read_float(d)
 
 
@@ -302,8 +308,8 @@ def _read_sparse(node: Any) -> Any:
     return sparse_from_parts(parts, "M")
 
 
-def _read_group(g: Any, default_name: str) -> Problem:
-    M = _read_matrix(g)
+def _read_group(g: Any, default_name: str, check_dense: DenseCheck = None) -> Problem:
+    M = _read_matrix(g, check_dense)
     n = M.shape[0]
     q = _vector(g, "q", n)
     lower = _vector(g, "lower", n)

@@ -301,3 +301,33 @@ def test_stack_names_declared_huge_are_refused_unread(tmp_path: Path) -> None:
         with pytest.raises(ProblemError, match=f"of {size} is over the limit of 1,024 MiB"), \
                 open_stack(tmp_path / name):
             pass
+
+
+@pytest.mark.parametrize("command", ["solve", "info"])
+@pytest.mark.parametrize("fmt", ["h5", "npz"])
+def test_dense15k_refused_from_the_header(tmp_path: Path, command: str, fmt: str) -> None:
+    """The issue's dense15k.h5: a 122 KB file whose 15,000 x 15,000 M is never written (HDF5
+    fill value; NPZ: a zip bomb of 1.7 GiB of zeros).  solve (auto) and info are refused by the
+    dense-work budget from the header, before M is read: no dense copy is allocated."""
+    import h5py
+
+    n = 15_000
+    path = tmp_path / f"dense15k.{fmt}"
+    if fmt == "h5":
+        with h5py.File(path, "w") as f:
+            f.create_dataset("M", shape=(n, n), dtype="f8", chunks=(1000, 1000), fillvalue=1.0)
+            f["q"] = -np.ones(n)
+    else:
+        _zip_bomb(path, {"M.npy": (_npy_header((n, n)), n * n * 8),
+                         "q.npy": (_npy_header((n,)), n * 8)})
+    case = Case("dense15k", "memory", [command, f"{{d}}/{path.name}"], BAD,
+                f"{{d}}/{path.name}: n = 15,000: ")
+    tracemalloc.start()
+    try:
+        out = run_in_process(case, tmp_path)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert problems(case, out, tmp_path, {}) == []
+    assert f"{limits.DENSE_N_ENV}=15000" in out.stderr
+    assert peak < 64 * 2**20  # one dense copy would be 1,716 MiB
