@@ -678,11 +678,10 @@ class Classifier:
         is indefinite; O(n) per zero entry.)"""
         idx = np.flatnonzero(zero)
         M = self.problem.M
-        if self.problem.sparse:
+        if self.problem.sparse:  # count in the sparse rows: never densified (O(nnz))
             M = M.tocsr()
-            rows = (M[idx] + M.T.tocsr()[idx]).toarray()
-        else:
-            rows = M[idx] + M[:, idx].T
+            return bool((M[idx] + M.T.tocsr()[idx]).count_nonzero())
+        rows = M[idx] + M[:, idx].T
         return bool(np.any(rows != 0))
 
     def _symmetry(self) -> None:

@@ -43,6 +43,7 @@ from lcpcli.analysis._enum import (
 from lcpcli.analysis.scaling import Scaling, equilibrate
 from lcpcli.core.certificate import DEFAULT_TOL, Certificate, certify, matrix_norm_inf
 from lcpcli.core.errors import OptionError, ProblemError
+from lcpcli.core.limits import ENUM_ANNOUNCE_N, announce, power_of_two
 from lcpcli.core.result import Status
 
 #: Default refusal threshold (2^24 = 16.7 million cones).
@@ -196,7 +197,7 @@ def check_problem(problem: Any, max_n: int = DEFAULT_MAX_N) -> np.ndarray:
         raise OptionError(f"max-n must be between 1 and {HARD_MAX_N}, got {max_n}")
     n = problem.n
     if n > max_n:
-        raise OptionError(f"n = {n} means 2^{n} = {2**n:,} complementary cones, above the "
+        raise OptionError(f"n = {n} means {power_of_two(n)} complementary cones, above the "
                           f"limit --max-n {max_n} (2^{max_n} = {2**max_n:,}); raise --max-n "
                           f"to run it anyway (each extra variable doubles the time), or use "
                           f"a pivoting method (lcpcli solve -m lemke)")
@@ -298,6 +299,9 @@ def enumerate_cones(problem: Any, *, stop_at_first: bool = False, all_cones: boo
     unsafe pivots sent to it); ``fast=False`` uses the direct kernel for every cone.
     """
     check_problem(problem, max_n)
+    if problem.n >= ENUM_ANNOUNCE_N:  # the work budget of lcpcli.core.limits: say the cost first
+        announce(f"enumerating up to {power_of_two(problem.n)} complementary cones "
+                 f"(each extra variable doubles the time; --max-n / -O max-n={max_n} allows it)")
     scaling = equilibrate(problem, symmetric=False)
     work = scaling.apply(problem) if scaling is not None else problem
     found = _enumerate(work, stop_at_first=stop_at_first, all_cones=all_cones, max_n=max_n,

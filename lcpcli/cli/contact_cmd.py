@@ -72,7 +72,7 @@ def contact_matrix(
     from lcpcli.contact.model import check_method
     from lcpcli.contact.scene import with_kinematic
     from lcpcli.contact.warmstart import check_impulses_path, warm_start, write_impulses
-    from lcpcli.core.errors import OptionError
+    from lcpcli.core.errors import OptionError, ProblemError
     from lcpcli.io import check_output
 
     if friction < 0:
@@ -92,8 +92,11 @@ def contact_matrix(
     scene = with_kinematic(scene, names)
     for w in scene.warnings:
         sys.stderr.write(f"lcpcli: warning: {scene_file}: {w}\n")
-    clcp = build(scene, friction=friction, storage=storage, restitution_threshold=threshold,
-                 softness=softness, planar=not no_planar)
+    try:
+        clcp = build(scene, friction=friction, storage=storage, restitution_threshold=threshold,
+                     softness=softness, planar=not no_planar)
+    except ProblemError as exc:  # a size or work budget refused the scene's LCP: name the file
+        raise exc.with_source(scene_file) from None
     for note in clcp.notes:
         sys.stderr.write(f"lcpcli: note: {note}\n")
     start = None

@@ -21,10 +21,14 @@ def info(
     once its first, optimistic attempt has failed.
     Exit codes: 0 done; 2 bad usage or bad input; 3 internal error.
     """
+    from lcpcli.core.limits import check_dense_work
     from lcpcli.io import load
     from lcpcli.solvers.policy import info_report
 
-    prob = load(file, problem)
+    def budget(n: int) -> None:  # the work budget (docs/files.md): the tests copy a dense M
+        check_dense_work(n, "the classification works on dense copies of M", cubic=False)
+
+    prob = load(file, problem, check_dense=budget)  # from the header, before M is read
     report = info_report(prob, file)
     if as_json:
         from lcpcli.cli.common import write_json_line

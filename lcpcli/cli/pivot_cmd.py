@@ -181,6 +181,7 @@ def load_augmented(path: str, covering: str | None = None,
 
     from lcpcli.analysis.pivoting import augment
     from lcpcli.core.errors import ProblemError
+    from lcpcli.core.limits import check_dense_work
     from lcpcli.io import detect_format, load
     from lcpcli.io.files import decode_text, parse_json, read_input_bytes
     from lcpcli.io.npz_format import read_augmented
@@ -221,6 +222,7 @@ def load_augmented(path: str, covering: str | None = None,
             raise ProblemError(f"--covering must be numbers, got {covering!r}") from None
         if d.size == 0:
             raise ProblemError("--covering is empty")
+    check_dense_work(prob.n, "pivot works on a dense tableau of M", cubic=False, source=path)
     Maug = augment(prob.dense_M(), d)
     return Maug, prob.q.copy(), "--covering" if covering is not None else "all ones (default)"
 

@@ -91,7 +91,7 @@ def solve(
 
     from lcpcli.api import solve as solve_problem
     from lcpcli.cli.common import MAX_ITER, exit_code_for, parse_key_values, write_json_line
-    from lcpcli.core.errors import OptionError
+    from lcpcli.core.errors import OptionError, ProblemError
     from lcpcli.io import check_output, load, write_atomic_text
 
     opts: dict[str, object] = parse_key_values(option)
@@ -130,8 +130,13 @@ def solve(
         check_export_options(fmt, output, [file], as_json)
     if output is not None:  # before any work: never the input, a device or a link
         check_output(output, inputs=[file, z0], stdout=False)
-    prob = load(file, problem)
-    result = solve_problem(prob, method, tol=tol, **opts)
+    from lcpcli.api import dense_check
+
+    prob = load(file, problem, check_dense=dense_check(method))  # the budget, from the header
+    try:
+        result = solve_problem(prob, method, tol=tol, **opts)
+    except ProblemError as exc:  # a work budget (lcpcli.core.limits) refused it: name the file
+        raise exc.with_source(file) from None
     payload = result.to_dict(file=file)
     from lcpcli.analysis.bounds import forward_error_bound
 

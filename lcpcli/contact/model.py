@@ -35,8 +35,9 @@ from lcpcli.contact.islands import (
     solve_problems,
 )
 from lcpcli.contact.planar import plane_normal
-from lcpcli.contact.scene import Scene, check_nonnegative, per_contact
+from lcpcli.contact.scene import Scene, check_coupling, check_nonnegative, per_contact
 from lcpcli.core.errors import OptionError, ProblemError
+from lcpcli.core.limits import check_dense_work
 from lcpcli.core.problem import Problem, is_sparse
 from lcpcli.core.result import CONVERGED, NO_SOLUTION, NUMERICAL, SOLVED, Outcome
 
@@ -123,6 +124,10 @@ def build(scene: Scene, friction: int = 0, storage: str = "auto", *,
             check_nonnegative(value, label)
         except ProblemError as exc:  # an option, not the scene file (exit 2 either way)
             raise OptionError(str(exc)) from None
+    check_coupling(scene, 1 + k)  # M's size from the contact counts, before assembling it
+    if storage == "dense":
+        check_dense_work(scene.n_contacts * (2 + k if k else 1), "--storage dense builds M as a "
+                         "dense matrix", instead="use --storage sparse", cubic=False)
     asm = assemble(scene, storage, restitution_threshold=restitution_threshold)
     nc = scene.n_contacts
     names = [f"n[{c}]" for c in scene.contact_names]

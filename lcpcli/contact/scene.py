@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 
 from lcpcli.core.errors import ProblemError
-from lcpcli.io.files import check_input_file, decode_text, parse_json, read_input_bytes
+from lcpcli.io.files import check_input_file, read_json_file
 
 BODY_KEYS = {"name", "mass", "inertia", "orientation", "position", "velocity",
              "angular_velocity", "static", "kinematic"}
@@ -143,12 +143,10 @@ def load_scene(path: str | Path) -> Scene:
     try:
         ext = p.suffix.lower()
         if ext == ".json":
-            # the io layer's rules: a regular file only (no FIFO, device, directory), bounded
-            text = decode_text(read_input_bytes(p, what="a scene file"))
-            data = parse_json(text, parse_constant=_reject_constant)
+            # the reading rules of every input (docs/files.md): a regular file, bounded JSON
+            data = read_json_file(p, "a scene file", parse_constant=_reject_constant)
             return scene_from_dict(data, default_name=p.stem)
         if ext in (".h5", ".hdf5", ".hdf"):
-            check_input_file(p, "a scene file")  # a regular file: a FIFO would hang h5py
             return read_scene_hdf5(p)
         raise ProblemError(f"unknown scene file type {ext or '(none)'} (expected .json, .h5)")
     except ProblemError as exc:
@@ -454,6 +452,28 @@ def per_contact(values: np.ndarray, scene_value: float | None, default: float) -
     return np.where(np.isnan(values), fallback, values)
 
 
+def check_coupling(scene: Scene, rows_per_contact: int = 1) -> None:
+    """Refuse, before any assembly, a scene whose contact LCP would be too large to store.
+
+    M couples every pair of contact rows that share a moving body, so
+    ``rows_per_contact^2 * sum over moving bodies of (contacts on it)^2`` bounds its stored
+    entries (a star of 200,000 contacts on one body: 4e10).  Above the sparse-matrix limit of
+    problem files (:data:`lcpcli.core.problem.MAX_SPARSE_NNZ`) it is a ProblemError; O(nc).
+    """
+    from lcpcli.core.problem import MAX_SPARSE_NNZ
+
+    nb = scene.n_bodies
+    deg = np.bincount(scene.contact_a, minlength=nb) + np.bincount(scene.contact_b, minlength=nb)
+    deg[scene.fixed] = 0
+    bound = int(np.sum(deg.astype(np.int64) ** 2)) * rows_per_contact ** 2
+    if bound > MAX_SPARSE_NNZ:
+        hub = int(np.argmax(deg))
+        raise ProblemError(f"the contact LCP would hold up to {bound:,} stored entries (limit "
+                           f"{MAX_SPARSE_NNZ:,}): body {scene.body_names[hub]!r} touches "
+                           f"{int(deg[hub]):,} contacts and M couples every pair of rows on a "
+                           f"moving body")
+
+
 def with_kinematic(scene: Scene, names: list[str]) -> Scene:
     """A copy of ``scene`` in which the bodies ``names`` are kinematic (prescribed velocity).
 
@@ -492,115 +512,192 @@ def with_kinematic(scene: Scene, names: list[str]) -> Scene:
 
 # ---------------------------------------------------------------------- HDF5
 def read_scene_hdf5(path: Path) -> Scene:
-    """HDF5 scene: groups ``bodies`` and ``contacts`` of column datasets (see docs/contact.md)."""
-    try:
-        import h5py
-    except ImportError:  # pragma: no cover
-        raise ProblemError("h5py is not installed") from None
-    try:
-        f = h5py.File(path, "r")
-    except OSError as exc:
-        raise ProblemError(f"not a readable HDF5 file ({str(exc).splitlines()[0][:80]})") from None
-    with f:
-        dim = _dimension(_attr(f.attrs.get("dimension", 3)))
-        r = 3 if dim == 3 else 1
-        if "bodies" not in f or "contacts" not in f:
-            raise ProblemError("an HDF5 scene needs groups 'bodies' and 'contacts'")
-        gb, gc = f["bodies"], f["contacts"]
+    """HDF5 scene: groups ``bodies`` and ``contacts`` of column datasets (see docs/contact.md).
 
-        def ds(g: Any, key: str, shape_tail: tuple[int, ...], n: int | None,
-               default: float | None = None, required: bool = True) -> np.ndarray:
-            if key not in g:
-                if required and default is None:
-                    raise ProblemError(f"dataset '{g.name.strip('/')}/{key}' is missing")
-                fill = np.nan if default is None else default
-                return np.full((n if n is not None else 0, *shape_tail), fill)
-            obj = g[key]
-            if not isinstance(obj, h5py.Dataset):
-                raise ProblemError(f"'{g.name.strip('/')}/{key}' is not a dataset")
-            if obj.size > MAX_ITEMS * 9:
-                raise ProblemError(f"dataset '{key}' is too large")
-            try:
-                arr = np.asarray(obj[()], dtype=np.float64)
-            except (TypeError, ValueError):
-                raise ProblemError(f"dataset '{g.name.strip('/')}/{key}' is not numeric") \
-                    from None
-            return arr
+    Read under the rules of the problem readers (:mod:`lcpcli.io.hdf5_format`, docs/files.md):
+    no external or user-defined link is followed, no dataset keeps its data in another file
+    (external storage, virtual datasets), numeric columns hold real numbers, and every
+    dataset's shape and type are checked from its header against the body and contact counts
+    before any data is read (a dataset declared huge costs nothing).
+    """
+    from lcpcli.io.hdf5_format import H5_ERRORS, damaged, open_file
 
-        if "name" in gb:
-            raw = gb["name"][()]
-            names = [x.decode() if isinstance(x, bytes) else str(x) for x in np.ravel(raw)]
-        else:
-            n_guess = int(np.asarray(gb["mass"]).shape[0]) if "mass" in gb else 0
-            names = [f"body{i + 1}" for i in range(n_guess)]
-        nb = len(names)
-        if nb == 0:
-            raise ProblemError("the scene has no bodies")
-        if len(set(names)) != nb:
-            raise ProblemError("two bodies have the same name")
-        static = np.zeros(nb, dtype=bool)
-        if "static" in gb:
-            static = np.asarray(gb["static"][()]).astype(bool).reshape(-1)
-        kinematic = np.zeros(nb, dtype=bool)
-        if "kinematic" in gb:
-            kinematic = np.asarray(gb["kinematic"][()]).astype(bool).reshape(-1)
-        mass = ds(gb, "mass", (), nb, default=np.nan, required=False)
-        inertia = ds(gb, "inertia", (), nb, default=np.nan, required=False)
-        inertia = _inertia_array(inertia, nb, dim)
-        quat = ds(gb, "orientation", (4,), nb, default=None, required=False) if dim == 3 \
-            else None
-        if quat is not None and np.isnan(quat).all() and "orientation" not in gb:
-            quat = None
-        pos = ds(gb, "position", (dim,), nb, default=0.0)
-        vel = ds(gb, "velocity", (dim,), nb, default=0.0)
-        omega = ds(gb, "angular_velocity", (r,), nb, default=0.0)
-        ca = _body_refs(gc, "a", names)
-        cb = _body_refs(gc, "b", names)
-        nc = ca.shape[0]
-        point = ds(gc, "point", (dim,), nc)
-        normal = ds(gc, "normal", (dim,), nc)
-        eps = ds(gc, "restitution", (), nc, default=0.0)
-        mu = ds(gc, "mu", (), nc, default=np.nan, required=False)
-        threshold = ds(gc, "restitution_threshold", (), nc, default=np.nan, required=False)
-        soft = ds(gc, "softness", (), nc, default=np.nan, required=False)
-        _shape(static, (nb,), "bodies/static")
-        _shape(kinematic, (nb,), "bodies/kinematic")
-        for arr, shp, label in ((mass, (nb,), "bodies/mass"), (pos, (nb, dim), "bodies/position"),
-                                (vel, (nb, dim), "bodies/velocity"),
-                                (omega.reshape(nb, -1) if omega.size == nb * r else omega,
-                                 (nb, r), "bodies/angular_velocity"),
-                                (point, (nc, dim), "contacts/point"),
-                                (normal, (nc, dim), "contacts/normal"),
-                                (eps, (nc,), "contacts/restitution"), (mu, (nc,), "contacts/mu"),
-                                (threshold, (nc,), "contacts/restitution_threshold"),
-                                (soft, (nc,), "contacts/softness")):
-            _shape(arr, shp, label)
-        if quat is not None:
-            _shape(quat, (nb, 4), "bodies/orientation")
-        dynamic = ~(static | kinematic)
-        bad = np.flatnonzero(dynamic & np.isnan(mass))
-        if bad.size:
-            raise ProblemError(f"body {names[bad[0]]!r}: 'mass' is required for a moving body")
-        bad = np.flatnonzero(dynamic & np.isnan(inertia).all(axis=(1, 2)))
-        if bad.size:
-            raise ProblemError(f"body {names[bad[0]]!r}: 'inertia' is required for a moving "
-                               f"body")
-        if quat is not None:
-            quat = np.where(np.isnan(quat), np.array([1.0, 0, 0, 0]), quat)
-        defaults = {}
-        for key in ("restitution_threshold", "softness"):
-            value = _attr(f.attrs.get(key)) if key in f.attrs else None
-            if value is not None and (isinstance(value, (bool, str))
-                                      or not isinstance(value, (int, float))):
-                raise ProblemError(f"root attribute '{key}' must be a number")
-            defaults[key] = None if value is None else float(value)
-        return build_scene(dim, names, static, mass, inertia, quat, pos, vel,
-                           omega.reshape(nb, r), ca, cb, point, normal, eps, mu,
-                           name=_attr(f.attrs.get("name", path.stem)),
-                           description=_attr(f.attrs.get("description", "")),
-                           kinematic=kinematic, restitution_threshold=threshold, softness=soft,
-                           threshold_default=defaults["restitution_threshold"],
-                           softness_default=defaults["softness"])
+    check_input_file(path, "a scene file")  # a regular file: a FIFO would hang h5py
+    with open_file(path) as f:
+        try:
+            return _scene_from_hdf5(f, path)
+        except ProblemError:
+            raise
+        except H5_ERRORS as exc:
+            raise damaged(exc) from None
+
+
+def _h5_group(f: Any, key: str) -> Any:
+    import h5py
+
+    from lcpcli.io.hdf5_format import child
+
+    node = child(f, key, key)
+    if node is None:
+        raise ProblemError("an HDF5 scene needs groups 'bodies' and 'contacts'")
+    if not isinstance(node, h5py.Group):
+        raise ProblemError(f"'{key}' must be a group of datasets")
+    return node
+
+
+def _h5_head(g: Any, key: str, kinds: str | None = "iuf") -> Any:
+    """The dataset ``key`` of group ``g`` (None if absent), checked without reading its data:
+    stored in this file, of an accepted type (``kinds``; None: the caller checks)."""
+    from lcpcli.io.hdf5_format import dataset
+
+    return dataset(g, key, f"{g.name.strip('/')}/{key}", kinds)
+
+
+def _h5_shape(d: Any, shapes: tuple[tuple[int, ...], ...]) -> None:
+    """ProblemError unless the declared shape of ``d`` is one of ``shapes`` (before reading)."""
+    if tuple(d.shape) not in shapes:
+        raise ProblemError(f"dataset '{d.name.strip('/')}' has shape {tuple(d.shape)}, "
+                           f"expected {shapes[0]}")
+
+
+def _h5_count(d: Any, label: str) -> int:
+    """The row count a 1-D dataset declares (bodies or contacts), within :data:`MAX_ITEMS`."""
+    if len(d.shape) != 1:
+        raise ProblemError(f"dataset '{label}' has shape {tuple(d.shape)}, expected one row "
+                           f"per item")
+    count = int(d.shape[0])
+    if count > MAX_ITEMS:
+        raise ProblemError(f"dataset '{label}' declares {count:,} rows (limit {MAX_ITEMS:,})")
+    return count
+
+
+def _h5_text_kind(d: Any) -> bool:
+    import h5py
+
+    return d.dtype.kind in "SU" or h5py.check_string_dtype(d.dtype) is not None
+
+
+def _h5_text(d: Any, label: str) -> list[str]:
+    """A 1-D string column (names) of at most MAX_ITEMS rows and MAX_TEXT_BYTES declared in all
+    (fixed-length strings: rows x size; variable-length: rows x fill value), checked from the
+    header before reading."""
+    from lcpcli.io.files import MAX_TEXT_BYTES, too_big
+
+    count = _h5_count(d, label)
+    if not _h5_text_kind(d):
+        raise ProblemError(f"dataset '{label}' must hold strings, not {d.dtype}")
+    # fixed-length strings: the item size; variable-length ones may repeat a long fill value
+    # in every row never written (a 100 KB file can declare 100 GB that way)
+    fill = d.fillvalue if d.dtype.kind not in "SU" else None
+    per_row = d.dtype.itemsize if d.dtype.kind in "SU" else \
+        len(fill) if isinstance(fill, (bytes, str)) else 0
+    if count * per_row > MAX_TEXT_BYTES:
+        raise too_big(count * per_row, MAX_TEXT_BYTES, f"dataset '{label}'")
+    raw = d[()] if count else np.zeros(0, dtype=object)
+    return [x.decode("utf-8", errors="replace") if isinstance(x, bytes) else str(x)
+            for x in np.ravel(raw)]
+
+
+def _h5_flags(g: Any, key: str, nb: int) -> np.ndarray:
+    """A per-body flag column (``static``, ``kinematic``): booleans, or integers 0/1."""
+    d = _h5_head(g, key, "biu")
+    if d is None:
+        return np.zeros(nb, dtype=bool)
+    _h5_shape(d, ((nb,),))
+    raw = np.asarray(d[()]).reshape(-1)
+    if raw.dtype.kind != "b" and np.any((raw != 0) & (raw != 1)):
+        raise ProblemError(f"dataset 'bodies/{key}' must hold booleans (or 0/1)")
+    return raw.astype(bool)
+
+
+def _h5_real(g: Any, key: str, shapes: tuple[tuple[int, ...], ...], fill: float | None,
+             missing_shape: tuple[int, ...]) -> np.ndarray:
+    """A real column: header checked (type, then shape among ``shapes``), then read as
+    float64; absent: ``fill`` of ``missing_shape`` (``fill`` None: the column is required)."""
+    from lcpcli.io.hdf5_format import read_float
+
+    d = _h5_head(g, key)
+    if d is None:
+        if fill is None:
+            raise ProblemError(f"dataset '{g.name.strip('/')}/{key}' is missing")
+        return np.full(missing_shape, fill)
+    _h5_shape(d, shapes)
+    return read_float(d)
+
+
+def _scene_from_hdf5(f: Any, path: Path) -> Scene:
+    from lcpcli.io.files import MAX_NAME_BYTES
+    from lcpcli.io.hdf5_format import attr_int, attr_text
+
+    dim = _dimension(attr_int(f, "dimension") if "dimension" in f.attrs else 3)
+    r = 3 if dim == 3 else 1
+    gb, gc = _h5_group(f, "bodies"), _h5_group(f, "contacts")
+    # the counts from the headers first: every other dataset is checked against them
+    name_d = _h5_head(gb, "name", None)
+    if name_d is not None:
+        names = _h5_text(name_d, "bodies/name")
+    else:
+        mass_d = _h5_head(gb, "mass")
+        n_guess = _h5_count(mass_d, "bodies/mass") if mass_d is not None else 0
+        names = [f"body{i + 1}" for i in range(n_guess)]
+    nb = len(names)
+    if nb == 0:
+        raise ProblemError("the scene has no bodies")
+    if len(set(names)) != nb:
+        raise ProblemError("two bodies have the same name")
+    a_d, b_d = (_h5_head(gc, key, None) for key in ("a", "b"))
+    for key, d in (("a", a_d), ("b", b_d)):
+        if d is None:
+            raise ProblemError(f"dataset 'contacts/{key}' is missing")
+    nc = _h5_count(a_d, "contacts/a")
+    _h5_shape(b_d, ((nc,),))
+    static = _h5_flags(gb, "static", nb)
+    kinematic = _h5_flags(gb, "kinematic", nb)
+    mass = _h5_real(gb, "mass", ((nb,),), np.nan, (nb,))
+    if dim == 2:
+        inertia = _h5_real(gb, "inertia", ((nb,), (nb, 1), (nb, 1, 1)), np.nan, (nb,))
+    else:
+        inertia = _h5_real(gb, "inertia", ((nb, 3), (nb, 3, 3)), np.nan, (nb,))
+    inertia = _inertia_array(inertia, nb, dim)
+    quat = None  # identity; 2-D scenes have no orientation
+    if dim == 3 and _h5_head(gb, "orientation") is not None:
+        quat = _h5_real(gb, "orientation", ((nb, 4),), None, (nb, 4))
+    pos = _h5_real(gb, "position", ((nb, dim),), 0.0, (nb, dim))
+    vel = _h5_real(gb, "velocity", ((nb, dim),), 0.0, (nb, dim))
+    omega = _h5_real(gb, "angular_velocity", ((nb, r), (nb,)) if r == 1 else ((nb, r),), 0.0,
+                     (nb, r))
+    ca = _body_refs(a_d, "a", names)
+    cb = _body_refs(b_d, "b", names)
+    point = _h5_real(gc, "point", ((nc, dim),), None, (nc, dim))
+    normal = _h5_real(gc, "normal", ((nc, dim),), None, (nc, dim))
+    eps = _h5_real(gc, "restitution", ((nc,),), 0.0, (nc,))
+    mu = _h5_real(gc, "mu", ((nc,),), np.nan, (nc,))
+    threshold = _h5_real(gc, "restitution_threshold", ((nc,),), np.nan, (nc,))
+    soft = _h5_real(gc, "softness", ((nc,),), np.nan, (nc,))
+    dynamic = ~(static | kinematic)
+    bad = np.flatnonzero(dynamic & np.isnan(mass))
+    if bad.size:
+        raise ProblemError(f"body {names[bad[0]]!r}: 'mass' is required for a moving body")
+    bad = np.flatnonzero(dynamic & np.isnan(inertia).all(axis=(1, 2)))
+    if bad.size:
+        raise ProblemError(f"body {names[bad[0]]!r}: 'inertia' is required for a moving "
+                           f"body")
+    if quat is not None:
+        quat = np.where(np.isnan(quat), np.array([1.0, 0, 0, 0]), quat)
+    defaults = {}
+    for key in ("restitution_threshold", "softness"):
+        value = _attr(f.attrs.get(key)) if key in f.attrs else None
+        if value is not None and (isinstance(value, (bool, str))
+                                  or not isinstance(value, (int, float))):
+            raise ProblemError(f"root attribute '{key}' must be a number")
+        defaults[key] = None if value is None else float(value)
+    return build_scene(dim, names, static, mass, inertia, quat, pos, vel,
+                       omega.reshape(nb, r), ca, cb, point, normal, eps, mu,
+                       name=attr_text(f, "name", MAX_NAME_BYTES) or path.stem,
+                       description=attr_text(f, "description", MAX_NAME_BYTES),
+                       kinematic=kinematic, restitution_threshold=threshold, softness=soft,
+                       threshold_default=defaults["restitution_threshold"],
+                       softness_default=defaults["softness"])
 
 
 def _attr(x: Any) -> Any:
@@ -609,11 +706,6 @@ def _attr(x: Any) -> Any:
     if isinstance(x, np.generic):
         return x.item()
     return x
-
-
-def _shape(arr: np.ndarray, shape: tuple[int, ...], label: str) -> None:
-    if tuple(arr.shape) != shape:
-        raise ProblemError(f"dataset '{label}' has shape {tuple(arr.shape)}, expected {shape}")
 
 
 def _inertia_array(arr: np.ndarray, nb: int, dim: int) -> np.ndarray:
@@ -634,27 +726,25 @@ def _inertia_array(arr: np.ndarray, nb: int, dim: int) -> np.ndarray:
                        f"or ({nb}, 3, 3)")
 
 
-def _body_refs(g: Any, key: str, names: list[str]) -> np.ndarray:
-    if key not in g:
-        raise ProblemError(f"dataset 'contacts/{key}' is missing")
-    raw = np.ravel(g[key][()])
-    if raw.size and raw.dtype.kind in "SUO":
+def _body_refs(d: Any, key: str, names: list[str]) -> np.ndarray:
+    """Contact ends from a checked dataset header: body names or 0-based body indices."""
+    if _h5_text_kind(d):
         index = {nm: i for i, nm in enumerate(names)}
-        out = np.empty(raw.size, dtype=np.int64)
-        for k, x in enumerate(raw):
-            s = x.decode() if isinstance(x, bytes) else str(x)
+        refs = _h5_text(d, f"contacts/{key}")
+        out = np.empty(len(refs), dtype=np.int64)
+        for k, s in enumerate(refs):
             if s not in index:
-                raise ProblemError(f"contact {k + 1}: unknown body {s!r}")
+                raise ProblemError(f"contact {k + 1}: unknown body {s[:80]!r}")
             out[k] = index[s]
         return out
-    if raw.size and raw.dtype.kind not in "iu":
+    if d.dtype.kind not in "iu":
         raise ProblemError(f"dataset 'contacts/{key}' must hold body names or 0-based indices")
-    out = raw.astype(np.int64)
-    bad = np.flatnonzero((out < 0) | (out >= len(names)))
+    raw = np.ravel(d[()])
+    bad = np.flatnonzero((raw < 0) | (raw >= len(names)))
     if bad.size:
-        raise ProblemError(f"contact {bad[0] + 1}: body index {out[bad[0]]} out of range "
+        raise ProblemError(f"contact {bad[0] + 1}: body index {raw[bad[0]]} out of range "
                            f"0..{len(names) - 1}")
-    return out
+    return raw.astype(np.int64)
 
 
 def write_scene_hdf5(scene: Scene, path: str | Path) -> None:
@@ -709,8 +799,11 @@ def _dimension(x: Any) -> int:
 
 def _scalar(x: Any, where: str, label: str) -> float:
     if isinstance(x, bool) or not isinstance(x, (int, float)):
-        raise ProblemError(f"{where}: '{label}' must be a number, got {x!r}")
-    v = float(x)
+        raise ProblemError(f"{where}: '{label}' must be a number, got {repr(x)[:40]}")
+    try:
+        v = float(x)
+    except OverflowError:  # an integer beyond float64 (the data rule: a real number)
+        raise ProblemError(f"{where}: '{label}' is an integer too large for a float") from None
     if not math.isfinite(v):
         raise ProblemError(f"{where}: '{label}' is NaN or Inf")
     return v

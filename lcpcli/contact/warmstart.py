@@ -8,74 +8,35 @@ and the names of its unknowns (``n[c]``, ``t<k>[c]``, ``lambda[c]``):
 * ``.npz``: arrays ``z`` and ``unknowns``.
 
 ``--z0 FILE`` accepts that file, the ``contact-matrix --json`` output (``impulses`` and
-``unknowns``), and whatever :func:`lcpcli.io.warmstart.load_z0` reads (``lcpcli solve --json``
-output, a JSON list, ``.npy``, ``.npz``).  When the file names its unknowns, values are matched
-**by name** (a contact that is new gets 0, one that is gone is dropped: the scene of the next
-step may differ); otherwise the vector must have the LCP's length.
+``unknowns``), and whatever else :func:`lcpcli.io.warmstart.read_warm_start` reads
+(``lcpcli solve --json`` output, a JSON list, ``.npy``, ``.npz``), under the reading rules of
+every input (docs/files.md: at most 256 MiB of JSON, like any JSON file).  When the file names
+its unknowns, values are matched **by name** (a contact that is new gets 0, one that is gone is
+dropped: the scene of the next step may differ); otherwise the vector must have the LCP's
+length.
 """
 
 from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
 from lcpcli.core.errors import ProblemError
 
 FORMAT = "lcpcli-contact-impulses"
-#: Largest impulses file read (bytes); a contact-matrix --json output holds M as well.
-MAX_BYTES = 2 * 2**30
 
 
 def read_named(path: str | Path) -> tuple[np.ndarray, list[str] | None]:
-    """Values and, when the file gives them, the names of the unknowns (ProblemError if bad)."""
-    from lcpcli.io.warmstart import load_z0
+    """Values and, when the file gives them, the names of the unknowns (ProblemError if bad).
 
-    p = Path(path)
-    src = f"--z0 {p}"
-    if not p.is_file():
-        raise ProblemError("no such file", src)
-    if p.stat().st_size > MAX_BYTES:
-        raise ProblemError(f"file larger than {MAX_BYTES // 2**30} GiB", src)
-    suffix = p.suffix.lower()
-    if suffix == ".npz":
-        try:
-            with np.load(p, allow_pickle=False) as data:
-                if "z" in data.files and "unknowns" in data.files:
-                    names = [str(x) for x in data["unknowns"]]
-                    return _vector(data["z"], src), _names(names, len(data["z"]), src)
-        except (ValueError, OSError) as exc:
-            raise ProblemError(f"cannot read a vector ({str(exc).splitlines()[0][:100]})",
-                               src) from None
-        return load_z0(p), None
-    if suffix == ".json":
-        try:
-            obj = json.loads(p.read_text(encoding="utf-8"))
-        except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-            raise ProblemError(f"not valid JSON ({type(exc).__name__})", src) from None
-        if isinstance(obj, dict) and "unknowns" in obj and ("impulses" in obj or "z" in obj):
-            values = obj["impulses"] if "impulses" in obj else obj["z"]
-            if not isinstance(values, list) or any(
-                    isinstance(x, bool) or not isinstance(x, (int, float)) for x in values):
-                raise ProblemError("'impulses' / 'z' must be a list of numbers", src)
-            return _vector(values, src), _names(obj["unknowns"], len(values), src)
-    return load_z0(p), None
+    One reader for every warm start (:func:`lcpcli.io.warmstart.read_warm_start`): the same
+    reading rules as problem files (docs/files.md, "Reading").
+    """
+    from lcpcli.io.warmstart import read_warm_start
 
-
-def _vector(values: Any, src: str) -> np.ndarray:
-    z = np.asarray(values, dtype=np.float64).ravel()
-    if not np.all(np.isfinite(z)):
-        raise ProblemError("contains NaN or Inf", src)
-    return z
-
-
-def _names(names: Any, n: int, src: str) -> list[str]:
-    if not isinstance(names, list) or len(names) != n or \
-            not all(isinstance(x, str) for x in names):
-        raise ProblemError(f"'unknowns' must be a list of {n} names", src)
-    return names
+    return read_warm_start(path)
 
 
 def warm_start(path: str | Path, unknowns: list[str]) -> tuple[np.ndarray, str]:

@@ -152,7 +152,9 @@ def matrix_norm_inf(M: Any) -> float:
             return 0.0
         peak = float(data.max())
         scale = _pow2_at_least(peak)
-        rows = np.add.reduceat(data / scale, M.indptr[:-1]) if M.nnz else np.zeros(1)
+        # trailing empty rows start at nnz, which reduceat refuses: clip (empty rows are zeroed)
+        starts = np.minimum(M.indptr[:-1], data.size - 1)
+        rows = np.add.reduceat(data / scale, starts)
         rows[np.diff(M.indptr) == 0] = 0.0
         return float(rows.max()) * scale
     if M.size == 0:

@@ -1,7 +1,98 @@
-"""Limits on what a user may ask for, defined once (numpy-free: the CLI checks them at start)."""
+"""Limits on what a user may ask for, defined once (numpy-free: the CLI checks them at start).
+
+Work budgets (stated for users in docs/files.md, "Work budgets"): a step whose cost grows as
+``n^2`` memory, ``n^3`` operations or ``2^n`` cones is checked from the sizes alone, before it
+starts, so that a small file that declares a large problem cannot run for hours:
+
+* **dense work** -- a dense copy of M (``n^2 * 8`` bytes: 0.75 GiB at n = 10,000), a dense
+  factorisation or dense pivoting (about ``n^3`` = 1e12 operations at n = 10,000) -- runs up
+  to n = :data:`DENSE_N_BUDGET`; above it the step is refused (one line, exit 2) unless
+  ``LCPCLI_MAX_DENSE_N`` (:data:`DENSE_N_ENV`) raises the budget;
+* **enumeration** of the ``2^n`` complementary cones is refused above ``--max-n`` (default
+  24, :mod:`lcpcli.analysis.enumeration`) and announced on stderr (one ``lcpcli: note:``
+  line, :func:`announce`) from n = :data:`ENUM_ANNOUNCE_N` (about a million cones) on.
+
+The checks cost a comparison of integers: the normal paths do no extra pass over any data.
+"""
 
 from __future__ import annotations
+
+import os
+import warnings
+
+from lcpcli.core.errors import OptionError, ProblemError
 
 #: The largest iteration or pivot limit accepted (the kernels count in 32-bit signed integers
 #: in places; a larger limit means "never stop" anyway).
 MAX_ITER = 2**31 - 1
+
+#: Largest n for dense work (a dense copy of M, dense factorisation or pivoting) by default.
+DENSE_N_BUDGET = 10_000
+#: The environment variable that overrides :data:`DENSE_N_BUDGET` (an integer >= DENSE_N_FLOOR).
+DENSE_N_ENV = "LCPCLI_MAX_DENSE_N"
+#: Dense work is never refused up to this n (the checks start above it: one comparison on the
+#: small-solve path, no look at the environment).
+DENSE_N_FLOOR = 100
+#: From this n on, an enumeration of the 2^n complementary cones is announced before it starts.
+ENUM_ANNOUNCE_N = 20
+
+
+class CostNote(UserWarning):
+    """An expensive step is starting (announced on stderr as ``lcpcli: note:``, not refused)."""
+
+    #: How the CLI labels it (:func:`lcpcli.core.text.show_warning`).
+    label = "note"
+
+
+def announce(text: str) -> None:
+    """Announce the cost of a step about to start (one line on stderr in the CLI; a
+    :class:`CostNote` warning for library callers, who may filter it).  Every call is shown
+    (no "once per location" registry: each expensive step is announced)."""
+    warnings.warn_explicit(text, CostNote, "lcpcli", 0, module="lcpcli")
+
+
+def power_of_two(n: int) -> str:
+    """``"2^20 = 1,048,576"``; from 2^64 on the exponent alone (2^30000 has 9,000 digits, more
+    than Python converts to text by default)."""
+    return f"2^{n} = {2 ** n:,}" if n < 64 else f"2^{n:,}"
+
+
+def dense_n_budget() -> int:
+    """The largest n for dense work: ``$LCPCLI_MAX_DENSE_N`` if set, else DENSE_N_BUDGET."""
+    raw = os.environ.get(DENSE_N_ENV)
+    if raw is None or not raw.strip():
+        return DENSE_N_BUDGET
+    try:
+        value = int(raw.strip().replace("_", ""))
+    except ValueError:
+        value = 0
+    if value < DENSE_N_FLOOR:
+        raise OptionError(f"{DENSE_N_ENV}={raw[:40]!r} must be an integer >= {DENSE_N_FLOOR} (the "
+                          f"largest n for dense work)")
+    return value
+
+
+def dense_cost(n: int, cubic: bool = True) -> str:
+    """What dense work on an n x n matrix costs, in words: the memory of one copy and, for a
+    factorisation or pivoting (``cubic``), about n^3 operations."""
+    memory = f"{n * n * 8 / 2**30:,.2f} GiB per copy of M"
+    return f"{memory}, about {float(n) ** 3:.1e} operations" if cubic else memory
+
+
+def check_dense_work(n: int, step: str, *, instead: str = "", cubic: bool = True,
+                     source: str | None = None) -> None:
+    """ProblemError (exit 2) when ``step`` -- dense work on an n x n matrix -- is over the budget.
+
+    ``step`` names the work (``"method 'lemke' pivots on the dense M"``); ``instead`` suggests
+    another way (appended to the message); ``cubic``: the step does O(n^3) operations (else
+    only its memory is named); ``source`` (the file) prefixes the message.  Called before the
+    step allocates anything.
+    """
+    if n <= DENSE_N_FLOOR:
+        return
+    budget = dense_n_budget()
+    if n <= budget:
+        return
+    hint = f", or {instead}" if instead else ""
+    raise ProblemError(f"n = {n:,}: {step} ({dense_cost(n, cubic)}): over the dense-work budget "
+                       f"n <= {budget:,}; set {DENSE_N_ENV}={n} to run it anyway{hint}", source)

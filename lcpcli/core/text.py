@@ -17,9 +17,10 @@ def plural(count: int, word: str, many: str | None = None) -> str:
 
 def show_warning(message: Warning | str, category: type[Warning], filename: str, lineno: int,
                  file: object = None, line: str | None = None) -> None:
-    """Warnings as one ``lcpcli: warning:`` line on stderr (no source path, no code line)."""
+    """Warnings as one ``lcpcli: warning:`` line on stderr (no source path, no code line); a
+    category with a ``label`` (:class:`lcpcli.core.limits.CostNote`: ``note``) names itself."""
     text = " ".join(str(message).split())
-    sys.stderr.write(f"lcpcli: warning: {text}\n")
+    sys.stderr.write(f"lcpcli: {getattr(category, 'label', 'warning')}: {text}\n")
 
 
 def one_line_warnings() -> None:

@@ -6,6 +6,10 @@ pickled NPZ, truncated HDF5, absurd sizes) raises :class:`~lcpcli.core.errors.Pr
 a one-line message that names the file.  Readers check types (:mod:`lcpcli.core.numeric`),
 shapes and sizes of every dataset from the file's headers before reading its data, and read
 only regular files, text up to :data:`~lcpcli.io.files.MAX_TEXT_BYTES` (:mod:`lcpcli.io.files`).
+Scenes (:mod:`lcpcli.contact.scene`) and warm starts (:mod:`lcpcli.io.warmstart`) are read with
+the same helpers under the same rules, stated once in docs/files.md ("Reading").  A stacked file
+is detected by the format readers (:class:`~lcpcli.io.files.StackedFile`) and read here with
+:mod:`lcpcli.io.stack`.
 ``save(problem, path)`` writes atomically: a temporary file in the same folder is renamed over
 the target only once it is complete, so a failed write leaves no partial file and never damages
 an existing one; :func:`~lcpcli.io.files.check_output` is what commands call first so that an
@@ -36,6 +40,7 @@ from lcpcli.core.errors import ProblemError
 from lcpcli.core.problem import Problem
 from lcpcli.io.files import (
     MAX_TEXT_BYTES,
+    StackedFile,
     atomic_path,
     check_input_file,
     check_output,
@@ -89,11 +94,14 @@ def _module(fmt: str) -> Any:
 
 
 def load(path: str | os.PathLike[str], problem: str | None = None, *,
-         fmt: str | None = None) -> Problem:
+         fmt: str | None = None, check_dense: Callable[[int], None] | None = None) -> Problem:
     """Read one problem from ``path`` (``-`` = JSON on stdin); ``problem`` picks an HDF5 group.
 
     Only regular files are read (see :mod:`lcpcli.io.files`); sizes, shapes and data types are
-    checked from headers before the data is read.
+    checked from headers before the data is read.  ``check_dense(n)`` (a caller's work budget,
+    :mod:`lcpcli.core.limits`) is called with the size of a dense M before it is read, from
+    the header in HDF5 and NPZ files (a lazily allocated 15,000 x 15,000 M costs nothing), after
+    parsing in the text formats; a sparse M is not checked.
     """
     source = str(path)
     try:
@@ -104,17 +112,12 @@ def load(path: str | os.PathLike[str], problem: str | None = None, *,
             from lcpcli.io import json_format
 
             text = decode_text(read_stdin_bytes(MAX_TEXT_BYTES), "UTF-8 JSON text")
-            return json_format.read_text(text, default_name="stdin")
-        if kind == "hdf5":  # the other readers open it with io.files.open_input, which checks
-            check_input_file(path)
-        p = path if isinstance(path, Path) else Path(path)
-        if problem is not None and kind == "npz":  # an NPZ holds one problem, or a stack
-            from lcpcli.io.stack import is_stack, read_single
-
-            if not is_stack(p):
-                raise ProblemError("--problem applies to HDF5 files and stacked files only")
-            return read_single(p, problem)
-        return _module(kind).read(p, problem) if kind == "hdf5" else _module(kind).read(p)
+            prob = json_format.read_text(text, default_name="stdin")
+        else:
+            prob = _read_file(path, kind, problem, check_dense)
+        if check_dense is not None and not prob.sparse:
+            check_dense(prob.n)  # text formats and stacks: after reading (HDF5/NPZ: done)
+        return prob
     except ProblemError as exc:
         raise exc.with_source(source) from None
     except PermissionError:
@@ -123,6 +126,36 @@ def load(path: str | os.PathLike[str], problem: str | None = None, *,
         raise ProblemError("not enough memory to read the problem", source) from None
     except RecursionError:
         raise ProblemError("data nested too deeply", source) from None
+
+
+def _read_file(path: str | os.PathLike[str], kind: str, problem: str | None,
+               check_dense: Callable[[int], None] | None) -> Problem:
+    """:func:`load` of a file of format ``kind`` (a stack handed to :mod:`lcpcli.io.stack`)."""
+    if kind == "hdf5":  # the other readers open it with io.files.open_input, which checks
+        check_input_file(path)
+    p = path if isinstance(path, Path) else Path(path)
+    if problem is not None and kind == "npz":  # an NPZ holds one problem, or a stack
+        from lcpcli.io.stack import is_stack
+
+        if not is_stack(p):
+            raise ProblemError("--problem applies to HDF5 files and stacked files only")
+        return _read_stacked(p, problem)
+    try:
+        if kind == "hdf5":
+            return _module(kind).read(p, problem, check_dense)
+        if kind == "npz":
+            return _module(kind).read(p, check_dense)
+        return _module(kind).read(p)
+    except StackedFile:  # the format reader found a stack: the stack reader takes over
+        return _read_stacked(p, problem)
+
+
+def _read_stacked(path: Path, problem: str | None) -> Problem:
+    """One problem of a stacked file (several without ``problem``: refused, see
+    :func:`lcpcli.io.stack.read_single`)."""
+    from lcpcli.io.stack import read_single
+
+    return read_single(path, problem)
 
 
 def list_problems(path: str | os.PathLike[str]) -> list[str]:
@@ -134,7 +167,12 @@ def list_problems(path: str | os.PathLike[str]) -> list[str]:
 
         try:
             check_input_file(path)
-            return hdf5_format.list_problems(Path(path))
+            try:
+                return hdf5_format.list_problems(Path(path))
+            except StackedFile:
+                from lcpcli.io.stack import list_names
+
+                return list_names(path)
         except ProblemError as exc:
             raise exc.with_source(str(path)) from None
     if kind == "npz":

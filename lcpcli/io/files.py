@@ -5,10 +5,15 @@ Inputs:
 * only regular files are read (a FIFO, a device such as ``/dev/zero``, a socket or a directory
   is refused before it is opened, and again by ``fstat`` after a non-blocking open, so a
   swapped-in FIFO cannot hang the reader); ``-`` (stdin) is the one stream accepted;
-* text formats (JSON, Siconos ``.dat``, warm starts) are read up to :data:`MAX_TEXT_BYTES`,
-  checked from the file size before reading;
-* JSON nesting never surfaces as a ``RecursionError``: :func:`parse_json` turns it into a
-  one-line error and :func:`check_depth` bounds free-form objects (``meta``).
+* text formats (JSON problems, scenes, warm starts and impulses; Siconos ``.dat``) are read
+  up to :data:`MAX_TEXT_BYTES`, checked from the file size before reading;
+* JSON is bounded (:func:`parse_json`, the one JSON parser of every reader): a key given twice
+  in one object is refused (never "the last one wins"), an integer literal is at most
+  :data:`MAX_JSON_INT_DIGITS` digits, nesting deeper than the parser's recursion limit is a
+  one-line error (never a ``RecursionError``) and :func:`check_depth` bounds free-form objects
+  (``meta``) to :data:`MAX_JSON_DEPTH` levels.
+
+The rules are stated once for users in docs/files.md ("Reading").
 
 Outputs (:func:`check_output`, called by the CLI before any work):
 
@@ -42,10 +47,25 @@ MAX_TEXT_BYTES = 256 * 2**20
 MAX_NAME_BYTES = 2**20
 #: Deepest nesting accepted in free-form JSON objects (``meta``).
 MAX_JSON_DEPTH = 64
+#: Longest integer literal accepted in JSON, in digits (Python's own guard on integer parsing,
+#: set to its smallest allowed value while a file is parsed).  Any integer of more than 309
+#: digits is beyond float64 anyway and refused by the data rule (:mod:`lcpcli.core.numeric`).
+MAX_JSON_INT_DIGITS = 640
 
 _KINDS = ((stat.S_ISDIR, "a directory"), (stat.S_ISFIFO, "a FIFO (named pipe)"),
           (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"),
           (stat.S_ISSOCK, "a socket"), (stat.S_ISLNK, "a symbolic link"))
+
+
+class StackedFile(ProblemError):
+    """A format reader's signal: the file holds a stack (``M`` of shape ``(K, n, n)`` at its
+    root), not the one problem it reads.  :func:`lcpcli.io.load` and
+    :func:`lcpcli.io.list_problems` catch it and read the file with :mod:`lcpcli.io.stack`, so
+    the format modules never import that module (it imports them: no import circle)."""
+
+    def __init__(self) -> None:
+        super().__init__("holds stacked problems (M of shape (K, n, n)); read it with "
+                         "lcpcli.io.load")
 
 
 def file_kind(mode: int) -> str:
@@ -150,18 +170,56 @@ def decode_text(data: bytes, what: str = "a UTF-8 text file") -> str:
         raise ProblemError(f"not {what}") from None
 
 
+def _unique_keys(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+    """``object_pairs_hook`` of :func:`parse_json`: a key given twice in one object is refused."""
+    obj = dict(pairs)
+    if len(obj) != len(pairs):
+        seen: set[str] = set()
+        for key, _value in pairs:
+            if key in seen:
+                raise ProblemError(f"invalid JSON: key {key[:40]!r} appears twice in one object "
+                                   f"(duplicate keys are refused, not overwritten)")
+            seen.add(key)
+    return obj
+
+
 def parse_json(text: str | bytes, *, parse_constant: Any = None) -> Any:
-    """``json.loads`` with every failure as one ProblemError line (deep nesting included);
-    ``parse_constant`` handles NaN/Infinity literals as ``json.loads`` does."""
+    """``json.loads`` under the JSON bounds of this module (duplicate keys, integer length,
+    nesting), every failure as one ProblemError line; ``parse_constant`` handles NaN/Infinity
+    literals as ``json.loads`` does."""
+    old = None  # a text shorter than the limit holds no longer integer: no toggle (1 us)
+    if len(text) > MAX_JSON_INT_DIGITS and hasattr(sys, "get_int_max_str_digits"):
+        old = sys.get_int_max_str_digits()
+        if old == 0 or old > MAX_JSON_INT_DIGITS:
+            sys.set_int_max_str_digits(MAX_JSON_INT_DIGITS)
+        else:
+            old = None
     try:
-        return json.loads(text, parse_constant=parse_constant)
+        return json.loads(text, parse_constant=parse_constant, object_pairs_hook=_unique_keys)
+    except ProblemError:
+        raise
     except json.JSONDecodeError as exc:
         raise ProblemError(f"invalid JSON: {exc.msg} at line {exc.lineno} column {exc.colno}") \
             from None
     except RecursionError:
         raise ProblemError("invalid JSON: arrays or objects nested too deeply") from None
-    except ValueError as exc:  # e.g. an integer literal of more than 4300 digits
+    except ValueError as exc:  # an integer literal beyond MAX_JSON_INT_DIGITS
+        if "integer string conversion" in str(exc):
+            raise ProblemError(f"invalid JSON: Exceeds the limit of {MAX_JSON_INT_DIGITS} "
+                               f"digits for an integer") from None
         raise ProblemError(f"invalid JSON: {str(exc).splitlines()[0][:100]}") from None
+    finally:
+        if old is not None:
+            sys.set_int_max_str_digits(old)
+
+
+def read_json_file(path: str | os.PathLike[str], what: str = "a JSON file", *,
+                   parse_constant: Any = None) -> Any:
+    """The decoded content of a JSON file under every reading rule: a regular file of at most
+    :data:`MAX_TEXT_BYTES` (checked before reading), UTF-8, and :func:`parse_json`'s bounds."""
+    data = read_input_bytes(path, MAX_TEXT_BYTES, what)
+    return parse_json(decode_text(data, "a UTF-8 text file (is it really JSON?)"),
+                      parse_constant=parse_constant)
 
 
 def check_depth(obj: Any, label: str, limit: int = MAX_JSON_DEPTH) -> None:

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -19,7 +20,14 @@ import numpy as np
 from lcpcli.core.errors import ProblemError
 from lcpcli.core.numeric import INDEX_KINDS, REAL_KINDS, check_dtype
 from lcpcli.core.problem import Problem, check_size
-from lcpcli.io.files import MAX_JSON_DEPTH, MAX_NAME_BYTES, MAX_TEXT_BYTES, check_depth, parse_json
+from lcpcli.io.files import (
+    MAX_JSON_DEPTH,
+    MAX_NAME_BYTES,
+    MAX_TEXT_BYTES,
+    StackedFile,
+    check_depth,
+    parse_json,
+)
 from lcpcli.io.sparse import (
     check_part_sizes,
     parse_format,
@@ -28,12 +36,21 @@ from lcpcli.io.sparse import (
     sparse_parts,
 )
 
+#: A reader's hook for the caller's work budget: called with n of a dense M from its header.
+DenseCheck = Callable[[int], None] | None
 #: The errors h5py raises on damaged or unexpected content (turned into one-line messages).
 H5_ERRORS = (OSError, KeyError, RuntimeError, TypeError, ValueError, AttributeError)
 
 
-def _open(path: Path, **kwargs: Any) -> Any:
-    """The file opened read-only (``kwargs`` go to ``h5py.File``, e.g. the chunk cache)."""
+def open_file(path: Path, **kwargs: Any) -> Any:
+    """The file opened read-only (``kwargs`` go to ``h5py.File``, e.g. the chunk cache).
+
+    The access helpers below are the HDF5 half of the reading layer, for problems and scenes
+    alike: :func:`child` follows hard and soft links only (an external or user-defined link is
+    refused, never opened), :func:`dataset` refuses data kept in other files (external storage,
+    virtual datasets) and checks the type from the header, :func:`read_float` reads a checked
+    dataset (whose shape the caller has checked) as float64.
+    """
     import h5py
 
     try:
@@ -43,7 +60,7 @@ def _open(path: Path, **kwargs: Any) -> Any:
         raise ProblemError(f"not a readable HDF5 file ({reason})") from None
 
 
-def _damaged(exc: BaseException) -> ProblemError:
+def damaged(exc: BaseException) -> ProblemError:
     first = str(exc).splitlines()[0][:100] if str(exc) else type(exc).__name__
     return ProblemError(f"damaged HDF5 data ({first})")
 
@@ -56,7 +73,7 @@ def _has(g: Any, name: str) -> bool:
         return False
 
 
-def _child(g: Any, name: str, label: str) -> Any:
+def child(g: Any, name: str, label: str) -> Any:
     """The object linked as ``name`` in ``g``; external links are refused, never opened."""
     import h5py
 
@@ -64,8 +81,8 @@ def _child(g: Any, name: str, label: str) -> Any:
     if link is None:
         return None
     if isinstance(link, h5py.ExternalLink):
-        raise ProblemError(f"'{label}' is an external link (to {link.filename}); a problem "
-                           f"must be stored in its own file")
+        raise ProblemError(f"'{label}' is an external link (to {link.filename}); the data "
+                           f"must be stored in the file itself")
     if not isinstance(link, (h5py.HardLink, h5py.SoftLink)):
         raise ProblemError(f"'{label}' is a user-defined link; refused")
     node = g.get(name)
@@ -91,8 +108,9 @@ def _problem_groups(f: Any) -> list[str]:
     return names
 
 
-def _is_stacked(f: Any) -> bool:
-    """Whether the root holds a stack (a dataset M of 3 dimensions; see :mod:`.stack`)."""
+def is_stacked_root(f: Any) -> bool:
+    """Whether the root holds a stack: a dataset M of 3 dimensions, linked in the file (the one
+    HDF5 test; :func:`lcpcli.io.stack.is_stack` uses it).  Reads headers only; never raises."""
     import h5py
 
     try:
@@ -105,41 +123,37 @@ def _is_stacked(f: Any) -> bool:
 
 
 def list_problems(path: Path) -> list[str]:
-    """The problems in the file: the root problem's name when M and q sit at the root, the
-    stacked problems' names for a stack (:func:`lcpcli.io.stack.list_names`), else the
-    group names."""
-    with _open(path) as f:
-        stacked = _is_problem(f) and _is_stacked(f)
-    if stacked:
-        from lcpcli.io.stack import list_names
-
-        return list_names(path)
-    with _open(path) as f:
+    """The problems in the file: the root problem's name when M and q sit at the root, else the
+    group names; a stack raises :class:`~lcpcli.io.files.StackedFile` (``lcpcli.io`` lists it
+    with :mod:`lcpcli.io.stack`)."""
+    with open_file(path) as f:
         try:
             if _is_problem(f):
-                return [_attr_text(f, "name", MAX_NAME_BYTES) or path.stem]
+                if is_stacked_root(f):
+                    raise StackedFile()
+                return [attr_text(f, "name", MAX_NAME_BYTES) or path.stem]
             return _problem_groups(f)
         except ProblemError:
             raise
         except H5_ERRORS as exc:
-            raise _damaged(exc) from None
+            raise damaged(exc) from None
 
 
-def read(path: Path, problem: str | None = None) -> Problem:
-    with _open(path) as f:
-        stacked = _is_problem(f) and _is_stacked(f)
-    if stacked:  # one stacked problem is read; several are refused (lcpcli.io.stack)
-        from lcpcli.io.stack import read_single
-
-        return read_single(path, problem)
-    with _open(path) as f:
+def read(path: Path, problem: str | None = None, check_dense: DenseCheck = None) -> Problem:
+    """One problem (``problem``: a group name); a stack raises
+    :class:`~lcpcli.io.files.StackedFile` (``lcpcli.io.load`` reads it with
+    :mod:`lcpcli.io.stack`).  The file is opened once.  ``check_dense(n)`` is called with the
+    size of a dense M from its header, before its data is read (a caller's work budget)."""
+    with open_file(path) as f:
         try:
+            if _is_problem(f) and is_stacked_root(f):
+                raise StackedFile()
             if _is_problem(f) and problem is None:
-                return _read_group(f, path.stem)
+                return _read_group(f, path.stem, check_dense)
             groups = _problem_groups(f)
             if problem is None:
                 if len(groups) == 1:
-                    return _read_group(f[groups[0]], groups[0])
+                    return _read_group(f[groups[0]], groups[0], check_dense)
                 if not groups:
                     raise ProblemError("no problem found (expected datasets M and q at the root "
                                        "or in groups)")
@@ -147,11 +161,11 @@ def read(path: Path, problem: str | None = None) -> Problem:
                                    f"pick one with --problem NAME")
             if problem not in groups:
                 raise ProblemError(f"no problem named '{problem}' (problems: {_names(groups)})")
-            return _read_group(f[problem], problem)
+            return _read_group(f[problem], problem, check_dense)
         except ProblemError:
             raise
         except H5_ERRORS as exc:
-            raise _damaged(exc) from None
+            raise damaged(exc) from None
 
 
 def _names(groups: list[str], limit: int = 20) -> str:
@@ -160,14 +174,14 @@ def _names(groups: list[str], limit: int = 20) -> str:
 
 
 # ------------------------------------------------------------------ checked access
-def _dataset(g: Any, name: str, label: str, kinds: str | None = REAL_KINDS) -> Any:
+def dataset(g: Any, name: str, label: str, kinds: str | None = REAL_KINDS) -> Any:
     """A dataset of ``g`` stored in this file, of an accepted type (nothing read yet).
 
     ``kinds=None`` skips the type check (the caller checks a non-numeric type itself).
     """
     import h5py
 
-    node = _child(g, name, label)
+    node = child(g, name, label)
     if node is None:
         return None
     if not isinstance(node, h5py.Dataset):
@@ -182,7 +196,7 @@ def _dataset(g: Any, name: str, label: str, kinds: str | None = REAL_KINDS) -> A
     return node
 
 
-def _read_float(d: Any) -> np.ndarray:
+def read_float(d: Any) -> np.ndarray:
     """A checked dataset's data as float64 (HDF5 converts integer types on the way)."""
     out = np.empty(d.shape, dtype=np.float64)
     if out.size:
@@ -190,7 +204,7 @@ def _read_float(d: Any) -> np.ndarray:
     return out
 
 
-def _read_index(d: Any) -> np.ndarray:
+def read_index(d: Any) -> np.ndarray:
     out = np.empty(d.shape, dtype=np.int64)
     if out.size:
         d.read_direct(out)
@@ -199,14 +213,14 @@ def _read_index(d: Any) -> np.ndarray:
 
 def _vector(g: Any, name: str, n: int) -> np.ndarray | None:
     """Dataset ``name`` as a vector of length ``n`` (shape checked before reading)."""
-    d = _dataset(g, name, name)
+    d = dataset(g, name, name)
     if d is None:
         return None
     shape = tuple(d.shape)
     if len(shape) > 2 or math.prod(shape) != n or (len(shape) == 2 and 1 not in shape
                                                    and n != 1):
         raise ProblemError(f"{name} has shape {shape} but M is {n} x {n}")
-    return _read_float(d).reshape(-1)
+    return read_float(d).reshape(-1)
 
 
 def _attr_id(g: Any, key: str) -> Any:
@@ -217,7 +231,7 @@ def _attr_id(g: Any, key: str) -> Any:
     return h5py.h5a.open(g.id, key.encode())
 
 
-def _attr_int(g: Any, key: str) -> int | None:
+def attr_int(g: Any, key: str) -> int | None:
     aid = _attr_id(g, key)
     if aid is None:
         return None
@@ -228,7 +242,7 @@ def _attr_int(g: Any, key: str) -> int | None:
     return int(np.asarray(g.attrs[key]).reshape(-1)[0])
 
 
-def _attr_text(g: Any, key: str, limit: int) -> str:
+def attr_text(g: Any, key: str, limit: int) -> str:
     """A string attribute (fixed or variable length), at most ``limit`` bytes; '' if absent."""
     import h5py
 
@@ -251,28 +265,29 @@ def _attr_text(g: Any, key: str, limit: int) -> str:
     return value
 
 
-def _read_matrix(g: Any) -> Any:
+def _read_matrix(g: Any, check_dense: DenseCheck = None) -> Any:
     import h5py
 
-    node = _child(g, "M", "M")
+    node = child(g, "M", "M")
     if isinstance(node, h5py.Group):
         return _read_sparse(node)
-    d = _dataset(g, "M", "M")
+    d = dataset(g, "M", "M")
     if len(d.shape) == 3:
-        from lcpcli.io.stack import stacked_message
-
-        raise ProblemError(stacked_message(d.shape[0]))
+        raise ProblemError(f"M has shape {tuple(d.shape)}: a stack of problems (M of shape "
+                           f"(K, n, n)) is stored at the root of its own file, not in a group")
     if len(d.shape) != 2:
         raise ProblemError(f"M must be a 2-D matrix, got shape {tuple(d.shape)}")
     check_size(*d.shape)
-    return _read_float(d)
+    if check_dense is not None:
+        check_dense(int(d.shape[0]))
+    return read_float(d)
 
 
 def _read_sparse(node: Any) -> Any:
     """A sparse M group: attributes, then every part's type and length, then the data."""
     if "format" not in node.attrs:
         raise ProblemError("sparse M: missing attribute 'format'")
-    fmt = parse_format(_attr_text(node, "format", 16))
+    fmt = parse_format(attr_text(node, "format", 16))
     aid = _attr_id(node, "shape")
     if aid is None:
         raise ProblemError("sparse M: missing attribute 'shape'")
@@ -281,7 +296,7 @@ def _read_sparse(node: Any) -> Any:
     shape = parse_shape(np.asarray(node.attrs["shape"]).reshape(-1))
     heads = {}
     for k in ("data", "indices", "indptr", "row", "col"):
-        d = _dataset(node, k, f"M/{k}", REAL_KINDS if k == "data" else INDEX_KINDS)
+        d = dataset(node, k, f"M/{k}", REAL_KINDS if k == "data" else INDEX_KINDS)
         if d is not None:
             if len(d.shape) != 1:
                 raise ProblemError(f"sparse M: '{k}' must be 1-D, got shape {tuple(d.shape)}")
@@ -289,27 +304,27 @@ def _read_sparse(node: Any) -> Any:
     check_part_sizes(fmt, shape, {k: int(d.shape[0]) for k, d in heads.items()})
     parts: dict[str, Any] = {"format": fmt, "shape": shape}
     for k, d in heads.items():
-        parts[k] = _read_float(d) if k == "data" else _read_index(d)
+        parts[k] = read_float(d) if k == "data" else read_index(d)
     return sparse_from_parts(parts, "M")
 
 
-def _read_group(g: Any, default_name: str) -> Problem:
-    M = _read_matrix(g)
+def _read_group(g: Any, default_name: str, check_dense: DenseCheck = None) -> Problem:
+    M = _read_matrix(g, check_dense)
     n = M.shape[0]
     q = _vector(g, "q", n)
     lower = _vector(g, "lower", n)
     upper = _vector(g, "upper", n)
     meta: dict[str, Any] = {}
-    text = _attr_text(g, "meta", MAX_TEXT_BYTES)
+    text = attr_text(g, "meta", MAX_TEXT_BYTES)
     if text:
         meta = parse_json(text)
         if not isinstance(meta, dict):
             raise ProblemError("attribute 'meta' must be a JSON object")
         check_depth(meta, "attribute 'meta'", MAX_JSON_DEPTH)
-    n_eq = _attr_int(g, "n_eq")
+    n_eq = attr_int(g, "n_eq")
     return Problem.create(M, q, n_eq=n_eq or 0, lower=lower, upper=upper,
-                          name=_attr_text(g, "name", MAX_NAME_BYTES) or default_name,
-                          description=_attr_text(g, "description", MAX_NAME_BYTES), meta=meta)
+                          name=attr_text(g, "name", MAX_NAME_BYTES) or default_name,
+                          description=attr_text(g, "description", MAX_NAME_BYTES), meta=meta)
 
 
 def write_group(g: Any, problem: Problem) -> None:
@@ -364,7 +379,7 @@ def read_many(path: Path, names: list[str]) -> Any:
     not raised, so one damaged group does not stop the others.
     """
     try:
-        f = _open(path)
+        f = open_file(path)
     except ProblemError as exc:
         for name in names:
             yield name, exc
@@ -377,7 +392,7 @@ def read_many(path: Path, names: list[str]) -> Any:
                 if fast is not None:
                     yield name, fast
                     continue
-                node = _child(f, name, name) if _has(f, name) else None
+                node = child(f, name, name) if _has(f, name) else None
                 if node is not None and _is_problem(node):
                     yield name, _read_group(node, name)
                 elif root:
@@ -387,7 +402,7 @@ def read_many(path: Path, names: list[str]) -> Any:
             except ProblemError as exc:
                 yield name, exc
             except H5_ERRORS as exc:
-                yield name, _damaged(exc)
+                yield name, damaged(exc)
 
 
 def _read_plain_group(f: Any, name: str) -> Problem | None:

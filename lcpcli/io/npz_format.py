@@ -13,6 +13,7 @@ from __future__ import annotations
 import json
 import math
 import zipfile
+from collections.abc import Callable
 from pathlib import Path
 from typing import IO, Any
 
@@ -25,6 +26,7 @@ from lcpcli.io.files import (
     MAX_JSON_DEPTH,
     MAX_NAME_BYTES,
     MAX_TEXT_BYTES,
+    StackedFile,
     check_depth,
     open_input,
     parse_json,
@@ -128,7 +130,10 @@ def _read_array(fh: IO[bytes]) -> np.ndarray:
         raise ProblemError(f"damaged array data ({str(exc).splitlines()[0][:80]})") from None
 
 
-def read(path: Path) -> Problem:
+def read(path: Path, check_dense: Callable[[int], None] | None = None) -> Problem:
+    """One problem; a stack raises :class:`~lcpcli.io.files.StackedFile` (``lcpcli.io.load``
+    reads it with :mod:`lcpcli.io.stack`).  ``check_dense(n)`` is called with the size of a
+    dense M from its header, before its data is read (a caller's work budget)."""
     with open_input(path) as fh:
         try:
             zf = zipfile.ZipFile(fh)
@@ -136,7 +141,7 @@ def read(path: Path) -> Problem:
             raise ProblemError(f"not a valid NPZ file ({type(exc).__name__}: {exc})") from None
         try:
             with zf:
-                return _read(zf, path)
+                return _read(zf, path, check_dense)
         except ZIP_ERRORS as exc:
             raise zip_error(exc) from None
 
@@ -170,7 +175,8 @@ def read_augmented(path: Path) -> tuple[np.ndarray, np.ndarray] | None:
             return None  # the regular reader gives the proper message
 
 
-def _read(zf: zipfile.ZipFile, path: Path) -> Problem:
+def _read(zf: zipfile.ZipFile, path: Path, check_dense: Callable[[int], None] | None = None
+          ) -> Problem:
     infos = zf.infolist()
     if len(infos) > MAX_MEMBERS:
         raise ProblemError(f"holds {len(infos):,} zip entries; a problem file has a few arrays")
@@ -184,13 +190,13 @@ def _read(zf: zipfile.ZipFile, path: Path) -> Problem:
     if "M" in entries:
         m = member("M")
         m.check("M")
-        if len(m.shape) == 3:  # a stack: its one problem, or refused (lcpcli.io.stack)
-            from lcpcli.io.stack import read_single
-
-            return read_single(path)
+        if len(m.shape) == 3:  # a stack: lcpcli.io.load reads it with lcpcli.io.stack
+            raise StackedFile()
         if len(m.shape) != 2:
             raise ProblemError(f"M must be a 2-D matrix, got shape {m.shape}")
         check_size(*m.shape)
+        if check_dense is not None:
+            check_dense(m.shape[0])
         M: Any = m.read()
         n = m.shape[0]
     elif "M_format" in entries:

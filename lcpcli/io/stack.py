@@ -62,6 +62,9 @@ H5_CACHE_BYTES = 16 * 2**20
 H5_CACHE_SLOTS = 10_007
 #: Most bytes of fixed-width names decoded at once.
 _NAME_BLOCK_BYTES = 8 * 2**20
+#: Largest size of a stack's ``names`` as declared by the HDF5 header: rows x fixed length, or
+#: x the fill value that the rows never written repeat (1 GiB: 16.7 million 64-byte names).
+MAX_NAMES_DECLARED = 2**30
 #: Default bytes of M in one chunk read by :meth:`StackReader.chunks` / :func:`chunk_size`.
 _CHUNK_BUDGET = 32 * 2**20
 
@@ -124,15 +127,10 @@ def is_stack(path: str | Path) -> bool:
         fmt = _stack_format(path)
         check_input_file(path)
         if fmt == "hdf5":
-            import h5py
+            from lcpcli.io.hdf5_format import is_stacked_root, open_file
 
-            with h5py.File(path, "r") as f:
-                link = f.get("M", getlink=True)
-                if not isinstance(link, (h5py.HardLink, h5py.SoftLink)):
-                    return False
-                node = f.get("M")
-                return isinstance(node, h5py.Dataset) and node.shape is not None \
-                    and len(node.shape) == 3
+            with open_file(Path(path)) as f:
+                return is_stacked_root(f)
         from lcpcli.io.npz_format import read_npy_header
 
         with open_input(path) as fh, zipfile.ZipFile(fh) as zf, zf.open("M.npy") as m:
@@ -198,7 +196,7 @@ class _H5Source:
     def __init__(self, path: Path) -> None:
         from lcpcli.io import hdf5_format as h5
 
-        self.f = h5._open(path, rdcc_nbytes=H5_CACHE_BYTES, rdcc_nslots=H5_CACHE_SLOTS,
+        self.f = h5.open_file(path, rdcc_nbytes=H5_CACHE_BYTES, rdcc_nslots=H5_CACHE_SLOTS,
                           rdcc_w0=1.0)
         try:
             self._scan(path)
@@ -215,19 +213,22 @@ class _H5Source:
         try:
             self.d: dict[str, Any] = {}
             for key in ("M", "q", "lower", "upper"):
-                self.d[key] = h5._dataset(f, key, key)
+                self.d[key] = h5.dataset(f, key, key)
             if self.d["M"] is None:
                 raise ProblemError("no dataset 'M' at the root (a stack holds M of shape "
                                    "(K, n, n) and q of (K, n))")
-            names = h5._dataset(f, "names", "names", kinds=None)
+            names = h5.dataset(f, "names", "names", kinds=None)
             if names is not None:
                 sd = h5py.check_string_dtype(names.dtype)
                 if sd is None:
                     raise ProblemError(f"'names' holds {kind_name(names.dtype.kind)}; "
                                        f"expected strings")
-                if sd.length is not None and sd.length > MAX_NAME_BYTES:
+                # variable length: rows never written hold the fill value, of any length
+                fill = names.fillvalue if sd.length is None else None
+                longest = sd.length or (len(fill) if isinstance(fill, (bytes, str)) else 0)
+                if longest > MAX_NAME_BYTES:
                     raise ProblemError(f"'names' are longer than {MAX_NAME_BYTES:,} bytes")
-                self.name_bytes = sd.length or 64
+                self.name_bytes = sd.length or max(longest, 64)
             self.d["names"] = names
 
             def shape(key: str) -> tuple[int, ...] | None:
@@ -236,11 +237,16 @@ class _H5Source:
 
             self.info = _layout(str(path), "hdf5", shape("M"), shape("q"),
                                 names_shape=shape("names"), lower=shape("lower"),
-                                upper=shape("upper"), n_eq=h5._attr_int(f, "n_eq"))
+                                upper=shape("upper"), n_eq=h5.attr_int(f, "n_eq"))
+            if names is not None and self.info.K * longest > MAX_NAMES_DECLARED:
+                from lcpcli.io.files import too_big
+
+                raise too_big(self.info.K * longest, MAX_NAMES_DECLARED,
+                              "the declared 'names' (rows x longest name or fill value)")
         except ProblemError:
             raise
         except h5.H5_ERRORS as exc:
-            raise h5._damaged(exc) from None
+            raise h5.damaged(exc) from None
 
     def rows(self, key: str, start: int, stop: int, out: np.ndarray) -> None:
         from lcpcli.io import hdf5_format as h5
@@ -249,7 +255,7 @@ class _H5Source:
             try:
                 self.d[key].read_direct(out, source_sel=np.s_[start:stop])
             except h5.H5_ERRORS as exc:
-                raise h5._damaged(exc) from None
+                raise h5.damaged(exc) from None
 
     def whole(self, key: str, out: np.ndarray) -> None:
         from lcpcli.io import hdf5_format as h5
@@ -258,7 +264,7 @@ class _H5Source:
             try:
                 self.d[key].read_direct(out)
             except h5.H5_ERRORS as exc:
-                raise h5._damaged(exc) from None
+                raise h5.damaged(exc) from None
 
     def names(self, start: int, stop: int) -> list[str]:
         from lcpcli.io import hdf5_format as h5
@@ -270,7 +276,7 @@ class _H5Source:
             for a in range(start, stop, step):
                 out.extend(_check_names([str(x) for x in view[a:min(stop, a + step)]]))
         except h5.H5_ERRORS as exc:
-            raise h5._damaged(exc) from None
+            raise h5.damaged(exc) from None
         return out
 
     def close(self) -> None:
@@ -323,6 +329,11 @@ class _NpzSource:
                     width = member.dtype.itemsize // (4 if member.dtype.kind == "U" else 1)
                     if width > MAX_NAME_BYTES:
                         raise ProblemError(f"'names' are longer than {MAX_NAME_BYTES:,} bytes")
+                    declared = member.size * member.dtype.itemsize
+                    if declared > MAX_NAMES_DECLARED:
+                        from lcpcli.io.files import too_big
+
+                        raise too_big(declared, MAX_NAMES_DECLARED, "the declared 'names'")
                 else:
                     member.check(f"'{key}'")
                 if member.fortran and len(member.shape) > 1:

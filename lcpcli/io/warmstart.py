@@ -1,11 +1,15 @@
-"""Warm-start vectors from files (``lcpcli solve --z0 FILE``).
+"""Warm-start vectors from files (``lcpcli solve --z0 FILE``, ``contact-matrix --z0 FILE``).
 
 Accepted: a JSON list of numbers; a JSON object with a ``"z"`` list (e.g. the output of
-``lcpcli solve --json``; ``null`` entries are refused); an ``.npz`` file with an array ``z`` (or a
-single array); an ``.npy`` array.  The same rules as for problem files apply (regular files only,
-sizes and data types checked from headers before reading, numbers under
-:mod:`lcpcli.core.numeric`).  Errors raise :class:`~lcpcli.core.errors.ProblemError` naming the
-file.
+``lcpcli solve --json``; ``null`` entries are refused), or with ``"unknowns"`` (names) and
+``"z"`` or ``"impulses"`` (what ``contact-matrix --impulses`` and ``--json`` write); an ``.npz``
+file with an array ``z`` (or a single array; with ``unknowns`` beside ``z``: the names); an
+``.npy`` array.  The reading rules of every input apply (docs/files.md, "Reading"): regular
+files only, JSON bounded by :func:`lcpcli.io.files.parse_json` (size, duplicate keys, integer
+length, nesting), the zip directory and ``.npy`` headers checked (types, shapes, declared
+sizes) before any data is decompressed, and the data rule of :mod:`lcpcli.core.numeric` (real
+numbers only: numeric text, booleans and complex numbers are refused).  Errors raise
+:class:`~lcpcli.core.errors.ProblemError` naming the file.
 """
 
 from __future__ import annotations
@@ -20,37 +24,41 @@ import numpy as np
 from lcpcli.core.errors import ProblemError
 from lcpcli.core.numeric import REAL_KINDS, check_dtype, real_array
 from lcpcli.core.problem import MAX_N
-from lcpcli.io.files import (
-    MAX_TEXT_BYTES,
-    check_input_file,
-    decode_text,
-    open_input,
-    parse_json,
-    read_input_bytes,
-)
+from lcpcli.io.files import MAX_TEXT_BYTES, check_input_file, open_input, read_json_file, too_big
+
+#: The type of a warm start read with the names of its unknowns (None: matched by position).
+Named = tuple[np.ndarray, list[str] | None]
 
 
 def load_z0(path: str | Path) -> np.ndarray:
     """Read a warm-start vector ``z0`` (see the module docstring); 1-D, finite floats."""
+    return read_warm_start(path)[0]
+
+
+def read_warm_start(path: str | Path, source: str | None = None) -> Named:
+    """A warm start's values and, when the file gives them, the names of its unknowns.
+
+    ``source`` prefixes errors (default ``--z0 PATH``).
+    """
     p = Path(path)
-    src = f"--z0 {p}"
+    src = source or f"--z0 {p}"
     try:
         check_input_file(p, "a vector file")
         suffix = p.suffix.lower()
         if suffix == ".npz":
-            arr = _from_npz(p)
+            values, names = _from_npz(p)
         elif suffix == ".npy":
-            arr = _from_npy(p)
+            values, names = _from_npy(p), None
         else:
-            arr = _from_json(p)
+            values, names = _from_json(p)
     except ProblemError as exc:
         raise exc.with_source(src) from None
-    except (ValueError, OSError, EOFError, zipfile.BadZipFile) as exc:
+    except (ValueError, OSError, EOFError, zipfile.BadZipFile, NotImplementedError) as exc:
         first = str(exc).splitlines()[0][:100] if str(exc) else type(exc).__name__
         raise ProblemError(f"cannot read a vector ({first})", src) from None
-    if not np.all(np.isfinite(arr)):
+    if not np.all(np.isfinite(values)):
         raise ProblemError("contains NaN or Inf", src)
-    return arr
+    return values, names
 
 
 def _vector_shape(shape: tuple[int, ...]) -> None:
@@ -62,18 +70,35 @@ def _vector_shape(shape: tuple[int, ...]) -> None:
                            f"(limit n = {MAX_N:,})")
 
 
-def _from_json(p: Path) -> np.ndarray:
-    obj = parse_json(decode_text(read_input_bytes(p, MAX_TEXT_BYTES, "a JSON vector file"),
-                                 "a UTF-8 text file"))
+def _names(names: Any, n: int) -> list[str]:
+    if not isinstance(names, list) or len(names) != n or \
+            not all(isinstance(x, str) for x in names):
+        raise ProblemError(f"'unknowns' must be a list of {n} names")
+    return names
+
+
+def _from_json(p: Path) -> Named:
+    obj = read_json_file(p, "a JSON vector file")
+    names = None
     if isinstance(obj, dict):
-        if "z" not in obj:
+        if "unknowns" in obj and ("impulses" in obj or "z" in obj):
+            key = "impulses" if "impulses" in obj else "z"
+        elif "z" in obj:
+            key = "z"
+        else:
             raise ProblemError("JSON object has no 'z' entry")
-        obj = obj["z"]
+        values = obj[key]
+        label = "z0" if key == "z" else "'impulses'"
+        if "unknowns" in obj:
+            if not isinstance(values, list):
+                raise ProblemError(f"{label} must be a list of numbers")
+            names = _names(obj["unknowns"], len(values))
+        obj = values
     if not isinstance(obj, list) or any(isinstance(x, list) for x in obj):
         raise ProblemError("expected a list of numbers")
     if any(x is None for x in obj):
         raise ProblemError("the list holds null entries (a result with NaN/Inf is no warm start)")
-    return real_array(obj, "z0")
+    return real_array(obj, "z0"), names
 
 
 def _from_npy(p: Path) -> np.ndarray:
@@ -90,11 +115,17 @@ def _from_npy(p: Path) -> np.ndarray:
     return np.asarray(arr, dtype=np.float64).reshape(-1)
 
 
-def _from_npz(p: Path) -> np.ndarray:
-    from lcpcli.io.npz_format import Member
+def _from_npz(p: Path) -> Named:
+    """``z`` (or the one array) and ``unknowns``, every member checked from the zip directory
+    and its ``.npy`` header (declared sizes included) before anything is decompressed."""
+    from lcpcli.io.npz_format import MAX_MEMBERS, Member
 
     with open_input(p, "a vector file") as fh, zipfile.ZipFile(fh) as zf:
-        entries = {i.filename[:-4]: i for i in zf.infolist() if i.filename.endswith(".npy")}
+        infos = zf.infolist()
+        if len(infos) > MAX_MEMBERS:
+            raise ProblemError(f"holds {len(infos):,} zip entries; a vector file has one or two "
+                               f"arrays")
+        entries = {i.filename[:-4]: i for i in infos if i.filename.endswith(".npy")}
         if "z" in entries:
             key = "z"
         elif len(entries) == 1:
@@ -102,7 +133,20 @@ def _from_npz(p: Path) -> np.ndarray:
         else:
             raise ProblemError(f"NPZ file has arrays {sorted(entries)[:10]}; expected one "
                                f"named 'z'")
-        member: Any = Member(zf, entries[key], key)
+        member = Member(zf, entries[key], key)
         member.check("z0")
         _vector_shape(member.shape)
-        return np.asarray(member.read(), dtype=np.float64).reshape(-1)
+        names_member = None
+        if key == "z" and "unknowns" in entries:
+            names_member = Member(zf, entries["unknowns"], "unknowns")
+            if names_member.dtype.kind not in "SU" or names_member.shape != (member.size,):
+                raise ProblemError(f"'unknowns' must be {member.size:,} names (strings), got "
+                                   f"{names_member.dtype} of shape {names_member.shape}")
+            declared = names_member.size * names_member.dtype.itemsize
+            if declared > MAX_TEXT_BYTES:
+                raise too_big(declared, MAX_TEXT_BYTES, "array 'unknowns'")
+        values = np.asarray(member.read(), dtype=np.float64).reshape(-1)
+        names = None if names_member is None else [
+            x.decode("utf-8", errors="replace") if isinstance(x, bytes) else str(x)
+            for x in names_member.read()]
+    return values, names

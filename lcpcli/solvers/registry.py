@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import enum
 import importlib
+import os
 import pkgutil
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -19,10 +20,12 @@ from typing import Any
 
 from lcpcli.analysis.classify import PROPERTIES
 from lcpcli.core.errors import OptionError
+from lcpcli.core.limits import DENSE_N_BUDGET, DENSE_N_ENV, dense_n_budget
 
 #: A method that densifies M is refused on a sparse problem with more entries than this
-#: (``n * n``; 1e8 entries are 0.8 GB as float64).
-MAX_DENSIFY_ENTRIES = 10_000 ** 2
+#: (``n * n``; 1e8 entries are 0.8 GB as float64): the dense-work budget of
+#: :mod:`lcpcli.core.limits`, which ``LCPCLI_MAX_DENSE_N`` overrides.
+MAX_DENSIFY_ENTRIES = DENSE_N_BUDGET ** 2
 #: Names of the methods whose ``prepare`` hook already ran in this process.
 _PREPARED: set[str] = set()
 #: Each method's option defaults (id -> (method, defaults)): parse_options is on the small-solve
@@ -191,8 +194,10 @@ class Method:
     def densifies(self, problem: Any) -> bool:
         """True when running this method on ``problem`` would densify a sparse M larger than
         :data:`MAX_DENSIFY_ENTRIES` (the caller refuses or skips it)."""
-        return bool(problem.sparse and not self.sparse
-                    and problem.n * problem.n > MAX_DENSIFY_ENTRIES)
+        if not problem.sparse or self.sparse:
+            return False
+        limit = dense_n_budget() ** 2 if DENSE_N_ENV in os.environ else MAX_DENSIFY_ENTRIES
+        return problem.n * problem.n > limit
 
     def parse_options(self, given: Mapping[str, Any]) -> dict[str, Any]:
         """Defaults merged with ``given``; unknown names or bad values raise OptionError."""
