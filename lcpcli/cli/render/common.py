@@ -5,6 +5,7 @@ Variable names are shown 1-based (``z1``, ``w1``) as in the seeds and textbooks.
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 from rich.console import Group
@@ -46,8 +47,10 @@ def render_result(result: Any, problem: Any, file: str | None = None,
     head.add_row("error", f"{cert.error:.3e}  componentwise (tol {cert.tol:.1e}): backward error "
                           f"{cert.backward_error:.2e} x growth {cert.growth:.3g}")
     if forward is not None:
+        relative = (f"relative {forward.relative:.2e}" if math.isfinite(forward.relative)
+                    else "relative: n/a (z = 0)")
         head.add_row("forward error", f"||z - z*||_inf <= {forward.bound:.2e} "
-                                      f"(relative {forward.relative:.2e}; {forward.how})")
+                                      f"({relative}; {forward.how})")
     if problem.kind != "lcp":
         head.add_row("bounds / equalities",
                      f"bound violation {cert.bound_violation:.2e}, "
