@@ -123,13 +123,15 @@ def build(scene: Scene, friction: int = 0, storage: str = "auto", *,
             check_nonnegative(value, label)
         except ProblemError as exc:  # an option, not the scene file (exit 2 either way)
             raise OptionError(str(exc)) from None
-    asm = assemble(scene, storage, restitution_threshold=restitution_threshold)
+    with np.errstate(over="ignore", invalid="ignore"):  # checked below: _check_representable
+        asm = assemble(scene, storage, restitution_threshold=restitution_threshold)
     nc = scene.n_contacts
     names = [f"n[{c}]" for c in scene.contact_names]
     plane = plane_normal(scene) if planar and scene.dimension == 3 else None
     notes = []
     if k:
-        fb = friction_blocks(asm, k, plane)
+        with np.errstate(over="ignore", invalid="ignore"):
+            fb = friction_blocks(asm, k, plane)
         fc, dirs, kk = fb["fc"], fb["dirs"], fb["K"]
         G = fb["matrix"]
         q = fb["q"]
@@ -156,7 +158,9 @@ def build(scene: Scene, friction: int = 0, storage: str = "auto", *,
     else:
         M = G
     if np.any(reg > 0):
-        M = (M + sp.diags(reg)).tocsr() if is_sparse(M) else M + np.diag(reg)
+        with np.errstate(over="ignore", invalid="ignore"):
+            M = (M + sp.diags(reg)).tocsr() if is_sparse(M) else M + np.diag(reg)
+    _check_representable(M, q, scene)
     if scene.dimension == 2 and int(friction) not in (0, 2):
         notes.append(f"--friction {friction} in a 2-D scene: the tangent line has two "
                      f"directions (+t, -t), so K = 2 is used")
@@ -184,6 +188,19 @@ def build(scene: Scene, friction: int = 0, storage: str = "auto", *,
                       unknown_contact=unknown_contact, islands=isl, layout=lay, softness=soft,
                       regularisation=reg, plane=plane, requested_friction=int(friction),
                       storage=storage, notes=notes)
+
+
+def _check_representable(M: Any, q: np.ndarray, scene: Scene) -> None:
+    """ProblemError (exit 2, one line) when the contact LCP overflows double precision: a valid
+    scene whose masses, inertias, lever arms or velocities span too wide a range for
+    ``M = J W J^T`` and ``q`` to be finite."""
+    data = M.data if is_sparse(M) else M
+    if np.all(np.isfinite(data)) and np.all(np.isfinite(q)):
+        return
+    what = "M = J W J^T" if not np.all(np.isfinite(data)) else "q (relative normal velocities)"
+    raise ProblemError(f"the contact LCP of scene {scene.name or 'contact'!r} cannot be "
+                       f"represented in double precision: {what} overflows (masses, inertias, "
+                       f"lever arms or velocities out of range)")
 
 
 def _count(n: int, word: str) -> str:
