@@ -65,15 +65,19 @@ def var_name(var: Var, n: int) -> str:
 def parse_var(name: str, n: int) -> Var:
     """Parse ``w1..wn``, ``z1..zn``, ``z0`` (the artificial variable) or its alias ``z{n+1}``."""
     m = _NAME.match(str(name))
+    shown = str(name) if len(str(name)) <= 40 else f"{str(name)[:20]}...({len(str(name))} chars)"
     if not m:
-        raise ProblemError(f"unknown variable name {name!r} (expected w1..w{n}, z1..z{n} or "
+        raise ProblemError(f"unknown variable name {shown!r} (expected w1..w{n}, z1..z{n} or "
                            f"{ARTIFICIAL}, alias z{n + 1})")
-    kind, idx = m.group(1).lower(), int(m.group(2))
+    digits = m.group(2).lstrip("0") or "0"
+    # an index longer than n + 1 has digits is out of range (int() of 5,000 digits would raise)
+    idx = int(digits) if len(digits) <= len(str(n + 1)) else n + 2
+    kind = m.group(1).lower()
     if kind == "z" and idx == 0:
         return ("z", n)
     top = n if kind == "w" else n + 1
     if not 1 <= idx <= top:
-        raise ProblemError(f"variable {name!r} out of range (w1..w{n}, z1..z{n}, {ARTIFICIAL} "
+        raise ProblemError(f"variable {shown!r} out of range (w1..w{n}, z1..z{n}, {ARTIFICIAL} "
                            f"alias z{n + 1})")
     return (kind, idx - 1)
 
