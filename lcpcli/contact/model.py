@@ -127,7 +127,8 @@ def build(scene: Scene, friction: int = 0, storage: str = "auto", *,
         asm = assemble(scene, storage, restitution_threshold=restitution_threshold)
     nc = scene.n_contacts
     names = [f"n[{c}]" for c in scene.contact_names]
-    plane = plane_normal(scene) if planar and scene.dimension == 3 else None
+    with np.errstate(over="ignore", invalid="ignore"):  # an overflow: refused below
+        plane = plane_normal(scene) if planar and scene.dimension == 3 else None
     notes = []
     if k:
         with np.errstate(over="ignore", invalid="ignore"):
@@ -151,7 +152,8 @@ def build(scene: Scene, friction: int = 0, storage: str = "auto", *,
     n = q.shape[0]
     reg = np.zeros(n)
     n_imp = nc + fc.size * kk
-    reg[:n_imp] = soft[unknown_contact[:n_imp]] * diag[:n_imp]
+    with np.errstate(invalid="ignore"):  # 0 x an overflowed diagonal: refused below
+        reg[:n_imp] = soft[unknown_contact[:n_imp]] * diag[:n_imp]
     if k:
         kind = choose_storage(storage, n, int(G.nnz))
         M = G.toarray() if kind == "dense" else G
