@@ -24,9 +24,15 @@ SETTINGS = settings(max_examples=40, deadline=None,
                     suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
 
 
-def solve_checked(case: Case, method: str) -> str | None:
-    """Solve with ``method``; assert the invariants; return a known verdict bug, if any."""
-    res = lcpcli.solve(case.M, case.q, method=method, **case.kwargs())
+def solve_checked(case: Case, method: str, sparse: bool = False) -> str | None:
+    """Solve with ``method`` (``sparse``: M as scipy CSR); assert the invariants; return a
+    known verdict bug, if any."""
+    M = case.M
+    if sparse:
+        import scipy.sparse as sp
+
+        M = sp.csr_matrix(M)
+    res = lcpcli.solve(M, case.q, method=method, **case.kwargs())
     assert res.z.shape == (case.n,) and res.w.shape == (case.n,)
     if res.status == Status.SOLVED:
         check_solved(case, res.z, res.certificate.tol)
@@ -34,10 +40,10 @@ def solve_checked(case: Case, method: str) -> str | None:
 
 
 @SETTINGS
-@given(case=cases(max_n=8))
-def test_every_method_answers_every_valid_problem(case: Case) -> None:
+@given(case=cases(max_n=8), sparse=st.booleans())
+def test_every_method_answers_every_valid_problem(case: Case, sparse: bool) -> None:
     bugs = [bug for method in METHODS[case.kind]
-            if (bug := solve_checked(case, method)) is not None]
+            if (bug := solve_checked(case, method, sparse)) is not None]
     if bugs:
         pytest.xfail("; ".join(bugs))
 
