@@ -51,7 +51,8 @@ global scaling of the data, because every quantity above is a ratio within a row
 ``|M_ij z_j|``.  It cannot be passed by making ``z`` large: a large ``z`` raises ``s_i`` only with
 the growth of its block.  Overflow cannot crash it: data whose products leave ``[2^-960, 2^960]``
 are rescaled exactly by powers of two before the check (which does not change the result), and
-any Inf or NaN in ``z`` or ``w`` means not solved.
+so is a row whose every term ``M_ij z_j`` underflows to zero (its ``w_i`` and ``s_i`` would read
+0); any Inf or NaN in ``z`` or ``w`` means not solved.
 
 The certificate also reports, in the units of the data: ``residual`` ``= ||mid(z - l, z - u,
 w)||_inf`` (``||min(z, w)||_inf`` for the LCP), ``bound_violation``, ``w_violation``,
