@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import json
 import math
+import warnings
 from dataclasses import dataclass, field
 from fractions import Fraction
 from typing import Any
@@ -318,7 +319,9 @@ def known_verdict_bug(case: Case, status: str, message: str, method: str) -> str
     """The reason, naming the bug of issue 22 (the verdict half, not this test's area), when a
     verdict is wrong in a way that is already reported; None otherwise."""
     if status == "no_solution" and case.solvable:
-        return (f"issue 22 problem 2 (verdict helper): false no_solution by {method} on a "
+        which = ("problem 3: enumeration on extreme data" if method == "enum" else
+                 "problem 2: a secondary ray or a normwise Farkas test taken as a proof")
+        return (f"issue 22 {which} (verdict helper): false no_solution by {method} on a "
                 f"solvable {case.cls} {case.kind} problem: {message[:160]}")
     return None
 
@@ -345,3 +348,16 @@ def check_verdict(case: Case, status: str, message: str, method: str,
                     f"({method}: {message[:120]})")
         raise AssertionError(f"no_solution whose Farkas vector fails the check: {message}")
     return None
+
+
+class KnownVerdictBug(UserWarning):
+    """A wrong verdict of a kind already reported (issue 22, the verdict half), met by a
+    property test: shown in the warnings summary, not failed here; each kind has its own
+    deterministic xfail test (tests/test_invariants_api.py) that will XPASS once fixed, and
+    then :func:`known_verdict_bug` and the Farkas exception of :func:`check_verdict` go."""
+
+
+def report_known_bugs(bugs: list[str]) -> None:
+    """Warn (never silently pass) about the known verdict bugs an example met."""
+    for bug in bugs:
+        warnings.warn(bug, KnownVerdictBug, stacklevel=2)
