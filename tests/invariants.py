@@ -96,11 +96,21 @@ class Case:
         return json.dumps(data, allow_nan=False)
 
     # --------------------------------------------------------------- the scaled-back data
-    def base(self) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None, int]:
-        """``(M, q, lower, upper, shift)``: the data scaled back by ``D1^-1 . D2^-1`` (exact),
-        then by ``2^shift`` globally when it holds entries far below 1 (subnormal-born data:
-        ``2^shift M, 2^shift q`` has the same solutions and the same certificate)."""
-        r, c = self.row_exp, self.col_exp
+    def base(self, z: Any = None) -> tuple[np.ndarray, np.ndarray, np.ndarray | None,
+                                           np.ndarray | None, np.ndarray | None]:
+        """``(M, q, lower, upper, z)``: the data (and ``z``, a point of the scaled problem) scaled
+        back by ``D1^-1 . D2^-1`` (exact), then by up to ``2^600`` globally when it holds entries
+        far below 1 (subnormal-born data: ``2^k M, 2^k q`` has the same solutions and the same
+        certificate).  A column whose ``z_j`` would leave ``[2^-900, 2^900]`` keeps part of its
+        scaling instead (any positive power-of-two column scaling is exact and leaves the
+        certificate unchanged)."""
+        r, c = self.row_exp, self.col_exp.copy()
+        zb = None
+        if z is not None:
+            z = np.asarray(z, dtype=np.float64)
+            e = np.where(z != 0, np.frexp(z)[1], 0).astype(np.int64)
+            c = np.where(z != 0, np.clip(e + c, -900, 900) - e, c)
+            zb = np.ldexp(z, c.astype(np.int32))
         Mb = np.ldexp(self.M, -(r[:, None] + c[None, :]).astype(np.int32)) if self.n else self.M
         qb = np.ldexp(self.q, (-r).astype(np.int32))
         lo = up = None
@@ -109,13 +119,10 @@ class Case:
             up = np.ldexp(self.upper, c.astype(np.int32))
         data = np.concatenate([np.abs(Mb).ravel(), np.abs(qb)])
         tiny = data[data > 0]
-        shift = 600 if tiny.size and tiny.min() < 2.0 ** -900 else 0
-        return np.ldexp(Mb, shift), np.ldexp(qb, shift), lo, up, shift
-
-    def unscale_z(self, z: Any) -> np.ndarray:
-        """A solution of the scaled problem in the units of :meth:`base` (``z = D2 z'``)."""
-        return np.ldexp(np.asarray(z, dtype=np.float64), self.col_exp.astype(np.int32))
-
+        shift = 0
+        if tiny.size and tiny.min() < 2.0 ** -900:  # as far up as the largest entry allows
+            shift = max(0, min(600, 1000 - int(np.frexp(tiny.max())[1])))
+        return np.ldexp(Mb, shift), np.ldexp(qb, shift), lo, up, zb
 
 
 # ---------------------------------------------------------------------------- generation
@@ -186,13 +193,18 @@ def scale(M: np.ndarray, q: np.ndarray, mode: str,
           rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
     """Row and column exponents for ``mode``: ``none``, ``global`` (one power of two, the
     whole range down to subnormal entries), ``rows_cols`` (independent per row and column,
-    entries up to ``2^+-1000``) or ``rows`` (rows only, up to ``2^+-1000``)."""
+    entries up to ``2^+-1000``), ``rows`` (rows only, up to ``2^+-1000``) or ``top`` (the
+    largest entry in ``[2^1022, 2^1024)``: ``M z`` overflows)."""
     n = q.shape[0]
     zero = np.zeros(n, dtype=np.int64)
     if mode == "none" or n == 0:
         return zero, zero.copy()
     if mode == "global":
         return np.full(n, int(rng.integers(-1066, MAX_EXP + 1)), dtype=np.int64), zero
+    if mode == "top":  # the largest entry just below the largest double (products overflow)
+        peak = max(float(np.max(np.abs(M))), float(np.max(np.abs(q))))
+        top = 1023 - int(np.frexp(peak)[1]) if peak > 0 else 0
+        return np.full(n, top, dtype=np.int64), zero
     if mode == "rows":
         return rng.integers(-MAX_EXP, MAX_EXP + 1, n), zero
     return rng.integers(-MAX_EXP // 2, MAX_EXP // 2 + 1, n), \
@@ -206,7 +218,7 @@ def cases(draw: Any, max_n: int = 8, kinds: tuple[str, ...] = ("lcp", "box", "ml
     n = draw(st.integers(min_n, max_n))
     cls = draw(st.sampled_from(classes))
     kind = draw(st.sampled_from(kinds))
-    mode = draw(st.sampled_from(("none", "global", "rows_cols", "rows")))
+    mode = draw(st.sampled_from(("none", "global", "rows_cols", "rows", "top")))
     rng = np.random.default_rng(draw(st.integers(0, 2**32 - 1)))
     if n == 0 and cls == "infeasible":
         cls = "pd"  # the empty problem is solved by z = ()
@@ -251,8 +263,7 @@ def check_solved(case: Case, z: Any, tol: float) -> None:
                    dtype=np.float64) if not isinstance(z, np.ndarray) else z
     assert z.shape == (case.n,), (z.shape, case.n)
     assert np.all(np.isfinite(z)), f"solved with a non-finite z: {z}"
-    Mb, qb, lo, up, _ = case.base()
-    zb = case.unscale_z(z)
+    Mb, qb, lo, up, zb = case.base(z)
     assert np.all(np.isfinite(zb)), "z leaves the double range when scaled back"
     err = componentwise_error(Mb, qb, zb, lo, up, n_eq=case.n_eq)
     if err > tol * (1 + 1e-6):
