@@ -46,7 +46,7 @@ def render_result(result: Any, problem: Any, file: str | None = None,
     head.add_row("residual", f"{cert.residual:.3e}  {natural}")
     head.add_row("error", f"{cert.error:.3e}  componentwise (tol {cert.tol:.1e}): backward error "
                           f"{cert.backward_error:.2e} x growth {cert.growth:.3g}")
-    if forward is not None:
+    if forward is not None and math.isfinite(forward.bound):
         relative = (f"relative {forward.relative:.2e}" if math.isfinite(forward.relative)
                     else "relative: n/a (z = 0)")
         head.add_row("forward error", f"||z - z*||_inf <= {forward.bound:.2e} "
