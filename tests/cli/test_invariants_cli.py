@@ -322,3 +322,25 @@ def test_contact_scenes_at_the_ends_of_the_range(samples: Path, tmp_path: Path, 
     normal = next(c["normal"] for c in doc["contacts"] if c["name"] == "floor")
     assert abs(np.linalg.norm(normal) - 1.0) < 1e-12, normal
     assert doc["status"] == "solved", doc["message"]
+
+
+@pytest.mark.parametrize("M,q,dependent,code", [
+    # principal pivoting does not depend on units: these blocks are bases (were "singular")
+    ([[5e-324, 0], [0, 1]], [-5e-324, -1], "z1,z2", 0),
+    ([[1e300, 1], [1e-300, 1e-300]], [-1, -1], "z1,z2", 0),
+    ([[1e300, 1e-300], [1e-300, 1e300]], [-1e300, -1e-300], "z1,z2", 0),
+    # q' = 1 / 5e-324 is not a double: one line, exit 2
+    ([[5e-324, 0], [0, 1]], [-1, -1], "z1,w2", 2),
+])
+def test_pivot_on_extreme_data(tmp_path: Path, M: list, q: list, dependent: str,
+                               code: int) -> None:
+    path = tmp_path / "p.json"
+    path.write_text(json.dumps({"M": M, "q": q}))
+    got, out, err = cli("pivot", path, "-d", dependent, "--json")
+    if code == 2:
+        one_line_error(got, err)
+        assert "beyond double precision" in err
+        return
+    assert got == 0, err
+    doc = strict_json(out)
+    assert all(v is not None for v in doc["q_prime"]), doc["q_prime"]
