@@ -111,12 +111,15 @@ def exact_lemke_sequence(M: np.ndarray, q: np.ndarray, max_pivots: int = 5000):
 
 
 def componentwise_error(M: Any, q: np.ndarray, z: np.ndarray, lo: np.ndarray | None = None,
-                        up: np.ndarray | None = None, n_eq: int = 0) -> float:
+                        up: np.ndarray | None = None, n_eq: int = 0,
+                        w: np.ndarray | None = None) -> float:
     """The certificate's ``error``, re-implemented independently (dense numpy, plain loops).
 
     Same definition as :mod:`lcpcli.core.certificate`, written differently on purpose: every
     pair's states are enumerated explicitly, and the blocks of coupled rows are found by a
     breadth-first search over an explicit graph instead of union-find.  Slow; for tests only.
+    ``w``: use this ``M z + q`` (e.g. the exact one, rounded once) instead of the one computed
+    here in floating point.
     """
     M = np.asarray(M.toarray() if hasattr(M, "toarray") else M, dtype=float)
     q = np.asarray(q, dtype=float)
@@ -127,7 +130,7 @@ def componentwise_error(M: Any, q: np.ndarray, z: np.ndarray, lo: np.ndarray | N
         up = np.full(n, np.inf)
     if not np.all(np.isfinite(z)):
         return float("inf")
-    w = M @ z + q
+    w = M @ z + q if w is None else np.asarray(w, dtype=float)
     terms = np.abs(M) * np.abs(z)[None, :]
     a = terms.sum(axis=1)
     s = a + np.abs(q)

@@ -201,8 +201,6 @@ def check_problem(problem: Any, max_n: int = DEFAULT_MAX_N) -> np.ndarray:
                           f"limit --max-n {max_n} (2^{max_n} = {2**max_n:,}); raise --max-n "
                           f"to run it anyway (each extra variable doubles the time), or use "
                           f"a pivoting method (lcpcli solve -m lemke)")
-    if n == 0:
-        raise ProblemError("empty problem (n = 0)")
     return np.ascontiguousarray(problem.dense_M(), dtype=np.float64)
 
 
@@ -299,6 +297,8 @@ def enumerate_cones(problem: Any, *, stop_at_first: bool = False, all_cones: boo
     unsafe pivots sent to it); ``fast=False`` uses the direct kernel for every cone.
     """
     check_problem(problem, max_n)
+    if problem.n == 0:  # one cone, the empty basis, and z = () solves the problem
+        return _empty_enumeration(problem, tol)
     if problem.n >= ENUM_ANNOUNCE_N:  # the work budget of lcpcli.core.limits: say the cost first
         announce(f"enumerating up to {power_of_two(problem.n)} complementary cones "
                  f"(each extra variable doubles the time; --max-n / -O max-n={max_n} allows it)")
@@ -310,6 +310,17 @@ def enumerate_cones(problem: Any, *, stop_at_first: bool = False, all_cones: boo
     if scaling is not None:
         _unscale(found, scaling, problem, tol)
     return found
+
+
+def _empty_enumeration(problem: Any, tol: float) -> Enumeration:
+    """The enumeration of an LCP with n = 0: its one cone holds its one solution, z = ()."""
+    z = np.zeros(0)
+    cert = certify(problem, z, tol)
+    cone = Cone(0, 0, True, False, y=z, z=z, w=z, det=1.0, rank=0)
+    counts = {"feasible": 1, "singular": 0, "singular_with_q": 0, "pruned": 0,
+              "uncertified": 0, "singular_unresolved": 0}
+    return Enumeration(0, UNIQUE, [Solution(z, z.copy(), cert, [0])], [cone], 1, 1, counts,
+                       0.0, True)
 
 
 def _unscale(found: Enumeration, scaling: Scaling, problem: Any, tol: float) -> None:

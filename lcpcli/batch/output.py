@@ -37,6 +37,7 @@ from pathlib import Path
 from typing import Any
 
 from lcpcli.core.errors import OptionError, ProblemError
+from lcpcli.core.numeric import json_text
 
 #: Longest time between two fsyncs of an output file.
 FSYNC_SECONDS = 1.0
@@ -247,7 +248,7 @@ class JsonlWriter(_LineWriter):
         super().__init__(path, resume)
 
     def _line(self, row: dict[str, Any]) -> str:
-        return json.dumps(row, allow_nan=False) + "\n"
+        return json_text(row) + "\n"
 
 
 def _csv_text(col: str, value: Any) -> str:
@@ -255,8 +256,8 @@ def _csv_text(col: str, value: Any) -> str:
     ``--resume`` finds them again); the message on one line."""
     if value is None:
         return ""
-    if isinstance(value, float):
-        return repr(value)
+    if isinstance(value, float):  # non-finite: empty, as JSON's null (core.numeric's rule)
+        return repr(value) if math.isfinite(value) else ""
     if col == "message":
         return " ".join(str(value).split())
     return str(value)
@@ -393,7 +394,7 @@ def _write_group(f: Any, row: dict[str, Any], names: set[str]) -> None:
         for k2, v in cert.items():
             cg.attrs[k2] = nan if v is None else v
     rest = {k2: v for k2, v in row.items() if k2 not in ("z", "w")}
-    g.attrs["json"] = json.dumps(rest, allow_nan=False)
+    g.attrs["json"] = json_text(rest)
 
 
 def checked_output(path: str | os.PathLike[str]) -> tuple[Path, str]:

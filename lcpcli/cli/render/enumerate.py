@@ -72,6 +72,8 @@ def _complementary(M: np.ndarray, cone: Any) -> np.ndarray:
 
 def _matrix_text(A: np.ndarray) -> str:
     cells = [[fmt(x) for x in row] for row in A]
+    if not cells:  # n = 0: the empty matrix
+        return "[]"
     width = max(len(c) for row in cells for c in row)
     return "\n".join("[" + " ".join(c.rjust(width) for c in row) + "]" for row in cells)
 
