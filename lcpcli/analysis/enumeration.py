@@ -40,6 +40,7 @@ from lcpcli.analysis._enum import (
     classify_chunk,
     classify_chunk_fast,
 )
+from lcpcli.analysis.proof import prove_infeasible
 from lcpcli.analysis.scaling import Scaling, equilibrate
 from lcpcli.core.certificate import DEFAULT_TOL, Certificate, certify, matrix_norm_inf
 from lcpcli.core.errors import OptionError, ProblemError
@@ -65,6 +66,7 @@ NONE = "none"
 FOUND = "found"  # stop_at_first: one solution found, the rest not examined
 INCOMPLETE = "incomplete"  # solutions found, but some singular cones left unresolved
 UNKNOWN = "unknown"  # no solution found, but some singular cones left unresolved
+UNCERTIFIED = "uncertified"  # cones contain q, but no point of them passes the certificate
 
 #: At most this many singular cones are resolved by LP (each costs about 3 LPs).
 MAX_LPS = 2000
@@ -125,10 +127,14 @@ class Solution:
 class Enumeration:
     """What :func:`enumerate_cones` found.
 
-    ``verdict``: ``unique``, ``finite``, ``continuum``, ``none`` (a proof that the LCP has no
-    solution, up to the tolerances) or ``found`` (``stop_at_first``: the rest not examined);
-    ``incomplete`` / ``unknown`` when more than ``max_lp`` singular cones containing q would
-    need an LP (solutions found / none found: nothing is proven then).
+    ``verdict``: ``unique``, ``finite``, ``continuum``, ``none`` (no cone contains q) or
+    ``found`` (``stop_at_first``: the rest not examined); ``incomplete`` / ``unknown`` when more
+    than ``max_lp`` singular cones containing q would need an LP (solutions found / none found:
+    nothing is proven then); ``uncertified`` when cones contain q but none of their points
+    passes the certificate in the problem's units (extreme data).  Every solution listed passed
+    :func:`lcpcli.core.certificate.certify` on the problem as given.  ``none`` is a floating-point
+    search, not a proof: ``status`` is ``no_solution`` only with ``proof``, a Farkas vector that
+    passed :func:`lcpcli.analysis.proof.check_farkas` (``unsolved`` without one).
     ``cones``: the feasible cones (all cones when asked for), in code order.
     """
 
@@ -141,19 +147,23 @@ class Enumeration:
     counts: dict[str, int]
     seconds: float
     complete: bool
+    proof: Any = None
 
     @property
     def status(self) -> Status:
         if self.solutions:
             return Status.SOLVED
-        return Status.UNSOLVED if self.verdict == UNKNOWN else Status.NO_SOLUTION
+        if self.verdict == NONE and self.proof is not None:
+            return Status.NO_SOLUTION
+        return Status.UNSOLVED
 
     def to_dict(self) -> dict[str, Any]:
         return {"n": self.n, "status": self.status, "verdict": self.verdict,
                 "cones": [c.to_dict() for c in self.cones],
                 "solutions": [s.to_dict() for s in self.solutions],
                 "examined": self.examined, "total": self.total, "counts": dict(self.counts),
-                "complete": self.complete, "seconds": self.seconds}
+                "complete": self.complete, "seconds": self.seconds,
+                "farkas_y": None if self.proof is None else _jvec(self.proof.y)}
 
 
 # ---------------------------------------------------------------------------- helpers
@@ -305,15 +315,29 @@ def enumerate_cones(problem: Any, *, stop_at_first: bool = False, all_cones: boo
                        keep_cones=keep_cones, fast=fast, max_lp=max_lp)
     if scaling is not None:
         _unscale(found, scaling, problem, tol)
+    if found.verdict == NONE:
+        found.proof = prove_infeasible(problem, search=True)
     return found
 
 
 def _unscale(found: Enumeration, scaling: Scaling, problem: Any, tol: float) -> None:
     """Map an enumeration of the scaled problem back to the units of ``problem``, in place."""
+    kept = []
     for sol in found.solutions:
-        sol.z = scaling.unscale_z(sol.z)
-        sol.w = scaling.unscale_w(sol.w)
+        with np.errstate(over="ignore", under="ignore"):
+            sol.z = scaling.unscale_z(sol.z)
+            sol.w = scaling.unscale_w(sol.w)
         sol.certificate = certify(problem, sol.z, tol)
+        if sol.certificate.passed:  # rounding to the problem's units may lose it (extreme data)
+            kept.append(sol)
+        else:
+            found.counts["uncertified"] += 1
+    if len(kept) < len(found.solutions):
+        found.solutions = kept
+        if not kept:
+            found.verdict = UNCERTIFIED
+        elif found.verdict in (UNIQUE, FINITE):
+            found.verdict = UNIQUE if len(kept) == 1 else FINITE
     shift = scaling.row + scaling.col   # det A_r = det A~_r * 2^-(sum over z-basic of r_j + c_j)
     for cone in found.cones:
         zb = np.array([(cone.code >> j) & 1 for j in range(cone.n)], dtype=bool)
@@ -421,6 +445,8 @@ def _enumerate(problem: Any, *, stop_at_first: bool, all_cones: bool, max_n: int
         verdict = CONTINUUM
     elif counts["singular_unresolved"]:
         verdict = INCOMPLETE if solutions else UNKNOWN
+    elif not solutions and counts["uncertified"]:
+        verdict = UNCERTIFIED
     elif not solutions:
         verdict = NONE
     elif len(solutions) == 1:

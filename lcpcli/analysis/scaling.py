@@ -78,8 +78,13 @@ class Scaling:
         return np.ldexp(np.asarray(w, dtype=np.float64), self.row.astype(np.int32))
 
     def unscale_w(self, wt: np.ndarray) -> np.ndarray:
-        """``w = D_r^-1 w~`` (also for dual vectors: a Farkas ``y~`` maps to ``D_r y~``)."""
+        """``w = D_r^-1 w~``."""
         return np.ldexp(np.asarray(wt, dtype=np.float64), (-self.row).astype(np.int32))
+
+    def farkas_back(self, yt: Any) -> np.ndarray:
+        """A Farkas vector of the scaled problem in the units of the given one: ``y = D_r y~``
+        (``M~^T y~ = D_c M^T D_r y~`` and ``q~^T y~ = q^T D_r y~``, so the signs carry over)."""
+        return np.ldexp(np.asarray(yt, dtype=np.float64), self.row.astype(np.int32))
 
     def describe(self) -> str:
         """One phrase for messages: the ranges of the factors."""

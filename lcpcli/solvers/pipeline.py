@@ -104,7 +104,7 @@ def _run_scaled(spec: Any, problem: Problem, tol: float, options: dict[str, Any]
     out.checked = None  # a method's own certificate is of the scaled problem: w, units differ
     y = out.info.get("farkas_y")
     if y is not None:
-        out.info["farkas_y"] = scaling.unscale_w(np.asarray(y)).tolist()
+        out.info["farkas_y"] = scaling.farkas_back(y).tolist()
     out.message += f" [{scaling.describe()}]"
     out.info["scaling"] = {"kind": scaling.kind, "row_exponents": [int(scaling.row.min()),
                                                                    int(scaling.row.max())],
