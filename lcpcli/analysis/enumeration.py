@@ -41,7 +41,7 @@ from lcpcli.analysis._enum import (
     classify_chunk_fast,
 )
 from lcpcli.analysis.proof import prove_infeasible
-from lcpcli.analysis.scaling import Scaling, equilibrate
+from lcpcli.analysis.scaling import GEOMETRIC_SPREAD, Scaling, equilibrate, geometric, spread
 from lcpcli.core.certificate import DEFAULT_TOL, Certificate, certify, matrix_norm_inf
 from lcpcli.core.errors import OptionError, ProblemError
 from lcpcli.core.result import Status
@@ -293,11 +293,13 @@ def enumerate_cones(problem: Any, *, stop_at_first: bool = False, all_cones: boo
                     fast: bool = True, max_lp: int = MAX_LPS) -> Enumeration:
     """Visit the ``2^n`` complementary cones of ``problem`` (an LCP) and collect the solutions.
 
-    The cones are examined on the equilibrated problem (:mod:`lcpcli.analysis.scaling`): a
-    positive row and column scaling maps every complementary cone onto the same cone, so the
-    verdict does not depend on units, and nothing overflows (data of size 1e300 has
-    determinants of size 1e300^n).  Solutions, ``y``, ``w`` and determinants are reported in
-    the units of ``problem`` (a determinant beyond the double range is Inf).
+    The cones are examined on the equilibrated problem (:mod:`lcpcli.analysis.scaling`: Ruiz's,
+    or Curtis and Reid's geometric scaling when Ruiz's leaves the entries more than
+    ``2^GEOMETRIC_SPREAD`` apart): a positive row and column scaling maps every complementary
+    cone onto the same cone, so the verdict does not depend on units, and nothing overflows
+    (data of size 1e300 has determinants of size 1e300^n).  Solutions, ``y``, ``w`` and
+    determinants are reported in the units of ``problem`` (a determinant beyond the double
+    range is Inf).
 
     ``stop_at_first``: stop at the first certified solution (verdict ``found``).
     ``all_cones``: return every cone (with ``y``, ``det`` and ``rank``) instead of the feasible
@@ -309,6 +311,8 @@ def enumerate_cones(problem: Any, *, stop_at_first: bool = False, all_cones: boo
     """
     check_problem(problem, max_n)
     scaling = equilibrate(problem, symmetric=False)
+    if spread(problem, scaling) > GEOMETRIC_SPREAD:  # Ruiz balanced the maxima only
+        scaling = geometric(problem, False) or scaling
     work = scaling.apply(problem) if scaling is not None else problem
     found = _enumerate(work, stop_at_first=stop_at_first, all_cones=all_cones, max_n=max_n,
                        tol=tol, rtol=rtol, progress=progress, chunk=chunk,

@@ -126,3 +126,81 @@ def _matrix_arg(M: Any) -> Any:
         return M
     Mc = M.tocsr()
     return (Mc.data, Mc.indices.astype(np.intp, copy=False), Mc.indptr.astype(np.intp, copy=False))
+
+
+def geometric(problem: Problem, symmetric: bool) -> Scaling | None:
+    """Curtis and Reid's scaling (1972), rounded to powers of two: the exponents ``r``, ``c``
+    that minimise ``sum over the nonzeros of (log2 |M_ij| + r_i + c_j)^2`` (``r = c`` when
+    ``symmetric``), then ``q`` normalised by a common factor as in :func:`equilibrate`.
+
+    Where Ruiz's infinity-norm iteration stops as soon as every row and column *maximum* is
+    about 1 (and may leave other entries at 2^-72, e.g. on the diagonal of
+    ``diag(2^a) K diag(2^b)``), this least-squares fit recovers any row and column scaling of a
+    matrix with entries of one size exactly, up to the rounding of the exponents: it is
+    invariant under power-of-two row and column scalings of the data.  Solved by LSQR on the
+    sparse incidence matrix (O(nnz) per iteration; scipy).  None when nothing would change.
+    """
+    from scipy.sparse import csr_matrix
+    from scipy.sparse.linalg import lsqr
+
+    n = problem.n
+    if n == 0:
+        return None
+    Mc = csr_matrix(problem.M).tocoo() if problem.sparse else None
+    if Mc is not None:
+        rows, cols, vals = Mc.row, Mc.col, Mc.data
+    else:
+        rows, cols = np.nonzero(problem.M)
+        vals = problem.M[rows, cols]
+    keep = vals != 0
+    rows, cols, vals = rows[keep], cols[keep], vals[keep]
+    if vals.size == 0:
+        return None
+    e = np.frexp(np.abs(vals))[1].astype(np.float64)
+    k = np.arange(vals.size)
+    if symmetric:
+        A = csr_matrix((np.ones(2 * k.size), (np.concatenate([k, k]),
+                                              np.concatenate([rows, cols]))),
+                       shape=(k.size, n))
+    else:
+        A = csr_matrix((np.ones(2 * k.size), (np.concatenate([k, k]),
+                                              np.concatenate([rows, n + cols]))),
+                       shape=(k.size, 2 * n))
+    x = lsqr(A, -e, atol=1e-12, btol=1e-12, iter_lim=50 * n + 100)[0]
+    if not np.all(np.isfinite(x)):
+        return None
+    r = np.rint(x[:n]).astype(np.int64)
+    c = r.copy() if symmetric else np.rint(x[n:]).astype(np.int64)
+    q = problem.q
+    nz = q != 0
+    if np.any(nz):
+        shift = 1 - int(np.max(np.frexp(np.abs(q[nz]))[1] + r[nz]))
+        r += shift
+        c -= shift
+    if not np.any(r) and not np.any(c):
+        return None
+    return Scaling(row=r, col=c, kind="geometric, symmetric" if symmetric else "geometric")
+
+
+#: Methods and the enumeration turn to :func:`geometric` when a scaled matrix's nonzero
+#: entries still span more than 2^GEOMETRIC_SPREAD (Ruiz balanced the maxima only).
+GEOMETRIC_SPREAD = 30
+
+
+def spread(problem: Problem, scaling: Scaling | None) -> int:
+    """``max - min`` of the binary exponents of the nonzero entries of ``D_r M D_c`` (of M
+    when ``scaling`` is None); 0 for a zero matrix."""
+    M = problem.M
+    if problem.sparse:
+        Mc = M.tocoo()
+        rows, cols, vals = Mc.row, Mc.col, Mc.data
+    else:
+        rows, cols = np.nonzero(M)
+        vals = M[rows, cols]
+    keep = vals != 0
+    if not np.any(keep):
+        return 0
+    e = np.frexp(vals[keep])[1].astype(np.int64)
+    if scaling is not None:
+        e = e + scaling.row[rows[keep]] + scaling.col[cols[keep]]
+    return int(e.max() - e.min())
