@@ -172,3 +172,45 @@ def test_rank_one_psd_problems_are_solved_or_proven(seed: int) -> None:
         assert r.status == "solved"
     else:
         assert r.status == "no_solution" and farkas_certifies(M, q, r.info["farkas_y"])
+
+
+# ------------------------------------------------------------------ messages say what was shown
+def _det(A: list[list[Fraction]]) -> Fraction:
+    """Laplace expansion in rationals (independent of the project's elimination)."""
+    if not A:
+        return Fraction(1)
+    return sum(((-1) ** j * A[0][j] * _det([row[:j] + row[j + 1:] for row in A[1:]])
+                for j in range(len(A))), Fraction(0))
+
+
+def _is_p_exactly(M: np.ndarray) -> bool:
+    n = M.shape[0]
+    for mask in range(1, 1 << n):
+        idx = [i for i in range(n) if mask >> i & 1]
+        if _det([[Fraction(float(M[i, j])) for j in idx] for i in idx]) <= 0:
+            return False
+    return True
+
+
+def test_murty_says_not_p_only_with_a_witness() -> None:
+    p_close = np.array([[1.0, 2.0], [0.5, 1.0 + 2.0 ** -40]])   # minors 1, 1 + 2^-40, 2^-40
+    r = lcpcli.solve(p_close, np.array([-1.0, -1.0]), method="murty")
+    assert "not a P-matrix" not in r.message
+    assert r.status == "solved" or "is a P-matrix" in r.message
+    not_p = np.array([[1.0, 2.0], [0.6, 1.0]])                    # det = -0.2
+    r = lcpcli.solve(not_p, np.array([-1.0, -1.0]), method="murty")
+    assert r.status != "solved" and "not a P-matrix" in r.message and "{1, 2}" in r.message
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.integers(1, 4).flatmap(lambda n: st.lists(
+    st.sampled_from([-2.0, -1.0, 0.0, 0.5, 1.0, 2.0, 1.0 + 2.0 ** -40, 2.0 ** -40]),
+    min_size=n * n, max_size=n * n).map(lambda v: np.array(v).reshape(n, n))))
+def test_p_matrix_never_says_not_p_without_an_exact_witness(M: np.ndarray) -> None:
+    from lcpcli.analysis.classify import p_matrix
+
+    verdict, reason = p_matrix(M)
+    if verdict is False:
+        assert not _is_p_exactly(M), reason
+    elif verdict is True:
+        assert _is_p_exactly(M), reason

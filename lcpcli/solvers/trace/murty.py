@@ -94,7 +94,8 @@ def murty_traced(M: np.ndarray, q: np.ndarray, max_iter: int, piv_tol: float, ne
                           "rule": "bad_pivot",
                           "reason": (f"least index with q' < 0 is row {r + 1} ({leaving} = "
                                      f"{qb[r]:.6g}); its diagonal entry {p:.6g} is not positive "
-                                     f"(M is not a P-matrix): no pivot is made"), **state()})
+                                     f"beyond the pivot tolerance (a P-matrix has positive "
+                                     f"pivots only): no pivot is made"), **state()})
             break
         value = float(qb[r])
         pivot_update(T, qb, r, r)
