@@ -42,6 +42,7 @@ class Termination(_StrEnum):
     SINGULAR = "singular_basis"
     INFEASIBLE = "infeasible"  # proven: the method's theory shows no solution exists
     NUMERICAL = "numerical_failure"
+    STALLED = "stalled"  # an iterative method made no progress in its merit over a window
     NOT_APPLICABLE = "not_applicable"  # the method cannot start on this M (e.g. zero diagonal)
     TIMEOUT = "timeout"  # batch rows: stopped by --timeout
     ERROR = "error"  # batch rows of inputs that could not be read or solved at all
@@ -68,6 +69,7 @@ ITERATION_LIMIT = Termination.ITERATION_LIMIT
 SINGULAR = Termination.SINGULAR
 INFEASIBLE = Termination.INFEASIBLE
 NUMERICAL = Termination.NUMERICAL
+STALLED = Termination.STALLED
 NOT_APPLICABLE = Termination.NOT_APPLICABLE
 
 
