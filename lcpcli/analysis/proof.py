@@ -36,12 +36,16 @@ from __future__ import annotations
 import warnings
 from collections.abc import Iterable
 from dataclasses import dataclass
+from fractions import Fraction
 from typing import Any
 
 import numpy as np
 
 #: Unit roundoff of float64.
 UNIT_ROUNDOFF = 2.0 ** -53
+#: Sums below this (far below the normal range of doubles are only the last 2^-900) are
+#: recomputed exactly: their terms may have underflowed.
+TINY = 2.0 ** -900
 #: Largest problem for which :func:`prove_infeasible` runs the linear program.
 LP_MAX_N = 3000
 
@@ -130,9 +134,16 @@ def check_farkas(M: Any, q: np.ndarray, lo: np.ndarray, up: np.ndarray,
         a = np.asarray(abs(M).T @ np.abs(y)).ravel()
         qa = np.abs(q) * np.abs(y)
         gamma = proof_gamma(n)
-        m = gamma * a
         if not (np.all(np.isfinite(g)) and np.all(np.isfinite(a))):
             return fail("M^T y overflows")
+        # a column whose terms may have underflowed: its sign is decided exactly (a rounding
+        # margin below the normal range would be absolute, not relative to the data)
+        small = np.flatnonzero(a < TINY)
+        if small.size:
+            live = np.asarray((M != 0).T @ (y != 0).astype(np.float64)).ravel() > 0
+            for i in small[live[small]]:
+                g[i], a[i] = _exact_column(M, y, i)
+        m = gamma * a
         # the range of the exact g_i of a problem within the margin, clipped to its sign rule
         gl, gu = g - m, g + m
         must_nonpos = np.isinf(up)   # z_i unbounded above: g_i <= 0
@@ -160,8 +171,12 @@ def check_farkas(M: Any, q: np.ndarray, lo: np.ndarray, up: np.ndarray,
         if not np.all(np.isfinite(c)) and np.any(c == np.inf):
             return fail("the bound over the box overflows")
         qy = float(q @ y)
+        qsum = float(np.sum(qa))
+        if qsum < TINY:  # exact, as for the columns (rounding keeps the sign or gives 0)
+            qy = float(sum((Fraction(float(qi)) * Fraction(float(yi))
+                            for qi, yi in zip(q, y, strict=True) if qi and yi), Fraction(0)))
         value = qy + float(np.sum(c))
-        margin = gamma * (float(np.sum(qa)) + float(np.sum(np.abs(c))))
+        margin = gamma * (qsum + float(np.sum(np.abs(c))))
     ratio_worst = float(ratio[worst]) if n else 0.0
     if not np.isfinite(value) or not np.isfinite(margin):
         return fail("q^T y overflows", worst, ratio_worst)
@@ -170,6 +185,21 @@ def check_farkas(M: Any, q: np.ndarray, lo: np.ndarray, up: np.ndarray,
                            f"q^T y bound {value:.3g} is not below -{margin:.3g} (its rounding "
                            f"margin)")
     return FarkasCheck(True, y, value, margin, worst, ratio_worst, "")
+
+
+def _exact_column(M: Any, y: np.ndarray, i: int) -> tuple[float, float]:
+    """``((M^T y)_i, (|M|^T |y|)_i)`` from exact rational sums, rounded outward enough for the
+    sign test: a positive exact value that rounds to 0 is returned as inf relative to a zero
+    margin (it fails), a negative one as its value."""
+    col = M[:, [i]].toarray().ravel() if hasattr(M, "toarray") else np.asarray(M[:, i])
+    terms = [Fraction(float(mj)) * Fraction(float(yj)) for mj, yj in zip(col, y, strict=True)
+             if mj and yj]
+    g = sum(terms, Fraction(0))
+    a = sum((abs(t) for t in terms), Fraction(0))
+    gf, af = float(g), float(a)
+    if g > 0 and gf <= 0.0:
+        gf = float("inf")  # positive but below the double range: the margin cannot cover it
+    return gf, af
 
 
 def _dense(M: Any) -> np.ndarray:

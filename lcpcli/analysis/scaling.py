@@ -179,9 +179,17 @@ def geometric(problem: Problem, symmetric: bool) -> Scaling | None:
         c -= shift
     if not np.any(r) and not np.any(c):
         return None
+    scaled = e + r[rows] + c[cols]
+    if np.any(nz):
+        scaled = np.concatenate([scaled, np.frexp(np.abs(q[nz]))[1] + r[nz]])
+    if scaled.max() > GEOMETRIC_RANGE or scaled.min() < -GEOMETRIC_RANGE:
+        return None  # the data span more than the double range can hold at one scale
     return Scaling(row=r, col=c, kind="geometric, symmetric" if symmetric else "geometric")
 
 
+#: :func:`geometric` gives up when a scaled entry would leave ``[2^-GEOMETRIC_RANGE,
+#: 2^GEOMETRIC_RANGE]`` (Ruiz's scaling is kept then).
+GEOMETRIC_RANGE = 1000
 #: Methods and the enumeration turn to :func:`geometric` when a scaled matrix's nonzero
 #: entries still span more than 2^GEOMETRIC_SPREAD (Ruiz balanced the maxima only).
 GEOMETRIC_SPREAD = 30
