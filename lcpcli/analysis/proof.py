@@ -76,14 +76,19 @@ class FarkasCheck:
     worst: int
     violation: float
     reason: str
+    lcp: bool = True
 
     def describe(self) -> str:
-        """One phrase for ``message``."""
-        if self.passed:
-            return (f"Farkas certificate y (M^T y within the sign constraints up to rounding, "
-                    f"checked componentwise; sup of y^T (M z + q) over the box = "
-                    f"{self.value:.3g} < 0): no z in the box has M z + q feasible")
-        return f"no Farkas certificate ({self.reason})"
+        """One phrase for ``message`` (``y`` itself is in ``info["farkas_y"]``)."""
+        if not self.passed:
+            return f"no Farkas certificate ({self.reason})"
+        if self.lcp:
+            return (f"Farkas certificate: y >= 0 with M^T y <= 0 (componentwise, to within "
+                    f"rounding) and q^T y = {self.value:.3g} < 0 (y scaled by a power of "
+                    f"two), so no z >= 0 has Mz + q >= 0")
+        return (f"Farkas certificate: y with M^T y within the sign rules of the bounds (to "
+                f"within rounding) and sup of y^T (Mz + q) over the box = {self.value:.3g} < 0, "
+                f"so no z in the box makes w feasible")
 
     def as_dict(self) -> dict[str, Any]:
         """The proof for ``Result.info`` (JSON-safe)."""
@@ -184,7 +189,8 @@ def check_farkas(M: Any, q: np.ndarray, lo: np.ndarray, up: np.ndarray,
         return FarkasCheck(False, y, value, margin, worst, ratio_worst,
                            f"q^T y bound {value:.3g} is not below -{margin:.3g} (its rounding "
                            f"margin)")
-    return FarkasCheck(True, y, value, margin, worst, ratio_worst, "")
+    lcp = bool(np.all(lo == 0) and np.all(np.isinf(up)))
+    return FarkasCheck(True, y, value, margin, worst, ratio_worst, "", lcp)
 
 
 def _exact_column(M: Any, y: np.ndarray, i: int) -> tuple[float, float]:

@@ -44,12 +44,13 @@ def run(problem: Any, *, tol: float, max_n: int = DEFAULT_MAX_N,
     info = {"verdict": res.verdict, "cones_examined": res.examined, "cones_total": res.total,
             "solutions": len(res.solutions), **res.counts}
     if not res.solutions and res.verdict != "none":
-        why = (f"{plural(res.counts['uncertified'], 'cone')} containing q, but no point of "
-               f"them passes the certificate" if res.verdict == "uncertified" else
+        why = (f"q lies in {plural(res.counts['uncertified'], 'cone')}, but no point found "
+               f"there passes the certificate (extreme data, or an ill-conditioned cone)"
+               if res.verdict == "uncertified" else
                f"{plural(res.counts['singular_unresolved'], 'singular cone')} containing q "
                f"not resolved (LP limit)")
         return Outcome(np.zeros(n), res.examined, NUMERICAL,
-                       f"no solution found, but {why}: nothing is proven", info=info)
+                       f"no solution found: {why}; nothing is proven", info=info)
     if not res.solutions:
         searched = (f"none of the 2^{n} = {res.total:,} complementary cones contains q "
                     f"({res.counts['pruned']:,} excluded by sign tests, "
