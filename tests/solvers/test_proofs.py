@@ -214,3 +214,23 @@ def test_p_matrix_never_says_not_p_without_an_exact_witness(M: np.ndarray) -> No
         assert not _is_p_exactly(M), reason
     elif verdict is True:
         assert _is_p_exactly(M), reason
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.integers(2, 4).flatmap(lambda n: st.tuples(
+    st.just(n), st.integers(1, n - 1),
+    st.lists(st.integers(-2, 2), min_size=n * n, max_size=n * n),
+    st.lists(st.integers(-2, 2), min_size=n, max_size=n))))
+def test_mlcp_no_solution_carries_a_checked_farkas_vector(data) -> None:
+    n, n_eq, flat, qv = data
+    M, q = np.array(flat, float).reshape(n, n), np.array(qv, float)
+    try:
+        p = Problem.create(M, q, n_eq=n_eq)
+    except lcpcli.core.errors.ProblemError:
+        return
+    for method in ("auto", "mlcp-schur", "mlcp-lemke", "newton"):
+        r = lcpcli.solve(p, method)
+        if r.status == "no_solution":
+            assert farkas_certifies(M, q, r.info["farkas_y"], n_eq=n_eq), (method, r.message)
+        elif r.status == "solved":
+            assert componentwise_error(M, q, r.z, n_eq=n_eq) <= r.certificate.tol * (1 + 1e-6)
