@@ -81,7 +81,8 @@ METHODS = [
         name="enum",
         run=run,
         summary="Enumeration of the 2^n complementary cones (seed 004), exhaustive",
-        guarantees=(Guarantee(when(), "a solution, or the proof that none exists (2^n cones)"),),
+        guarantees=(Guarantee(when(), "every solution (2^n cones); no_solution with a checked "
+                                        "Farkas vector"),),
         max_n=DEFAULT_MAX_N,
         cost=Cost.EXHAUSTIVE,
         kinds=("lcp",),

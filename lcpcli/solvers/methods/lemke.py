@@ -143,7 +143,8 @@ def ray_outcome(problem: Any, M: np.ndarray, q: np.ndarray, z: np.ndarray, pivot
 #: Lemke's classes (both Lemke methods, and the inner LCP of the MLCP methods).
 GUARANTEES = (
     Guarantee(when("p_matrix"), "finite: the unique solution"),
-    Guarantee(when("psd"), "copositive-plus: a solution, or a proof that none exists"),
+    Guarantee(when("psd"), "copositive-plus: a solution, or a checked Farkas proof that "
+                          "none exists"),
 )
 
 METHODS = [
