@@ -53,10 +53,12 @@ def test_pivoting_methods_solve_the_scaled_copies(method: str) -> None:
 
 
 def test_enumerate_finds_the_one_solution_and_no_singular_cone() -> None:
-    M, q, z_star = scaled([-6, -100, -31], [-32, -53, 54])
-    res = enumerate_cones(Problem.create(M, q))
-    assert res.verdict == "unique" and res.counts["singular_unresolved"] == 0
-    np.testing.assert_allclose(res.solutions[0].z / z_star, 1.0, rtol=1e-9)
+    # a P-matrix has no singular principal block, at any scaling
+    for a, b in [([-6, -100, -31], [-32, -53, 54])] + [tuple(d) for d in DRAWS[:60]]:
+        M, q, z_star = scaled(a, b)
+        res = enumerate_cones(Problem.create(M, q))
+        assert res.verdict == "unique" and res.counts["singular"] == 0, (a, b)
+        np.testing.assert_allclose(res.solutions[0].z / z_star, 1.0, rtol=1e-9)
 
 
 @pytest.mark.parametrize("k", range(20))
