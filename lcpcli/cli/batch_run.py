@@ -22,6 +22,10 @@ from lcpcli.core.errors import EXIT_INTERRUPTED, EXIT_TERMINATED
 FEW_PROBLEMS = 20
 #: A batch expected to run longer than this (seconds) prints an estimate on stderr.
 ESTIMATE_AFTER_SECONDS = 10.0
+#: The rate behind the estimate is measured after the first result, over at least this many
+#: seconds and this many problems.
+ESTIMATE_MIN_SECONDS = 1.0
+ESTIMATE_MIN_PROBLEMS = 8
 
 
 def wants_batch(files: list[str], output: Any, *, problem: str | None = None,
@@ -200,15 +204,29 @@ def run_batch_command(files: list[str], *, method: str, tol: float | None,
 
 
 def _maybe_estimate(state: dict[str, Any], quiet: bool) -> None:
-    """Once a batch has run a second, say how long it will take if that is long (stderr)."""
+    """Say how long a long batch will take (stderr), from the rate measured after start-up.
+
+    The clock starts at the first finished problem (worker start-up and imports come before
+    it, and a rate that includes them overstates the time left many times over); the rate is
+    then measured over at least :data:`ESTIMATE_MIN_SECONDS` and :data:`ESTIMATE_MIN_PROBLEMS`
+    further problems, and the notice is shown once, only when the rest takes longer than
+    :data:`ESTIMATE_AFTER_SECONDS` at that rate.  A small batch gets no estimate.
+    """
     if state["estimated"] or quiet:
         return
-    elapsed = time.perf_counter() - state["start"]
+    now = time.perf_counter()
     done, total = state["done"], state["total"]
-    if elapsed < 1.0 or done == 0 or done >= total:
+    if done == 0 or done >= total:
+        return
+    if state.get("first_at") is None:  # the first result: start-up is over
+        state["first_at"], state["first_done"] = now, done
+        return
+    measured = done - state["first_done"]
+    elapsed = now - state["first_at"]
+    if elapsed < ESTIMATE_MIN_SECONDS or measured < ESTIMATE_MIN_PROBLEMS:
         return
     state["estimated"] = True
-    rate = done / elapsed
+    rate = measured / elapsed
     left = (total - done) / rate
     if left > ESTIMATE_AFTER_SECONDS:
         sys.stderr.write(f"lcpcli: {plural(total, 'problem')}; about {duration(left)} to go "

@@ -9,6 +9,7 @@ from typing import Any
 
 import typer
 
+from lcpcli.cli.export import EXACT_HELP
 from lcpcli.core.errors import EXIT_INTERRUPTED, EXIT_NOT_SOLVED, EXIT_SOLVED
 
 #: Above this n, ``--all-cones`` is refused for the terminal table.
@@ -45,6 +46,8 @@ def enumerate_command(
     fmt: str = typer.Option("text", "--format",
                             help="text, markdown or latex: the cone table and solutions for "
                                  "lecture notes (stdout, or -o FILE)."),
+    exact: bool = typer.Option(None, "--exact/--no-exact", show_default=False,
+                               help=EXACT_HELP),
 ) -> int:
     """Enumerate the 2^n complementary cones of an LCP (seed 004) and find ALL its solutions.
 
@@ -120,6 +123,10 @@ def enumerate_command(
         payload["lemke_path"] = path
     if output_path is not None and fmt == "text":
         write_atomic_text(output_path, json.dumps(payload, allow_nan=False) + "\n")
+    if not as_json or fmt != "text":  # the tables in fractions; the JSON above keeps floats
+        from lcpcli.cli.export import exact_cones
+
+        res, M = exact_cones(prob, exact, res, M)
     if fmt != "text":
         from lcpcli.cli.render.doc import write
         from lcpcli.cli.render.enumerate import enumeration_pages

@@ -81,3 +81,65 @@ def check_export_options(fmt: str, output: Path | None, inputs: list[str],
                               f"export to a file with -o FILE")
         if output is not None:
             check_target(output, inputs)
+
+
+#: The help of ``--exact/--no-exact`` (solve --trace, pivot, enumerate).
+EXACT_HELP = ("Fractions (4/3) instead of decimals: the steps computed in exact rational "
+              "arithmetic [default: on when n <= 8 and every entry is a fraction with a "
+              "denominator and magnitude up to 1000]. The verdict and certificate still come "
+              "from the floating-point solve; --json keeps floats.")
+
+
+def note(text: str) -> None:
+    """A one-line note on stderr."""
+    sys.stderr.write(f"lcpcli: {text}\n")
+
+
+def exact_view(problem: Any, method: str, flag: bool | None, opts: dict[str, Any],
+               trace: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """The trace to show: ``trace`` recomputed in fractions when ``--exact`` asks for it (or
+    by default on small rational data), else ``trace`` itself.  A note on stderr when
+    ``--exact`` cannot be honoured, or when the exact run pivots differently."""
+    from lcpcli.solvers.trace.exact import EXACT_METHODS, exact_trace, same_pivots, wants_exact
+
+    if flag is False:
+        return trace
+    if method not in EXACT_METHODS:
+        if flag:
+            note(f"--exact: {method} iterates (sweeps), its trace stays in decimals (exact "
+                 f"traces: {', '.join(EXACT_METHODS)})")
+        return trace
+    data = wants_exact(problem, flag)
+    if data is None:
+        if flag:
+            note("--exact: the data are not fractions with small denominators; the trace "
+                 "stays in decimals")
+        return trace
+    try:
+        exact = exact_trace(problem, method, data, covering=opts.get("covering"),
+                            max_iter=opts.get("max_iter"), z0=opts.get("z0"))
+    except (ValueError, ZeroDivisionError) as exc:
+        if flag:
+            note(f"--exact: {exc}; the trace stays in decimals")
+        return trace
+    if not same_pivots(trace, exact):
+        note("--exact: in exact arithmetic the method pivots differently from its "
+             "floating-point run (ties decided by rounding); the exact steps are shown, the "
+             "answer is the floating-point run's")
+    return exact
+
+
+def exact_cones(problem: Any, flag: bool | None, res: Any, M: Any) -> tuple[Any, Any]:
+    """``enumerate``'s tables in fractions (``--exact``, or by default on small rational
+    data): the enumeration with exact ``det A_r``, ``y``, ``z``, ``w``, and ``M`` as
+    fractions; ``(res, M)`` unchanged otherwise (with a note when ``--exact`` was asked)."""
+    from lcpcli.solvers.trace.exact import exact_enumeration, wants_exact
+
+    data = wants_exact(problem, flag)
+    if data is None:
+        if flag:
+            note("--exact: the data are not fractions with small denominators; the tables "
+                 "stay in decimals")
+        return res, M
+    return exact_enumeration(res, data), data.M
+

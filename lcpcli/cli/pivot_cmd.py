@@ -1,4 +1,5 @@
-"""``lcpcli pivot``: the principal pivoting transform of seed 000, for one basis or a sequence."""
+"""``lcpcli pivot``: Dai & Drumwright's principal pivoting transform, for one basis or a
+sequence of bases."""
 
 from __future__ import annotations
 
@@ -7,6 +8,7 @@ from typing import Any
 
 import typer
 
+from lcpcli.cli.export import EXACT_HELP
 from lcpcli.core.errors import EXIT_OK
 
 
@@ -52,11 +54,13 @@ def pivot(
                                 help="Problem (group) name inside an HDF5 file."),
     as_json: bool = typer.Option(False, "--json",
                                  help="Print one JSON object on stdout and nothing else."),
+    exact: bool = typer.Option(None, "--exact/--no-exact", show_default=False,
+                               help=EXACT_HELP),
 ) -> int:
-    """Principal pivoting transform (seed 000): q' and M'_driving of w' = q' + M' z'.
+    """Principal pivoting transform (Dai & Drumwright): q' and M'_driving of w' = q' + M' z'.
 
     Variable names are 1-based: w1..wn, z1..zn; z0 is the artificial variable (alias
-    z{n+1}, its position in the seed's z). With --driving, Lemke's ratio test on M'_driving
+    z{n+1}, its position in Dai & Drumwright's z). With --driving, Lemke's ratio test on M'_driving
     names the blocking variable and the next Lemke step. Exit codes: 0 done; 2 bad input
     (bad basis, singular M^{alpha beta}, bad file, bad option).
     """
@@ -117,6 +121,7 @@ def pivot(
     from lcpcli.cli.common import stdout_console
     from lcpcli.cli.render.pivot import pivot_pages
 
+    items, Maug, q = _exact_items(items, Maug, q, exact)
     pages = pivot_pages(items, Maug, q, source, layout)
     emit(pages, fmt=fmt, output=output, inputs=[file], pivot=pivot_step,
          numbers=list(range(len(pages))), labels=[f"step {k}" for k in range(len(pages))],
@@ -127,12 +132,46 @@ def pivot(
     return EXIT_OK
 
 
+def _exact_items(items: list[tuple[Any, Any]], Maug: Any, q: Any,
+                 flag: bool | None) -> tuple[list[tuple[Any, Any]], Any, Any]:
+    """The bases recomputed in fractions for the pages (``--exact``, or by default on small
+    rational data), with Lemke's rule applied again on the exact numbers."""
+    from lcpcli.cli.export import note
+    from lcpcli.solvers.trace.exact import (
+        AUTO_MAX_N,
+        FLAG_MAX_ABS,
+        FLAG_MAX_DENOMINATOR,
+        exact_transform,
+        rational_array,
+    )
+    from lcpcli.solvers.trace.path import driving_step
+
+    if flag is False or (flag is None and q.shape[0] > AUTO_MAX_N):
+        return items, Maug, q
+    limits = (FLAG_MAX_DENOMINATOR, FLAG_MAX_ABS) if flag else ()
+    Me, qe = rational_array(Maug, *limits), rational_array(q, *limits)
+    if Me is None or qe is None:
+        if flag:
+            note("--exact: the data are not fractions with small denominators; the pages "
+                 "stay in decimals")
+        return items, Maug, q
+    out = []
+    for t, step in items:
+        te = exact_transform(t, Me, qe)
+        se = driving_step(te, Me) if step is not None else None
+        if se is not None and se.get("blocking") != step.get("blocking"):
+            note("--exact: in exact arithmetic Lemke's rule blocks a different variable than "
+                 "in floating point (a tie decided by rounding)")
+        out.append((te, se))
+    return out, Me, qe
+
+
 def load_augmented(path: str, covering: str | None = None,
                    problem: str | None = None) -> tuple[Any, Any, str]:
     """Read ``q`` and the ``n x (n+1)`` matrix ``[M, d]`` of a problem file.
 
     JSON and NPZ files may store ``M`` with ``n + 1`` columns (the artificial column last,
-    as in seed 000); otherwise the file holds an ordinary LCP and ``covering`` (text such as
+    as in Dai & Drumwright); otherwise the file holds an ordinary LCP and ``covering`` (text such as
     ``"1,2,1"``; default all ones) supplies the artificial column.  Returns ``(Maug, q, where)``
     with ``where`` saying where the artificial column came from.
     """

@@ -7,6 +7,7 @@ from pathlib import Path
 import typer
 
 from lcpcli.cli.common import MethodListCommand
+from lcpcli.cli.export import EXACT_HELP
 
 
 def solve(
@@ -76,6 +77,8 @@ def solve(
     fmt: str = typer.Option("text", "--format",
                             help="Trace output: text, markdown or latex (lecture notes; on "
                                  "stdout, or in the -o FILE). Implies --trace unless text."),
+    exact: bool = typer.Option(None, "--exact/--no-exact", show_default=False,
+                               help="Trace: " + EXACT_HELP + " --exact implies --trace."),
 ) -> int:
     """Solve an LCP: find z >= 0 with w = M z + q >= 0 and z^T w = 0.
 
@@ -112,7 +115,8 @@ def solve(
     from lcpcli.cli.export import check_export_options, check_format
 
     fmt = check_format(fmt)
-    trace = trace or layout is not None or pivot_step is not None or step or fmt != "text"
+    trace = (trace or layout is not None or pivot_step is not None or step or fmt != "text"
+             or bool(exact))
     if wants_batch(files, output, problem=problem, **batch):
         if trace:
             raise OptionError("--trace (and --layout, --pivot, --step, --format) shows one "
@@ -134,6 +138,10 @@ def solve(
     forward = forward_error_bound(prob, result.z) if result.solved else None
     payload["forward_error_bound"] = forward.as_dict() if forward is not None else None
     code = exit_code_for([result.status])
+    if result.trace is not None:  # the teaching view; the JSON above keeps the floats
+        from lcpcli.cli.export import exact_view
+
+        result.trace = exact_view(prob, method, exact, opts, result.trace)
     if output is not None and fmt == "text":
         write_atomic_text(output, json.dumps(payload, allow_nan=False) + "\n")
     if as_json:

@@ -231,7 +231,7 @@ def test_cli_pivot_text_full(cli, samples):
     p = cli("pivot", str(samples / "seed000_augmented.json"), "-d", SEED_DEP, "-i", SEED_IND,
             "--driving", "z2", "--full", env={"NO_COLOR": "1", "COLUMNS": "120"})
     assert p.returncode == 0, p.stderr
-    for text in ("alpha-bar'", "{3, 1}", "eqs 7-8", "pivoted tableau", "falls by 3"):
+    for text in ("alpha-bar'", "{3, 1}", "eqs 7 and 8", "pivoted tableau", "falls by 3"):
         assert text in p.stdout
 
 

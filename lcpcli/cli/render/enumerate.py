@@ -2,11 +2,13 @@
 for n = 2 the classic picture of the four cones and the point q (terminal or matplotlib).
 
 Variable names are 1-based (``w1``, ``z2``); the complementary matrix ``A_r`` has column
-``I_j`` for ``w_j`` basic and ``-M_j`` for ``z_j`` basic (seed 004).
+``I_j`` for ``w_j`` basic and ``-M_j`` for ``z_j`` basic (Murty, "Linear Complementarity, Linear and
+Nonlinear Programming", chapter 1).
 """
 
 from __future__ import annotations
 
+from fractions import Fraction
 from pathlib import Path
 from typing import Any
 
@@ -28,7 +30,7 @@ from lcpcli.analysis.enumeration import (
     complementary_matrix,
     generators_2d,
 )
-from lcpcli.cli.render.common import fmt
+from lcpcli.cli.render.common import fit, fmt
 from lcpcli.cli.render.doc import Grid, Heading, Page, Para
 
 #: The verdict of a search that found no cone but no proof either (a text key only).
@@ -65,6 +67,22 @@ def _verdict(res: Enumeration) -> str:
     return UNPROVEN if res.verdict == NONE and res.proof is None else res.verdict
 
 
+def _complementary(M: np.ndarray, cone: Any) -> np.ndarray:
+    """``A_r`` of ``cone``, in fractions when the enumeration was made exact (``--exact``)."""
+    if isinstance(cone.det, Fraction):
+        from lcpcli.solvers.trace.exact import (
+            FLAG_MAX_ABS,
+            FLAG_MAX_DENOMINATOR,
+            complementary,
+            rational_array,
+        )
+
+        exact = rational_array(M, FLAG_MAX_DENOMINATOR, FLAG_MAX_ABS)
+        if exact is not None:
+            return complementary(exact, cone.code)
+    return complementary_matrix(M, cone.code)
+
+
 def _matrix_text(A: np.ndarray) -> str:
     cells = [[fmt(x) for x in row] for row in A]
     width = max(len(c) for row in cells for c in row)
@@ -96,7 +114,7 @@ def cone_table(res: Enumeration, M: np.ndarray, all_cones: bool) -> Table:
     shown = res.cones[:MAX_ROWS]
     for c in shown:
         row: list[Any] = [str(c.r)]
-        row.append(_matrix_text(complementary_matrix(M, c.code)) if small
+        row.append(_matrix_text(_complementary(M, c)) if small
                    else " ".join(c.basis_names()))
         det = fmt(c.det) if c.det is not None else "-"
         rank = "-" if c.rank is None else str(c.rank)
@@ -154,11 +172,11 @@ def render_enumeration(res: Enumeration, problem: Any, file: str | None, *,
     head.add_row("cones", f"{c['feasible']:,} contain q, {c['singular']:,} singular "
                           f"({c['singular_with_q']:,} of them contain q){pruned}")
     head.add_row("time", f"{res.seconds * 1e3:.3f} ms")
-    parts: list[Any] = [head, Text("")]
+    parts: list[Any] = [fit(head), Text("")]
     if res.cones or all_cones:
-        parts.append(cone_table(res, M, all_cones))
+        parts.append(fit(cone_table(res, M, all_cones)))
     if res.solutions:
-        parts.append(solutions_table(res))
+        parts.append(fit(solutions_table(res)))
     text, style = VERDICT_TEXT[_verdict(res)]
     parts.append(Text.assemble(("verdict: ", "bold"), (text, style)))
     if covers is not None:
@@ -184,7 +202,8 @@ def enumeration_pages(res: Enumeration, problem: Any, file: str | None, *, all_c
     M = np.asarray(problem.dense_M(), dtype=float)
     n = res.n
     c = res.counts
-    page: Page = [Heading(f"Complementary cones of {file or problem.name or 'the problem'}"),
+    name = Path(file).name if file and file != "-" else (problem.name or "the problem")
+    page: Page = [Heading(f"Complementary cones of {name}"),
                   Para(f"{problem.summary()}, 2^{n} = {res.total:,} complementary cones; "
                        f"{c['feasible']:,} contain q, {c['singular']:,} singular.")]
     if res.cones or all_cones:
@@ -194,7 +213,7 @@ def enumeration_pages(res: Enumeration, problem: Any, file: str | None, *, all_c
         rows = []
         for cone in res.cones[:MAX_ROWS]:
             row = [str(cone.r),
-                   _matrix_inline(complementary_matrix(M, cone.code)) if small
+                   _matrix_inline(_complementary(M, cone)) if small
                    else " ".join(cone.basis_names()),
                    fmt(cone.det) if cone.det is not None else "-",
                    "-" if cone.rank is None else str(cone.rank) + (" (singular)"
@@ -210,7 +229,7 @@ def enumeration_pages(res: Enumeration, problem: Any, file: str | None, *, all_c
         page.append(Grid(header, rows, ["r", "l", "r", "l", "l", "l"][:len(header)],
                          f"complementary cones ({what})"))
     if res.solutions:
-        page.append(Grid(["#", "z", "w = Mz + q", "cones", "error"],
+        page.append(Grid(["#", "z", "w = M z + q", "cones", "error"],
                          [[str(k), _vec(sol.z) + (" (+ a continuum)" if sol.continuum else ""),
                            _vec(sol.w), str(len(sol.cones)), f"{sol.certificate.error:.1e}"]
                           for k, sol in enumerate(res.solutions[:MAX_ROWS], 1)],
@@ -244,7 +263,8 @@ def _cone_membership(M: np.ndarray, pts: np.ndarray) -> np.ndarray:
 
 
 def _cone_number(code: int) -> int:
-    """The seed's number r of the 2 x 2 cone with code bits (bit j = z_{j+1} basic)."""
+    """The number r of the 2 x 2 cone with code bits ``code`` (bit j = z_{j+1} basic), as the
+    rigid-body collision article numbers them in its enumeration."""
     return 1 + sum(1 << (1 - b) for b in range(2) if (code >> b) & 1)
 
 

@@ -43,10 +43,20 @@ def view_grid(view: TableauView, title: str = "") -> Grid:
     return Grid(header, rows, ["l"] + ["r"] * len(view.columns), title, marked, rules)
 
 
-def _pivot_text(pe: dict[str, Any], layout: str) -> str:
-    value = float(pe["value"]) if layout == "dictionary" else -float(pe["value"])
-    return (f"pivot element {fmt(value)}: row {pe['row']}, column {pe['column']} "
-            f"(marked above)")
+def _pivot_text(pe: dict[str, Any], layout: str, what: str = "lemke") -> str:
+    """The pivot element, named as the layout's tableau and ratio test name it.
+
+    ``what``: ``lemke``, ``initial`` (the z0 column, ``d``) or ``principal`` (Murty's
+    method: the diagonal entry ``M'_rr``; Murty's tableau holds ``-M'``)."""
+    v, r = pe["value"], pe["row"]
+    if what == "principal":
+        name = (f"M'_rr = {fmt(v)}" if layout == "dictionary"
+                else f"-M'_rr = {fmt(-v)} (M'_rr = {fmt(v)}; Murty's tableau holds -M')")
+    elif what == "initial":
+        name = f"d_{r} = {fmt(v)}" if layout == "dictionary" else f"-d_{r} = {fmt(-v)}"
+    else:
+        name = f"c_{r} = {fmt(v)}" if layout == "dictionary" else f"a_{r} = {fmt(-v)}"
+    return f"pivot element {name}: row {r}, column {pe['column']} (marked above)"
 
 
 # ------------------------------------------------------------------------------- Lemke
@@ -65,7 +75,7 @@ def ratio_grid(test: dict[str, Any], entering: str, layout: str, leaving_row: in
         header = ["row", "basic", "q'", f"c_i ({entering} column)", "q'_i / (-c_i)", ""]
     rows, marked = [], set()
     for k, x in enumerate(test["rows"]):
-        c = float(x["column"])
+        c = x["column"]
         shown = -c if murty else c
         if x["ratio"] is None:
             note = x["why"] or "not eligible"
@@ -85,12 +95,14 @@ def ratio_grid(test: dict[str, Any], entering: str, layout: str, leaving_row: in
 def lex_blocks(lex: dict[str, Any], layout: str) -> list[Any]:
     """The rows of B^-1 compared in a lexicographic tie-break, and each comparison."""
     n = len(lex["rows"][0]["binv_row"])
-    header = ["row", "BV" if layout == "murty" else "basic", "pivot entry a_i",
-              *[f"w{k + 1}" for k in range(n)]]
+    murty = layout == "murty"
+    entry = "a_i" if murty else "-c_i"  # the same number: Murty's a_i is the dictionary's -c_i
+    header = ["row", "BV" if murty else "basic", entry, *[f"w{k + 1}" for k in range(n)]]
     rows = [[str(r["row"]), r["basic"], fmt(r["pivot_entry"]), *[fmt(v) for v in r["key"]]]
             for r in lex["rows"]]
-    title = ("rows of B^-1 (the w columns of Murty's tableau) divided by the pivot entry a_i, "
-             "compared column by column; the smallest stays")
+    title = (f"rows of B^-1 (the w columns of Murty's tableau) divided by {entry} (the "
+             f"entering column's entry{'' if murty else ' with its sign flipped'}), compared "
+             f"column by column; the smallest stays")
     items = []
     for c in lex["compared"]:
         keys = ", ".join(f"row {r}: {fmt(k)}" for r, k in zip(c["rows"], c["keys"], strict=True))
@@ -119,8 +131,9 @@ def _decision(step: dict[str, Any], layout: str, has_tableau: bool = True) -> Pa
     if step.get("leaving") is None:
         out.append(Para(step["reason"][:1].upper() + step["reason"][1:] + "."))
         return out
+    what = "initial" if step.get("rule") == "initial" else "lemke"
     out.append(Para(f"{step['leaving']} leaves (row {step['row']}): {step['reason']}; "
-                    f"{_pivot_text(step['pivot_element'], layout)}."))
+                    f"{_pivot_text(step['pivot_element'], layout, what)}."))
     return out
 
 
@@ -184,7 +197,7 @@ def principal_pages(trace: list[dict[str, Any]], layout: str = "dictionary") -> 
         if nxt is not None:
             page.append(Para(f"Next: {nxt['reason']}."))
             if nxt.get("pivot_element") and nxt.get("rule") != "bad_pivot":
-                page.append(Para(_pivot_text(nxt["pivot_element"], layout) + "."))
+                page.append(Para(_pivot_text(nxt["pivot_element"], layout, "principal") + "."))
         elif k == len(states) - 1:
             qp = np.asarray(st["q_prime"], dtype=float)
             scale = 1.0 + (float(np.max(np.abs(qp))) if qp.size else 0.0)
@@ -202,8 +215,9 @@ def _index_sets(st: dict[str, Any]) -> str:
     def s(xs: list[int]) -> str:
         return "{" + ", ".join(str(x) for x in xs) + "}"
 
-    return (f"z basic: alpha = beta = {s(st['alpha'])} (seed 000: q'^beta = -(M^alpha alpha)^-1 "
-            f"q^alpha); w basic: alpha-bar = {s(st['alpha_bar'])}")
+    return (f"z basic: alpha = beta = {s(st['alpha'])}; w basic: alpha-bar = "
+            f"{s(st['alpha_bar'])} (Dai & Drumwright's index sets; q' = -(M^{{alpha alpha}})^-1 "
+            f"q^alpha on alpha)")
 
 
 def principal_table(trace: list[dict[str, Any]]) -> Grid:
@@ -265,24 +279,26 @@ def dantzig_pages(trace: list[dict[str, Any]]) -> list[Page]:
 
 # ------------------------------------------------------------------------------- sweeps
 def sweep_table(trace: list[dict[str, Any]]) -> Grid:
-    """The recorded sweeps of PGS/PSOR: z, the largest change, the estimate, the error."""
+    """The recorded sweeps of PGS/PSOR: z, the largest change, the exact normwise error and
+    whether the method made its exact check.  (The kernels' in-sweep estimate, ``estimate``
+    in the JSON, is not shown: for PGS each row's update zeroes that row's own residual, so
+    it is 0 on every sweep and says nothing; the normwise error is the measured quantity.)"""
     show_z = bool(trace) and trace[0].get("z") is not None
-    header = ["sweep", *(["z"] if show_z else []), "max |change|", "estimate",
-              "normwise error", "exact check"]
+    header = ["sweep", *(["z"] if show_z else []), "max |change|", "normwise error",
+              "checked"]
     rows = []
     last = None
     for st in trace:
         if last is not None and st["sweep"] > last + 1:
-            rows.append(["...", *([""] if show_z else []), "", "", "", ""])
+            rows.append(["...", *([""] if show_z else []), "", "", ""])
         last = st["sweep"]
         rows.append([str(st["sweep"]), *([_vec(st["z"])] if show_z else []),
                      "-" if st["change"] is None else f"{st['change']:.3e}",
-                     "-" if st["estimate"] is None else f"{st['estimate']:.3e}",
                      f"{st['error']:.3e}", "yes" if st["checked"] else ""])
     omega = trace[0].get("omega", 1.0) if trace else 1.0
     title = (f"projected {'Gauss-Seidel' if omega == 1.0 else f'SOR (omega = {omega:g})'}: "
              f"the first sweeps and the last")
-    return Grid(header, rows, ["r", *(["l"] if show_z else []), "r", "r", "r", "l"], title)
+    return Grid(header, rows, ["r", *(["l"] if show_z else []), "r", "r", "l"], title)
 
 
 def sweep_pages(trace: list[dict[str, Any]]) -> list[Page]:
@@ -367,7 +383,7 @@ def _index_table(t: Any) -> Grid:
             ["beta-bar", s(t.beta_bar), "positions in z of the independent z's"],
             ["beta-bar'", s(t.beta_bar_prime), "their positions in z'"]]
     return Grid(["set", "value", "meaning"], rows, ["l", "l", "l"],
-                "index sets (1-based, seed 000)")
+                "index sets (1-based, as in Dai & Drumwright)")
 
 
 def _matrix_text(title: str, A: Any) -> str:
@@ -383,7 +399,7 @@ def pivot_pages(items: list[tuple[Any, dict[str, Any] | None]], M: Any, q: Any,
     pages: list[Page] = []
     start = {"basis": [f"w{i + 1}" for i in range(n)],
              "nonbasic": [*(f"z{j + 1}" for j in range(n)), ARTIFICIAL],
-             "q_prime": list(map(float, q)), "tableau": np.asarray(M, dtype=float).tolist()}
+             "q_prime": list(q), "tableau": [list(row) for row in M]}
     for k, (t, step) in enumerate(items):
         page: Page = []
         if len(items) > 1:
@@ -407,7 +423,7 @@ def pivot_pages(items: list[tuple[Any, dict[str, Any] | None]], M: Any, q: Any,
                          [[f"{i + 1}: {t.names((v,))[0]}", fmt(t.q_prime[i]),
                            "eq 2 (beta')" if i in beta_p else "eq 3 (alpha-bar')"]
                           for i, v in enumerate(t.dependent)],
-                         ["l", "r", "l"], "q' (eqs 2-3), in w' order"))
+                         ["l", "r", "l"], "q' (Dai & Drumwright, eqs 2 and 3), in w' order"))
         if t.driving is not None:
             page.extend(_driving_blocks(t, step, layout))
         elif ARTIFICIAL not in t.names(t.dependent) and float(np.min(t.q_prime)) >= 0:
@@ -430,15 +446,16 @@ def _driving_blocks(t: Any, step: dict[str, Any] | None, layout: str) -> Page:
     out: Page = []
     if t.driving_case == "w":
         gamma = t.alpha.index(t.driving[1]) + 1
-        out.append(Para(f"driving variable {name} is a w (seed 2.2.1, eqs 5-6): gamma = {gamma}, "
-                        f"M'_d^{{beta'}} = (M^{{alpha beta}})^-1 e_gamma"))
+        out.append(Para(f"driving variable {name} is a w (Dai & Drumwright, section 2.2.1, eqs 5 "
+                        f"and 6): gamma = {gamma}, M'_d^{{beta'}} = (M^{{alpha beta}})^-1 e_gamma"))
     else:
-        out.append(Para(f"driving variable {name} is a z (seed 2.2.2, eqs 7-8): zeta = "
+        out.append(Para(f"driving variable {name} is a z (Dai & Drumwright, section 2.2.2, eqs 7 "
+                        f"and 8): zeta = "
                         f"{t.driving[1] + 1}, g^alpha = {_vec(t.g_alpha)}, "
                         f"g^{{alpha-bar}} = {_vec(t.g_alpha_bar)}"))
     rows = []
     for k, v in enumerate(t.dependent):
-        c = float(t.driving_column[k])
+        c = t.driving_column[k]
         trend = "rises" if c > 0 else ("falls" if c < 0 else "unchanged")
         rows.append([f"{k + 1}: {t.names((v,))[0]}", fmt(c),
                      f"{trend}{' by ' + fmt(abs(c)) if c else ''}"])

@@ -12,7 +12,8 @@ them with the kernels).
 * :mod:`.pgs`: projected Gauss-Seidel / SOR sweeps (``pgs``, ``psor``);
 * :mod:`.tableau`: the condensed tableau pivot and the two tableau layouts (dictionary
   ``w' = q' + M' z'`` and Murty's ``w - M z - d z0 = q``);
-* :mod:`.path`: Lemke's rule applied to seed 000's transform (``lcpcli pivot --driving``,
+* :mod:`.path`: Lemke's rule applied to Dai & Drumwright's principal pivoting transform
+  (``lcpcli pivot --driving``,
   ``--follow``).
 
 A trace is a list of JSON-ready dicts; ``kind`` says which method wrote it (``lemke``,

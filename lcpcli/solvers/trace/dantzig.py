@@ -16,9 +16,12 @@ bound, 4 fixed (``l = u``).
 
 from __future__ import annotations
 
+from fractions import Fraction
 from typing import Any
 
 import numpy as np
+
+from lcpcli.solvers.trace.tableau import num, scalar
 
 # Status codes and index states: the compiled kernel's values (the tests check they agree).
 OK = 0
@@ -34,23 +37,29 @@ _EVENTS = {0: "w_i reaches 0: clamp i", 1: "z_i reaches a bound", 2: "a clamped 
            "bound: unclamp j", 3: "a bounded w_j reaches 0: clamp j"}
 
 
-def _seq(start: float, terms: np.ndarray) -> float:
+def _seq(start: Any, terms: np.ndarray) -> Any:
     """``start + terms[0] + terms[1] + ...`` accumulated left to right (the kernel's loops)."""
     if terms.size == 0:
-        return float(start)
-    return float(np.cumsum(np.concatenate(([start], terms)))[-1])
+        return scalar(start)
+    return scalar(np.cumsum(np.concatenate(([start], terms)))[-1])
 
 
 def _seq_rows(A: np.ndarray, x: np.ndarray) -> np.ndarray:
     """Row sums ``sum_b A[a, b] x[b]`` accumulated from 0.0 left to right, for every row ``a``."""
     if A.shape[1] == 0:
-        return np.zeros(A.shape[0])
+        return np.zeros(A.shape[0], dtype=A.dtype)
     prods = A * x[None, :]
-    return np.cumsum(np.column_stack([np.zeros(A.shape[0]), prods]), axis=1)[:, -1]
+    zero = np.zeros(A.shape[0], dtype=prods.dtype)  # object: int 0, fractions stay exact
+    return np.cumsum(np.column_stack([zero, prods]), axis=1)[:, -1]
 
 
 def _inv(K: np.ndarray) -> np.ndarray:
-    """``inv(K)`` by LAPACK ``getrf`` + ``getri``, the routines numba's ``np.linalg.inv`` calls."""
+    """``inv(K)`` by LAPACK ``getrf`` + ``getri``, the routines numba's ``np.linalg.inv`` calls
+    (fractions: exact Gauss-Jordan)."""
+    if K.dtype == object:
+        from lcpcli.solvers.trace.exact import inverse
+
+        return inverse(K)
     from scipy.linalg import lapack  # scipy only on the (rare) refactorisation path
 
     lu, piv, info = lapack.dgetrf(K)
@@ -64,8 +73,8 @@ def _inv(K: np.ndarray) -> np.ndarray:
 class _Block:
     """The explicit inverse of ``M[C, C]`` and its updates (the kernel's ``_add``/``_remove``)."""
 
-    def __init__(self, n: int) -> None:
-        self.Binv = np.zeros((n, n))
+    def __init__(self, n: int, kind: Any = np.float64) -> None:
+        self.Binv = np.zeros((n, n), dtype=kind)
         self.C = np.empty(n, dtype=np.int64)
         self.pos = np.full(n, -1, dtype=np.int64)
         self.k = 0
@@ -75,17 +84,17 @@ class _Block:
         Cs = C[:k]
         col = M[Cs, j]
         x = _seq_rows(B[:k, :k], col)
-        y = np.zeros(k)
+        y = np.zeros(k, dtype=B.dtype)
         for b in range(k):  # y = M[j, C] Binv, accumulated row by row of Binv
             mb = M[j, Cs[b]]
-            if mb != 0.0:
+            if mb != 0:
                 y = y + mb * B[b, :k]
         t = M[j, Cs] * x
         s = _seq(M[j, j], -t)
         big = _seq(abs(M[j, j]), np.abs(t))
-        if abs(s) <= 1e-13 * big or big == 0.0:
+        if abs(s) <= 1e-13 * big or big == 0:
             return False
-        inv = 1.0 / s
+        inv = 1 / s  # 1.0 / s for floats, exact for fractions
         B[:k, :k] += np.multiply.outer(x, y) * inv
         B[:k, k] = -x * inv
         B[k, :k] = -y * inv
@@ -104,7 +113,7 @@ class _Block:
             self.pos[moved] = p
         h = B[last, last]
         f = B[:last, last] / h
-        nz = f != 0.0
+        nz = f != 0
         B[:last, :last][nz] -= f[nz, None] * B[last, :last][None, :]
 
     def refactor(self, M: np.ndarray) -> None:
@@ -124,22 +133,24 @@ def dantzig_traced(M: np.ndarray, q: np.ndarray, lo: np.ndarray, up: np.ndarray,
     each with the index sets, the entering/leaving pair and the values after it.
     """
     n = q.shape[0]
-    M = np.asarray(M, dtype=np.float64)
-    q = np.asarray(q, dtype=np.float64)
+    kind = object if np.asarray(M).dtype == object else np.float64  # fractions: exact
+    M = np.asarray(M, dtype=kind)
+    q = np.asarray(q, dtype=kind)
     mscale = float(np.max(np.abs(M))) if n else 0.0
     if mscale == 0.0:
         mscale = 1.0
-    z = np.minimum(np.maximum(0.0, lo), up).astype(np.float64)
-    w = np.empty(n)
+    zero: Any = Fraction(0) if kind is object else 0.0
+    z = np.array([min(max(zero, lo[j]), up[j]) for j in range(n)], dtype=kind)
+    w = np.zeros(n, dtype=kind)
     state = np.zeros(n, dtype=np.int64)
     state[lo == up] = FIXED
-    blk = _Block(n)
+    blk = _Block(n, kind)
     pivots = 0
     updates = 0
-    dz = np.zeros(n)
-    dw = np.zeros(n)
+    dz = np.zeros(n, dtype=kind)
+    dw = np.zeros(n, dtype=kind)
     status = OK
-    lcp = bool(np.all(lo == 0.0) and np.all(np.isinf(up)))
+    lcp = bool(np.all(lo == 0) and np.all(np.isinf(np.asarray(up, dtype=np.float64))))
     trace: list[dict[str, Any]] = []
 
     def record(entry: dict[str, Any]) -> None:
@@ -148,10 +159,10 @@ def dantzig_traced(M: np.ndarray, q: np.ndarray, lo: np.ndarray, up: np.ndarray,
                 "at_upper": [int(j) + 1 for j in np.flatnonzero(state == AT_UPPER)],
                 "unprocessed": [int(j) + 1 for j in range(n)
                                 if state[j] == FREE and j not in done]}
-        wv = np.where(state == CLAMPED, 0.0, w)
+        wv = np.where(state == CLAMPED, zero, w)
         entry.update({"kind": "dantzig", "sets": sets,
-                      "z": z.tolist() if n <= VALUES_MAX_N else None,
-                      "w": [float(wv[j]) if j in done or state[j] != FREE else None
+                      "z": [scalar(x) for x in z] if n <= VALUES_MAX_N else None,
+                      "w": [scalar(wv[j]) if j in done or state[j] != FREE else None
                             for j in range(n)] if n <= VALUES_MAX_N else None})
         trace.append(entry)
 
@@ -174,7 +185,7 @@ def dantzig_traced(M: np.ndarray, q: np.ndarray, lo: np.ndarray, up: np.ndarray,
                 z[i] = lo[i]
                 record({"pivot": pivots, "index": i + 1, "event": "settled", "entering": None,
                         "leaving": None, "step": None,
-                        "reason": (f"index {i + 1}: w{i + 1} = {wi:.6g} >= 0 with z{i + 1} at "
+                        "reason": (f"index {i + 1}: w{i + 1} = {num(wi)} >= 0 with z{i + 1} at "
                                    f"its lower bound: w{i + 1} stays basic, no pivot")})
                 break
             if z[i] >= up[i] and wi <= tolw:
@@ -182,7 +193,7 @@ def dantzig_traced(M: np.ndarray, q: np.ndarray, lo: np.ndarray, up: np.ndarray,
                 z[i] = up[i]
                 record({"pivot": pivots, "index": i + 1, "event": "settled", "entering": None,
                         "leaving": None, "step": None,
-                        "reason": (f"index {i + 1}: w{i + 1} = {wi:.6g} <= 0 with z{i + 1} at "
+                        "reason": (f"index {i + 1}: w{i + 1} = {num(wi)} <= 0 with z{i + 1} at "
                                    f"its upper bound: no pivot")})
                 break
             if abs(wi) <= tolw:
@@ -193,12 +204,12 @@ def dantzig_traced(M: np.ndarray, q: np.ndarray, lo: np.ndarray, up: np.ndarray,
                 blk.k += 1
                 updates += 1
                 state[i] = CLAMPED
-                w[i] = 0.0
+                w[i] = zero
                 record({"pivot": pivots, "index": i + 1, "event": "clamped", "entering":
                         f"z{i + 1}", "leaving": f"w{i + 1}", "step": None,
                         "reason": f"index {i + 1}: w{i + 1} is already 0: clamp it, no step"})
                 break
-            direc = 1.0 if wi < 0.0 else -1.0
+            direc = 1 if wi < 0 else -1  # an int: fractions stay exact
             k = blk.k
             Cs = blk.C[:k].copy()
             s = _seq_rows(blk.Binv[:k, :k], M[Cs, i])
@@ -214,36 +225,36 @@ def dantzig_traced(M: np.ndarray, q: np.ndarray, lo: np.ndarray, up: np.ndarray,
                     continue
                 dw[j] = _seq(M[j, i] * direc, M[j, Cs] * dz[:k])
             if dw[i] * direc > epsw:
-                tmin = max(-wi / dw[i], 0.0)
+                tmin = max(-wi / dw[i], zero)
                 event = 0
-            if direc > 0.0 and up[i] < np.inf:
+            if direc > 0 and up[i] < np.inf:
                 tt = up[i] - z[i]
                 if tt <= tmin:
-                    tmin = max(tt, 0.0)
+                    tmin = max(tt, zero)
                     event = 1
-            elif direc < 0.0 and lo[i] > -np.inf:
+            elif direc < 0 and lo[i] > -np.inf:
                 tt = z[i] - lo[i]
                 if tt <= tmin:
-                    tmin = max(tt, 0.0)
+                    tmin = max(tt, zero)
                     event = 1
             for a in range(k):
                 j = Cs[a]
                 dd = dz[a]
                 if dd < -epsz and lo[j] > -np.inf:
-                    tt = max(z[j] - lo[j], 0.0) / (-dd)
+                    tt = max(z[j] - lo[j], zero) / (-dd)
                     if tt < tmin:
                         tmin, event, ev_j = tt, 2, a
                 elif dd > epsz and up[j] < np.inf:
-                    tt = max(up[j] - z[j], 0.0) / dd
+                    tt = max(up[j] - z[j], zero) / dd
                     if tt < tmin:
                         tmin, event, ev_j = tt, 2, a
             for j in range(n):
                 if state[j] == AT_LOWER and dw[j] < -epsw:
-                    tt = max(w[j], 0.0) / (-dw[j])
+                    tt = max(w[j], zero) / (-dw[j])
                     if tt < tmin:
                         tmin, event, ev_j = tt, 3, j
                 elif state[j] == AT_UPPER and dw[j] > epsw:
-                    tt = max(-w[j], 0.0) / dw[j]
+                    tt = max(-w[j], zero) / dw[j]
                     if tt < tmin:
                         tmin, event, ev_j = tt, 3, j
             if event < 0:
@@ -259,7 +270,7 @@ def dantzig_traced(M: np.ndarray, q: np.ndarray, lo: np.ndarray, up: np.ndarray,
                 if j == i or state[j] == AT_LOWER or state[j] == AT_UPPER:
                     w[j] += tmin * dw[j]
             pivots += 1
-            move = f"z{i + 1} {'rises' if direc > 0 else 'falls'} by {tmin:.6g}"
+            move = f"z{i + 1} {'rises' if direc > 0 else 'falls'} by {num(tmin)}"
             if event == 0:
                 if not blk.add(M, i):
                     status = SINGULAR
@@ -268,9 +279,9 @@ def dantzig_traced(M: np.ndarray, q: np.ndarray, lo: np.ndarray, up: np.ndarray,
                 blk.k += 1
                 updates += 1
                 state[i] = CLAMPED
-                w[i] = 0.0
+                w[i] = zero
                 record({"pivot": pivots, "index": i + 1, "event": "clamp_driving",
-                        "entering": f"z{i + 1}", "leaving": f"w{i + 1}", "step": float(tmin),
+                        "entering": f"z{i + 1}", "leaving": f"w{i + 1}", "step": scalar(tmin),
                         "reason": f"{move}: w{i + 1} reaches 0, index {i + 1} is clamped"})
                 break
             if event == 1:
@@ -282,7 +293,7 @@ def dantzig_traced(M: np.ndarray, q: np.ndarray, lo: np.ndarray, up: np.ndarray,
                     z[i] = lo[i]
                     state[i] = AT_LOWER
                 record({"pivot": pivots, "index": i + 1, "event": "driving_at_bound",
-                        "entering": None, "leaving": None, "step": float(tmin),
+                        "entering": None, "leaving": None, "step": scalar(tmin),
                         "reason": f"{move}: z{i + 1} reaches its {bound} bound first"})
                 break
             if event == 2:
@@ -293,13 +304,13 @@ def dantzig_traced(M: np.ndarray, q: np.ndarray, lo: np.ndarray, up: np.ndarray,
                 else:
                     z[j] = up[j]
                     state[j] = AT_UPPER
-                w[j] = 0.0
+                w[j] = zero
                 blk.remove(ev_j)
                 blk.pos[j] = -1
                 blk.k -= 1
                 updates += 1
                 record({"pivot": pivots, "index": i + 1, "event": "unclamp",
-                        "entering": f"w{j + 1}", "leaving": f"z{j + 1}", "step": float(tmin),
+                        "entering": f"w{j + 1}", "leaving": f"z{j + 1}", "step": scalar(tmin),
                         "reason": (f"{move}: z{j + 1} reaches its bound first, index {j + 1} "
                                    f"leaves the clamped set")})
             elif event == 3:
@@ -311,9 +322,9 @@ def dantzig_traced(M: np.ndarray, q: np.ndarray, lo: np.ndarray, up: np.ndarray,
                 blk.k += 1
                 updates += 1
                 state[j] = CLAMPED
-                w[j] = 0.0
+                w[j] = zero
                 record({"pivot": pivots, "index": i + 1, "event": "clamp",
-                        "entering": f"z{j + 1}", "leaving": f"w{j + 1}", "step": float(tmin),
+                        "entering": f"z{j + 1}", "leaving": f"w{j + 1}", "step": scalar(tmin),
                         "reason": f"{move}: w{j + 1} reaches 0 first, index {j + 1} is clamped"})
             period = 64 + blk.k
             if updates >= period:

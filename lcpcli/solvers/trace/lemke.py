@@ -20,7 +20,14 @@ from typing import Any
 import numpy as np
 
 from lcpcli.analysis.pivoting import ARTIFICIAL
-from lcpcli.solvers.trace.tableau import code_name, pivot_update, state_record
+from lcpcli.solvers.trace.tableau import (
+    as_numbers,
+    code_name,
+    num,
+    pivot_update,
+    scalar,
+    state_record,
+)
 
 # Status codes: the compiled kernel's values (tests/solvers/test_trace.py checks they agree).
 OK = 0
@@ -74,40 +81,44 @@ def ratio_test(col: np.ndarray, qb: np.ndarray, basis: list[str], entering: str,
     ``tied_rows`` (0-based rows at the minimum, in row order) and ``z0_row`` (the row of
     ``z0`` among them, -1 if none).
     """
-    col = np.asarray(col, dtype=np.float64)
-    qb = np.asarray(qb, dtype=np.float64)
+    col = as_numbers(col)
+    qb = as_numbers(qb)
     colmax = float(np.max(np.abs(col))) if col.size else 0.0
     ptol = piv_tol * colmax
     qmax = max(0.0, float(np.max(qb))) if qb.size else 0.0
     ztol = ZERO_Q * qmax
     elig = np.flatnonzero(col < -ptol)
-    v = np.where(qb[elig] > ztol, qb[elig], 0.0)
+    v = np.where(qb[elig] > ztol, qb[elig], qb[elig] * 0)  # a zero of the data's type
     t = v / (-col[elig])
-    tmin = float(np.min(t)) if elig.size else None
+    tmin = np.min(t) if elig.size else None
     tied_mask = t <= tmin + tie_tol * tmin if elig.size else np.zeros(0, dtype=bool)
     tied = [int(i) for i in elig[tied_mask]]
     ratio = dict(zip(elig.tolist(), t.tolist(), strict=True))
     rows = []
     for i in range(col.shape[0]):
-        c = float(col[i])
-        rec: dict[str, Any] = {"row": i + 1, "basic": basis[i], "q": float(qb[i]), "column": c,
-                               "ratio": None, "eligible": i in ratio, "tied": False, "why": ""}
+        c = scalar(col[i])
+        rec: dict[str, Any] = {"row": i + 1, "basic": basis[i], "q": scalar(qb[i]),
+                               "column": c, "ratio": None, "eligible": i in ratio,
+                               "tied": False, "why": ""}
         if i in ratio:
-            rec["ratio"] = float(ratio[i])
+            rec["ratio"] = scalar(ratio[i])
             rec["tied"] = i in tied and len(tied) > 1
-            if qb[i] <= ztol and qb[i] != 0.0:
+            if qb[i] <= ztol and qb[i] != 0:
                 rec["why"] = f"q' = {float(qb[i]):.3g} counts as 0"
-        elif c == 0.0:
+        elif c == 0:
             rec["why"] = f"entry 0: {basis[i]} does not change as {entering} rises"
         elif abs(c) <= ptol:
-            rec["why"] = f"|entry| <= {piv_tol:g} of the column's largest: counts as 0"
+            rec["why"] = (f"entry below {piv_tol:g} times the column's largest in "
+                          f"magnitude: counts as 0")
         else:
             rec["why"] = f"{basis[i]} grows as {entering} rises: never blocks"
         rows.append(rec)
     z0_rows = [i for i in tied if basis[i] == ARTIFICIAL]
     return {"formula": ratio_formula(entering, piv_tol, tie_tol),
             "formula_murty": ratio_formula_murty(entering, piv_tol, tie_tol), "rows": rows,
-            "min_ratio": tmin, "tied_rows": tied, "z0_row": z0_rows[-1] if z0_rows else -1}
+            "min_ratio": None if tmin is None else scalar(tmin), "tied_rows": tied,
+            "z0_row": z0_rows[-1] if z0_rows else -1}
+
 
 
 def lexicographic(tied: list[int], col: np.ndarray, binv_row: Callable[[int], np.ndarray],
@@ -121,12 +132,12 @@ def lexicographic(tied: list[int], col: np.ndarray, binv_row: Callable[[int], np
     """
     cand = list(tied)
     unit = 1.0 / max(float(-col[i]) for i in cand)
-    full = {i: np.asarray(binv_row(i), dtype=np.float64) for i in cand}
+    full = {i: as_numbers(binv_row(i)) for i in cand}
     n = len(next(iter(full.values())))
     compared = []
     decided = -1
     for k in range(n):
-        keys = [float(full[i][k]) / float(-col[i]) for i in cand]
+        keys = [scalar(full[i][k] / -col[i]) for i in cand]
         kmin = min(keys)
         kmax = max(abs(x) for x in keys)
         kept = [i for i, x in zip(cand, keys, strict=True) if x <= kmin + LEX_TOL * max(kmax, unit)]
@@ -138,8 +149,8 @@ def lexicographic(tied: list[int], col: np.ndarray, binv_row: Callable[[int], np
             decided = k
             break
     record = {
-        "rows": [{"row": i + 1, "basic": basis[i], "pivot_entry": float(-col[i]),
-                  "binv_row": full[i].tolist(), "key": (full[i] / float(-col[i])).tolist()}
+        "rows": [{"row": i + 1, "basic": basis[i], "pivot_entry": scalar(-col[i]),
+                  "binv_row": full[i].tolist(), "key": (full[i] / -col[i]).tolist()}
                  for i in tied],
         "compared": compared,
         "decided_by": f"w{decided + 1}" if decided >= 0 else None,
@@ -159,10 +170,11 @@ def lemke_traced(M: np.ndarray, q: np.ndarray, d: np.ndarray, max_iter: int, piv
     """
     n = q.shape[0]
     nz = 2 * n
-    T = np.empty((n, n + 1))
+    kind = object if np.asarray(M).dtype == object else np.float64  # fractions: exact
+    T = np.empty((n, n + 1), dtype=kind)
     T[:, :n] = M
     T[:, n] = d
-    qb = q.astype(np.float64).copy()
+    qb = np.array(q, dtype=kind)
     basic = np.arange(n, dtype=np.int64)
     nonbasic = np.arange(n, 2 * n + 1, dtype=np.int64)
     where = np.empty(2 * n + 1, dtype=np.int64)
@@ -185,9 +197,9 @@ def lemke_traced(M: np.ndarray, q: np.ndarray, d: np.ndarray, max_iter: int, piv
         """Row i of the basis inverse (the kernel's ``_lex_key`` for k = 0..n-1)."""
         loc = where[:n]
         cols = np.where(loc < 0, -loc - 1, 0)
-        return np.where(loc >= 0, (loc == i).astype(np.float64), -T[i, cols])
+        return np.where(loc >= 0, (loc == i).astype(np.int64).astype(kind), -T[i, cols])
 
-    trivial = bool(n == 0 or np.min(q / d) >= 0.0)
+    trivial = bool(n == 0 or np.min(q / d) >= 0)
     start = {"kind": "lemke", "pivot": 0, "entering": None, "leaving": None, "row": None,
              "entering_reason": None, "pivot_element": None, "ratio_test": None,
              "candidates": [], "lexicographic": None, "rule": "start",
@@ -203,7 +215,7 @@ def lemke_traced(M: np.ndarray, q: np.ndarray, d: np.ndarray, max_iter: int, piv
         step: dict[str, Any] = {
             "kind": "lemke", "pivot": pivot, "entering": name(entering), "leaving": name(leaving),
             "row": r + 1, "entering_reason": why_enters,
-            "pivot_element": {"row": r + 1, "column": name(entering), "value": float(p)},
+            "pivot_element": {"row": r + 1, "column": name(entering), "value": scalar(p)},
             "ratio_test": test, "candidates": [x for x in test["rows"] if x["eligible"]],
             "lexicographic": lex, "rule": rule, "reason": reason,
         }
@@ -211,28 +223,28 @@ def lemke_traced(M: np.ndarray, q: np.ndarray, d: np.ndarray, max_iter: int, piv
         trace.append(step)
 
     ratios = q / d
-    best = min(0.0, float(np.min(ratios))) if n else 0.0
-    if best >= 0.0:
+    best = min(0, np.min(ratios)) if n else 0
+    if best >= 0:
         return TRIVIAL, z, 0, basic, ray_dz, 0.0, 0.0, trace
     r = int(np.flatnonzero(ratios <= best + tie_tol * abs(best))[-1])
     entering, c, leaving = nz, n, int(basic[r])
     tied0 = ratios <= best + tie_tol * abs(best)
-    rows0 = [{"row": i + 1, "basic": name(basic[i]), "q": float(q[i]), "column": float(d[i]),
-              "ratio": float(-ratios[i]) if q[i] < 0 else None, "eligible": bool(q[i] < 0),
+    rows0 = [{"row": i + 1, "basic": name(basic[i]), "q": scalar(q[i]), "column": scalar(d[i]),
+              "ratio": scalar(-ratios[i]) if q[i] < 0 else None, "eligible": bool(q[i] < 0),
               "tied": bool(tied0[i]) and int(np.sum(tied0)) > 1,
               "why": "" if q[i] < 0 else f"q_{i + 1} >= 0: w{i + 1} >= 0 already at z0 = 0"}
              for i in range(n)]
     test0 = {"formula": initial_formula(tie_tol), "formula_murty": initial_formula_murty(tie_tol),
-             "rows": rows0, "min_ratio": -best,
+             "rows": rows0, "min_ratio": scalar(-best),
              "tied_rows": [int(i) for i in np.flatnonzero(tied0)], "z0_row": -1}
     ntie = int(np.sum(tied0))
-    reason = (f"initial pivot: z0 enters at level max(-q_i/d_i) = {-best:.6g}; row {r + 1} "
+    reason = (f"initial pivot: z0 enters at level max(-q_i/d_i) = {num(-best)}; row {r + 1} "
               f"has the most negative q_i/d_i" +
               (f" ({ntie} rows tie, the last one wins: lexicographic rule for q + eps-vector)"
                if ntie > 1 else ""))
     why0 = (f"{ARTIFICIAL} enters first: the artificial variable lifts every w_i = q_i + "
             f"d_i {ARTIFICIAL} to >= 0")
-    p = float(T[r, c])
+    p = T[r, c]
     pivot_update(T, qb, r, c)
     basic[r], nonbasic[c] = entering, leaving
     where[entering], where[leaving] = r, -(c + 1)
@@ -265,23 +277,23 @@ def lemke_traced(M: np.ndarray, q: np.ndarray, d: np.ndarray, max_iter: int, piv
         if test["z0_row"] >= 0:
             r = test["z0_row"]
             rule = "z0_preferred" if len(cand) > 1 else "min_ratio"
-            reason = (f"{len(cand)} rows tie at the minimum ratio {tmin:.6g}; z0 is among them "
-                      f"and leaves (that ends the method)" if len(cand) > 1 else
-                      f"unique minimum ratio {tmin:.6g}: z0 leaves, the method ends")
+            reason = (f"{len(cand)} rows tie at the minimum ratio {num(tmin)}; z0 is among "
+                      f"them and leaves (that ends the method)" if len(cand) > 1 else
+                      f"unique minimum ratio {num(tmin)}: z0 leaves, the method ends")
         elif len(cand) == 1:
             r = cand[0]
             rule = "min_ratio"
-            reason = f"unique minimum ratio {tmin:.6g}"
+            reason = f"unique minimum ratio {num(tmin)}"
         else:
             r, lex = lexicographic(cand, col, binv_row, names)
             rule = "lexicographic"
             decided = lex["decided_by"]
-            reason = (f"{len(cand)} rows tie at the minimum ratio {tmin:.6g}; lexicographic "
-                      f"tie-break on the rows of the basis inverse divided by the pivot "
+            reason = (f"{len(cand)} rows tie at the minimum ratio {num(tmin)}; lexicographic "
+                      f"tie-break on the rows of the basis inverse divided by the pivot entry, "
                       + (f"decided at column {decided[1:]} (variable {decided})"
                          if decided else "left a tie: the first row wins"))
         leaving = int(basic[r])
-        p = float(T[r, c])
+        p = T[r, c]
         pivot_update(T, qb, r, c)
         basic[r], nonbasic[c] = entering, leaving
         where[entering], where[leaving] = r, -(c + 1)

@@ -7,7 +7,7 @@ always holds ``w_i`` or ``z_i`` and column ``i`` its complement, so a principal 
 positive: a principal pivot transform of a P-matrix has a positive diagonal).  Same
 operations and tolerances as the kernel, hence the same pivots.
 
-In seed 000's terms every basis is complementary: ``alpha = beta`` is the set of ``i`` with
+In Dai & Drumwright's terms every basis is complementary: ``alpha = beta`` is the set of ``i`` with
 ``z_i`` basic, and ``q'`` is eqs (2)-(3) with ``M^{alpha alpha}``.
 """
 
@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from lcpcli.solvers.trace.tableau import code_name, pivot_update, state_record
+from lcpcli.solvers.trace.tableau import code_name, num, pivot_update, scalar, state_record
 
 # Status codes: the compiled kernel's values (the tests check they agree).
 OK = 0
@@ -38,8 +38,9 @@ def murty_traced(M: np.ndarray, q: np.ndarray, max_iter: int, piv_tol: float, ne
     pivot element ``M'_rr``, the index sets and ``q'`` after the pivot.
     """
     n = q.shape[0]
-    T = np.array(M, dtype=np.float64, copy=True)
-    qb = np.array(q, dtype=np.float64, copy=True)
+    kind = object if np.asarray(M).dtype == object else np.float64  # fractions: exact
+    T = np.array(M, dtype=kind, copy=True)
+    qb = np.array(q, dtype=kind, copy=True)
     nonbasic = np.empty(n, dtype=np.int64)
 
     def sync_nonbasic() -> None:
@@ -62,7 +63,7 @@ def murty_traced(M: np.ndarray, q: np.ndarray, max_iter: int, piv_tol: float, ne
                 return BAD_PIVOT, np.zeros(n), 0, i, [
                     {"kind": "principal", "pivot": 0, "rule": "bad_start",
                      "reason": f"warm start: the diagonal entry of row {i + 1} is "
-                               f"{T[i, i]:.3g}, no principal pivot possible", **state()}]
+                               f"{num(T[i, i])}, no principal pivot possible", **state()}]
             pivot_update(T, qb, i, i)
             basic[i] = n + i
             warm += 1
@@ -88,26 +89,29 @@ def murty_traced(M: np.ndarray, q: np.ndarray, max_iter: int, piv_tol: float, ne
         if not p > piv_tol * max(scale, 1e-300):
             status = BAD_PIVOT
             bad = r
+            # exact (fractions) and not positive: a principal minor ratio <= 0, so not P;
+            # in floating point only the tolerance was shown
+            why_not_p = (" (M is not a P-matrix)" if kind is object and not p > 0 else
+                         " beyond the pivot tolerance (a P-matrix has positive pivots only)")
             trace.append({"kind": "principal", "pivot": pivots + 1, "row": r + 1,
                           "entering": entering, "leaving": leaving,
-                          "pivot_element": {"row": r + 1, "column": entering, "value": float(p)},
+                          "pivot_element": {"row": r + 1, "column": entering, "value": scalar(p)},
                           "rule": "bad_pivot",
                           "reason": (f"least index with q' < 0 is row {r + 1} ({leaving} = "
-                                     f"{qb[r]:.6g}); its diagonal entry {p:.6g} is not positive "
-                                     f"beyond the pivot tolerance (a P-matrix has positive "
-                                     f"pivots only): no pivot is made"), **state()})
+                                     f"{num(qb[r])}); its diagonal entry M'_rr = {num(p)} is not "
+                                     f"positive{why_not_p}: no pivot is made"), **state()})
             break
-        value = float(qb[r])
+        value = qb[r]
         pivot_update(T, qb, r, r)
         basic[r] = n + r if basic[r] < n else r
         pivots += 1
         trace.append({"kind": "principal", "pivot": pivots, "row": r + 1,
                       "entering": entering, "leaving": leaving,
-                      "pivot_element": {"row": r + 1, "column": entering, "value": float(p)},
+                      "pivot_element": {"row": r + 1, "column": entering, "value": scalar(p)},
                       "rule": "least_index",
                       "reason": (f"row {r + 1} is the least index with q' < 0 ({leaving} = "
-                                 f"{value:.6g}): {leaving} and {entering} exchange (principal "
-                                 f"pivot on the diagonal entry {p:.6g})"), **state()})
+                                 f"{num(value)}): {leaving} and {entering} exchange (principal "
+                                 f"pivot on the diagonal entry M'_rr = {num(p)})"), **state()})
     z = np.zeros(n)
     for i in range(n):
         if basic[i] >= n:

@@ -1,4 +1,5 @@
-"""Lemke's pivot rule on seed 000's transform: ``lcpcli pivot --driving`` and ``--follow``.
+"""Lemke's pivot rule on Dai & Drumwright's principal pivoting transform (``lcpcli pivot
+--driving`` and ``--follow``).
 
 Given a basis (dependent tuple ``w'``) and a driving variable, :func:`driving_step` applies
 Lemke's ratio test (:func:`lcpcli.solvers.trace.lemke.ratio_test`, the same rule and
@@ -36,7 +37,7 @@ from lcpcli.solvers.trace.lemke import (
     lexicographic,
     ratio_test,
 )
-from lcpcli.solvers.trace.tableau import complement
+from lcpcli.solvers.trace.tableau import as_numbers, complement, num, scalar
 
 #: Steps of :func:`follow` when no limit is given.
 FOLLOW_MAX_STEPS = 100
@@ -48,8 +49,16 @@ def basis_inverse(Maug: np.ndarray, dependent: tuple[Var, ...]) -> np.ndarray:
     ``B`` holds the columns of the dependent variables in ``[I, -Maug] (w; z) = q``.
     """
     n = Maug.shape[0]
-    cols = [np.eye(n)[:, v[1]] if v[0] == "w" else -Maug[:, v[1]] for v in dependent]
-    return np.linalg.inv(np.column_stack(cols)) if n else np.zeros((0, 0))
+    exact = Maug.dtype == object  # fractions: the exact inverse
+    eye = np.eye(n, dtype=np.int64).astype(object) if exact else np.eye(n)
+    cols = [eye[:, v[1]] if v[0] == "w" else -Maug[:, v[1]] for v in dependent]
+    if not n:
+        return np.zeros((0, 0))
+    if exact:
+        from lcpcli.solvers.trace.exact import inverse
+
+        return inverse(np.column_stack(cols))
+    return np.linalg.inv(np.column_stack(cols))
 
 
 def driving_step(t: PivotTransform, Maug: np.ndarray, *, piv_tol: float = PIVOT_TOL,
@@ -66,8 +75,8 @@ def driving_step(t: PivotTransform, Maug: np.ndarray, *, piv_tol: float = PIVOT_
         raise ValueError("the transform has no driving variable")
     names = t.names(t.dependent)
     drv = var_name(t.driving, t.n)
-    col = np.asarray(t.driving_column, dtype=np.float64)
-    qp = np.asarray(t.q_prime, dtype=np.float64)
+    col = as_numbers(t.driving_column)
+    qp = as_numbers(t.q_prime)
     scale = max(1.0, float(np.max(np.abs(qp)))) if qp.size else 1.0
     out: dict[str, Any] = {"driving": drv, "lexicographic": None, "blocking": None,
                            "row": None, "next_entering": None, "next_dependent": None}
@@ -79,20 +88,25 @@ def driving_step(t: PivotTransform, Maug: np.ndarray, *, piv_tol: float = PIVOT_
                                    f"Lemke's feasible bases: no ratio test (only {ARTIFICIAL} "
                                    f"entering from such a basis is Lemke's first pivot)")})
             return out
-        ratios = qp / col
-        best = float(np.min(ratios))
+        if col.dtype == object:  # fractions: a zero entry has no ratio (+inf, never the max)
+            ratios = np.array([qp[i] / col[i] if col[i] != 0 else np.inf
+                               for i in range(t.n)], dtype=object)
+        else:
+            ratios = qp / col
+        best = np.min(ratios)
         tied = np.flatnonzero(ratios <= best + tie_tol * abs(best))
         r = int(tied[-1])
-        rows = [{"row": i + 1, "basic": names[i], "q": float(qp[i]), "column": float(col[i]),
-                 "ratio": float(-ratios[i]) if qp[i] < 0 else None, "eligible": bool(qp[i] < 0),
+        rows = [{"row": i + 1, "basic": names[i], "q": scalar(qp[i]), "column": scalar(col[i]),
+                 "ratio": scalar(-ratios[i]) if qp[i] < 0 else None,
+                 "eligible": bool(qp[i] < 0),
                  "tied": bool(i in tied) and tied.size > 1,
                  "why": "" if qp[i] < 0 else f"q' >= 0: {names[i]} >= 0 already"}
                 for i in range(t.n)]
         out.update({"formula": initial_formula(tie_tol),
                     "formula_murty": initial_formula_murty(tie_tol), "rows": rows,
-                    "min_ratio": -best,
+                    "min_ratio": scalar(-best),
                     "rule": "initial",
-                    "reason": (f"Lemke's first pivot: {ARTIFICIAL} rises to {-best:.6g}; row "
+                    "reason": (f"Lemke's first pivot: {ARTIFICIAL} rises to {num(-best)}; row "
                                f"{r + 1} has the most negative q'_i / c_i" +
                                (f" ({tied.size} rows tie, the last one wins)"
                                 if tied.size > 1 else ""))})
@@ -110,16 +124,16 @@ def driving_step(t: PivotTransform, Maug: np.ndarray, *, piv_tol: float = PIVOT_
         if test["z0_row"] >= 0:
             r = test["z0_row"]
             rule = "z0_preferred" if len(cand) > 1 else "min_ratio"
-            reason = (f"{len(cand)} rows tie at {tmin:.6g}; {ARTIFICIAL} is among them and "
-                      f"leaves" if len(cand) > 1 else f"unique minimum ratio {tmin:.6g}")
+            reason = (f"{len(cand)} rows tie at {num(tmin)}; {ARTIFICIAL} is among them and "
+                      f"leaves" if len(cand) > 1 else f"unique minimum ratio {num(tmin)}")
         elif len(cand) == 1:
-            r, rule, reason = cand[0], "min_ratio", f"unique minimum ratio {tmin:.6g}"
+            r, rule, reason = cand[0], "min_ratio", f"unique minimum ratio {num(tmin)}"
         else:
             binv = basis_inverse(Maug, t.dependent)
             r, lex = lexicographic(cand, col, lambda i: binv[i], names)
             out["lexicographic"] = lex
             rule = "lexicographic"
-            reason = (f"{len(cand)} rows tie at {tmin:.6g}; lexicographic tie-break on the rows "
+            reason = (f"{len(cand)} rows tie at {num(tmin)}; lexicographic tie-break on the rows "
                       f"of B^-1 divided by the pivot entry" +
                       (f", decided at column {lex['decided_by'][1:]} ({lex['decided_by']})"
                        if lex["decided_by"] else ": still tied, the first row wins"))
@@ -130,7 +144,7 @@ def driving_step(t: PivotTransform, Maug: np.ndarray, *, piv_tol: float = PIVOT_
     dep[r] = drv
     out.update({"blocking": blocking, "row": r + 1, "next_entering": nxt,
                 "next_dependent": dep,
-                "pivot_element": {"row": r + 1, "column": drv, "value": float(col[r])}})
+                "pivot_element": {"row": r + 1, "column": drv, "value": scalar(col[r])}})
     if blocking == ARTIFICIAL:
         out["reason"] += f": {ARTIFICIAL} leaves, so Lemke's method ends with a solution"
     else:
@@ -149,7 +163,7 @@ def follow(Maug: np.ndarray, q: np.ndarray, dependent: tuple[Var, ...],
            independent: tuple[Var, ...] | None, driving: Var, *, full: bool = False,
            any_basis: bool = False, max_steps: int = FOLLOW_MAX_STEPS
            ) -> list[tuple[PivotTransform, dict[str, Any]]]:
-    """Lemke's path through seed 000's transforms, from a basis and a driving variable.
+    """Lemke's path through Dai & Drumwright's transforms, from a basis and a driving variable.
 
     Each item is the transform of one basis (with its driving column) and its
     :func:`driving_step`; when ``z0`` leaves, a last item holds the final basis (the solution)

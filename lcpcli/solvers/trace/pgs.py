@@ -11,8 +11,10 @@ exception: a NaN iterate is ``DIVERGED`` here at once, as the kernels' docstring
 the numba kernels' comparisons let a NaN through to the stopping test).
 
 The trace keeps the first :data:`FIRST_SWEEPS` sweeps and the last one: ``z`` (n <= 8), the
-largest change of a component, the kernel's estimate and the exact normwise error (for the
-display only; it does not steer the iteration).
+largest change of a component, the kernel's in-sweep estimate (``estimate``: the gate of the
+exact check; for PGS it is 0 by construction, since each row's update zeroes that row's own
+residual, so the displays leave it out) and the exact normwise error (for the display only;
+it does not steer the iteration).
 """
 
 from __future__ import annotations

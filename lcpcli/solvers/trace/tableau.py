@@ -3,7 +3,7 @@
 A recorded *state* holds the basic variable of each row (``basis``), their values ``q_prime``,
 the nonbasic variables (``nonbasic``, in the original variable order: ``w1..wn``, ``z1..zn``,
 then ``z0``) and the tableau ``M'`` (rows as ``basis``, columns as ``nonbasic``) of the
-dictionary ``x_B = q' + M' x_N`` (seed 000's ``w' = q' + M' z'``, sign convention
+dictionary ``x_B = q' + M' x_N`` (Dai & Drumwright's ``w' = q' + M' z'``, sign convention
 ``w = M z + q``).  Two layouts of the same state:
 
 * ``dictionary``: columns ``q'`` and the nonbasic variables; the entries are ``M'``;
@@ -13,12 +13,17 @@ dictionary ``x_B = q' + M' x_N`` (seed 000's ``w' = q' + M' z'``, sign conventio
 
 Columns keep the original variable order in both layouts: a pivot removes the entering
 variable's column and adds the leaving one's in its own place (no slot swapping).
+
+The arithmetic is generic over the number type: float arrays give the compiled kernels'
+rounding, object arrays of :class:`fractions.Fraction` an exact trace (``--exact``); recorded
+values keep their type (:func:`scalar`), and :func:`num` writes either (``4/3``, ``1.33333``).
 """
 
 from __future__ import annotations
 
 import re
 from dataclasses import dataclass
+from fractions import Fraction
 from typing import Any
 
 import numpy as np
@@ -29,6 +34,28 @@ from lcpcli.analysis.pivoting import ARTIFICIAL, var_name
 LAYOUTS = ("dictionary", "murty")
 
 _NAME = re.compile(r"^([wz])(\d+)$")
+
+
+def scalar(x: Any) -> Any:
+    """A recorded number: a :class:`~fractions.Fraction` stays exact, anything else is a float."""
+    return x if isinstance(x, Fraction) else float(x)
+
+
+def num(x: Any) -> str:
+    """A number in a sentence: a fraction as ``p/q`` (``4/3``, ``-2``), a float to 6 digits."""
+    return str(x) if isinstance(x, Fraction) else f"{float(x) + 0.0:.6g}"
+
+
+def as_numbers(a: Any) -> np.ndarray:
+    """An array of the trace's numbers: floats, or fractions kept exact (object arrays)."""
+    arr = np.asarray(a)
+    return arr if arr.dtype == object else arr.astype(np.float64)
+
+
+def is_exact(a: Any) -> bool:
+    """Whether an array (or list) holds exact fractions (an ``--exact`` trace)."""
+    arr = np.asarray(a)
+    return arr.dtype == object and any(isinstance(x, Fraction) for x in arr.flat)
 
 
 def code_name(code: int, n: int) -> str:
@@ -61,12 +88,12 @@ def pivot_update(T: np.ndarray, qb: np.ndarray, r: int, c: int) -> None:
     row ``r`` and the nonbasic variable of column ``c`` exchange places.
     """
     p = T[r, c]
-    inv = 1.0 / p
+    inv = 1 / p  # 1.0 / p for floats (same rounding), exact for fractions
     rowr = -T[r, :] * inv
     rowr[c] = inv
     qr = -qb[r] * inv
     f = T[:, c].copy()
-    rows = np.flatnonzero(f != 0.0)
+    rows = np.flatnonzero(f != 0)
     rows = rows[rows != r]
     fr = f[rows]
     qb[rows] += fr * qr
@@ -113,14 +140,16 @@ def tableau_view(state: dict[str, Any], layout: str = "dictionary",
     if state.get("tableau") is None:
         return None
     basis, nonbasic = list(state["basis"]), list(state["nonbasic"])
-    qp = np.asarray(state["q_prime"], dtype=float)
-    T = np.asarray(state["tableau"], dtype=float).reshape(len(basis), len(nonbasic))
+    exact = is_exact(state["q_prime"]) or is_exact(state["tableau"])
+    kind = object if exact else float
+    qp = np.asarray(state["q_prime"], dtype=kind)
+    T = np.asarray(state["tableau"], dtype=kind).reshape(len(basis), len(nonbasic))
     artificial = ARTIFICIAL in basis or ARTIFICIAL in nonbasic
     initial = all(b.startswith("w") for b in basis)
     where = None
     if layout == "dictionary":
         cols = ["q'", *nonbasic]
-        values = np.column_stack([qp, T]) if basis else np.zeros((0, len(cols)))
+        values = np.column_stack([qp, T]) if basis else np.zeros((0, len(cols)), dtype=kind)
         if pivot is not None:
             where = (int(pivot["row"]) - 1, 1 + nonbasic.index(pivot["column"]))
         if initial:
@@ -129,11 +158,11 @@ def tableau_view(state: dict[str, Any], layout: str = "dictionary",
             eq = "w' = q' + M' z'" if artificial else "x_B = q' + M' x_N"
         return TableauView(layout, "basic", basis, cols, values, where, eq)
     variables = sorted(basis + nonbasic, key=canonical_key)
-    values = np.zeros((len(basis), len(variables) + 1))
+    values = np.zeros((len(basis), len(variables) + 1), dtype=kind)  # object: int 0
     for r, b in enumerate(basis):
-        values[r, variables.index(b)] = 1.0
+        values[r, variables.index(b)] = 1
     for j, v in enumerate(nonbasic):
-        values[:, variables.index(v)] = -T[:, j] + 0.0
+        values[:, variables.index(v)] = -T[:, j] if exact else -T[:, j] + 0.0  # no -0
     values[:, -1] = qp
     if pivot is not None:
         where = (int(pivot["row"]) - 1, variables.index(pivot["column"]))
