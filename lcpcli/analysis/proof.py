@@ -248,8 +248,11 @@ def _single_rows(M: Any, q: np.ndarray, lo: np.ndarray, up: np.ndarray) -> Itera
     ``q_i < 0`` on the nonnegative orthant): the cheapest proofs."""
     if not (np.all(lo == 0) and np.all(np.isinf(up))):
         return
-    Md = _dense(M)
-    rows = np.flatnonzero((q < 0) & np.all(Md <= 0, axis=1))
+    if hasattr(M, "toarray"):  # sparse: the row maxima, implicit zeros included
+        rowmax = np.asarray(M.max(axis=1).toarray()).ravel()
+    else:
+        rowmax = np.max(M, axis=1) if M.size else np.zeros(0)
+    rows = np.flatnonzero((q < 0) & (rowmax <= 0))
     for i in rows[np.argsort(q[rows])][:1]:
         y = np.zeros(q.shape[0])
         y[i] = 1.0

@@ -234,3 +234,17 @@ def test_mlcp_no_solution_carries_a_checked_farkas_vector(data) -> None:
             assert farkas_certifies(M, q, r.info["farkas_y"], n_eq=n_eq), (method, r.message)
         elif r.status == "solved":
             assert componentwise_error(M, q, r.z, n_eq=n_eq) <= r.certificate.tol * (1 + 1e-6)
+
+
+def test_a_large_sparse_problem_is_proven_without_densifying() -> None:
+    import scipy.sparse as sp
+
+    n = 100_000  # dense, M would need 80 GB
+    M = sp.identity(n, format="lil")
+    M[7, 7] = -1.0  # w_8 = -z_8 - 1 < 0 for every z >= 0
+    q = np.ones(n)
+    q[7] = -1.0
+    p = Problem.create(M.tocsr(), q)
+    proof = prove_infeasible(p, search=True)
+    assert proof is not None and np.flatnonzero(proof.y).tolist() == [7]
+    assert prove_infeasible(Problem.create(sp.identity(n, format="csr"), -q), search=True) is None
