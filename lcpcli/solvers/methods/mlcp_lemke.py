@@ -14,8 +14,8 @@ problem and the answer is certified on the original MLCP.
 Matrix classes: MLCPs whose free block can be completed to an invertible principal block
 (e.g. Siconos' diodeBridge, A of rank 2 of 3) and whose transformed LCP is in Lemke's class:
 P-matrices and copositive-plus (PSD) ones (principal pivoting preserves both).  A secondary
-ray is ``no_solution`` only with a proof (Farkas vector, or PSD transformed matrix), else
-``unsolved``.
+ray is ``no_solution`` only with a Farkas vector of the MLCP itself that passes the check of
+:mod:`lcpcli.analysis.proof` (found by its linear program), else ``unsolved``.
 """
 
 from __future__ import annotations
