@@ -52,7 +52,9 @@ DEFAULT_MAX_N = 24
 HARD_MAX_N = 62
 #: Relative feasibility tolerance of the cone test.
 RTOL = 1e-9
-#: Relative pivot tolerance (times ||M||_max and the block size) under which a block is singular.
+#: Pivot tolerance (times n) under which a principal block is singular, relative to the block
+#: itself: the kernel equilibrates each block by powers of two (rows, then columns) first, so
+#: the test is the same on any power-of-two row and column scaling of M.
 PIVOT_RTOL = 1e-12
 #: First block of cones when stopping at the first solution (then doubling, aligned).
 FIRST_CHUNK = 4096
@@ -225,19 +227,34 @@ def sign_masks(M: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def solve_cone(M: np.ndarray, q: np.ndarray, code: int) -> tuple[np.ndarray, np.ndarray]:
-    """(z, w) of a nonsingular cone, by LU with one step of iterative refinement."""
+    """(z, w) of a nonsingular cone, by LU with one step of iterative refinement, on the block
+    equilibrated by powers of two as the kernel does (rows, then columns); NaN when the block
+    is exactly singular after all (then the certificate rejects the point)."""
     n = q.shape[0]
     S = [j for j in range(n) if (code >> j) & 1]
     z = np.zeros(n)
     if S:
         B = M[np.ix_(S, S)]
-        zs = np.linalg.solve(B, -q[S])
-        r = -q[S] - B @ zs
-        zs = zs + np.linalg.solve(B, r)
-        z[S] = zs
-    w = M @ z + q
+        r = _unit_exponents(np.max(np.abs(B), axis=1))
+        Br = np.ldexp(B, -r[:, None])
+        c = _unit_exponents(np.max(np.abs(Br), axis=0))
+        Bs = np.ldexp(Br, -c[None, :])
+        rhs = np.ldexp(-q[S], -r)
+        try:
+            ys = np.linalg.solve(Bs, rhs)
+            ys = ys + np.linalg.solve(Bs, rhs - Bs @ ys)
+        except np.linalg.LinAlgError:
+            ys = np.full(len(S), np.nan)
+        z[S] = np.ldexp(ys, -c)
+    with np.errstate(all="ignore"):
+        w = M @ z + q
     w[S] = 0.0
     return z, w
+
+
+def _unit_exponents(big: np.ndarray) -> np.ndarray:
+    """The binary exponents ``e`` with ``big / 2^e`` in ``[0.5, 1)`` (0 where ``big`` is 0)."""
+    return np.where(big > 0, np.frexp(big)[1], 0).astype(np.int32)
 
 
 def cone_y(code: int, z: np.ndarray, w: np.ndarray) -> np.ndarray:
@@ -367,7 +384,7 @@ def _enumerate(problem: Any, *, stop_at_first: bool, all_cones: bool, max_n: int
     mu = matrix_norm_inf(M)
     mu = mu if mu > 0 else 1.0
     qnorm = float(np.max(np.abs(q)))
-    piv_tol = PIVOT_RTOL * max(float(np.max(np.abs(M))), 1e-300) * n
+    piv_tol = PIVOT_RTOL * n  # relative to each block, equilibrated in the kernel
     prune_tol = rtol * qnorm
     pos, neg = sign_masks(M)
     start_time = time.perf_counter()
