@@ -8,7 +8,7 @@ shapes and sizes of every dataset from the file's headers before reading its dat
 only regular files, text up to :data:`~lcpcli.io.files.MAX_TEXT_BYTES` (:mod:`lcpcli.io.files`).
 ``save(problem, path)`` writes atomically: a temporary file in the same folder is renamed over
 the target only once it is complete, so a failed write leaves no partial file and never damages
-an existing one; :func:`~lcpcli.io.files.check_output` is what commands call first so that an
+an existing one; :func:`~lcpcli.io.writing.check_output` is what commands call first so that an
 output is never an input, a link or a device.
 
 Formats (chosen by extension, or ``fmt=``):
@@ -36,12 +36,14 @@ from lcpcli.core.errors import ProblemError
 from lcpcli.core.problem import Problem
 from lcpcli.io.files import (
     MAX_TEXT_BYTES,
-    atomic_path,
     check_input_file,
-    check_output,
     decode_text,
-    output_lock,
     read_stdin_bytes,
+)
+from lcpcli.io.writing import (
+    atomic_path,
+    check_output,
+    output_lock,
     write_atomic_text,
 )
 

@@ -31,6 +31,7 @@ Errors are :class:`ProblemError` with a one-line message; readers leave the file
 
 from __future__ import annotations
 
+import contextlib
 import math
 import shutil
 import stat
@@ -48,8 +49,9 @@ import numpy as np
 from lcpcli.core.errors import ProblemError
 from lcpcli.core.numeric import kind_name, real_array
 from lcpcli.core.problem import Problem, check_size
-from lcpcli.io.files import MAX_NAME_BYTES, atomic_path, check_input_file, open_input
+from lcpcli.io.files import MAX_NAME_BYTES, check_input_file, open_input
 from lcpcli.io.npz_format import ZIP_ERRORS, zip_error
+from lcpcli.io.writing import Hdf5Handle, atomic_path, open_hdf5
 
 #: Extensions of stack files and their formats.
 STACK_FORMATS = {".h5": "hdf5", ".hdf5": "hdf5", ".hdf": "hdf5", ".npz": "npz"}
@@ -584,7 +586,7 @@ def list_names(path: str | Path) -> list[str]:
 # ---------------------------------------------------------------------------- writer
 class StackWriter:
     """Write a stack chunk by chunk to ``path`` (a new file; callers go through
-    :func:`~lcpcli.io.files.atomic_path`).  ``fmt`` is "hdf5" or "npz"; ``bounds`` is None,
+    :func:`~lcpcli.io.writing.atomic_path`).  ``fmt`` is "hdf5" or "npz"; ``bounds`` is None,
     "shared" (give ``lower``/``upper`` of shape (n,) here) or "per_problem" (give them with
     every :meth:`append`).  :meth:`close` completes the file and returns K.
     """
@@ -606,7 +608,11 @@ class StackWriter:
         if fmt == "hdf5":
             import h5py
 
-            self.f = self._stack.enter_context(h5py.File(self.path, "w"))
+            # through a SafeSink (lcpcli.io.writing): a full disk is an error to report, never
+            # a failed HDF5 flush (which segfaults at exit); closed by abort() or close()
+            self.h5 = Hdf5Handle(self.path, "w")
+            self.f = self.h5.file
+            self._stack.callback(self.h5.close)
             self.d = {}
             for key in keys:
                 row = (n, n) if key == "M" else (n,)
@@ -648,6 +654,7 @@ class StackWriter:
                 d = self.d["names"]
                 d.resize(self.K, axis=0)
                 d[k0:self.K] = np.array(list(names or []), dtype=object)
+            self.h5.check()  # stop at the first failed write
         else:
             self.K += c
             for key, arr in data.items():
@@ -655,8 +662,10 @@ class StackWriter:
                                     .cast("B"))
 
     def abort(self) -> None:
-        """Stop without completing the file (the caller's atomic_path removes it)."""
-        self._stack.close()
+        """Stop without completing the file (the caller's atomic_path removes it); a write
+        failure met while closing is not raised (the error on its way is)."""
+        with contextlib.suppress(Exception):
+            self._stack.close()
 
     def close(self) -> int:
         """Complete the file; returns the number of problems written."""
@@ -898,12 +907,10 @@ def write_stack_from(source: str | Path, path: str | Path) -> int:
 def write_groups(problems: Iterable[tuple[str, Problem]], path: str | Path) -> int:
     """One HDF5 group per problem, named by ``problem.name`` (unique, checked), streamed;
     written atomically.  Returns the number of problems."""
-    import h5py
-
     from lcpcli.io.hdf5_format import write_group
 
     seen: set[str] = set()
-    with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:
+    with atomic_path(path) as tmp, open_hdf5(tmp, "w") as f:
         for label, p in problems:
             check_member_name(p.name)
             if p.name in seen:
@@ -934,7 +941,7 @@ def write_folder(source: str | Path, folder: str | Path, fmt: str, *,
                  force: bool = False) -> int:
     """One file per problem of ``source`` in ``folder`` (created if missing), named
     ``NAME.EXT`` (EXT from ``fmt``: json, npz, h5/hdf5, dat).  Every target is checked before
-    anything is written (:func:`~lcpcli.io.files.check_output`: an existing file is refused
+    anything is written (:func:`~lcpcli.io.writing.check_output`: an existing file is refused
     unless ``force``, an input never overwritten); each file is written atomically."""
     from lcpcli.io import check_output, detect_format, save
 

@@ -1157,7 +1157,7 @@ def test_bad_input(case: Case, fixtures: Path) -> None:
     if case.id == "out-lock-held":  # another writer holds the output
         import fcntl
 
-        from lcpcli.io.files import lock_path
+        from lcpcli.io.writing import lock_path
 
         fd = os.open(lock_path(fixtures / "existing.jsonl"), os.O_RDWR | os.O_CREAT)
         os.write(fd, b"4242\n")
