@@ -63,6 +63,11 @@ _NONBLOCK = getattr(os, "O_NONBLOCK", 0)
 
 
 # ----------------------------------------------------------------------------- failures
+class ForeignObjectError(ProblemError):
+    """A file of lcpcli's holds what lcpcli never writes and must not follow (rule 5): it is
+    refused, not repaired or rebuilt."""
+
+
 def write_errno(exc: BaseException) -> int | None:
     """The errno of a failed write in ``exc`` (an OSError, or an h5py error whose message
     carries ``errno = N``), when it is one of :data:`WRITE_ERRORS`; else None."""
@@ -604,7 +609,7 @@ def check_hdf5_tree(f: Any, path: str | os.PathLike[str]) -> None:
             if bad:
                 break
     if bad:
-        raise ProblemError(f"holds {bad[0]}, which lcpcli never writes: refusing to read or "
+        raise ForeignObjectError(f"holds {bad[0]}, which lcpcli never writes: refusing to read or "
                            f"write through it (run again without --resume to replace the "
                            f"file)", str(path))
 
