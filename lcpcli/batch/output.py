@@ -266,6 +266,11 @@ class _LineWriter(ABC):
     def __init__(self, path: Path, resume: bool, header: str = "") -> None:
         self.path = path
         if resume and own_file(path) is not None:  # a link: refused, never appended to
+            first = _complete_lines(path)[0][:1]
+            if header and first and first[0] + b"\n" != header.encode():
+                raise ProblemError(f"cannot be resumed: its first line is not the header "
+                                   f"{header.strip()!r} of this lcpcli (an older version's, or "
+                                   f"not a result file); run again without --resume", str(path))
             _truncate_torn_tail(path, self.multiline)
         else:
             _fresh_file(path, header)

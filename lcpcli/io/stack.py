@@ -51,7 +51,7 @@ from lcpcli.core.numeric import kind_name, real_array
 from lcpcli.core.problem import Problem, check_size
 from lcpcli.io.files import MAX_NAME_BYTES, check_input_file, open_input
 from lcpcli.io.npz_format import ZIP_ERRORS, zip_error
-from lcpcli.io.writing import Hdf5Handle, atomic_path, open_hdf5
+from lcpcli.io.writing import Hdf5Handle, StagedFiles, atomic_path, open_hdf5, writing
 
 #: Extensions of stack files and their formats.
 STACK_FORMATS = {".h5": "hdf5", ".hdf5": "hdf5", ".hdf": "hdf5", ".npz": "npz"}
@@ -942,8 +942,9 @@ def write_folder(source: str | Path, folder: str | Path, fmt: str, *,
     """One file per problem of ``source`` in ``folder`` (created if missing), named
     ``NAME.EXT`` (EXT from ``fmt``: json, npz, h5/hdf5, dat).  Every target is checked before
     anything is written (:func:`~lcpcli.io.writing.check_output`: an existing file is refused
-    unless ``force``, an input never overwritten); each file is written atomically."""
-    from lcpcli.io import check_output, detect_format, save
+    unless ``force``, an input never overwritten); the files are written all or nothing
+    (:class:`~lcpcli.io.writing.StagedFiles`: a bad problem or a full disk leaves none)."""
+    from lcpcli.io import _module, check_output, detect_format
 
     kind = detect_format("", fmt)
     ext = {"json": ".json", "npz": ".npz", "hdf5": ".h5", "dat": ".dat"}[kind]
@@ -957,20 +958,25 @@ def write_folder(source: str | Path, folder: str | Path, fmt: str, *,
             raise ProblemError(f"two problems are named '{name}'; files need unique names",
                                str(source))
         seen.add(name)
+    created = None
     if not folder.exists():
         try:
             folder.mkdir()
         except OSError as exc:
             raise ProblemError(f"cannot create the folder ({exc.strerror or type(exc).__name__})",
                                str(folder)) from None
+        created = folder
     targets = [folder / f"{name}{ext}" for name in names]
-    for t in targets:
-        check_output(t, inputs=[source], force=force)
-    count = 0
-    for (_label, p), t in zip(source_problems(source), targets, strict=True):
-        save(p, t, fmt=kind)
-        count += 1
-    return count
+    with StagedFiles(created) as staged:  # all files, or none (and no folder we made)
+        for t in targets:
+            check_output(t, inputs=[source], force=force)
+        write = _module(kind).write
+        for (_label, p), t in zip(source_problems(source), targets, strict=True):
+            tmp = staged.add(t)
+            with writing(t):
+                write(p, tmp)
+        staged.commit()
+    return len(targets)
 
 
 def check_output_folder(folder: str | Path) -> None:

@@ -236,9 +236,9 @@ def check_distinct(outputs: Iterable[tuple[str, Any]]) -> None:
             continue
         ident = _identity(path)
         if ident in seen:
-            raise ProblemError(f"is also the {seen[ident]} output: one file cannot hold both; "
-                               f"give two different files", f"{option} {path}")
-        seen[ident] = option
+            raise ProblemError(f"is the same file as {seen[ident]}: one file cannot hold both "
+                               f"outputs; give two different files", f"{option} {path}")
+        seen[ident] = f"{option} {path}"
 
 
 def _check_replaceable(target: Path) -> None:
@@ -345,11 +345,8 @@ def atomic_path(target: str | os.PathLike[str]) -> Iterator[Path]:
 @contextmanager
 def atomic_file(target: str | os.PathLike[str]) -> Iterator[IO[bytes]]:
     """Yield a binary file object on a new temporary file beside ``target`` (rule 2)."""
-    with _atomic(target) as (fd, _tmp):
-        fh = os.fdopen(os.dup(fd), "wb")
-        with fh:
-            yield fh
-            fh.flush()
+    with _atomic(target) as (fd, tmp):
+        yield SafeSink(fd, tmp, strict=True)  # type: ignore[misc]
 
 
 def write_atomic_bytes(target: str | os.PathLike[str], data: bytes) -> None:
@@ -361,6 +358,67 @@ def write_atomic_bytes(target: str | os.PathLike[str], data: bytes) -> None:
 def write_atomic_text(target: str | os.PathLike[str], text: str) -> None:
     """Replace ``target`` by ``text`` (UTF-8) atomically (result files of the CLI)."""
     write_atomic_bytes(target, text.encode("utf-8"))
+
+
+class StagedFiles:
+    """Several outputs written all or nothing (``convert STACK DIR --format json``).
+
+    :meth:`add` creates a temporary file beside each target (rule 2) and returns its path;
+    :meth:`commit` renames every one over its target once all are written; :meth:`abort` (or
+    leaving the ``with`` block on an error) removes them, so a failure in the middle (a bad
+    problem, a full disk) leaves no output behind, and a folder this run created is removed
+    when it is left empty.
+    """
+
+    def __init__(self, created_folder: Path | None = None) -> None:
+        self.staged: list[tuple[Path, Path, tuple[int, int]]] = []
+        self.created_folder = created_folder
+
+    def add(self, target: str | os.PathLike[str]) -> Path:
+        target = Path(target)
+        _check_replaceable(target)
+        fd, tmp = _create_temp(target)
+        try:
+            st = os.fstat(fd)
+        finally:
+            os.close(fd)
+        self.staged.append((tmp, target, (st.st_dev, st.st_ino)))
+        return tmp
+
+    def commit(self) -> None:
+        with writing(self.staged[0][1] if self.staged else "."):
+            for tmp, target, ident in self.staged:  # everything on disk before any rename
+                fd = _open_nofollow(tmp, os.O_RDONLY)
+                try:
+                    st = os.fstat(fd)
+                    if (st.st_dev, st.st_ino) != ident:
+                        raise ProblemError(f"its temporary file {tmp.name} was replaced while "
+                                           f"it was written", str(target))
+                    os.fsync(fd)
+                    os.fchmod(fd, _target_mode(target))
+                finally:
+                    os.close(fd)
+            for tmp, target, _ident in self.staged:
+                _check_replaceable(target)
+                os.replace(tmp, target)
+            if self.staged:
+                _fsync_folder(self.staged[0][1].parent)
+        self.staged = []
+
+    def abort(self) -> None:
+        for tmp, _target, _ident in self.staged:
+            remove_file(tmp)
+        self.staged = []
+        if self.created_folder is not None:
+            with contextlib.suppress(OSError):
+                self.created_folder.rmdir()  # only when empty
+
+    def __enter__(self) -> StagedFiles:
+        return self
+
+    def __exit__(self, kind: Any, exc: Any, tb: Any) -> None:
+        if kind is not None:
+            self.abort()
 
 
 # ----------------------------------------------------------------------------- appending
@@ -434,12 +492,13 @@ class SafeSink(io.RawIOBase):
     The first failed write (or truncate) is kept in :attr:`error` and every later write is
     discarded while reporting success, so HDF5 never fails a flush or a close; callers ask
     :meth:`check` after each step and once the file is closed.  Reads past the end of the file
-    give zeros, as HDF5's own driver does.
+    give zeros, as HDF5's own driver does.  With ``strict`` a failed write raises at once (the
+    file object of :func:`atomic_file`).
     """
 
-    def __init__(self, fd: int, path: str | os.PathLike[str]) -> None:
+    def __init__(self, fd: int, path: str | os.PathLike[str], *, strict: bool = False) -> None:
         super().__init__()
-        self.fd, self.path = fd, str(path)
+        self.fd, self.path, self.strict = fd, str(path), strict
         self.pos = 0
         self.error: OSError | None = None
 
@@ -490,6 +549,8 @@ class SafeSink(io.RawIOBase):
                     done += os.pwrite(self.fd, view[done:], self.pos + done)
             except OSError as exc:
                 self.error = exc
+                if self.strict:
+                    raise
         self.pos += size
         return size
 
