@@ -320,6 +320,7 @@ class NpzStackWriter:
                                        f"input's K = {info.K}; {_RERUN}", str(path))
                 self.chunk_size = chunk
                 self.digests = data["chunk_digest"].astype(np.uint8)
+                self.method, self.tol = str(data["method"]), float(data["tol"])
                 for key, value in self.arrays.items():
                     got = data[key]
                     if got.shape != value.shape:
