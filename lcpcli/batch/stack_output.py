@@ -20,7 +20,7 @@ metadata: a ``kill -9`` leaves a readable file whose ``status`` says which probl
 unreadable is refused by ``--resume`` with a message (run again without it).
 
 **Fingerprint** (``--resume`` never keeps results of other data): each group records
-``chunk`` (problems per chunk), ``chunk_digest`` (chunks, 16) uint8, the BLAKE2b digest of each
+``chunk`` (problems per chunk), ``chunk_digest`` (chunks, 16) uint8, the SHA-256 digest of each
 finished chunk's input bytes (M, q, bounds and names: :func:`chunk_digest`; zeros: none yet),
 and ``solve_options`` (JSON: method, tol, options).  ``--resume`` reads the chunks that hold
 finished problems again and refuses, with one line, a file whose digests or options differ
@@ -38,7 +38,6 @@ the digest of its chunk (chunks of :func:`lcpcli.io.stack.chunk_size` problems).
 
 from __future__ import annotations
 
-import hashlib
 import io
 import json
 from pathlib import Path
@@ -46,6 +45,7 @@ from typing import Any
 
 import numpy as np
 
+from lcpcli.batch.output import DIGEST_BYTES, new_digest
 from lcpcli.core.errors import OptionError, ProblemError
 from lcpcli.core.result import NOT_DONE, STATUS_CODES, status_counts
 from lcpcli.io.writing import (
@@ -61,8 +61,6 @@ from lcpcli.io.writing import (
 
 #: Root attribute marking an HDF5 file as stacked results.
 MARK = "lcpcli_stacked_results"
-#: Bytes of one chunk digest (BLAKE2b).
-DIGEST_BYTES = 16
 _ARRAYS = ("z", "w", "status", "iterations", "error", "residual")
 #: What a write failure leaves in a stacked result file (the message says it).
 KEPT = "the finished problems are kept (status -1 marks the others): free space, then run " \
@@ -71,9 +69,10 @@ _RERUN = "run again without --resume"
 
 
 def chunk_digest(part: Any) -> bytes:
-    """The fingerprint of a chunk of a stack (:class:`lcpcli.io.stack.StackChunk`): BLAKE2b
-    over the little-endian float64 bytes of M, q, lower and upper and the UTF-8 names."""
-    h = hashlib.blake2b(digest_size=DIGEST_BYTES)
+    """The fingerprint of a chunk of a stack (:class:`lcpcli.io.stack.StackChunk`): the
+    digest (:func:`lcpcli.batch.output.new_digest`) of the little-endian float64 bytes of M,
+    q, lower and upper and of the UTF-8 names."""
+    h = new_digest()
     for arr in (part.M, part.q, part.lower, part.upper):
         if arr is None:
             h.update(b"-")
@@ -81,7 +80,7 @@ def chunk_digest(part: Any) -> bytes:
             h.update(np.ascontiguousarray(arr, dtype="<f8").data)
     if part.names is not None:
         h.update("\0".join(part.names).encode("utf-8", "surrogateescape"))
-    return h.digest()
+    return h.digest()[:DIGEST_BYTES]
 
 
 def options_fingerprint(opts: Any) -> str:
