@@ -56,6 +56,7 @@ from lcpcli.io.writing import (
     ForeignObjectError,
     Hdf5Handle,
     atomic_path,
+    check_dataset,
     check_hdf5_tree,
     open_hdf5,
     own_file,
@@ -169,7 +170,6 @@ def read_csv(path: Path) -> list[dict[str, Any]]:
 
 def read_hdf5(path: Path) -> list[dict[str, Any]]:
     """Rows of an HDF5 result file (raises ProblemError when it cannot be read)."""
-    import numpy as np
 
     rows = []
     try:
@@ -178,14 +178,16 @@ def read_hdf5(path: Path) -> list[dict[str, Any]]:
         raise ProblemError(f"unreadable HDF5 result file ({exc})", str(path)) from None
     try:
         f = handle.file
-        check_hdf5_tree(f, path)  # no link or storage out of the file is followed
+        check_hdf5_tree(f, path, datasets=False)  # no link out of the file is followed
         for name in f:
             g = f[name]
             if "json" not in g.attrs:
                 continue
             row = json.loads(g.attrs["json"])
-            row["z"] = [float(x) if math.isfinite(x) else None for x in np.asarray(g["z"])]
-            row["w"] = [float(x) if math.isfinite(x) else None for x in np.asarray(g["w"])]
+            for key in ("z", "w"):
+                d = g[key]
+                check_dataset(d, path)  # nor storage out of it
+                row[key] = [float(x) if math.isfinite(x) else None for x in d[()]]
             rows.append(row)
     except ForeignObjectError:
         raise
@@ -394,8 +396,20 @@ class Hdf5Writer:
                 _write_group(f, row, names)
 
     def _recover(self, path: Path, jpath: Path) -> None:
-        """Make the HDF5 file hold every row of the file and of the journal."""
+        """Make the HDF5 file hold every row of the file and of the journal (after a kill -9:
+        the journal is there); without a journal, check that nothing in it leads outside."""
         exists = own_file(path) is not None
+        if exists and own_file(jpath) is None:
+            try:
+                handle = Hdf5Handle(path, "r")
+            except ProblemError:  # damaged, and no journal to rebuild it from: start afresh
+                self._create_empty(path)
+                return
+            try:
+                check_hdf5_tree(handle.file, path, datasets=False)
+            finally:
+                handle.close()
+            return
         try:
             rows = read_hdf5(path) if exists else []
             damaged = not exists

@@ -636,9 +636,24 @@ def open_hdf5(path: str | os.PathLike[str], mode: str = "w", **kwargs: Any
     handle.close()
 
 
-def check_hdf5_tree(f: Any, path: str | os.PathLike[str]) -> None:
+def check_dataset(d: Any, path: str | os.PathLike[str]) -> None:
+    """Refuse a virtual dataset or one stored in another file (rule 5) before it is read."""
+    dcpl = d.id.get_create_plist()
+    import h5py
+
+    what = "a virtual dataset" if dcpl.get_layout() == h5py.h5d.VIRTUAL else \
+        "a dataset stored in another file" if dcpl.get_external_count() > 0 else None
+    if what is not None:
+        raise ForeignObjectError(f"holds {what} ({d.name}), which lcpcli never writes: refusing "
+                                 f"to read or write through it (run again without --resume to "
+                                 f"replace the file)", str(path))
+
+
+def check_hdf5_tree(f: Any, path: str | os.PathLike[str], *, datasets: bool = True) -> None:
     """Refuse an HDF5 file whose objects reach outside it (rule 5): an external or soft link
-    anywhere, a virtual dataset or a dataset with external storage (ProblemError)."""
+    anywhere, and with ``datasets`` a virtual dataset or a dataset with external storage
+    (ForeignObjectError).  Without ``datasets`` the caller checks the datasets it reads
+    (:func:`check_dataset`): one pass over the links only, for files of many groups."""
     import h5py
 
     bad: list[str] = []
@@ -651,7 +666,7 @@ def check_hdf5_tree(f: Any, path: str | os.PathLike[str]) -> None:
         return None
 
     f.id.links.visit(visit, info=True)
-    if not bad:
+    if not bad and datasets:
         datasets: list[bytes] = []
 
         def collect(name: bytes) -> None:
