@@ -376,8 +376,8 @@ class Hdf5Writer:
     def __init__(self, path: Path, resume: bool) -> None:
         self.path = path
         jpath = journal_path(path)
-        has_journal = own_file(jpath) is not None  # a link is refused here, never followed
-        if resume and (own_file(path) is not None or has_journal):
+        # resumed: a linked result or journal is refused (own_file), never followed
+        if resume and (own_file(path) is not None or own_file(jpath) is not None):
             self._recover(path, jpath)
         else:
             remove_file(jpath)  # a stale journal (a link: the link, never its target)

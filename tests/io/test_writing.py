@@ -392,6 +392,22 @@ def test_symlinked_journal_is_refused_and_victim_untouched(cli, tmp_path):
     assert victim.read_bytes() == b"precious, without a final newline"
 
 
+def test_links_beside_a_new_batch_output(cli, tmp_path):
+    """Without --resume a linked stale journal is removed (the link, never its target); a
+    linked lock file is refused; the target is untouched either way."""
+    a = tmp_path / "a.json"
+    shutil.copy(SAMPLES / "seed004.json", a)
+    victim = tmp_path / "victim.txt"
+    victim.write_bytes(b"precious")
+    journal = tmp_path / "r.h5.journal"
+    journal.symlink_to(victim)
+    assert cli("solve", str(a), "-o", str(tmp_path / "r.h5")).returncode == 0
+    assert not os.path.lexists(journal) and victim.read_bytes() == b"precious"
+    (tmp_path / "s.jsonl.lock").symlink_to(victim)
+    one_line(cli("solve", str(a), "-o", str(tmp_path / "s.jsonl")), "symbolic link")
+    assert victim.read_bytes() == b"precious" and not (tmp_path / "s.jsonl").exists()
+
+
 def _foreign(kind: str, path: Path, victim: Path) -> None:
     """Put into the HDF5 result ``path`` an object reaching outside it."""
     import h5py
