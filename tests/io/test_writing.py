@@ -240,6 +240,47 @@ def test_file_size_limit_is_one_line(tmp_path, inputs, name, template, target):
         _assert_previous_intact(out)
 
 
+READONLY_RUNNER = """
+import errno, os, sys
+target = os.path.basename(sys.argv[1])
+real_open = os.open
+
+def read_only(path, flags, *args, **kwargs):  # the result file is read-only (mode 0444)
+    if os.path.basename(os.fsdecode(path)) == target and flags & (os.O_WRONLY | os.O_RDWR):
+        raise PermissionError(errno.EACCES, os.strerror(errno.EACCES), path)
+    return real_open(path, flags, *args, **kwargs)
+
+os.open = read_only
+from lcpcli.cli import main
+main(sys.argv[2:])
+"""
+
+
+@pytest.mark.parametrize("ext", ["h5", "jsonl", "csv"])
+def test_resume_of_a_read_only_result_is_one_line(tmp_path, inputs, ext):
+    """--resume on a result file that cannot be opened for writing (EACCES, as for a
+    read-only file of a non-root user; was exit 3 PermissionError): one line, exit 2, the
+    file unchanged."""
+    out = tmp_path / f"r.{ext}"
+    args = ["solve", str(inputs["stack"]), "-o", str(out)]
+    assert run_cli(*args).returncode == 0
+    if ext == "h5":  # as if interrupted: the second half is still to do
+        import h5py
+
+        with h5py.File(out, "a") as f:
+            f["stack"]["status"][1000:] = -1
+    else:
+        lines = out.read_bytes().splitlines(keepends=True)
+        out.write_bytes(b"".join(lines[:1000]))
+    before = out.read_bytes()
+    env = dict(os.environ)
+    env["PYTHONPATH"] = str(ROOT) + os.pathsep + env.get("PYTHONPATH", "")
+    res = subprocess.run([sys.executable, "-c", READONLY_RUNNER, out.name, *args, "--resume"],
+                         capture_output=True, text=True, env=env, cwd=ROOT, timeout=300)
+    one_line(res, "permission denied")
+    assert out.read_bytes() == before
+
+
 # ----------------------------------------------------------------------------- injected ENOSPC
 def _fail_after(monkeypatch, calls: int) -> None:
     """Make os.write / os.pwrite fail with ENOSPC after ``calls`` successful calls."""
