@@ -130,7 +130,8 @@ def _open_nofollow(path: str | os.PathLike[str], flags: int, mode: int = 0o666) 
         err = output_error(exc, path)
         if err is not None:
             raise err from None
-        raise
+        raise ProblemError(f"cannot open it ({exc.strerror or type(exc).__name__})",
+                           str(path)) from None
     _regular_fd(fd, path)
     return fd
 
