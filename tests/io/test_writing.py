@@ -20,6 +20,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from lcpcli.core.errors import OutputError
 from lcpcli.io import writing
@@ -332,6 +334,42 @@ def test_injected_enospc_append_is_cut_back(tmp_path, monkeypatch):
     monkeypatch.undo()
     f.close()
     assert path.read_bytes() == b'{"a": 1}\n'
+
+
+@settings(max_examples=60, deadline=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(rows=st.lists(st.text(min_size=1, max_size=40).map(lambda t: t.replace("\n", " ") + "\n"),
+                     min_size=1, max_size=12),
+       fail_at=st.integers(0, 15), landed=st.integers(0, 30))
+def test_appended_rows_are_always_a_prefix(tmp_path_factory, rows, fail_at, landed):
+    """Whatever row fails and however many of its bytes land first, the file holds exactly
+    the rows written before it (a resumable prefix)."""
+    path = tmp_path_factory.mktemp("append") / "rows.jsonl"
+    f = writing.AppendFile(path)
+    real_write = os.write
+    calls = {"n": 0}
+
+    def flaky(fd, data):
+        calls["n"] += 1
+        if calls["n"] - 1 == fail_at:
+            if landed and landed < len(data):
+                real_write(fd, bytes(data[:landed]))
+            raise OSError(errno.ENOSPC, "No space left on device")
+        return real_write(fd, data)
+
+    written = []
+    os.write = flaky
+    try:
+        for row in rows:
+            try:
+                f.write(row)
+            except OutputError:
+                break
+            written.append(row)
+    finally:
+        os.write = real_write
+        f.close()
+    assert path.read_bytes() == "".join(written).encode("utf-8", "surrogateescape")
 
 
 def test_injected_enospc_write_stack_hdf5(tmp_path, monkeypatch):
