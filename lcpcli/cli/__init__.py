@@ -155,9 +155,10 @@ def main(argv: list[str] | None = None) -> None:
     except Exception as exc:  # noqa: BLE001 - last line of defence: no tracebacks for users
         if os.environ.get("LCPCLI_DEBUG"):
             raise
-        from lcpcli.io.writing import output_error  # a write no writer wrapped: still one line
+        # a write no writer wrapped (every output file is: this is stdout): still one line
+        from lcpcli.io.writing import output_error
 
-        failed = output_error(exc, getattr(exc, "filename", None) or "output")
+        failed = output_error(exc, getattr(exc, "filename", None) or "standard output")
         if failed is not None:
             error_line(str(failed))
             code = EXIT_BAD_INPUT

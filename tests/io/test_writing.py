@@ -168,6 +168,18 @@ def _assert_resumable(out: Path, folder: Path, template: list[str], inputs: dict
     assert sorted(r["problem"] for r in read_rows(out)) == [f"p{k:03d}" for k in range(300)]
 
 
+def test_full_disk_behind_stdout_is_one_line(full_disk, inputs):
+    """``solve p.json --json > FULL/x``: the failed write of stdout is one line too."""
+    fill(full_disk)
+    env = dict(os.environ)
+    env["PYTHONPATH"] = str(ROOT) + os.pathsep + env.get("PYTHONPATH", "")
+    with open(full_disk / "x", "w") as stdout:
+        res = subprocess.run([sys.executable, "-m", "lcpcli", "solve", str(inputs["p"]),
+                              "--json"], stdout=stdout, stderr=subprocess.PIPE, text=True,
+                             env=env, cwd=ROOT, timeout=120)
+    one_line(res, "standard output: no space left on device")
+
+
 def test_full_disk_mid_batch_leaves_a_resumable_prefix(full_disk, inputs):
     """A disk that fills in the middle of a JSONL batch: the rows written are complete lines,
     and once there is space again --resume finishes the batch with every problem once."""
