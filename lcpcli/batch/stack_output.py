@@ -154,14 +154,23 @@ class Hdf5StackWriter:
                                f"(interrupted by kill -9?); {_RERUN}", str(path)) from None
         self.file = self.h5.file
         try:
-            self._open_groups(infos)
+            missing = self._open_groups(infos)
         except BaseException:
             self.h5.close()
             raise
+        if missing:  # new inputs: a new file with their groups added, renamed over this one
+            self.h5.close()
+            self._add_groups(missing)
+            self.h5 = Hdf5Handle(path, "r+")
+            self.file = self.h5.file
+            try:
+                self._open_groups(infos)
+            except BaseException:
+                self.h5.close()
+                raise
 
-    def _open_groups(self, infos: list[Any]) -> None:
-        from lcpcli.io.stack import chunk_size
-
+    def _open_groups(self, infos: list[Any]) -> list[Any]:
+        """Check the file and the groups of ``infos`` it holds; the infos it lacks."""
         f, path = self.file, self.path
         check_hdf5_tree(f, path)  # nothing in it reaches outside the file
         if f.attrs.get(MARK) != 1:
@@ -169,18 +178,35 @@ class Hdf5StackWriter:
                                "--resume to replace it", str(path))
         self.groups: dict[str, Any] = {}
         self.chunk_of: dict[str, int] = {}
-        taken = set(f.keys())
-        existing = {str(f[g].attrs.get("source", "")): f[g] for g in taken}
+        existing = {str(f[g].attrs.get("source", "")): f[g] for g in f}
+        missing = []
         for info in infos:
             g = existing.get(_text(info.path))
-            if g is not None:
-                self._check_group(g, info)
-            else:
-                with writing(path, KEPT):
-                    g = self._create(f, info, taken, chunk_size(info.n))
-                    self.h5.flush()
+            if g is None:
+                missing.append(info)
+                continue
+            self._check_group(g, info)
             self.groups[info.path] = g
             self.chunk_of[info.path] = int(g.attrs["chunk"])
+        return missing
+
+    def _add_groups(self, infos: list[Any]) -> None:
+        """Groups for new inputs of a resumed file, added in a copy renamed over it (never in
+        place: a full disk in the middle must not damage the results it holds)."""
+        from lcpcli.io.stack import chunk_size
+
+        with atomic_path(self.path) as tmp, open_hdf5(tmp, "w") as dst:
+            src = Hdf5Handle(self.path, "r")
+            try:
+                for key, value in src.file.attrs.items():
+                    dst.attrs[key] = value
+                for name in src.file:
+                    src.file.copy(src.file[name], dst, name=name)
+            finally:
+                src.close()
+            taken = set(dst.keys())
+            for info in infos:
+                self._create(dst, info, taken, chunk_size(info.n))
 
     def _check_group(self, g: Any, info: Any) -> None:
         path = self.path

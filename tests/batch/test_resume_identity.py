@@ -207,3 +207,39 @@ def test_solve_a_directory_named_like_a_problem_is_one_line(cli, tmp_path):
     res = cli("solve", str(tmp_path / "adir.json"))
     one_line(res, "is a directory")
     assert res.stdout == ""
+
+
+def test_resume_with_a_new_stack_adds_its_group_by_copy(tmp_path, monkeypatch):
+    """A resumed stacked .h5 given one more input stack: its group is added in a copy renamed
+    over the file, so a full disk then leaves the file byte for byte as it was; with space,
+    the first stack is skipped and the second solved."""
+    import errno
+
+    from lcpcli.batch.records import SolveOptions
+    from lcpcli.batch.run import run_batch
+    from lcpcli.core.errors import OutputError
+
+    M, q = pd_stack(200, 4, seed=1)
+    write_stack(tmp_path / "a.h5", M, q)
+    write_stack(tmp_path / "b.h5", M, -q)
+    out = tmp_path / "r.h5"
+    run_batch([str(tmp_path / "a.h5")], SolveOptions(), output=out)
+    before = out.read_bytes()
+    real = os.pwrite
+
+    def full(fd, data, offset):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(os, "pwrite", full)
+    with pytest.raises(OutputError, match="no space left on device"):
+        run_batch([str(tmp_path / "a.h5"), str(tmp_path / "b.h5")], SolveOptions(),
+                  output=out, resume=True)
+    monkeypatch.setattr(os, "pwrite", real)
+    assert out.read_bytes() == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.h5", "b.h5", "r.h5"]
+    report = run_batch([str(tmp_path / "a.h5"), str(tmp_path / "b.h5")], SolveOptions(),
+                       output=out, resume=True)
+    assert (report.skipped, report.new) == (200, 200)
+    with h5py.File(out) as f:
+        np.testing.assert_allclose(f["a"]["z"][...], solve_many(M, q).z, atol=1e-12)
+        np.testing.assert_allclose(f["b"]["z"][...], solve_many(M, -q).z, atol=1e-12)
