@@ -65,6 +65,7 @@ def enumerate_command(
     from lcpcli.core.errors import OptionError
     from lcpcli.core.numeric import json_text
     from lcpcli.io import check_output, load, write_atomic_text
+    from lcpcli.io.writing import check_distinct
 
     fmt = check_format(fmt)
     plot_path = Path(plot) if plot is not None else None
@@ -73,6 +74,7 @@ def enumerate_command(
     for target in (output_path, plot_path):  # before any work: never the input or a device
         if target is not None:
             check_output(target, inputs=[file], stdout=False)
+    check_distinct([("--output", output_path), ("--plot", plot_path)])
     prob = load(file, problem)
     M = check_problem(prob, max_n)
     n = prob.n

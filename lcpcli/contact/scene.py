@@ -774,9 +774,10 @@ def write_scene_hdf5(scene: Scene, path: str | Path) -> None:
     import h5py
 
     from lcpcli.io import atomic_path
+    from lcpcli.io.writing import open_hdf5
 
     nb = scene.n_bodies
-    with atomic_path(Path(path)) as tmp, h5py.File(tmp, "w") as f:
+    with atomic_path(Path(path)) as tmp, open_hdf5(tmp, "w") as f:
         f.attrs["dimension"] = scene.dimension
         if scene.name:
             f.attrs["name"] = scene.name
