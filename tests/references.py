@@ -130,10 +130,19 @@ def componentwise_error(M: Any, q: np.ndarray, z: np.ndarray, lo: np.ndarray | N
         up = np.full(n, np.inf)
     if not np.all(np.isfinite(z)):
         return float("inf")
-    w = M @ z + q if w is None else np.asarray(w, dtype=float)
-    terms = np.abs(M) * np.abs(z)[None, :]
-    a = terms.sum(axis=1)
-    s = a + np.abs(q)
+    has_data = q != 0
+    with np.errstate(all="ignore"):
+        w_given = w
+        w = M @ z + q if w is None else np.asarray(w, dtype=float)
+        terms = np.abs(M) * np.abs(z)[None, :]
+        a = terms.sum(axis=1)
+        s = a + np.abs(q)
+    nonzero = s[s > 0]
+    if not (np.all(np.isfinite(w)) and np.all(np.isfinite(s))
+            and (nonzero.size == 0 or (nonzero.max() < 2.0 ** 960 and nonzero.min() > 2.0 ** -960))):
+        # the data leave the comfortable range: everything below is a ratio within one row, so
+        # each row is computed exactly (rationals) and divided by a power of two near its scale
+        M, q, w, terms, a, s = _rows_scaled_exactly(M, q, z, w_given)
 
     def rel(v: float, si: float) -> float:
         if v == 0:
@@ -192,15 +201,50 @@ def componentwise_error(M: Any, q: np.ndarray, z: np.ndarray, lo: np.ndarray | N
         g = np.where(den == 0, np.inf, a / np.where(den == 0, 1.0, den))
     for b in set(block[block >= 0].tolist()):
         rows = np.flatnonzero(block == b)
-        anchors = rows[equation[rows]]
+        anchors = rows[equation[rows] & has_data[rows]]  # equations with data (q_i != 0)
         anchored = float(g[anchors].min()) if anchors.size else np.inf
         for i in rows:
             if np.isfinite(anchored):
                 growth[i] = max(1.0, anchored)
             else:  # no equation with data: a data row answers for itself
-                growth[i] = max(1.0, float(g[i])) if q[i] != 0 else 1.0
+                growth[i] = max(1.0, float(g[i])) if has_data[i] else 1.0
     err = [0.0 if eps[i] == 0 else eps[i] * growth[i] for i in range(n)]
     return float(max(err)) if n else 0.0
+
+
+def _to_float(x: Fraction) -> float:
+    """A rational as the nearest double, +-Inf beyond the range."""
+    try:
+        return float(x)
+    except OverflowError:
+        return float("inf") if x > 0 else float("-inf")
+
+
+def _rows_scaled_exactly(M: np.ndarray, q: np.ndarray, z: np.ndarray, w: np.ndarray | None
+                         ) -> tuple[np.ndarray, ...]:
+    """``M, q, w, |M||z|, a, s`` of :func:`componentwise_error`, each row computed in exact
+    rational arithmetic and divided by the power of two nearest below its scale ``s_i`` (exact;
+    entries negligible against ``s_i`` may round to 0 or a subnormal)."""
+    n = q.size
+    out = [np.zeros_like(M), np.zeros(n), np.zeros(n), np.zeros_like(M), np.zeros(n), np.zeros(n)]
+    Z = [Fraction(float(v)) for v in z]
+    for i in range(n):
+        row = [Fraction(float(v)) for v in M[i]]
+        Q = Fraction(float(q[i]))
+        T = [abs(m * x) for m, x in zip(row, Z, strict=True)]
+        A = sum(T, Fraction(0))
+        S = A + abs(Q)
+        W = sum((m * x for m, x in zip(row, Z, strict=True)), Q) if w is None else \
+            Fraction(float(w[i]))
+        e = S.numerator.bit_length() - S.denominator.bit_length() if S else 0
+        unit = Fraction(2) ** e
+        out[0][i] = [_to_float(m / unit) for m in row]
+        out[1][i] = _to_float(Q / unit)
+        out[2][i] = _to_float(W / unit)
+        out[3][i] = [_to_float(t / unit) for t in T]
+        out[4][i] = _to_float(A / unit)
+        out[5][i] = _to_float(S / unit)
+    return tuple(out)
 
 
 def farkas_certifies(M: Any, q: np.ndarray, y: Any, lo: np.ndarray | None = None,

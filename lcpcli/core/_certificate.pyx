@@ -179,11 +179,14 @@ cdef int _finish(Py_ssize_t n, const double* q, const double* z, Py_ssize_t n_eq
             t = t * fabs(wi)
             if t > comp:
                 comp = t
-    # (b) each block's growth: the smallest growth among its equations (pairs scored 'between')
+    # (b) each block's growth: the smallest growth among its equations with data (pairs scored
+    # 'between' whose q_i != 0); an equation with q_i = 0 fixes no size (its g_i would be
+    # a_i / |w_i|, rounding noise over rounding noise, so the verdict would depend on the order
+    # in which w_i was summed)
     for i in range(2 * n):
         compmin[i] = INFINITY
     for i in range(n):
-        if a[i] > 0.0 and anchor[i]:
+        if a[i] > 0.0 and anchor[i] and q[i] != 0.0:
             den = fabs(q[i]) + fabs(w[i])
             g = INFINITY if den == 0.0 else a[i] / den
             r = _find(parent, i)
