@@ -114,8 +114,20 @@ class Backend:
         return self.kernels.get(name)
 
 
+def _single_source(name: str) -> Callable[[], Backend]:
+    """The factory of a backend of :mod:`lcpcli.solvers.backends` (imported on first use)."""
+    def factory() -> Backend:
+        import importlib
+
+        return importlib.import_module(f"lcpcli.solvers.backends.{name}").backend()
+    return factory
+
+
 _BACKENDS: dict[str, Callable[[], Backend]] = {
     "cpu": lambda: Backend("cpu", {"lemke": _cpu_lemke, "sor": _cpu_sor}),
+    # the single-source kernels (src/lcp_stack.h) compiled for the CPU / for a CUDA device
+    "c": _single_source("c"),
+    "cuda": _single_source("cuda"),
 }
 _LOADED: dict[str, Backend] = {}
 
@@ -124,6 +136,23 @@ def register_backend(name: str, factory: Callable[[], Backend]) -> None:
     """Add a backend (e.g. a GPU one): ``factory()`` is called on first use."""
     _BACKENDS[name] = factory
     _LOADED.pop(name, None)
+
+
+#: ``backend="auto"`` picks ``"cuda"`` from this many problems on (when CuPy sees a device).
+AUTO_CUDA_MIN = 100_000
+
+
+def choose_backend(name: str, K: int) -> str:
+    """``name``, with ``"auto"`` resolved: ``"cuda"`` when CuPy imports, a CUDA device is
+    present and the stack has at least :data:`AUTO_CUDA_MIN` problems, else ``"cpu"``."""
+    if name != "auto":
+        return name
+    if K >= AUTO_CUDA_MIN:
+        from lcpcli.solvers.backends.cuda import device_present
+
+        if device_present():
+            return "cuda"
+    return "cpu"
 
 
 def get_backend(name: str) -> Backend:

@@ -833,39 +833,36 @@ LCP_FN void lcp_sor_one(lcp_i64 n, const double *M, const double *q, const doubl
 /* -------------------------------------------------------------------- device entry points */
 #if defined(__CUDACC_RTC__) || defined(__CUDACC__)
 /* One thread per problem; grid-stride loop over the K problems; slot = the thread's global
- * index (its workspace).  Arrays: M (K, n, n), q, z, w (K, n), row-major. */
-extern "C" __global__ void lcp_lemke_stack(lcp_i64 K, lcp_i64 n, const double *M,
-                                           const double *q, const double *d, lcp_i64 max_iter,
-                                           double piv_tol, double tie_tol, double tol,
-                                           double polished, int balanced, int q_balanced,
-                                           int max_rounds, double *work, lcp_i64 *iwork, double *z, double *w,
-                                           signed char *code, lcp_i64 *iters, double *err,
-                                           double *res)
+ * index (its workspace).  Arrays: M (K, n, n), q, z, w (K, n), row-major.  use_d: d (n) is
+ * the covering vector (else ones and d is not read). */
+extern "C" __global__ void lcp_lemke_stack(
+    lcp_i64 K, lcp_i64 n, const double *M, const double *q, int use_d, const double *d,
+    lcp_i64 max_iter, double piv_tol, double tie_tol, double tol, double polished, int balanced,
+    int q_balanced, int max_rounds, double *work, lcp_i64 *iwork, double *z, double *w,
+    signed char *code, lcp_i64 *iters, double *err, double *res)
 {
     lcp_i64 slot = (lcp_i64)blockIdx.x * blockDim.x + threadIdx.x;
     lcp_i64 stride = (lcp_i64)gridDim.x * blockDim.x, k;
     for (k = slot; k < K; k += stride)
-        lcp_lemke_one(n, M + k * n * n, q + k * n, d, max_iter, piv_tol, tie_tol, tol, polished,
-                      balanced, q_balanced, max_rounds, work + slot * LCP_LEMKE_DWORK(n),
-                      iwork + slot * LCP_LEMKE_IWORK(n), z + k * n, w + k * n, code + k,
-                      iters + k, err + k, res + k);
+        lcp_lemke_one(n, M + k * n * n, q + k * n, use_d ? d : 0, max_iter, piv_tol, tie_tol,
+                      tol, polished, balanced, q_balanced, max_rounds,
+                      work + slot * LCP_LEMKE_DWORK(n), iwork + slot * LCP_LEMKE_IWORK(n),
+                      z + k * n, w + k * n, code + k, iters + k, err + k, res + k);
 }
 
-/* lo, up: (K, n) or NULL (LCP); z holds the start points */
-extern "C" __global__ void lcp_sor_stack(lcp_i64 K, lcp_i64 n, const double *M, const double *q,
-                                         const double *lo, const double *up, double omega,
-                                         lcp_i64 max_iter, double tol, double *work,
-                                         lcp_i64 *iwork, double *z, double *w,
-                                         signed char *code, lcp_i64 *iters, double *err,
-                                         double *res)
+/* bounded: lo, up (K, n) are the box (else an LCP: they are not read); z: the start points */
+extern "C" __global__ void lcp_sor_stack(
+    lcp_i64 K, lcp_i64 n, const double *M, const double *q, int bounded, const double *lo,
+    const double *up, double omega, lcp_i64 max_iter, double tol, double *work, lcp_i64 *iwork,
+    double *z, double *w, signed char *code, lcp_i64 *iters, double *err, double *res)
 {
     lcp_i64 slot = (lcp_i64)blockIdx.x * blockDim.x + threadIdx.x;
     lcp_i64 stride = (lcp_i64)gridDim.x * blockDim.x, k;
     for (k = slot; k < K; k += stride)
-        lcp_sor_one(n, M + k * n * n, q + k * n, lo ? lo + k * n : 0, up ? up + k * n : 0,
-                    omega, max_iter, tol, work + slot * LCP_SOR_DWORK(n),
-                    iwork + slot * LCP_SOR_IWORK(n), z + k * n, w + k * n, code + k, iters + k,
-                    err + k, res + k);
+        lcp_sor_one(n, M + k * n * n, q + k * n, bounded ? lo + k * n : 0,
+                    bounded ? up + k * n : 0, omega, max_iter, tol,
+                    work + slot * LCP_SOR_DWORK(n), iwork + slot * LCP_SOR_IWORK(n), z + k * n,
+                    w + k * n, code + k, iters + k, err + k, res + k);
 }
 #endif
 
