@@ -17,8 +17,9 @@ from lcpcli.solvers.batched import KERNEL_SOLVED, Backend, StackOut, get_backend
 
 def lemke_args(n: int, options: Mapping[str, Any], scaling: str) -> dict[str, Any]:
     """The Lemke kernel's parameters, from the same definitions the ``"cpu"`` kernel uses:
-    covering vector ``d`` (None: the default, ones, which equilibration leaves alone), ``max_iter``, ``piv_tol``, ``tie_tol``,
-    ``polished`` and ``balance`` (None or (balanced, q_balanced, max_rounds))."""
+    covering vector ``d`` (None: the default, ones, which equilibration leaves alone),
+    ``max_iter``, ``piv_tol``, ``tie_tol``, ``polished`` and ``balance``
+    (None or (balanced, q_balanced, max_rounds))."""
     from lcpcli.analysis.scaling import BALANCED, MAX_ROUNDS, Q_BALANCED
     from lcpcli.solvers.methods.lemke import covering_vector, default_max_iter
     from lcpcli.solvers.tolerances import PIVOT_TOL, POLISHED, TIE_TOL

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import functools
 import importlib.resources
+import time
 from collections.abc import Mapping
 from typing import Any
 
@@ -72,7 +73,7 @@ def source() -> str:
     return (importlib.resources.files("lcpcli.solvers.kernels") / SOURCE).read_text()
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _module(device: int) -> Any:
     """The compiled module for ``device`` (NVRTC, once per process and device)."""
     cp = require_cupy()
@@ -102,10 +103,7 @@ def as_device(a: Any, cp: Any) -> Any:
     """``a`` as a C-contiguous float64 CuPy array: no copy for a CuPy or DLPack device array
     that already is one; host arrays are copied to the device."""
     if not isinstance(a, cp.ndarray):
-        if on_device(a) and hasattr(a, "__dlpack__"):
-            a = cp.from_dlpack(a)
-        else:
-            a = cp.asarray(a)
+        a = cp.from_dlpack(a) if on_device(a) and hasattr(a, "__dlpack__") else cp.asarray(a)
     return cp.ascontiguousarray(a, dtype=cp.float64)
 
 
@@ -229,12 +227,10 @@ def solve_many_device(M: Any, q: Any, method: str | None, *, tol: float | None,
     DLPack); ``status``, ``iterations``, ``error``, ``residual`` are host arrays (K,).  Only
     the problems the device hands back are copied to the host (and solved there by
     ``solve_many(..., backend="cpu")``, whose verdicts they get)."""
-    import time
-
     from lcpcli import api
-    from lcpcli.core.errors import ProblemError
-    from lcpcli.core.result import STATUS_CODES, Status, StackResult
     from lcpcli.core.certificate import validate_tol
+    from lcpcli.core.errors import ProblemError
+    from lcpcli.core.result import STATUS_CODES, StackResult, Status
     from lcpcli.solvers.registry import get_method
 
     start = time.perf_counter()

@@ -1,0 +1,159 @@
+"""The single-source kernels (lcpcli/solvers/kernels/src/lcp_stack.h), compiled for the CPU.
+
+The "cuda" backend compiles the same C text for a device; CI has no GPU, so these tests are
+where that code is checked on every run: the "c" backend (the text through the C compiler)
+must give what the "cpu" backend gives, problem by problem (status, z, pivots or sweeps, the
+certified error), on stacks of every kind: positive definite, P, PSD, degenerate (ties that
+need the lexicographic ratio test), infeasible, badly scaled (equilibrated first), box LCPs.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from lcpcli.api import solve_many
+from lcpcli.core.errors import OptionError
+from lcpcli.solvers import batched
+from lcpcli.solvers.backends import cuda
+from lcpcli.solvers.kernels import stack_c
+from lcpcli.solvers.tolerances import PIVOT_TOL, POLISHED, TIE_TOL
+
+
+def same_answers(M, q, method, lower=None, upper=None, **options):
+    """solve_many with backend "c" and "cpu": identical arrays, problem by problem."""
+    a = solve_many(M, q, method, lower=lower, upper=upper, threads=2, **options)
+    b = solve_many(M, q, method, lower=lower, upper=upper, threads=2, backend="c", **options)
+    np.testing.assert_array_equal(a.status, b.status)
+    np.testing.assert_array_equal(a.z, b.z)
+    np.testing.assert_array_equal(a.iterations, b.iterations)
+    np.testing.assert_array_equal(a.error, b.error)
+    assert a.method == b.method
+    return a, b
+
+
+def kernel_codes(M, q, balance=(4, 8, 12)):
+    """The single-source Lemke kernel alone (no CPU fallback): code, z, pivots, error."""
+    K, n = q.shape
+    z, w = np.zeros((K, n)), np.zeros((K, n))
+    code, it = np.ones(K, np.int8), np.zeros(K, np.int64)
+    err, res = np.full(K, np.inf), np.full(K, np.nan)
+    stack_c.lemke_stack(M, q, None, 10 * n + 10, PIVOT_TOL, TIE_TOL, 1e-9, POLISHED, balance,
+                        z, w, code, it, err, res, 1)
+    return code, z, it, err
+
+
+def pd(K, n, seed):
+    rng = np.random.default_rng(seed)
+    A = rng.standard_normal((K, n, n))
+    B = rng.standard_normal((K, n, n)) * 0.3
+    return A @ A.transpose(0, 2, 1) / n + np.eye(n) + (B - B.transpose(0, 2, 1)), \
+        rng.standard_normal((K, n))
+
+
+def test_the_c_kernel_certifies_a_positive_definite_stack_itself():
+    """Not a pass-through: the single-source kernel certifies (almost) every PD problem, with
+    the CPU kernel's bits."""
+    M, q = pd(400, 9, seed=3)
+    code, z, it, err = kernel_codes(M, q)
+    assert (code == batched.KERNEL_SOLVED).mean() > 0.95
+    res = solve_many(M, q, "lemke", threads=1)
+    ok = code == batched.KERNEL_SOLVED
+    np.testing.assert_array_equal(z[ok], res.z[ok])
+    np.testing.assert_array_equal(it[ok], res.iterations[ok])
+    np.testing.assert_array_equal(err[ok], res.error[ok])
+
+
+@pytest.mark.parametrize("scale", [1.0, 1e6, 1e-7])
+def test_badly_scaled_stacks_are_equilibrated_as_on_the_cpu(scale):
+    M, q = pd(200, 12, seed=4)
+    rng = np.random.default_rng(5)
+    D = 2.0 ** rng.integers(-20, 20, size=(200, 12))
+    M = M * D[:, :, None] * scale
+    q = q * D
+    code, *_ = kernel_codes(M, q)
+    assert (code == batched.KERNEL_SOLVED).mean() > 0.9
+    same_answers(M, q, "lemke")
+
+
+@pytest.mark.parametrize("kind", ["pd", "p", "psd", "degenerate", "infeasible", "mixed"])
+def test_lemke_stacks_of_every_kind(kind):
+    rng = np.random.default_rng(11)
+    K, n = 150, 6
+    if kind == "pd":
+        M, q = pd(K, n, seed=6)
+    elif kind == "p":  # triangular with positive diagonal: P-matrices, not PD
+        M = np.triu(rng.standard_normal((K, n, n)) * 4, 1) + np.eye(n) * rng.uniform(
+            0.1, 2, (K, 1, n))
+        q = rng.standard_normal((K, n))
+    elif kind == "psd":  # rank-deficient A A^T: many solutions, rays possible
+        A = rng.standard_normal((K, n, 2))
+        M, q = A @ A.transpose(0, 2, 1), rng.standard_normal((K, n))
+    elif kind == "degenerate":  # small integers: ties in the ratio test everywhere
+        M = rng.integers(-2, 3, (K, n, n)).astype(float) + 3 * np.eye(n)
+        q = rng.integers(-2, 2, (K, n)).astype(float)
+    elif kind == "infeasible":  # M = -I, q < 0 somewhere: no solution (a ray)
+        M = np.broadcast_to(-np.eye(n), (K, n, n)).copy()
+        q = rng.standard_normal((K, n)) - 0.5
+    else:
+        M = rng.standard_normal((K, n, n))
+        q = rng.standard_normal((K, n))
+    same_answers(M, q, "lemke")
+
+
+def test_lexicographic_rule_on_cycling_prone_ties():
+    """Cyclic matrices with all-equal q (every ratio test ties): Lemke needs the
+    lexicographic rule (Cottle-Pang-Stone 4.9); the kernel follows the CPU's pivots."""
+    base = np.array([[1.0, 2.0, 0.0], [0.0, 1.0, 2.0], [2.0, 0.0, 1.0]])
+    M = np.stack([base, base.T, base * 2, np.ones((3, 3)) + np.eye(3), np.eye(3)])
+    q = -np.ones((5, 3))
+    a, b = same_answers(M, q, "lemke")
+    assert a.solved.all()
+    code, *_ = kernel_codes(M, q)
+    assert (code == batched.KERNEL_SOLVED).all()
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(1, 7), st.integers(0, 2**32 - 1), st.sampled_from([1, 3, 100]))
+def test_random_integer_stacks_match_the_cpu(n, seed, spread):
+    rng = np.random.default_rng(seed)
+    K = 20
+    M = rng.integers(-spread, spread + 1, (K, n, n)).astype(float)
+    M += np.eye(n) * rng.integers(0, 2 * spread + 1, (K, 1, 1))
+    q = rng.integers(-spread, spread + 1, (K, n)).astype(float)
+    same_answers(M, q, "lemke")
+
+
+@pytest.mark.parametrize("method", ["pgs", "psor"])
+def test_sor_stacks_and_box_lcps(method):
+    M, q = pd(120, 8, seed=7)
+    M = (M + M.transpose(0, 2, 1)) / 2
+    same_answers(M, q, method)
+    lo, up = -np.ones(8), np.full(8, 0.5)
+    a, _ = same_answers(M, q, method, lower=lo, upper=up)
+    assert a.solved.mean() > 0.9
+
+
+def test_covering_vector_and_max_iter_options():
+    M, q = pd(60, 5, seed=8)
+    same_answers(M, q, "lemke", covering=[1.0, 2.0, 0.5, 1.0, 3.0])
+    same_answers(M, q, "lemke", max_iter=2)
+
+
+def test_the_source_ships_with_the_package_and_has_both_entry_points():
+    text = cuda.source()
+    for name in ("lcp_lemke_one", "lcp_sor_one", "lcp_certify", "__global__"):
+        assert name in text
+    dw, iw = stack_c.workspace("lemke", 12)
+    assert dw > 12 * 13 and iw > 0
+
+
+@pytest.mark.skipif(cuda.device_present(), reason="a CUDA device is present")
+def test_cuda_without_a_device_is_one_clear_option_error():
+    M, q = pd(4, 3, seed=9)
+    with pytest.raises(OptionError, match="needs CuPy and a CUDA device"):
+        solve_many(M, q, "lemke", backend="cuda")
+    assert batched.choose_backend("auto", 10**7) == "cpu"
+    assert solve_many(M, q, "lemke", backend="auto").solved.all()
