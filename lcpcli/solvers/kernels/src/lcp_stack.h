@@ -28,9 +28,18 @@
 #define LCP_INF __longlong_as_double(0x7ff0000000000000LL)
 #define LCP_NAN __longlong_as_double(0x7ff8000000000000LL)
 #define LCP_ISFINITE(x) isfinite(x)
+#define LCP_AXPY(y, x, a, n)                                                                 \
+    do {                                                                                     \
+        for (lcp_i64 j_ = 0; j_ < (n); j_++)                                                 \
+            (y)[j_] += (a) * (x)[j_];                                                        \
+    } while (0)
 #else
 #include <math.h>
 #include <string.h>
+/* the CPU build shares the CPU kernels' vector loop (AVX2 and baseline clones, no FMA: the
+ * same rounding as the plain loop the device runs) */
+#include "../simd.h"
+#define LCP_AXPY(y, x, a, n) lcpcli_axpy((y), (x), (a), (n))
 #define LCP_FN static inline
 #define LCP_INF INFINITY
 #define LCP_NAN NAN
@@ -473,8 +482,7 @@ LCP_FN void lcp_pivot(double *T, double *qb, lcp_i64 nrows, lcp_i64 ncols, lcp_i
         f = Ti[c];
         if (f != 0.0) {
             qb[i] += f * qr;
-            for (j = 0; j < ncols; j++)
-                Ti[j] += f * rowr[j];
+            LCP_AXPY(Ti, rowr, f, ncols);
             Ti[c] = f * inv;
         }
     }
