@@ -175,7 +175,8 @@ def _check_stack(M: Any, q: Any, method: str | None, lower: Any, upper: Any, n_e
 
 def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None = None,
                lower: Any = None, upper: Any = None, n_eq: int = 0, threads: int | None = None,
-               backend: str = "cpu", on_error: str = "raise", plan: StackPlan | None = None,
+               backend: str | None = None, on_error: str = "raise",
+               plan: StackPlan | None = None,
                **options: Any) -> StackResult:
     """Solve a stack of K problems of one size n and certify every answer.
 
@@ -186,9 +187,11 @@ def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None =
 
     A method with a batched kernel (``lcpcli methods``: Lemke, PGS, PSOR) solves the whole
     stack in one compiled call, in ``threads`` threads (default: the cores this process may
-    use) of ``backend`` (``"cpu"``; ``"c"``, ``"cuda"``: the single-source kernels on the CPU /
-    a CUDA device; ``"auto"``: ``"cuda"`` for large stacks when a device is present; see
-    :mod:`lcpcli.solvers.batched`); the certificate is checked
+    use) of ``backend`` (None: this process's default, ``"cpu"`` unless ``--backend`` or
+    :func:`lcpcli.solvers.batched.set_default_backend` chose another; ``"c"``, ``"cuda"``:
+    the single-source kernels on the CPU / a CUDA device; ``"auto"``: ``"cuda"`` for large
+    stacks when a device is present; see :mod:`lcpcli.solvers.batched`); the certificate is
+    checked
     inside the same call.  Every problem whose answer fails it (or whose method stopped) goes
     through the full one-problem pipeline, :func:`solve`, so the verdicts follow the same rules:
     ``solved`` only with a passed certificate, ``no_solution`` only with a proof.  ``auto``
@@ -211,6 +214,7 @@ def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None =
         KERNEL_SOLVED,
         StackOut,
         choose_backend,
+        default_backend,
         default_threads,
         get_backend,
     )
@@ -218,6 +222,7 @@ def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None =
     start = time.perf_counter()
     if on_error not in ("raise", "mark"):
         raise OptionError(f"on_error must be 'raise' or 'mark', got {on_error!r}")
+    backend = default_backend() if backend is None else backend
     if backend in ("cuda", "auto") and _on_device(M):  # CuPy / DLPack device arrays
         from lcpcli.solvers.backends.cuda import solve_many_device
 

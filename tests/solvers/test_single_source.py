@@ -157,3 +157,35 @@ def test_cuda_without_a_device_is_one_clear_option_error():
         solve_many(M, q, "lemke", backend="cuda")
     assert batched.choose_backend("auto", 10**7) == "cpu"
     assert solve_many(M, q, "lemke", backend="auto").solved.all()
+
+
+def test_cli_backend_c_gives_the_cpu_results(cli, tmp_path):
+    import h5py
+
+    from lcpcli.io.stack import write_stack
+
+    M, q = pd(200, 6, seed=10)
+    M[3], q[3] = 0.0, -1.0  # no solution (Farkas): handed back, proved by the CPU pipeline
+    write_stack(tmp_path / "s.h5", M, q)
+    outs = {}
+    for name in ("cpu", "c"):
+        out = tmp_path / f"{name}.h5"
+        res = cli("solve", str(tmp_path / "s.h5"), "-o", str(out), "--backend", name, "-q")
+        assert res.returncode == 1, res.stderr  # one problem has no solution
+        with h5py.File(out) as f:
+            outs[name] = (f["s"]["status"][...], f["s"]["z"][...])
+    np.testing.assert_array_equal(outs["c"][0], outs["cpu"][0])
+    np.testing.assert_array_equal(outs["c"][1], outs["cpu"][1])
+
+
+@pytest.mark.skipif(cuda.device_present(), reason="a CUDA device is present")
+def test_cli_backend_cuda_without_a_device_exits_2_with_one_line(cli, tmp_path):
+    from lcpcli.io.stack import write_stack
+
+    M, q = pd(10, 3, seed=12)
+    write_stack(tmp_path / "s.h5", M, q)
+    res = cli("solve", str(tmp_path / "s.h5"), "--backend", "cuda", "-q")
+    assert res.returncode == 2
+    assert res.stderr.strip().splitlines() == [f"lcpcli: error: {cuda.NEEDS}"]
+    res = cli("solve", str(tmp_path / "s.h5"), "--backend", "tpu", "-q")
+    assert res.returncode == 2 and "unknown batch backend 'tpu'" in res.stderr
