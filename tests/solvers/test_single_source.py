@@ -34,13 +34,13 @@ def same_answers(M, q, method, lower=None, upper=None, **options):
     return a, b
 
 
-def kernel_codes(M, q, balance=(4, 8, 12)):
+def kernel_codes(M, q, balance=(4, 8, 12), polished=POLISHED):
     """The single-source Lemke kernel alone (no CPU fallback): code, z, pivots, error."""
     K, n = q.shape
     z, w = np.zeros((K, n)), np.zeros((K, n))
     code, it = np.ones(K, np.int8), np.zeros(K, np.int64)
     err, res = np.full(K, np.inf), np.full(K, np.nan)
-    stack_c.lemke_stack(M, q, None, 10 * n + 10, PIVOT_TOL, TIE_TOL, 1e-9, POLISHED, balance,
+    stack_c.lemke_stack(M, q, None, 10 * n + 10, PIVOT_TOL, TIE_TOL, 1e-9, polished, balance,
                         z, w, code, it, err, res, 1)
     return code, z, it, err
 
@@ -78,29 +78,55 @@ def test_badly_scaled_stacks_are_equilibrated_as_on_the_cpu(scale):
     same_answers(M, q, "lemke")
 
 
-@pytest.mark.parametrize("kind", ["pd", "p", "psd", "degenerate", "infeasible", "mixed"])
-def test_lemke_stacks_of_every_kind(kind):
+KINDS = ["pd", "p", "psd", "degenerate", "infeasible", "mixed", "scaled"]
+
+
+def make(kind, K=150, n=6):
     rng = np.random.default_rng(11)
-    K, n = 150, 6
     if kind == "pd":
-        M, q = pd(K, n, seed=6)
-    elif kind == "p":  # triangular with positive diagonal: P-matrices, not PD
+        return pd(K, n, seed=6)
+    if kind == "p":  # triangular with positive diagonal: P-matrices, not PD
         M = np.triu(rng.standard_normal((K, n, n)) * 4, 1) + np.eye(n) * rng.uniform(
             0.1, 2, (K, 1, n))
-        q = rng.standard_normal((K, n))
-    elif kind == "psd":  # rank-deficient A A^T: many solutions, rays possible
+        return M, rng.standard_normal((K, n))
+    if kind == "psd":  # rank-deficient A A^T: many solutions, rays possible
         A = rng.standard_normal((K, n, 2))
-        M, q = A @ A.transpose(0, 2, 1), rng.standard_normal((K, n))
-    elif kind == "degenerate":  # small integers: ties in the ratio test everywhere
+        return A @ A.transpose(0, 2, 1), rng.standard_normal((K, n))
+    if kind == "degenerate":  # small integers: ties in the ratio test everywhere
         M = rng.integers(-2, 3, (K, n, n)).astype(float) + 3 * np.eye(n)
-        q = rng.integers(-2, 2, (K, n)).astype(float)
-    elif kind == "infeasible":  # M = -I, q < 0 somewhere: no solution (a ray)
-        M = np.broadcast_to(-np.eye(n), (K, n, n)).copy()
-        q = rng.standard_normal((K, n)) - 0.5
-    else:
-        M = rng.standard_normal((K, n, n))
-        q = rng.standard_normal((K, n))
-    same_answers(M, q, "lemke")
+        return M, rng.integers(-2, 2, (K, n)).astype(float)
+    if kind == "infeasible":  # M = -I, q < 0 somewhere: no solution (a ray)
+        return np.broadcast_to(-np.eye(n), (K, n, n)).copy(), rng.standard_normal((K, n)) - 0.5
+    if kind == "scaled":  # rows and columns 2^+-30 apart: equilibrated, some polished
+        M, q = pd(K, n, seed=13)
+        D, E = 2.0 ** rng.integers(-30, 30, (K, n)), 2.0 ** rng.integers(-30, 30, (K, n))
+        return M * D[:, :, None] * E[:, None, :], q * D
+    return rng.standard_normal((K, n, n)), rng.standard_normal((K, n))
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_lemke_stacks_of_every_kind(kind):
+    same_answers(*make(kind), "lemke")
+
+
+@pytest.mark.parametrize("polished", [POLISHED, 0.0])  # 0: every end basis re-solved by LU
+@pytest.mark.parametrize("kind", KINDS)
+def test_the_kernel_alone_certifies_what_the_cpu_kernel_certifies(kind, polished):
+    """Kernel against kernel (no fallback): the same codes, pivots, z and errors, polish and
+    equilibration included."""
+    from lcpcli.solvers.kernels import batch
+
+    M, q = make(kind)
+    K, n = q.shape
+    code, z, it, err = kernel_codes(M, q, polished=polished)
+    o = batched.StackOut.empty(K, n)
+    batch.lemke_stack(M, q, None, 10 * n + 10, PIVOT_TOL, TIE_TOL, 1e-9, o.z, o.w, o.code,
+                      o.iterations, o.error, o.residual, 1, (4, 8, 12), polished)
+    np.testing.assert_array_equal(code, o.code)
+    ok = code == batched.KERNEL_SOLVED
+    np.testing.assert_array_equal(z[ok], o.z[ok])
+    np.testing.assert_array_equal(it[ok], o.iterations[ok])
+    np.testing.assert_array_equal(err[ok], o.error[ok])
 
 
 def test_lexicographic_rule_on_cycling_prone_ties():

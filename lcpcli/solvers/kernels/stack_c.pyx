@@ -61,7 +61,7 @@ def lemke_stack(M, q, d, long long max_iter, double piv_tol, double tie_tol, dou
     ``d``: covering vector (n,) or None (ones); ``balance``: None (no balance test) or
     ``(balanced, q_balanced, max_rounds)``: a problem that is not balanced is equilibrated
     first (:mod:`lcpcli.analysis.scaling`).  ``polished``: answers certified above this error
-    are handed back (code 1; the CPU kernel would re-solve their end basis).
+    have their end basis re-solved (as the CPU kernel).
     Outputs as :func:`lcpcli.solvers.kernels.batch.lemke_stack`."""
     cdef cnp.ndarray Ma = np.ascontiguousarray(M, dtype=np.float64)
     cdef cnp.ndarray qa = np.ascontiguousarray(q, dtype=np.float64)

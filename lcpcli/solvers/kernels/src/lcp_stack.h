@@ -14,11 +14,11 @@
  * without contraction into FMA (NVRTC: --fmad=false), the device reproduces the CPU's rounding.
  *
  * Verdicts: code 0 (SOLVED) only when the certificate (docs/certificate.md) passed at `tol`;
- * else 1 (RETRY): the caller hands the problem to the CPU path.  Lemke also says RETRY where
- * the CPU kernel would do more than this one: a problem that is not balanced (the CPU
- * equilibrates it first; the check is lcpcli.analysis.scaling's one-pass balance test) and an
- * answer not certified at rounding level (`polished`: the CPU re-solves the end basis by LU).
- * So every SOLVED here is an answer the CPU kernel also certifies, computed the same way.
+ * else 1 (RETRY): the caller hands the problem to the CPU path.  Lemke equilibrates and
+ * polishes as the CPU kernel does; it says RETRY where the CPU would take another road: a
+ * certificate out of double range (the CPU rescales) or an end basis of 64 or more basic z
+ * (the CPU re-solves it with LAPACK).  So every SOLVED here is an answer the CPU kernel also
+ * certifies, computed the same way.
  */
 #ifndef LCPCLI_LCP_STACK_H
 #define LCPCLI_LCP_STACK_H
@@ -59,8 +59,9 @@ enum { LCP_OK = 0, LCP_RAY = 1, LCP_MAX_ITER = 2, LCP_TRIVIAL = 3 };
 /* workspace per problem (doubles, then long longs) */
 #define LCP_CERT_DWORK(n) (5 * (n))
 #define LCP_CERT_IWORK(n) (3 * (n))
-#define LCP_LEMKE_DWORK(n) ((n) * ((n) + 1) + 5 * (n) + 1 + LCP_CERT_DWORK(n) + (n) * (n) + 2 * (n))
-#define LCP_LEMKE_IWORK(n) (5 * (n) + 2 + LCP_CERT_IWORK(n) + 4 * (n))
+#define LCP_LEMKE_DWORK(n) ((n) * ((n) + 1) + 5 * (n) + 1 + LCP_CERT_DWORK(n) + (n) * (n) + 2 * (n) \
+                            + 2 * (n) * (n) + 3 * (n))
+#define LCP_LEMKE_IWORK(n) (5 * (n) + 2 + LCP_CERT_IWORK(n) + 4 * (n) + 3 * (n))
 #define LCP_SOR_DWORK(n) (4 * (n) + 1 + LCP_CERT_DWORK(n))
 #define LCP_SOR_IWORK(n) (LCP_CERT_IWORK(n))
 
@@ -646,10 +647,165 @@ LCP_FN int lcp_lemke(lcp_i64 n, const double *M, const double *q, const double *
     return status;
 }
 
+/* ---------------------------------------------------------------------------------- polish */
+/* In-place LU with partial pivoting of the row-major m x m a (dense.pyx's own loops, used by
+ * the CPU below LCP_LAPACK_MIN); returns 0 or k + 1 (a zero pivot). */
+LCP_FN int lcp_lu_factor(double *a, lcp_i64 m, lcp_i64 *ipiv)
+{
+    lcp_i64 i, j, k, p;
+    double best, v, f, piv, *rk, *ri;
+    for (k = 0; k < m; k++) {
+        p = k;
+        best = fabs(a[k * m + k]);
+        for (i = k + 1; i < m; i++) {
+            v = fabs(a[i * m + k]);
+            if (v > best) {
+                best = v;
+                p = i;
+            }
+        }
+        ipiv[k] = p;
+        if (best == 0.0)
+            return (int)(k + 1);
+        if (p != k)
+            for (j = 0; j < m; j++) {
+                v = a[k * m + j];
+                a[k * m + j] = a[p * m + j];
+                a[p * m + j] = v;
+            }
+        rk = a + k * m;
+        piv = rk[k];
+        for (i = k + 1; i < m; i++) {
+            ri = a + i * m;
+            f = ri[k] / piv;
+            ri[k] = f;
+            if (f != 0.0)
+                for (j = k + 1; j < m; j++)
+                    ri[j] -= f * rk[j];
+        }
+    }
+    return 0;
+}
+
+LCP_FN void lcp_lu_solve(const double *lu, lcp_i64 m, const lcp_i64 *ipiv, double *b)
+{
+    lcp_i64 i, j, k;
+    double s, v;
+    for (k = 0; k < m; k++) {
+        i = ipiv[k];
+        if (i != k) {
+            v = b[k];
+            b[k] = b[i];
+            b[i] = v;
+        }
+    }
+    for (i = 1; i < m; i++) {
+        s = b[i];
+        for (j = 0; j < i; j++)
+            s -= lu[i * m + j] * b[j];
+        b[i] = s;
+    }
+    for (i = m - 1; i >= 0; i--) {
+        s = b[i];
+        for (j = i + 1; j < m; j++)
+            s -= lu[i * m + j] * b[j];
+        b[i] = s / lu[i * m + i];
+    }
+}
+
+/* ||min(z, M z + q)||_inf */
+LCP_FN double lcp_min_residual(const double *M, const double *q, const double *z, lcp_i64 n)
+{
+    lcp_i64 i, j;
+    double w, v, worst = 0.0;
+    for (i = 0; i < n; i++) {
+        w = q[i];
+        for (j = 0; j < n; j++)
+            w += M[i * n + j] * z[j];
+        v = fabs(z[i] < w ? z[i] : w);
+        if (v > worst)
+            worst = v;
+    }
+    return worst;
+}
+
+/* The CPU's LU path switches to LAPACK from this size of basis on (dense.pyx's LAPACK_MIN):
+ * larger end bases are not re-solved here (RETRY: the CPU does it). */
+#define LCP_LAPACK_MIN 64
+
+/* lemke.pyx's polish: the end basis M[b, b] z_b = -q_b re-solved by LU with one refinement
+ * step; out receives the better (by ||min(z, M z + q)||_inf) of max(z, 0) and the re-solve.
+ * Returns 0, or -1 when the basis is too large for the loops here (out is then max(z, 0)).
+ * work: 2 n^2 + 3 n doubles; iwork: 3 n. */
+LCP_FN int lcp_polish(const double *M, const double *q, lcp_i64 n, const double *z,
+                      const lcp_i64 *basic, double *out, double *work, lcp_i64 *iwork)
+{
+    lcp_i64 i, j, k, m = 0, *idx = iwork, *mark = iwork + n, *ipiv = iwork + 2 * n;
+    double *A, *lu, *x, *r, *zc;
+    int finite = 1;
+    for (i = 0; i < n; i++) {
+        out[i] = z[i] > 0.0 ? z[i] : 0.0;
+        if (basic[i] >= n && basic[i] < 2 * n)
+            m += 1;
+    }
+    if (m == 0)
+        return 0;
+    if (m >= LCP_LAPACK_MIN)
+        return -1;
+    A = work;
+    lu = A + m * m;
+    x = lu + m * m;
+    r = x + m;
+    zc = r + m;
+    for (j = 0; j < n; j++)
+        mark[j] = 0;
+    for (i = 0; i < n; i++)
+        if (basic[i] >= n && basic[i] < 2 * n)
+            mark[basic[i] - n] = 1;
+    k = 0;
+    for (j = 0; j < n; j++)
+        if (mark[j])
+            idx[k++] = j;
+    for (i = 0; i < m; i++) {
+        x[i] = -q[idx[i]];
+        for (j = 0; j < m; j++)
+            A[i * m + j] = M[idx[i] * n + idx[j]];
+    }
+    /* dense.pyx's solve_refined */
+    for (i = 0; i < m * m; i++)
+        lu[i] = A[i];
+    for (i = 0; i < m; i++)
+        r[i] = x[i];
+    if (lcp_lu_factor(lu, m, ipiv) == 0) {
+        double sum;
+        lcp_lu_solve(lu, m, ipiv, x);
+        for (i = 0; i < m; i++) {
+            sum = 0.0;
+            for (j = 0; j < m; j++)
+                sum += A[i * m + j] * x[j];
+            r[i] = r[i] - sum;
+        }
+        lcp_lu_solve(lu, m, ipiv, r);
+        for (i = 0; i < m; i++)
+            x[i] += r[i];
+        for (j = 0; j < n; j++)
+            zc[j] = 0.0;
+        for (i = 0; i < m; i++) {
+            if (!LCP_ISFINITE(x[i]))
+                finite = 0;
+            zc[idx[i]] = x[i] > 0.0 ? x[i] : 0.0;
+        }
+        if (finite && lcp_min_residual(M, q, zc, n) <= lcp_min_residual(M, q, out, n))
+            for (j = 0; j < n; j++)
+                out[j] = zc[j];
+    }
+    return 0;
+}
+
 /* Lemke and the certificate of one problem (lcpcli/solvers/kernels/batch.pyx's _lemke_one):
  * equilibrated first when it is not balanced (balanced < 0: never; the answer is mapped back
- * exactly and certified on the problem as given).  An answer not certified at rounding level
- * (`polished`) is handed back (the CPU kernel re-solves the end basis by LU).
+ * exactly and certified on the problem as given); the end basis is re-solved (polish) when
+ * the answer is not certified at rounding level (`polished`).
  * work: LCP_LEMKE_DWORK(n), iwork: LCP_LEMKE_IWORK(n). */
 LCP_FN void lcp_lemke_one(lcp_i64 n, const double *M, const double *q, const double *d,
                           lcp_i64 max_iter, double piv_tol, double tie_tol, double tol,
@@ -658,10 +814,11 @@ LCP_FN void lcp_lemke_one(lcp_i64 n, const double *M, const double *q, const dou
                           lcp_i64 *iters, double *err, double *res)
 {
     double *raw = work + n * (n + 1) + 4 * n + 1, *cwork = raw + n, *Ms = cwork + 5 * n;
-    double *qs = Ms + n * n, *ds = qs + n;
-    lcp_i64 *ciwork = iwork + 5 * n + 2, *rc = ciwork + 3 * n, pivots = 0, i;
+    double *qs = Ms + n * n, *ds = qs + n, *pwork = ds + n;
+    lcp_i64 *ciwork = iwork + 5 * n + 2, *rc = ciwork + 3 * n, *piwork = rc + 4 * n;
+    lcp_i64 pivots = 0, i;
     const double *Mu = M, *qu = q, *du = d;
-    int scaled = 0;
+    int scaled = 0, prc = 0;
     lcp_cert cert;
     int status;
     *code = LCP_RETRY;
@@ -678,17 +835,25 @@ LCP_FN void lcp_lemke_one(lcp_i64 n, const double *M, const double *q, const dou
     status = lcp_lemke(n, Mu, qu, du, max_iter, piv_tol, tie_tol, raw, work, iwork, &pivots);
     if (status != LCP_OK && status != LCP_TRIVIAL)
         return; /* a ray or the iteration limit: the CPU pipeline classifies it */
-    if (scaled && status == LCP_OK) /* z = D_c z~ (exact) */
+    if (scaled) /* z = D_c z~ (exact) */
         for (i = 0; i < n; i++)
             raw[i] = ldexp(raw[i], (int)rc[n + i]);
     *iters = pivots;
     for (i = 0; i < n; i++)
         z[i] = (status == LCP_TRIVIAL || raw[i] < 0.0) ? 0.0 : raw[i];
     lcp_certify(n, M, q, z, 0, 0, w, cwork, ciwork, &cert);
+    if (status == LCP_OK && !(cert.status == 0 && cert.error <= polished)) {
+        /* not at rounding level: the end basis (iwork's first n: lcp_lemke's `basic`)
+         * re-solved by LU with one refinement step, then certified again */
+        prc = lcp_polish(M, q, n, raw, iwork, z, pwork, piwork);
+        if (prc != 0)
+            return; /* a basis the CPU re-solves with LAPACK */
+        lcp_certify(n, M, q, z, 0, 0, w, cwork, ciwork, &cert);
+    }
     if (cert.status == 0)
         *err = cert.error;
     *res = cert.residual;
-    if (cert.status == 0 && cert.error <= tol && (status == LCP_TRIVIAL || cert.error <= polished))
+    if (cert.status == 0 && cert.error <= tol)
         *code = LCP_SOLVED;
 }
 
