@@ -34,14 +34,15 @@ def same_answers(M, q, method, lower=None, upper=None, **options):
     return a, b
 
 
-def kernel_codes(M, q, balance=(4, 8, 12), polished=POLISHED):
-    """The single-source Lemke kernel alone (no CPU fallback): code, z, pivots, error."""
+def kernel_codes(M, q, balance=(4, 8, 12), polished=POLISHED, warp=False):
+    """The single-source Lemke kernel alone (no CPU fallback): code, z, pivots, error;
+    ``warp``: the warp-per-problem code paths, with one lane."""
     K, n = q.shape
     z, w = np.zeros((K, n)), np.zeros((K, n))
     code, it = np.ones(K, np.int8), np.zeros(K, np.int64)
     err, res = np.full(K, np.inf), np.full(K, np.nan)
     stack_c.lemke_stack(M, q, None, 10 * n + 10, PIVOT_TOL, TIE_TOL, 1e-9, polished, balance,
-                        z, w, code, it, err, res, 1)
+                        z, w, code, it, err, res, 1, warp)
     return code, z, it, err
 
 
@@ -109,16 +110,18 @@ def test_lemke_stacks_of_every_kind(kind):
     same_answers(*make(kind), "lemke")
 
 
+@pytest.mark.parametrize("warp", [False, True])
 @pytest.mark.parametrize("polished", [POLISHED, 0.0])  # 0: every end basis re-solved by LU
 @pytest.mark.parametrize("kind", KINDS)
-def test_the_kernel_alone_certifies_what_the_cpu_kernel_certifies(kind, polished):
+def test_the_kernel_alone_certifies_what_the_cpu_kernel_certifies(kind, polished, warp):
     """Kernel against kernel (no fallback): the same codes, pivots, z and errors, polish and
-    equilibration included."""
+    equilibration included; for the thread and the warp code paths (the warp kernel's
+    flattened pivot and label-propagation blocks, run with one lane)."""
     from lcpcli.solvers.kernels import batch
 
     M, q = make(kind)
     K, n = q.shape
-    code, z, it, err = kernel_codes(M, q, polished=polished)
+    code, z, it, err = kernel_codes(M, q, polished=polished, warp=warp)
     o = batched.StackOut.empty(K, n)
     batch.lemke_stack(M, q, None, 10 * n + 10, PIVOT_TOL, TIE_TOL, 1e-9, o.z, o.w, o.code,
                       o.iterations, o.error, o.residual, 1, (4, 8, 12), polished)
@@ -215,3 +218,31 @@ def test_cli_backend_cuda_without_a_device_exits_2_with_one_line(cli, tmp_path):
     assert res.stderr.strip().splitlines() == [f"lcpcli: error: {cuda.NEEDS}"]
     res = cli("solve", str(tmp_path / "s.h5"), "--backend", "tpu", "-q")
     assert res.returncode == 2 and "unknown batch backend 'tpu'" in res.stderr
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(1, 9), st.integers(0, 2**32 - 1), st.booleans(), st.booleans())
+def test_certificate_matches_the_core_definition(n, seed, box, blocks):
+    """lcp_certify and its warp version (label propagation for the blocks) against
+    lcpcli.core's certificate, on answers near and far from a solution, block-diagonal M
+    (several blocks), zeros in z."""
+    from lcpcli.core._certificate import certify_arrays
+
+    rng = np.random.default_rng(seed)
+    M = rng.standard_normal((n, n)) * 10.0 ** rng.integers(-3, 4, (n, 1))
+    if blocks:
+        part = rng.integers(0, 3, n)
+        M = M * (part[:, None] == part[None, :])
+    q = rng.standard_normal(n)
+    z = np.where(rng.random(n) < 0.4, 0.0, rng.random(n))
+    lo, up = (-rng.random(n), rng.random(n)) if box else (None, None)
+    if box:  # some pairs on a bound, the rest inside
+        z = np.clip(z, lo, up)
+        at = rng.random(n) < 0.4
+        z[at] = np.where(rng.random(n) < 0.5, lo, up)[at]
+    ref = certify_arrays(M, q, z, 0, lo, up, np.zeros(n))
+    for warp in (False, True):
+        status, error, residual = stack_c.certify(M, q, z, lo, up, warp=warp)
+        assert status == ref[0]
+        if status == 0:
+            assert error == ref[1] and residual == ref[4]

@@ -48,6 +48,22 @@
 
 typedef long long lcp_i64;
 
+/* Lanes: functions that take (lane, lanes) split their loops over `lanes` lanes (a warp of 32
+ * on the device: one warp per problem; 1 for one thread per problem and on the CPU, where the
+ * warp code paths run with one lane, so the tests check their arithmetic) and meet at
+ * LCP_SYNC(); lane 0 does the serial steps.  `lanes` is uniform in a warp. */
+#if defined(__CUDACC_RTC__) || defined(__CUDACC__)
+#define LCP_SYNC()                                                                           \
+    do {                                                                                     \
+        if (lanes > 1)                                                                       \
+            __syncwarp();                                                                    \
+    } while (0)
+#define LCP_ANY(p) (lanes > 1 ? __any_sync(0xffffffffu, (p)) : (p))
+#else
+#define LCP_SYNC() ((void)lanes)
+#define LCP_ANY(p) (p)
+#endif
+
 enum { LCP_SOLVED = 0, LCP_RETRY = 1 };
 enum { LCP_OK = 0, LCP_RAY = 1, LCP_MAX_ITER = 2, LCP_TRIVIAL = 3 };
 
@@ -59,9 +75,13 @@ enum { LCP_OK = 0, LCP_RAY = 1, LCP_MAX_ITER = 2, LCP_TRIVIAL = 3 };
 /* workspace per problem (doubles, then long longs) */
 #define LCP_CERT_DWORK(n) (5 * (n))
 #define LCP_CERT_IWORK(n) (3 * (n))
-#define LCP_LEMKE_DWORK(n) ((n) * ((n) + 1) + 5 * (n) + 1 + LCP_CERT_DWORK(n) + (n) * (n) + 2 * (n) \
-                            + 2 * (n) * (n) + 3 * (n))
-#define LCP_LEMKE_IWORK(n) (5 * (n) + 2 + LCP_CERT_IWORK(n) + 4 * (n) + 3 * (n))
+/* Lemke: the tableau part (LCP_TAB_*, below) and the rest: raw z (n), the certificate's,
+ * the equilibrated copy (n^2 + 2 n), polish (2 n^2 + 3 n); equilibration exponents (4 n),
+ * polish indices (3 n) */
+#define LCP_REST_DWORK(n) (3 * (n) * (n) + 11 * (n))
+#define LCP_REST_IWORK(n) (10 * (n))
+#define LCP_LEMKE_DWORK(n) (LCP_TAB_DWORK(n) + LCP_REST_DWORK(n))
+#define LCP_LEMKE_IWORK(n) (LCP_TAB_IWORK(n) + LCP_REST_IWORK(n))
 #define LCP_SOR_DWORK(n) (4 * (n) + 1 + LCP_CERT_DWORK(n))
 #define LCP_SOR_IWORK(n) (LCP_CERT_IWORK(n))
 
@@ -157,78 +177,18 @@ LCP_FN int lcp_cert_fail(lcp_cert *out, int status)
     return status;
 }
 
-/* The certificate of z for the LCP (lo == NULL: z >= 0) or box LCP [lo, up] with dense
- * row-major M (n x n): lcpcli/core/_certificate.pyx's certify_dense with n_eq = 0, field for
- * field (error and residual kept).  w (n) receives M z + q; work: LCP_CERT_DWORK(n) doubles,
- * iwork: LCP_CERT_IWORK(n).  Returns out->status. */
-LCP_FN int lcp_certify(lcp_i64 n, const double *M, const double *q, const double *z,
-                       const double *lo, const double *up, double *w, double *work,
-                       lcp_i64 *iwork, lcp_cert *out)
+/* Pass 3 of the certificate (a, s, kappa filled in work; root[i]: the least member of row
+ * i's block, rows 0..n-1 and columns n..2n-1 as vertices): score the pairs, then the blocks.
+ * anchor: n long longs of scratch. */
+LCP_FN int lcp_cert_finish(lcp_i64 n, const double *q, const double *z, const double *lo,
+                           const double *up, const double *w, double *work, const lcp_i64 *root,
+                           lcp_i64 *anchor, lcp_cert *out)
 {
     double *a = work, *s = work + n, *kappa = work + 2 * n, *compmin = work + 3 * n;
-    lcp_i64 *parent = iwork, *cols = iwork + 2 * n, *anchor = iwork + 2 * n;
-    lcp_i64 i, j, k, nc = 0, r, worst = -1;
-    const double *row;
-    double wi, ai, t, m, inv, BIG = lcp_big(), SMALL = lcp_small();
-    double l, u, zi, si, best, x, g, den, e, err = 0.0, gi, cF, cL, cU, resid = 0.0;
+    lcp_i64 i, r, worst = -1;
+    double l, u, zi, wi, si, best, x, g, den, e, err = 0.0, gi, cF, cL, cU, resid = 0.0, t;
     int st;
-    for (j = 0; j < n; j++) {
-        if (!LCP_ISFINITE(z[j]))
-            return lcp_cert_fail(out, 1);
-        if (z[j] != 0.0 && !(SMALL <= fabs(z[j]) && fabs(z[j]) <= BIG))
-            return lcp_cert_fail(out, 2);
-    }
-    /* pass 1: w, |M||z|, s */
-    for (i = 0; i < n; i++) {
-        row = M + i * n;
-        lcp_row_dot(row, z, n, &wi, &ai);
-        wi = wi + q[i];
-        w[i] = wi;
-        a[i] = ai;
-        s[i] = ai + fabs(q[i]);
-        if (!(LCP_ISFINITE(wi) && LCP_ISFINITE(ai)) || s[i] > BIG || (0.0 < s[i] && s[i] < SMALL))
-            return lcp_cert_fail(out, 2);
-    }
-    /* pass 2: kappa for the columns that may move, blocks through significant terms */
-    for (j = 0; j < n; j++) {
-        int moves = lo ? !(z[j] == lo[j] && z[j] == up[j]) : z[j] != 0.0;
-        if (moves || z[j] != 0.0)
-            cols[nc++] = j;
-        kappa[j] = 0.0;
-    }
-    for (i = 0; i < 2 * n; i++)
-        parent[i] = i;
-    if (nc > 0) {
-        for (i = 0; i < n; i++) {
-            row = M + i * n;
-            inv = s[i] == 0.0 ? LCP_INF : 1.0 / s[i];
-            for (k = 0; k < nc; k++) {
-                j = cols[k];
-                m = fabs(row[j]);
-                if (m != 0.0) {
-                    t = m * inv;
-                    if (t > kappa[j])
-                        kappa[j] = t;
-                }
-            }
-        }
-        for (i = 0; i < n; i++) {
-            row = M + i * n;
-            inv = s[i] == 0.0 ? LCP_INF : 1.0 / s[i];
-            for (k = 0; k < nc; k++) {
-                j = cols[k];
-                m = fabs(row[j]);
-                if (m != 0.0 && z[j] != 0.0 && m * inv >= LCP_THETA * kappa[j])
-                    lcp_union(parent, i, n + j);
-            }
-        }
-    }
-    for (k = 0; k < nc; k++) {
-        j = cols[k];
-        if (kappa[j] == 0.0)
-            kappa[j] = LCP_INF;
-    }
-    /* pass 3 (a): every pair's backward error (anchor reuses cols: cols is not needed now) */
+    /* (a) every pair's backward error */
     for (i = 0; i < n; i++) {
         lcp_bounds(i, lo, up, &l, &u);
         zi = z[i];
@@ -287,7 +247,7 @@ LCP_FN int lcp_certify(lcp_i64 n, const double *M, const double *q, const double
         if (a[i] > 0.0 && anchor[i]) {
             den = fabs(q[i]) + fabs(w[i]);
             g = den == 0.0 ? LCP_INF : a[i] / den;
-            r = lcp_find(parent, i);
+            r = root[i];
             if (g < compmin[r])
                 compmin[r] = g;
         }
@@ -297,7 +257,7 @@ LCP_FN int lcp_certify(lcp_i64 n, const double *M, const double *q, const double
         best = kappa[i];
         gi = 1.0;
         if (a[i] > 0.0) {
-            gi = compmin[lcp_find(parent, i)];
+            gi = compmin[root[i]];
             if (gi == LCP_INF) {
                 den = fabs(q[i]) + fabs(w[i]);
                 gi = q[i] != 0.0 ? a[i] / den : 1.0;
@@ -314,6 +274,173 @@ LCP_FN int lcp_certify(lcp_i64 n, const double *M, const double *q, const double
     out->error = err;
     out->residual = resid;
     out->status = 0;
+    return 0;
+}
+
+/* The certificate of z for the LCP (lo == NULL: z >= 0) or box LCP [lo, up] with dense
+ * row-major M (n x n): lcpcli/core/_certificate.pyx's certify_dense with n_eq = 0, field for
+ * field (error and residual kept).  w (n) receives M z + q; work: LCP_CERT_DWORK(n) doubles,
+ * iwork: LCP_CERT_IWORK(n).  Returns out->status. */
+LCP_FN int lcp_certify(lcp_i64 n, const double *M, const double *q, const double *z,
+                       const double *lo, const double *up, double *w, double *work,
+                       lcp_i64 *iwork, lcp_cert *out)
+{
+    double *a = work, *s = work + n, *kappa = work + 2 * n;
+    lcp_i64 *parent = iwork, *cols = iwork + 2 * n, *anchor = iwork + 2 * n;
+    lcp_i64 i, j, k, nc = 0;
+    const double *row;
+    double wi, ai, t, m, inv, BIG = lcp_big(), SMALL = lcp_small();
+    for (j = 0; j < n; j++) {
+        if (!LCP_ISFINITE(z[j]))
+            return lcp_cert_fail(out, 1);
+        if (z[j] != 0.0 && !(SMALL <= fabs(z[j]) && fabs(z[j]) <= BIG))
+            return lcp_cert_fail(out, 2);
+    }
+    /* pass 1: w, |M||z|, s */
+    for (i = 0; i < n; i++) {
+        row = M + i * n;
+        lcp_row_dot(row, z, n, &wi, &ai);
+        wi = wi + q[i];
+        w[i] = wi;
+        a[i] = ai;
+        s[i] = ai + fabs(q[i]);
+        if (!(LCP_ISFINITE(wi) && LCP_ISFINITE(ai)) || s[i] > BIG || (0.0 < s[i] && s[i] < SMALL))
+            return lcp_cert_fail(out, 2);
+    }
+    /* pass 2: kappa for the columns that may move, blocks through significant terms */
+    for (j = 0; j < n; j++) {
+        int moves = lo ? !(z[j] == lo[j] && z[j] == up[j]) : z[j] != 0.0;
+        if (moves || z[j] != 0.0)
+            cols[nc++] = j;
+        kappa[j] = 0.0;
+    }
+    for (i = 0; i < 2 * n; i++)
+        parent[i] = i;
+    if (nc > 0) {
+        for (i = 0; i < n; i++) {
+            row = M + i * n;
+            inv = s[i] == 0.0 ? LCP_INF : 1.0 / s[i];
+            for (k = 0; k < nc; k++) {
+                j = cols[k];
+                m = fabs(row[j]);
+                if (m != 0.0) {
+                    t = m * inv;
+                    if (t > kappa[j])
+                        kappa[j] = t;
+                }
+            }
+        }
+        for (i = 0; i < n; i++) {
+            row = M + i * n;
+            inv = s[i] == 0.0 ? LCP_INF : 1.0 / s[i];
+            for (k = 0; k < nc; k++) {
+                j = cols[k];
+                m = fabs(row[j]);
+                if (m != 0.0 && z[j] != 0.0 && m * inv >= LCP_THETA * kappa[j])
+                    lcp_union(parent, i, n + j);
+            }
+        }
+    }
+    for (k = 0; k < nc; k++) {
+        j = cols[k];
+        if (kappa[j] == 0.0)
+            kappa[j] = LCP_INF;
+    }
+    for (i = 0; i < 2 * n; i++) /* each row's block: the root of its set (its least member) */
+        parent[i] = lcp_find(parent, i);
+    return lcp_cert_finish(n, q, z, lo, up, w, work, parent, anchor, out);
+}
+
+/* lcp_certify split over the lanes (the warp kernel): the same error, bit for bit.  Rows of
+ * passes 1-2 go to the lanes (each row's sums in lcp_certify's order); the blocks are found by
+ * label propagation on the row-column graph instead of union-find (either gives each row its
+ * block's least member); lane 0 scores the pairs (lcp_cert_finish).  Every lane returns the
+ * status; only lane 0's *out is filled.  work, iwork as lcp_certify. */
+LCP_FN int lcp_certify_warp(lcp_i64 n, const double *M, const double *q, const double *z,
+                            const double *lo, const double *up, double *w, double *work,
+                            lcp_i64 *iwork, lcp_cert *out, lcp_i64 lane, lcp_i64 lanes)
+{
+    double *a = work, *s = work + n, *kappa = work + 2 * n;
+    lcp_i64 *lab = iwork, *movable = iwork + 2 * n;
+    lcp_i64 i, j, best;
+    int bad = 0, changed;
+    double wi, ai, t, m, inv, BIG = lcp_big(), SMALL = lcp_small();
+    for (j = 0; j < n; j++) { /* every lane: the same answer */
+        if (!LCP_ISFINITE(z[j]))
+            return lcp_cert_fail(out, 1);
+        if (z[j] != 0.0 && !(SMALL <= fabs(z[j]) && fabs(z[j]) <= BIG))
+            return lcp_cert_fail(out, 2);
+    }
+    for (i = lane; i < n; i += lanes) {
+        lcp_row_dot(M + i * n, z, n, &wi, &ai);
+        wi = wi + q[i];
+        w[i] = wi;
+        a[i] = ai;
+        s[i] = ai + fabs(q[i]);
+        if (!(LCP_ISFINITE(wi) && LCP_ISFINITE(ai)) || s[i] > BIG || (0.0 < s[i] && s[i] < SMALL))
+            bad = 1;
+    }
+    LCP_SYNC();
+    if (LCP_ANY(bad))
+        return lcp_cert_fail(out, 2);
+    /* kappa_j = max_i |M_ij| / s_i for the columns that may move (a max: any order) */
+    for (j = lane; j < n; j += lanes) {
+        movable[j] = (lo ? !(z[j] == lo[j] && z[j] == up[j]) : z[j] != 0.0) || z[j] != 0.0;
+        kappa[j] = 0.0;
+        if (movable[j]) {
+            for (i = 0; i < n; i++) {
+                inv = s[i] == 0.0 ? LCP_INF : 1.0 / s[i];
+                m = fabs(M[i * n + j]);
+                if (m != 0.0) {
+                    t = m * inv;
+                    if (t > kappa[j])
+                        kappa[j] = t;
+                }
+            }
+            if (kappa[j] == 0.0) /* a zero column: no link below, moving z_j never negligible */
+                kappa[j] = LCP_INF;
+        }
+    }
+    for (i = lane; i < 2 * n; i += lanes)
+        lab[i] = i;
+    LCP_SYNC();
+    /* blocks: rows i and columns n + j linked where z_j != 0 and |M_ij| / s_i >= THETA kappa_j;
+     * labels fall to the least vertex of each connected part */
+    do {
+        changed = 0;
+        for (i = lane; i < n; i += lanes) {
+            inv = s[i] == 0.0 ? LCP_INF : 1.0 / s[i];
+            best = lab[i];
+            for (j = 0; j < n; j++) {
+                m = fabs(M[i * n + j]);
+                if (m != 0.0 && z[j] != 0.0 && m * inv >= LCP_THETA * kappa[j] && lab[n + j] < best)
+                    best = lab[n + j];
+            }
+            if (best < lab[i]) {
+                lab[i] = best;
+                changed = 1;
+            }
+        }
+        LCP_SYNC();
+        for (j = lane; j < n; j += lanes) {
+            if (z[j] == 0.0)
+                continue;
+            best = lab[n + j];
+            for (i = 0; i < n; i++) {
+                inv = s[i] == 0.0 ? LCP_INF : 1.0 / s[i];
+                m = fabs(M[i * n + j]);
+                if (m != 0.0 && m * inv >= LCP_THETA * kappa[j] && lab[i] < best)
+                    best = lab[i];
+            }
+            if (best < lab[n + j]) {
+                lab[n + j] = best;
+                changed = 1;
+            }
+        }
+        LCP_SYNC();
+    } while (LCP_ANY(changed));
+    if (lane == 0)
+        return lcp_cert_finish(n, q, z, lo, up, w, work, lab, movable, out);
     return 0;
 }
 
@@ -464,7 +591,62 @@ LCP_FN int lcp_balance(lcp_i64 n, const double *M, const double *q, const double
     return 1;
 }
 
+/* The first balance test of lcp_balance split over the lanes: 1 when the problem is balanced
+ * at once (row and column exponent maxima, then q: lcp_ruiz's round 0 passing), 0 when
+ * lcp_balance must decide.  rmax, cmax: n each; every lane returns the same value. */
+LCP_FN int lcp_balanced_warp(lcp_i64 n, const double *M, const double *q, int balanced,
+                             int q_balanced, lcp_i64 *rmax, lcp_i64 *cmax, lcp_i64 lane,
+                             lcp_i64 lanes)
+{
+    lcp_i64 i, j, e, best, lo = (lcp_i64)1 << 40, hi = LCP_FLOOR, clo = (lcp_i64)1 << 40;
+    lcp_i64 chi = LCP_FLOOR, qexp = LCP_FLOOR, k;
+    int ok;
+    for (i = lane; i < n; i += lanes) {
+        best = LCP_FLOOR;
+        for (j = 0; j < n; j++)
+            if (M[i * n + j] != 0.0) {
+                e = lcp_exp(M[i * n + j]);
+                if (e > best)
+                    best = e;
+            }
+        rmax[i] = best == LCP_FLOOR ? 1 : best;
+    }
+    for (j = lane; j < n; j += lanes) {
+        best = LCP_FLOOR;
+        for (i = 0; i < n; i++)
+            if (M[i * n + j] != 0.0) {
+                e = lcp_exp(M[i * n + j]);
+                if (e > best)
+                    best = e;
+            }
+        cmax[j] = best == LCP_FLOOR ? 1 : best;
+    }
+    LCP_SYNC();
+    for (i = 0; i < n; i++) {
+        if (rmax[i] < lo) lo = rmax[i];
+        if (rmax[i] > hi) hi = rmax[i];
+        if (cmax[i] < clo) clo = cmax[i];
+        if (cmax[i] > chi) chi = cmax[i];
+        if (q[i] != 0.0) {
+            e = lcp_exp(q[i]);
+            if (e > qexp)
+                qexp = e;
+        }
+    }
+    k = qexp == LCP_FLOOR ? 0 : -qexp + 1;
+    ok = hi - lo <= balanced && chi - clo <= balanced && -balanced <= hi - 1
+         && hi - 1 <= balanced && -q_balanced <= k && k <= q_balanced;
+    LCP_SYNC(); /* rmax, cmax are scratch again for lane 0 */
+    return ok;
+}
+
 /* ---------------------------------------------------------------------------------- Lemke */
+/* Workspace of the tableau part of Lemke (shared memory in the warp kernel): doubles
+ * T (n x (n + 1)), qb, keys, col (n each), rowr (n + 1); long longs basic (n), where
+ * (2 n + 1), cand (n), ctl (5: the lanes' broadcast slots). */
+#define LCP_TAB_DWORK(n) ((n) * ((n) + 1) + 4 * (n) + 1)
+#define LCP_TAB_IWORK(n) (4 * (n) + 6)
+
 /* pivot the nrows x ncols tableau on (r, c); rowr: ncols of work (lemke.pyx's pivot) */
 LCP_FN void lcp_pivot(double *T, double *qb, lcp_i64 nrows, lcp_i64 ncols, lcp_i64 r,
                       lcp_i64 c, double *rowr)
@@ -492,157 +674,224 @@ LCP_FN void lcp_pivot(double *T, double *qb, lcp_i64 nrows, lcp_i64 ncols, lcp_i
     qb[r] = qr;
 }
 
-/* Lemke's method (condensed tableau, covering vector d, lexicographic minimum-ratio rule:
- * Cottle-Pang-Stone, The Linear Complementarity Problem, 4.4-4.9) on one problem, as
- * lemke.pyx's lemke_tableau.  z (n) receives the basic solution; returns the status
- * (LCP_OK, LCP_RAY, LCP_MAX_ITER, LCP_TRIVIAL) and the pivots in *pivots_out.
- * work: n (n + 1) + 4 n + 1 doubles; iwork: 5 n + 2 long longs. */
-LCP_FN int lcp_lemke(lcp_i64 n, const double *M, const double *q, const double *d,
-                     lcp_i64 max_iter, double piv_tol, double tie_tol, double *z,
-                     double *work, lcp_i64 *iwork, lcp_i64 *pivots_out)
+/* The same pivot split over the lanes (every entry computed as lcp_pivot computes it: the
+ * same rounding).  fcol: the pivot column T[:, c] as it was before the pivot. */
+LCP_FN void lcp_pivot_warp(double *T, double *qb, lcp_i64 nrows, lcp_i64 ncols, lcp_i64 r,
+                           lcp_i64 c, double *rowr, const double *fcol, lcp_i64 lane,
+                           lcp_i64 lanes)
 {
-    lcp_i64 m = n + 1, nz = 2 * n;
-    lcp_i64 i, j, k, s, r, c, nc, z0_row, entering, leaving, pivots, loc, mm;
-    int status;
-    double *T = work, *qb = T + n * m, *keys = qb + n, *col = keys + n, *rowr = col + n;
-    lcp_i64 *basic = iwork, *where = basic + n, *cand = where + 2 * n + 1;
-    double v, best, cmax, qmax, ptol, ztol, tmin, a, t, unit, key, kmin, kmax, bound;
-    for (i = 0; i < n; i++) {
-        for (j = 0; j < n; j++)
-            T[i * m + j] = M[i * n + j];
-        T[i * m + n] = d ? d[i] : 1.0;
-        qb[i] = q[i];
-        basic[i] = i;
-        where[i] = i;
-        z[i] = 0.0;
+    lcp_i64 e, i, j;
+    double inv = 1.0 / T[r * ncols + c], qr = -qb[r] * inv, f;
+    for (j = lane; j < ncols; j += lanes)
+        rowr[j] = j == c ? inv : -T[r * ncols + j] * inv;
+    LCP_SYNC();
+    for (i = lane; i < nrows; i += lanes)
+        if (i != r && fcol[i] != 0.0)
+            qb[i] += fcol[i] * qr;
+    for (e = lane; e < nrows * ncols; e += lanes) {
+        i = e / ncols;
+        j = e - i * ncols;
+        f = fcol[i];
+        if (i != r && f != 0.0)
+            T[e] = j == c ? f * inv : T[e] + f * rowr[j];
     }
-    for (j = 0; j < m; j++)
-        where[n + j] = -(j + 1);
-    *pivots_out = 0;
-    /* initial pivot: z0 enters, the row with the most negative q_i / d_i leaves (ties: the
-     * largest index) */
-    best = 0.0;
+    LCP_SYNC();
+    for (j = lane; j < ncols; j += lanes)
+        T[r * ncols + j] = rowr[j];
+    if (lane == 0)
+        qb[r] = qr;
+    LCP_SYNC();
+}
+
+/* Row of the initial pivot (most negative q_i / d_i, ties: the largest index); -1 when
+ * q >= 0 (d NULL: ones) */
+LCP_FN lcp_i64 lcp_initial_row(const double *q, const double *d, lcp_i64 n, double tie_tol)
+{
+    lcp_i64 i, r = -1;
+    double v, best = 0.0;
     for (i = 0; i < n; i++) {
         v = q[i] / (d ? d[i] : 1.0);
         if (v < best)
             best = v;
     }
     if (best >= 0.0)
-        return LCP_TRIVIAL;
-    r = -1;
+        return -1;
     for (i = 0; i < n; i++)
         if (q[i] / (d ? d[i] : 1.0) <= best + tie_tol * fabs(best))
             r = i;
+    return r;
+}
+
+/* The leaving row for the entering column col (basic = qb + col t): the minimum-ratio test
+ * (lemke.pyx's ratio_candidates) and, among tied rows, the lexicographic minimum over rows of
+ * the basis inverse divided by the pivot element (Cottle-Pang-Stone 4.9: no cycling); z0
+ * leaves when it ties.  Returns -1 when no row blocks (a ray). */
+LCP_FN lcp_i64 lcp_leaving_row(lcp_i64 n, lcp_i64 m, const double *T, const double *qb,
+                               const double *col, double *keys, const lcp_i64 *basic,
+                               const lcp_i64 *where, lcp_i64 *cand, double piv_tol,
+                               double tie_tol)
+{
+    lcp_i64 i, k, s, nc, mm, loc, z0_row = -1, nz = 2 * n;
+    double a, v, t, cmax = 0.0, qmax = 0.0, ptol, ztol, tmin = LCP_INF, unit, key, kmin, kmax;
+    double bound;
+    for (i = 0; i < n; i++) {
+        a = fabs(col[i]);
+        if (a > cmax)
+            cmax = a;
+        if (qb[i] > qmax)
+            qmax = qb[i];
+    }
+    ptol = piv_tol * cmax;
+    ztol = LCP_DEGENERATE_RTOL * qmax;
+    for (i = 0; i < n; i++) {
+        a = col[i];
+        if (a < -ptol) {
+            v = qb[i] > ztol ? qb[i] : 0.0;
+            t = v / (-a);
+            if (t < tmin)
+                tmin = t;
+        }
+    }
+    if (tmin == LCP_INF)
+        return -1;
+    nc = 0;
+    for (i = 0; i < n; i++) {
+        a = col[i];
+        if (a < -ptol) {
+            v = qb[i] > ztol ? qb[i] : 0.0;
+            t = v / (-a);
+            if (t <= tmin + tie_tol * tmin) {
+                cand[nc++] = i;
+                if (basic[i] == nz)
+                    z0_row = i;
+            }
+        }
+    }
+    if (z0_row >= 0)
+        return z0_row;
+    if (nc == 1)
+        return cand[0];
+    unit = 0.0;
+    for (s = 0; s < nc; s++) {
+        a = -col[cand[s]];
+        if (a > unit)
+            unit = a;
+    }
+    unit = 1.0 / unit;
+    for (k = 0; k < n; k++) {
+        loc = where[k];
+        for (s = 0; s < nc; s++) {
+            i = cand[s];
+            if (loc >= 0)
+                key = loc == i ? 1.0 : 0.0;
+            else
+                key = -T[i * m + (-loc - 1)];
+            keys[s] = key / (-col[i]);
+        }
+        kmin = LCP_INF;
+        kmax = 0.0;
+        for (s = 0; s < nc; s++) {
+            if (keys[s] < kmin)
+                kmin = keys[s];
+            if (fabs(keys[s]) > kmax)
+                kmax = fabs(keys[s]);
+        }
+        bound = kmin + LCP_LEX_RTOL * (kmax > unit ? kmax : unit);
+        mm = 0;
+        for (s = 0; s < nc; s++)
+            if (keys[s] <= bound)
+                cand[mm++] = cand[s];
+        nc = mm;
+        if (nc == 1)
+            break;
+    }
+    return cand[0];
+}
+
+/* Lemke's method (condensed tableau, covering vector d, lexicographic minimum-ratio rule:
+ * Cottle-Pang-Stone, The Linear Complementarity Problem, 4.4-4.9) on one problem, as
+ * lemke.pyx's lemke_tableau, split over the lanes; warp = 0: lcp_pivot (one lane only),
+ * else lcp_pivot_warp.  z (n) receives the basic solution; returns the status (LCP_OK,
+ * LCP_RAY, LCP_MAX_ITER, LCP_TRIVIAL) and the pivots in *pivots_out.  tw: LCP_TAB_DWORK(n)
+ * doubles, ti: LCP_TAB_IWORK(n) long longs (ti's first n: the end basis). */
+LCP_FN int lcp_lemke(lcp_i64 n, const double *M, const double *q, const double *d,
+                     lcp_i64 max_iter, double piv_tol, double tie_tol, double *z, double *tw,
+                     lcp_i64 *ti, lcp_i64 *pivots_out, lcp_i64 lane, lcp_i64 lanes, int warp)
+{
+    lcp_i64 m = n + 1, nz = 2 * n, e, i, j, r, c, entering, leaving, pivots;
+    int status = LCP_MAX_ITER;
+    double *T = tw, *qb = T + n * m, *keys = qb + n, *col = keys + n, *rowr = col + n;
+    lcp_i64 *basic = ti, *where = basic + n, *cand = where + 2 * n + 1, *ctl = cand + n;
+    for (e = lane; e < n * n; e += lanes)
+        T[(e / n) * m + e % n] = M[e];
+    for (i = lane; i < n; i += lanes) {
+        T[i * m + n] = d ? d[i] : 1.0;
+        col[i] = T[i * m + n];
+        qb[i] = q[i];
+        basic[i] = i;
+        where[i] = i;
+        z[i] = 0.0;
+    }
+    for (j = lane; j < m; j += lanes)
+        where[n + j] = -(j + 1);
+    if (lane == 0)
+        ctl[0] = lcp_initial_row(q, d, n, tie_tol);
+    LCP_SYNC();
+    *pivots_out = 0;
+    r = ctl[0];
+    if (r < 0)
+        return LCP_TRIVIAL;
+    /* initial pivot: z0 enters, row r's w leaves */
     entering = nz;
     c = n;
-    leaving = basic[r];
-    lcp_pivot(T, qb, n, m, r, c, rowr);
-    basic[r] = entering;
-    where[entering] = r;
-    where[leaving] = -(c + 1);
-    pivots = 1;
-    status = LCP_MAX_ITER;
-    while (pivots < max_iter) {
-        entering = leaving < n ? leaving + n : leaving - n;
-        c = -where[entering] - 1;
-        for (i = 0; i < n; i++)
-            col[i] = T[i * m + c];
-        /* the minimum-ratio test (lemke.pyx's ratio_candidates) */
-        cmax = 0.0;
-        qmax = 0.0;
-        for (i = 0; i < n; i++) {
-            a = fabs(col[i]);
-            if (a > cmax)
-                cmax = a;
-            if (qb[i] > qmax)
-                qmax = qb[i];
-        }
-        z0_row = -1;
-        ptol = piv_tol * cmax;
-        ztol = LCP_DEGENERATE_RTOL * qmax;
-        tmin = LCP_INF;
-        for (i = 0; i < n; i++) {
-            a = col[i];
-            if (a < -ptol) {
-                v = qb[i] > ztol ? qb[i] : 0.0;
-                t = v / (-a);
-                if (t < tmin)
-                    tmin = t;
-            }
-        }
-        if (tmin == LCP_INF) {
-            status = LCP_RAY;
-            break;
-        }
-        nc = 0;
-        for (i = 0; i < n; i++) {
-            a = col[i];
-            if (a < -ptol) {
-                v = qb[i] > ztol ? qb[i] : 0.0;
-                t = v / (-a);
-                if (t <= tmin + tie_tol * tmin) {
-                    cand[nc++] = i;
-                    if (basic[i] == nz)
-                        z0_row = i;
-                }
-            }
-        }
-        if (z0_row >= 0) {
-            r = z0_row; /* z0 ties for leaving: it leaves (the method ends with a solution) */
-        } else if (nc == 1) {
-            r = cand[0];
-        } else {
-            /* lexicographic minimum over rows of the basis inverse divided by the pivot */
-            unit = 0.0;
-            for (s = 0; s < nc; s++) {
-                a = -col[cand[s]];
-                if (a > unit)
-                    unit = a;
-            }
-            unit = 1.0 / unit;
-            for (k = 0; k < n; k++) {
-                loc = where[k];
-                for (s = 0; s < nc; s++) {
-                    i = cand[s];
-                    if (loc >= 0)
-                        key = loc == i ? 1.0 : 0.0;
-                    else
-                        key = -T[i * m + (-loc - 1)];
-                    keys[s] = key / (-col[i]);
-                }
-                kmin = LCP_INF;
-                kmax = 0.0;
-                for (s = 0; s < nc; s++) {
-                    if (keys[s] < kmin)
-                        kmin = keys[s];
-                    if (fabs(keys[s]) > kmax)
-                        kmax = fabs(keys[s]);
-                }
-                bound = kmin + LCP_LEX_RTOL * (kmax > unit ? kmax : unit);
-                mm = 0;
-                for (s = 0; s < nc; s++)
-                    if (keys[s] <= bound)
-                        cand[mm++] = cand[s];
-                nc = mm;
-                if (nc == 1)
-                    break;
-            }
-            r = cand[0];
-        }
-        leaving = basic[r];
+    leaving = r; /* basic[r] == r before the first pivot */
+    if (!warp)
         lcp_pivot(T, qb, n, m, r, c, rowr);
+    else
+        lcp_pivot_warp(T, qb, n, m, r, c, rowr, col, lane, lanes);
+    if (lane == 0) {
         basic[r] = entering;
         where[entering] = r;
         where[leaving] = -(c + 1);
+    }
+    pivots = 1;
+    while (pivots < max_iter) {
+        entering = leaving < n ? leaving + n : leaving - n;
+        LCP_SYNC();
+        c = -where[entering] - 1;
+        for (i = lane; i < n; i += lanes)
+            col[i] = T[i * m + c];
+        LCP_SYNC();
+        if (lane == 0)
+            ctl[1] = lcp_leaving_row(n, m, T, qb, col, keys, basic, where, cand, piv_tol,
+                                     tie_tol);
+        LCP_SYNC();
+        r = ctl[1];
+        if (r < 0) {
+            status = LCP_RAY;
+            break;
+        }
+        leaving = basic[r];
+        if (!warp)
+            lcp_pivot(T, qb, n, m, r, c, rowr);
+        else
+            lcp_pivot_warp(T, qb, n, m, r, c, rowr, col, lane, lanes);
+        if (lane == 0) {
+            basic[r] = entering;
+            where[entering] = r;
+            where[leaving] = -(c + 1);
+        }
         pivots += 1;
         if (leaving == nz) {
             status = LCP_OK;
             break;
         }
     }
-    for (i = 0; i < n; i++)
+    LCP_SYNC();
+    for (i = lane; i < n; i += lanes)
         if (basic[i] >= n && basic[i] < nz)
             z[basic[i] - n] = qb[i];
+    LCP_SYNC();
     *pivots_out = pivots;
     return status;
 }
@@ -805,56 +1054,78 @@ LCP_FN int lcp_polish(const double *M, const double *q, lcp_i64 n, const double 
 /* Lemke and the certificate of one problem (lcpcli/solvers/kernels/batch.pyx's _lemke_one):
  * equilibrated first when it is not balanced (balanced < 0: never; the answer is mapped back
  * exactly and certified on the problem as given); the end basis is re-solved (polish) when
- * the answer is not certified at rounding level (`polished`).
- * work: LCP_LEMKE_DWORK(n), iwork: LCP_LEMKE_IWORK(n). */
+ * the answer is not certified at rounding level (`polished`).  Lanes: (0, 1, warp = 0) one
+ * thread per problem; (lane, 32, 1) a warp per problem (lane 0 writes the outputs).
+ * tw, ti: LCP_TAB_DWORK(n), LCP_TAB_IWORK(n) (shared memory in the warp kernel); rw, ri:
+ * LCP_REST_DWORK(n), LCP_REST_IWORK(n). */
 LCP_FN void lcp_lemke_one(lcp_i64 n, const double *M, const double *q, const double *d,
                           lcp_i64 max_iter, double piv_tol, double tie_tol, double tol,
                           double polished, int balanced, int q_balanced, int max_rounds,
-                          double *work, lcp_i64 *iwork, double *z, double *w, signed char *code,
-                          lcp_i64 *iters, double *err, double *res)
+                          double *tw, lcp_i64 *ti, double *rw, lcp_i64 *ri, double *z, double *w,
+                          signed char *code, lcp_i64 *iters, double *err, double *res,
+                          lcp_i64 lane, lcp_i64 lanes, int warp)
 {
-    double *raw = work + n * (n + 1) + 4 * n + 1, *cwork = raw + n, *Ms = cwork + 5 * n;
-    double *qs = Ms + n * n, *ds = qs + n, *pwork = ds + n;
-    lcp_i64 *ciwork = iwork + 5 * n + 2, *rc = ciwork + 3 * n, *piwork = rc + 4 * n;
+    double *raw = rw, *cwork = raw + n, *Ms = cwork + 5 * n, *qs = Ms + n * n, *ds = qs + n;
+    double *pwork = ds + n;
+    lcp_i64 *ciwork = ri, *rc = ciwork + 3 * n, *piwork = rc + 4 * n, *ctl = ti + 4 * n + 1;
     lcp_i64 pivots = 0, i;
     const double *Mu = M, *qu = q, *du = d;
-    int scaled = 0, prc = 0;
+    int scaled = 0, prc = 0, status;
     lcp_cert cert;
-    int status;
-    *code = LCP_RETRY;
-    *iters = 0;
-    *err = LCP_INF;
-    *res = LCP_NAN;
-    if (balanced >= 0 && lcp_balance(n, M, q, d, balanced, q_balanced, max_rounds, Ms, qs, ds,
-                                     rc)) {
-        scaled = 1;
+    if (lane == 0) {
+        *code = LCP_RETRY;
+        *iters = 0;
+        *err = LCP_INF;
+        *res = LCP_NAN;
+    }
+    if (balanced >= 0) {
+        if (!warp) {
+            scaled = lcp_balance(n, M, q, d, balanced, q_balanced, max_rounds, Ms, qs, ds, rc);
+        } else if (!lcp_balanced_warp(n, M, q, balanced, q_balanced, rc, rc + n, lane, lanes)) {
+            if (lane == 0)
+                ctl[4] = lcp_balance(n, M, q, d, balanced, q_balanced, max_rounds, Ms, qs, ds,
+                                     rc);
+            LCP_SYNC();
+            scaled = (int)ctl[4];
+        }
+    }
+    if (scaled) {
         Mu = Ms;
         qu = qs;
         du = ds;
     }
-    status = lcp_lemke(n, Mu, qu, du, max_iter, piv_tol, tie_tol, raw, work, iwork, &pivots);
+    status = lcp_lemke(n, Mu, qu, du, max_iter, piv_tol, tie_tol, raw, tw, ti, &pivots, lane,
+                       lanes, warp);
     if (status != LCP_OK && status != LCP_TRIVIAL)
         return; /* a ray or the iteration limit: the CPU pipeline classifies it */
-    if (scaled) /* z = D_c z~ (exact) */
-        for (i = 0; i < n; i++)
+    for (i = lane; i < n; i += lanes) {
+        if (scaled) /* z = D_c z~ (exact) */
             raw[i] = ldexp(raw[i], (int)rc[n + i]);
-    *iters = pivots;
-    for (i = 0; i < n; i++)
         z[i] = (status == LCP_TRIVIAL || raw[i] < 0.0) ? 0.0 : raw[i];
-    lcp_certify(n, M, q, z, 0, 0, w, cwork, ciwork, &cert);
-    if (status == LCP_OK && !(cert.status == 0 && cert.error <= polished)) {
-        /* not at rounding level: the end basis (iwork's first n: lcp_lemke's `basic`)
-         * re-solved by LU with one refinement step, then certified again */
-        prc = lcp_polish(M, q, n, raw, iwork, z, pwork, piwork);
-        if (prc != 0)
-            return; /* a basis the CPU re-solves with LAPACK */
-        lcp_certify(n, M, q, z, 0, 0, w, cwork, ciwork, &cert);
     }
-    if (cert.status == 0)
-        *err = cert.error;
-    *res = cert.residual;
-    if (cert.status == 0 && cert.error <= tol)
-        *code = LCP_SOLVED;
+    LCP_SYNC();
+    if (warp)
+        lcp_certify_warp(n, M, q, z, 0, 0, w, cwork, ciwork, &cert, lane, lanes);
+    else
+        lcp_certify(n, M, q, z, 0, 0, w, cwork, ciwork, &cert);
+    if (lane == 0) {
+        *iters = pivots;
+        if (status == LCP_OK && !(cert.status == 0 && cert.error <= polished)) {
+            /* not at rounding level: the end basis (ti's first n) re-solved by LU with one
+             * refinement step, then certified again (a rare path: lane 0 alone) */
+            prc = lcp_polish(M, q, n, raw, ti, z, pwork, piwork);
+            if (prc == 0)
+                lcp_certify(n, M, q, z, 0, 0, w, cwork, ciwork, &cert);
+        }
+        if (prc == 0) { /* else a basis the CPU re-solves with LAPACK: RETRY */
+            if (cert.status == 0)
+                *err = cert.error;
+            *res = cert.residual;
+            if (cert.status == 0 && cert.error <= tol)
+                *code = LCP_SOLVED;
+        }
+    }
+    LCP_SYNC(); /* the workspace is the next problem's */
 }
 
 /* ------------------------------------------------------------------------- projected SOR */
@@ -1016,11 +1287,39 @@ extern "C" __global__ void lcp_lemke_stack(
 {
     lcp_i64 slot = (lcp_i64)blockIdx.x * blockDim.x + threadIdx.x;
     lcp_i64 stride = (lcp_i64)gridDim.x * blockDim.x, k;
+    double *tw = work + slot * LCP_LEMKE_DWORK(n);
+    lcp_i64 *ti = iwork + slot * LCP_LEMKE_IWORK(n);
     for (k = slot; k < K; k += stride)
         lcp_lemke_one(n, M + k * n * n, q + k * n, use_d ? d : 0, max_iter, piv_tol, tie_tol,
-                      tol, polished, balanced, q_balanced, max_rounds,
-                      work + slot * LCP_LEMKE_DWORK(n), iwork + slot * LCP_LEMKE_IWORK(n),
-                      z + k * n, w + k * n, code + k, iters + k, err + k, res + k);
+                      tol, polished, balanced, q_balanced, max_rounds, tw, ti,
+                      tw + LCP_TAB_DWORK(n), ti + LCP_TAB_IWORK(n), z + k * n, w + k * n,
+                      code + k, iters + k, err + k, res + k, 0, 1, 0);
+}
+
+/* One warp per problem (blockDim.x a multiple of 32; every lane of a warp takes part):
+ * use_shared: the tableau part of each warp's workspace in dynamic shared memory
+ * (blockDim.x / 32 * 8 * (LCP_TAB_DWORK(n) + LCP_TAB_IWORK(n)) bytes), else in work/iwork,
+ * which hold LCP_LEMKE_DWORK(n) / LCP_LEMKE_IWORK(n) per warp of the grid either way. */
+extern "C" __global__ void lcp_lemke_warp_stack(
+    lcp_i64 K, lcp_i64 n, const double *M, const double *q, int use_d, const double *d,
+    lcp_i64 max_iter, double piv_tol, double tie_tol, double tol, double polished, int balanced,
+    int q_balanced, int max_rounds, int use_shared, double *work, lcp_i64 *iwork, double *z,
+    double *w, signed char *code, lcp_i64 *iters, double *err, double *res)
+{
+    extern __shared__ double lcp_smem[];
+    lcp_i64 lane = threadIdx.x & 31, wib = threadIdx.x >> 5, wpb = blockDim.x >> 5;
+    lcp_i64 slot = (lcp_i64)blockIdx.x * wpb + wib, nslots = (lcp_i64)gridDim.x * wpb, k;
+    double *gw = work + slot * LCP_LEMKE_DWORK(n), *tw = gw;
+    lcp_i64 *gi = iwork + slot * LCP_LEMKE_IWORK(n), *ti = gi;
+    if (use_shared) {
+        tw = lcp_smem + wib * (LCP_TAB_DWORK(n) + LCP_TAB_IWORK(n));
+        ti = (lcp_i64 *)(tw + LCP_TAB_DWORK(n));
+    }
+    for (k = slot; k < K; k += nslots)
+        lcp_lemke_one(n, M + k * n * n, q + k * n, use_d ? d : 0, max_iter, piv_tol, tie_tol,
+                      tol, polished, balanced, q_balanced, max_rounds, tw, ti,
+                      gw + LCP_TAB_DWORK(n), gi + LCP_TAB_IWORK(n), z + k * n, w + k * n,
+                      code + k, iters + k, err + k, res + k, lane, 32, 1);
 }
 
 /* bounded: lo, up (K, n) are the box (else an LCP: they are not read); z: the start points */
