@@ -246,3 +246,138 @@ def test_certificate_matches_the_core_definition(n, seed, box, blocks):
         assert status == ref[0]
         if status == 0:
             assert error == ref[1] and residual == ref[4]
+
+
+# ----------------------------------------------------------- the cuda backend's host code
+class _FakeArray(np.ndarray):
+    """A host array standing in for a CuPy array (``get`` copies to numpy)."""
+
+    @property
+    def __cuda_array_interface__(self):  # what marks device memory to lcpcli.solve_many
+        return {"shape": self.shape, "typestr": self.dtype.str, "version": 3}
+
+    def get(self, out=None):
+        if out is None:
+            return np.array(self)
+        out[...] = self
+        return out
+
+
+class _FakeKernel:
+    """Checks each launch's arguments against the kernel's C signature (parsed from the
+    shipped source), then runs the single-source CPU build with them."""
+
+    C_TYPES = {"double *": np.float64, "const double *": np.float64, "lcp_i64 *": np.int64,
+               "signed char *": np.int8}
+    SCALARS = {"lcp_i64": np.int64, "int": np.int32, "double": np.float64}
+
+    def __init__(self, name, params):
+        self.name, self.params = name, params
+        self.max_dynamic_shared_size_bytes = 0
+
+    def __call__(self, grid, block, args, shared_mem=0):
+        assert len(args) == len(self.params), (self.name, len(args), len(self.params))
+        a = {}
+        for (ctype, pname), value in zip(self.params, args, strict=True):
+            if ctype in self.C_TYPES:
+                assert isinstance(value, np.ndarray) and value.flags.c_contiguous, pname
+                assert value.dtype == self.C_TYPES[ctype], (pname, value.dtype)
+            else:
+                assert type(value) is self.SCALARS[ctype], (pname, type(value), ctype)
+            a[pname] = value
+        K, n = int(a["K"]), int(a["n"])
+        warp = "warp" in self.name
+        slots = grid[0] * block[0] // (32 if warp else 1)
+        kind = "lemke" if "lemke" in self.name else "sor"
+        dw, iw = stack_c.workspace(kind, n)
+        assert a["work"].size >= slots * dw and a["iwork"].size >= slots * iw
+        if warp and a["use_shared"]:
+            tdw, tiw = stack_c.workspace("tableau", n)
+            assert shared_mem >= block[0] // 32 * 8 * (tdw + tiw)
+        out = [a[k].reshape(K, -1)[:, :n] if k in ("z", "w") else a[k]
+               for k in ("z", "w", "code", "iters", "err", "res")]
+        M, q = a["M"].reshape(K, n, n), a["q"].reshape(K, n)
+        if kind == "lemke":
+            bal = None if a["balanced"] < 0 else (int(a["balanced"]), int(a["q_balanced"]),
+                                                  int(a["max_rounds"]))
+            stack_c.lemke_stack(M, q, a["d"] if a["use_d"] else None, int(a["max_iter"]),
+                                float(a["piv_tol"]), float(a["tie_tol"]), float(a["tol"]),
+                                float(a["polished"]), bal, *out, 1, warp)
+        else:
+            lo, up = (a["lo"], a["up"]) if a["bounded"] else (None, None)
+            stack_c.sor_stack(M, q, lo, up, float(a["omega"]), int(a["max_iter"]),
+                              float(a["tol"]), *out, 1)
+
+
+def _fake_cupy():
+    import re
+    import types
+
+    source = cuda.source()
+    kernels = {}  # kernel name -> [(C type, parameter name)], e.g. ("const double *", "M")
+    for name, params in re.findall(r'extern "C" __global__ void (\w+)\(([^)]*)\)', source):
+        kernels[name] = [(m.group(1).strip(), m.group(2)) for m in
+                         (re.match(r"(.*?)(\w+)$", " ".join(p.split())) for p in params.split(","))]
+
+    def wrap(x):
+        return np.asarray(x).view(_FakeArray)
+
+    cp = types.SimpleNamespace(
+        ndarray=_FakeArray, float64=np.float64, int64=np.int64, int8=np.int8,
+        asarray=lambda x, dtype=None: wrap(np.asarray(x, dtype=dtype)),
+        ascontiguousarray=lambda x, dtype=None: wrap(np.ascontiguousarray(x, dtype=dtype)),
+        zeros=lambda *s, **k: wrap(np.zeros(*s, **k)), ones=lambda *s, **k: wrap(np.ones(*s, **k)),
+        full=lambda *s, **k: wrap(np.full(*s, **k)), empty=lambda *s, **k: wrap(np.empty(*s, **k)),
+        broadcast_to=lambda x, s: wrap(np.broadcast_to(x, s)),
+        clip=lambda x, lo, up, out=None: np.clip(x, lo, up, out=out),
+        from_dlpack=lambda x: wrap(np.from_dlpack(x)))
+    runtime = types.SimpleNamespace(getDeviceCount=lambda: 1, memGetInfo=lambda: (8 << 30, 8 << 30))
+    module = types.SimpleNamespace(get_function=lambda name: _FakeKernel(name, kernels[name]))
+    cp.cuda = types.SimpleNamespace(runtime=runtime, Device=lambda: types.SimpleNamespace(id=0))
+    cp.RawModule = lambda code, options: module
+    return cp
+
+
+@pytest.fixture
+def fake_device(monkeypatch):
+    """The cuda backend with a stand-in for CuPy and a device (arguments checked against the
+    C signatures; the kernels run by the CPU build of the same source)."""
+    cp = _fake_cupy()
+    monkeypatch.setattr(cuda, "_import_cupy", lambda: cp)
+    monkeypatch.setattr(cuda, "device_present", lambda: True)
+    cuda._module.cache_clear()
+    batched._LOADED.pop("cuda", None)
+    yield cp
+    cuda._module.cache_clear()
+    batched._LOADED.pop("cuda", None)
+
+
+@pytest.mark.parametrize("variant", ["thread", "warp"])
+@pytest.mark.parametrize("kind", ["pd", "degenerate", "scaled", "mixed"])
+def test_cuda_backend_host_code_with_a_stand_in_device(fake_device, monkeypatch, kind, variant):
+    monkeypatch.setattr(cuda, "LEMKE_VARIANT", variant)
+    M, q = make(kind)
+    ref = solve_many(M, q, "lemke")
+    res = solve_many(M, q, "lemke", backend="cuda")
+    np.testing.assert_array_equal(res.status, ref.status)
+    np.testing.assert_array_equal(res.z, ref.z)
+    dev = solve_many(fake_device.asarray(M), fake_device.asarray(q), "lemke", backend="cuda")
+    assert isinstance(dev.z, _FakeArray)
+    np.testing.assert_array_equal(dev.status, ref.status)
+    np.testing.assert_array_equal(np.asarray(dev.z), ref.z)
+    np.testing.assert_array_equal(dev.iterations, ref.iterations)
+
+
+def test_cuda_backend_sor_and_box_with_a_stand_in_device(fake_device):
+    M, q = pd(80, 7, seed=14)
+    M = (M + M.transpose(0, 2, 1)) / 2
+    lo, up = -np.ones(7), np.full(7, 0.5)
+    for kw in ({}, {"lower": lo, "upper": up}):
+        ref = solve_many(M, q, "pgs", **kw)
+        res = solve_many(M, q, "pgs", backend="cuda", **kw)
+        np.testing.assert_array_equal(res.status, ref.status)
+        np.testing.assert_array_equal(res.z, ref.z)
+        dev = solve_many(fake_device.asarray(M), fake_device.asarray(q), "pgs",
+                         backend="cuda", **kw)
+        np.testing.assert_array_equal(dev.status, ref.status)
+        np.testing.assert_array_equal(np.asarray(dev.z), ref.z)

@@ -34,8 +34,17 @@ from lcpcli.solvers.batched import KERNEL_SOLVED, Backend, StackOut
 NEEDS = "the cuda backend needs CuPy and a CUDA device (pip install \"lcpcli[gpu]\")"
 #: Threads per block of the one-thread-per-problem kernels.
 BLOCK = 128
-#: Bytes of device workspace the kernels may take at once (the grid is sized to fit).
-WORK_BYTES = 1 << 30
+#: Bytes of device workspace the kernels may take at once (the grid is sized to fit; at most
+#: a quarter of the free device memory).
+WORK_BYTES = 4 << 30
+#: Lemke's device kernel: "thread" (one thread per problem) or "warp" (one warp per problem,
+#: the tableau in shared memory).  Both run the code the CPU tests check (the warp paths with
+#: one lane); "thread" stays the default until a device run (tests/solvers/test_gpu_backend.py,
+#: benchmarks/bench_gpu.py) has compared "warp" with the CPU.
+LEMKE_VARIANT = "thread"
+#: Warps per block of the warp kernel, and the shared memory a block may use for tableaux.
+WARPS_PER_BLOCK = 8
+SHARED_BYTES = 96 << 10
 #: NVRTC options: no contraction into FMA (the CPU build has none: the same rounding).
 NVRTC_OPTIONS = ("--std=c++11", "--fmad=false")
 #: DLPack device types of CUDA memory (kDLCUDA, kDLCUDAHost, kDLCUDAManaged).
@@ -107,10 +116,12 @@ def as_device(a: Any, cp: Any) -> Any:
     return cp.ascontiguousarray(a, dtype=cp.float64)
 
 
-def _grid(K: int, slot_bytes: int, cp: Any) -> int:
-    """Blocks to launch: enough for every problem, at most :data:`WORK_BYTES` of workspace."""
-    most = max(1, WORK_BYTES // max(1, slot_bytes * BLOCK))
-    return int(max(1, min(-(-K // BLOCK), most)))
+def _grid(K: int, slot_bytes: int, per_block: int, cp: Any) -> int:
+    """Blocks of ``per_block`` workspace slots to launch: enough for every problem, within
+    :data:`WORK_BYTES` and a quarter of the free device memory."""
+    budget = min(WORK_BYTES, cp.cuda.runtime.memGetInfo()[0] // 4)
+    most = max(1, budget // max(1, slot_bytes * per_block))
+    return int(max(1, min(-(-K // per_block), most)))
 
 
 def _outputs(K: int, n: int, cp: Any) -> dict[str, Any]:
@@ -119,13 +130,17 @@ def _outputs(K: int, n: int, cp: Any) -> dict[str, Any]:
             "residual": cp.full(K, np.nan)}
 
 
-def run_lemke(Md: Any, qd: Any, *, tol: float, options: Mapping[str, Any],
-              scaling: str) -> dict[str, Any]:
+def run_lemke(Md: Any, qd: Any, *, tol: float, options: Mapping[str, Any], scaling: str,
+              variant: str | None = None) -> dict[str, Any]:
     """Lemke and the certificate on the device stack ``Md`` (K, n, n), ``qd`` (K, n): device
-    arrays ``z``, ``w``, ``code``, ``iterations``, ``error``, ``residual``."""
+    arrays ``z``, ``w``, ``code``, ``iterations``, ``error``, ``residual``.  ``variant``:
+    "thread" or "warp" (default :data:`LEMKE_VARIANT`)."""
     from lcpcli.solvers.kernels.stack_c import workspace
 
     cp = require_cupy()
+    variant = variant or LEMKE_VARIANT
+    if variant not in ("thread", "warp"):
+        raise OptionError(f"unknown cuda Lemke variant '{variant}' (thread, warp)")
     K, n = qd.shape
     o = _outputs(K, n, cp)
     if K == 0 or n == 0:
@@ -135,18 +150,32 @@ def run_lemke(Md: Any, qd: Any, *, tol: float, options: Mapping[str, Any],
         return o
     a = lemke_args(n, options, scaling)
     dw, iw = workspace("lemke", n)
-    blocks = _grid(K, 8 * (dw + iw), cp)
-    work = cp.empty(blocks * BLOCK * dw, cp.float64)
-    iwork = cp.empty(blocks * BLOCK * iw, cp.int64)
     d = cp.ones(n) if a["d"] is None else cp.asarray(a["d"], dtype=cp.float64)
     bal = a["balance"] or (-1, 0, 0)
-    kernel("lcp_lemke_stack")(
-        (blocks,), (BLOCK,),
-        (np.int64(K), np.int64(n), Md, qd, np.int32(a["d"] is not None), d,
-         np.int64(a["max_iter"]), np.float64(a["piv_tol"]), np.float64(a["tie_tol"]),
-         np.float64(tol), np.float64(a["polished"]), np.int32(bal[0]), np.int32(bal[1]),
-         np.int32(bal[2]), work, iwork, o["z"], o["w"], o["code"], o["iterations"],
-         o["error"], o["residual"]))
+    head = (np.int64(K), np.int64(n), Md, qd, np.int32(a["d"] is not None), d,
+            np.int64(a["max_iter"]), np.float64(a["piv_tol"]), np.float64(a["tie_tol"]),
+            np.float64(tol), np.float64(a["polished"]), np.int32(bal[0]), np.int32(bal[1]),
+            np.int32(bal[2]))
+    tail = (o["z"], o["w"], o["code"], o["iterations"], o["error"], o["residual"])
+    if variant == "thread":
+        blocks = _grid(K, 8 * (dw + iw), BLOCK, cp)
+        work = cp.empty(blocks * BLOCK * dw, cp.float64)
+        iwork = cp.empty(blocks * BLOCK * iw, cp.int64)
+        kernel("lcp_lemke_stack")((blocks,), (BLOCK,), head + (work, iwork) + tail)
+        return o
+    tdw, tiw = workspace("tableau", n)
+    per_warp = 8 * (tdw + tiw)
+    use_shared = per_warp <= SHARED_BYTES
+    wpb = max(1, min(WARPS_PER_BLOCK, SHARED_BYTES // per_warp)) if use_shared else 4
+    blocks = _grid(K, 8 * (dw + iw), wpb, cp)
+    work = cp.empty(blocks * wpb * dw, cp.float64)
+    iwork = cp.empty(blocks * wpb * iw, cp.int64)
+    fn = kernel("lcp_lemke_warp_stack")
+    shared = wpb * per_warp if use_shared else 0
+    if shared > 48 << 10:
+        fn.max_dynamic_shared_size_bytes = shared
+    fn((blocks,), (32 * wpb,), head + (np.int32(use_shared), work, iwork) + tail,
+       shared_mem=shared)
     return o
 
 
@@ -168,7 +197,7 @@ def run_sor(Md: Any, qd: Any, lo: Any, up: Any, *, tol: float,
     if lo is not None:
         cp.clip(cp.zeros((K, n)), lo, up, out=o["z"])
     dw, iw = workspace("sor", n)
-    blocks = _grid(K, 8 * (dw + iw), cp)
+    blocks = _grid(K, 8 * (dw + iw), BLOCK, cp)
     work = cp.empty(blocks * BLOCK * dw, cp.float64)
     iwork = cp.empty(blocks * BLOCK * iw, cp.int64)
     dummy = cp.zeros(1)
