@@ -8,12 +8,14 @@ measures, for random positive definite stacks (benchmarks/bench_stack.py's ``mak
 ``M = A A^T / n + I``) at n = 12 (K = 10^6) and n = 50 (K = 10^5), Lemke (lexicographic)
 with the certificate:
 
-* ``kernel``: the device kernel alone on data already on the device (CUDA events);
+* ``kernel``: the device kernel alone on data already on the device (CUDA events), for both
+  variants (``thread``: one thread per problem; ``warp``: one warp per problem);
 * ``pinned``: ``solve_many(M, q, backend="cuda")`` from host arrays in pinned memory (copy in,
   kernel, copy out, the CPU for what the device hands back);
 * ``pageable``: the same from ordinary numpy arrays;
 * ``cpu``: ``solve_many(M, q)`` (the ``"cpu"`` backend, every core) on the same stack;
-* ``verdicts``: status, z and pivots of the device run against the CPU on a subsample.
+* ``verdicts``: status, z and pivots of each variant against the CPU on a subsample (the
+  end-to-end runs use the fastest variant that matched).
 
 Rates are certified problems per second (problems whose certificate passed on the path
 measured, divided by its time).  Without a device (``--cpu``) it compares the single-source
@@ -88,29 +90,46 @@ def gpu_case(n: int, K: int, sample: int, repeat: int) -> dict:
     from lcpcli.solvers.backends import cuda
 
     M, q = make_stack(K, n, seed=2026)
+    spec = get_method("lemke")
     out: dict = {"n": n, "K": K}
     t = time.perf_counter()
     cuda.kernel("lcp_lemke_stack")  # NVRTC, once per process
     out["nvrtc_s"] = time.perf_counter() - t
-    spec = get_method("lemke")
+    idx = np.random.default_rng(1).choice(K, size=min(sample, K), replace=False)
+    host = lcpcli.solve_many(M[idx], q[idx], "lemke")
     Md, qd = cp.asarray(M), cp.asarray(q)
-
-    def run(Md=Md, qd=qd) -> dict:  # noqa: ANN001
-        return cuda.run_lemke(Md, qd, tol=spec.default_tol, options={}, scaling=spec.scaling)
-    o = run()
-    cp.cuda.Device().synchronize()
-    times = []
-    for _ in range(repeat):
-        e0, e1 = cp.cuda.Event(), cp.cuda.Event()
-        e0.record()
-        o = run()
-        e1.record()
-        e1.synchronize()
-        times.append(cp.cuda.get_elapsed_time(e0, e1) / 1e3)
-    certified = int((o["code"] == KERNEL_SOLVED).sum())
-    out.update(kernel_s=min(times), kernel_certified=certified,
-               kernel_certified_per_s=certified / min(times))
-    del Md, qd, o, run
+    usable = []
+    for variant in ("thread", "warp"):
+        # verdicts on a subsample: the device's against the CPU's, problem by problem
+        cuda.LEMKE_VARIANT = variant
+        dev = lcpcli.solve_many(Md[cp.asarray(idx)], qd[cp.asarray(idx)], "lemke",
+                                backend="cuda")
+        same = {"same_status": bool(np.array_equal(dev.status, host.status)),
+                "same_z": bool(np.array_equal(dev.z.get(), host.z)),
+                "same_pivots": bool(np.array_equal(dev.iterations, host.iterations)),
+                "device_retried": int(dev.retried.sum())}
+        out[f"{variant}_verdicts"] = same
+        times = []
+        for _ in range(repeat):
+            e0, e1 = cp.cuda.Event(), cp.cuda.Event()
+            e0.record()
+            o = cuda.run_lemke(Md, qd, tol=spec.default_tol, options={}, scaling=spec.scaling,
+                               variant=variant)
+            e1.record()
+            e1.synchronize()
+            times.append(cp.cuda.get_elapsed_time(e0, e1) / 1e3)
+        certified = int((o["code"] == KERNEL_SOLVED).sum())
+        out[f"{variant}_kernel_s"] = min(times)
+        out[f"{variant}_kernel_certified_per_s"] = certified / min(times)
+        del o
+        if same["same_status"] and same["same_z"] and same["same_pivots"]:
+            usable.append((min(times), variant))
+    out["verdict_sample"] = int(idx.size)
+    del Md, qd
+    if not usable:
+        out["end_to_end"] = "skipped: no variant gave the CPU's verdicts"
+        return out
+    cuda.LEMKE_VARIANT = out["end_to_end_variant"] = min(usable)[1]
     # end to end from pinned host memory, then from pageable memory
     Mp = cupyx.empty_pinned(M.shape, np.float64)
     qp = cupyx.empty_pinned(q.shape, np.float64)
@@ -123,24 +142,15 @@ def gpu_case(n: int, K: int, sample: int, repeat: int) -> dict:
             nonlocal res
             res = lcpcli.solve_many(Ma, qa, "lemke", backend="cuda")
         secs = best_of(repeat, full)
-        solved = int(res.solved.sum())
         out[f"{label}_s"] = secs
-        out[f"{label}_certified_per_s"] = solved / secs
+        out[f"{label}_certified_per_s"] = int(res.solved.sum()) / secs
         out[f"{label}_retried"] = int(res.retried.sum())
     t = time.perf_counter()
     ref = lcpcli.solve_many(M, q, "lemke")
     out["cpu_s"] = time.perf_counter() - t
     out["cpu_certified_per_s"] = int(ref.solved.sum()) / out["cpu_s"]
     out["cpu_threads"] = os.cpu_count()
-    # verdicts on a subsample: the device's against the CPU's, problem by problem
-    idx = np.random.default_rng(1).choice(K, size=min(sample, K), replace=False)
-    dev = lcpcli.solve_many(cp.asarray(M[idx]), cp.asarray(q[idx]), "lemke", backend="cuda")
-    host = lcpcli.solve_many(M[idx], q[idx], "lemke")
-    out.update(verdict_sample=int(idx.size),
-               same_status=bool(np.array_equal(dev.status, host.status)),
-               same_z=bool(np.array_equal(dev.z.get(), host.z)),
-               same_pivots=bool(np.array_equal(dev.iterations, host.iterations)),
-               device_retried=int(dev.retried.sum()))
+    out["end_to_end_same_status"] = bool(np.array_equal(res.status, ref.status))
     return out
 
 

@@ -42,16 +42,29 @@ def assert_same(a, b):
     np.testing.assert_array_equal(a.iterations, b.iterations)
 
 
+@pytest.fixture(params=["thread", "warp"])
+def variant(request, monkeypatch):
+    """Lemke's device kernel: one thread or one warp per problem."""
+    monkeypatch.setattr(cuda, "LEMKE_VARIANT", request.param)
+    return request.param
+
+
 @pytest.mark.parametrize("kind", ["pd", "degenerate", "scaled", "mixed"])
 @pytest.mark.parametrize("method", ["lemke", "pgs"])
-def test_cuda_matches_cpu_from_host_arrays(kind, method):
+def test_cuda_matches_cpu_from_host_arrays(kind, method, variant):
     M, q = stack(kind, 3000, 12, seed=1)
     if method == "pgs":
         M = (M + M.transpose(0, 2, 1)) / 2
     assert_same(solve_many(M, q, method), solve_many(M, q, method, backend="cuda"))
 
 
-def test_cuda_from_device_arrays_returns_device_arrays():
+@pytest.mark.parametrize("n", [1, 5, 33, 50, 130])  # 130: the warp's tableau in global memory
+def test_cuda_sizes(n, variant):
+    M, q = stack("pd", 300, n, seed=5)
+    assert_same(solve_many(M, q, "lemke"), solve_many(M, q, "lemke", backend="cuda"))
+
+
+def test_cuda_from_device_arrays_returns_device_arrays(variant):
     M, q = stack("pd", 5000, 50, seed=2)
     ref = solve_many(M, q, "lemke")
     res = solve_many(cp.asarray(M), cp.asarray(q), "lemke", backend="cuda")

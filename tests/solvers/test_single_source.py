@@ -381,3 +381,13 @@ def test_cuda_backend_sor_and_box_with_a_stand_in_device(fake_device):
                          backend="cuda", **kw)
         np.testing.assert_array_equal(dev.status, ref.status)
         np.testing.assert_array_equal(np.asarray(dev.z), ref.z)
+
+
+@pytest.mark.parametrize("n", [1, 2, 40, 130])  # 130: the warp's tableau in global memory
+def test_cuda_backend_sizes_with_a_stand_in_device(fake_device, monkeypatch, n):
+    monkeypatch.setattr(cuda, "LEMKE_VARIANT", "warp")
+    M, q = pd(12, n, seed=15)
+    ref = solve_many(M, q, "lemke")
+    res = solve_many(M, q, "lemke", backend="cuda")
+    np.testing.assert_array_equal(res.status, ref.status)
+    np.testing.assert_array_equal(res.z, ref.z)
