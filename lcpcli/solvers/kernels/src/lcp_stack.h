@@ -688,12 +688,17 @@ LCP_FN void lcp_pivot_warp(double *T, double *qb, lcp_i64 nrows, lcp_i64 ncols, 
     for (i = lane; i < nrows; i += lanes)
         if (i != r && fcol[i] != 0.0)
             qb[i] += fcol[i] * qr;
+    i = lane / ncols; /* entry e = i ncols + j, stepped without a division per entry */
+    j = lane - i * ncols;
     for (e = lane; e < nrows * ncols; e += lanes) {
-        i = e / ncols;
-        j = e - i * ncols;
         f = fcol[i];
         if (i != r && f != 0.0)
             T[e] = j == c ? f * inv : T[e] + f * rowr[j];
+        j += lanes;
+        while (j >= ncols) {
+            j -= ncols;
+            i += 1;
+        }
     }
     LCP_SYNC();
     for (j = lane; j < ncols; j += lanes)
@@ -818,12 +823,13 @@ LCP_FN int lcp_lemke(lcp_i64 n, const double *M, const double *q, const double *
                      lcp_i64 max_iter, double piv_tol, double tie_tol, double *z, double *tw,
                      lcp_i64 *ti, lcp_i64 *pivots_out, lcp_i64 lane, lcp_i64 lanes, int warp)
 {
-    lcp_i64 m = n + 1, nz = 2 * n, e, i, j, r, c, entering, leaving, pivots;
+    lcp_i64 m = n + 1, nz = 2 * n, i, j, r, c, entering, leaving, pivots;
     int status = LCP_MAX_ITER;
     double *T = tw, *qb = T + n * m, *keys = qb + n, *col = keys + n, *rowr = col + n;
     lcp_i64 *basic = ti, *where = basic + n, *cand = where + 2 * n + 1, *ctl = cand + n;
-    for (e = lane; e < n * n; e += lanes)
-        T[(e / n) * m + e % n] = M[e];
+    for (i = 0; i < n; i++) /* lanes along each row of M: coalesced reads */
+        for (j = lane; j < n; j += lanes)
+            T[i * m + j] = M[i * n + j];
     for (i = lane; i < n; i += lanes) {
         T[i * m + n] = d ? d[i] : 1.0;
         col[i] = T[i * m + n];
