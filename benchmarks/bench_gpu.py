@@ -20,7 +20,7 @@ with the certificate:
 Rates are certified problems per second (problems whose certificate passed on the path
 measured, divided by its time).  Without a device (``--cpu``) it compares the single-source
 kernel compiled for the CPU (``backend="c"``) with the ``"cpu"`` backend's Lemke at n = 12
-(K = 100,000) and n = 50 (K = 10,000), one thread, best of ``--repeat``.
+(K = 100,000) and n = 50 (K = 10,000), one thread, best of ``--repeat`` interleaved runs.
 """
 
 from __future__ import annotations
@@ -62,17 +62,22 @@ def cpu_case(n: int, K: int, repeat: int, threads: int) -> dict:
     spec = get_method("lemke")
     cpu = get_backend("cpu").kernel("lemke")
     o = StackOut.empty(K, n)
-    t_cpu = best_of(repeat, lambda: cpu(M, q, None, None, tol=spec.default_tol, options={},
-                                         out=o, threads=threads, scaling=spec.scaling))
     a = lemke_args(n, {}, spec.scaling)
     s = StackOut.empty(K, n)
 
+    def base() -> None:
+        cpu(M, q, None, None, tol=spec.default_tol, options={}, out=o, threads=threads,
+            scaling=spec.scaling)
+
     def single() -> None:
         stack_c.lemke_stack(M, q, a["d"], a["max_iter"], a["piv_tol"], a["tie_tol"],
-                            spec.default_tol,
-                            a["polished"], a["balance"], s.z, s.w, s.code, s.iterations,
-                            s.error, s.residual, threads)
-    t_c = best_of(repeat, single)
+                            spec.default_tol, a["polished"], a["balance"], s.z, s.w, s.code,
+                            s.iterations, s.error, s.residual, threads)
+    # interleaved (the machine may be shared): the best of `repeat` runs of each
+    t_cpu = t_c = float("inf")
+    for _ in range(repeat):
+        t_cpu = min(t_cpu, best_of(1, base))
+        t_c = min(t_c, best_of(1, single))
     ok = s.code == KERNEL_SOLVED
     out.update(cpu_s=t_cpu, c_s=t_c, cpu_per_s=K / t_cpu,
                c_certified_per_s=int(ok.sum()) / t_c, c_over_cpu_time=t_c / t_cpu,
