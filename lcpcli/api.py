@@ -223,11 +223,15 @@ def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None =
     if on_error not in ("raise", "mark"):
         raise OptionError(f"on_error must be 'raise' or 'mark', got {on_error!r}")
     backend = default_backend() if backend is None else backend
-    if backend in ("cuda", "auto") and _on_device(M):  # CuPy / DLPack device arrays
-        from lcpcli.solvers.backends.cuda import solve_many_device
+    if _on_device(M):  # CuPy / DLPack device arrays
+        if backend in ("cuda", "auto"):
+            from lcpcli.solvers.backends.cuda import solve_many_device
 
-        return solve_many_device(M, q, method, tol=tol, lower=lower, upper=upper, n_eq=n_eq,
-                                 threads=threads, on_error=on_error, options=options)
+            return solve_many_device(M, q, method, tol=tol, lower=lower, upper=upper,
+                                     n_eq=n_eq, threads=threads, on_error=on_error,
+                                     options=options)
+        raise OptionError(f"M is in device memory: use backend='cuda' (or 'auto'), or copy the "
+                          f"stack to the host for backend='{backend}'")
     M, q, lower, upper, n_eq, spec, kind = _check_stack(M, q, method, lower, upper, n_eq,
                                                         options)
     K, n = q.shape

@@ -391,3 +391,14 @@ def test_cuda_backend_sizes_with_a_stand_in_device(fake_device, monkeypatch, n):
     res = solve_many(M, q, "lemke", backend="cuda")
     np.testing.assert_array_equal(res.status, ref.status)
     np.testing.assert_array_equal(res.z, ref.z)
+
+
+def test_device_arrays_with_auto_and_with_a_host_backend(fake_device):
+    M, q = pd(40, 6, seed=16)
+    ref = solve_many(M, q)
+    dev = solve_many(fake_device.asarray(M), fake_device.asarray(q), backend="auto")
+    assert dev.method == ref.method
+    np.testing.assert_array_equal(dev.status, ref.status)
+    np.testing.assert_array_equal(np.asarray(dev.z), ref.z)
+    with pytest.raises(OptionError, match="device memory"):
+        solve_many(fake_device.asarray(M), fake_device.asarray(q), backend="cpu")
