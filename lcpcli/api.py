@@ -253,7 +253,7 @@ def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None =
         kernel_options = plan.kernel_options
     name = spec.name
     if run_spec is not None:
-        kernel = get_backend(choose_backend(backend, K)).kernel(run_spec.batch.kernel)
+        kernel = get_backend(choose_backend(backend, K, n)).kernel(run_spec.batch.kernel)
         if kernel is None:
             raise OptionError(f"batch backend '{backend}' has no '{run_spec.batch.kernel}' "
                               f"kernel (method '{run_spec.name}')")

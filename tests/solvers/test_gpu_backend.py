@@ -95,5 +95,6 @@ def test_box_lcps_on_the_device():
 def test_auto_picks_the_device_for_large_stacks():
     from lcpcli.solvers import batched
 
-    assert batched.choose_backend("auto", batched.AUTO_CUDA_MIN) == "cuda"
-    assert batched.choose_backend("auto", 10) == "cpu"
+    K = batched.AUTO_CUDA_MIN_BYTES // (8 * 12 * 12) + 1
+    assert batched.choose_backend("auto", K, 12) == "cuda"
+    assert batched.choose_backend("auto", K - 2, 12) == "cpu"

@@ -184,7 +184,7 @@ def test_cuda_without_a_device_is_one_clear_option_error():
     M, q = pd(4, 3, seed=9)
     with pytest.raises(OptionError, match="needs CuPy and a CUDA device"):
         solve_many(M, q, "lemke", backend="cuda")
-    assert batched.choose_backend("auto", 10**7) == "cpu"
+    assert batched.choose_backend("auto", 10**7, 12) == "cpu"
     assert solve_many(M, q, "lemke", backend="auto").solved.all()
 
 
