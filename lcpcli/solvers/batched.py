@@ -145,6 +145,24 @@ def register_backend(name: str, factory: Callable[[], Backend]) -> None:
 AUTO_CUDA_MIN_BYTES = 16 << 20
 
 
+#: The backend :func:`lcpcli.solve_many` uses when given none (``--backend`` sets it for a
+#: command's process: the stacked batch path passes no backend of its own).
+_DEFAULT_BACKEND = ["cpu"]
+
+
+def set_default_backend(name: str) -> None:
+    """Make ``name`` (a registered backend or ``"auto"``) this process's default; OptionError
+    for an unknown name or a backend that cannot run here (e.g. ``cuda`` without a device)."""
+    if name != "auto":
+        get_backend(name)
+    _DEFAULT_BACKEND[0] = name
+
+
+def default_backend() -> str:
+    """This process's default backend (``"cpu"`` unless :func:`set_default_backend` ran)."""
+    return _DEFAULT_BACKEND[0]
+
+
 def choose_backend(name: str, K: int, n: int) -> str:
     """``name``, with ``"auto"`` resolved for a stack of K problems of size n: ``"cuda"`` when
     CuPy imports, a CUDA device is present and M holds at least :data:`AUTO_CUDA_MIN_BYTES`,
