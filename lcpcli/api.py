@@ -210,7 +210,8 @@ def _check_stack(M: Any, q: Any, method: str | None, lower: Any, upper: Any, n_e
 
 def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None = None,
                lower: Any = None, upper: Any = None, n_eq: int = 0, threads: int | None = None,
-               backend: str = "cpu", on_error: str = "raise", plan: StackPlan | None = None,
+               backend: str | None = None, on_error: str = "raise",
+               plan: StackPlan | None = None,
                **options: Any) -> StackResult:
     """Solve a stack of K problems of one size n and certify every answer.
 
@@ -221,7 +222,11 @@ def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None =
 
     A method with a batched kernel (``lcpcli methods``: Lemke, PGS, PSOR) solves the whole
     stack in one compiled call, in ``threads`` threads (default: the cores this process may
-    use) of ``backend`` (see :mod:`lcpcli.solvers.batched`); the certificate is checked
+    use) of ``backend`` (None: this process's default, ``"cpu"`` unless ``--backend`` or
+    :func:`lcpcli.solvers.batched.set_default_backend` chose another; ``"c"``, ``"cuda"``:
+    the single-source kernels on the CPU / a CUDA device; ``"auto"``: ``"cuda"`` for large
+    stacks when a device is present; see :mod:`lcpcli.solvers.batched`); the certificate is
+    checked
     inside the same call.  Every problem whose answer fails it (or whose method stopped) goes
     through the full one-problem pipeline, :func:`solve`, so the verdicts follow the same rules:
     ``solved`` only with a passed certificate, ``no_solution`` only with a proof.  ``auto``
@@ -230,16 +235,38 @@ def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None =
     ``auto`` itself.  Without a batched kernel (or with options the kernel does not take, or an
     MLCP) every problem is solved by :func:`solve`.
 
+    With ``backend="cuda"`` (or ``"auto"``) ``M`` and ``q`` may be device arrays (CuPy, or
+    anything with ``__dlpack__`` on a CUDA device): the stack is not copied to the host and
+    ``z``, ``w`` come back as CuPy arrays (:func:`lcpcli.solvers.backends.cuda.
+    solve_many_device`).
+
     ``on_error``: ``"raise"`` (a problem with NaN or Inf data raises :class:`ProblemError`
     naming its index; problems before it are solved first) or ``"mark"`` (its status is
     ``error``; batch runs use this).
     """
     from lcpcli.core.errors import ProblemError
-    from lcpcli.solvers.batched import KERNEL_SOLVED, StackOut, default_threads, get_backend
+    from lcpcli.solvers.batched import (
+        KERNEL_SOLVED,
+        StackOut,
+        choose_backend,
+        default_backend,
+        default_threads,
+        get_backend,
+    )
 
     start = time.perf_counter()
     if on_error not in ("raise", "mark"):
         raise OptionError(f"on_error must be 'raise' or 'mark', got {on_error!r}")
+    backend = default_backend() if backend is None else backend
+    if _on_device(M):  # CuPy / DLPack device arrays
+        if backend in ("cuda", "auto"):
+            from lcpcli.solvers.backends.cuda import solve_many_device
+
+            return solve_many_device(M, q, method, tol=tol, lower=lower, upper=upper,
+                                     n_eq=n_eq, threads=threads, on_error=on_error,
+                                     options=options)
+        raise OptionError(f"M is in device memory: use backend='cuda' (or 'auto'), or copy the "
+                          f"stack to the host for backend='{backend}'")
     M, q, lower, upper, n_eq, spec, kind = _check_stack(M, q, method, lower, upper, n_eq,
                                                         options)
     K, n = q.shape
@@ -261,7 +288,7 @@ def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None =
         kernel_options = plan.kernel_options
     name = spec.name
     if run_spec is not None:
-        kernel = get_backend(backend).kernel(run_spec.batch.kernel)
+        kernel = get_backend(choose_backend(backend, K, n)).kernel(run_spec.batch.kernel)
         if kernel is None:
             raise OptionError(f"batch backend '{backend}' has no '{run_spec.batch.kernel}' "
                               f"kernel (method '{run_spec.name}')")
@@ -359,6 +386,15 @@ def solve_each(problems: list[Problem], method: str | None = None, *, tol: float
         if out[i] is None:
             out[i] = solve(p, method, tol=tol, **options)
     return out  # type: ignore[return-value]
+
+
+def _on_device(a: Any) -> bool:
+    """Whether ``a`` lives in CUDA memory (CuPy, or DLPack on a CUDA device: torch, JAX)."""
+    if hasattr(a, "__cuda_array_interface__"):
+        return True
+    from lcpcli.solvers.backends.cuda import on_device
+
+    return hasattr(a, "__dlpack_device__") and not isinstance(a, np.ndarray) and on_device(a)
 
 
 def _stack_array(a: Any, ndim: int, label: str) -> np.ndarray:

@@ -58,6 +58,11 @@ def solve(
     scheduler: str = typer.Option(None, "--scheduler",
                                   help="Batch: run on the Dask cluster at this address "
                                        "(e.g. tcp://host:8786; needs lcpcli[dask])."),
+    backend: str = typer.Option(None, "--backend",
+                                help="Stacked files: the batched kernels' backend: cpu, c (the "
+                                     "single-source kernels on the CPU), cuda (a CUDA device; "
+                                     "needs lcpcli[gpu]) or auto (cuda for large stacks when "
+                                     "a device is present) [default: cpu]."),
     trace: bool = typer.Option(False, "--trace",
                                help="Print every step: Lemke's pivots (lemke, lemke-tableau, "
                                     "lemke-revised), principal pivots (murty, dantzig), a "
@@ -106,6 +111,10 @@ def solve(
         from lcpcli.io.warmstart import load_z0
 
         opts["z0"] = load_z0(z0)
+    if backend is not None:  # unknown, or cuda without a device: one line, exit 2
+        from lcpcli.solvers.batched import set_default_backend
+
+        set_default_backend(backend)
     from lcpcli.cli.batch_run import run_batch_command, wants_batch
 
     files = [file, *(more_files or [])]

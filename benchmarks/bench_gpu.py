@@ -1,0 +1,197 @@
+"""The single-source batched kernels: on a CUDA device (``backend="cuda"``) and on the CPU.
+
+On a machine with a device (one run, a few minutes; nothing is built but the NVRTC module):
+
+    PYTHONPATH=. python benchmarks/bench_gpu.py --out "$OUT/bench_gpu.json"
+
+measures, for random positive definite stacks (benchmarks/bench_stack.py's ``make_stack``:
+``M = A A^T / n + I``) at n = 12 (K = 10^6) and n = 50 (K = 10^5), Lemke (lexicographic)
+with the certificate:
+
+* ``kernel``: the device kernel alone on data already on the device (CUDA events), for both
+  variants (``thread``: one thread per problem; ``warp``: one warp per problem);
+* ``pinned``: ``solve_many(M, q, backend="cuda")`` from host arrays in pinned memory (copy in,
+  kernel, copy out, the CPU for what the device hands back);
+* ``pageable``: the same from ordinary numpy arrays;
+* ``cpu``: ``solve_many(M, q)`` (the ``"cpu"`` backend, every core) on the same stack;
+* ``verdicts``: status, z and pivots of each variant against the CPU on a subsample (the
+  end-to-end runs use the fastest variant that matched).
+
+Rates are certified problems per second (problems whose certificate passed on the path
+measured, divided by its time).  Without a device (``--cpu``) it compares the single-source
+kernel compiled for the CPU (``backend="c"``) with the ``"cpu"`` backend's Lemke at n = 12
+(K = 100,000) and n = 50 (K = 10,000), one thread, best of ``--repeat`` interleaved runs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_stack import make_stack  # noqa: E402
+
+import lcpcli  # noqa: E402
+from lcpcli.solvers.batched import KERNEL_SOLVED, StackOut, get_backend  # noqa: E402
+from lcpcli.solvers.registry import get_method  # noqa: E402
+
+
+def best_of(repeat: int, fn) -> float:  # noqa: ANN001
+    times = []
+    for _ in range(repeat):
+        t = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t)
+    return min(times)
+
+
+def cpu_case(n: int, K: int, repeat: int, threads: int) -> dict:
+    """The "c" backend's kernel (single source, no CPU fallback) against the "cpu" one."""
+    from lcpcli.solvers.backends.c import lemke_args
+    from lcpcli.solvers.kernels import stack_c
+
+    M, q = make_stack(K, n, seed=2026)
+    out: dict = {"n": n, "K": K, "threads": threads}
+    spec = get_method("lemke")
+    cpu = get_backend("cpu").kernel("lemke")
+    o = StackOut.empty(K, n)
+    a = lemke_args(n, {}, spec.scaling)
+    s = StackOut.empty(K, n)
+
+    def base() -> None:
+        cpu(M, q, None, None, tol=spec.default_tol, options={}, out=o, threads=threads,
+            scaling=spec.scaling)
+
+    def single() -> None:
+        stack_c.lemke_stack(M, q, a["d"], a["max_iter"], a["piv_tol"], a["tie_tol"],
+                            spec.default_tol, a["polished"], a["balance"], s.z, s.w, s.code,
+                            s.iterations, s.error, s.residual, threads)
+    # interleaved (the machine may be shared): the best of `repeat` runs of each
+    t_cpu = t_c = float("inf")
+    for _ in range(repeat):
+        t_cpu = min(t_cpu, best_of(1, base))
+        t_c = min(t_c, best_of(1, single))
+    ok = s.code == KERNEL_SOLVED
+    out.update(cpu_s=t_cpu, c_s=t_c, cpu_per_s=K / t_cpu,
+               c_certified_per_s=int(ok.sum()) / t_c, c_over_cpu_time=t_c / t_cpu,
+               c_certified=int(ok.sum()), cpu_certified=int((o.code == KERNEL_SOLVED).sum()),
+               same_z_where_certified=bool(np.array_equal(s.z[ok], o.z[ok])),
+               same_pivots_where_certified=bool(np.array_equal(s.iterations[ok],
+                                                               o.iterations[ok])))
+    return out
+
+
+def gpu_case(n: int, K: int, sample: int, repeat: int) -> dict:
+    import cupy as cp
+    import cupyx
+
+    from lcpcli.solvers.backends import cuda
+
+    M, q = make_stack(K, n, seed=2026)
+    spec = get_method("lemke")
+    out: dict = {"n": n, "K": K}
+    t = time.perf_counter()
+    cuda.kernel("lcp_lemke_stack")  # NVRTC, once per process
+    out["nvrtc_s"] = time.perf_counter() - t
+    idx = np.random.default_rng(1).choice(K, size=min(sample, K), replace=False)
+    host = lcpcli.solve_many(M[idx], q[idx], "lemke")
+    Md, qd = cp.asarray(M), cp.asarray(q)
+    usable = []
+    for variant in ("thread", "warp"):
+        # verdicts on a subsample: the device's against the CPU's, problem by problem
+        cuda.LEMKE_VARIANT = variant
+        dev = lcpcli.solve_many(Md[cp.asarray(idx)], qd[cp.asarray(idx)], "lemke",
+                                backend="cuda")
+        same = {"same_status": bool(np.array_equal(dev.status, host.status)),
+                "same_z": bool(np.array_equal(dev.z.get(), host.z)),
+                "same_pivots": bool(np.array_equal(dev.iterations, host.iterations)),
+                "device_retried": int(dev.retried.sum())}
+        out[f"{variant}_verdicts"] = same
+        times = []
+        for _ in range(repeat):
+            e0, e1 = cp.cuda.Event(), cp.cuda.Event()
+            e0.record()
+            o = cuda.run_lemke(Md, qd, tol=spec.default_tol, options={}, scaling=spec.scaling,
+                               variant=variant)
+            e1.record()
+            e1.synchronize()
+            times.append(cp.cuda.get_elapsed_time(e0, e1) / 1e3)
+        certified = int((o["code"] == KERNEL_SOLVED).sum())
+        out[f"{variant}_kernel_s"] = min(times)
+        out[f"{variant}_kernel_certified_per_s"] = certified / min(times)
+        del o
+        if same["same_status"] and same["same_z"] and same["same_pivots"]:
+            usable.append((min(times), variant))
+    out["verdict_sample"] = int(idx.size)
+    del Md, qd
+    if not usable:
+        out["end_to_end"] = "skipped: no variant gave the CPU's verdicts"
+        return out
+    cuda.LEMKE_VARIANT = out["end_to_end_variant"] = min(usable)[1]
+    # end to end from pinned host memory, then from pageable memory
+    Mp = cupyx.empty_pinned(M.shape, np.float64)
+    qp = cupyx.empty_pinned(q.shape, np.float64)
+    Mp[...] = M
+    qp[...] = q
+    for label, (Ma, qa) in (("pinned", (Mp, qp)), ("pageable", (M, q))):
+        res = None
+
+        def full(Ma=Ma, qa=qa) -> None:  # noqa: ANN001
+            nonlocal res
+            res = lcpcli.solve_many(Ma, qa, "lemke", backend="cuda")
+        secs = best_of(repeat, full)
+        out[f"{label}_s"] = secs
+        out[f"{label}_certified_per_s"] = int(res.solved.sum()) / secs
+        out[f"{label}_retried"] = int(res.retried.sum())
+    t = time.perf_counter()
+    ref = lcpcli.solve_many(M, q, "lemke")
+    out["cpu_s"] = time.perf_counter() - t
+    out["cpu_certified_per_s"] = int(ref.solved.sum()) / out["cpu_s"]
+    out["cpu_threads"] = os.cpu_count()
+    out["end_to_end_same_status"] = bool(np.array_equal(res.status, ref.status))
+    return out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--cpu", action="store_true",
+                    help="no device: the single-source kernel on the CPU against 'cpu'")
+    ap.add_argument("--out", type=Path, default=None,
+                    help="JSON results (default: $OUT/bench_gpu.json, else stdout only)")
+    ap.add_argument("--scale", type=float, default=1.0, help="multiply every K by this")
+    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--threads", type=int, default=1, help="CPU threads (--cpu)")
+    ap.add_argument("--sample", type=int, default=20_000, help="problems compared with the CPU")
+    args = ap.parse_args()
+    info = {"date": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
+            "python": platform.python_version(), "numpy": np.__version__,
+            "machine": platform.platform(), "cpus": os.cpu_count()}
+    cases = []
+    if args.cpu:
+        for n, K in ((12, 100_000), (50, 10_000)):
+            cases.append(cpu_case(n, max(1, int(K * args.scale)), args.repeat, args.threads))
+            print(json.dumps(cases[-1]), flush=True)
+    else:
+        import cupy as cp
+
+        props = cp.cuda.runtime.getDeviceProperties(cp.cuda.Device().id)
+        info.update(device=props["name"].decode(), cupy=cp.__version__)
+        for n, K in ((12, 1_000_000), (50, 100_000)):
+            cases.append(gpu_case(n, max(1, int(K * args.scale)), args.sample, args.repeat))
+            print(json.dumps(cases[-1]), flush=True)
+    path = args.out or (Path(os.environ["OUT"]) / "bench_gpu.json" if os.environ.get("OUT")
+                        else None)
+    if path is not None:
+        path.write_text(json.dumps({"info": info, "cases": cases}, indent=1) + "\n")
+        print(f"wrote {path}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,328 @@
+"""The ``"cuda"`` batch backend: the single-source kernels compiled for a CUDA device.
+
+``lcpcli/solvers/kernels/src/lcp_stack.h`` (the C text the ``"c"`` backend and the test suite
+run on the CPU) is compiled by NVRTC through CuPy's :class:`cupy.RawModule` on first use
+(once per process, with ``--fmad=false`` so that the device rounds as the CPU does), and its
+``__global__`` kernels run one device thread per problem.  CuPy is the optional ``gpu`` extra
+(``pip install "lcpcli[gpu]"``); without it, or without a device, asking for this backend is an
+:class:`~lcpcli.core.errors.OptionError` (exit 2 on the command line).
+
+Host arrays (:data:`lcpcli.solvers.batched.StackKernel`): copied to the device, solved, the
+outputs copied back.  Device arrays (CuPy, or anything with ``__dlpack__`` on a CUDA device:
+torch, JAX) go through :func:`solve_many_device` without a copy of the stack to the host;
+only the problems the device hands back travel to the CPU.  Either way what the device does
+not certify is run by the ``"cpu"`` kernel and then by the full pipeline, so the verdicts are
+those of ``backend="cpu"``.
+"""
+
+from __future__ import annotations
+
+import functools
+import importlib.resources
+import time
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from lcpcli.core.errors import OptionError
+from lcpcli.solvers.backends import SOURCE
+from lcpcli.solvers.backends.c import lemke_args, retry_on_cpu, sor_args
+from lcpcli.solvers.batched import KERNEL_SOLVED, Backend, StackOut
+
+#: The one-line reason this backend cannot run here.
+NEEDS = "the cuda backend needs CuPy and a CUDA device (pip install \"lcpcli[gpu]\")"
+#: Threads per block of the one-thread-per-problem kernels.
+BLOCK = 128
+#: Bytes of device workspace the kernels may take at once (the grid is sized to fit; at most
+#: a quarter of the free device memory).
+WORK_BYTES = 4 << 30
+#: Lemke's device kernel: "thread" (one thread per problem) or "warp" (one warp per problem,
+#: the tableau in shared memory).  Both run the code the CPU tests check (the warp paths with
+#: one lane); "thread" stays the default until a device run (tests/solvers/test_gpu_backend.py,
+#: benchmarks/bench_gpu.py) has compared "warp" with the CPU.
+LEMKE_VARIANT = "thread"
+#: Warps per block of the warp kernel, and the shared memory a block may use for tableaux.
+WARPS_PER_BLOCK = 8
+SHARED_BYTES = 96 << 10
+#: NVRTC options: no contraction into FMA (the CPU build has none: the same rounding).
+NVRTC_OPTIONS = ("--std=c++11", "--fmad=false")
+#: DLPack device types of CUDA memory (kDLCUDA, kDLCUDAHost, kDLCUDAManaged).
+DLPACK_CUDA = (2, 3, 13)
+
+
+def _import_cupy() -> Any | None:
+    try:
+        import cupy
+    except Exception:  # noqa: BLE001 - not installed, or a broken CUDA runtime: no backend
+        return None
+    return cupy
+
+
+def device_present() -> bool:
+    """Whether CuPy imports and sees at least one CUDA device (never raises)."""
+    cp = _import_cupy()
+    if cp is None:
+        return False
+    try:
+        return cp.cuda.runtime.getDeviceCount() > 0
+    except Exception:  # noqa: BLE001 - no driver / no device
+        return False
+
+
+def require_cupy() -> Any:
+    """The cupy module; OptionError (:data:`NEEDS`) without CuPy or a device."""
+    if not device_present():
+        raise OptionError(NEEDS)
+    return _import_cupy()
+
+
+def source() -> str:
+    """The single-source kernels' C text, as shipped in the package."""
+    return (importlib.resources.files("lcpcli.solvers.kernels") / SOURCE).read_text()
+
+
+@functools.cache
+def _module(device: int) -> Any:
+    """The compiled module for ``device`` (NVRTC, once per process and device)."""
+    cp = require_cupy()
+    return cp.RawModule(code=source(), options=NVRTC_OPTIONS)
+
+
+def kernel(name: str) -> Any:
+    """The device function ``name`` (``lcp_lemke_stack`` or ``lcp_sor_stack``)."""
+    cp = require_cupy()
+    return _module(cp.cuda.Device().id).get_function(name)
+
+
+def on_device(a: Any) -> bool:
+    """Whether ``a`` lives in CUDA memory (CuPy, or a DLPack producer on a CUDA device)."""
+    if hasattr(a, "__cuda_array_interface__"):
+        return True
+    dev = getattr(a, "__dlpack_device__", None)
+    if dev is None:
+        return False
+    try:
+        return int(dev()[0]) in DLPACK_CUDA
+    except Exception:  # noqa: BLE001 - not a DLPack device query we understand
+        return False
+
+
+def as_device(a: Any, cp: Any) -> Any:
+    """``a`` as a C-contiguous float64 CuPy array: no copy for a CuPy or DLPack device array
+    that already is one; host arrays are copied to the device."""
+    if not isinstance(a, cp.ndarray):
+        a = cp.from_dlpack(a) if on_device(a) and hasattr(a, "__dlpack__") else cp.asarray(a)
+    return cp.ascontiguousarray(a, dtype=cp.float64)
+
+
+def _grid(K: int, slot_bytes: int, per_block: int, cp: Any) -> int:
+    """Blocks of ``per_block`` workspace slots to launch: enough for every problem, within
+    :data:`WORK_BYTES` and a quarter of the free device memory."""
+    budget = min(WORK_BYTES, cp.cuda.runtime.memGetInfo()[0] // 4)
+    most = max(1, budget // max(1, slot_bytes * per_block))
+    return int(max(1, min(-(-K // per_block), most)))
+
+
+def _outputs(K: int, n: int, cp: Any) -> dict[str, Any]:
+    return {"z": cp.zeros((K, n)), "w": cp.zeros((K, n)), "code": cp.ones(K, cp.int8),
+            "iterations": cp.zeros(K, cp.int64), "error": cp.full(K, np.inf),
+            "residual": cp.full(K, np.nan)}
+
+
+def run_lemke(Md: Any, qd: Any, *, tol: float, options: Mapping[str, Any], scaling: str,
+              variant: str | None = None) -> dict[str, Any]:
+    """Lemke and the certificate on the device stack ``Md`` (K, n, n), ``qd`` (K, n): device
+    arrays ``z``, ``w``, ``code``, ``iterations``, ``error``, ``residual``.  ``variant``:
+    "thread" or "warp" (default :data:`LEMKE_VARIANT`)."""
+    from lcpcli.solvers.kernels.stack_c import workspace
+
+    cp = require_cupy()
+    variant = variant or LEMKE_VARIANT
+    if variant not in ("thread", "warp"):
+        raise OptionError(f"unknown cuda Lemke variant '{variant}' (thread, warp)")
+    K, n = qd.shape
+    o = _outputs(K, n, cp)
+    if K == 0 or n == 0:
+        o["code"][...] = KERNEL_SOLVED
+        o["error"][...] = 0.0
+        o["residual"][...] = 0.0
+        return o
+    a = lemke_args(n, options, scaling)
+    dw, iw = workspace("lemke", n)
+    d = cp.ones(n) if a["d"] is None else cp.asarray(a["d"], dtype=cp.float64)
+    bal = a["balance"] or (-1, 0, 0)
+    head = (np.int64(K), np.int64(n), Md, qd, np.int32(a["d"] is not None), d,
+            np.int64(a["max_iter"]), np.float64(a["piv_tol"]), np.float64(a["tie_tol"]),
+            np.float64(tol), np.float64(a["polished"]), np.int32(bal[0]), np.int32(bal[1]),
+            np.int32(bal[2]))
+    tail = (o["z"], o["w"], o["code"], o["iterations"], o["error"], o["residual"])
+    if variant == "thread":
+        blocks = _grid(K, 8 * (dw + iw), BLOCK, cp)
+        work = cp.empty(blocks * BLOCK * dw, cp.float64)
+        iwork = cp.empty(blocks * BLOCK * iw, cp.int64)
+        kernel("lcp_lemke_stack")((blocks,), (BLOCK,), head + (work, iwork) + tail)
+        return o
+    tdw, tiw = workspace("tableau", n)
+    per_warp = 8 * (tdw + tiw)
+    use_shared = per_warp <= SHARED_BYTES
+    wpb = max(1, min(WARPS_PER_BLOCK, SHARED_BYTES // per_warp)) if use_shared else 4
+    blocks = _grid(K, 8 * (dw + iw), wpb, cp)
+    work = cp.empty(blocks * wpb * dw, cp.float64)
+    iwork = cp.empty(blocks * wpb * iw, cp.int64)
+    fn = kernel("lcp_lemke_warp_stack")
+    shared = wpb * per_warp if use_shared else 0
+    if shared > 48 << 10:
+        fn.max_dynamic_shared_size_bytes = shared
+    fn((blocks,), (32 * wpb,), head + (np.int32(use_shared), work, iwork) + tail,
+       shared_mem=shared)
+    return o
+
+
+def run_sor(Md: Any, qd: Any, lo: Any, up: Any, *, tol: float,
+            options: Mapping[str, Any]) -> dict[str, Any]:
+    """Projected SOR and the certificate on the device stack (``lo``/``up``: None or (K, n)
+    device bounds); outputs as :func:`run_lemke`."""
+    from lcpcli.solvers.kernels.stack_c import workspace
+
+    cp = require_cupy()
+    K, n = qd.shape
+    o = _outputs(K, n, cp)
+    if K == 0 or n == 0:
+        o["code"][...] = KERNEL_SOLVED
+        o["error"][...] = 0.0
+        o["residual"][...] = 0.0
+        return o
+    a = sor_args(options)
+    if lo is not None:
+        cp.clip(cp.zeros((K, n)), lo, up, out=o["z"])
+    dw, iw = workspace("sor", n)
+    blocks = _grid(K, 8 * (dw + iw), BLOCK, cp)
+    work = cp.empty(blocks * BLOCK * dw, cp.float64)
+    iwork = cp.empty(blocks * BLOCK * iw, cp.int64)
+    dummy = cp.zeros(1)
+    kernel("lcp_sor_stack")(
+        (blocks,), (BLOCK,),
+        (np.int64(K), np.int64(n), Md, qd, np.int32(lo is not None),
+         dummy if lo is None else lo, dummy if up is None else up, np.float64(a["omega"]),
+         np.int64(a["max_iter"]), np.float64(tol), work, iwork, o["z"], o["w"], o["code"],
+         o["iterations"], o["error"], o["residual"]))
+    return o
+
+
+def _bounds(lower: Any, upper: Any, K: int, n: int, cp: Any) -> tuple[Any, Any]:
+    if lower is None:
+        return None, None
+    lo = cp.broadcast_to(as_device(lower, cp), (K, n))
+    up = cp.broadcast_to(as_device(upper, cp), (K, n))
+    return cp.ascontiguousarray(lo), cp.ascontiguousarray(up)
+
+
+def _host_kernel(name: str):  # noqa: ANN202 - a StackKernel
+    def run(M: Any, q: Any, lower: Any, upper: Any, *, tol: float,
+            options: Mapping[str, Any], out: StackOut, threads: int,
+            scaling: str = "none") -> None:
+        cp = require_cupy()
+        Md, qd = as_device(M, cp), as_device(q, cp)
+        K, n = qd.shape
+        if name == "lemke":
+            o = run_lemke(Md, qd, tol=tol, options=options, scaling=scaling)
+        else:
+            o = run_sor(Md, qd, *_bounds(lower, upper, K, n, cp), tol=tol, options=options)
+        for key, arr in o.items():
+            arr.get(out=getattr(out, key))
+        retry_on_cpu(name, M, q, lower, upper, tol=tol, options=options, out=out,
+                     threads=threads, scaling=scaling)
+    return run
+
+
+class _HostRows:
+    """Problem ``k`` of a device stack copied to the host on indexing (for ``auto``'s
+    sample: a few problems, never the stack)."""
+
+    def __init__(self, a: Any) -> None:
+        self.a = a
+        self.shape = a.shape
+
+    def __getitem__(self, k: int) -> np.ndarray:
+        return self.a[k].get()
+
+
+def solve_many_device(M: Any, q: Any, method: str | None, *, tol: float | None,
+                      lower: Any, upper: Any, n_eq: int, threads: int | None, on_error: str,
+                      options: dict[str, Any]) -> Any:
+    """:func:`lcpcli.solve_many` for a stack in device memory: the StackResult's ``z`` and
+    ``w`` are CuPy arrays (K, n) on the same device (zero-copy back to torch/JAX through
+    DLPack); ``status``, ``iterations``, ``error``, ``residual`` are host arrays (K,).  Only
+    the problems the device hands back are copied to the host (and solved there by
+    ``solve_many(..., backend="cpu")``, whose verdicts they get)."""
+    from lcpcli import api
+    from lcpcli.core.certificate import validate_tol
+    from lcpcli.core.errors import ProblemError
+    from lcpcli.core.result import STATUS_CODES, StackResult, Status
+    from lcpcli.solvers.registry import get_method
+
+    start = time.perf_counter()
+    cp = require_cupy()
+    Md, qd = as_device(M, cp), as_device(q, cp)
+    if Md.ndim != 3 or qd.ndim != 2 or Md.shape != (qd.shape[0], qd.shape[1], qd.shape[1]):
+        raise ProblemError(f"a stack needs M of shape (K, n, n) and q of shape (K, n); got M "
+                           f"{Md.shape} and q {qd.shape}")
+    if n_eq:
+        raise OptionError("the cuda backend's device path solves LCPs and box LCPs; give an "
+                          "MLCP (n_eq > 0) as host arrays")
+    K, n = qd.shape
+    lo, up = _bounds(lower, upper, K, n, cp)
+    spec = get_method(api.DEFAULT_METHOD if method is None else method)
+    kind = "box" if lo is not None else "lcp"
+    if kind not in spec.kinds:
+        raise OptionError(f"method '{spec.name}' does not handle {kind.upper()} problems")
+    spec.parse_options(options)
+    tol = validate_tol(spec.default_tol if tol is None else tol)
+    qh = qd.get()
+    loh, uph = (None, None) if lo is None else (lo.get(), up.get())
+    run_spec, kernel_options = api._batched_method(spec, kind, options, _HostRows(Md), qh,
+                                                   loh, uph)
+    if run_spec is None:
+        raise OptionError(f"method '{spec.name}' (with these options) has no batched kernel: "
+                          f"give the stack as host arrays")
+    name = run_spec.batch.kernel
+    if name == "lemke":
+        o = run_lemke(Md, qd, tol=tol, options=kernel_options, scaling=run_spec.scaling)
+    else:
+        o = run_sor(Md, qd, lo, up, tol=tol, options=kernel_options)
+    code = o["code"].get()
+    status = np.where(code == KERNEL_SOLVED, STATUS_CODES[Status.SOLVED],
+                      STATUS_CODES[Status.UNSOLVED]).astype(np.int8)
+    iterations, error, residual = o["iterations"].get(), o["error"].get(), o["residual"].get()
+    retry = np.flatnonzero(code != KERNEL_SOLVED)
+    messages: dict[int, str] = {}
+    methods_of: dict[int, str] = {}
+    results: dict[int, Any] = {}
+    retried = np.zeros(K, bool)
+    if retry.size:
+        rd = cp.asarray(retry)
+        sub = api.solve_many(Md[rd].get(), qh[retry], spec.name, tol=tol,
+                             lower=None if loh is None else loh[retry],
+                             upper=None if uph is None else uph[retry], threads=threads,
+                             backend="cpu", on_error=on_error, **options)
+        o["z"][rd] = cp.asarray(sub.z)
+        o["w"][rd] = cp.asarray(sub.w)
+        status[retry], iterations[retry] = sub.status, sub.iterations
+        error[retry], residual[retry] = sub.error, sub.residual
+        retried[retry] = True
+        for j, k in enumerate(retry.tolist()):
+            for src, dst in ((sub.messages, messages), (sub.methods, methods_of),
+                             (sub.results, results)):
+                if j in src:
+                    dst[k] = src[j]
+    return StackResult(z=o["z"], w=o["w"], status=status, iterations=iterations, error=error,
+                       residual=residual, method=run_spec.batch.runs_as or run_spec.name,
+                       tol=tol, seconds=time.perf_counter() - start, retried=retried,
+                       messages=messages, methods=methods_of, batched=True, results=results)
+
+
+def backend() -> Backend:
+    """The ``"cuda"`` backend; OptionError (:data:`NEEDS`) without CuPy or a device."""
+    require_cupy()
+    return Backend("cuda", {"lemke": _host_kernel("lemke"), "sor": _host_kernel("sor")})

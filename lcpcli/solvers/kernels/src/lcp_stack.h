@@ -1,0 +1,1347 @@
+/* Single-source stacked kernels: Lemke (lexicographic ratio test) and projected SOR, each
+ * followed by the project's componentwise certificate, for ONE problem of a stack.
+ *
+ * The same text is compiled twice:
+ *   - by the C compiler, for the CPU: lcpcli/solvers/kernels/stack_c.pyx (`cdef extern`), so the
+ *     test suite (which never has a GPU) checks this code against lcpcli.solve_many;
+ *   - by NVRTC through CuPy (lcpcli/solvers/backends/cuda.py), for the device: the __global__
+ *     kernels at the end (one thread per problem, grid-stride loop) call the same functions.
+ *
+ * Plain C99 (and valid C++ for NVRTC); no allocation: the caller passes each problem's
+ * workspace (LCP_LEMKE_DWORK / LCP_LEMKE_IWORK, LCP_SOR_DWORK / LCP_SOR_IWORK entries).
+ * Arithmetic follows the CPU kernels operation by operation (lcpcli/solvers/kernels/lemke.pyx,
+ * pgs.pyx, lcpcli/core/_certificate.pyx: same loops, same partial sums), so that, compiled
+ * without contraction into FMA (NVRTC: --fmad=false), the device reproduces the CPU's rounding.
+ *
+ * Verdicts: code 0 (SOLVED) only when the certificate (docs/certificate.md) passed at `tol`;
+ * else 1 (RETRY): the caller hands the problem to the CPU path.  Lemke equilibrates and
+ * polishes as the CPU kernel does; it says RETRY where the CPU would take another road: a
+ * certificate out of double range (the CPU rescales) or an end basis of 64 or more basic z
+ * (the CPU re-solves it with LAPACK).  So every SOLVED here is an answer the CPU kernel also
+ * certifies, computed the same way.
+ */
+#ifndef LCPCLI_LCP_STACK_H
+#define LCPCLI_LCP_STACK_H
+
+#if defined(__CUDACC_RTC__) || defined(__CUDACC__)
+#define LCP_FN static __device__ __forceinline__
+#define LCP_INF __longlong_as_double(0x7ff0000000000000LL)
+#define LCP_NAN __longlong_as_double(0x7ff8000000000000LL)
+#define LCP_ISFINITE(x) isfinite(x)
+#define LCP_AXPY(y, x, a, n)                                                                 \
+    do {                                                                                     \
+        for (lcp_i64 j_ = 0; j_ < (n); j_++)                                                 \
+            (y)[j_] += (a) * (x)[j_];                                                        \
+    } while (0)
+#else
+#include <math.h>
+#include <string.h>
+/* the CPU build shares the CPU kernels' vector loop (AVX2 and baseline clones, no FMA: the
+ * same rounding as the plain loop the device runs) */
+#include "../simd.h"
+#define LCP_AXPY(y, x, a, n) lcpcli_axpy((y), (x), (a), (n))
+#define LCP_FN static inline
+#define LCP_INF INFINITY
+#define LCP_NAN NAN
+#define LCP_ISFINITE(x) isfinite(x)
+#endif
+
+typedef long long lcp_i64;
+
+/* Lanes: functions that take (lane, lanes) split their loops over `lanes` lanes (a warp of 32
+ * on the device: one warp per problem; 1 for one thread per problem and on the CPU, where the
+ * warp code paths run with one lane, so the tests check their arithmetic) and meet at
+ * LCP_SYNC(); lane 0 does the serial steps.  `lanes` is uniform in a warp. */
+#if defined(__CUDACC_RTC__) || defined(__CUDACC__)
+#define LCP_SYNC()                                                                           \
+    do {                                                                                     \
+        if (lanes > 1)                                                                       \
+            __syncwarp();                                                                    \
+    } while (0)
+#define LCP_ANY(p) (lanes > 1 ? __any_sync(0xffffffffu, (p)) : (p))
+#else
+#define LCP_SYNC() ((void)lanes)
+#define LCP_ANY(p) (p)
+#endif
+
+enum { LCP_SOLVED = 0, LCP_RETRY = 1 };
+enum { LCP_OK = 0, LCP_RAY = 1, LCP_MAX_ITER = 2, LCP_TRIVIAL = 3 };
+
+/* tolerances of lemke.pyx (DEGENERATE_RTOL, LEX_RTOL) and _certificate.pyx (THETA, 2^+-960) */
+#define LCP_DEGENERATE_RTOL 1e-13
+#define LCP_LEX_RTOL 1e-10
+#define LCP_THETA 0.0009765625
+
+/* workspace per problem (doubles, then long longs) */
+#define LCP_CERT_DWORK(n) (5 * (n))
+#define LCP_CERT_IWORK(n) (3 * (n))
+/* Lemke: the tableau part (LCP_TAB_*, below) and the rest: raw z (n), the certificate's,
+ * the equilibrated copy (n^2 + 2 n), polish (2 n^2 + 3 n); equilibration exponents (4 n),
+ * polish indices (3 n) */
+#define LCP_REST_DWORK(n) (3 * (n) * (n) + 11 * (n))
+#define LCP_REST_IWORK(n) (10 * (n))
+#define LCP_LEMKE_DWORK(n) (LCP_TAB_DWORK(n) + LCP_REST_DWORK(n))
+#define LCP_LEMKE_IWORK(n) (LCP_TAB_IWORK(n) + LCP_REST_IWORK(n))
+#define LCP_SOR_DWORK(n) (4 * (n) + 1 + LCP_CERT_DWORK(n))
+#define LCP_SOR_IWORK(n) (LCP_CERT_IWORK(n))
+
+LCP_FN double lcp_big(void) { return ldexp(1.0, 960); }
+LCP_FN double lcp_small(void) { return ldexp(1.0, -960); }
+
+/* ------------------------------------------------------------------------------ certificate */
+typedef struct {
+    double error, residual;
+    int status; /* 0 ok, 1 non-finite z or w, 2 out of range (the CPU rescales: RETRY here) */
+} lcp_cert;
+
+LCP_FN lcp_i64 lcp_find(lcp_i64 *parent, lcp_i64 x)
+{
+    while (parent[x] != x) {
+        parent[x] = parent[parent[x]];
+        x = parent[x];
+    }
+    return x;
+}
+
+LCP_FN void lcp_union(lcp_i64 *parent, lcp_i64 a, lcp_i64 b)
+{
+    a = lcp_find(parent, a);
+    b = lcp_find(parent, b);
+    if (a != b) {
+        if (a < b)
+            parent[b] = a;
+        else
+            parent[a] = b;
+    }
+}
+
+LCP_FN double lcp_rel(double v, double s)
+{
+    if (v == 0.0)
+        return 0.0;
+    if (s == 0.0)
+        return LCP_INF;
+    return v / s;
+}
+
+LCP_FN double lcp_move(double x, double kappa) { return x == 0.0 ? 0.0 : x * kappa; }
+
+LCP_FN void lcp_bounds(lcp_i64 i, const double *lo, const double *up, double *l, double *u)
+{
+    if (lo) {
+        *l = lo[i];
+        *u = up[i];
+    } else {
+        *l = 0.0;
+        *u = LCP_INF;
+    }
+}
+
+/* sum_j row_j z_j and sum_j |row_j z_j| with four partial sums each (as _certificate.pyx) */
+LCP_FN void lcp_row_dot(const double *row, const double *z, lcp_i64 n, double *dot,
+                        double *absdot)
+{
+    double s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0, a0 = 0.0, a1 = 0.0, a2 = 0.0, a3 = 0.0;
+    double t0, t1, t2, t3;
+    lcp_i64 j = 0;
+    while (j + 4 <= n) {
+        t0 = row[j] * z[j];
+        t1 = row[j + 1] * z[j + 1];
+        t2 = row[j + 2] * z[j + 2];
+        t3 = row[j + 3] * z[j + 3];
+        s0 += t0;
+        s1 += t1;
+        s2 += t2;
+        s3 += t3;
+        a0 += fabs(t0);
+        a1 += fabs(t1);
+        a2 += fabs(t2);
+        a3 += fabs(t3);
+        j += 4;
+    }
+    while (j < n) {
+        t0 = row[j] * z[j];
+        s0 += t0;
+        a0 += fabs(t0);
+        j += 1;
+    }
+    *dot = (s0 + s1) + (s2 + s3);
+    *absdot = (a0 + a1) + (a2 + a3);
+}
+
+LCP_FN int lcp_cert_fail(lcp_cert *out, int status)
+{
+    out->error = LCP_INF;
+    out->residual = LCP_INF;
+    out->status = status;
+    return status;
+}
+
+/* Pass 3 of the certificate (a, s, kappa filled in work; root[i]: the least member of row
+ * i's block, rows 0..n-1 and columns n..2n-1 as vertices): score the pairs, then the blocks.
+ * anchor: n long longs of scratch. */
+LCP_FN int lcp_cert_finish(lcp_i64 n, const double *q, const double *z, const double *lo,
+                           const double *up, const double *w, double *work, const lcp_i64 *root,
+                           lcp_i64 *anchor, lcp_cert *out)
+{
+    double *a = work, *s = work + n, *kappa = work + 2 * n, *compmin = work + 3 * n;
+    lcp_i64 i, r, worst = -1;
+    double l, u, zi, wi, si, best, x, g, den, e, err = 0.0, gi, cF, cL, cU, resid = 0.0, t;
+    int st;
+    /* (a) every pair's backward error */
+    for (i = 0; i < n; i++) {
+        lcp_bounds(i, lo, up, &l, &u);
+        zi = z[i];
+        wi = w[i];
+        si = s[i];
+        cF = lcp_rel(fabs(wi), si);
+        x = 0.0;
+        if (zi < l)
+            x = l - zi;
+        else if (zi > u)
+            x = zi - u;
+        t = lcp_move(x, kappa[i]);
+        if (t > cF)
+            cF = t;
+        cL = LCP_INF;
+        if (l > -LCP_INF) {
+            cL = wi < 0.0 ? lcp_rel(-wi, si) : 0.0;
+            t = lcp_move(fabs(zi - l), kappa[i]);
+            if (t > cL)
+                cL = t;
+        }
+        cU = LCP_INF;
+        if (u < LCP_INF) {
+            cU = wi > 0.0 ? lcp_rel(wi, si) : 0.0;
+            t = lcp_move(fabs(zi - u), kappa[i]);
+            if (t > cU)
+                cU = t;
+        }
+        if (zi == l) {
+            best = cL; st = 0;
+            if (cF < best) { best = cF; st = 2; }
+            if (cU < best) { best = cU; st = 1; }
+        } else if (zi == u) {
+            best = cU; st = 1;
+            if (cF < best) { best = cF; st = 2; }
+            if (cL < best) { best = cL; st = 0; }
+        } else {
+            best = cF; st = 2;
+            if (cL < best) { best = cL; st = 0; }
+            if (cU < best) { best = cU; st = 1; }
+        }
+        anchor[i] = st == 2;
+        kappa[i] = best; /* eps_i */
+        t = zi - l;
+        if (wi < t)
+            t = wi;
+        if (zi - u > t)
+            t = zi - u;
+        if (fabs(t) > resid)
+            resid = fabs(t);
+    }
+    /* (b) each block's growth: the smallest growth among its equations */
+    for (i = 0; i < 2 * n; i++)
+        compmin[i] = LCP_INF;
+    for (i = 0; i < n; i++) {
+        if (a[i] > 0.0 && anchor[i]) {
+            den = fabs(q[i]) + fabs(w[i]);
+            g = den == 0.0 ? LCP_INF : a[i] / den;
+            r = root[i];
+            if (g < compmin[r])
+                compmin[r] = g;
+        }
+    }
+    /* (c) the certified error: max_i eps_i max(1, G_i) */
+    for (i = 0; i < n; i++) {
+        best = kappa[i];
+        gi = 1.0;
+        if (a[i] > 0.0) {
+            gi = compmin[root[i]];
+            if (gi == LCP_INF) {
+                den = fabs(q[i]) + fabs(w[i]);
+                gi = q[i] != 0.0 ? a[i] / den : 1.0;
+            }
+            if (gi < 1.0)
+                gi = 1.0;
+        }
+        e = best == 0.0 ? 0.0 : best * gi;
+        if (e > err || worst < 0) {
+            err = e;
+            worst = i;
+        }
+    }
+    out->error = err;
+    out->residual = resid;
+    out->status = 0;
+    return 0;
+}
+
+/* The certificate of z for the LCP (lo == NULL: z >= 0) or box LCP [lo, up] with dense
+ * row-major M (n x n): lcpcli/core/_certificate.pyx's certify_dense with n_eq = 0, field for
+ * field (error and residual kept).  w (n) receives M z + q; work: LCP_CERT_DWORK(n) doubles,
+ * iwork: LCP_CERT_IWORK(n).  Returns out->status. */
+LCP_FN int lcp_certify(lcp_i64 n, const double *M, const double *q, const double *z,
+                       const double *lo, const double *up, double *w, double *work,
+                       lcp_i64 *iwork, lcp_cert *out)
+{
+    double *a = work, *s = work + n, *kappa = work + 2 * n;
+    lcp_i64 *parent = iwork, *cols = iwork + 2 * n, *anchor = iwork + 2 * n;
+    lcp_i64 i, j, k, nc = 0;
+    const double *row;
+    double wi, ai, t, m, inv, BIG = lcp_big(), SMALL = lcp_small();
+    for (j = 0; j < n; j++) {
+        if (!LCP_ISFINITE(z[j]))
+            return lcp_cert_fail(out, 1);
+        if (z[j] != 0.0 && !(SMALL <= fabs(z[j]) && fabs(z[j]) <= BIG))
+            return lcp_cert_fail(out, 2);
+    }
+    /* pass 1: w, |M||z|, s */
+    for (i = 0; i < n; i++) {
+        row = M + i * n;
+        lcp_row_dot(row, z, n, &wi, &ai);
+        wi = wi + q[i];
+        w[i] = wi;
+        a[i] = ai;
+        s[i] = ai + fabs(q[i]);
+        if (!(LCP_ISFINITE(wi) && LCP_ISFINITE(ai)) || s[i] > BIG || (0.0 < s[i] && s[i] < SMALL))
+            return lcp_cert_fail(out, 2);
+    }
+    /* pass 2: kappa for the columns that may move, blocks through significant terms */
+    for (j = 0; j < n; j++) {
+        int moves = lo ? !(z[j] == lo[j] && z[j] == up[j]) : z[j] != 0.0;
+        if (moves || z[j] != 0.0)
+            cols[nc++] = j;
+        kappa[j] = 0.0;
+    }
+    for (i = 0; i < 2 * n; i++)
+        parent[i] = i;
+    if (nc > 0) {
+        for (i = 0; i < n; i++) {
+            row = M + i * n;
+            inv = s[i] == 0.0 ? LCP_INF : 1.0 / s[i];
+            for (k = 0; k < nc; k++) {
+                j = cols[k];
+                m = fabs(row[j]);
+                if (m != 0.0) {
+                    t = m * inv;
+                    if (t > kappa[j])
+                        kappa[j] = t;
+                }
+            }
+        }
+        for (i = 0; i < n; i++) {
+            row = M + i * n;
+            inv = s[i] == 0.0 ? LCP_INF : 1.0 / s[i];
+            for (k = 0; k < nc; k++) {
+                j = cols[k];
+                m = fabs(row[j]);
+                if (m != 0.0 && z[j] != 0.0 && m * inv >= LCP_THETA * kappa[j])
+                    lcp_union(parent, i, n + j);
+            }
+        }
+    }
+    for (k = 0; k < nc; k++) {
+        j = cols[k];
+        if (kappa[j] == 0.0)
+            kappa[j] = LCP_INF;
+    }
+    for (i = 0; i < 2 * n; i++) /* each row's block: the root of its set (its least member) */
+        parent[i] = lcp_find(parent, i);
+    return lcp_cert_finish(n, q, z, lo, up, w, work, parent, anchor, out);
+}
+
+/* lcp_certify split over the lanes (the warp kernel): the same error, bit for bit.  Rows of
+ * passes 1-2 go to the lanes (each row's sums in lcp_certify's order); the blocks are found by
+ * label propagation on the row-column graph instead of union-find (either gives each row its
+ * block's least member); lane 0 scores the pairs (lcp_cert_finish).  Every lane returns the
+ * status; only lane 0's *out is filled.  work, iwork as lcp_certify. */
+LCP_FN int lcp_certify_warp(lcp_i64 n, const double *M, const double *q, const double *z,
+                            const double *lo, const double *up, double *w, double *work,
+                            lcp_i64 *iwork, lcp_cert *out, lcp_i64 lane, lcp_i64 lanes)
+{
+    double *a = work, *s = work + n, *kappa = work + 2 * n;
+    lcp_i64 *lab = iwork, *movable = iwork + 2 * n;
+    lcp_i64 i, j, best;
+    int bad = 0, changed;
+    double wi, ai, t, m, inv, BIG = lcp_big(), SMALL = lcp_small();
+    for (j = 0; j < n; j++) { /* every lane: the same answer */
+        if (!LCP_ISFINITE(z[j]))
+            return lcp_cert_fail(out, 1);
+        if (z[j] != 0.0 && !(SMALL <= fabs(z[j]) && fabs(z[j]) <= BIG))
+            return lcp_cert_fail(out, 2);
+    }
+    for (i = lane; i < n; i += lanes) {
+        lcp_row_dot(M + i * n, z, n, &wi, &ai);
+        wi = wi + q[i];
+        w[i] = wi;
+        a[i] = ai;
+        s[i] = ai + fabs(q[i]);
+        if (!(LCP_ISFINITE(wi) && LCP_ISFINITE(ai)) || s[i] > BIG || (0.0 < s[i] && s[i] < SMALL))
+            bad = 1;
+    }
+    LCP_SYNC();
+    if (LCP_ANY(bad))
+        return lcp_cert_fail(out, 2);
+    /* kappa_j = max_i |M_ij| / s_i for the columns that may move (a max: any order) */
+    for (j = lane; j < n; j += lanes) {
+        movable[j] = (lo ? !(z[j] == lo[j] && z[j] == up[j]) : z[j] != 0.0) || z[j] != 0.0;
+        kappa[j] = 0.0;
+        if (movable[j]) {
+            for (i = 0; i < n; i++) {
+                inv = s[i] == 0.0 ? LCP_INF : 1.0 / s[i];
+                m = fabs(M[i * n + j]);
+                if (m != 0.0) {
+                    t = m * inv;
+                    if (t > kappa[j])
+                        kappa[j] = t;
+                }
+            }
+            if (kappa[j] == 0.0) /* a zero column: no link below, moving z_j never negligible */
+                kappa[j] = LCP_INF;
+        }
+    }
+    for (i = lane; i < 2 * n; i += lanes)
+        lab[i] = i;
+    LCP_SYNC();
+    /* blocks: rows i and columns n + j linked where z_j != 0 and |M_ij| / s_i >= THETA kappa_j;
+     * labels fall to the least vertex of each connected part */
+    do {
+        changed = 0;
+        for (i = lane; i < n; i += lanes) {
+            inv = s[i] == 0.0 ? LCP_INF : 1.0 / s[i];
+            best = lab[i];
+            for (j = 0; j < n; j++) {
+                m = fabs(M[i * n + j]);
+                if (m != 0.0 && z[j] != 0.0 && m * inv >= LCP_THETA * kappa[j] && lab[n + j] < best)
+                    best = lab[n + j];
+            }
+            if (best < lab[i]) {
+                lab[i] = best;
+                changed = 1;
+            }
+        }
+        LCP_SYNC();
+        for (j = lane; j < n; j += lanes) {
+            if (z[j] == 0.0)
+                continue;
+            best = lab[n + j];
+            for (i = 0; i < n; i++) {
+                inv = s[i] == 0.0 ? LCP_INF : 1.0 / s[i];
+                m = fabs(M[i * n + j]);
+                if (m != 0.0 && m * inv >= LCP_THETA * kappa[j] && lab[i] < best)
+                    best = lab[i];
+            }
+            if (best < lab[n + j]) {
+                lab[n + j] = best;
+                changed = 1;
+            }
+        }
+        LCP_SYNC();
+    } while (LCP_ANY(changed));
+    if (lane == 0)
+        return lcp_cert_finish(n, q, z, lo, up, w, work, lab, movable, out);
+    return 0;
+}
+
+/* -------------------------------------------------------------------------- equilibration */
+/* frexp's exponent of x != 0, finite, read from the IEEE-754 bits (subnormals: frexp) */
+LCP_FN lcp_i64 lcp_exp(double x)
+{
+    unsigned long long bits;
+    lcp_i64 field;
+    int e;
+#if defined(__CUDACC_RTC__) || defined(__CUDACC__)
+    bits = (unsigned long long)__double_as_longlong(x);
+#else
+    memcpy(&bits, &x, 8);
+#endif
+    field = (lcp_i64)((bits >> 52) & 0x7ff);
+    if (field == 0) {
+        frexp(x, &e);
+        return e;
+    }
+    return field - 1022;
+}
+
+LCP_FN lcp_i64 lcp_floordiv2(lcp_i64 x) { return x >= 0 ? x / 2 : -((-x + 1) / 2); }
+
+#define LCP_FLOOR (-((lcp_i64)1 << 40))
+
+/* row and column maxima of the exponents of D_r M D_c over the nonzeros (_scaling.pyx) */
+LCP_FN void lcp_maxima(lcp_i64 n, const double *M, const lcp_i64 *r, const lcp_i64 *c,
+                       lcp_i64 *rmax, lcp_i64 *cmax)
+{
+    lcp_i64 i, j, e;
+    for (i = 0; i < n; i++) {
+        rmax[i] = LCP_FLOOR;
+        cmax[i] = LCP_FLOOR;
+    }
+    for (i = 0; i < n; i++)
+        for (j = 0; j < n; j++)
+            if (M[i * n + j] != 0.0) {
+                e = lcp_exp(M[i * n + j]) + r[i] + c[j];
+                if (e > rmax[i])
+                    rmax[i] = e;
+                if (e > cmax[j])
+                    cmax[j] = e;
+            }
+}
+
+/* Ruiz's iteration on binary exponents, dense (lcpcli/analysis/_scaling.pyx's _ruiz): fill
+ * r, c (n each); return 1 when a scaling is needed, 0 when the problem is balanced.
+ * rmax, cmax: n each. */
+LCP_FN int lcp_ruiz(lcp_i64 n, const double *M, const double *q, int symmetric, int balanced,
+                    int q_balanced, int max_rounds, lcp_i64 *r, lcp_i64 *c, lcp_i64 *rmax,
+                    lcp_i64 *cmax)
+{
+    lcp_i64 i, j, k, e, lo, hi, clo, chi, d, qexp;
+    int rnd;
+    for (i = 0; i < n; i++) {
+        r[i] = 0;
+        c[i] = 0;
+    }
+    for (rnd = 0; rnd < max_rounds; rnd++) {
+        lcp_maxima(n, M, r, c, rmax, cmax);
+        lo = (lcp_i64)1 << 40;
+        hi = -((lcp_i64)1 << 40);
+        clo = (lcp_i64)1 << 40;
+        chi = -((lcp_i64)1 << 40);
+        for (i = 0; i < n; i++) {
+            if (rmax[i] == LCP_FLOOR)
+                rmax[i] = 1;
+            if (cmax[i] == LCP_FLOOR)
+                cmax[i] = 1;
+            if (rmax[i] < lo) lo = rmax[i];
+            if (rmax[i] > hi) hi = rmax[i];
+            if (cmax[i] < clo) clo = cmax[i];
+            if (cmax[i] > chi) chi = cmax[i];
+        }
+        if (hi - lo <= balanced && chi - clo <= balanced && -balanced <= hi - 1
+            && hi - 1 <= balanced)
+            break;
+        if (symmetric) {
+            for (i = 0; i < n; i++) {
+                d = rmax[i] > cmax[i] ? rmax[i] : cmax[i];
+                d = lcp_floordiv2(1 - d);
+                r[i] += d;
+                c[i] += d;
+            }
+        } else {
+            for (i = 0; i < n; i++)
+                r[i] -= lcp_floordiv2(rmax[i] - 1);
+            lcp_maxima(n, M, r, c, rmax, cmax);
+            for (j = 0; j < n; j++) {
+                if (cmax[j] == LCP_FLOOR)
+                    cmax[j] = 1;
+                c[j] -= lcp_floordiv2(cmax[j] - 1);
+            }
+        }
+    }
+    /* a common factor normalising q */
+    qexp = LCP_FLOOR;
+    for (i = 0; i < n; i++)
+        if (q[i] != 0.0) {
+            e = lcp_exp(q[i]) + r[i];
+            if (e > qexp)
+                qexp = e;
+        }
+    k = qexp == LCP_FLOOR ? 0 : -qexp + 1;
+    for (i = 0; i < n; i++)
+        if (r[i] != 0 || c[i] != 0)
+            break;
+    if (i == n && -q_balanced <= k && k <= q_balanced)
+        return 0;
+    for (i = 0; i < n; i++) {
+        r[i] += k;
+        c[i] -= k;
+    }
+    return 1;
+}
+
+LCP_FN int lcp_symmetric(const double *M, lcp_i64 n)
+{
+    lcp_i64 i, j;
+    for (i = 0; i < n; i++)
+        for (j = 0; j < i; j++)
+            if (M[i * n + j] != M[j * n + i])
+                return 0;
+    return 1;
+}
+
+/* Equilibrate one problem as batch.pyx's _balance does (D M D for a symmetric M, two-sided
+ * otherwise): fill Ms = D_r M D_c, qs = D_r q, ds = D_r d (ones when d is NULL) and return 1,
+ * or return 0 when the problem is balanced already.  rc: 4 n long longs (r, c, scratch). */
+LCP_FN int lcp_balance(lcp_i64 n, const double *M, const double *q, const double *d,
+                       int balanced, int q_balanced, int max_rounds, double *Ms, double *qs,
+                       double *ds, lcp_i64 *rc)
+{
+    lcp_i64 i, j, *r = rc, *c = rc + n;
+    if (!lcp_ruiz(n, M, q, 0, balanced, q_balanced, 1, r, c, rc + 2 * n, rc + 3 * n))
+        return 0;
+    if (!lcp_ruiz(n, M, q, lcp_symmetric(M, n), balanced, q_balanced, max_rounds, r, c,
+                  rc + 2 * n, rc + 3 * n))
+        return 0;
+    for (i = 0; i < n; i++) {
+        for (j = 0; j < n; j++)
+            Ms[i * n + j] = ldexp(M[i * n + j], (int)(r[i] + c[j]));
+        qs[i] = ldexp(q[i], (int)r[i]);
+        ds[i] = d ? ldexp(d[i], (int)r[i]) : 1.0;
+    }
+    return 1;
+}
+
+/* The first balance test of lcp_balance split over the lanes: 1 when the problem is balanced
+ * at once (row and column exponent maxima, then q: lcp_ruiz's round 0 passing), 0 when
+ * lcp_balance must decide.  rmax, cmax: n each; every lane returns the same value. */
+LCP_FN int lcp_balanced_warp(lcp_i64 n, const double *M, const double *q, int balanced,
+                             int q_balanced, lcp_i64 *rmax, lcp_i64 *cmax, lcp_i64 lane,
+                             lcp_i64 lanes)
+{
+    lcp_i64 i, j, e, best, lo = (lcp_i64)1 << 40, hi = LCP_FLOOR, clo = (lcp_i64)1 << 40;
+    lcp_i64 chi = LCP_FLOOR, qexp = LCP_FLOOR, k;
+    int ok;
+    for (i = lane; i < n; i += lanes) {
+        best = LCP_FLOOR;
+        for (j = 0; j < n; j++)
+            if (M[i * n + j] != 0.0) {
+                e = lcp_exp(M[i * n + j]);
+                if (e > best)
+                    best = e;
+            }
+        rmax[i] = best == LCP_FLOOR ? 1 : best;
+    }
+    for (j = lane; j < n; j += lanes) {
+        best = LCP_FLOOR;
+        for (i = 0; i < n; i++)
+            if (M[i * n + j] != 0.0) {
+                e = lcp_exp(M[i * n + j]);
+                if (e > best)
+                    best = e;
+            }
+        cmax[j] = best == LCP_FLOOR ? 1 : best;
+    }
+    LCP_SYNC();
+    for (i = 0; i < n; i++) {
+        if (rmax[i] < lo) lo = rmax[i];
+        if (rmax[i] > hi) hi = rmax[i];
+        if (cmax[i] < clo) clo = cmax[i];
+        if (cmax[i] > chi) chi = cmax[i];
+        if (q[i] != 0.0) {
+            e = lcp_exp(q[i]);
+            if (e > qexp)
+                qexp = e;
+        }
+    }
+    k = qexp == LCP_FLOOR ? 0 : -qexp + 1;
+    ok = hi - lo <= balanced && chi - clo <= balanced && -balanced <= hi - 1
+         && hi - 1 <= balanced && -q_balanced <= k && k <= q_balanced;
+    LCP_SYNC(); /* rmax, cmax are scratch again for lane 0 */
+    return ok;
+}
+
+/* ---------------------------------------------------------------------------------- Lemke */
+/* Workspace of the tableau part of Lemke (shared memory in the warp kernel): doubles
+ * T (n x (n + 1)), qb, keys, col (n each), rowr (n + 1); long longs basic (n), where
+ * (2 n + 1), cand (n), ctl (5: the lanes' broadcast slots). */
+#define LCP_TAB_DWORK(n) ((n) * ((n) + 1) + 4 * (n) + 1)
+#define LCP_TAB_IWORK(n) (4 * (n) + 6)
+
+/* pivot the nrows x ncols tableau on (r, c); rowr: ncols of work (lemke.pyx's pivot) */
+LCP_FN void lcp_pivot(double *T, double *qb, lcp_i64 nrows, lcp_i64 ncols, lcp_i64 r,
+                      lcp_i64 c, double *rowr)
+{
+    lcp_i64 i, j;
+    double p = T[r * ncols + c], inv = 1.0 / p, f, qr;
+    double *Ti;
+    for (j = 0; j < ncols; j++)
+        rowr[j] = -T[r * ncols + j] * inv;
+    rowr[c] = inv;
+    qr = -qb[r] * inv;
+    for (i = 0; i < nrows; i++) {
+        if (i == r)
+            continue;
+        Ti = T + i * ncols;
+        f = Ti[c];
+        if (f != 0.0) {
+            qb[i] += f * qr;
+            LCP_AXPY(Ti, rowr, f, ncols);
+            Ti[c] = f * inv;
+        }
+    }
+    for (j = 0; j < ncols; j++)
+        T[r * ncols + j] = rowr[j];
+    qb[r] = qr;
+}
+
+/* The same pivot split over the lanes (every entry computed as lcp_pivot computes it: the
+ * same rounding).  fcol: the pivot column T[:, c] as it was before the pivot. */
+LCP_FN void lcp_pivot_warp(double *T, double *qb, lcp_i64 nrows, lcp_i64 ncols, lcp_i64 r,
+                           lcp_i64 c, double *rowr, const double *fcol, lcp_i64 lane,
+                           lcp_i64 lanes)
+{
+    lcp_i64 e, i, j;
+    double inv = 1.0 / T[r * ncols + c], qr = -qb[r] * inv, f;
+    for (j = lane; j < ncols; j += lanes)
+        rowr[j] = j == c ? inv : -T[r * ncols + j] * inv;
+    LCP_SYNC();
+    for (i = lane; i < nrows; i += lanes)
+        if (i != r && fcol[i] != 0.0)
+            qb[i] += fcol[i] * qr;
+    i = lane / ncols; /* entry e = i ncols + j, stepped without a division per entry */
+    j = lane - i * ncols;
+    for (e = lane; e < nrows * ncols; e += lanes) {
+        f = fcol[i];
+        if (i != r && f != 0.0)
+            T[e] = j == c ? f * inv : T[e] + f * rowr[j];
+        j += lanes;
+        while (j >= ncols) {
+            j -= ncols;
+            i += 1;
+        }
+    }
+    LCP_SYNC();
+    for (j = lane; j < ncols; j += lanes)
+        T[r * ncols + j] = rowr[j];
+    if (lane == 0)
+        qb[r] = qr;
+    LCP_SYNC();
+}
+
+/* Row of the initial pivot (most negative q_i / d_i, ties: the largest index); -1 when
+ * q >= 0 (d NULL: ones) */
+LCP_FN lcp_i64 lcp_initial_row(const double *q, const double *d, lcp_i64 n, double tie_tol)
+{
+    lcp_i64 i, r = -1;
+    double v, best = 0.0;
+    for (i = 0; i < n; i++) {
+        v = q[i] / (d ? d[i] : 1.0);
+        if (v < best)
+            best = v;
+    }
+    if (best >= 0.0)
+        return -1;
+    for (i = 0; i < n; i++)
+        if (q[i] / (d ? d[i] : 1.0) <= best + tie_tol * fabs(best))
+            r = i;
+    return r;
+}
+
+/* The leaving row for the entering column col (basic = qb + col t): the minimum-ratio test
+ * (lemke.pyx's ratio_candidates) and, among tied rows, the lexicographic minimum over rows of
+ * the basis inverse divided by the pivot element (Cottle-Pang-Stone 4.9: no cycling); z0
+ * leaves when it ties.  Returns -1 when no row blocks (a ray). */
+LCP_FN lcp_i64 lcp_leaving_row(lcp_i64 n, lcp_i64 m, const double *T, const double *qb,
+                               const double *col, double *keys, const lcp_i64 *basic,
+                               const lcp_i64 *where, lcp_i64 *cand, double piv_tol,
+                               double tie_tol)
+{
+    lcp_i64 i, k, s, nc, mm, loc, z0_row = -1, nz = 2 * n;
+    double a, v, t, cmax = 0.0, qmax = 0.0, ptol, ztol, tmin = LCP_INF, unit, key, kmin, kmax;
+    double bound;
+    for (i = 0; i < n; i++) {
+        a = fabs(col[i]);
+        if (a > cmax)
+            cmax = a;
+        if (qb[i] > qmax)
+            qmax = qb[i];
+    }
+    ptol = piv_tol * cmax;
+    ztol = LCP_DEGENERATE_RTOL * qmax;
+    for (i = 0; i < n; i++) {
+        a = col[i];
+        if (a < -ptol) {
+            v = qb[i] > ztol ? qb[i] : 0.0;
+            t = v / (-a);
+            if (t < tmin)
+                tmin = t;
+        }
+    }
+    if (tmin == LCP_INF)
+        return -1;
+    nc = 0;
+    for (i = 0; i < n; i++) {
+        a = col[i];
+        if (a < -ptol) {
+            v = qb[i] > ztol ? qb[i] : 0.0;
+            t = v / (-a);
+            if (t <= tmin + tie_tol * tmin) {
+                cand[nc++] = i;
+                if (basic[i] == nz)
+                    z0_row = i;
+            }
+        }
+    }
+    if (z0_row >= 0)
+        return z0_row;
+    if (nc == 1)
+        return cand[0];
+    unit = 0.0;
+    for (s = 0; s < nc; s++) {
+        a = -col[cand[s]];
+        if (a > unit)
+            unit = a;
+    }
+    unit = 1.0 / unit;
+    for (k = 0; k < n; k++) {
+        loc = where[k];
+        for (s = 0; s < nc; s++) {
+            i = cand[s];
+            if (loc >= 0)
+                key = loc == i ? 1.0 : 0.0;
+            else
+                key = -T[i * m + (-loc - 1)];
+            keys[s] = key / (-col[i]);
+        }
+        kmin = LCP_INF;
+        kmax = 0.0;
+        for (s = 0; s < nc; s++) {
+            if (keys[s] < kmin)
+                kmin = keys[s];
+            if (fabs(keys[s]) > kmax)
+                kmax = fabs(keys[s]);
+        }
+        bound = kmin + LCP_LEX_RTOL * (kmax > unit ? kmax : unit);
+        mm = 0;
+        for (s = 0; s < nc; s++)
+            if (keys[s] <= bound)
+                cand[mm++] = cand[s];
+        nc = mm;
+        if (nc == 1)
+            break;
+    }
+    return cand[0];
+}
+
+/* Lemke's method (condensed tableau, covering vector d, lexicographic minimum-ratio rule:
+ * Cottle-Pang-Stone, The Linear Complementarity Problem, 4.4-4.9) on one problem, as
+ * lemke.pyx's lemke_tableau, split over the lanes; warp = 0: lcp_pivot (one lane only),
+ * else lcp_pivot_warp.  z (n) receives the basic solution; returns the status (LCP_OK,
+ * LCP_RAY, LCP_MAX_ITER, LCP_TRIVIAL) and the pivots in *pivots_out.  tw: LCP_TAB_DWORK(n)
+ * doubles, ti: LCP_TAB_IWORK(n) long longs (ti's first n: the end basis). */
+LCP_FN int lcp_lemke(lcp_i64 n, const double *M, const double *q, const double *d,
+                     lcp_i64 max_iter, double piv_tol, double tie_tol, double *z, double *tw,
+                     lcp_i64 *ti, lcp_i64 *pivots_out, lcp_i64 lane, lcp_i64 lanes, int warp)
+{
+    lcp_i64 m = n + 1, nz = 2 * n, i, j, r, c, entering, leaving, pivots;
+    int status = LCP_MAX_ITER;
+    double *T = tw, *qb = T + n * m, *keys = qb + n, *col = keys + n, *rowr = col + n;
+    lcp_i64 *basic = ti, *where = basic + n, *cand = where + 2 * n + 1, *ctl = cand + n;
+    for (i = 0; i < n; i++) /* lanes along each row of M: coalesced reads */
+        for (j = lane; j < n; j += lanes)
+            T[i * m + j] = M[i * n + j];
+    for (i = lane; i < n; i += lanes) {
+        T[i * m + n] = d ? d[i] : 1.0;
+        col[i] = T[i * m + n];
+        qb[i] = q[i];
+        basic[i] = i;
+        where[i] = i;
+        z[i] = 0.0;
+    }
+    for (j = lane; j < m; j += lanes)
+        where[n + j] = -(j + 1);
+    if (lane == 0)
+        ctl[0] = lcp_initial_row(q, d, n, tie_tol);
+    LCP_SYNC();
+    *pivots_out = 0;
+    r = ctl[0];
+    if (r < 0)
+        return LCP_TRIVIAL;
+    /* initial pivot: z0 enters, row r's w leaves */
+    entering = nz;
+    c = n;
+    leaving = r; /* basic[r] == r before the first pivot */
+    if (!warp)
+        lcp_pivot(T, qb, n, m, r, c, rowr);
+    else
+        lcp_pivot_warp(T, qb, n, m, r, c, rowr, col, lane, lanes);
+    if (lane == 0) {
+        basic[r] = entering;
+        where[entering] = r;
+        where[leaving] = -(c + 1);
+    }
+    pivots = 1;
+    while (pivots < max_iter) {
+        entering = leaving < n ? leaving + n : leaving - n;
+        LCP_SYNC();
+        c = -where[entering] - 1;
+        for (i = lane; i < n; i += lanes)
+            col[i] = T[i * m + c];
+        LCP_SYNC();
+        if (lane == 0)
+            ctl[1] = lcp_leaving_row(n, m, T, qb, col, keys, basic, where, cand, piv_tol,
+                                     tie_tol);
+        LCP_SYNC();
+        r = ctl[1];
+        if (r < 0) {
+            status = LCP_RAY;
+            break;
+        }
+        leaving = basic[r];
+        if (!warp)
+            lcp_pivot(T, qb, n, m, r, c, rowr);
+        else
+            lcp_pivot_warp(T, qb, n, m, r, c, rowr, col, lane, lanes);
+        if (lane == 0) {
+            basic[r] = entering;
+            where[entering] = r;
+            where[leaving] = -(c + 1);
+        }
+        pivots += 1;
+        if (leaving == nz) {
+            status = LCP_OK;
+            break;
+        }
+    }
+    LCP_SYNC();
+    for (i = lane; i < n; i += lanes)
+        if (basic[i] >= n && basic[i] < nz)
+            z[basic[i] - n] = qb[i];
+    LCP_SYNC();
+    *pivots_out = pivots;
+    return status;
+}
+
+/* ---------------------------------------------------------------------------------- polish */
+/* In-place LU with partial pivoting of the row-major m x m a (dense.pyx's own loops, used by
+ * the CPU below LCP_LAPACK_MIN); returns 0 or k + 1 (a zero pivot). */
+LCP_FN int lcp_lu_factor(double *a, lcp_i64 m, lcp_i64 *ipiv)
+{
+    lcp_i64 i, j, k, p;
+    double best, v, f, piv, *rk, *ri;
+    for (k = 0; k < m; k++) {
+        p = k;
+        best = fabs(a[k * m + k]);
+        for (i = k + 1; i < m; i++) {
+            v = fabs(a[i * m + k]);
+            if (v > best) {
+                best = v;
+                p = i;
+            }
+        }
+        ipiv[k] = p;
+        if (best == 0.0)
+            return (int)(k + 1);
+        if (p != k)
+            for (j = 0; j < m; j++) {
+                v = a[k * m + j];
+                a[k * m + j] = a[p * m + j];
+                a[p * m + j] = v;
+            }
+        rk = a + k * m;
+        piv = rk[k];
+        for (i = k + 1; i < m; i++) {
+            ri = a + i * m;
+            f = ri[k] / piv;
+            ri[k] = f;
+            if (f != 0.0)
+                for (j = k + 1; j < m; j++)
+                    ri[j] -= f * rk[j];
+        }
+    }
+    return 0;
+}
+
+LCP_FN void lcp_lu_solve(const double *lu, lcp_i64 m, const lcp_i64 *ipiv, double *b)
+{
+    lcp_i64 i, j, k;
+    double s, v;
+    for (k = 0; k < m; k++) {
+        i = ipiv[k];
+        if (i != k) {
+            v = b[k];
+            b[k] = b[i];
+            b[i] = v;
+        }
+    }
+    for (i = 1; i < m; i++) {
+        s = b[i];
+        for (j = 0; j < i; j++)
+            s -= lu[i * m + j] * b[j];
+        b[i] = s;
+    }
+    for (i = m - 1; i >= 0; i--) {
+        s = b[i];
+        for (j = i + 1; j < m; j++)
+            s -= lu[i * m + j] * b[j];
+        b[i] = s / lu[i * m + i];
+    }
+}
+
+/* ||min(z, M z + q)||_inf */
+LCP_FN double lcp_min_residual(const double *M, const double *q, const double *z, lcp_i64 n)
+{
+    lcp_i64 i, j;
+    double w, v, worst = 0.0;
+    for (i = 0; i < n; i++) {
+        w = q[i];
+        for (j = 0; j < n; j++)
+            w += M[i * n + j] * z[j];
+        v = fabs(z[i] < w ? z[i] : w);
+        if (v > worst)
+            worst = v;
+    }
+    return worst;
+}
+
+/* The CPU's LU path switches to LAPACK from this size of basis on (dense.pyx's LAPACK_MIN):
+ * larger end bases are not re-solved here (RETRY: the CPU does it). */
+#define LCP_LAPACK_MIN 64
+
+/* lemke.pyx's polish: the end basis M[b, b] z_b = -q_b re-solved by LU with one refinement
+ * step; out receives the better (by ||min(z, M z + q)||_inf) of max(z, 0) and the re-solve.
+ * Returns 0, or -1 when the basis is too large for the loops here (out is then max(z, 0)).
+ * work: 2 n^2 + 3 n doubles; iwork: 3 n. */
+LCP_FN int lcp_polish(const double *M, const double *q, lcp_i64 n, const double *z,
+                      const lcp_i64 *basic, double *out, double *work, lcp_i64 *iwork)
+{
+    lcp_i64 i, j, k, m = 0, *idx = iwork, *mark = iwork + n, *ipiv = iwork + 2 * n;
+    double *A, *lu, *x, *r, *zc;
+    int finite = 1;
+    for (i = 0; i < n; i++) {
+        out[i] = z[i] > 0.0 ? z[i] : 0.0;
+        if (basic[i] >= n && basic[i] < 2 * n)
+            m += 1;
+    }
+    if (m == 0)
+        return 0;
+    if (m >= LCP_LAPACK_MIN)
+        return -1;
+    A = work;
+    lu = A + m * m;
+    x = lu + m * m;
+    r = x + m;
+    zc = r + m;
+    for (j = 0; j < n; j++)
+        mark[j] = 0;
+    for (i = 0; i < n; i++)
+        if (basic[i] >= n && basic[i] < 2 * n)
+            mark[basic[i] - n] = 1;
+    k = 0;
+    for (j = 0; j < n; j++)
+        if (mark[j])
+            idx[k++] = j;
+    for (i = 0; i < m; i++) {
+        x[i] = -q[idx[i]];
+        for (j = 0; j < m; j++)
+            A[i * m + j] = M[idx[i] * n + idx[j]];
+    }
+    /* dense.pyx's solve_refined */
+    for (i = 0; i < m * m; i++)
+        lu[i] = A[i];
+    for (i = 0; i < m; i++)
+        r[i] = x[i];
+    if (lcp_lu_factor(lu, m, ipiv) == 0) {
+        double sum;
+        lcp_lu_solve(lu, m, ipiv, x);
+        for (i = 0; i < m; i++) {
+            sum = 0.0;
+            for (j = 0; j < m; j++)
+                sum += A[i * m + j] * x[j];
+            r[i] = r[i] - sum;
+        }
+        lcp_lu_solve(lu, m, ipiv, r);
+        for (i = 0; i < m; i++)
+            x[i] += r[i];
+        for (j = 0; j < n; j++)
+            zc[j] = 0.0;
+        for (i = 0; i < m; i++) {
+            if (!LCP_ISFINITE(x[i]))
+                finite = 0;
+            zc[idx[i]] = x[i] > 0.0 ? x[i] : 0.0;
+        }
+        if (finite && lcp_min_residual(M, q, zc, n) <= lcp_min_residual(M, q, out, n))
+            for (j = 0; j < n; j++)
+                out[j] = zc[j];
+    }
+    return 0;
+}
+
+/* Lemke and the certificate of one problem (lcpcli/solvers/kernels/batch.pyx's _lemke_one):
+ * equilibrated first when it is not balanced (balanced < 0: never; the answer is mapped back
+ * exactly and certified on the problem as given); the end basis is re-solved (polish) when
+ * the answer is not certified at rounding level (`polished`).  Lanes: (0, 1, warp = 0) one
+ * thread per problem; (lane, 32, 1) a warp per problem (lane 0 writes the outputs).
+ * tw, ti: LCP_TAB_DWORK(n), LCP_TAB_IWORK(n) (shared memory in the warp kernel); rw, ri:
+ * LCP_REST_DWORK(n), LCP_REST_IWORK(n). */
+LCP_FN void lcp_lemke_one(lcp_i64 n, const double *M, const double *q, const double *d,
+                          lcp_i64 max_iter, double piv_tol, double tie_tol, double tol,
+                          double polished, int balanced, int q_balanced, int max_rounds,
+                          double *tw, lcp_i64 *ti, double *rw, lcp_i64 *ri, double *z, double *w,
+                          signed char *code, lcp_i64 *iters, double *err, double *res,
+                          lcp_i64 lane, lcp_i64 lanes, int warp)
+{
+    double *raw = rw, *cwork = raw + n, *Ms = cwork + 5 * n, *qs = Ms + n * n, *ds = qs + n;
+    double *pwork = ds + n;
+    lcp_i64 *ciwork = ri, *rc = ciwork + 3 * n, *piwork = rc + 4 * n, *ctl = ti + 4 * n + 1;
+    lcp_i64 pivots = 0, i;
+    const double *Mu = M, *qu = q, *du = d;
+    int scaled = 0, prc = 0, status;
+    lcp_cert cert;
+    if (lane == 0) {
+        *code = LCP_RETRY;
+        *iters = 0;
+        *err = LCP_INF;
+        *res = LCP_NAN;
+    }
+    if (balanced >= 0) {
+        if (!warp) {
+            scaled = lcp_balance(n, M, q, d, balanced, q_balanced, max_rounds, Ms, qs, ds, rc);
+        } else if (!lcp_balanced_warp(n, M, q, balanced, q_balanced, rc, rc + n, lane, lanes)) {
+            if (lane == 0)
+                ctl[4] = lcp_balance(n, M, q, d, balanced, q_balanced, max_rounds, Ms, qs, ds,
+                                     rc);
+            LCP_SYNC();
+            scaled = (int)ctl[4];
+        }
+    }
+    if (scaled) {
+        Mu = Ms;
+        qu = qs;
+        du = ds;
+    }
+    status = lcp_lemke(n, Mu, qu, du, max_iter, piv_tol, tie_tol, raw, tw, ti, &pivots, lane,
+                       lanes, warp);
+    if (status != LCP_OK && status != LCP_TRIVIAL)
+        return; /* a ray or the iteration limit: the CPU pipeline classifies it */
+    for (i = lane; i < n; i += lanes) {
+        if (scaled) /* z = D_c z~ (exact) */
+            raw[i] = ldexp(raw[i], (int)rc[n + i]);
+        z[i] = (status == LCP_TRIVIAL || raw[i] < 0.0) ? 0.0 : raw[i];
+    }
+    LCP_SYNC();
+    if (warp)
+        lcp_certify_warp(n, M, q, z, 0, 0, w, cwork, ciwork, &cert, lane, lanes);
+    else
+        lcp_certify(n, M, q, z, 0, 0, w, cwork, ciwork, &cert);
+    if (lane == 0) {
+        *iters = pivots;
+        if (status == LCP_OK && !(cert.status == 0 && cert.error <= polished)) {
+            /* not at rounding level: the end basis (ti's first n) re-solved by LU with one
+             * refinement step, then certified again (a rare path: lane 0 alone) */
+            prc = lcp_polish(M, q, n, raw, ti, z, pwork, piwork);
+            if (prc == 0)
+                lcp_certify(n, M, q, z, 0, 0, w, cwork, ciwork, &cert);
+        }
+        if (prc == 0) { /* else a basis the CPU re-solves with LAPACK: RETRY */
+            if (cert.status == 0)
+                *err = cert.error;
+            *res = cert.residual;
+            if (cert.status == 0 && cert.error <= tol)
+                *code = LCP_SOLVED;
+        }
+    }
+    LCP_SYNC(); /* the workspace is the next problem's */
+}
+
+/* ------------------------------------------------------------------------- projected SOR */
+LCP_FN double lcp_scaled_error(const double *z, const double *w, const double *lo,
+                               const double *up, lcp_i64 n, double mu, double qnorm)
+{
+    lcp_i64 i;
+    double r, r2, num = 0.0, zmax = 0.0, den;
+    for (i = 0; i < n; i++) {
+        r = mu * (z[i] - lo[i]);
+        if (w[i] < r)
+            r = w[i];
+        r2 = mu * (z[i] - up[i]);
+        if (r2 > r)
+            r = r2;
+        if (fabs(r) > num)
+            num = fabs(r);
+        if (fabs(z[i]) > zmax)
+            zmax = fabs(z[i]);
+    }
+    if (num == 0.0)
+        return 0.0;
+    den = mu * zmax + qnorm;
+    if (den <= 0.0)
+        return LCP_INF;
+    return num / den;
+}
+
+LCP_FN double lcp_row(const double *M, const double *q, const double *z, lcp_i64 n, lcp_i64 i)
+{
+    double s = q[i];
+    const double *Mi = M + i * n;
+    lcp_i64 j;
+    for (j = 0; j < n; j++)
+        s += Mi[j] * z[j];
+    return s;
+}
+
+/* pgs.pyx's pgs_sweeps (dense): 0 converged, 1 limit, 2 non-finite; w: n doubles */
+LCP_FN int lcp_sweeps(const double *M, const double *q, const double *diag, const double *lo,
+                      const double *up, double *z, lcp_i64 n, double omega, lcp_i64 max_iter,
+                      double tol, double mu, double qnorm, lcp_i64 *sweeps, double *w)
+{
+    lcp_i64 i, it, gap = 1, next_check = 1;
+    double est, zmax, r, zi, znew, wi, rc, r2, err;
+    for (it = 1; it <= max_iter; it++) {
+        est = 0.0;
+        zmax = 0.0;
+        for (i = 0; i < n; i++) {
+            r = lcp_row(M, q, z, n, i);
+            zi = z[i];
+            znew = zi - omega * r / diag[i];
+            if (znew < lo[i])
+                znew = lo[i];
+            if (znew > up[i])
+                znew = up[i];
+            z[i] = znew;
+            wi = r + diag[i] * (znew - zi);
+            rc = mu * (znew - lo[i]);
+            if (wi < rc)
+                rc = wi;
+            r2 = mu * (znew - up[i]);
+            if (r2 > rc)
+                rc = r2;
+            if (fabs(rc) > est)
+                est = fabs(rc);
+            if (fabs(znew) > zmax)
+                zmax = fabs(znew);
+        }
+        if (!LCP_ISFINITE(est) || !LCP_ISFINITE(zmax)) {
+            *sweeps = it;
+            return 2;
+        }
+        if (it >= next_check && est <= 0.5 * tol * (mu * zmax + qnorm)) {
+            for (i = 0; i < n; i++)
+                w[i] = lcp_row(M, q, z, n, i);
+            err = lcp_scaled_error(z, w, lo, up, n, mu, qnorm);
+            if (err <= tol) {
+                *sweeps = it;
+                return 0;
+            }
+            gap = 2 * gap < 32 ? 2 * gap : 32;
+            next_check = it + gap;
+        }
+    }
+    *sweeps = max_iter;
+    return 1;
+}
+
+/* Projected SOR from z (inside the bounds) until the certificate passes, tightening the
+ * sweeps' normwise target tenfold as batch.pyx's _sor_one does.  lo_in/up_in NULL: an LCP.
+ * work: LCP_SOR_DWORK(n); iwork: LCP_SOR_IWORK(n). */
+LCP_FN void lcp_sor_one(lcp_i64 n, const double *M, const double *q, const double *lo_in,
+                        const double *up_in, double omega, lcp_i64 max_iter, double tol,
+                        double *work, lcp_i64 *iwork, double *z, double *w, signed char *code,
+                        lcp_i64 *iters, double *err, double *res)
+{
+    double *diag = work, *lo = work + n, *up = work + 2 * n, *sw = work + 3 * n;
+    double *cwork = work + 4 * n + 1;
+    double mu = 0.0, qnorm = 0.0, rowsum, target = tol;
+    lcp_i64 i, j, sweeps = 0, done = 0;
+    int status;
+    lcp_cert cert;
+    *code = LCP_RETRY;
+    *iters = 0;
+    *err = LCP_INF;
+    *res = LCP_NAN;
+    for (i = 0; i < n; i++) {
+        lo[i] = lo_in ? lo_in[i] : 0.0;
+        up[i] = up_in ? up_in[i] : LCP_INF;
+        diag[i] = M[i * n + i];
+        if (!(diag[i] > 0.0)) {
+            if (lo[i] < up[i])
+                return; /* the update divides by M_ii: the full pipeline says so */
+            diag[i] = 1.0;
+        }
+        rowsum = 0.0;
+        for (j = 0; j < n; j++)
+            rowsum = rowsum + fabs(M[i * n + j]);
+        if (rowsum > mu)
+            mu = rowsum;
+        if (fabs(q[i]) > qnorm)
+            qnorm = fabs(q[i]);
+    }
+    if (mu == 0.0)
+        mu = 1.0;
+    for (;;) {
+        status = lcp_sweeps(M, q, diag, lo, up, z, n, omega, max_iter - sweeps, target, mu,
+                            qnorm, &done, sw);
+        sweeps = sweeps + done;
+        if (status != 0 && sweeps < max_iter)
+            break;
+        lcp_certify(n, M, q, z, lo_in, up_in, w, cwork, iwork, &cert);
+        if (cert.status == 0) {
+            *err = cert.error;
+            *res = cert.residual;
+        }
+        if (cert.status == 0 && cert.error <= tol) {
+            *code = LCP_SOLVED;
+            break;
+        }
+        if (status != 0 || sweeps >= max_iter || target < 1e-15)
+            break;
+        target = target * 0.1;
+    }
+    *iters = sweeps;
+}
+
+/* -------------------------------------------------------------------- device entry points */
+#if defined(__CUDACC_RTC__) || defined(__CUDACC__)
+/* One thread per problem; grid-stride loop over the K problems; slot = the thread's global
+ * index (its workspace).  Arrays: M (K, n, n), q, z, w (K, n), row-major.  use_d: d (n) is
+ * the covering vector (else ones and d is not read). */
+extern "C" __global__ void lcp_lemke_stack(
+    lcp_i64 K, lcp_i64 n, const double *M, const double *q, int use_d, const double *d,
+    lcp_i64 max_iter, double piv_tol, double tie_tol, double tol, double polished, int balanced,
+    int q_balanced, int max_rounds, double *work, lcp_i64 *iwork, double *z, double *w,
+    signed char *code, lcp_i64 *iters, double *err, double *res)
+{
+    lcp_i64 slot = (lcp_i64)blockIdx.x * blockDim.x + threadIdx.x;
+    lcp_i64 stride = (lcp_i64)gridDim.x * blockDim.x, k;
+    double *tw = work + slot * LCP_LEMKE_DWORK(n);
+    lcp_i64 *ti = iwork + slot * LCP_LEMKE_IWORK(n);
+    for (k = slot; k < K; k += stride)
+        lcp_lemke_one(n, M + k * n * n, q + k * n, use_d ? d : 0, max_iter, piv_tol, tie_tol,
+                      tol, polished, balanced, q_balanced, max_rounds, tw, ti,
+                      tw + LCP_TAB_DWORK(n), ti + LCP_TAB_IWORK(n), z + k * n, w + k * n,
+                      code + k, iters + k, err + k, res + k, 0, 1, 0);
+}
+
+/* One warp per problem (blockDim.x a multiple of 32; every lane of a warp takes part):
+ * use_shared: the tableau part of each warp's workspace in dynamic shared memory
+ * (blockDim.x / 32 * 8 * (LCP_TAB_DWORK(n) + LCP_TAB_IWORK(n)) bytes), else in work/iwork,
+ * which hold LCP_LEMKE_DWORK(n) / LCP_LEMKE_IWORK(n) per warp of the grid either way. */
+extern "C" __global__ void lcp_lemke_warp_stack(
+    lcp_i64 K, lcp_i64 n, const double *M, const double *q, int use_d, const double *d,
+    lcp_i64 max_iter, double piv_tol, double tie_tol, double tol, double polished, int balanced,
+    int q_balanced, int max_rounds, int use_shared, double *work, lcp_i64 *iwork, double *z,
+    double *w, signed char *code, lcp_i64 *iters, double *err, double *res)
+{
+    extern __shared__ double lcp_smem[];
+    lcp_i64 lane = threadIdx.x & 31, wib = threadIdx.x >> 5, wpb = blockDim.x >> 5;
+    lcp_i64 slot = (lcp_i64)blockIdx.x * wpb + wib, nslots = (lcp_i64)gridDim.x * wpb, k;
+    double *gw = work + slot * LCP_LEMKE_DWORK(n), *tw = gw;
+    lcp_i64 *gi = iwork + slot * LCP_LEMKE_IWORK(n), *ti = gi;
+    if (use_shared) {
+        tw = lcp_smem + wib * (LCP_TAB_DWORK(n) + LCP_TAB_IWORK(n));
+        ti = (lcp_i64 *)(tw + LCP_TAB_DWORK(n));
+    }
+    for (k = slot; k < K; k += nslots)
+        lcp_lemke_one(n, M + k * n * n, q + k * n, use_d ? d : 0, max_iter, piv_tol, tie_tol,
+                      tol, polished, balanced, q_balanced, max_rounds, tw, ti,
+                      gw + LCP_TAB_DWORK(n), gi + LCP_TAB_IWORK(n), z + k * n, w + k * n,
+                      code + k, iters + k, err + k, res + k, lane, 32, 1);
+}
+
+/* bounded: lo, up (K, n) are the box (else an LCP: they are not read); z: the start points */
+extern "C" __global__ void lcp_sor_stack(
+    lcp_i64 K, lcp_i64 n, const double *M, const double *q, int bounded, const double *lo,
+    const double *up, double omega, lcp_i64 max_iter, double tol, double *work, lcp_i64 *iwork,
+    double *z, double *w, signed char *code, lcp_i64 *iters, double *err, double *res)
+{
+    lcp_i64 slot = (lcp_i64)blockIdx.x * blockDim.x + threadIdx.x;
+    lcp_i64 stride = (lcp_i64)gridDim.x * blockDim.x, k;
+    for (k = slot; k < K; k += stride)
+        lcp_sor_one(n, M + k * n * n, q + k * n, bounded ? lo + k * n : 0,
+                    bounded ? up + k * n : 0, omega, max_iter, tol,
+                    work + slot * LCP_SOR_DWORK(n), iwork + slot * LCP_SOR_IWORK(n), z + k * n,
+                    w + k * n, code + k, iters + k, err + k, res + k);
+}
+#endif
+
+#endif /* LCPCLI_LCP_STACK_H */

@@ -1,0 +1,100 @@
+"""The "cuda" backend against the CPU, on a CUDA device (skipped where there is none: CI).
+
+The kernels are the single-source ones tests/solvers/test_single_source.py checks on the CPU
+on every run; here the device build must give the same verdicts (and, compiled without FMA
+contraction, the same z) as ``backend="cpu"``, from host arrays and from device arrays.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from lcpcli.api import solve_many
+from lcpcli.solvers.backends import cuda
+
+cp = pytest.importorskip("cupy")
+if not cuda.device_present():
+    pytest.skip("no CUDA device", allow_module_level=True)
+
+
+def stack(kind: str, K: int, n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    rng = np.random.default_rng(seed)
+    if kind == "pd":
+        A = rng.standard_normal((K, n, n))
+        M = A @ A.transpose(0, 2, 1) / n + np.eye(n)
+    elif kind == "degenerate":
+        M = rng.integers(-2, 3, (K, n, n)).astype(float) + 3 * np.eye(n)
+        return M, rng.integers(-2, 2, (K, n)).astype(float)
+    elif kind == "scaled":
+        A = rng.standard_normal((K, n, n))
+        D = 2.0 ** rng.integers(-20, 20, (K, n))
+        M = (A @ A.transpose(0, 2, 1) + np.eye(n)) * D[:, :, None]
+        return M, rng.standard_normal((K, n)) * D
+    else:
+        M = rng.standard_normal((K, n, n))
+    return M, rng.standard_normal((K, n))
+
+
+def assert_same(a, b):
+    np.testing.assert_array_equal(a.status, b.status)
+    np.testing.assert_array_equal(b.z.get() if isinstance(b.z, cp.ndarray) else b.z, a.z)
+    np.testing.assert_array_equal(a.iterations, b.iterations)
+
+
+@pytest.fixture(params=["thread", "warp"])
+def variant(request, monkeypatch):
+    """Lemke's device kernel: one thread or one warp per problem."""
+    monkeypatch.setattr(cuda, "LEMKE_VARIANT", request.param)
+    return request.param
+
+
+@pytest.mark.parametrize("kind", ["pd", "degenerate", "scaled", "mixed"])
+@pytest.mark.parametrize("method", ["lemke", "pgs"])
+def test_cuda_matches_cpu_from_host_arrays(kind, method, variant):
+    M, q = stack(kind, 3000, 12, seed=1)
+    if method == "pgs":
+        M = (M + M.transpose(0, 2, 1)) / 2
+    assert_same(solve_many(M, q, method), solve_many(M, q, method, backend="cuda"))
+
+
+@pytest.mark.parametrize("n", [1, 5, 33, 50, 130])  # 130: the warp's tableau in global memory
+def test_cuda_sizes(n, variant):
+    M, q = stack("pd", 300, n, seed=5)
+    assert_same(solve_many(M, q, "lemke"), solve_many(M, q, "lemke", backend="cuda"))
+
+
+def test_cuda_from_device_arrays_returns_device_arrays(variant):
+    M, q = stack("pd", 5000, 50, seed=2)
+    ref = solve_many(M, q, "lemke")
+    res = solve_many(cp.asarray(M), cp.asarray(q), "lemke", backend="cuda")
+    assert isinstance(res.z, cp.ndarray) and isinstance(res.w, cp.ndarray)
+    assert_same(ref, res)
+
+
+def test_cuda_takes_dlpack_producers_without_a_host_copy():
+    torch = pytest.importorskip("torch")
+    if not torch.cuda.is_available():
+        pytest.skip("torch without CUDA")
+    M, q = stack("pd", 1000, 12, seed=3)
+    res = solve_many(torch.as_tensor(M, device="cuda"), torch.as_tensor(q, device="cuda"),
+                     "lemke", backend="cuda")
+    assert isinstance(res.z, cp.ndarray)
+    assert_same(solve_many(M, q, "lemke"), res)
+    assert torch.from_dlpack(res.z).is_cuda
+
+
+def test_box_lcps_on_the_device():
+    M, q = stack("pd", 2000, 10, seed=4)
+    M = (M + M.transpose(0, 2, 1)) / 2
+    lo, up = -np.ones(10), np.full(10, 0.5)
+    assert_same(solve_many(M, q, "pgs", lower=lo, upper=up),
+                solve_many(M, q, "pgs", lower=lo, upper=up, backend="cuda"))
+
+
+def test_auto_picks_the_device_for_large_stacks():
+    from lcpcli.solvers import batched
+
+    K = batched.AUTO_CUDA_MIN_BYTES // (8 * 12 * 12) + 1
+    assert batched.choose_backend("auto", K, 12) == "cuda"
+    assert batched.choose_backend("auto", K - 2, 12) == "cpu"
