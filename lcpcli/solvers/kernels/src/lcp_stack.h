@@ -240,11 +240,12 @@ LCP_FN int lcp_cert_finish(lcp_i64 n, const double *q, const double *z, const do
         if (fabs(t) > resid)
             resid = fabs(t);
     }
-    /* (b) each block's growth: the smallest growth among its equations */
+    /* (b) each block's growth: the smallest growth among its equations with data (q_i != 0;
+     * an equation with q_i = 0 anchors nothing, as in lcpcli/core/_certificate.pyx) */
     for (i = 0; i < 2 * n; i++)
         compmin[i] = LCP_INF;
     for (i = 0; i < n; i++) {
-        if (a[i] > 0.0 && anchor[i]) {
+        if (a[i] > 0.0 && anchor[i] && q[i] != 0.0) {
             den = fabs(q[i]) + fabs(w[i]);
             g = den == 0.0 ? LCP_INF : a[i] / den;
             r = root[i];
