@@ -149,6 +149,13 @@ def main(argv: list[str] | None = None) -> None:
     except KeyboardInterrupt:
         error_line("interrupted")
         code = EXIT_INTERRUPTED
+    except MemoryError:
+        # valid data whose work does not fit this machine: the budgets of lcpcli.core.limits
+        # stop the steps they can foresee; this is the one line for the rest (exit 2, as
+        # for absurd sizes)
+        error_line("out of memory: this problem needs more memory than this machine has "
+                   "(try a sweeping method, -m pgs or -m psor, or a smaller problem)")
+        code = EXIT_BAD_INPUT
     except (common.PipeClosed, BrokenPipeError):
         _silence_stdout()
         code = common.pending_exit()

@@ -1216,3 +1216,23 @@ if __name__ == "__main__":
         build(folder)
         result = survey(ns.root.resolve(), folder, ns.timeout, ns.only)
         print(f"{len(CASES)} cases; failures by kind: {json.dumps(result, sort_keys=True)}")
+
+
+def test_out_of_memory_is_one_line_and_exit_2(monkeypatch, capsys, samples) -> None:
+    """A valid problem whose work runs out of memory (a step no budget foresaw) is one line on
+    stderr and exit 2, not an internal error."""
+    import lcpcli.api
+    from lcpcli.cli import main
+
+    def no_memory(*args, **kwargs):
+        raise MemoryError()
+
+    monkeypatch.delenv("LCPCLI_DEBUG", raising=False)
+    monkeypatch.setattr(lcpcli.api, "solve", no_memory)
+    with pytest.raises(SystemExit) as exc:
+        main(["solve", str(samples / "seed004.json"), "--json"])
+    captured = capsys.readouterr()
+    assert exc.value.code == 2
+    assert captured.out == ""
+    lines = captured.err.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("lcpcli: error: out of memory"), lines
