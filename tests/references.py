@@ -138,8 +138,8 @@ def componentwise_error(M: Any, q: np.ndarray, z: np.ndarray, lo: np.ndarray | N
         a = terms.sum(axis=1)
         s = a + np.abs(q)
     nonzero = s[s > 0]
-    if not (np.all(np.isfinite(w)) and np.all(np.isfinite(s))
-            and (nonzero.size == 0 or (nonzero.max() < 2.0 ** 960 and nonzero.min() > 2.0 ** -960))):
+    in_range = nonzero.size == 0 or (nonzero.max() < 2.0 ** 960 and nonzero.min() > 2.0 ** -960)
+    if not (np.all(np.isfinite(w)) and np.all(np.isfinite(s)) and in_range):
         # the data leave the comfortable range: everything below is a ratio within one row, so
         # each row is computed exactly (rationals) and divided by a power of two near its scale
         M, q, w, terms, a, s = _rows_scaled_exactly(M, q, z, w_given)
