@@ -38,9 +38,9 @@ through ``z_j != 0`` wherever ``z_j`` counts in them (``|M_ij| / s_i >= 2^-10 ka
 within ``2^-10`` of ``z_j``'s largest); linked rows form blocks, and a block's growth ``G`` is the
 smallest ``g_i`` among its equations with data, ``q_i != 0`` (one equation whose terms do not
 cancel anchors the size of the ``z`` it shares; legitimate exact cancellation, such as MLCP
-equality chains or friction-cone rows, is then fine; inactive rows cannot vouch for a size; an equation with ``q_i = 0`` fixes no
-size either: its ``g_i`` would be ``a_i / |w_i|``, rounding over rounding, and the verdict would
-depend on the order in which ``w_i`` was summed).  In a block whose equations carry no data, a
+equality chains or friction-cone rows, is then fine; inactive rows cannot vouch for a size; an
+equation with ``q_i = 0`` fixes no size either: its ``g_i`` would be ``a_i / |w_i|``, rounding
+over rounding, and the verdict would depend on the order in which ``w_i`` was summed).  In a block whose equations carry no data, a
 row with ``q_i != 0`` answers for its own growth; rows untouched by ``z`` have ``G = 1``.
 
 **The certificate.**  ::
