@@ -29,19 +29,19 @@ comparison with the largest entry of the problem.
 largest relative change that state needs (the move of ``z_i`` and the change of ``w_i``).  The
 componentwise backward error is ``omega = max_i eps_i``.
 
-**Growth.**  A backward error says that ``z`` solves a nearby problem; that is worth little when
-the rows balance only through the cancellation of huge terms, because then the nearby problem can
-be qualitatively different (an infeasible positive semidefinite LCP is "solved" to any backward
-error by a large enough ``z``).  Row ``i`` has growth ``g_i = (|M| |z|)_i / (|q_i| + |w_i|)``.
-The size of ``z`` is fixed by the *equations*, the pairs scored in state ``F``.  Rows are linked
-through ``z_j != 0`` wherever ``z_j`` counts in them (``|M_ij| / s_i >= 2^-10 kappa_j``, a share
-within ``2^-10`` of ``z_j``'s largest); linked rows form blocks, and a block's growth ``G`` is the
-smallest ``g_i`` among its equations with data, ``q_i != 0`` (one equation whose terms do not
-cancel anchors the size of the ``z`` it shares; legitimate exact cancellation, such as MLCP
-equality chains or friction-cone rows, is then fine; inactive rows cannot vouch for a size; an
-equation with ``q_i = 0`` fixes no size either: its ``g_i`` would be ``a_i / |w_i|``, rounding
-over rounding, and the verdict would depend on the order in which ``w_i`` was summed).  In a block whose equations carry no data, a
-row with ``q_i != 0`` answers for its own growth; rows untouched by ``z`` have ``G = 1``.
+**Growth.** A backward error says that ``z`` solves a nearby problem; that is worth little when the
+rows balance only through the cancellation of huge terms, because then the nearby problem can be
+qualitatively different (an infeasible positive semidefinite LCP is "solved" to any backward error
+by a large enough ``z``). Row ``i`` has growth ``g_i = (|M| |z|)_i / (|q_i| + |w_i|)``. The size of
+``z`` is fixed by the *equations*, the pairs scored in state ``F``. Rows are linked through ``z_j
+!= 0`` wherever ``z_j`` counts in them (``|M_ij| / s_i >= 2^-10 kappa_j``, a share within ``2^-10``
+of ``z_j``'s largest); linked rows form blocks, and a block's growth ``G`` is the smallest ``g_i``
+among its equations with data, ``q_i != 0`` (one equation whose terms do not cancel anchors the
+size of the ``z`` it shares; legitimate exact cancellation, such as MLCP equality chains or
+friction-cone rows, is then fine; inactive rows cannot vouch for a size; an equation with ``q_i =
+0`` fixes no size either: its ``g_i`` would be ``a_i / |w_i|``, rounding over rounding, and the
+verdict would depend on the order in which ``w_i`` was summed). In a block whose equations carry no
+data, a row with ``q_i != 0`` answers for its own growth; rows untouched by ``z`` have ``G = 1``.
 
 **The certificate.**  ::
 
