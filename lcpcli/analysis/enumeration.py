@@ -1,6 +1,6 @@
-"""The enumeration method (seed 004): complementary cones and all solutions of LCP(q, M).
+"""The enumeration method (Murty, ch. 1): complementary cones and all solutions of LCP(q, M).
 
-Conventions: ``w = M z + q`` (the seed's ``w - M z = q``).  For each of the ``2^n`` choices of
+Conventions: ``w = M z + q`` (Murty's ``w - M z = q``).  For each of the ``2^n`` choices of
 complementary basic variables ``y_j in {w_j, z_j}`` the *complementary matrix* ``A_r`` has
 column ``I_j`` where ``y_j = w_j`` and ``-M_j`` where ``y_j = z_j``; the cone
 ``Pos(A_r) = {A_r y : y >= 0}`` contains ``q`` exactly when ``A_r y = q`` has a solution
@@ -92,7 +92,7 @@ class Cone:
 
     @property
     def r(self) -> int:
-        """1-based cone number in the seed's order: (w1, w2), (w1, z2), (z1, w2), (z1, z2)."""
+        """1-based cone number in the usual order: (w1, w2), (w1, z2), (z1, w2), (z1, z2)."""
         return 1 + sum(1 << (self.n - 1 - j) for j in range(self.n) if (self.code >> j) & 1)
 
     @property

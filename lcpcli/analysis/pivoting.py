@@ -1,14 +1,14 @@
-"""The principal pivoting transform of seed 000 (Dai & Drumwright), as pure functions.
+"""The principal pivoting transform of Dai & Drumwright, as pure functions.
 
-System (seed 000, sign convention of the whole package): ``w = q + M z`` with
+System (Dai & Drumwright; sign convention of the whole package): ``w = q + M z`` with
 ``w = (w_1..w_n)`` and ``z = (z_1..z_n, z_{n+1})``, where ``M`` is ``n x (n+1)`` and its last
 column belongs to the artificial variable ``z_{n+1}`` (the covering vector), displayed as
-``z0`` (Lemke's name; :data:`ARTIFICIAL`) while the index sets keep its seed position ``n + 1``.
+``z0`` (Lemke's name; :data:`ARTIFICIAL`) while the index sets keep its position ``n + 1``.
 
 A *basis* is the dependent tuple ``w'`` (n variables) and the independent tuple ``z'``
 (the other n+1 variables, in a chosen order; by default the order of the original tuples).
 The pivoted system is ``w' = q' + M' z'``.  Index sets (kept 0-based here, shown 1-based by
-the CLI and in :meth:`PivotTransform.to_dict`, as in the seed):
+the CLI and in :meth:`PivotTransform.to_dict`, as in Dai & Drumwright):
 
 * ``alpha``: positions in ``w`` of the w's that are independent (ascending);
   ``alpha'``: their positions in ``z'``;
@@ -16,10 +16,11 @@ the CLI and in :meth:`PivotTransform.to_dict`, as in the seed):
   ``beta'``: their positions in ``w'``;
 * ``alpha_bar``: positions in ``w`` of the w's that stay dependent (ascending);
   ``alpha_bar'``: their positions in ``w'``;
-* ``beta_bar``: positions in ``z`` of the z's that stay independent (ascending; the seed's
-  "one greater than" is a slip, see the seeds guide); ``beta_bar'``: their positions in ``z'``.
+* ``beta_bar``: positions in ``z`` of the z's that stay independent (ascending; Dai &
+  Drumwright's "one greater than" is a slip: its example uses the positions); ``beta_bar'``:
+  their positions in ``z'``.
 
-Then (seed eqs 2-3) ``q'[beta'] = -(M^{alpha beta})^{-1} q^alpha`` and
+Then (Dai & Drumwright, eqs 2-3) ``q'[beta'] = -(M^{alpha beta})^{-1} q^alpha`` and
 ``q'[alpha_bar'] = q^{alpha_bar} + M^{alpha_bar beta} q'[beta']``; the column of ``M'`` that
 multiplies a driving variable is, for ``w_{alpha_gamma}`` (eqs 5-6),
 ``M'_d[beta'] = (M^{alpha beta})^{-1} e_gamma``,
@@ -51,7 +52,8 @@ _NAME = re.compile(r"^\s*([wWzZ])\s*_?\s*(\d+)\s*$")
 Var = tuple[str, int]  # ("w", i) or ("z", j), 0-based; ("z", n) is the artificial variable
 
 #: Display name of the artificial variable everywhere (Lemke's and the textbooks' name); its
-#: position in the seed's vector ``z`` is ``n + 1``, and ``z{n+1}`` is accepted as an input alias.
+#: position in Dai & Drumwright's vector ``z`` is ``n + 1``, and ``z{n+1}`` is accepted as an
+#: input alias.
 ARTIFICIAL = "z0"
 
 
@@ -90,7 +92,7 @@ def parse_tuple(text: str | list[str] | tuple[str, ...], n: int) -> tuple[Var, .
 
 
 def all_vars(n: int) -> list[Var]:
-    """``w_1..w_n, z_1..z_{n+1}`` in the seed's order."""
+    """``w_1..w_n, z_1..z_{n+1}`` in Dai & Drumwright's order."""
     return [("w", i) for i in range(n)] + [("z", j) for j in range(n + 1)]
 
 
@@ -102,7 +104,7 @@ def validate_basis(dependent: tuple[Var, ...], independent: tuple[Var, ...] | No
     exactly ``w_1..w_n, z_1..z_{n+1}`` (then Lemma 1, ``|alpha| = |beta|``, holds).  Unless
     ``any_basis``, the dependent tuple may not hold both ``w_i`` and ``z_i``: the transform is
     meant for Lemke's (almost) complementary bases.  Without ``independent`` the independent
-    variables come in the seed's order ``w_1..w_n, z_1..z_{n+1}``.
+    variables come in Dai & Drumwright's order ``w_1..w_n, z_1..z_{n+1}``.
     """
     def dupes(tup: tuple[Var, ...]) -> list[str]:
         seen: set[Var] = set()
@@ -119,7 +121,7 @@ def validate_basis(dependent: tuple[Var, ...], independent: tuple[Var, ...] | No
         n_iw = sum(1 for i in range(n) if ("w", i) not in dependent)
         n_dz = sum(1 for v in dependent if v[0] == "z")
         raise ProblemError(f"dependent tuple has {len(dependent)} variables, expected n = {n} "
-                           f"(Lemma 1 of the seed fails: {n_iw} independent w but {n_dz} "
+                           f"(Lemma 1 of Dai & Drumwright fails: {n_iw} independent w but {n_dz} "
                            f"dependent z)")
     if independent is None:
         independent = tuple(v for v in all_vars(n) if v not in set(dependent))

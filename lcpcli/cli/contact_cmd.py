@@ -1,4 +1,5 @@
-"""``lcpcli contact-matrix``: the impulse LCP of a rigid-body scene (seed 004)."""
+"""``lcpcli contact-matrix``: the impulse LCP of a rigid-body scene (effective masses,
+multi-contact ``M = J W J^T``)."""
 
 from __future__ import annotations
 

@@ -49,7 +49,7 @@ def enumerate_command(
     exact: bool = typer.Option(None, "--exact/--no-exact", show_default=False,
                                help=EXACT_HELP),
 ) -> int:
-    """Enumerate the 2^n complementary cones of an LCP (seed 004) and find ALL its solutions.
+    """Enumerate the 2^n complementary cones of an LCP (Murty) and find ALL its solutions.
 
     Each choice of basic variables y_j in {w_j, z_j} gives the complementary matrix A_r
     (column I_j for w_j, -M_j for z_j); q lies in the cone Pos(A_r) when A_r y = q has a

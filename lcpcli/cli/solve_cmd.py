@@ -69,8 +69,9 @@ def solve(
                                     "sweep table (pgs, psor); with --json the steps are a "
                                     "list under \"trace\". One problem only."),
     layout: str = typer.Option(None, "--layout",
-                               help="Trace tableaux: dictionary (seed 000: w' = q' + M' z') or "
-                                    "murty (textbook: w - M z - d z0 = q) [default: "
+                               help="Trace tableaux: dictionary (Dai & Drumwright: "
+                                    "w' = q' + M' z') or murty (textbook: w - M z - d z0 = q) "
+                                    "[default: "
                                     "dictionary]. Implies --trace."),
     pivot_step: int = typer.Option(None, "--pivot", metavar="K", min=0,
                                    help="Trace: show step K alone (0 = the initial tableau). "

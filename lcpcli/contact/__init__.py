@@ -1,4 +1,4 @@
-"""Contact LCPs from rigid-body scenes (seed 004): ``w = M j + q``, ``M = J W J^T``.
+"""Contact LCPs from rigid-body scenes: ``w = M j + q``, ``M = J W J^T``.
 
 * :mod:`lcpcli.contact.scene`: scene files (JSON, HDF5), validation, conventions, kinematic bodies;
 * :mod:`lcpcli.contact.assembly`: ``J``, ``W``, ``M``, ``q``, the contact states (restitution

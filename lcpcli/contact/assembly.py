@@ -6,7 +6,8 @@
   (``dof`` = 6 in 3-D, 3 in 2-D).
 * ``W`` is block-diagonal: ``diag(1/m, 1/m, 1/m, I_world^-1)`` per modelled body.
 * ``M = J W J^T``; entry ``(i, j)`` is non-zero only when contacts i and j share a moving body
-  (the seed's ``M_ij`` written out).  It is never formed through a dense ``6n x 6n`` ``W``:
+  (the textbook multi-contact ``M_ij`` written out).  It is never formed through a dense
+  ``6n x 6n`` ``W``:
   the sparse path multiplies sparse ``J`` by sparse ``H = J W`` (only pairs of rows sharing a
   body are touched); the dense path adds ``G_k W_k G_k^T`` body by body.
 * ``v_rel^- = n . (pdot_a - pdot_b)`` is the normal relative velocity before impact
@@ -21,8 +22,8 @@
   ``q = (1 + e) v_rel^-`` and ``w = v_rel^+ + e v_rel^-``, so ``w >= 0`` means
   ``v_rel^+ >= -eps v_rel^- > 0`` for an impact and ``v_rel^+ >= 0`` (non-penetration) for the
   others: no contact ends approaching.  (Applying ``(1 + eps) v_rel^-`` to a separating contact,
-  as the seed's formula read literally does, lets it end with ``v_rel^+ = -eps v_rel^- < 0``.)
-* Effective mass of contact i: ``1 / (n^T K n)`` with the seed's
+  as the textbook formula read literally does, lets it end with ``v_rel^+ = -eps v_rel^- < 0``.)
+* Effective mass of contact i: ``1 / (n^T K n)`` with the textbook
   ``K = (1/m_a + 1/m_b) E - (r_a* I_a^-1 r_a* + r_b* I_b^-1 r_b*)`` (static bodies drop out);
   ``n^T K n`` equals ``M_ii``.
 """
@@ -176,8 +177,9 @@ def direction_rows(scene: Scene, columns: np.ndarray, n_modelled: int, contacts:
     return J, H
 
 
-def seed_K(scene: Scene) -> np.ndarray:
-    """The seed's ``K`` per contact, ``(nc, d, d)``: ``sum (1/m) E - r* I^-1 r*`` over moving sides.
+def effective_mass_K(scene: Scene) -> np.ndarray:
+    """The textbook effective-mass ``K`` per contact, ``(nc, d, d)``: ``sum (1/m) E - r* I^-1
+    r*`` over moving sides.
 
     In 2-D, ``-r* I^-1 r*`` becomes ``r_perp r_perp^T / I`` with ``r_perp = (-r_y, r_x)``.
     """
@@ -295,7 +297,7 @@ def assemble(scene: Scene, storage: str = "auto",
                             DEFAULT_RESTITUTION_THRESHOLD)
     state, e = contact_states(v_rel, scene.restitution, threshold)
     q = (1.0 + e) * v_rel
-    K = seed_K(scene)
+    K = effective_mass_K(scene)
     inv_eff = np.einsum("ci,cij,cj->c", scene.normal, K, scene.normal)
     return Assembly(scene=scene, columns=columns, modelled=modelled, reasons=reasons, J=J, H=H,
                     M=M, q=q, v_rel=v_rel, inv_eff_mass=inv_eff, storage=kind,

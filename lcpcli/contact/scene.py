@@ -1,6 +1,6 @@
 """Rigid-body scenes for contact LCPs: parsing and validation (JSON and HDF5).
 
-Conventions (seed 004):
+Conventions:
 
 * each contact joins body ``A`` and body ``B``; its unit normal ``n`` points **from B to A**;
   the normal impulse ``j n`` (``j >= 0``) acts on A and ``-j n`` on B;

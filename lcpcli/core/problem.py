@@ -9,8 +9,9 @@ Sign convention (one for all forms, stated once): ``w = M z + q``.
 * **Box LCP**: ``lower <= z <= upper`` and ``-w`` lies in the normal cone of the box at ``z``:
   ``w >= 0`` where ``z_i = lower_i``, ``w <= 0`` where ``z_i = upper_i``, ``w = 0`` strictly
   between.
-  Seed 002 writes ``-y in N_[l,u](lambda)`` with ``y = W lambda + b``: the same thing with
-  ``w = y``, ``z = lambda``, ``M = W``, ``q = b`` (data written as ``y = -W lambda + b`` must
+  Acary et al.'s Siconos note writes ``-y in N_[l,u](lambda)`` with ``y = W lambda + b``: the
+  same thing with ``w = y``, ``z = lambda``, ``M = W``, ``q = b`` (data written as
+  ``y = -W lambda + b`` must
   be given with ``M = -W``).
 
 All three are the mixed complementarity problem over the box ``[l, u]`` returned by

@@ -153,8 +153,8 @@ def zip_error(exc: BaseException) -> ProblemError:
 
 
 def read_augmented(path: Path) -> tuple[np.ndarray, np.ndarray] | None:
-    """Seed 000's augmented form: a dense ``M`` of shape ``(n, n + 1)`` (the artificial column
-    last) and ``q`` of length ``n``; None when the file holds anything else.  Same checks as
+    """Dai & Drumwright's augmented form: a dense ``M`` of shape ``(n, n + 1)`` (the artificial
+    column last) and ``q`` of length ``n``; None when the file holds anything else.  Same checks as
     :func:`read` (regular file, zip directory and array headers before any data)."""
     with open_input(path) as fh:
         try:

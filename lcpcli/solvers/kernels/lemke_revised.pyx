@@ -1,7 +1,7 @@
 # cython: language_level=3, boundscheck=False, wraparound=False, cdivision=True
 """Compiled kernel of the revised Lemke method (Cython, ``nogil``).
 
-The engine is seed 000's principal pivoting transform: with ``Maug = [M, d]`` (``n x (n+1)``),
+The engine is Dai & Drumwright's principal pivoting transform: with ``Maug = [M, d]`` (``n x (n+1)``),
 ``alpha`` the nonbasic w's, ``beta`` the basic z's (``z0`` is index ``n``) and
 ``A = Maug[alpha, beta]`` (``m x m``), the kernel keeps ``B = A^{-1}`` explicitly and
 *updates* it at every pivot in O(m^2), one formula per case:
@@ -11,7 +11,7 @@ The engine is seed 000's principal pivoting transform: with ``Maug = [M, d]`` (`
 * w_k enters, w_i leaves: row ``k`` of ``A`` is replaced by row ``i`` (Sherman-Morrison);
 * w_k enters, z_l leaves: row ``k`` and column ``l`` are removed (inverse of a Schur complement).
 
-The entering column is computed by seed eqs (5)-(6) (w enters) or (7)-(8) (z enters) in
+The entering column is computed by Dai & Drumwright's eqs (5)-(6) (w enters) or (7)-(8) (z enters) in
 O(n m); ``q'`` is updated along the ray of the pivot and recomputed by eqs (2)-(3) after every
 refactorisation.  ``B`` is recomputed from scratch (``inv(A)``) every ``refactor_every`` pivots
 and whenever a pivot is small relative to its column (an unstable update).
@@ -160,7 +160,7 @@ cdef void _combine_rows(const double* Ct, const double* xb, Py_ssize_t m, Py_ssi
 
 
 cdef void _q_prime(State* S) noexcept nogil:
-    """q' by seed eqs (2)-(3), in row order (into S.qb)."""
+    """q' by Dai & Drumwright's eqs (2)-(3), in row order (into S.qb)."""
     cdef Py_ssize_t m = S.m, n = S.n, s, p, r
     cdef int64_t b
     cdef double acc

@@ -1,4 +1,4 @@
-"""Enumeration of the complementary cones (seed 004): the exhaustive method.
+"""Enumeration of the complementary cones (Murty, ch. 1): the exhaustive method.
 
 Problem: LCP(q, M), ``w = M z + q``.  Visits the ``2^n`` complementary matrices ``A_r`` (column
 ``I_j`` for ``w_j`` basic, ``-M_j`` for ``z_j`` basic) and solves ``A_r y = q, y >= 0``; see
@@ -80,7 +80,7 @@ METHODS = [
     Method(
         name="enum",
         run=run,
-        summary="Enumeration of the 2^n complementary cones (seed 004), exhaustive",
+        summary="Enumeration of the 2^n complementary cones (Murty), exhaustive",
         guarantees=(Guarantee(when(), "every solution (2^n cones); no_solution with a checked "
                                         "Farkas vector"),),
         max_n=DEFAULT_MAX_N,

@@ -1,13 +1,13 @@
-"""Revised Lemke: seed 000's principal pivoting transform with an updated inverse.
+"""Revised Lemke: Dai & Drumwright's principal pivoting transform with an updated inverse.
 
-Problem: LCP(q, M), ``w = M z + q``, augmented as in seed 000 with the artificial column
+Problem: LCP(q, M), ``w = M z + q``, augmented as in Dai & Drumwright with the artificial column
 ``d`` (covering vector, default all ones): ``w = q + [M, d] z``.
 
 Matrix classes: the same as the tableau method (same pivot rule): a solution for P-matrices,
 and for copositive-plus matrices (e.g. positive semidefinite ones) a solution or a proof that
 none exists (secondary ray); on other matrices a ray proves nothing.
 
-Each pivot computes only what Lemke needs, by the seed's equations: the entering column
+Each pivot computes only what Lemke needs, by Dai & Drumwright's equations: the entering column
 (eqs 5-8) and ``q'`` (eqs 2-3), from ``B = (M^{alpha beta})^{-1}`` which is *updated* in
 O(m^2) per pivot (bordering / Sherman-Morrison; ``m`` = number of basic z's), never recomputed,
 except every ``refactor_every`` pivots or after a small pivot (then ``inv`` from scratch).
@@ -148,8 +148,8 @@ METHODS = [
     Method(
         name="lemke-revised",
         run=run,
-        summary="Lemke's complementary pivoting, revised: seed 000 transform with an updated "
-                "inverse of M^(alpha beta), lexicographic anti-cycling",
+        summary="Lemke's complementary pivoting, revised: Dai & Drumwright's transform with an "
+                "updated inverse of M^(alpha beta), lexicographic anti-cycling",
         guarantees=GUARANTEES,
         cost=Cost.PIVOTING,
         preference=10,
