@@ -66,7 +66,7 @@ def dense_check(method: str | None) -> Any:
 
 
 def solve(problem: Problem | Any, q: Any = None, method: str | None = None, *,
-          tol: float | None = None, **options: Any) -> Result:
+          tol: float | None = None, warm: Any = None, **options: Any) -> Result:
     """Solve ``problem`` with ``method`` and certify the answer.
 
     Two ways to call it: ``solve(problem, "lemke", tol=...)`` with a :class:`Problem`, or
@@ -83,6 +83,12 @@ def solve(problem: Problem | Any, q: Any = None, method: str | None = None, *,
     when the method proved it (the proof is in ``message``); ``unsolved`` otherwise.
     ``seconds`` times the method (with its equilibration and final polish, see
     :mod:`lcpcli.solvers.pipeline`), not file reading or certification.
+
+    ``warm``: a previous :class:`Result`, a basis (booleans, True: ``z_i`` basic) or a point
+    ``z0``.  With ``auto``, BPP or a pivoting method, block principal pivoting first runs from
+    that basis (:mod:`lcpcli.solvers.warm`; one factorisation when the basis is still right);
+    if that does not end certified, ``method`` runs cold (with ``z0`` from ``warm`` when it
+    takes one), so the verdict is never worse than cold.  Other methods get ``z0`` only.
     """
     if not isinstance(problem, Problem):  # solve(M, q, method=...): arrays, not a Problem
         if q is None or isinstance(q, str):
@@ -106,10 +112,29 @@ def solve(problem: Problem | Any, q: Any = None, method: str | None = None, *,
         check_dense_ok(problem, spec)
     else:
         check_dense_work(problem.n, spec)
+    if warm is not None:
+        from lcpcli.solvers.warm import warm_point
+
+        if "z0" in spec.options and options.get("z0") is None:
+            z0 = warm_point(problem, warm)
+            if z0 is not None:
+                options["z0"] = z0
     opts = spec.parse_options(options)
     tol = validate_tol(spec.default_tol if tol is None else tol)
     spec.prepare_once()
     start = time.perf_counter()
+    if warm is not None:
+        from lcpcli.solvers.warm import uses_warm_basis, warm_start
+
+        if uses_warm_basis(spec):
+            tried, note = warm_start(problem, warm, tol)
+            if tried is not None:
+                return certify_outcome(problem, tried, "bpp", time.perf_counter() - start, tol)
+            outcome = run_method(spec, problem, tol, opts)
+            outcome.message += f" (warm start from the given basis did not end certified: " \
+                               f"{note}; solved cold)"
+            return certify_outcome(problem, outcome, spec.name, time.perf_counter() - start,
+                                   tol)
     outcome: Outcome = run_method(spec, problem, tol, opts)
     seconds = time.perf_counter() - start
     return certify_outcome(problem, outcome, spec.name, seconds, tol)
@@ -119,10 +144,12 @@ def certify_outcome(problem: Problem, outcome: Outcome, method: str, seconds: fl
                     tol: float) -> Result:
     """Turn a method's raw :class:`Outcome` into a verdict by checking its answer."""
     z = float64_array(outcome.z)
+    basis = np.empty(problem.n, dtype=np.int8)  # each pair's state: the final basis
     if outcome.checked is not None and outcome.checked[0].tol == tol:
         cert, w = outcome.checked  # the method certified this very z (auto does)
+        check(problem, z, tol, state=basis)  # the states only (a few us on the small path)
     else:
-        cert, w = check(problem, z, tol)
+        cert, w = check(problem, z, tol, state=basis)
     message = outcome.message
     if cert.passed:
         status = SOLVED
@@ -137,7 +164,7 @@ def certify_outcome(problem: Problem, outcome: Outcome, method: str, seconds: fl
                        f"tol {tol:.3g}{_why(cert)}")
     # positional, in the order of Result's fields (this is on the small-solve path)
     return Result(status, method, z, w, outcome.iterations, seconds, cert, message,
-                  outcome.termination, problem.name, outcome.trace, dict(outcome.info))
+                  outcome.termination, problem.name, outcome.trace, dict(outcome.info), basis)
 
 
 def _why(cert: Any) -> str:
@@ -342,13 +369,14 @@ def solve_each(problems: list[Problem], method: str | None = None, *, tol: float
                 out[i].problem_name = p.name
                 continue
             z = res.z[j].copy()
-            cert, w = check(p, z, res.tol)
+            basis = np.empty(p.n, dtype=np.int8)
+            cert, w = check(p, z, res.tol, state=basis)
             status = SOLVED if cert.passed else UNSOLVED
             out[i] = Result(status=status, method=res.method_of(j), z=z, w=w,
                             iterations=int(res.iterations[j]), seconds=share,
                             certificate=cert, message=res.message(j),
                             termination=CONVERGED if cert.passed else Termination.NUMERICAL,
-                            problem_name=p.name, info={"batched": True})
+                            problem_name=p.name, info={"batched": True}, basis=basis)
     for i, p in enumerate(problems):
         if out[i] is None:
             out[i] = solve(p, method, tol=tol, **options)

@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from lcpcli.core.certificate import Certificate
+from lcpcli.core.certificate import BETWEEN, Certificate
 from lcpcli.core.text import plural
 
 
@@ -112,10 +112,19 @@ class Result:
     problem_name: str = ""
     trace: list[dict[str, Any]] | None = None
     info: dict[str, Any] = field(default_factory=dict)
+    #: The final basis: each pair's state as the certificate scored it (int8 codes of
+    #: :mod:`lcpcli.core.certificate`: 0 ``z_i`` at its lower bound and ``w_i`` basic, 1 at its
+    #: upper bound, 2 ``z_i`` basic with ``w_i = 0``); see :mod:`lcpcli.solvers.warm`.
+    basis: np.ndarray | None = None
 
     @property
     def solved(self) -> bool:
         return self.status == SOLVED
+
+    @property
+    def z_basic(self) -> np.ndarray | None:
+        """Booleans: ``z_i`` basic (``w_i = 0``) in the final basis; None without one."""
+        return None if self.basis is None else self.basis == BETWEEN
 
     @property
     def residual(self) -> float:
@@ -148,6 +157,7 @@ class Result:
             "certificate": {k: _float(v) if isinstance(v, float) else v
                             for k, v in self.certificate.as_dict().items()},
         }
+        out["basis"] = None if self.basis is None else basis_text(self.basis)
         if self.trace is not None:
             out["trace"] = self.trace
         return out
@@ -170,6 +180,17 @@ class Result:
             f"error: {float(self.certificate.error):.3e} (tol {float(self.certificate.tol):.1e})",
             f"  z = {z}",
             f"  w = {w}"])
+
+
+#: The letter of each basis state code in ``--json`` (``"basis"``): ``L`` z_i at its lower
+#: bound (LCP: z_i = 0, w_i basic), ``U`` at its upper bound, ``F`` z_i basic (w_i = 0).
+BASIS_LETTERS = "LUF"
+
+
+def basis_text(codes: np.ndarray) -> str:
+    """A basis as one letter per pair (:data:`BASIS_LETTERS`), e.g. ``"FLLF"``."""
+    return np.frombuffer(BASIS_LETTERS.encode(), dtype=np.uint8)[np.asarray(codes, dtype=np.intp)] \
+        .tobytes().decode("ascii")
 
 
 def _float(x: float) -> float | None:

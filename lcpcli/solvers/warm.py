@@ -1,0 +1,118 @@
+"""Warm starts from a basis: the final basis of a previous solve starts the next one.
+
+Conventions: ``w = M z + q``; a *basis* is each pair's state, the int8 codes of
+:mod:`lcpcli.core.certificate` (``AT_LOWER`` 0: ``z_i`` at its lower bound, ``w_i`` basic;
+``AT_UPPER`` 1: at its upper bound; ``BETWEEN`` 2: ``z_i`` basic, ``w_i = 0``).  Every
+:class:`~lcpcli.core.result.Result` carries the basis of its ``z`` as the certificate scored it
+(:func:`lcpcli.api.certify_outcome`), so one definition serves every method: ``z_i`` off its
+bounds is basic; at a degenerate pair (``z_i`` and ``w_i`` both zero) the certificate's cheaper
+state wins.
+
+A warm start (:func:`warm_start`, ``lcpcli.solve(p, warm=...)``, ``lcpcli solve --z0 FILE``)
+takes a previous :class:`Result`, a basis (booleans, True: ``z_i`` basic, or letters such as
+``"FLLF"``), or a point ``z0`` (its basis is that of ``z0`` and ``w0 = M z0 + q``).  For an
+LCP or MLCP it runs block principal pivoting (:mod:`lcpcli.solvers.methods.bpp`) from that
+basis: when the basis is still right, its basic solution is the answer after one
+factorisation; when a few pairs changed, block pivots fix them in a few more.  For a box LCP
+the basic solution of the basis (``z`` at the bounds of the ``L``/``U`` pairs, the ``F`` rows
+solved) is tried.  An answer counts only when it passes the certificate; otherwise (a wrong
+basis on a matrix outside BPP's class, a singular block) the caller solves the problem cold,
+so a warm start never gives a worse verdict than a cold one, and never ``no_solution``.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from lcpcli.core.certificate import AT_LOWER, AT_UPPER, BETWEEN, check
+from lcpcli.core.errors import OptionError
+from lcpcli.core.result import BASIS_LETTERS, CONVERGED, Outcome, Result
+from lcpcli.core.text import plural
+from lcpcli.solvers.methods import bpp
+from lcpcli.solvers.registry import Cost, Method, get_method
+from lcpcli.solvers.support import _solve_active_set, start_point
+
+
+def uses_warm_basis(spec: Method) -> bool:
+    """Does a warm start try pivoting from the basis before running ``spec`` cold?  For
+    ``auto``, the pivoting methods and BPP; iterative methods take the warm ``z0`` instead."""
+    return spec.planner or spec.cost == Cost.PIVOTING or spec.name == "bpp"
+
+
+def warm_point(problem: Any, warm: Any) -> np.ndarray | None:
+    """The ``z0`` of a warm start (a Result's z, or the point given), or None for a basis."""
+    if isinstance(warm, Result):
+        return start_point(problem, warm.z)
+    if isinstance(warm, str):
+        return None
+    arr = np.asarray(warm)
+    if arr.dtype.kind == "b":
+        return None
+    return start_point(problem, arr)
+
+
+def warm_basis(problem: Any, warm: Any) -> np.ndarray:
+    """The basis (int8 state codes) of a warm start, made valid for ``problem`` (free MLCP
+    variables basic; a pair never at an infinite bound).  OptionError on a length mismatch or
+    an unknown letter."""
+    n = problem.n
+    if isinstance(warm, Result) and warm.basis is not None:
+        states = np.asarray(warm.basis, dtype=np.int8)
+    elif isinstance(warm, str):
+        unknown = set(warm) - set(BASIS_LETTERS)
+        if unknown:
+            raise OptionError(f"a basis is one letter per pair from {BASIS_LETTERS!r}, got "
+                              f"{''.join(sorted(unknown))!r}")
+        states = np.array([BASIS_LETTERS.index(c) for c in warm], dtype=np.int8)
+    elif not isinstance(warm, Result) and np.asarray(warm).dtype.kind == "b":
+        states = np.where(np.asarray(warm).ravel(), BETWEEN, AT_LOWER).astype(np.int8)
+    else:
+        z0 = warm_point(problem, warm)
+        states = np.empty(n, dtype=np.int8)
+        check(problem, z0, state=states)
+        return states
+    if states.shape != (n,):
+        raise OptionError(f"warm-start basis has length {states.size}, the problem has n = {n}")
+    lo, up = problem.bounds()
+    states = states.copy()
+    states[(states == AT_LOWER) & ~np.isfinite(lo)] = AT_UPPER
+    mask = (states == AT_UPPER) & ~np.isfinite(up)
+    states[mask] = np.where(np.isfinite(lo[mask]), AT_LOWER, BETWEEN)
+    states[:problem.n_eq] = BETWEEN
+    return states
+
+
+def warm_start(problem: Any, warm: Any, tol: float) -> tuple[Outcome | None, str]:
+    """Solve ``problem`` from the basis of ``warm`` (see the module docstring).
+
+    Returns ``(outcome, note)``: a certified :class:`Outcome` (``checked`` set), or None and
+    why the warm start did not end with a certified answer (the caller then solves cold).
+    """
+    states = warm_basis(problem, warm)
+    F = states == BETWEEN
+    if problem.kind in ("lcp", "mlcp") and not get_method("bpp").densifies(problem):
+        out = bpp.run(problem, tol=tol, basis=F)
+        if out.termination != CONVERGED:
+            return None, out.message
+        cert, w = check(problem, out.z, tol)
+        if not cert.passed:
+            return None, (f"BPP from the warm basis ended at error {cert.error:.2g} > "
+                          f"tol {tol:.2g}")
+        out.checked = (cert, w)
+        changed = int(np.count_nonzero(np.isin(np.arange(problem.n), out.info["basis"]) != F))
+        out.message = (f"warm start: {out.message} ({plural(changed, 'pair')} of "
+                       f"{problem.n} changed state)")
+        out.info["warm"] = True
+        return out, ""
+    lo, up = problem.bounds()
+    z = _solve_active_set(problem, np.zeros(problem.n), states, lo, up)
+    if z is None:
+        return None, "the warm basis's block is singular"
+    cert, w = check(problem, z, tol)
+    if not cert.passed:
+        return None, f"the warm basis's basic solution has error {cert.error:.2g}"
+    return Outcome(z, 1, CONVERGED, "warm start: the basic solution of the given basis "
+                                    "passes the certificate (1 factorisation)",
+                   info={"warm": True}, checked=(cert, w)), ""
