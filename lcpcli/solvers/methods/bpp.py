@@ -26,6 +26,7 @@ M is densified.  ``z0`` starts from the basis ``{i: z0_i > 0}`` (or give ``basis
 
 from __future__ import annotations
 
+import warnings
 from typing import Any
 
 import numpy as np
@@ -53,7 +54,7 @@ def default_max_iter(n: int) -> int:
 def basic_solution(M: np.ndarray, q: np.ndarray, F: np.ndarray) -> np.ndarray | None:
     """The basic z of basis ``F`` (booleans): ``M_FF z_F = -q_F`` by LU with one refinement
     step, other z's zero; None when ``M_FF`` is singular (to :data:`SINGULAR_TOL`)."""
-    from scipy.linalg import lu_factor, lu_solve
+    from scipy.linalg import LinAlgWarning, lu_factor, lu_solve
 
     z = np.zeros(q.shape[0])
     idx = np.flatnonzero(F)
@@ -61,7 +62,9 @@ def basic_solution(M: np.ndarray, q: np.ndarray, F: np.ndarray) -> np.ndarray | 
         return z
     # factor the transpose: a C-ordered copy of M_FF is a Fortran-ordered M_FF^T, factored in
     # place (no copy); solves then use trans=1
-    lu, piv = lu_factor(M[np.ix_(idx, idx)].T, overwrite_a=True, check_finite=False)
+    with warnings.catch_warnings():  # a singular block is reported below, not warned about
+        warnings.simplefilter("ignore", LinAlgWarning)
+        lu, piv = lu_factor(M[np.ix_(idx, idx)].T, overwrite_a=True, check_finite=False)
     d = np.abs(np.diag(lu))
     if not np.all(np.isfinite(d)) or d.min() <= SINGULAR_TOL * d.max():
         return None
