@@ -129,7 +129,10 @@ def solve(problem: Problem | Any, q: Any = None, method: str | None = None, *,
         if uses_warm_basis(spec):
             tried, note = warm_start(problem, warm, tol)
             if tried is not None:
-                return certify_outcome(problem, tried, "bpp", time.perf_counter() - start, tol)
+                res = certify_outcome(problem, tried, "bpp", time.perf_counter() - start, tol)
+                if res.solved:  # never no_solution: the warm start proves nothing
+                    return res
+                note = f"its answer failed the certificate (error {res.error:.2g})"
             outcome = run_method(spec, problem, tol, opts)
             outcome.message += f" (warm start from the given basis did not end certified: " \
                                f"{note}; solved cold)"

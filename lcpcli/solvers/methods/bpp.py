@@ -31,6 +31,7 @@ from typing import Any
 
 import numpy as np
 
+from lcpcli.analysis._scaling import is_symmetric_dense
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, SINGULAR, Outcome
 from lcpcli.core.text import plural
 from lcpcli.solvers.options import positive_int, vector_option
@@ -47,57 +48,176 @@ SINGULAR_TOL = 1e-14
 
 
 def default_max_iter(n: int) -> int:
-    """Factorisation limit when none is given (finite for P-matrices)."""
+    """Iteration limit when none is given (finite for P-matrices)."""
     return max(100, 10 * n)
 
 
-def basic_solution(M: np.ndarray, q: np.ndarray, F: np.ndarray) -> np.ndarray | None:
-    """The basic z of basis ``F`` (booleans): ``M_FF z_F = -q_F`` by LU with one refinement
-    step, other z's zero; None when ``M_FF`` is singular (to :data:`SINGULAR_TOL`)."""
-    from scipy.linalg import LinAlgWarning, lu_factor, lu_solve
+def _factor(A: np.ndarray, symmetric: bool) -> Any:
+    """A solver ``x = solve(b)`` (b a vector or a matrix of columns) for the square ``A``
+    (destroyed), or None when ``A`` is singular to :data:`SINGULAR_TOL`: Cholesky when
+    ``symmetric`` and ``A`` is positive definite (half the work of LU), LU otherwise."""
+    from scipy.linalg import LinAlgError, LinAlgWarning, cho_factor, cho_solve, lu_factor, lu_solve
 
-    z = np.zeros(q.shape[0])
-    idx = np.flatnonzero(F)
-    if idx.size == 0:
-        return z
-    # factor the transpose: a C-ordered copy of M_FF is a Fortran-ordered M_FF^T, factored in
-    # place (no copy); solves then use trans=1
+    if symmetric:
+        try:
+            c = cho_factor(A.copy(), lower=False, overwrite_a=True, check_finite=False)
+        except LinAlgError:
+            pass
+        else:
+            d = np.abs(np.diag(c[0]))
+            if np.all(np.isfinite(d)) and d.min() ** 2 > SINGULAR_TOL * d.max() ** 2:
+                return lambda b: cho_solve(c, b, check_finite=False)
+    # factor the transpose: a C-ordered A is a Fortran-ordered A^T, factored in place (no
+    # copy); solves then use trans=1
     with warnings.catch_warnings():  # a singular block is reported below, not warned about
         warnings.simplefilter("ignore", LinAlgWarning)
-        lu, piv = lu_factor(M[np.ix_(idx, idx)].T, overwrite_a=True, check_finite=False)
-    d = np.abs(np.diag(lu))
+        lu = lu_factor(A.T, overwrite_a=True, check_finite=False)
+    d = np.abs(np.diag(lu[0]))
     if not np.all(np.isfinite(d)) or d.min() <= SINGULAR_TOL * d.max():
         return None
-    z[idx] = lu_solve((lu, piv), -q[idx], trans=1, check_finite=False)
-    r = M[idx] @ z + q[idx]  # one step of refinement: M_FF z_F + q_F should be 0
-    z[idx] -= lu_solve((lu, piv), r, trans=1, check_finite=False)
-    if not np.all(np.isfinite(z)):
-        return None
-    return z
+    return lambda b: lu_solve(lu, b, trans=1, check_finite=False)
+
+
+class Blocks:
+    """Basic solutions of the bases of one LCP, with one factorisation shared by nearby bases.
+
+    The block ``M_{F0 F0}`` of a basis ``F0`` is factored once; a basis ``F`` that differs from
+    it in ``k`` pairs (``F = F0 - R + A``) is solved through the bordered system (the Schur
+    complement, Cottle-Pang-Stone section 4.1 on principal pivoting)::
+
+        [ M_{F0 F0}  M_{F0 A}  E_R ] [x  ]   [-q_F0]
+        [ M_{A F0}   M_{A A}   0   ] [z_A] = [-q_A ],      x_R = E_R^T x = 0,
+        [ E_R^T      0         0   ] [l  ]   [ 0   ]
+
+    at the cost of k solves with the factors and one k x k LU; ``F`` is refactored instead
+    when ``k`` exceeds :attr:`max_k` or the Schur complement is singular.  ``factorisations``
+    counts the full ones.
+    """
+
+    def __init__(self, M: np.ndarray, q: np.ndarray, symmetric: bool) -> None:
+        self.M, self.q, self.symmetric = M, q, symmetric
+        self.F0: np.ndarray | None = None
+        self.solve0: Any = None
+        self.x0 = np.zeros(0)
+        self.factorisations = 0
+        #: Pairs changed from the factored basis beyond which a new factorisation is cheaper.
+        self.max_k = max(8, int(np.sqrt(q.shape[0])) * 2)
+
+    def _refactor(self, F: np.ndarray) -> bool:
+        idx = np.flatnonzero(F)
+        self.F0, self.factorisations = F.copy(), self.factorisations + 1
+        self.idx0 = idx
+        self.solve0 = _factor(self.M[np.ix_(idx, idx)], self.symmetric) if idx.size else \
+            (lambda b: b)
+        if self.solve0 is None:
+            return False
+        self.x0 = self.solve0(-self.q[idx])
+        return True
+
+    def solve(self, F: np.ndarray) -> np.ndarray | None:
+        """The basic z of basis ``F`` (booleans), with one step of refinement; None when its
+        block is singular."""
+        n = self.q.shape[0]
+        z = np.zeros(n)
+        if self.F0 is None or np.count_nonzero(F != self.F0) > self.max_k:
+            if not self._refactor(F):
+                return None
+            z[self.idx0] = self.x0
+        elif np.array_equal(F, self.F0):
+            z[self.idx0] = self.x0
+        else:
+            zF = self._bordered(F, -self.q)
+            if zF is None:
+                if not self._refactor(F):
+                    return None
+                z[self.idx0] = self.x0
+            else:
+                z[F] = zF[F]
+        idx = np.flatnonzero(F)
+        if idx.size:  # one step of refinement: M_FF z_F + q_F should be 0
+            r = self.M[idx] @ z + self.q[idx]
+            if np.array_equal(F, self.F0):
+                z[idx] -= self.solve0(r)
+            else:
+                rhs = np.zeros(n)
+                rhs[idx] = -r
+                dz = self._bordered(F, rhs)
+                if dz is not None:
+                    z[idx] += dz[idx]
+        return z if np.all(np.isfinite(z)) else None
+
+    def _bordered(self, F: np.ndarray, b: np.ndarray) -> np.ndarray | None:
+        """Solve ``M_FF z_F = b_F`` through the factors of ``M_{F0 F0}`` (a length-n vector,
+        meaningful on F), or None when the Schur complement is singular."""
+        idx0 = self.idx0
+        added = np.flatnonzero(F & ~self.F0)
+        removed = np.flatnonzero(self.F0 & ~F)
+        pos = np.searchsorted(idx0, removed)  # places of the removed pairs within F0
+        a, r, m = added.size, removed.size, idx0.size
+        if m:
+            B = np.zeros((m, a + r))
+            B[:, :a] = self.M[np.ix_(idx0, added)]
+            B[pos, a + np.arange(r)] = 1.0
+            X = self.solve0(B)
+            x0 = self.solve0(b[idx0])
+        else:
+            X, x0 = np.zeros((0, a + r)), np.zeros(0)
+        C = np.zeros((a + r, m))
+        C[:a] = self.M[np.ix_(added, idx0)]
+        S = np.zeros((a + r, a + r))
+        S[:a, :a] = self.M[np.ix_(added, added)]
+        S -= np.vstack([C[:a] @ X, X[pos]]) if m else 0.0
+        rhs = np.concatenate([b[added], np.zeros(r)]) - (
+            np.concatenate([C[:a] @ x0, x0[pos]]) if m else 0.0)
+        from scipy.linalg import LinAlgWarning, lu_factor, lu_solve
+
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", LinAlgWarning)
+            lu = lu_factor(S, check_finite=False)
+        d = np.abs(np.diag(lu[0]))
+        if d.size and (not np.all(np.isfinite(d)) or d.min() <= 1e-10 * d.max()):
+            return None
+        u = lu_solve(lu, rhs, check_finite=False) if d.size else np.zeros(0)
+        out = np.zeros(self.q.shape[0])
+        out[idx0] = x0 - X @ u
+        out[removed] = 0.0
+        out[added] = u[:a]
+        return out
+
+
+def basic_solution(M: np.ndarray, q: np.ndarray, F: np.ndarray) -> np.ndarray | None:
+    """The basic z of basis ``F`` (booleans): ``M_FF z_F = -q_F`` by one factorisation with
+    one refinement step, other z's zero; None when ``M_FF`` is singular."""
+    return Blocks(M, q, False).solve(F)
 
 
 def pivot(M: np.ndarray, q: np.ndarray, F: np.ndarray, free: np.ndarray, max_iter: int,
-          block_tries: int = BLOCK_TRIES) -> tuple[str, np.ndarray, int, int, np.ndarray]:
+          block_tries: int = BLOCK_TRIES,
+          symmetric: bool = False) -> tuple[str, np.ndarray, int, int, np.ndarray, int]:
     """Run block principal pivoting from the basis ``F`` (booleans; ``free`` pairs are always
-    basic).  Returns ``(status, z, factorisations, single_pivots, F)`` with status ``"ok"``
-    (every basic variable nonnegative), ``"singular"`` (a singular ``M_FF``) or ``"limit"``."""
+    basic).  Returns ``(status, z, iterations, single_pivots, F, factorisations)`` with status
+    ``"ok"`` (every basic variable nonnegative), ``"singular"`` (a singular ``M_FF``) or
+    ``"limit"``.  ``symmetric``: M is symmetric (Cholesky is tried first)."""
     n = q.shape[0]
     F = F | free
-    absM = np.abs(M)
+    blocks = Blocks(M, q, symmetric)
     best, tries, singles = n + 1, block_tries, 0
     z = np.zeros(n)
     for it in range(1, max_iter + 1):
-        zn = basic_solution(M, q, F)
+        zn = blocks.solve(F)
         if zn is None:
-            return "singular", z, it, singles, F
+            return "singular", z, it, singles, F, blocks.factorisations
         z = zn
         w = M @ z + q
-        scale = np.abs(q) + absM @ np.abs(z)
-        bad = np.where(F, z < -NEG_TOL * max(1.0, float(np.max(np.abs(z), initial=0.0))),
-                       w < -NEG_TOL * scale) & ~free
+        zmax = float(np.max(np.abs(z), initial=0.0))
+        bad = F & (z < -NEG_TOL * max(1.0, zmax)) & ~free
+        rows = np.flatnonzero(~F & (w < 0))  # w_i < 0: judged against the row's own scale
+        if rows.size:
+            scale = np.abs(q[rows]) + np.abs(M[rows]) @ np.abs(z)
+            bad[rows[w[rows] < -NEG_TOL * scale]] = True
         count = int(np.count_nonzero(bad))
         if count == 0:
-            return "ok", z, it, singles, F
+            return "ok", z, it, singles, F, blocks.factorisations
         if count < best:
             best, tries = count, block_tries
             F = F ^ bad
@@ -109,7 +229,7 @@ def pivot(M: np.ndarray, q: np.ndarray, F: np.ndarray, free: np.ndarray, max_ite
             F = F.copy()
             F[i] = not F[i]
             singles += 1
-    return "limit", z, max_iter, singles, F
+    return "limit", z, max_iter, singles, F, blocks.factorisations
 
 
 def run(problem: Any, *, tol: float, max_iter: int | None = None,
@@ -134,10 +254,12 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None,
     elif z0 is not None:
         F = start_point(problem, z0) > 0
         start = f" from the warm-start basis ({int(F.sum())} z basic)"
-    status, z, its, singles, F = pivot(M, q, F, free, limit, block_tries)
-    info = {"basis": np.flatnonzero(F).tolist(), "single_pivots": singles}
-    did = (f"{plural(its, 'factorisation')} ({plural(singles, 'single pivot')} by Murty's "
-           f"least-index fallback){start}")
+    status, z, its, singles, F, factors = pivot(M, q, F, free, limit, block_tries,
+                                                is_symmetric_dense(M))
+    info = {"basis": np.flatnonzero(F).tolist(), "single_pivots": singles,
+            "factorisations": factors}
+    did = (f"{plural(its, 'iteration')}, {plural(factors, 'factorisation')} "
+           f"({plural(singles, 'single pivot')} by Murty's least-index fallback){start}")
     if status == "ok":
         return Outcome(z, its, CONVERGED, f"BPP: all basic variables nonnegative after {did}",
                        info=info)
@@ -145,7 +267,7 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None,
         return Outcome(z, its, SINGULAR, f"BPP: singular pivot block M_FF after {did}; M is "
                                          f"not a P-matrix, outside the method's class",
                        info=info)
-    return Outcome(z, its, ITERATION_LIMIT, f"BPP: limit of {limit} factorisations reached "
+    return Outcome(z, its, ITERATION_LIMIT, f"BPP: limit of {limit} iterations reached "
                                             f"{start} (M may not be a P-matrix)", info=info)
 
 
@@ -169,7 +291,7 @@ METHODS = [
         preference=50,
         kinds=("lcp", "mlcp"),
         options={
-            "max_iter": Option(positive_int, None, "factorisation limit (default "
+            "max_iter": Option(positive_int, None, "iteration limit (default "
                                                    "max(100, 10 n))"),
             "z0": Option(vector_option, None, "warm start: start from the basis "
                                               "{i: z0_i > 0}"),
