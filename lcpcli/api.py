@@ -112,27 +112,29 @@ def solve(problem: Problem | Any, q: Any = None, method: str | None = None, *,
         check_dense_ok(problem, spec)
     else:
         check_dense_work(problem.n, spec)
-    if warm is not None:
-        from lcpcli.solvers.warm import warm_point
-
-        if "z0" in spec.options and options.get("z0") is None:
-            z0 = warm_point(problem, warm)
-            if z0 is not None:
-                options["z0"] = z0
     opts = spec.parse_options(options)
     tol = validate_tol(spec.default_tol if tol is None else tol)
     spec.prepare_once()
     start = time.perf_counter()
     if warm is not None:
-        from lcpcli.solvers.warm import uses_warm_basis, warm_start
+        from lcpcli.solvers.warm import check_warm, uses_warm_basis, warm_point, warm_start
 
-        if uses_warm_basis(spec):
+        check_warm(problem, warm)
+        note = ""
+        if uses_warm_basis(spec, problem):
             tried, note = warm_start(problem, warm, tol)
             if tried is not None:
+                factors = tried.info.pop("blocks", None)
                 res = certify_outcome(problem, tried, "bpp", time.perf_counter() - start, tol)
                 if res.solved:  # never no_solution: the warm start proves nothing
+                    res.factors = factors  # the next warm start on the same M reuses them
                     return res
                 note = f"its answer failed the certificate (error {res.error:.2g})"
+        if "z0" in spec.options and opts.get("z0") is None:  # the cold run starts from z0
+            z0 = warm_point(problem, warm)
+            if z0 is not None:
+                opts = spec.parse_options({**options, "z0": z0})
+        if note:
             outcome = run_method(spec, problem, tol, opts)
             outcome.message += f" (warm start from the given basis did not end certified: " \
                                f"{note}; solved cold)"

@@ -116,6 +116,9 @@ class Result:
     #: :mod:`lcpcli.core.certificate`: 0 ``z_i`` at its lower bound and ``w_i`` basic, 1 at its
     #: upper bound, 2 ``z_i`` basic with ``w_i = 0``); see :mod:`lcpcli.solvers.warm`.
     basis: np.ndarray | None = None
+    #: The factors of the final basis block kept by a warm-started solve (an object of
+    #: :mod:`lcpcli.solvers.methods.bpp`): the next warm start on the same M reuses them.
+    factors: Any = field(default=None, repr=False, compare=False)
 
     @property
     def solved(self) -> bool:

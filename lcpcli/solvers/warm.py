@@ -34,11 +34,32 @@ from lcpcli.solvers.methods import bpp
 from lcpcli.solvers.registry import Cost, Method, get_method
 from lcpcli.solvers.support import _solve_active_set, start_point
 
+#: Below this n a warm start does not pivot from the basis (unless the method asked for is
+#: bpp): the compiled cold kernels are faster there than one BPP iteration in Python
+#: (benchmarks/bench_warm.py: at n = 100 a warm BPP step took about 2x a cold solve).
+WARM_MIN_N = 200
 
-def uses_warm_basis(spec: Method) -> bool:
+
+#: BPP iterations a warm start may take before the cold solve takes over (a nearby basis ends
+#: in a few; outside BPP's class the method may take its full limit, O(n^3) each).
+WARM_MAX_ITER = 50
+
+
+def uses_warm_basis(spec: Method, problem: Any) -> bool:
     """Does a warm start try pivoting from the basis before running ``spec`` cold?  For
-    ``auto``, the pivoting methods and BPP; iterative methods take the warm ``z0`` instead."""
-    return spec.planner or spec.cost == Cost.PIVOTING or spec.name == "bpp"
+    ``bpp``, and for ``auto`` and the pivoting methods from n = :data:`WARM_MIN_N` on;
+    iterative methods take the warm ``z0`` instead."""
+    if spec.name == "bpp":
+        return True
+    return (spec.planner or spec.cost == Cost.PIVOTING) and problem.n >= WARM_MIN_N
+
+
+def check_warm(problem: Any, warm: Any) -> None:
+    """OptionError unless ``warm`` (a Result, a basis or a point) has one entry per pair."""
+    size = warm.n if isinstance(warm, Result) else len(warm) if isinstance(warm, str) \
+        else np.size(warm)
+    if size != problem.n:
+        raise OptionError(f"warm start has length {size}, the problem has n = {problem.n}")
 
 
 def warm_point(problem: Any, warm: Any) -> np.ndarray | None:
@@ -94,7 +115,9 @@ def warm_start(problem: Any, warm: Any, tol: float) -> tuple[Outcome | None, str
     states = warm_basis(problem, warm)
     F = states == BETWEEN
     if problem.kind in ("lcp", "mlcp") and not get_method("bpp").densifies(problem):
-        out = bpp.run(problem, tol=tol, basis=F)
+        factors = warm.factors if isinstance(warm, Result) else None
+        out = bpp.run(problem, tol=tol, basis=F, blocks=factors, keep_blocks=True,
+                      max_iter=WARM_MAX_ITER)
         if out.termination != CONVERGED:
             return None, out.message
         changed = int(np.count_nonzero(np.isin(np.arange(problem.n), out.info["basis"]) != F))

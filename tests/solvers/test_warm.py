@@ -99,7 +99,7 @@ def test_pure_block_pivoting_cycles_and_the_fallback_ends_it() -> None:
     lem = lcpcli.solve(CYCLING_M, CYCLING_Q, method="lemke")
     assert np.allclose(r.z, lem.z, atol=1e-12)
     # the same basis as a warm start: ends certified, same z
-    w = lcpcli.solve(CYCLING_M, CYCLING_Q, warm=np.array(CYCLING_BASIS))
+    w = lcpcli.solve(CYCLING_M, CYCLING_Q, "bpp", warm=np.array(CYCLING_BASIS))
     assert w.solved and np.allclose(w.z, lem.z, atol=1e-12)
 
 
@@ -107,7 +107,7 @@ def test_pure_block_pivoting_cycles_and_the_fallback_ends_it() -> None:
 def test_warm_from_the_solution_basis_takes_one_factorisation() -> None:
     M, q = _pd(40, 5), np.random.default_rng(5).standard_normal(40)
     cold = lcpcli.solve(M, q)
-    warm = lcpcli.solve(M, q, warm=cold)
+    warm = lcpcli.solve(M, q, "bpp", warm=cold)
     assert warm.solved and warm.method == "bpp" and warm.iterations == 1
     assert np.allclose(warm.z, cold.z, atol=1e-12)
     assert np.array_equal(warm.basis, cold.basis)
@@ -125,7 +125,7 @@ def test_perturbed_sequence_warm_equals_cold(n: int, seed: int, steps: int, kind
     prev = lcpcli.solve(M, q)
     for _ in range(steps):
         q = q + 0.01 * np.abs(q) * rng.standard_normal(n)
-        warm, cold = lcpcli.solve(M, q, warm=prev), lcpcli.solve(M, q)
+        warm, cold = lcpcli.solve(M, q, "bpp", warm=prev), lcpcli.solve(M, q)
         assert warm.status == cold.status == "solved"
         scale = 1.0 + np.max(np.abs(cold.z), initial=0.0)
         assert np.max(np.abs(warm.z - cold.z), initial=0.0) <= 1e-7 * scale
@@ -141,39 +141,46 @@ def test_warm_from_a_wrong_basis_still_ends_correctly(n: int, seed: int, start: 
     q = rng.standard_normal(n)
     warm = {"random": rng.random(n) < 0.5, "all_z": np.ones(n, bool),
             "all_w": np.zeros(n, bool), "point": rng.standard_normal(n) * 10}[start]
-    r, cold = lcpcli.solve(M, q, warm=warm), lcpcli.solve(M, q)
+    r, cold = lcpcli.solve(M, q, "bpp", warm=warm), lcpcli.solve(M, q)
     assert r.status == cold.status == "solved"
     assert np.max(np.abs(r.z - cold.z)) <= 1e-7 * (1.0 + np.max(np.abs(cold.z)))
 
 
 def test_warm_outside_bpp_class_falls_back_to_cold() -> None:
-    """A skew-symmetric M (PSD, zero diagonal): the basis {z1} has a singular block; the warm
+    """A skew-symmetric M (PSD, zero diagonal; 100 blocks [[0, 1], [-1, 0]], n = 200 so that
+    auto pivots from the warm basis): the basis {z1, z3, ...} has a singular block; the warm
     start falls back to the cold solve, with the cold verdict."""
-    M, q = np.array([[0.0, 1.0], [-1.0, 0.0]]), np.array([-1.0, 1.0])
+    M = np.kron(np.eye(100), np.array([[0.0, 1.0], [-1.0, 0.0]]))
+    q = np.tile([-1.0, 1.0], 100)
     cold = lcpcli.solve(M, q)
-    r = lcpcli.solve(M, q, warm=np.array([True, False]))
+    r = lcpcli.solve(M, q, warm=np.tile([True, False], 100))
     assert r.status == cold.status == "solved" and r.method == "auto"
     assert "solved cold" in r.message
+    assert np.allclose(r.z, cold.z)
 
 
 def test_warm_never_worse_than_cold_without_solution() -> None:
     """An infeasible LCP: the cold verdict (with its proof) is kept; the warm start itself never
     claims no_solution."""
-    M, q = np.array([[-1.0]]), np.array([-1.0])
+    n = 200  # auto pivots from the warm basis from n = 200 on
+    M, q = -np.eye(n), -np.ones(n)
     cold = lcpcli.solve(M, q)
-    for warm in (np.array([True]), np.array([False])):
+    assert cold.status == "no_solution"
+    for warm in (np.ones(n, bool), np.zeros(n, bool)):
         r = lcpcli.solve(M, q, warm=warm)
-        assert r.status == cold.status
-        assert r.method == cold.method
+        assert r.status == cold.status and r.method == cold.method
+        assert "solved cold" in r.message
 
 
 def test_warm_mlcp_and_box() -> None:
     M, q = _pd(10, 11), np.random.default_rng(11).standard_normal(10)
     prev = lcpcli.solve(M, q, n_eq=3)
-    r = lcpcli.solve(M, q * 1.01, n_eq=3, warm=prev)
+    r = lcpcli.solve(M, q * 1.01, "bpp", n_eq=3, warm=prev)
     assert r.solved and r.method == "bpp"
-    lo, up = -np.ones(10), np.ones(10)
+    M, q = _pd(200, 12), np.random.default_rng(12).standard_normal(200)
+    lo, up = -np.ones(200), np.ones(200)
     prev = lcpcli.solve(M, 5 * q, lower=lo, upper=up)
+    assert set(prev.to_dict()["basis"]) == set("LUF")
     r = lcpcli.solve(M, 5 * q, lower=lo, upper=up, warm=prev)
     assert r.solved and r.method == "bpp" and r.iterations == 1
     assert np.allclose(r.z, prev.z, atol=1e-10)
@@ -201,14 +208,15 @@ def test_iterative_methods_take_the_warm_point() -> None:
 
 
 def test_cli_json_basis_and_z0_result_file(cli, tmp_path) -> None:
-    M, q = _pd(30, 8), np.random.default_rng(8).standard_normal(30)
+    n = 200  # auto and lemke pivot from the warm basis from n = 200 on
+    M, q = _pd(n, 8), np.random.default_rng(8).standard_normal(n)
     (tmp_path / "p1.json").write_text(json.dumps({"M": M.tolist(), "q": q.tolist()}))
-    q2 = q + 0.01 * np.abs(q) * np.random.default_rng(9).standard_normal(30)
+    q2 = q + 0.01 * np.abs(q) * np.random.default_rng(9).standard_normal(n)
     (tmp_path / "p2.json").write_text(json.dumps({"M": M.tolist(), "q": q2.tolist()}))
     r1 = cli("solve", str(tmp_path / "p1.json"), "--json", "-o", str(tmp_path / "r1.json"))
     assert r1.returncode == 0, r1.stderr
     first = json.loads(r1.stdout)
-    assert len(first["basis"]) == 30 and set(first["basis"]) <= set("LF")
+    assert len(first["basis"]) == n and set(first["basis"]) == set("LF")
     for method in ("auto", "lemke"):
         r2 = cli("solve", str(tmp_path / "p2.json"), "--z0", str(tmp_path / "r1.json"),
                  "--json", "-m", method)

@@ -103,6 +103,16 @@ class Blocks:
         #: Pairs changed from the factored basis beyond which a new factorisation is cheaper.
         self.max_k = max(8, int(np.sqrt(q.shape[0])) * 2)
 
+    def reuse(self, M: np.ndarray, q: np.ndarray) -> bool:
+        """Take the new ``q`` of a problem with the same M (True), keeping the factors of the
+        last basis; False (nothing changed) when M differs."""
+        if M is not self.M and (M.shape != self.M.shape or not np.array_equal(M, self.M)):
+            return False
+        self.q = q
+        if self.F0 is not None and self.solve0 is not None:
+            self.x0 = self.solve0(-q[self.idx0])
+        return True
+
     def _refactor(self, F: np.ndarray) -> bool:
         idx = np.flatnonzero(F)
         self.F0, self.factorisations = F.copy(), self.factorisations + 1
@@ -192,21 +202,24 @@ def basic_solution(M: np.ndarray, q: np.ndarray, F: np.ndarray) -> np.ndarray | 
 
 
 def pivot(M: np.ndarray, q: np.ndarray, F: np.ndarray, free: np.ndarray, max_iter: int,
-          block_tries: int = BLOCK_TRIES,
-          symmetric: bool = False) -> tuple[str, np.ndarray, int, int, np.ndarray, int]:
+          block_tries: int = BLOCK_TRIES, symmetric: bool = False,
+          blocks: Blocks | None = None) -> tuple[str, np.ndarray, int, int, np.ndarray, int]:
     """Run block principal pivoting from the basis ``F`` (booleans; ``free`` pairs are always
     basic).  Returns ``(status, z, iterations, single_pivots, F, factorisations)`` with status
     ``"ok"`` (every basic variable nonnegative), ``"singular"`` (a singular ``M_FF``) or
-    ``"limit"``.  ``symmetric``: M is symmetric (Cholesky is tried first)."""
+    ``"limit"``.  ``symmetric``: M is symmetric (Cholesky is tried first); ``blocks``: the
+    factors of an earlier run on the same M and q (:meth:`Blocks.reuse`), updated in place."""
     n = q.shape[0]
     F = F | free
-    blocks = Blocks(M, q, symmetric)
+    if blocks is None:
+        blocks = Blocks(M, q, symmetric)
+    done = blocks.factorisations
     best, tries, singles = n + 1, block_tries, 0
     z = np.zeros(n)
     for it in range(1, max_iter + 1):
         zn = blocks.solve(F)
         if zn is None:
-            return "singular", z, it, singles, F, blocks.factorisations
+            return "singular", z, it, singles, F, blocks.factorisations - done
         z = zn
         w = M @ z + q
         zmax = float(np.max(np.abs(z), initial=0.0))
@@ -217,7 +230,7 @@ def pivot(M: np.ndarray, q: np.ndarray, F: np.ndarray, free: np.ndarray, max_ite
             bad[rows[w[rows] < -NEG_TOL * scale]] = True
         count = int(np.count_nonzero(bad))
         if count == 0:
-            return "ok", z, it, singles, F, blocks.factorisations
+            return "ok", z, it, singles, F, blocks.factorisations - done
         if count < best:
             best, tries = count, block_tries
             F = F ^ bad
@@ -229,13 +242,18 @@ def pivot(M: np.ndarray, q: np.ndarray, F: np.ndarray, free: np.ndarray, max_ite
             F = F.copy()
             F[i] = not F[i]
             singles += 1
-    return "limit", z, max_iter, singles, F, blocks.factorisations
+    return "limit", z, max_iter, singles, F, blocks.factorisations - done
 
 
 def run(problem: Any, *, tol: float, max_iter: int | None = None,
         z0: np.ndarray | None = None, basis: Any = None,
-        block_tries: int = BLOCK_TRIES) -> Outcome:
-    """Solve ``problem`` (LCP or MLCP) by block principal pivoting; see the module docstring."""
+        block_tries: int = BLOCK_TRIES, blocks: Blocks | None = None,
+        keep_blocks: bool = False) -> Outcome:
+    """Solve ``problem`` (LCP or MLCP) by block principal pivoting; see the module docstring.
+
+    ``blocks`` (not a user option; :mod:`lcpcli.solvers.warm`): the :class:`Blocks` of an
+    earlier run on the same M, whose factors are reused; ``keep_blocks``: return this run's
+    in ``info["blocks"]``."""
     n = problem.n
     M = np.ascontiguousarray(problem.dense_M(), dtype=np.float64)
     q = np.ascontiguousarray(problem.q, dtype=np.float64)
@@ -254,10 +272,14 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None,
     elif z0 is not None:
         F = start_point(problem, z0) > 0
         start = f" from the warm-start basis ({int(F.sum())} z basic)"
+    if blocks is None or not blocks.reuse(M, q):
+        blocks = Blocks(M, q, is_symmetric_dense(M))
     status, z, its, singles, F, factors = pivot(M, q, F, free, limit, block_tries,
-                                                is_symmetric_dense(M))
-    info = {"basis": np.flatnonzero(F).tolist(), "single_pivots": singles,
-            "factorisations": factors}
+                                                blocks=blocks)
+    info: dict[str, Any] = {"basis": np.flatnonzero(F).tolist(), "single_pivots": singles,
+                            "factorisations": factors}
+    if keep_blocks:
+        info["blocks"] = blocks
     did = (f"{plural(its, 'iteration')}, {plural(factors, 'factorisation')} "
            f"({plural(singles, 'single pivot')} by Murty's least-index fallback){start}")
     if status == "ok":
