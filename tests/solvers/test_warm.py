@@ -225,3 +225,32 @@ def test_cli_json_basis_and_z0_result_file(cli, tmp_path) -> None:
         assert second["status"] == "solved" and second["method"] == "bpp"
         cold = lcpcli.solve(M, q2)
         assert np.allclose(second["z"], cold.z, atol=1e-9)
+
+
+@settings(max_examples=40, deadline=None)
+@given(n=st.integers(2, 40), seed=st.integers(0, 2**32 - 1), k=st.integers(1, 8),
+       symmetric=st.booleans())
+def test_bordered_solve_equals_a_fresh_factorisation(n: int, seed: int, k: int,
+                                                     symmetric: bool) -> None:
+    """A basis k pairs away from the factored one, solved through the Schur complement of the
+    bordered system, has the basic solution of its own factorisation (and costs none)."""
+    from lcpcli.solvers.methods.bpp import Blocks
+
+    M = _pd(n, seed) if symmetric else _p_matrix(n, seed)
+    rng = np.random.default_rng(seed + 5)
+    q = rng.standard_normal(n)
+    F0 = rng.random(n) < 0.5
+    F = F0.copy()
+    F[rng.choice(n, size=min(k, n), replace=False)] ^= True
+    blocks = Blocks(M, q, symmetric)
+    blocks.solve(F0)
+    z = blocks.solve(F)
+    assert blocks.factorisations == 1
+    ref = np.zeros(n)
+    idx = np.flatnonzero(F)
+    if idx.size:
+        ref[idx] = np.linalg.solve(M[np.ix_(idx, idx)], -q[idx])
+    assert z is not None and np.all(z[~F] == 0)
+    assert np.max(np.abs(z - ref)) <= 1e-8 * (1.0 + np.max(np.abs(ref)))
+    # a new q on the same M keeps the factors; another M does not
+    assert blocks.reuse(M.copy(), -q) and not blocks.reuse(M + 1.0, q)
