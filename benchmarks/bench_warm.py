@@ -12,7 +12,10 @@ A sequence of LCPs as in time stepping: M random positive definite (``A A^T / n 
 * ``warm``: ``lcpcli.solve(M, q_k, warm=cold result of step k-1)``: the basis only, its block
   factored afresh (the first step of a sequence);
 * ``chained``: ``lcpcli.solve(M, q_k, warm=warm result of step k-1)``: the steady state of a
-  sequence, whose result carries the factors of its basis block (the same M reuses them).
+  sequence, whose result carries the factors of its basis block (the same M reuses them);
+* ``bpp-chained``: the same with ``method="bpp"``, which pivots from the basis at every n
+  (``auto`` and Lemke do from n = 200 on, ``lcpcli.solvers.warm.WARM_MIN_N``; below that
+  ``warm`` and ``chained`` are cold solves).
 
 Times: ``seconds`` (``Result.seconds``: the method's time, certification excluded) and
 ``wall`` (the whole call, with the certificate), medians over the steps (the first step of
@@ -38,7 +41,8 @@ import numpy as np  # noqa: E402
 
 import lcpcli  # noqa: E402
 
-KINDS = ("cold", "lemke-revised", "warm", "chained")
+KINDS = ("cold", "lemke-revised", "warm", "chained", "bpp-chained")
+WARM = ("warm", "chained", "bpp-chained")
 
 
 def _run(M: np.ndarray, q: np.ndarray, kind: str, prev: dict[str, object]) -> object:
@@ -46,6 +50,8 @@ def _run(M: np.ndarray, q: np.ndarray, kind: str, prev: dict[str, object]) -> ob
         return lcpcli.solve(M, q)
     if kind == "lemke-revised":
         return lcpcli.solve(M, q, "lemke-revised")
+    if kind == "bpp-chained":
+        return lcpcli.solve(M, q, "bpp", warm=prev["bpp-chained"])
     return lcpcli.solve(M, q, warm=prev["cold" if kind == "warm" else "chained"])
 
 
@@ -55,7 +61,7 @@ def bench(n: int, steps: int, seed: int = 0) -> dict[str, object]:
     M = A @ A.T / n + np.eye(n)
     q = rng.standard_normal(n)
     first = lcpcli.solve(M, q)
-    prev: dict[str, object] = {"cold": first, "chained": first}
+    prev: dict[str, object] = {"cold": first, "chained": first, "bpp-chained": first}
     times: dict[str, list[float]] = {k: [] for k in KINDS}
     secs: dict[str, list[float]] = {k: [] for k in KINDS}
     iters: dict[str, list[int]] = {k: [] for k in KINDS}
@@ -73,18 +79,18 @@ def bench(n: int, steps: int, seed: int = 0) -> dict[str, object]:
                 times[kind].append(wall)
                 secs[kind].append(r.seconds)
                 iters[kind].append(r.iterations)
-        diff = max(diff, float(np.max(np.abs(out["warm"].z - out["cold"].z))),
-                   float(np.max(np.abs(out["chained"].z - out["cold"].z))))
-        prev = {"cold": out["cold"], "chained": out["chained"]}
+        diff = max(diff, *(float(np.max(np.abs(out[k].z - out["cold"].z)))
+                           for k in ("warm", "chained", "bpp-chained")))
+        prev = {k: out[k] for k in ("cold", "chained", "bpp-chained")}
     med = {k: statistics.median(v) for k, v in times.items()}
     med_s = {k: statistics.median(v) for k, v in secs.items()}
     return {"n": n, "steps": steps, "wall": med, "seconds": med_s,
             "iterations": {k: statistics.median(v) for k, v in iters.items()},
             "max_z_difference": diff,
-            "ratio_wall": {k: med[k] / med["cold"] for k in ("warm", "chained")},
-            "ratio_seconds": {k: med_s[k] / med_s["cold"] for k in ("warm", "chained")},
+            "ratio_wall": {k: med[k] / med["cold"] for k in WARM},
+            "ratio_seconds": {k: med_s[k] / med_s["cold"] for k in WARM},
             "ratio_seconds_vs_lemke_revised": {k: med_s[k] / med_s["lemke-revised"]
-                                               for k in ("warm", "chained")}}
+                                               for k in WARM}}
 
 
 def main() -> None:
@@ -101,11 +107,9 @@ def main() -> None:
         for k in KINDS:
             print(f"{n:>5} {k:>14} {row['wall'][k] * 1e3:>10.3f} "
                   f"{row['seconds'][k] * 1e3:>11.3f} {row['iterations'][k]:>6}")
-        print(f"      warm / cold (auto): wall {row['ratio_wall']['warm']:.3f}x, seconds "
-              f"{row['ratio_seconds']['warm']:.3f}x; chained: wall "
-              f"{row['ratio_wall']['chained']:.3f}x, seconds "
-              f"{row['ratio_seconds']['chained']:.3f}x; max |z_warm - z_cold| "
-              f"{row['max_z_difference']:.1e}")
+        print("      / cold (auto), wall and seconds: " + "; ".join(
+            f"{k} {row['ratio_wall'][k]:.3f}x {row['ratio_seconds'][k]:.3f}x" for k in WARM)
+            + f"; max |z_warm - z_cold| {row['max_z_difference']:.1e}")
     meta = {"date": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
             "python": platform.python_version(), "numpy": np.__version__,
             "load": os.getloadavg(), "nproc": os.cpu_count()}

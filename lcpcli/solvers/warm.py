@@ -59,7 +59,15 @@ def check_warm(problem: Any, warm: Any) -> None:
     size = warm.n if isinstance(warm, Result) else len(warm) if isinstance(warm, str) \
         else np.size(warm)
     if size != problem.n:
-        raise OptionError(f"warm start has length {size}, the problem has n = {problem.n}")
+        what = "z0" if warm_point_given(warm) else "basis" if not isinstance(warm, Result) \
+            else "result"
+        raise OptionError(f"warm start {what} has length {size}, the problem has n = "
+                          f"{problem.n}")
+
+
+def warm_point_given(warm: Any) -> bool:
+    """Is ``warm`` a point ``z0`` (numbers), not a Result or a basis?"""
+    return not isinstance(warm, (Result, str)) and np.asarray(warm).dtype.kind != "b"
 
 
 def warm_point(problem: Any, warm: Any) -> np.ndarray | None:
