@@ -125,8 +125,9 @@ class Blocks:
         return True
 
     def solve(self, F: np.ndarray) -> np.ndarray | None:
-        """The basic z of basis ``F`` (booleans), with one step of refinement; None when its
-        block is singular."""
+        """The basic z of basis ``F`` (booleans); None when its block is singular.  No
+        refinement here (:meth:`refine`: the final basis only; the signs that decide the next
+        basis do not need it)."""
         n = self.q.shape[0]
         z = np.zeros(n)
         if self.F0 is None or np.count_nonzero(F != self.F0) > self.max_k:
@@ -143,18 +144,25 @@ class Blocks:
                 z[self.idx0] = self.x0
             else:
                 z[F] = zF[F]
-        idx = np.flatnonzero(F)
-        if idx.size:  # one step of refinement: M_FF z_F + q_F should be 0
-            r = self.M[idx] @ z + self.q[idx]
-            if np.array_equal(F, self.F0):
-                z[idx] -= self.solve0(r)
-            else:
-                rhs = np.zeros(n)
-                rhs[idx] = -r
-                dz = self._bordered(F, rhs)
-                if dz is not None:
-                    z[idx] += dz[idx]
         return z if np.all(np.isfinite(z)) else None
+
+    def refine(self, F: np.ndarray, z: np.ndarray, w: np.ndarray) -> np.ndarray:
+        """One step of iterative refinement of the basic z of ``F`` (the one just solved),
+        given ``w = M z + q``, whose rows in F should be 0."""
+        idx = np.flatnonzero(F)
+        if idx.size == 0:
+            return z
+        out = z.copy()
+        if np.array_equal(F, self.F0):
+            out[idx] -= self.solve0(w[idx])
+        else:
+            rhs = np.zeros(self.q.shape[0])
+            rhs[idx] = -w[idx]
+            dz = self._bordered(F, rhs)
+            if dz is None:
+                return z
+            out[idx] += dz[idx]
+        return out if np.all(np.isfinite(out)) else z
 
     def _bordered(self, F: np.ndarray, b: np.ndarray) -> np.ndarray | None:
         """Solve ``M_FF z_F = b_F`` through the factors of ``M_{F0 F0}`` (a length-n vector,
@@ -195,12 +203,6 @@ class Blocks:
         return out
 
 
-def basic_solution(M: np.ndarray, q: np.ndarray, F: np.ndarray) -> np.ndarray | None:
-    """The basic z of basis ``F`` (booleans): ``M_FF z_F = -q_F`` by one factorisation with
-    one refinement step, other z's zero; None when ``M_FF`` is singular."""
-    return Blocks(M, q, False).solve(F)
-
-
 def pivot(M: np.ndarray, q: np.ndarray, F: np.ndarray, free: np.ndarray, max_iter: int,
           block_tries: int = BLOCK_TRIES, symmetric: bool = False,
           blocks: Blocks | None = None) -> tuple[str, np.ndarray, int, int, np.ndarray, int]:
@@ -230,6 +232,7 @@ def pivot(M: np.ndarray, q: np.ndarray, F: np.ndarray, free: np.ndarray, max_ite
             bad[rows[w[rows] < -NEG_TOL * scale]] = True
         count = int(np.count_nonzero(bad))
         if count == 0:
+            z = blocks.refine(F, z, w)
             return "ok", z, it, singles, F, blocks.factorisations - done
         if count < best:
             best, tries = count, block_tries
