@@ -237,7 +237,7 @@ def _check_stack(M: Any, q: Any, method: str | None, lower: Any, upper: Any, n_e
 def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None = None,
                lower: Any = None, upper: Any = None, n_eq: int = 0, threads: int | None = None,
                backend: str = "cpu", on_error: str = "raise", plan: StackPlan | None = None,
-               **options: Any) -> StackResult:
+               warm: Any = None, **options: Any) -> StackResult:
     """Solve a stack of K problems of one size n and certify every answer.
 
     ``M`` has shape (K, n, n) and ``q`` (K, n): problem ``k`` (0-based) is ``w = M[k] z +
@@ -255,6 +255,12 @@ def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None =
     first on them for the whole stack when it has a batched kernel, and retries the rest with
     ``auto`` itself.  Without a batched kernel (or with options the kernel does not take, or an
     MLCP) every problem is solved by :func:`solve`.
+
+    ``warm``: the :class:`StackResult` of a previous stack of the same shape (or a (K, n)
+    array of points ``z0``, or of booleans: bases): problem ``k`` is solved by
+    ``solve(..., warm=row k)`` (see :func:`solve`; a row with NaN, e.g. of an ``error``
+    problem, is solved cold).  A first version: a Python loop over the problems, no batched
+    kernel, so it pays only where a warm :func:`solve` beats a batched cold one (n >= 200).
 
     ``on_error``: ``"raise"`` (a problem with NaN or Inf data raises :class:`ProblemError`
     naming its index; problems before it are solved first) or ``"mark"`` (its status is
@@ -280,7 +286,10 @@ def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None =
     messages: dict[int, str] = {}
     methods_of: dict[int, str] = {}
     results: dict[int, Result] = {}
-    if plan is None:
+    rows = _warm_rows(warm, K, n)
+    if rows is not None:  # warm starts: one problem at a time
+        run_spec, kernel_options = None, {}
+    elif plan is None:
         run_spec, kernel_options = _batched_method(spec, kind, options, M, q, lower, upper)
     else:
         run_spec = None if plan.kernel_method is None else get_method(plan.kernel_method)
@@ -320,7 +329,8 @@ def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None =
             messages[k] = str(exc)
             continue
         try:
-            r = solve(problem, spec.name, tol=tol, **options)
+            row = None if rows is None or not np.all(np.isfinite(rows[k])) else rows[k]
+            r = solve(problem, spec.name, tol=tol, warm=row, **options)
         except LcpError as exc:
             status[k], error[k], residual[k] = codes[Status.ERROR], np.inf, np.nan
             messages[k] = str(exc)
@@ -338,6 +348,16 @@ def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None =
                        seconds=time.perf_counter() - start, retried=retried,
                        messages=messages, methods=methods_of, batched=run_spec is not None,
                        results=results)
+
+
+def _warm_rows(warm: Any, K: int, n: int) -> np.ndarray | None:
+    """The (K, n) warm-start rows of :func:`solve_many` (points, or booleans: bases)."""
+    if warm is None:
+        return None
+    rows = np.asarray(warm.z if isinstance(warm, StackResult) else warm)
+    if rows.shape != (K, n):
+        raise OptionError(f"warm start of a stack must have shape ({K}, {n}), got {rows.shape}")
+    return rows
 
 
 #: Problems of one size a list needs before :func:`solve_each` stacks them.

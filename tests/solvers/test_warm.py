@@ -254,3 +254,25 @@ def test_bordered_solve_equals_a_fresh_factorisation(n: int, seed: int, k: int,
     assert np.max(np.abs(z - ref)) <= 1e-8 * (1.0 + np.max(np.abs(ref)))
     # a new q on the same M keeps the factors; another M does not
     assert blocks.reuse(M.copy(), -q) and not blocks.reuse(M + 1.0, q)
+
+
+def test_solve_many_warm_from_the_previous_stack() -> None:
+    """Each problem of a stack warm-started from the previous stack's answer (n = 200: auto
+    pivots from the basis): same verdicts and z as a cold stack; a NaN row is solved cold."""
+    K, n = 3, 200
+    M = np.stack([_pd(n, s) for s in range(K)])
+    rng = np.random.default_rng(21)
+    q = rng.standard_normal((K, n))
+    prev = lcpcli.solve_many(M, q)
+    q2 = q + 0.01 * np.abs(q) * rng.standard_normal((K, n))
+    cold = lcpcli.solve_many(M, q2)
+    warm = lcpcli.solve_many(M, q2, warm=prev)
+    assert warm.counts() == cold.counts() == {"solved": K}
+    assert np.allclose(warm.z, cold.z, atol=1e-9)
+    assert [warm.method_of(k) for k in range(K)] == ["bpp"] * K
+    rows = prev.z.copy()
+    rows[1] = np.nan
+    again = lcpcli.solve_many(M, q2, warm=rows)
+    assert again.counts() == {"solved": K} and again.method_of(1) == "auto"
+    with pytest.raises(OptionError):
+        lcpcli.solve_many(M, q2, warm=prev.z[:2])
