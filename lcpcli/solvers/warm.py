@@ -11,13 +11,14 @@ state wins.
 A warm start (:func:`warm_start`, ``lcpcli.solve(p, warm=...)``, ``lcpcli solve --z0 FILE``)
 takes a previous :class:`Result`, a basis (booleans, True: ``z_i`` basic, or letters such as
 ``"FLLF"``), or a point ``z0`` (its basis is that of ``z0`` and ``w0 = M z0 + q``).  For an
-LCP or MLCP it runs block principal pivoting (:mod:`lcpcli.solvers.methods.bpp`) from that
-basis: when the basis is still right, its basic solution is the answer after one
+LCP or MLCP with a dense M it runs block principal pivoting (:mod:`lcpcli.solvers.methods.bpp`)
+from that basis: when the basis is still right, its basic solution is the answer after one
 factorisation; when a few pairs changed, block pivots fix them in a few more.  For a box LCP
-the basic solution of the basis (``z`` at the bounds of the ``L``/``U`` pairs, the ``F`` rows
-solved) is tried.  An answer counts only when it passes the certificate; otherwise (a wrong
-basis on a matrix outside BPP's class, a singular block) the caller solves the problem cold,
-so a warm start never gives a worse verdict than a cold one, and never ``no_solution``.
+or a sparse M (never densified here) the basic solution of the basis (``z`` at the bounds of
+the ``L``/``U`` pairs, the ``F`` rows solved, sparse LU for a sparse M) is tried.  An answer
+counts only when it passes the certificate; otherwise (a wrong basis on a matrix outside BPP's
+class, a singular block) the caller solves the problem cold, so a warm start never gives a
+worse verdict than a cold one, and never ``no_solution``.
 """
 
 from __future__ import annotations
@@ -31,7 +32,7 @@ from lcpcli.core.errors import OptionError
 from lcpcli.core.result import BASIS_LETTERS, CONVERGED, Outcome, Result
 from lcpcli.core.text import plural
 from lcpcli.solvers.methods import bpp
-from lcpcli.solvers.registry import Cost, Method, get_method
+from lcpcli.solvers.registry import Cost, Method
 from lcpcli.solvers.support import _solve_active_set, start_point
 
 #: Below this n a warm start does not pivot from the basis (unless the method asked for is
@@ -122,7 +123,7 @@ def warm_start(problem: Any, warm: Any, tol: float) -> tuple[Outcome | None, str
     """
     states = warm_basis(problem, warm)
     F = states == BETWEEN
-    if problem.kind in ("lcp", "mlcp") and not get_method("bpp").densifies(problem):
+    if problem.kind in ("lcp", "mlcp") and not problem.sparse:
         factors = warm.factors if isinstance(warm, Result) else None
         out = bpp.run(problem, tol=tol, basis=F, blocks=factors, keep_blocks=True,
                       max_iter=WARM_MAX_ITER)

@@ -276,3 +276,16 @@ def test_solve_many_warm_from_the_previous_stack() -> None:
     assert again.counts() == {"solved": K} and again.method_of(1) == "auto"
     with pytest.raises(OptionError):
         lcpcli.solve_many(M, q2, warm=prev.z[:2])
+
+
+def test_sparse_warm_start_solves_the_basis_without_densifying() -> None:
+    import scipy.sparse as sp
+
+    n = 300
+    M = sp.diags([-1.0, 4.0, -1.0], [-1, 0, 1], shape=(n, n), format="csr")
+    q = np.random.default_rng(30).standard_normal(n)
+    prev = lcpcli.solve(M, q)
+    r = lcpcli.solve(M, q, warm=prev)
+    assert r.solved and r.method == "bpp" and r.iterations == 1
+    assert "basic solution of the given basis" in r.message
+    assert np.allclose(r.z, prev.z, atol=1e-10)
