@@ -149,12 +149,10 @@ def certify_outcome(problem: Problem, outcome: Outcome, method: str, seconds: fl
                     tol: float) -> Result:
     """Turn a method's raw :class:`Outcome` into a verdict by checking its answer."""
     z = float64_array(outcome.z)
-    basis = np.empty(problem.n, dtype=np.int8)  # each pair's state: the final basis
     if outcome.checked is not None and outcome.checked[0].tol == tol:
         cert, w = outcome.checked  # the method certified this very z (auto does)
-        check(problem, z, tol, state=basis)  # the states only (a few us on the small path)
     else:
-        cert, w = check(problem, z, tol, state=basis)
+        cert, w = check(problem, z, tol)
     message = outcome.message
     if cert.passed:
         status = SOLVED
@@ -169,7 +167,8 @@ def certify_outcome(problem: Problem, outcome: Outcome, method: str, seconds: fl
                        f"tol {tol:.3g}{_why(cert)}")
     # positional, in the order of Result's fields (this is on the small-solve path)
     return Result(status, method, z, w, outcome.iterations, seconds, cert, message,
-                  outcome.termination, problem.name, outcome.trace, dict(outcome.info), basis)
+                  outcome.termination, problem.name, outcome.trace, dict(outcome.info), None,
+                  None, problem)  # the basis: on first use (Result.basis)
 
 
 def _why(cert: Any) -> str:
@@ -340,6 +339,7 @@ def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None =
         iterations[k], error[k], residual[k] = r.iterations, r.error, r.residual
         messages[k] = r.message
         methods_of[k] = r.method
+        r.basis  # noqa: B018  (computed now: the Result then no longer holds the problem)
         results[k] = r
     retried = np.zeros(K, bool)
     retried[retry] = run_spec is not None
@@ -401,7 +401,7 @@ def solve_each(problems: list[Problem], method: str | None = None, *, tol: float
                             iterations=int(res.iterations[j]), seconds=share,
                             certificate=cert, message=res.message(j),
                             termination=CONVERGED if cert.passed else Termination.NUMERICAL,
-                            problem_name=p.name, info={"batched": True}, basis=basis)
+                            problem_name=p.name, info={"batched": True}, known_basis=basis)
     for i, p in enumerate(problems):
         if out[i] is None:
             out[i] = solve(p, method, tol=tol, **options)

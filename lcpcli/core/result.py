@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from enum import Enum
 from typing import Any
 
@@ -112,13 +112,39 @@ class Result:
     problem_name: str = ""
     trace: list[dict[str, Any]] | None = None
     info: dict[str, Any] = field(default_factory=dict)
-    #: The final basis: each pair's state as the certificate scored it (int8 codes of
-    #: :mod:`lcpcli.core.certificate`: 0 ``z_i`` at its lower bound and ``w_i`` basic, 1 at its
-    #: upper bound, 2 ``z_i`` basic with ``w_i = 0``); see :mod:`lcpcli.solvers.warm`.
-    basis: np.ndarray | None = None
+    #: The final basis once known (see :attr:`basis`).
+    known_basis: np.ndarray | None = field(default=None, repr=False)
     #: The factors of the final basis block kept by a warm-started solve (an object of
     #: :mod:`lcpcli.solvers.methods.bpp`): the next warm start on the same M reuses them.
     factors: Any = field(default=None, repr=False, compare=False)
+    #: The problem, until :attr:`basis` is first asked for (then dropped).
+    basis_source: Any = field(default=None, repr=False, compare=False)
+
+    @property
+    def basis(self) -> np.ndarray | None:
+        """The final basis: each pair's state as the certificate scores ``z`` (int8 codes of
+        :mod:`lcpcli.core.certificate`: 0 ``z_i`` at its lower bound and ``w_i`` basic, 1 at
+        its upper bound, 2 ``z_i`` basic with ``w_i = 0``); see :mod:`lcpcli.solvers.warm`.
+        Computed on first use (one certificate pass), so that solves that never ask pay
+        nothing; None when the Result has neither."""
+        if self.known_basis is None and self.basis_source is not None:
+            from lcpcli.core.certificate import check
+
+            states = np.empty(self.n, dtype=np.int8)
+            check(self.basis_source, self.z, self.certificate.tol, state=states)
+            self.known_basis, self.basis_source = states, None
+        return self.known_basis
+
+    def __getstate__(self) -> list[Any]:
+        """Pickled (process pools) with its basis computed and without the problem or the
+        factors (which hold the matrix and closures)."""
+        self.basis  # noqa: B018
+        return [getattr(self, f.name) if f.name not in ("factors", "basis_source") else None
+                for f in fields(self)]
+
+    def __setstate__(self, state: list[Any]) -> None:
+        for f, value in zip(fields(self), state, strict=True):
+            object.__setattr__(self, f.name, value)
 
     @property
     def solved(self) -> bool:

@@ -289,3 +289,15 @@ def test_sparse_warm_start_solves_the_basis_without_densifying() -> None:
     assert r.solved and r.method == "bpp" and r.iterations == 1
     assert "basic solution of the given basis" in r.message
     assert np.allclose(r.z, prev.z, atol=1e-10)
+
+
+def test_results_pickle_with_their_basis_and_without_factors() -> None:
+    import pickle
+
+    n = 200
+    M, q = _pd(n, 40), np.random.default_rng(40).standard_normal(n)
+    r = lcpcli.solve(M, q, "bpp", warm=lcpcli.solve(M, q))
+    assert r.factors is not None
+    back = pickle.loads(pickle.dumps(r))
+    assert back.factors is None and back.basis_source is None
+    assert np.array_equal(back.basis, r.basis) and np.array_equal(back.z, r.z)
