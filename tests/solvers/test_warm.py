@@ -301,3 +301,14 @@ def test_results_pickle_with_their_basis_and_without_factors() -> None:
     back = pickle.loads(pickle.dumps(r))
     assert back.factors is None and back.basis_source is None
     assert np.array_equal(back.basis, r.basis) and np.array_equal(back.z, r.z)
+
+
+def test_bpp_basis_option_forms() -> None:
+    from lcpcli.solvers.registry import get_method
+
+    spec = get_method("bpp")
+    for given in ("FLF", "1,0,1", [True, False, True], [1, 0, 1]):
+        assert spec.parse_options({"basis": given})["basis"].tolist() == [True, False, True]
+    for bad in ("FX", "1,2", "", [0.5, 1]):
+        with pytest.raises(OptionError):
+            spec.parse_options({"basis": bad})

@@ -297,10 +297,16 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None,
 
 
 def _basis_option(value: Any) -> np.ndarray:
-    """A basis: a sequence of booleans (True: z_i basic)."""
+    """A basis: booleans or 0/1 (True: z_i basic), as a sequence or as text (``"1,0,1"``, or
+    the letters of ``--json``'s ``basis``, ``"FLF"``: F basic)."""
+    if isinstance(value, str):
+        text = value.strip()
+        value = [c == "F" for c in text] if set(text) <= set("LF") and text else \
+            [int(x) if x.strip() in ("0", "1") else -1 for x in text.split(",")]
     arr = np.asarray(value)
     if arr.ndim != 1 or arr.dtype.kind not in "bi" or not np.isin(arr, (0, 1)).all():
-        raise ValueError("a basis is a list of booleans (True: z_i basic)")
+        raise ValueError("a basis is a list of booleans or 0/1 (True: z_i basic), '1,0,1', or "
+                         "letters 'FLF' (F: z_i basic)")
     return arr.astype(bool)
 
 
