@@ -307,8 +307,21 @@ def test_bpp_basis_option_forms() -> None:
     from lcpcli.solvers.registry import get_method
 
     spec = get_method("bpp")
-    for given in ("FLF", "1,0,1", [True, False, True], [1, 0, 1]):
-        assert spec.parse_options({"basis": given})["basis"].tolist() == [True, False, True]
+    for form in ("FLF", "1,0,1", [True, False, True], [1, 0, 1]):
+        assert spec.parse_options({"basis": form})["basis"].tolist() == [True, False, True]
     for bad in ("FX", "1,2", "", [0.5, 1]):
         with pytest.raises(OptionError):
             spec.parse_options({"basis": bad})
+
+
+def test_batch_jsonl_rows_carry_the_basis(cli, tmp_path) -> None:
+    """A batch row is the --json object: its basis included, usable as the next --z0."""
+    M, q = _pd(6, 50), np.random.default_rng(50).standard_normal(6)
+    for name in ("a", "b"):
+        (tmp_path / f"{name}.json").write_text(json.dumps({"M": M.tolist(), "q": q.tolist()}))
+    r = cli("solve", str(tmp_path / "a.json"), str(tmp_path / "b.json"), "-o",
+            str(tmp_path / "rows.jsonl"), "-q")
+    assert r.returncode == 0, r.stderr
+    rows = [json.loads(line) for line in (tmp_path / "rows.jsonl").read_text().splitlines()]
+    expected = lcpcli.solve(M, q).to_dict()["basis"]
+    assert [row["basis"] for row in rows] == [expected, expected]
