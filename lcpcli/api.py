@@ -8,6 +8,7 @@ from typing import Any
 
 import numpy as np
 
+from lcpcli.analysis.proof import confirm
 from lcpcli.core import limits
 from lcpcli.core.certificate import check, validate_tol
 from lcpcli.core.errors import LcpError, OptionError
@@ -158,9 +159,14 @@ def certify_outcome(problem: Problem, outcome: Outcome, method: str, seconds: fl
         status = SOLVED
         if outcome.termination != CONVERGED:
             message = f"{message}; the returned point passes the certificate anyway"
-    elif outcome.proven_infeasible:
-        status = NO_SOLUTION
+    elif outcome.proven_infeasible and (proof := confirm(problem, outcome)) is not None:
+        status = NO_SOLUTION  # the Farkas vector passed its check (lcpcli.analysis.proof)
+        outcome.info["farkas_y"] = proof.y.tolist()
+        outcome.info["proof"] = proof.as_dict()
     else:
+        if outcome.proven_infeasible:
+            message = (f"{message}; claimed infeasible, but no Farkas vector passes the check, "
+                       f"so nothing is proven")
         status = UNSOLVED
         if outcome.termination == CONVERGED:
             message = (f"{message}, but the certificate failed: error {cert.error:.3g} > "

@@ -111,12 +111,15 @@ def exact_lemke_sequence(M: np.ndarray, q: np.ndarray, max_pivots: int = 5000):
 
 
 def componentwise_error(M: Any, q: np.ndarray, z: np.ndarray, lo: np.ndarray | None = None,
-                        up: np.ndarray | None = None, n_eq: int = 0) -> float:
+                        up: np.ndarray | None = None, n_eq: int = 0,
+                        w: np.ndarray | None = None) -> float:
     """The certificate's ``error``, re-implemented independently (dense numpy, plain loops).
 
     Same definition as :mod:`lcpcli.core.certificate`, written differently on purpose: every
     pair's states are enumerated explicitly, and the blocks of coupled rows are found by a
     breadth-first search over an explicit graph instead of union-find.  Slow; for tests only.
+    ``w``: use this ``M z + q`` (e.g. the exact one, rounded once) instead of the one computed
+    here in floating point.
     """
     M = np.asarray(M.toarray() if hasattr(M, "toarray") else M, dtype=float)
     q = np.asarray(q, dtype=float)
@@ -127,7 +130,7 @@ def componentwise_error(M: Any, q: np.ndarray, z: np.ndarray, lo: np.ndarray | N
         up = np.full(n, np.inf)
     if not np.all(np.isfinite(z)):
         return float("inf")
-    w = M @ z + q
+    w = M @ z + q if w is None else np.asarray(w, dtype=float)
     terms = np.abs(M) * np.abs(z)[None, :]
     a = terms.sum(axis=1)
     s = a + np.abs(q)
@@ -198,3 +201,50 @@ def componentwise_error(M: Any, q: np.ndarray, z: np.ndarray, lo: np.ndarray | N
                 growth[i] = max(1.0, float(g[i])) if q[i] != 0 else 1.0
     err = [0.0 if eps[i] == 0 else eps[i] * growth[i] for i in range(n)]
     return float(max(err)) if n else 0.0
+
+
+def farkas_certifies(M: Any, q: np.ndarray, y: Any, lo: np.ndarray | None = None,
+                     up: np.ndarray | None = None, n_eq: int = 0) -> bool:
+    """Whether ``y`` proves that ``w = M z + q`` has no feasible point over the box (the
+    no_solution proof of :mod:`lcpcli.analysis.proof`), re-implemented independently: exact
+    rational arithmetic (every double is a rational), one pair at a time, with the same
+    rounding-level margin ``4 (n + 2) 2^-53`` relative to ``|M|^T |y|`` and ``|q|^T |y|``.
+
+    Sign rules: ``y_i >= 0`` where only ``lo_i`` is finite, ``<= 0`` where only ``up_i`` is,
+    free where neither is, 0 where both are; then ``g = M^T y`` must be ``<= 0`` where ``up_i``
+    is infinite and ``>= 0`` where ``lo_i`` is (within the margin), and
+    ``q^T y + sum_i max(g_i lo_i, g_i up_i)`` (finite bounds only) must be below ``-margin``.
+    """
+    M = np.asarray(M.toarray() if hasattr(M, "toarray") else M, dtype=float)
+    q = np.asarray(q, dtype=float)
+    y = np.asarray(y, dtype=float)
+    n = q.size
+    if lo is None:
+        lo = np.where(np.arange(n) < n_eq, -np.inf, 0.0)
+        up = np.full(n, np.inf)
+    if y.shape != (n,) or not np.all(np.isfinite(y)) or not np.any(y != 0):
+        return False
+    gamma = Fraction(4 * (n + 2), 2 ** 53)
+    Y = [Fraction(float(v)) for v in y]
+    total = sum((Fraction(float(q[i])) * Y[i] for i in range(n)), Fraction(0))
+    scale = sum((abs(Fraction(float(q[i])) * Y[i]) for i in range(n)), Fraction(0))
+    for i in range(n):
+        lo_f, up_f = bool(np.isfinite(lo[i])), bool(np.isfinite(up[i]))
+        if (lo_f and not up_f and Y[i] < 0) or (up_f and not lo_f and Y[i] > 0) \
+                or (lo_f and up_f and Y[i] != 0):
+            return False
+        g = sum((Fraction(float(M[j, i])) * Y[j] for j in range(n)), Fraction(0))
+        a = sum((abs(Fraction(float(M[j, i])) * Y[j]) for j in range(n)), Fraction(0))
+        if not up_f and g > gamma * a:
+            return False
+        if not lo_f and -g > gamma * a:
+            return False
+        if not up_f:
+            g = min(g, Fraction(0))
+        if not lo_f:
+            g = max(g, Fraction(0))
+        ends = [g * Fraction(float(b)) for b in (lo[i], up[i]) if np.isfinite(b)]
+        best = max(ends) if ends else Fraction(0)
+        total += best
+        scale += abs(best)
+    return total < -gamma * scale

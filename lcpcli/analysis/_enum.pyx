@@ -24,7 +24,7 @@ lcpcli's pools use ``forkserver``/``spawn`` (see :mod:`lcpcli.batch.pool`).
 """
 
 from cython.parallel cimport prange
-from libc.math cimport fabs
+from libc.math cimport fabs, frexp, ldexp
 from libc.stdint cimport int64_t, uint8_t
 from libc.stdlib cimport free, malloc
 
@@ -155,9 +155,48 @@ cdef bint _complete_pivot_consistent(double* A, double* b, Py_ssize_t k, double 
     return True
 
 
+cdef void _fill_block(const Data* D, const int64_t* idx, Py_ssize_t k, double* A, double* b,
+                      int* ce) noexcept nogil:
+    """``A = M[S, S]``, ``b = -q_S``, equilibrated by powers of two (exact): every row, then
+    every column, divided by its largest entry's binary exponent (``ce`` keeps the column
+    exponents: the solution of the scaled block is ``z_j 2^ce[j]``).  The singularity test on
+    the result is relative to the block itself: the same on ``D1 M[S, S] D2`` for power-of-two
+    ``D1``, ``D2``, and independent of the other entries of M."""
+    cdef Py_ssize_t n = D.n, r, c
+    cdef double big
+    cdef int e
+    for r in range(k):
+        b[r] = -D.q[idx[r]]
+        big = 0.0
+        for c in range(k):
+            A[r * k + c] = D.M[idx[r] * n + idx[c]]
+            big = max(big, fabs(A[r * k + c]))
+        if big > 0.0:
+            frexp(big, &e)
+            for c in range(k):
+                A[r * k + c] = ldexp(A[r * k + c], -e)
+            b[r] = ldexp(b[r], -e)
+    for c in range(k):
+        big = 0.0
+        for r in range(k):
+            big = max(big, fabs(A[r * k + c]))
+        ce[c] = 0
+        if big > 0.0:
+            frexp(big, &e)
+            ce[c] = e
+            for r in range(k):
+                A[r * k + c] = ldexp(A[r * k + c], -e)
+
+
 cdef uint8_t one_cone(const Data* D, int64_t code, int64_t* idx, double* A, double* b,
-                      double* z) noexcept nogil:
-    """Status of cone ``code``; ``idx`` (n), ``A`` (n * n), ``b``, ``z`` (n) are scratch."""
+                      double* z, double* Tm) noexcept nogil:
+    """Status of cone ``code``; ``idx`` (2 n), ``A`` (n * n), ``b``, ``z`` (n) are scratch.
+
+    ``D.piv_tol`` is relative: the block is singular when, in some column of the elimination,
+    every remaining entry is at most ``piv_tol`` times the magnitude of the terms it was
+    computed from (``Tm``, n * n scratch; as :func:`lcpcli.analysis.classify` tests principal
+    pivots): a test that is the same on ``D1 M[S, S] D2`` for any positive diagonal ``D1``,
+    ``D2``, whatever the other entries of M."""
     cdef Py_ssize_t n = D.n, i, j, k = 0, r, c, p, bi
     cdef const double* M = D.M
     cdef const double* q = D.q
@@ -178,32 +217,46 @@ cdef uint8_t one_cone(const Data* D, int64_t code, int64_t* idx, double* A, doub
             if q[i] < -D.feas_rel * D.qnorm:
                 return E_INFEASIBLE
         return E_FEASIBLE
-    for r in range(k):
-        b[r] = -q[idx[r]]
-        for c in range(k):
-            A[r * k + c] = M[idx[r] * n + idx[c]]
+    cdef int* ce = <int*> (idx + n)  # the column exponents, after the n indices
+    cdef bint shown
+    cdef double f, piv
+    _fill_block(D, idx, k, A, b, ce)
+    for r in range(k * k):
+        Tm[r] = fabs(A[r])
     # ---- LU with partial pivoting, applied to b on the fly
     for p in range(k):
-        best = fabs(A[p * k + p])
+        best = -1.0
         bi = p
-        for i in range(p + 1, k):
+        shown = False  # some entry of the column is larger than its rounding could make it
+        for i in range(p, k):
             a = fabs(A[i * k + p])
+            if a > D.piv_tol * Tm[i * k + p]:
+                shown = True
             if a > best:
                 best = a
                 bi = i
-        if best <= D.piv_tol:
+        if not shown or best == 0.0:
             singular = True
             break
         if bi != p:
             _swap_rows(A, b, k, p, bi, p)
-        _eliminate_below(A, b, k, p)
+            for j in range(p, k):
+                t = Tm[p * k + j]
+                Tm[p * k + j] = Tm[bi * k + j]
+                Tm[bi * k + j] = t
+        piv = A[p * k + p]
+        for i in range(p + 1, k):
+            f = A[i * k + p] / piv
+            if f != 0.0:
+                for j in range(p + 1, k):
+                    A[i * k + j] -= f * A[p * k + j]
+                    Tm[i * k + j] += fabs(f) * Tm[p * k + j]
+                b[i] -= f * b[p]
     if singular:
+        _fill_block(D, idx, k, A, b, ce)
         bmax = 0.0
         for r in range(k):
-            b[r] = -q[idx[r]]
             bmax = max(bmax, fabs(b[r]))
-            for c in range(k):
-                A[r * k + c] = M[idx[r] * n + idx[c]]
         cons_tol = 1e-9 * (bmax + D.piv_tol) * k
         if _complete_pivot_consistent(A, b, k, D.piv_tol, cons_tol):
             return E_SINGULAR_CONSISTENT
@@ -215,6 +268,8 @@ cdef uint8_t one_cone(const Data* D, int64_t code, int64_t* idx, double* A, doub
         for j in range(p + 1, k):
             s -= A[p * k + j] * z[j]
         z[p] = s / A[p * k + p]
+    for p in range(k):
+        z[p] = ldexp(z[p], -ce[p])
         zmax = max(zmax, fabs(z[p]))
     tau = D.feas_rel * (D.mu * zmax + D.qnorm)
     for p in range(k):
@@ -237,14 +292,15 @@ cdef int classify_range(const Data* D, int64_t start, int64_t lo, int64_t hi,
     memory."""
     cdef Py_ssize_t n = D.n
     cdef int64_t t
-    cdef double* work = <double*>malloc((n * n + 2 * n + 1) * sizeof(double))
-    cdef int64_t* idx = <int64_t*>malloc((n + 1) * sizeof(int64_t))
+    cdef double* work = <double*>malloc((2 * n * n + 2 * n + 1) * sizeof(double))
+    cdef int64_t* idx = <int64_t*>malloc((2 * n + 1) * sizeof(int64_t))  # + one_cone's ce
     if work == NULL or idx == NULL:
         free(work)
         free(idx)
         return -1
     for t in range(lo, hi):
-        out[t] = one_cone(D, start + t, idx, work, work + n * n, work + n * n + n)
+        out[t] = one_cone(D, start + t, idx, work, work + n * n, work + n * n + n,
+                          work + n * n + 2 * n)
     free(work)
     free(idx)
     return 0
@@ -378,8 +434,8 @@ cdef int ppt_block(const Data* D, int64_t start, Py_ssize_t k, uint8_t* out, int
     cdef Py_ssize_t n = D.n, i, j, d, level, s, c
     cdef int64_t t, low
     cdef bint ok = True
-    cdef double* work = <double*>malloc(((k + 2) * n * n + (k + 4) * n + 1) * sizeof(double))
-    cdef int64_t* iwork = <int64_t*>malloc((n + 2 * (k + 1) + 1) * sizeof(int64_t))
+    cdef double* work = <double*>malloc(((k + 3) * n * n + (k + 4) * n + 1) * sizeof(double))
+    cdef int64_t* iwork = <int64_t*>malloc((2 * n + 2 * (k + 1) + 1) * sizeof(int64_t))
     if work == NULL or iwork == NULL:
         free(work)
         free(iwork)
@@ -390,9 +446,10 @@ cdef int ppt_block(const Data* D, int64_t start, Py_ssize_t k, uint8_t* out, int
     cdef double* tmpQ = tmpT + n * n
     cdef double* b = tmpQ + n
     cdef double* z = b + n
+    cdef double* Tm = z + n  # one_cone's magnitudes (n x n)
     cdef double* A = tmpT  # direct-path scratch (tmpT is free once the root is pivoted)
     cdef int64_t* idx = iwork
-    cdef int64_t* slot = idx + n
+    cdef int64_t* slot = idx + 2 * n  # idx: n indices, then one_cone's column exponents
     cdef int64_t* choice = slot + k + 1
     # root: pivot (M, q) on the fixed high bits of start, highest first
     for i in range(n):
@@ -412,7 +469,7 @@ cdef int ppt_block(const Data* D, int64_t start, Py_ssize_t k, uint8_t* out, int
         d -= 1
     if not ok:
         for t in range(1 << k):
-            out[off + t] = one_cone(D, start + t, idx, A, b, z)
+            out[off + t] = one_cone(D, start + t, idx, A, b, z, Tm)
         free(work)
         free(iwork)
         return 0
@@ -447,7 +504,7 @@ cdef int ppt_block(const Data* D, int64_t start, Py_ssize_t k, uint8_t* out, int
             level += 1
         else:  # direct path for the whole subtree of this z-choice
             for t in range((<int64_t>1) << d):
-                out[off + low + t] = one_cone(D, start + low + t, idx, A, b, z)
+                out[off + low + t] = one_cone(D, start + low + t, idx, A, b, z, Tm)
     free(work)
     free(iwork)
     return 0

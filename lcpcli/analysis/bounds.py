@@ -35,6 +35,8 @@ import numpy as np
 
 #: Largest n for which a bound is computed (an O(n^3) solve or eigenvalue problem).
 MAX_N = 2000
+#: Data whose largest entry lies outside [2^-RANGE, 2^RANGE] is scaled by a power of two first.
+RANGE = 400
 EPS = np.finfo(np.float64).eps
 
 
@@ -58,17 +60,37 @@ def forward_error_bound(problem: Any, z: np.ndarray) -> ForwardBound | None:
     z = np.asarray(z, dtype=np.float64)
     if not np.all(np.isfinite(z)):
         return None
-    M = problem.dense_M()
+    M, q = _in_range(problem.dense_M(), problem.q)
     n = problem.n
     with np.errstate(over="ignore", invalid="ignore"):
-        w = M @ z + problem.q
+        w = M @ z + q
         r = np.minimum(z, w)
-        slack = (n + 1) * EPS * float(np.max(np.abs(M) @ np.abs(z) + np.abs(problem.q)))
+        slack = (n + 1) * EPS * float(np.max(np.abs(M) @ np.abs(z) + np.abs(q)))
     if not (np.all(np.isfinite(r)) and np.isfinite(slack)):
         return None
     r_inf = float(np.max(np.abs(r))) + slack
     r_2 = float(np.linalg.norm(r)) + np.sqrt(n) * slack
     zn = float(np.max(np.abs(z)))
+    try:
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+            return _bound(M, n, zn, r_inf, r_2)
+    except np.linalg.LinAlgError:  # e.g. an eigenvalue iteration that did not converge
+        return None
+
+
+def _in_range(M: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(2^-e M, 2^-e q)`` with ``2^e`` near the largest entry when that entry lies outside
+    ``[2^-RANGE, 2^RANGE]`` (else M and q themselves): LCP(2^-e q, 2^-e M) has the same
+    solutions, so a bound for it bounds the same ``||z - z*||``, and ``M + M^T`` or ``|M| |z|``
+    cannot overflow on it."""
+    peak = max(float(np.max(np.abs(M))), float(np.max(np.abs(q))))
+    if peak == 0.0 or 2.0 ** -RANGE <= peak <= 2.0 ** RANGE:
+        return M, q
+    e = int(np.frexp(peak)[1])
+    return np.ldexp(M, -e), np.ldexp(q, -e)
+
+
+def _bound(M: np.ndarray, n: int, zn: float, r_inf: float, r_2: float) -> ForwardBound | None:
     beta = _h_matrix_constant(M)
     if beta is not None:
         b = beta * r_inf

@@ -20,7 +20,10 @@ when asked for.  ``None`` in the report means "not tested" or, after testing, "u
 from __future__ import annotations
 
 import warnings
+from collections.abc import Iterator
 from dataclasses import dataclass, fields
+from fractions import Fraction
+from itertools import chain, combinations, islice
 from typing import Any
 
 import numpy as np
@@ -44,6 +47,15 @@ DENSE_TEST_MAX_N = 6000
 SPARSE_TEST_MAX_N = 300_000
 #: Sizes up to which the P-matrix property is decided exactly (all 2^n - 1 principal minors).
 EXACT_P_MAX_N = 10
+#: Index sets whose pivot the float search could not show positive that
+#: :func:`not_p_witness` checks in rationals, at most.
+WITNESS_TRIES = 256
+#: Sizes up to which a P-matrix test that the float tests leave open is decided by computing
+#: all 2^n - 1 principal minors in rational arithmetic.
+EXACT_ALL_MINORS_MAX_N = 6
+#: Largest principal block whose determinant :func:`exact_minor` computes in rationals (a
+#: witness that M is not a P-matrix is checked exactly, never by a threshold).
+EXACT_MINOR_MAX_N = 60
 
 PD, PSD, INDEFINITE = "pd", "psd", "indefinite"
 
@@ -371,24 +383,105 @@ def _minor_pivots_positive(K: np.ndarray) -> bool:
     pivot (a Schur complement step) per set: ``det(K_{I+j}) / det(K_I)`` is the pivot, and a
     pivot counts as positive when it exceeds ``PIVOT_TOL`` times the magnitude of the terms it
     was computed from (a scale-free test: the same on ``D1 K D2``)."""
+    return _first_small_pivot(K) is None
+
+
+def _first_small_pivot(K: np.ndarray) -> list[int] | None:
+    """The index set (0-based, sorted) of the first principal minor that
+    :func:`_minor_pivots_positive` cannot show positive, or None when all are shown positive."""
+    return next(_small_pivot_sets(K), None)
+
+
+def _small_pivot_sets(K: np.ndarray) -> Iterator[list[int]]:
+    """Every index set (0-based, sorted) whose pivot in the depth-first search of
+    :func:`_minor_pivots_positive` is not shown positive, in the order met (the search goes
+    on past each one without pivoting on it)."""
     n = K.shape[0]
 
-    def visit(S: np.ndarray, T: np.ndarray, idx: list[int]) -> bool:
-        # S: Schur complement on the indices ``idx`` still free; T: magnitude of its terms
+    def visit(S: np.ndarray, T: np.ndarray, idx: list[int],
+              chain: list[int]) -> Iterator[list[int]]:
+        # S: Schur complement on the indices ``idx`` still free (after pivoting on ``chain``);
+        # T: magnitude of its terms
         for pos in range(len(idx)):
             p = S[pos, pos]
             if not p > PIVOT_TOL * T[pos, pos]:
-                return False
+                yield sorted(chain + [idx[pos]])
+                continue
             rest = list(range(pos + 1, len(idx)))
             if rest:
                 col, row = S[rest, pos], S[pos, rest]
                 S2 = S[np.ix_(rest, rest)] - np.outer(col, row) / p
                 T2 = T[np.ix_(rest, rest)] + np.outer(np.abs(col), np.abs(row)) / p
-                if not visit(S2, T2, [idx[k] for k in rest]):
-                    return False
-        return True
+                yield from visit(S2, T2, [idx[k] for k in rest], chain + [idx[pos]])
 
-    return visit(K.copy(), np.abs(K), list(range(n)))
+    yield from visit(K.copy(), np.abs(K), list(range(n)), [])
+
+
+def exact_minor(M: Any, idx: list[int]) -> Fraction:
+    """The principal minor ``det M[idx, idx]``, exactly: every double is a rational, and the
+    elimination is done in :class:`fractions.Fraction` (``len(idx) <= EXACT_MINOR_MAX_N``)."""
+    A = np.asarray(M[np.ix_(idx, idx)].toarray() if _is_sparse(M) else M[np.ix_(idx, idx)],
+                   dtype=np.float64)
+    k = len(idx)
+    if k > EXACT_MINOR_MAX_N:
+        raise ValueError(f"exact minor of order {k} > {EXACT_MINOR_MAX_N}")
+    R = [[Fraction(float(x)) for x in row] for row in A]
+    det = Fraction(1)
+    for c in range(k):
+        piv = next((r for r in range(c, k) if R[r][c] != 0), None)
+        if piv is None:
+            return Fraction(0)
+        if piv != c:
+            R[c], R[piv] = R[piv], R[c]
+            det = -det
+        p = R[c][c]
+        det *= p
+        for r in range(c + 1, k):
+            f = R[r][c] / p
+            if f:
+                R[r] = [a - f * b for a, b in zip(R[r], R[c], strict=True)]
+    return det
+
+
+def not_p_witness(M: Any, candidates: list[list[int]] | None = None) -> list[int] | None:
+    """A principal index set (0-based) whose minor is exactly ``<= 0``, or None: the only
+    ground on which a message may say "M is not a P-matrix" (a small pivot may be rounding).
+
+    Tried: the given candidate sets, the diagonal, the 2 x 2 minors the float test flags, and
+    (``n <= EXACT_P_MAX_N``) the set where the depth-first pivot search stops.  Each is checked
+    by :func:`exact_minor`."""
+    n = M.shape[0]
+    tried: list[list[int]] = [sorted(set(c)) for c in (candidates or []) if c]
+    d = diagonal(M)
+    bad = np.flatnonzero(~(d > 0))
+    if bad.size:
+        return [int(bad[0])]  # a 1 x 1 minor: the entry itself, exact
+    dense = not _is_sparse(M) or n <= EXACT_P_MAX_N
+    if dense and n <= DENSE_TEST_MAX_N:
+        A = np.asarray(M.toarray() if _is_sparse(M) else M, dtype=np.float64)
+        K = _unit_diagonal_symmetric(normalised(A))
+        prod = K * K.T
+        prod[np.diag_indices(n)] = 0.0
+        flagged = np.argwhere(np.triu(1.0 - prod <= PIVOT_TOL * (1.0 + np.abs(prod)), 1))
+        tried += [[int(i), int(j)] for i, j in flagged[:64]]
+    searched: Iterator[list[int]] = iter(())
+    if dense and n <= EXACT_P_MAX_N:
+        searched = islice(_small_pivot_sets(K), WITNESS_TRIES)
+    for idx in chain(tried, searched):
+        if len(idx) <= EXACT_MINOR_MAX_N and exact_minor(M, idx) <= 0:
+            return idx
+    return None
+
+
+def _witness_text(M: Any, idx: list[int]) -> str:
+    """``"the principal minor on {1, 3} is -2 <= 0 (exact)"`` (1-based indices)."""
+    value = exact_minor(M, idx)
+    names = ", ".join(str(i + 1) for i in idx)
+    try:
+        shown = f"{float(value):.3g}"
+    except OverflowError:  # beyond the double range (a minor of order k of data ~ 1e300)
+        shown = f"-2^{value.numerator.bit_length() - value.denominator.bit_length()}"
+    return f"the principal minor on {{{names}}} is {shown} <= 0 (exact)"
 
 
 def is_p_matrix_exact(M: Any) -> bool:
@@ -403,10 +496,42 @@ def is_p_matrix_exact(M: Any) -> bool:
     return _minor_pivots_positive(_unit_diagonal_symmetric(normalised(A)))
 
 
+def _refuted(M: Any, candidates: list[list[int]],
+             suspicion: str = "a principal minor is within rounding of 0 or below") -> tuple[
+                 bool | None, str]:
+    """``(False, witness)`` when :func:`not_p_witness` finds an exactly non-positive principal
+    minor; ``(None, "undecided: ...")`` otherwise (a float test's suspicion is no proof)."""
+    idx = not_p_witness(M, candidates)
+    if idx is not None:
+        return False, _witness_text(M, idx)
+    exact = exact_p_matrix(M)
+    if exact is True:
+        return True, "all principal minors positive (exact rational arithmetic)"
+    if isinstance(exact, list):
+        return False, _witness_text(M, exact)
+    return None, f"undecided: {suspicion}, but no principal minor is exactly <= 0"
+
+
+def exact_p_matrix(M: Any) -> bool | list[int] | None:
+    """For ``n <= EXACT_ALL_MINORS_MAX_N``: True when all ``2^n - 1`` principal minors are
+    positive in rational arithmetic, else the index set (0-based) of one that is not; None for
+    larger n (not tried)."""
+    n = M.shape[0]
+    if n > EXACT_ALL_MINORS_MAX_N:
+        return None
+    for k in range(1, n + 1):
+        for sub in combinations(range(n), k):
+            if exact_minor(M, list(sub)) <= 0:
+                return list(sub)
+    return True
+
+
 def p_matrix(M: Any, pd: bool | None = None, h_matrix: bool | None = None,
              symmetric: bool | None = None) -> tuple[bool | None, str]:
     """``(is M a P-matrix?, how it was decided)``; None when no test decides.
 
+    "Not P" is said only with a witness, a principal minor exactly ``<= 0``
+    (:func:`not_p_witness`); a float test that merely suspects one gives None ("undecided").
     In order: a non-positive diagonal entry or 2 x 2 principal minor (not P); PD symmetric part
     (``pd``, if known); for a symmetric M (``symmetric``), P iff PD; H-matrix with positive
     diagonal (``h_matrix``, computed if not given); PD symmetric part after a diagonal scaling
@@ -429,25 +554,26 @@ def p_matrix(M: Any, pd: bool | None = None, h_matrix: bool | None = None,
         prod[np.diag_indices(n)] = 0.0
         bad = 1.0 - prod <= PIVOT_TOL * (1.0 + np.abs(prod))
         if np.any(bad):
-            i, j = (int(v) for v in np.argwhere(bad)[0])
-            return False, f"the 2 x 2 principal minor on indices ({i}, {j}) is <= 0"
+            return _refuted(M, [[int(v) for v in ij] for ij in np.argwhere(bad)[:64]])
     if pd:
         return True, "positive definite (symmetric part PD)"
     if symmetric and pd is False:
-        return False, "symmetric and not positive definite (for a symmetric M, P = PD)"
+        return _refuted(M, [], "symmetric and not shown positive definite")
     h = h_matrix_positive_diagonal(M) if h_matrix is None else h_matrix
     if h:
         return True, "H-matrix with positive diagonal"
     if n <= EXACT_P_MAX_N:
-        p = _minor_pivots_positive(K)
-        return p, "all principal minors checked" + ("" if p else ": one is <= 0")
+        found = _first_small_pivot(K)
+        if found is None:
+            return True, "all principal minors checked"
+        return _refuted(M, [found])
     if not sparse:
         B = _balanced(K)
         pd_b = definiteness(B).kind == PD
         if pd_b:
             return True, "positive definite after a positive diagonal scaling"
         if is_symmetric(B):  # P iff PD for a symmetric matrix
-            return False, "diagonally similar to a symmetric matrix that is not PD"
+            return _refuted(M, [], "diagonally similar to a symmetric matrix not shown PD")
     return None, "unknown (no sufficient test applies)"
 
 

@@ -40,7 +40,8 @@ from lcpcli.analysis._enum import (
     classify_chunk,
     classify_chunk_fast,
 )
-from lcpcli.analysis.scaling import Scaling, equilibrate
+from lcpcli.analysis.proof import prove_infeasible
+from lcpcli.analysis.scaling import GEOMETRIC_SPREAD, Scaling, equilibrate, geometric, spread
 from lcpcli.core.certificate import DEFAULT_TOL, Certificate, certify, matrix_norm_inf
 from lcpcli.core.errors import OptionError, ProblemError
 from lcpcli.core.limits import ENUM_ANNOUNCE_N, announce, power_of_two
@@ -52,7 +53,9 @@ DEFAULT_MAX_N = 24
 HARD_MAX_N = 62
 #: Relative feasibility tolerance of the cone test.
 RTOL = 1e-9
-#: Relative pivot tolerance (times ||M||_max and the block size) under which a block is singular.
+#: Pivot tolerance (times n) under which a principal block is singular, relative to the block
+#: itself: the kernel equilibrates each block by powers of two (rows, then columns) first, so
+#: the test is the same on any power-of-two row and column scaling of M.
 PIVOT_RTOL = 1e-12
 #: First block of cones when stopping at the first solution (then doubling, aligned).
 FIRST_CHUNK = 4096
@@ -66,6 +69,7 @@ NONE = "none"
 FOUND = "found"  # stop_at_first: one solution found, the rest not examined
 INCOMPLETE = "incomplete"  # solutions found, but some singular cones left unresolved
 UNKNOWN = "unknown"  # no solution found, but some singular cones left unresolved
+UNCERTIFIED = "uncertified"  # cones contain q, but no point of them passes the certificate
 
 #: At most this many singular cones are resolved by LP (each costs about 3 LPs).
 MAX_LPS = 2000
@@ -126,10 +130,14 @@ class Solution:
 class Enumeration:
     """What :func:`enumerate_cones` found.
 
-    ``verdict``: ``unique``, ``finite``, ``continuum``, ``none`` (a proof that the LCP has no
-    solution, up to the tolerances) or ``found`` (``stop_at_first``: the rest not examined);
-    ``incomplete`` / ``unknown`` when more than ``max_lp`` singular cones containing q would
-    need an LP (solutions found / none found: nothing is proven then).
+    ``verdict``: ``unique``, ``finite``, ``continuum``, ``none`` (no cone contains q) or
+    ``found`` (``stop_at_first``: the rest not examined); ``incomplete`` / ``unknown`` when more
+    than ``max_lp`` singular cones containing q would need an LP (solutions found / none found:
+    nothing is proven then); ``uncertified`` when cones contain q but none of their points
+    passes the certificate in the problem's units (extreme data).  Every solution listed passed
+    :func:`lcpcli.core.certificate.certify` on the problem as given.  ``none`` is a floating-point
+    search, not a proof: ``status`` is ``no_solution`` only with ``proof``, a Farkas vector that
+    passed :func:`lcpcli.analysis.proof.check_farkas` (``unsolved`` without one).
     ``cones``: the feasible cones (all cones when asked for), in code order.
     """
 
@@ -142,19 +150,23 @@ class Enumeration:
     counts: dict[str, int]
     seconds: float
     complete: bool
+    proof: Any = None
 
     @property
     def status(self) -> Status:
         if self.solutions:
             return Status.SOLVED
-        return Status.UNSOLVED if self.verdict == UNKNOWN else Status.NO_SOLUTION
+        if self.verdict == NONE and self.proof is not None:
+            return Status.NO_SOLUTION
+        return Status.UNSOLVED
 
     def to_dict(self) -> dict[str, Any]:
         return {"n": self.n, "status": self.status, "verdict": self.verdict,
                 "cones": [c.to_dict() for c in self.cones],
                 "solutions": [s.to_dict() for s in self.solutions],
                 "examined": self.examined, "total": self.total, "counts": dict(self.counts),
-                "complete": self.complete, "seconds": self.seconds}
+                "complete": self.complete, "seconds": self.seconds,
+                "farkas_y": None if self.proof is None else _jvec(self.proof.y)}
 
 
 # ---------------------------------------------------------------------------- helpers
@@ -201,8 +213,6 @@ def check_problem(problem: Any, max_n: int = DEFAULT_MAX_N) -> np.ndarray:
                           f"limit --max-n {max_n} (2^{max_n} = {2**max_n:,}); raise --max-n "
                           f"to run it anyway (each extra variable doubles the time), or use "
                           f"a pivoting method (lcpcli solve -m lemke)")
-    if n == 0:
-        raise ProblemError("empty problem (n = 0)")
     return np.ascontiguousarray(problem.dense_M(), dtype=np.float64)
 
 
@@ -216,19 +226,34 @@ def sign_masks(M: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def solve_cone(M: np.ndarray, q: np.ndarray, code: int) -> tuple[np.ndarray, np.ndarray]:
-    """(z, w) of a nonsingular cone, by LU with one step of iterative refinement."""
+    """(z, w) of a nonsingular cone, by LU with one step of iterative refinement, on the block
+    equilibrated by powers of two as the kernel does (rows, then columns); NaN when the block
+    is exactly singular after all (then the certificate rejects the point)."""
     n = q.shape[0]
     S = [j for j in range(n) if (code >> j) & 1]
     z = np.zeros(n)
     if S:
         B = M[np.ix_(S, S)]
-        zs = np.linalg.solve(B, -q[S])
-        r = -q[S] - B @ zs
-        zs = zs + np.linalg.solve(B, r)
-        z[S] = zs
-    w = M @ z + q
+        r = _unit_exponents(np.max(np.abs(B), axis=1))
+        Br = np.ldexp(B, -r[:, None])
+        c = _unit_exponents(np.max(np.abs(Br), axis=0))
+        Bs = np.ldexp(Br, -c[None, :])
+        rhs = np.ldexp(-q[S], -r)
+        try:
+            ys = np.linalg.solve(Bs, rhs)
+            ys = ys + np.linalg.solve(Bs, rhs - Bs @ ys)
+        except np.linalg.LinAlgError:
+            ys = np.full(len(S), np.nan)
+        z[S] = np.ldexp(ys, -c)
+    with np.errstate(all="ignore"):
+        w = M @ z + q
     w[S] = 0.0
     return z, w
+
+
+def _unit_exponents(big: np.ndarray) -> np.ndarray:
+    """The binary exponents ``e`` with ``big / 2^e`` in ``[0.5, 1)`` (0 where ``big`` is 0)."""
+    return np.where(big > 0, np.frexp(big)[1], 0).astype(np.int32)
 
 
 def cone_y(code: int, z: np.ndarray, w: np.ndarray) -> np.ndarray:
@@ -284,11 +309,13 @@ def enumerate_cones(problem: Any, *, stop_at_first: bool = False, all_cones: boo
                     fast: bool = True, max_lp: int = MAX_LPS) -> Enumeration:
     """Visit the ``2^n`` complementary cones of ``problem`` (an LCP) and collect the solutions.
 
-    The cones are examined on the equilibrated problem (:mod:`lcpcli.analysis.scaling`): a
-    positive row and column scaling maps every complementary cone onto the same cone, so the
-    verdict does not depend on units, and nothing overflows (data of size 1e300 has
-    determinants of size 1e300^n).  Solutions, ``y``, ``w`` and determinants are reported in
-    the units of ``problem`` (a determinant beyond the double range is Inf).
+    The cones are examined on the equilibrated problem (:mod:`lcpcli.analysis.scaling`: Ruiz's,
+    or Curtis and Reid's geometric scaling when Ruiz's leaves the entries more than
+    ``2^GEOMETRIC_SPREAD`` apart): a positive row and column scaling maps every complementary
+    cone onto the same cone, so the verdict does not depend on units, and nothing overflows
+    (data of size 1e300 has determinants of size 1e300^n).  Solutions, ``y``, ``w`` and
+    determinants are reported in the units of ``problem`` (a determinant beyond the double
+    range is Inf).
 
     ``stop_at_first``: stop at the first certified solution (verdict ``found``).
     ``all_cones``: return every cone (with ``y``, ``det`` and ``rank``) instead of the feasible
@@ -299,25 +326,54 @@ def enumerate_cones(problem: Any, *, stop_at_first: bool = False, all_cones: boo
     unsafe pivots sent to it); ``fast=False`` uses the direct kernel for every cone.
     """
     check_problem(problem, max_n)
+    if problem.n == 0:  # one cone, the empty basis, and z = () solves the problem
+        return _empty_enumeration(problem, tol)
     if problem.n >= ENUM_ANNOUNCE_N:  # the work budget of lcpcli.core.limits: say the cost first
         announce(f"enumerating up to {power_of_two(problem.n)} complementary cones "
                  f"(each extra variable doubles the time; --max-n / -O max-n={max_n} allows it)")
     scaling = equilibrate(problem, symmetric=False)
+    if spread(problem, scaling) > GEOMETRIC_SPREAD:  # Ruiz balanced the maxima only
+        scaling = geometric(problem, False) or scaling
     work = scaling.apply(problem) if scaling is not None else problem
     found = _enumerate(work, stop_at_first=stop_at_first, all_cones=all_cones, max_n=max_n,
                        tol=tol, rtol=rtol, progress=progress, chunk=chunk,
                        keep_cones=keep_cones, fast=fast, max_lp=max_lp)
     if scaling is not None:
         _unscale(found, scaling, problem, tol)
+    if found.verdict == NONE:
+        found.proof = prove_infeasible(problem, search=True)
     return found
+
+
+def _empty_enumeration(problem: Any, tol: float) -> Enumeration:
+    """The enumeration of an LCP with n = 0: its one cone holds its one solution, z = ()."""
+    z = np.zeros(0)
+    cert = certify(problem, z, tol)
+    cone = Cone(0, 0, True, False, y=z, z=z, w=z, det=1.0, rank=0)
+    counts = {"feasible": 1, "singular": 0, "singular_with_q": 0, "pruned": 0,
+              "uncertified": 0, "singular_unresolved": 0}
+    return Enumeration(0, UNIQUE, [Solution(z, z.copy(), cert, [0])], [cone], 1, 1, counts,
+                       0.0, True)
 
 
 def _unscale(found: Enumeration, scaling: Scaling, problem: Any, tol: float) -> None:
     """Map an enumeration of the scaled problem back to the units of ``problem``, in place."""
+    kept = []
     for sol in found.solutions:
-        sol.z = scaling.unscale_z(sol.z)
-        sol.w = scaling.unscale_w(sol.w)
+        with np.errstate(over="ignore", under="ignore"):
+            sol.z = scaling.unscale_z(sol.z)
+            sol.w = scaling.unscale_w(sol.w)
         sol.certificate = certify(problem, sol.z, tol)
+        if sol.certificate.passed:  # rounding to the problem's units may lose it (extreme data)
+            kept.append(sol)
+        else:
+            found.counts["uncertified"] += 1
+    if len(kept) < len(found.solutions):
+        found.solutions = kept
+        if not kept:
+            found.verdict = UNCERTIFIED
+        elif found.verdict in (UNIQUE, FINITE):
+            found.verdict = UNIQUE if len(kept) == 1 else FINITE
     shift = scaling.row + scaling.col   # det A_r = det A~_r * 2^-(sum over z-basic of r_j + c_j)
     for cone in found.cones:
         zb = np.array([(cone.code >> j) & 1 for j in range(cone.n)], dtype=bool)
@@ -343,7 +399,7 @@ def _enumerate(problem: Any, *, stop_at_first: bool, all_cones: bool, max_n: int
     mu = matrix_norm_inf(M)
     mu = mu if mu > 0 else 1.0
     qnorm = float(np.max(np.abs(q)))
-    piv_tol = PIVOT_RTOL * max(float(np.max(np.abs(M))), 1e-300) * n
+    piv_tol = PIVOT_RTOL * n  # relative to each block, equilibrated in the kernel
     prune_tol = rtol * qnorm
     pos, neg = sign_masks(M)
     start_time = time.perf_counter()
@@ -425,6 +481,8 @@ def _enumerate(problem: Any, *, stop_at_first: bool, all_cones: bool, max_n: int
         verdict = CONTINUUM
     elif counts["singular_unresolved"]:
         verdict = INCOMPLETE if solutions else UNKNOWN
+    elif not solutions and counts["uncertified"]:
+        verdict = UNCERTIFIED
     elif not solutions:
         verdict = NONE
     elif len(solutions) == 1:

@@ -65,15 +65,19 @@ def var_name(var: Var, n: int) -> str:
 def parse_var(name: str, n: int) -> Var:
     """Parse ``w1..wn``, ``z1..zn``, ``z0`` (the artificial variable) or its alias ``z{n+1}``."""
     m = _NAME.match(str(name))
+    shown = str(name) if len(str(name)) <= 40 else f"{str(name)[:20]}...({len(str(name))} chars)"
     if not m:
-        raise ProblemError(f"unknown variable name {name!r} (expected w1..w{n}, z1..z{n} or "
+        raise ProblemError(f"unknown variable name {shown!r} (expected w1..w{n}, z1..z{n} or "
                            f"{ARTIFICIAL}, alias z{n + 1})")
-    kind, idx = m.group(1).lower(), int(m.group(2))
+    digits = m.group(2).lstrip("0") or "0"
+    # an index longer than n + 1 has digits is out of range (int() of 5,000 digits would raise)
+    idx = int(digits) if len(digits) <= len(str(n + 1)) else n + 2
+    kind = m.group(1).lower()
     if kind == "z" and idx == 0:
         return ("z", n)
     top = n if kind == "w" else n + 1
     if not 1 <= idx <= top:
-        raise ProblemError(f"variable {name!r} out of range (w1..w{n}, z1..z{n}, {ARTIFICIAL} "
+        raise ProblemError(f"variable {shown!r} out of range (w1..w{n}, z1..z{n}, {ARTIFICIAL} "
                            f"alias z{n + 1})")
     return (kind, idx - 1)
 
@@ -203,7 +207,14 @@ class PivotTransform:
 
 
 class _Factor:
-    """LU factorisation of the square block ``M^{alpha beta}`` (m may be 0)."""
+    """LU factorisation of the square block ``M^{alpha beta}`` (m may be 0).
+
+    The block is first equilibrated by exact powers of two (``D_r A D_c`` with every row, then
+    every column, of largest entry in ``[1/2, 1)``), so that whether it is singular does not
+    depend on the units of the data: ``[[1e300, 1], [1e-300, 1e-300]]`` and ``diag(5e-324, 1)``
+    are bases (Cottle-Pang-Stone 2.3: principal pivoting is invariant under positive row and
+    column scaling).  Solves map back exactly: ``x = D_c (D_r A D_c)^-1 D_r b``.
+    """
 
     def __init__(self, A: np.ndarray) -> None:
         self.m = A.shape[0]
@@ -213,16 +224,19 @@ class _Factor:
 
         if not np.all(np.isfinite(A)):
             raise ProblemError("M^{alpha beta} contains NaN or Inf")
-
+        self.er = _exponents(np.max(np.abs(A), axis=1))
+        As = np.ldexp(A, -self.er[:, None])
+        self.ec = _exponents(np.max(np.abs(As), axis=0))
+        As = np.ldexp(As, -self.ec[None, :])
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            self.lu = sla.lu_factor(A, check_finite=False)
+            self.lu = sla.lu_factor(As, check_finite=False)
         diag = np.abs(np.diag(self.lu[0]))
-        scale = max(float(np.max(np.abs(A))), np.finfo(float).tiny)
+        scale = max(float(np.max(np.abs(As))), np.finfo(float).tiny)
         if diag.min() <= RCOND_MIN * scale * self.m:
             raise ProblemError("M^{alpha beta} is singular: these tuples are not a basis "
                                "(no pivoted system exists)")
-        rcond = _rcond(self.lu, A)
+        rcond = _rcond(self.lu, As)
         if rcond < RCOND_MIN:
             raise ProblemError(f"M^{{alpha beta}} is singular to working precision "
                                f"(rcond {rcond:.1e}): these tuples are not a basis")
@@ -232,7 +246,21 @@ class _Factor:
             return np.zeros(0)
         import scipy.linalg as sla  # scipy is imported on first use (start-up budget)
 
-        return sla.lu_solve(self.lu, b, check_finite=False)
+        with np.errstate(over="ignore", under="ignore"):  # x beyond the double range: Inf
+            y = sla.lu_solve(self.lu, _ldexp2(np.asarray(b, dtype=np.float64), -self.er),
+                             check_finite=False)
+            return _ldexp2(y, -self.ec)
+
+
+def _exponents(peaks: np.ndarray) -> np.ndarray:
+    """frexp exponents of positive peaks (0 for zero rows or columns)."""
+    return np.where(peaks > 0, np.frexp(peaks)[1], 0).astype(np.int64)
+
+
+def _ldexp2(x: np.ndarray, e: np.ndarray) -> np.ndarray:
+    """``x 2^e`` in two exact steps (``2^1074`` is not a double; a subnormal times it is)."""
+    half = e // 2
+    return np.ldexp(np.ldexp(x, half.astype(np.int32)), (e - half).astype(np.int32))
 
 
 def _rcond(lu: Any, A: np.ndarray) -> float:
@@ -291,18 +319,22 @@ def principal_pivot(M: np.ndarray, q: np.ndarray, dependent: tuple[Var, ...],
             e[gamma] = 1.0
             xb = lu.solve(e)
             col[beta_p] = xb
-            col[abar_p] = M_abar_b @ xb
+            with np.errstate(over="ignore", invalid="ignore"):
+                col[abar_p] = M_abar_b @ xb
         else:  # eqs (7)-(8)
             g = M[:, var[1]]
             xb = -lu.solve(g[alpha])
             col[beta_p] = xb
-            col[abar_p] = g[abar] + M_abar_b @ xb
+            with np.errstate(over="ignore", invalid="ignore"):
+                col[abar_p] = g[abar] + M_abar_b @ xb
         return col
 
     qp = np.empty(n)
     qb = -lu.solve(q_a)  # eq (2)
     qp[beta_p] = qb
-    qp[abar_p] = q_abar + M_abar_b @ qb  # eq (3)
+    with np.errstate(over="ignore", invalid="ignore"):  # checked by _representable
+        qp[abar_p] = q_abar + M_abar_b @ qb  # eq (3)
+    _representable(qp, "q'")
     out = PivotTransform(n, dependent, independent, alpha, alpha_p, beta, beta_p, abar, abar_p,
                          bbar, bbar_p, M_ab, M_abar_b, q_a, q_abar, qp)
     if driving is not None:
@@ -311,13 +343,23 @@ def principal_pivot(M: np.ndarray, q: np.ndarray, dependent: tuple[Var, ...],
                                f"(it must be one of {', '.join(out.names(independent))})")
         out.driving = driving
         out.driving_case = driving[0]
-        out.driving_column = column(driving)
+        out.driving_column = _representable(column(driving), "the driving column")
         if driving[0] == "z":
             g = M[:, driving[1]]
             out.g_alpha, out.g_alpha_bar = g[alpha], g[abar]
     if full:
-        out.full = np.column_stack([column(v) for v in independent]) if n else np.zeros((0, 1))
+        out.full = _representable(np.column_stack([column(v) for v in independent])
+                                  if n else np.zeros((0, 1)), "M'")
     return out
+
+
+def _representable(x: np.ndarray, what: str) -> np.ndarray:
+    """``x``, or ProblemError (one line, exit 2) when the pivoted system overflows: its
+    entries are ratios of the data's, which can leave the double range (1e300 / 1e-300)."""
+    if not np.all(np.isfinite(x)):
+        raise ProblemError(f"{what} of this pivoted system is beyond double precision (an "
+                           f"entry overflows: a ratio of the data's entries)")
+    return x
 
 
 def augment(M: np.ndarray, covering: np.ndarray | None = None) -> np.ndarray:

@@ -78,8 +78,13 @@ class Scaling:
         return np.ldexp(np.asarray(w, dtype=np.float64), self.row.astype(np.int32))
 
     def unscale_w(self, wt: np.ndarray) -> np.ndarray:
-        """``w = D_r^-1 w~`` (also for dual vectors: a Farkas ``y~`` maps to ``D_r y~``)."""
+        """``w = D_r^-1 w~``."""
         return np.ldexp(np.asarray(wt, dtype=np.float64), (-self.row).astype(np.int32))
+
+    def farkas_back(self, yt: Any) -> np.ndarray:
+        """A Farkas vector of the scaled problem in the units of the given one: ``y = D_r y~``
+        (``M~^T y~ = D_c M^T D_r y~`` and ``q~^T y~ = q^T D_r y~``, so the signs carry over)."""
+        return np.ldexp(np.asarray(yt, dtype=np.float64), self.row.astype(np.int32))
 
     def describe(self) -> str:
         """One phrase for messages: the ranges of the factors."""
@@ -121,3 +126,89 @@ def _matrix_arg(M: Any) -> Any:
         return M
     Mc = M.tocsr()
     return (Mc.data, Mc.indices.astype(np.intp, copy=False), Mc.indptr.astype(np.intp, copy=False))
+
+
+def geometric(problem: Problem, symmetric: bool) -> Scaling | None:
+    """Curtis and Reid's scaling (1972), rounded to powers of two: the exponents ``r``, ``c``
+    that minimise ``sum over the nonzeros of (log2 |M_ij| + r_i + c_j)^2`` (``r = c`` when
+    ``symmetric``), then ``q`` normalised by a common factor as in :func:`equilibrate`.
+
+    Where Ruiz's infinity-norm iteration stops as soon as every row and column *maximum* is
+    about 1 (and may leave other entries at 2^-72, e.g. on the diagonal of
+    ``diag(2^a) K diag(2^b)``), this least-squares fit recovers any row and column scaling of a
+    matrix with entries of one size exactly, up to the rounding of the exponents: it is
+    invariant under power-of-two row and column scalings of the data.  Solved by LSQR on the
+    sparse incidence matrix (O(nnz) per iteration; scipy).  None when nothing would change.
+    """
+    from scipy.sparse import csr_matrix
+    from scipy.sparse.linalg import lsqr
+
+    n = problem.n
+    if n == 0:
+        return None
+    Mc = csr_matrix(problem.M).tocoo() if problem.sparse else None
+    if Mc is not None:
+        rows, cols, vals = Mc.row, Mc.col, Mc.data
+    else:
+        rows, cols = np.nonzero(problem.M)
+        vals = problem.M[rows, cols]
+    keep = vals != 0
+    rows, cols, vals = rows[keep], cols[keep], vals[keep]
+    if vals.size == 0:
+        return None
+    e = np.frexp(np.abs(vals))[1].astype(np.float64)
+    k = np.arange(vals.size)
+    if symmetric:
+        A = csr_matrix((np.ones(2 * k.size), (np.concatenate([k, k]),
+                                              np.concatenate([rows, cols]))),
+                       shape=(k.size, n))
+    else:
+        A = csr_matrix((np.ones(2 * k.size), (np.concatenate([k, k]),
+                                              np.concatenate([rows, n + cols]))),
+                       shape=(k.size, 2 * n))
+    x = lsqr(A, -e, atol=1e-12, btol=1e-12, iter_lim=50 * n + 100)[0]
+    if not np.all(np.isfinite(x)):
+        return None
+    r = np.rint(x[:n]).astype(np.int64)
+    c = r.copy() if symmetric else np.rint(x[n:]).astype(np.int64)
+    q = problem.q
+    nz = q != 0
+    if np.any(nz):
+        shift = 1 - int(np.max(np.frexp(np.abs(q[nz]))[1] + r[nz]))
+        r += shift
+        c -= shift
+    if not np.any(r) and not np.any(c):
+        return None
+    scaled = e + r[rows] + c[cols]
+    if np.any(nz):
+        scaled = np.concatenate([scaled, np.frexp(np.abs(q[nz]))[1] + r[nz]])
+    if scaled.max() > GEOMETRIC_RANGE or scaled.min() < -GEOMETRIC_RANGE:
+        return None  # the data span more than the double range can hold at one scale
+    return Scaling(row=r, col=c, kind="geometric, symmetric" if symmetric else "geometric")
+
+
+#: :func:`geometric` gives up when a scaled entry would leave ``[2^-GEOMETRIC_RANGE,
+#: 2^GEOMETRIC_RANGE]`` (Ruiz's scaling is kept then).
+GEOMETRIC_RANGE = 1000
+#: Methods and the enumeration turn to :func:`geometric` when a scaled matrix's nonzero
+#: entries still span more than 2^GEOMETRIC_SPREAD (Ruiz balanced the maxima only).
+GEOMETRIC_SPREAD = 30
+
+
+def spread(problem: Problem, scaling: Scaling | None) -> int:
+    """``max - min`` of the binary exponents of the nonzero entries of ``D_r M D_c`` (of M
+    when ``scaling`` is None); 0 for a zero matrix."""
+    M = problem.M
+    if problem.sparse:
+        Mc = M.tocoo()
+        rows, cols, vals = Mc.row, Mc.col, Mc.data
+    else:
+        rows, cols = np.nonzero(M)
+        vals = M[rows, cols]
+    keep = vals != 0
+    if not np.any(keep):
+        return 0
+    e = np.frexp(vals[keep])[1].astype(np.int64)
+    if scaling is not None:
+        e = e + scaling.row[rows[keep]] + scaling.col[cols[keep]]
+    return int(e.max() - e.min())

@@ -43,18 +43,18 @@ def _worker_main(conn: Any, opts: SolveOptions) -> None:
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     with contextlib.suppress(Exception):  # the problems will report the error one by one
         worker.prepare_method(opts.method)
-    conn.send(("ready",))
-    while True:
-        try:
+    try:
+        conn.send(("ready",))
+        while True:
             msg = conn.recv()
-        except (EOFError, OSError):
-            return
-        if msg is None:
-            return
-        chunk_id, tasks = msg
-        for row, timing in worker.solve_tasks(tasks, opts):
-            conn.send(("row", chunk_id, row, timing))
-        conn.send(("done", chunk_id))
+            if msg is None:
+                return
+            chunk_id, tasks = msg
+            for row, timing in worker.solve_tasks(tasks, opts):
+                conn.send(("row", chunk_id, row, timing))
+            conn.send(("done", chunk_id))
+    except (EOFError, OSError):  # the parent is gone (kill -9): leave quietly, no traceback
+        return
 
 
 def _die_with_parent() -> None:

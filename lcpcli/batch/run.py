@@ -8,7 +8,6 @@ import os
 import signal
 import time
 from collections.abc import Callable, Iterable, Iterator
-from pathlib import Path
 from typing import Any
 
 from lcpcli.batch.cluster import iter_dask
@@ -183,6 +182,22 @@ def _run_stacked(inputs: list[str], opts: SolveOptions, *, output: Any, resume: 
     return report
 
 
+def _check_fingerprint(row: dict[str, Any], now: str | None, output: Any) -> None:
+    """Refuse to resume from a row computed from other content than its source has now, or
+    from a row without a fingerprint (written by an older lcpcli)."""
+    from lcpcli.batch.output import INPUT_HASH
+    from lcpcli.core.errors import ProblemError
+
+    if INPUT_HASH not in row:
+        raise ProblemError("holds results without the fingerprint of their inputs (written by "
+                           "an older lcpcli), so they cannot be checked against them: run "
+                           "again without --resume", str(output))
+    if row[INPUT_HASH] != now:
+        raise ProblemError(f"holds results of {row.get('source')} computed from other content "
+                           f"than the file has now: run again without --resume, or give "
+                           f"another --output", str(output))
+
+
 def _identity(path: str | os.PathLike[str]) -> tuple[int, int] | None:
     """(device, inode) of an existing file, else None."""
     try:
@@ -200,15 +215,23 @@ def _run(tasks: list[Any], bad_inputs: list[dict[str, Any]], opts: SolveOptions,
     """The batch once the output (if any) is locked: resume, solve, write rows."""
     tally, stats = report.tally, report.stats
     writer = None
-    if output is not None:
-        from lcpcli.batch import output as batch_output
+    fingerprints: dict[str, str | None] = {}
 
-        if resume and Path(output).exists() or resume and \
-                batch_output.journal_path(Path(output)).exists():
+    def fingerprint(source: str) -> str | None:
+        """The input_hash of a source file (computed once per file)."""
+        if source not in fingerprints:
+            fingerprints[source] = batch_output.input_fingerprint(source)
+        return fingerprints[source]
+
+    from lcpcli.batch import output as batch_output
+
+    if output is not None:
+        if resume:
             wanted = {(t.source, t.problem) for t in tasks} | {key(r) for r in bad_inputs}
-            for row in batch_output.read_rows(output):
+            for row in batch_output.read_rows(output):  # links refused, never followed
                 k = key(row)
                 if k in wanted:
+                    _check_fingerprint(row, fingerprint(k[0]), output)
                     wanted.discard(k)  # a duplicate line counts once
                     tally.add(row)
                     report.skipped += 1
@@ -224,8 +247,9 @@ def _run(tasks: list[Any], bad_inputs: list[dict[str, Any]], opts: SolveOptions,
     def emit(row: dict[str, Any]) -> None:
         if writer is not None:
             t0 = time.perf_counter()
+            stamped = {**row, batch_output.INPUT_HASH: fingerprint(str(row.get("source", "")))}
             with signals_deferred():
-                writer.write([row])
+                writer.write([stamped])
             stats.write_seconds += time.perf_counter() - t0
         tally.add(row)
         report.new += 1

@@ -7,36 +7,113 @@ attributes ``source`` (the input as given), ``n``, ``K``, ``method``, ``tol`` an
 ``status_codes`` (JSON: status -> code), and datasets, indexed by the 0-based problem index:
 ``z``, ``w`` (K, n) float64, ``status`` (K,) int8 (:data:`lcpcli.core.result.STATUS_CODES`;
 -1: not solved yet), ``iterations`` (K,) int64, ``error`` and ``residual`` (K,) float64 (NaN
-where none), and ``names`` (K,) when the input has names.  Each chunk is written (``status``
-last) and flushed before the next is read, and Ctrl-C / SIGTERM close the file cleanly, so
-``--resume`` finds every finished chunk.  The datasets are allocated in full when the file is
-created (``ALLOC_TIME_EARLY``), so writing a chunk changes data only, never HDF5's metadata: a
-``kill -9`` leaves a readable file whose ``status`` says which problems finished (a chunk cut
-in the middle has ``status`` -1 and is solved again).  A file that is still unreadable is
-refused by ``--resume`` with a message (run again without it).
+where none), ``names`` (K,) when the input has names, and the input's fingerprint (below).
+Each chunk's data are written and flushed, then its digest and ``status``, and flushed again,
+before the next chunk is read; Ctrl-C / SIGTERM close the file cleanly, so ``--resume`` finds
+every finished chunk.  The file is created complete (every group and dataset) in a temporary
+file renamed over the output, so a full disk at the start leaves the previous file as it was;
+a full disk later leaves a resumable file (``status`` -1 marks what is not done) and one line
+``PATH: no space left on device (...)``, exit 2.  The datasets are allocated in full when the
+file is created (``ALLOC_TIME_EARLY``), so writing a chunk changes data only, never HDF5's
+metadata: a ``kill -9`` leaves a readable file whose ``status`` says which problems finished
+(a chunk cut in the middle has ``status`` -1 and is solved again).  A file that is still
+unreadable is refused by ``--resume`` with a message (run again without it).
+
+**Fingerprint** (``--resume`` never keeps results of other data): each group records
+``chunk`` (problems per chunk), ``chunk_digest`` (chunks, 16) uint8, the SHA-256 digest of each
+finished chunk's input bytes (M, q, bounds and names: :func:`chunk_digest`; zeros: none yet),
+and ``solve_options`` (JSON: method, tol, options).  ``--resume`` reads the chunks that hold
+finished problems again and refuses, with one line, a file whose digests or options differ
+from this run's, and a file without them (written by an older lcpcli: run without
+``--resume``); a problem counts as done only when its chunk's digest is recorded.
 
 **NPZ** (``results.npz``, one input stack): the same arrays at the top level plus ``source``;
 held in memory and written atomically when the batch ends (also on Ctrl-C / SIGTERM), so the
 file on disk is always complete; ``--resume`` starts from it.
 
 **Rows** (``.jsonl``/``.csv``): one row per problem, see :mod:`lcpcli.batch.stacked`; the
-row's ``index`` is the position in the stack, which ``--resume`` uses.
+row's ``index`` is the position in the stack, which ``--resume`` uses, and its ``input_hash``
+the digest of its chunk (chunks of :func:`lcpcli.io.stack.chunk_size` problems).
 """
 
 from __future__ import annotations
 
+import io
 import json
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from lcpcli.batch.output import DIGEST_BYTES, new_digest
 from lcpcli.core.errors import OptionError, ProblemError
 from lcpcli.core.result import NOT_DONE, STATUS_CODES, status_counts
+from lcpcli.io.writing import (
+    Hdf5Handle,
+    atomic_file,
+    atomic_path,
+    check_hdf5_tree,
+    open_hdf5,
+    own_file,
+    read_own_file,
+    writing,
+)
 
 #: Root attribute marking an HDF5 file as stacked results.
 MARK = "lcpcli_stacked_results"
 _ARRAYS = ("z", "w", "status", "iterations", "error", "residual")
+#: What a write failure leaves in a stacked result file (the message says it).
+KEPT = "the finished problems are kept (status -1 marks the others): free space, then run " \
+       "again with --resume"
+_RERUN = "run again without --resume"
+
+
+def chunk_digest(part: Any) -> bytes:
+    """The fingerprint of a chunk of a stack (:class:`lcpcli.io.stack.StackChunk`): the
+    digest (:func:`lcpcli.batch.output.new_digest`) of the little-endian float64 bytes of M,
+    q, lower and upper and of the UTF-8 names."""
+    h = new_digest()
+    for arr in (part.M, part.q, part.lower, part.upper):
+        if arr is None:
+            h.update(b"-")
+        else:
+            h.update(np.ascontiguousarray(arr, dtype="<f8").data)
+    if part.names is not None:
+        h.update("\0".join(part.names).encode("utf-8", "surrogateescape"))
+    return h.digest()[:DIGEST_BYTES]
+
+
+def options_fingerprint(opts: Any) -> str:
+    """The solve options a result was computed with (JSON: method, tol, options)."""
+    return json.dumps({"method": opts.method, "tol": opts.tol, "options": opts.options},
+                      sort_keys=True, default=repr)
+
+
+def _text(text: Any) -> str:
+    from lcpcli.batch.output import hdf5_text
+
+    return hdf5_text(text)
+
+
+def _check_status(status: np.ndarray, path: Path) -> None:
+    """ProblemError when ``status`` holds a value that is no status code (a damaged file)."""
+    codes = np.array(sorted(set(STATUS_CODES.values()) | {NOT_DONE}))
+    bad = status[~np.isin(status, codes)]
+    if bad.size:
+        raise ProblemError(f"cannot be resumed: its status holds {int(bad[0])}, which is no "
+                           f"status code (a damaged or foreign file); {_RERUN}", str(path))
+
+
+def _done_mask(status: np.ndarray, digests: np.ndarray, chunk: int) -> np.ndarray:
+    """Finished problems: a status code, in a chunk whose digest is recorded."""
+    recorded = digests.any(axis=1)
+    return (status != NOT_DONE) & np.repeat(recorded, chunk)[:status.size]
+
+
+def _recorded(status: np.ndarray, digests: np.ndarray, chunk: int) -> dict[int, bytes]:
+    done = _done_mask(status, digests, chunk)
+    chunks = np.unique(np.flatnonzero(done) // chunk)
+    return {int(c): bytes(digests[c]) for c in chunks.tolist()}
 
 
 def _empty_arrays(K: int, n: int) -> dict[str, np.ndarray]:
@@ -51,63 +128,129 @@ def _chunk_arrays(res: Any) -> dict[str, np.ndarray]:
             "residual": res.residual}
 
 
+def _chunks(K: int, chunk: int) -> int:
+    return max(1, -(-K // chunk))
+
+
 class Hdf5StackWriter:
     """Stacked results in an HDF5 file (see the module docstring)."""
 
     wants_rows = False
 
-    def __init__(self, path: Path, infos: list[Any], resume: bool) -> None:
-        import h5py
+    def __init__(self, path: Path, infos: list[Any], resume: bool, options: str = "{}") -> None:
+        from lcpcli.io.stack import chunk_size
 
-        from lcpcli.io import atomic_path
-
-        self.path = path
-        if resume and path.exists():
-            try:
-                self.file = h5py.File(path, "a")
-            except OSError as exc:
-                raise ProblemError(f"cannot be resumed: not a readable HDF5 file "
-                                   f"({str(exc).splitlines()[0][:80]}; interrupted by kill -9?); "
-                                   f"run again without --resume", str(path)) from None
-            if self.file.attrs.get(MARK) != 1:
-                self.file.close()
-                raise ProblemError("is not a stacked result file of lcpcli; run without "
-                                   "--resume to replace it", str(path))
-        else:
-            with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:
+        self.path, self.options = path, options
+        if not (resume and own_file(path) is not None):  # a link is refused by own_file
+            with atomic_path(path) as tmp, open_hdf5(tmp, "w") as f:  # complete, or nothing
                 f.attrs[MARK] = 1
-            self.file = h5py.File(path, "a")
-        self.groups: dict[str, Any] = {}
-        taken = set(self.file.keys())
-        existing = {str(self.file[g].attrs.get("source", "")): self.file[g] for g in taken}
-        for info in infos:
-            g = existing.get(info.path)
-            if g is not None:
-                if (int(g.attrs["K"]), int(g.attrs["n"])) != (info.K, info.n):
-                    raise ProblemError(f"holds results of {info.path} for K = "
-                                       f"{int(g.attrs['K'])}, n = {int(g.attrs['n'])}, but the "
-                                       f"input now has K = {info.K}, n = {info.n}; run without "
-                                       f"--resume", str(path))
-            else:
-                g = self._create(info, taken)
-            self.groups[info.path] = g
+                taken: set[str] = set()
+                for info in infos:
+                    self._create(f, info, taken, chunk_size(info.n))
+        try:
+            self.h5 = Hdf5Handle(path, "r+")
+        except ProblemError as exc:
+            raise ProblemError(f"cannot be resumed: {str(exc).removeprefix(f'{path}: ')} "
+                               f"(interrupted by kill -9?); {_RERUN}", str(path)) from None
+        self.file = self.h5.file
+        try:
+            missing = self._open_groups(infos)
+        except BaseException:
+            self.h5.close()
+            raise
+        if missing:  # new inputs: a new file with their groups added, renamed over this one
+            self.h5.close()
+            self._add_groups(missing)
+            self.h5 = Hdf5Handle(path, "r+")
+            self.file = self.h5.file
+            try:
+                self._open_groups(infos)
+            except BaseException:
+                self.h5.close()
+                raise
 
-    def _create(self, info: Any, taken: set[str]) -> Any:
+    def _open_groups(self, infos: list[Any]) -> list[Any]:
+        """Check the file and the groups of ``infos`` it holds; the infos it lacks."""
+        f, path = self.file, self.path
+        check_hdf5_tree(f, path)  # nothing in it reaches outside the file
+        if f.attrs.get(MARK) != 1:
+            raise ProblemError("is not a stacked result file of lcpcli; run without "
+                               "--resume to replace it", str(path))
+        self.groups: dict[str, Any] = {}
+        self.chunk_of: dict[str, int] = {}
+        existing = {str(f[g].attrs.get("source", "")): f[g] for g in f}
+        missing = []
+        for info in infos:
+            g = existing.get(_text(info.path))
+            if g is None:
+                missing.append(info)
+                continue
+            self._check_group(g, info)
+            self.groups[info.path] = g
+            self.chunk_of[info.path] = int(g.attrs["chunk"])
+        return missing
+
+    def _add_groups(self, infos: list[Any]) -> None:
+        """Groups for new inputs of a resumed file, added in a copy renamed over it (never in
+        place: a full disk in the middle must not damage the results it holds)."""
+        from lcpcli.io.stack import chunk_size
+
+        with atomic_path(self.path) as tmp, open_hdf5(tmp, "w") as dst:
+            src = Hdf5Handle(self.path, "r")
+            try:
+                for key, value in src.file.attrs.items():
+                    dst.attrs[key] = value
+                for name in src.file:
+                    src.file.copy(src.file[name], dst, name=name)
+            finally:
+                src.close()
+            taken = set(dst.keys())
+            for info in infos:
+                self._create(dst, info, taken, chunk_size(info.n))
+
+    def _check_group(self, g: Any, info: Any) -> None:
+        path = self.path
+        if (int(g.attrs["K"]), int(g.attrs["n"])) != (info.K, info.n):
+            raise ProblemError(f"holds results of {info.path} for K = {int(g.attrs['K'])}, "
+                               f"n = {int(g.attrs['n'])}, but the input now has K = {info.K}, "
+                               f"n = {info.n}; {_RERUN}", str(path))
+        if "chunk_digest" not in g or "chunk" not in g.attrs or "solve_options" not in g.attrs:
+            raise ProblemError(f"holds results of {info.path} without the fingerprint of "
+                               f"their input (written by an older lcpcli), so they cannot be "
+                               f"checked against it; {_RERUN}", str(path))
+        if str(g.attrs["solve_options"]) != self.options:
+            raise ProblemError(f"holds results of {info.path} computed with "
+                               f"{g.attrs['solve_options']}, not {self.options}: give the same "
+                               f"options or {_RERUN}", str(path))
+        chunk = int(g.attrs["chunk"])
+        if chunk < 1 or g["chunk_digest"].shape != (_chunks(info.K, chunk), DIGEST_BYTES) \
+                or g["status"].shape != (info.K,):
+            raise ProblemError(f"cannot be resumed: its fingerprint of {info.path} does not "
+                               f"fit the input's K = {info.K}; {_RERUN}", str(path))
+        _check_status(g["status"][...], path)
+
+    def _create(self, f: Any, info: Any, taken: set[str], chunk: int) -> Any:
         import h5py
 
-        base = Path(info.path).stem.replace("/", "_") or "stack"
+        base = _text(Path(info.path).stem).replace("/", "_") or "stack"
         name, k = base, 1
         while name in taken:
             k += 1
             name = f"{base}~{k}"
         taken.add(name)
-        g = self.file.create_group(name)
+        g = f.create_group(name)
         K, n = info.K, info.n
         rows = max(1, min(K, (1 << 20) // max(8 * n, 8)))  # ~1 MiB chunks of z and w
-        for key, value in _empty_arrays(0, n).items():
-            shape = (K, n) if value.ndim == 2 else (K,)
+        arrays = _empty_arrays(0, n)
+        arrays["chunk_digest"] = np.zeros((0, DIGEST_BYTES), np.uint8)
+        for key, value in arrays.items():
+            size = _chunks(K, chunk) if key == "chunk_digest" else K
+            shape = (size, value.shape[1]) if value.ndim == 2 else (size,)
             chunks = (rows, n) if value.ndim == 2 and n else (min(K, 1 << 16),)
-            fill = NOT_DONE if key == "status" else (0 if key == "iterations" else np.nan)
+            if key == "chunk_digest":
+                chunks = (min(size, 1 << 12), DIGEST_BYTES)
+            fill = NOT_DONE if key == "status" else (0 if key in ("iterations", "chunk_digest")
+                                                     else np.nan)
             # every chunk allocated (and filled) now: later writes change data, never the
             # file's metadata, so a kill -9 between or during them leaves a readable file
             dcpl = h5py.h5p.create(h5py.h5p.DATASET_CREATE)
@@ -116,35 +259,48 @@ class Hdf5StackWriter:
                              chunks=chunks if K and (value.ndim == 1 or n) else None, dcpl=dcpl)
         if info.has_names:
             g.create_dataset("names", shape=(K,), dtype=h5py.string_dtype())
-        g.attrs.update({"source": info.path, "n": n, "K": K, "method": "", "tol": np.nan,
+        g.attrs.update({"source": _text(info.path), "n": n, "K": K, "method": "", "tol": np.nan,
+                        "chunk": chunk, "solve_options": self.options,
                         "status_codes": json.dumps({str(s): c for s, c in
                                                     STATUS_CODES.items()})})
         return g
 
+    def chunk(self, info: Any) -> int:
+        return self.chunk_of[info.path]
+
+    def recorded(self, info: Any) -> dict[int, bytes]:
+        g = self.groups[info.path]
+        return _recorded(g["status"][...], g["chunk_digest"][...], self.chunk(info))
+
     def done(self, info: Any) -> np.ndarray:
-        return self.groups[info.path]["status"][...] != NOT_DONE
+        g = self.groups[info.path]
+        return _done_mask(g["status"][...], g["chunk_digest"][...], self.chunk(info))
 
     def tally_done(self, info: Any, tally: Any) -> None:
-        tally.add_counts(status_counts(self.groups[info.path]["status"][...]))
+        status = self.groups[info.path]["status"][...]
+        tally.add_counts(status_counts(np.where(self.done(info), status, NOT_DONE)))
 
     def write(self, info: Any, positions: np.ndarray, names: list[str] | None, res: Any,
-              rows: Any) -> None:
+              rows: Any, chunk_no: int, digest: bytes) -> None:
         g = self.groups[info.path]
         first, last = int(positions[0]), int(positions[-1])
         where: Any = slice(first, last + 1) if last - first + 1 == positions.size else positions
         arrays = _chunk_arrays(res)
-        for key in ("z", "w", "iterations", "error", "residual", "status"):  # status last
-            if key == "status" and names is not None and "names" in g:
-                g["names"][where] = names
-            g[key][where] = arrays[key]
-        g.attrs["method"] = res.method
-        g.attrs["tol"] = res.tol
-        self.file.flush()
+        with writing(self.path, KEPT):
+            for key in ("z", "w", "iterations", "error", "residual"):
+                g[key][where] = arrays[key]
+            if names is not None and "names" in g:
+                g["names"][where] = [_text(s) for s in names]
+            self.h5.flush()  # the data reach the file before what vouches for them
+            g["chunk_digest"][chunk_no] = np.frombuffer(digest, np.uint8)
+            g["status"][where] = arrays["status"]
+            g.attrs["method"] = res.method
+            g.attrs["tol"] = res.tol
+            self.h5.flush()
+        self.h5.check(KEPT)
 
     def close(self) -> None:
-        if self.file.id.valid:
-            self.file.flush()
-            self.file.close()
+        self.h5.close(KEPT)
 
 
 class NpzStackWriter:
@@ -152,108 +308,173 @@ class NpzStackWriter:
 
     wants_rows = False
 
-    def __init__(self, path: Path, infos: list[Any], resume: bool) -> None:
+    def __init__(self, path: Path, infos: list[Any], resume: bool, options: str = "{}") -> None:
+        from lcpcli.io.stack import chunk_size
+
         if len(infos) != 1:
             raise OptionError(f"--output {path}: an .npz result file holds one stack; give one "
                               f"stacked input, or write .h5 (one group per stack)")
         info = self.info = infos[0]
-        self.path = path
+        self.path, self.options = path, options
         self.arrays = _empty_arrays(info.K, info.n)
+        self.chunk_size = chunk_size(info.n)
+        self.digests = np.zeros((_chunks(info.K, self.chunk_size), DIGEST_BYTES), np.uint8)
         self.names: list[str] | None = [""] * info.K if info.has_names else None
         self.method, self.tol = "", float("nan")
-        if resume and path.exists():
+        if resume and own_file(path) is not None:
             self._load(path, info)
 
     def _load(self, path: Path, info: Any) -> None:
         try:
-            with np.load(path, allow_pickle=False) as data:
+            with np.load(io.BytesIO(read_own_file(path)), allow_pickle=False) as data:
                 if str(data["source"]) != info.path:
                     raise ProblemError(f"holds results of {data['source']}, not {info.path}; "
-                                       f"run without --resume", str(path))
+                                       f"{_RERUN}", str(path))
+                if not {"chunk_digest", "chunk", "solve_options"} <= set(data.files):
+                    raise ProblemError(f"holds results of {info.path} without the fingerprint "
+                                       f"of their input (written by an older lcpcli), so they "
+                                       f"cannot be checked against it; {_RERUN}", str(path))
+                if str(data["solve_options"]) != self.options:
+                    raise ProblemError(f"holds results of {info.path} computed with "
+                                       f"{data['solve_options']}, not {self.options}: give the "
+                                       f"same options or {_RERUN}", str(path))
+                chunk = int(data["chunk"])
+                if chunk < 1 or data["chunk_digest"].shape != \
+                        (_chunks(info.K, chunk), DIGEST_BYTES):
+                    raise ProblemError(f"cannot be resumed: its fingerprint does not fit the "
+                                       f"input's K = {info.K}; {_RERUN}", str(path))
+                self.chunk_size = chunk
+                self.digests = data["chunk_digest"].astype(np.uint8)
+                self.method, self.tol = str(data["method"]), float(data["tol"])
                 for key, value in self.arrays.items():
                     got = data[key]
                     if got.shape != value.shape:
                         raise ProblemError(f"its {key} has shape {got.shape}, the input needs "
-                                           f"{value.shape}; run without --resume", str(path))
+                                           f"{value.shape}; {_RERUN}", str(path))
                     value[...] = got
                 if self.names is not None and "names" in data:
                     self.names = [str(x) for x in data["names"].tolist()]
-        except (OSError, KeyError, ValueError) as exc:
-            raise ProblemError(f"cannot be resumed ({str(exc).splitlines()[0][:80]}); run "
-                               f"without --resume", str(path)) from None
+        except (OSError, KeyError, ValueError, TypeError) as exc:
+            if isinstance(exc, ProblemError):
+                raise
+            raise ProblemError(f"cannot be resumed ({str(exc).splitlines()[0][:80]}); "
+                               f"{_RERUN}", str(path)) from None
+        _check_status(self.arrays["status"], path)
+
+    def chunk(self, info: Any) -> int:
+        return self.chunk_size
+
+    def recorded(self, info: Any) -> dict[int, bytes]:
+        return _recorded(self.arrays["status"], self.digests, self.chunk_size)
 
     def done(self, info: Any) -> np.ndarray:
-        return self.arrays["status"] != NOT_DONE
+        return _done_mask(self.arrays["status"], self.digests, self.chunk_size)
 
     def tally_done(self, info: Any, tally: Any) -> None:
-        tally.add_counts(status_counts(self.arrays["status"]))
+        tally.add_counts(status_counts(np.where(self.done(info), self.arrays["status"],
+                                                NOT_DONE)))
 
     def write(self, info: Any, positions: np.ndarray, names: list[str] | None, res: Any,
-              rows: Any) -> None:
+              rows: Any, chunk_no: int, digest: bytes) -> None:
         for key, value in _chunk_arrays(res).items():
             self.arrays[key][positions] = value
         if names is not None and self.names is not None:
             for k, name in zip(positions.tolist(), names, strict=True):
                 self.names[k] = name
+        self.digests[chunk_no] = np.frombuffer(digest, np.uint8)
         self.method, self.tol = res.method, res.tol
 
     def close(self) -> None:
-        from lcpcli.io import atomic_path
-
         extra: dict[str, Any] = {"source": np.asarray(self.info.path),
                                  "method": np.asarray(self.method),
-                                 "tol": np.asarray(self.tol)}
+                                 "tol": np.asarray(self.tol),
+                                 "chunk": np.asarray(self.chunk_size),
+                                 "chunk_digest": self.digests,
+                                 "solve_options": np.asarray(self.options)}
         if self.names is not None:
             extra["names"] = np.asarray(self.names, dtype=str)
-        with atomic_path(self.path) as tmp, open(tmp, "wb") as fh:
+        with atomic_file(self.path) as fh:  # complete, or the previous file as it was
             np.savez(fh, **self.arrays, **extra)
 
 
 class RowStackWriter:
-    """Rows of stacked problems in a JSONL or CSV result file (the batch row writers)."""
+    """Rows of stacked problems in a JSONL or CSV result file (the batch row writers); each
+    row's ``input_hash`` is the digest of its chunk."""
 
     wants_rows = True
 
-    def __init__(self, path: Path, infos: list[Any], resume: bool) -> None:
+    def __init__(self, path: Path, infos: list[Any], resume: bool, options: str = "{}") -> None:
         from lcpcli.batch import output
 
+        self.path = path
         self.finished: dict[str, list[dict[str, Any]]] = {}
-        if resume and path.exists():
+        if resume and own_file(path) is not None:
             for row in output.read_rows(path):
                 self.finished.setdefault(str(row.get("source", "")), []).append(row)
         self.writer = output.open_writer(path, resume=resume)
 
+    def chunk(self, info: Any) -> int:
+        from lcpcli.io.stack import chunk_size
+
+        return chunk_size(info.n)
+
+    def _rows(self, info: Any) -> list[dict[str, Any]]:
+        return [r for r in self.finished.get(info.path, [])
+                if isinstance(r.get("index"), int) and 0 <= r["index"] < info.K]
+
+    def recorded(self, info: Any) -> dict[int, bytes]:
+        from lcpcli.batch.output import INPUT_HASH
+
+        chunk, out = self.chunk(info), {}
+        for row in self._rows(info):
+            if INPUT_HASH not in row:
+                raise ProblemError(f"holds results of {info.path} without the fingerprint of "
+                                   f"their input (written by an older lcpcli), so they cannot "
+                                   f"be checked against it; {_RERUN}", str(self.path))
+            try:
+                digest = bytes.fromhex(str(row[INPUT_HASH]))
+            except ValueError:
+                digest = b""
+            c = row["index"] // chunk
+            if len(digest) != DIGEST_BYTES or out.setdefault(c, digest) != digest:
+                raise ProblemError(f"cannot be resumed: the fingerprints of {info.path}'s "
+                                   f"problems {c * chunk}.. disagree (a damaged file); "
+                                   f"{_RERUN}", str(self.path))
+        return out
+
     def done(self, info: Any) -> np.ndarray:
         mask = np.zeros(info.K, bool)
-        for row in self.finished.get(info.path, []):
-            k = row.get("index")
-            if isinstance(k, int) and 0 <= k < info.K:
-                mask[k] = True
+        for row in self._rows(info):
+            mask[row["index"]] = True
         return mask
 
     def tally_done(self, info: Any, tally: Any) -> None:
         seen: set[int] = set()
-        for row in self.finished.get(info.path, []):
-            k = row.get("index")
-            if isinstance(k, int) and 0 <= k < info.K and k not in seen:
+        for row in self._rows(info):
+            k = row["index"]
+            if k not in seen:
                 seen.add(k)
                 tally.add(row)
 
     def write(self, info: Any, positions: np.ndarray, names: list[str] | None, res: Any,
-              rows: list[dict[str, Any]]) -> None:
-        self.writer.write(rows)
+              rows: list[dict[str, Any]], chunk_no: int, digest: bytes) -> None:
+        from lcpcli.batch.output import INPUT_HASH
+
+        self.writer.write([{**row, INPUT_HASH: digest.hex()} for row in rows])
 
     def close(self) -> None:
         self.writer.close()
 
 
-def open_stack_writer(path: str | Any, infos: list[Any], *, resume: bool) -> Any:
-    """The writer for a stacked batch's ``--output`` (kind by extension)."""
+def open_stack_writer(path: str | Any, infos: list[Any], *, resume: bool,
+                      options: str = "{}") -> Any:
+    """The writer for a stacked batch's ``--output`` (kind by extension); ``options`` is the
+    :func:`options_fingerprint` of the run."""
     from lcpcli.batch.output import checked_output
 
     path, kind = checked_output(path)
     if kind == "hdf5":
-        return Hdf5StackWriter(path, infos, resume)
+        return Hdf5StackWriter(path, infos, resume, options)
     if kind == "npz":
-        return NpzStackWriter(path, infos, resume)
-    return RowStackWriter(path, infos, resume)
+        return NpzStackWriter(path, infos, resume, options)
+    return RowStackWriter(path, infos, resume, options)

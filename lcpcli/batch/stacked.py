@@ -7,7 +7,9 @@ call, the full one-problem pipeline for what it could not certify; the method is
 per stack by :func:`lcpcli.api.plan_stack`).  Results go to the output as stacked datasets
 (``.h5``, ``.npz``: :mod:`lcpcli.batch.stack_output`) or as rows (``.jsonl``, ``.csv``, and the
 ``--json`` stream; row ``problem`` is the stacked problem's name), and ``--resume`` skips the
-problems the output already holds.
+problems the output already holds, once it has checked that they were computed from the same
+data: the chunks holding them are read again and their digests compared with the ones the
+output recorded (:func:`lcpcli.batch.stack_output.chunk_digest`), and the solve options too.
 """
 
 from __future__ import annotations
@@ -89,7 +91,16 @@ def run_stacks(inputs: list[str], opts: SolveOptions, report: BatchReport, *,
     writer = None
     if output is not None:
         writer = stack_output.open_stack_writer(output, [i for i in infos if i is not None],
-                                                resume=resume)
+                                                resume=resume,
+                                                options=stack_output.options_fingerprint(opts))
+    try:
+        if writer is not None and resume:
+            for info in infos:
+                if info is not None:
+                    _check_identity(info, writer, output)
+    except BaseException:
+        writer.close()
+        raise
     done_masks = {}
     for path, info in zip(inputs, infos, strict=True):
         if info is not None:
@@ -106,11 +117,31 @@ def run_stacks(inputs: list[str], opts: SolveOptions, report: BatchReport, *,
             if info is None:
                 continue
             _run_one(path, info, opts, report, tally, stats, writer, done_masks[path],
-                     threads=threads, chunk=chunk_size(info.n), on_progress=on_progress,
-                     on_row=on_row, write=write)
+                     threads=threads,
+                     chunk=writer.chunk(info) if writer is not None else chunk_size(info.n),
+                     on_progress=on_progress, on_row=on_row, write=write)
     finally:
         if writer is not None:
             write(writer.close)
+
+
+def _check_identity(info: Any, writer: Any, output: Any) -> None:
+    """Refuse to resume when a chunk holding finished results now holds other data."""
+    from lcpcli.batch.stack_output import chunk_digest
+    from lcpcli.io.stack import open_stack
+
+    recorded = writer.recorded(info)
+    if not recorded:
+        return
+    chunk = writer.chunk(info)
+    with open_stack(info.path) as reader:
+        for c, want in sorted(recorded.items()):
+            start, stop = c * chunk, min(info.K, (c + 1) * chunk)
+            if chunk_digest(reader.read(start, stop)) != want:
+                raise ProblemError(f"holds results computed from other data than {info.path} "
+                                   f"has now (problems {start:,} to {stop - 1:,} differ): run "
+                                   f"again without --resume, or give another --output",
+                                   str(output))
 
 
 def _run_one(path: str, info: Any, opts: SolveOptions, report: BatchReport, tally: Tally,
@@ -118,6 +149,7 @@ def _run_one(path: str, info: Any, opts: SolveOptions, report: BatchReport, tall
              on_progress: Any, on_row: Any, write: Any) -> None:
     """One stacked input, chunk by chunk (the plan is made on the first chunk solved)."""
     from lcpcli.api import plan_stack, solve_many
+    from lcpcli.batch.stack_output import chunk_digest
     from lcpcli.io.stack import open_stack
 
     stem = Path(path).stem
@@ -131,6 +163,7 @@ def _run_one(path: str, info: Any, opts: SolveOptions, report: BatchReport, tall
                 continue
             t0 = time.perf_counter()
             part = reader.read(start, stop)
+            digest = chunk_digest(part) if writer is not None else b""
             t1 = time.perf_counter()
             stats.read_seconds += t1 - t0
             M, q = part.M, part.q
@@ -155,7 +188,8 @@ def _run_one(path: str, info: Any, opts: SolveOptions, report: BatchReport, tall
             rows = result_rows(path, stem, positions, names, res) \
                 if (on_row is not None or (writer is not None and writer.wants_rows)) else None
             if writer is not None:
-                write(lambda: writer.write(info, positions, names, res, rows))  # noqa: B023
+                write(lambda: writer.write(info, positions, names, res, rows,  # noqa: B023
+                                           start // chunk, digest))  # noqa: B023
             add_to_tally(tally, path, stem, positions, names, res)
             report.new += len(res)
             if rows is not None and on_row is not None:

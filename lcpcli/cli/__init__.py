@@ -6,7 +6,8 @@ that ``lcpcli --help`` stays fast.  Errors become one line on stderr and an exit
 
 * 0  solved (every problem solved, certificate checked)
 * 1  not solved (``no_solution`` or ``unsolved``)
-* 2  bad usage or bad input (malformed or missing file, wrong shapes, NaN/Inf, unknown option)
+* 2  bad usage or bad input (malformed or missing file, wrong shapes, NaN/Inf, unknown option),
+     or an output that cannot be written (``PATH: no space left on device``, permission denied)
 * 3  internal error (a bug: please report it; ``LCPCLI_DEBUG=1`` shows the traceback)
 """
 
@@ -154,9 +155,17 @@ def main(argv: list[str] | None = None) -> None:
     except Exception as exc:  # noqa: BLE001 - last line of defence: no tracebacks for users
         if os.environ.get("LCPCLI_DEBUG"):
             raise
-        error_line(f"internal error: {type(exc).__name__}: {exc} "
-                   f"(set LCPCLI_DEBUG=1 for the traceback)")
-        code = EXIT_INTERNAL
+        # a write no writer wrapped (every output file is: this is stdout): still one line
+        from lcpcli.io.writing import output_error
+
+        failed = output_error(exc, getattr(exc, "filename", None) or "standard output")
+        if failed is not None:
+            error_line(str(failed))
+            code = EXIT_BAD_INPUT
+        else:
+            error_line(f"internal error: {type(exc).__name__}: {exc} "
+                       f"(set LCPCLI_DEBUG=1 for the traceback)")
+            code = EXIT_INTERNAL
     finally:
         sys.stdout = stdout
     try:

@@ -56,7 +56,9 @@ def wants_batch(files: list[str], output: Any, *, problem: str | None = None,
         if is_stack(f):
             return problem is None  # --problem picks one stacked problem: a single solve
     if Path(f).is_dir():
-        return True
+        # a folder is a batch; a directory named like a problem file (adir.json) is a bad
+        # input of a single solve: one line on stderr, as the README promises
+        return not f.rstrip("/").lower().endswith(tuple(FORMATS))
     if not Path(f).exists():
         from lcpcli.batch.inputs import GLOB_CHARS
 

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import os
 import sys
 from typing import Any
@@ -157,8 +156,11 @@ def exit_code_for(statuses: list[str]) -> int:
 
 
 def write_json_line(obj: Any) -> None:
-    """One JSON object on stdout (nothing else goes there with ``--json``)."""
-    sys.stdout.write(json.dumps(obj, allow_nan=False) + "\n")
+    """One JSON object on stdout (nothing else goes there with ``--json``; non-finite numbers
+    as ``null``: :func:`lcpcli.core.numeric.json_text`)."""
+    from lcpcli.core.numeric import json_text  # imports numpy: not at --help time
+
+    sys.stdout.write(json_text(obj) + "\n")
     sys.stdout.flush()
 
 

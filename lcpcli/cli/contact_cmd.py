@@ -74,6 +74,7 @@ def contact_matrix(
     from lcpcli.contact.warmstart import check_impulses_path, warm_start, write_impulses
     from lcpcli.core.errors import OptionError, ProblemError
     from lcpcli.io import check_output
+    from lcpcli.io.writing import check_distinct
 
     if friction < 0:
         raise OptionError(f"--friction K must be >= 0, got {friction}")
@@ -82,11 +83,15 @@ def contact_matrix(
     for flag, value in (("--z0", z0), ("--impulses", impulses)):
         if value is not None and not do_solve:
             raise OptionError(f"{flag} needs --solve")
+    # before any work: an output is never an input (the scene, --z0), a device or a link,
+    # and the two outputs are two files (lcpcli.io.writing's rule 1)
+    inputs = [scene_file, z0] if z0 is not None else [scene_file]
     if impulses is not None:
         check_impulses_path(impulses)
-    if output is not None:  # before any work: never the scene itself, a device or a link
-        check_output(output, inputs=[scene_file, z0] if z0 is not None else [scene_file],
-                     stdout=False)
+        check_output(impulses, inputs=inputs, stdout=False)
+    if output is not None:
+        check_output(output, inputs=inputs, stdout=False)
+    check_distinct([("--output", output), ("--impulses", impulses)])
     scene = load_scene(scene_file)
     names = [nm.strip() for item in kinematic or [] for nm in item.split(",") if nm.strip()]
     scene = with_kinematic(scene, names)

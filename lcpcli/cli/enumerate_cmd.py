@@ -59,13 +59,13 @@ def enumerate_command(
     the cones cover the plane (K(M) = R^2) and draws them. Exit codes: 0 a solution exists;
     1 no solution; 2 bad usage or bad input; 3 internal error.
     """
-    import json
-
     from lcpcli.analysis.enumeration import check_problem, covers_plane, enumerate_cones
     from lcpcli.cli.common import pending_exit, write_json_line
     from lcpcli.cli.export import check_export_options, check_format
     from lcpcli.core.errors import OptionError
+    from lcpcli.core.numeric import json_text
     from lcpcli.io import check_output, load, write_atomic_text
+    from lcpcli.io.writing import check_distinct
 
     fmt = check_format(fmt)
     plot_path = Path(plot) if plot is not None else None
@@ -74,6 +74,7 @@ def enumerate_command(
     for target in (output_path, plot_path):  # before any work: never the input or a device
         if target is not None:
             check_output(target, inputs=[file], stdout=False)
+    check_distinct([("--output", output_path), ("--plot", plot_path)])
     prob = load(file, problem)
     M = check_problem(prob, max_n)
     n = prob.n
@@ -122,7 +123,7 @@ def enumerate_command(
     if path is not None:
         payload["lemke_path"] = path
     if output_path is not None and fmt == "text":
-        write_atomic_text(output_path, json.dumps(payload, allow_nan=False) + "\n")
+        write_atomic_text(output_path, json_text(payload) + "\n")
     if not as_json or fmt != "text":  # the tables in fractions; the JSON above keeps floats
         from lcpcli.cli.export import exact_cones
 

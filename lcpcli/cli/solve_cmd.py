@@ -89,11 +89,10 @@ def solve(
     P-matrix of a known class a bound on ||z - z*||_inf is shown too. Exit codes: 0 solved; 1
     not solved (no_solution or unsolved); 2 bad usage or bad input; 3 internal error.
     """
-    import json
-
     from lcpcli.api import solve as solve_problem
     from lcpcli.cli.common import MAX_ITER, exit_code_for, parse_key_values, write_json_line
     from lcpcli.core.errors import OptionError, ProblemError
+    from lcpcli.core.numeric import json_text
     from lcpcli.io import check_output, load, write_atomic_text
 
     opts: dict[str, object] = parse_key_values(option)
@@ -151,7 +150,7 @@ def solve(
 
         result.trace = exact_view(prob, method, exact, opts, result.trace)
     if output is not None and fmt == "text":
-        write_atomic_text(output, json.dumps(payload, allow_nan=False) + "\n")
+        write_atomic_text(output, json_text(payload) + "\n")
     if as_json:
         write_json_line(payload)
         if result.trace is not None and fmt != "text":

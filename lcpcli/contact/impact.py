@@ -51,12 +51,15 @@ def approaching(v_after: np.ndarray, v_before: np.ndarray) -> np.ndarray:
 def kinetic_energy(scene: Scene, velocity: np.ndarray, omega: np.ndarray) -> float:
     """``sum over dynamic bodies of (m |v|^2 + omega^T I_world omega) / 2``.
 
-    Static and kinematic bodies (infinite mass, prescribed velocity) are left out.
+    Static and kinematic bodies (infinite mass, prescribed velocity) are left out.  Inf when
+    the energy exceeds the largest double (masses or velocities near the ends of the range;
+    written as null in JSON).
     """
     mv = ~scene.fixed
-    lin = np.sum(scene.mass[mv] * np.sum(velocity[mv] ** 2, axis=1))
-    ang = np.einsum("bi,bij,bj->", omega[mv], scene.inertia[mv], omega[mv])
-    return 0.5 * float(lin + ang)
+    with np.errstate(over="ignore", under="ignore"):
+        lin = np.sum(scene.mass[mv] * np.sum(velocity[mv] ** 2, axis=1))
+        ang = np.einsum("bi,bij,bj->", omega[mv], scene.inertia[mv], omega[mv])
+        return 0.5 * float(lin) + 0.5 * float(ang)
 
 
 def energy_increased(before: float, after: float) -> bool:

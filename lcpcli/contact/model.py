@@ -128,13 +128,16 @@ def build(scene: Scene, friction: int = 0, storage: str = "auto", *,
     if storage == "dense":
         check_dense_work(scene.n_contacts * (2 + k if k else 1), "--storage dense builds M as a "
                          "dense matrix", instead="use --storage sparse", cubic=False)
-    asm = assemble(scene, storage, restitution_threshold=restitution_threshold)
+    with np.errstate(over="ignore", invalid="ignore"):  # checked below: _check_representable
+        asm = assemble(scene, storage, restitution_threshold=restitution_threshold)
     nc = scene.n_contacts
     names = [f"n[{c}]" for c in scene.contact_names]
-    plane = plane_normal(scene) if planar and scene.dimension == 3 else None
+    with np.errstate(over="ignore", invalid="ignore"):  # an overflow: refused below
+        plane = plane_normal(scene) if planar and scene.dimension == 3 else None
     notes = []
     if k:
-        fb = friction_blocks(asm, k, plane)
+        with np.errstate(over="ignore", invalid="ignore"):
+            fb = friction_blocks(asm, k, plane)
         fc, dirs, kk = fb["fc"], fb["dirs"], fb["K"]
         G = fb["matrix"]
         q = fb["q"]
@@ -154,14 +157,17 @@ def build(scene: Scene, friction: int = 0, storage: str = "auto", *,
     n = q.shape[0]
     reg = np.zeros(n)
     n_imp = nc + fc.size * kk
-    reg[:n_imp] = soft[unknown_contact[:n_imp]] * diag[:n_imp]
+    with np.errstate(invalid="ignore"):  # 0 x an overflowed diagonal: refused below
+        reg[:n_imp] = soft[unknown_contact[:n_imp]] * diag[:n_imp]
     if k:
         kind = choose_storage(storage, n, int(G.nnz))
         M = G.toarray() if kind == "dense" else G
     else:
         M = G
     if np.any(reg > 0):
-        M = (M + sp.diags(reg)).tocsr() if is_sparse(M) else M + np.diag(reg)
+        with np.errstate(over="ignore", invalid="ignore"):
+            M = (M + sp.diags(reg)).tocsr() if is_sparse(M) else M + np.diag(reg)
+    _check_representable(M, q, scene)
     if scene.dimension == 2 and int(friction) not in (0, 2):
         notes.append(f"--friction {friction} in a 2-D scene: the tangent line has two "
                      f"directions (+t, -t), so K = 2 is used")
@@ -189,6 +195,19 @@ def build(scene: Scene, friction: int = 0, storage: str = "auto", *,
                       unknown_contact=unknown_contact, islands=isl, layout=lay, softness=soft,
                       regularisation=reg, plane=plane, requested_friction=int(friction),
                       storage=storage, notes=notes)
+
+
+def _check_representable(M: Any, q: np.ndarray, scene: Scene) -> None:
+    """ProblemError (exit 2, one line) when the contact LCP overflows double precision: a valid
+    scene whose masses, inertias, lever arms or velocities span too wide a range for
+    ``M = J W J^T`` and ``q`` to be finite."""
+    data = M.data if is_sparse(M) else M
+    if np.all(np.isfinite(data)) and np.all(np.isfinite(q)):
+        return
+    what = "M = J W J^T" if not np.all(np.isfinite(data)) else "q (relative normal velocities)"
+    raise ProblemError(f"the contact LCP of scene {scene.name or 'contact'!r} cannot be "
+                       f"represented in double precision: {what} overflows (masses, inertias, "
+                       f"lever arms or velocities out of range)")
 
 
 def _count(n: int, word: str) -> str:

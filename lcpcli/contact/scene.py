@@ -350,15 +350,21 @@ def build_scene(dim: int, names: list[str], static: np.ndarray, mass: np.ndarray
     bad = np.flatnonzero(asym > SYM_TOL * np.maximum(scale, 1e-300))
     if bad.size:
         raise ProblemError(f"{body(idx[bad[0]])}: inertia tensor is not symmetric")
-    if idx.size:
-        ev = np.linalg.eigvalsh(0.5 * (Ib + np.swapaxes(Ib, 1, 2)))
+    if idx.size:  # eigenvalues of each tensor divided by its largest entry (no overflow)
+        unit_I = Ib / np.maximum(scale, np.finfo(np.float64).tiny)[:, None, None]
+        ev = np.linalg.eigvalsh(0.5 * (unit_I + np.swapaxes(unit_I, 1, 2)))
         bad = np.flatnonzero(ev[:, 0] <= 1e-14 * np.maximum(ev[:, -1], 1e-300))
         if bad.size:
             raise ProblemError(f"{body(idx[bad[0]])}: inertia tensor is not positive definite "
-                               f"(smallest eigenvalue {ev[bad[0], 0]:g})")
+                               f"(smallest eigenvalue {ev[bad[0], 0] * scale[bad[0]]:g})")
     # world inertia R I R^T
     inv_mass = np.zeros(nb)
-    inv_mass[moving] = 1.0 / mass[moving]
+    with np.errstate(divide="ignore", over="ignore"):
+        inv_mass[moving] = 1.0 / mass[moving]
+    bad = np.flatnonzero(~np.isfinite(inv_mass))
+    if bad.size:
+        raise ProblemError(f"{body(bad[0])}: mass {mass[bad[0]]:g} is too small for double "
+                           f"precision (1/mass overflows)")
     mass = np.where(moving, mass, np.inf)
     I_world = np.zeros((nb, r, r))
     I_inv = np.zeros((nb, r, r))
@@ -385,8 +391,13 @@ def build_scene(dim: int, names: list[str], static: np.ndarray, mass: np.ndarray
         else:
             Iw = Ib
             Iinv = np.linalg.inv(Ib)
-        I_world[idx] = 0.5 * (Iw + np.swapaxes(Iw, 1, 2))
-        I_inv[idx] = 0.5 * (Iinv + np.swapaxes(Iinv, 1, 2))
+        bad = np.flatnonzero(~np.all(np.isfinite(Iinv.reshape(idx.size, -1)), axis=1))
+        if bad.size:
+            raise ProblemError(f"{body(idx[bad[0]])}: inertia too small for double precision "
+                               f"(its inverse overflows)")
+        # halves first: I + I^T overflows for entries near the largest double
+        I_world[idx] = 0.5 * Iw + 0.5 * np.swapaxes(Iw, 1, 2)
+        I_inv[idx] = 0.5 * Iinv + 0.5 * np.swapaxes(Iinv, 1, 2)
     # contacts
     for arr, label in ((point, "point"), (normal, "normal")):
         bad = np.flatnonzero(~np.all(np.isfinite(arr), axis=1))
@@ -406,15 +417,26 @@ def build_scene(dim: int, names: list[str], static: np.ndarray, mass: np.ndarray
         raise ProblemError(f"contact {k + 1}: both bodies ({names[int(ca[k])]!r}, "
                            f"{names[int(cb[k])]!r}) are static or kinematic: no impulse can "
                            f"act")
-    norms = np.linalg.norm(normal, axis=1)
-    bad = np.flatnonzero(norms < 1e-12)
+    # the length from the normal divided by its largest component (exact: a power of two
+    # would be too, but any positive divisor keeps the direction): (1e308, 1e308, 0) has a
+    # length that overflows, yet a direction; its length is reported in scientific notation
+    peak = np.max(np.abs(normal), axis=1) if nc else np.zeros(0)
+    bad = np.flatnonzero(peak == 0.0)
     if bad.size:
         raise ProblemError(f"contact {bad[0] + 1}: the normal is zero")
+    unit = normal / peak[:, None]
+    rel = np.linalg.norm(unit, axis=1)  # in [1, sqrt(dim)]
+    with np.errstate(over="ignore"):
+        norms = peak * rel
+    bad = np.flatnonzero(norms < 1e-12)
+    if bad.size:
+        raise ProblemError(f"contact {bad[0] + 1}: the normal is zero (length "
+                           f"{norms[bad[0]]:.3g} < 1e-12)")
     off = np.flatnonzero(np.abs(norms - 1.0) > UNIT_TOL)
     if off.size:
         warnings.append(f"contact {off[0] + 1}: normal of length {norms[off[0]]:.6g} normalised"
                         + (f" (and {off.size - 1} more contacts)" if off.size > 1 else ""))
-    normal = normal / norms[:, None]
+    normal = unit / rel[:, None]
     bad = np.flatnonzero(~(np.isfinite(eps) & (eps >= 0) & (eps <= 1)))
     if bad.size:
         raise ProblemError(f"contact {bad[0] + 1}: restitution {eps[bad[0]]:g} is outside [0, 1]")
@@ -752,9 +774,10 @@ def write_scene_hdf5(scene: Scene, path: str | Path) -> None:
     import h5py
 
     from lcpcli.io import atomic_path
+    from lcpcli.io.writing import open_hdf5
 
     nb = scene.n_bodies
-    with atomic_path(Path(path)) as tmp, h5py.File(tmp, "w") as f:
+    with atomic_path(Path(path)) as tmp, open_hdf5(tmp, "w") as f:
         f.attrs["dimension"] = scene.dimension
         if scene.name:
             f.attrs["name"] = scene.name

@@ -18,12 +18,12 @@ length.
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
 
 from lcpcli.core.errors import ProblemError
+from lcpcli.core.numeric import json_text
 
 FORMAT = "lcpcli-contact-impulses"
 
@@ -76,9 +76,9 @@ def write_impulses(path: str | Path, unknowns: list[str], z: np.ndarray, scene: 
     suffix = p.suffix.lower()
     with atomic_path(p) as tmp:
         if suffix == ".json":
-            tmp.write_text(json.dumps({"format": FORMAT, "version": 1, "scene": scene,
-                                       "status": status, "unknowns": list(unknowns),
-                                       "z": [float(x) for x in z]}) + "\n")
+            tmp.write_text(json_text({"format": FORMAT, "version": 1, "scene": scene,
+                                      "status": status, "unknowns": list(unknowns),
+                                      "z": [float(x) for x in z]}) + "\n")
         else:
             with open(tmp, "wb") as fh:
                 np.savez(fh, z=np.asarray(z, dtype=np.float64),

@@ -8,7 +8,8 @@ row's scale), and the blocks of rows coupled through significant terms (union-fi
 O(n) pass scores every complementary pair and every block.
 
 The fast path works in plain double arithmetic and reports ``status = 2`` when a product or a
-row scale leaves [2^-960, 2^960]; the Python wrapper then rescales the problem exactly by powers
+row scale leaves [2^-960, 2^960] (a row whose every term underflows to zero included: its
+scale would read 0 and its ``w_i`` 0); the Python wrapper then rescales the problem exactly by powers
 of two (the certificate does not change under row and column scaling) and calls again.
 """
 
@@ -300,6 +301,10 @@ cdef int certify_dense(Py_ssize_t n, const double* M, Py_ssize_t ldm, const doub
         s[i] = ai + fabs(q[i])
         if not (isfinite(wi) and isfinite(ai)) or s[i] > BIG or 0.0 < s[i] < SMALL:
             return _fail(out, 2)
+        if s[i] == 0.0:  # every term underflowed to zero (2.8e-250 x 1e-137), or none exists
+            for j in range(n):
+                if row[j] != 0.0 and z[j] != 0.0:
+                    return _fail(out, 2)
     # pass 2: kappa for the columns that may move, blocks through significant terms
     for j in range(n):
         if _needs_move(z[j], j, n_eq, lo, up) or z[j] != 0.0:
@@ -369,6 +374,10 @@ cdef int certify_csr(Py_ssize_t n, const double* data, const index_t* indices,
         s[i] = ai + fabs(q[i])
         if not (isfinite(wi) and isfinite(ai)) or s[i] > BIG or 0.0 < s[i] < SMALL:
             return _fail(out, 2)
+        if s[i] == 0.0:  # every term underflowed to zero, or none exists
+            for p in range(indptr[i], indptr[i + 1]):
+                if data[p] != 0.0 and z[indices[p]] != 0.0:
+                    return _fail(out, 2)
     for j in range(n):
         movable[j] = _needs_move(z[j], j, n_eq, lo, up) or z[j] != 0.0
         kappa[j] = 0.0

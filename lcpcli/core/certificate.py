@@ -51,7 +51,8 @@ global scaling of the data, because every quantity above is a ratio within a row
 ``|M_ij z_j|``.  It cannot be passed by making ``z`` large: a large ``z`` raises ``s_i`` only with
 the growth of its block.  Overflow cannot crash it: data whose products leave ``[2^-960, 2^960]``
 are rescaled exactly by powers of two before the check (which does not change the result), and
-any Inf or NaN in ``z`` or ``w`` means not solved.
+so is a row whose every term ``M_ij z_j`` underflows to zero (its ``w_i`` and ``s_i`` would read
+0); any Inf or NaN in ``z`` or ``w`` means not solved.
 
 The certificate also reports, in the units of the data: ``residual`` ``= ||mid(z - l, z - u,
 w)||_inf`` (``||min(z, w)||_inf`` for the LCP), ``bound_violation``, ``w_violation``,
@@ -144,26 +145,30 @@ def certify(problem: Any, z: Any, tol: float = DEFAULT_TOL) -> Certificate:
 
 
 def matrix_norm_inf(M: Any) -> float:
-    """``||M||_inf`` (max absolute row sum) of a dense array or a scipy.sparse matrix, never
-    overflowing to Inf for finite data (large matrices are summed after a power-of-two scaling)."""
+    """``||M||_inf`` (max absolute row sum) of a dense array or a scipy.sparse matrix, summed
+    after an exact power-of-two scaling so that no partial sum overflows; a norm beyond the
+    largest double (e.g. a row ``[1e308, 1e308]``) is returned as that largest double, never
+    Inf, so callers may divide by it and compare with it."""
     if hasattr(M, "tocsr"):
         data = np.abs(M.data)
         if data.size == 0:
             return 0.0
         peak = float(data.max())
-        scale = _pow2_at_least(peak)
+        if peak == 0.0:
+            return 0.0
+        e = _pow2_exponent(peak)
         # trailing empty rows start at nnz, which reduceat refuses: clip (empty rows are zeroed)
         starts = np.minimum(M.indptr[:-1], data.size - 1)
-        rows = np.add.reduceat(data / scale, starts)
+        rows = np.add.reduceat(np.ldexp(data, -e), starts)
         rows[np.diff(M.indptr) == 0] = 0.0
-        return float(rows.max()) * scale
+        return _times_pow2(float(rows.max()), e)
     if M.size == 0:
         return 0.0
     peak = float(np.max(np.abs(M)))
     if peak == 0.0:
         return 0.0
-    scale = _pow2_at_least(peak)
-    return float(np.max(np.sum(np.abs(M) / scale, axis=1))) * scale
+    e = _pow2_exponent(peak)
+    return _times_pow2(float(np.max(np.sum(np.ldexp(np.abs(M), -e), axis=1))), e)
 
 
 # ---------------------------------------------------------------------- internals
@@ -191,10 +196,19 @@ def from_kernel(out: tuple, tol: float) -> Certificate:
                        float(tol), out[0] == 0 and error <= tol and error < math.inf)
 
 
-def _pow2_at_least(x: float) -> float:
-    """The power of two in ``[x, 2x)`` (``x > 0``)."""
+def _pow2_exponent(x: float) -> int:
+    """``e`` with ``2^e`` the power of two in ``[x, 2x)`` (``x > 0``; ``e`` may be 1024, one past
+    the largest finite power of two, so it is applied with ``ldexp``, never formed)."""
     mant, exp = math.frexp(x)
-    return math.ldexp(1.0, exp if mant != 0.5 else exp - 1)
+    return exp if mant != 0.5 else exp - 1
+
+
+def _times_pow2(x: float, e: int) -> float:
+    """``x 2^e``, the largest double where that overflows (a norm, not a value to certify)."""
+    try:
+        return math.ldexp(x, e)
+    except OverflowError:
+        return float(np.finfo(np.float64).max)
 
 
 _NO_EXP = np.iinfo(np.int64).min // 4    # a row with no term and q_i = 0

@@ -4,7 +4,8 @@ Exit codes (documented in ``lcpcli --help`` and the README):
 
 * 0 - every problem solved (certificate checked); for commands without a verdict: done;
 * 1 - a problem was not solved (``no_solution`` or ``unsolved``), or ``bench`` found a defect;
-* 2 - bad usage or bad input (malformed file, wrong shapes, NaN/Inf, unknown option, ...);
+* 2 - bad usage or bad input (malformed file, wrong shapes, NaN/Inf, unknown option, ...), and
+  an output that cannot be written (:class:`OutputError`: disk full, permission denied, ...);
 * 3 - internal error (a bug);
 * 130 - interrupted (Ctrl-C); 143 - terminated (SIGTERM; a batch closes its output first).
 """
@@ -36,6 +37,16 @@ class ProblemError(LcpError, ValueError):
         if self.source:
             return self
         return ProblemError(str(self), source)
+
+
+class OutputError(LcpError):
+    """An output could not be written (``PATH: no space left on device``, ``permission
+    denied``, ...): exit code 2, one line; the writer left the previous file as it was, or a
+    resumable prefix it names in ``message`` (:mod:`lcpcli.io.writing`)."""
+
+    def __init__(self, path: str, reason: str) -> None:
+        self.path, self.reason = path, reason
+        super().__init__(f"{path}: {reason}")
 
 
 class OptionError(LcpError, ValueError):

@@ -12,10 +12,21 @@ float64.  Everything else is refused with a one-line :class:`ProblemError`, neve
 Index arrays of sparse matrices must be integers (:data:`INDEX_KINDS`).  Readers check the
 dtype from a file's header (NPZ, HDF5) before reading the data; JSON values are checked as
 decoded.  ``lcpcli.solve(M, q)`` applies the same rule to arrays given from Python.
+
+**Non-finite numbers in output** (one rule, :func:`json_text`): JSON has no Inf or NaN, so every
+JSON that lcpcli writes (``--json`` on stdout, ``-o result.json``, the rows of ``.jsonl``
+batch files and of HDF5 result files, ``enumerate``/``info``/``contact-matrix --json``) writes a
+number that is not finite as ``null``; it never writes the non-standard tokens ``Infinity`` or
+``NaN``, and never fails on them.  A ratio whose denominator is zero has no meaning and is
+``null`` by the same rule (the relative forward error bound when ``z = 0``).  CSV cells of such
+numbers are empty; binary result arrays (HDF5 datasets, NPZ) keep the IEEE value (Inf, or NaN
+where the JSON row has ``null``).
 """
 
 from __future__ import annotations
 
+import json
+import math
 from typing import Any
 
 import numpy as np
@@ -121,3 +132,34 @@ def float64_array(x: Any) -> np.ndarray:
 
 
 _FLOAT64 = np.dtype(np.float64)
+
+
+def json_text(obj: Any) -> str:
+    """``obj`` as strict JSON text (no newline), every non-finite float written as ``null``
+    (the output rule in the module docstring; the one encoder of every JSON that lcpcli
+    writes).  Finite data costs one ``json.dumps``; only output holding Inf/NaN is walked."""
+    try:
+        return json.dumps(obj, allow_nan=False)
+    except ValueError:
+        return json.dumps(finite_or_null(obj), allow_nan=False)
+
+
+def finite_or_null(obj: Any) -> Any:
+    """A copy of nested dicts/lists/tuples with every non-finite float replaced by None
+    (iterative: deep output cannot exhaust the recursion limit)."""
+    root: list[Any] = [obj]
+    stack: list[tuple[Any, Any, Any]] = [(root, 0, obj)]
+    while stack:
+        parent, key, item = stack.pop()
+        if isinstance(item, dict):
+            copy: Any = dict(item)
+            stack.extend((copy, k, v) for k, v in copy.items())
+        elif isinstance(item, (list, tuple)):
+            copy = list(item)
+            stack.extend((copy, i, v) for i, v in enumerate(copy))
+        elif isinstance(item, (float, np.floating)) and not math.isfinite(item):
+            copy = None
+        else:
+            continue
+        parent[key] = copy
+    return root[0]

@@ -27,7 +27,7 @@ class Status(_StrEnum):
     """The verdict of a solve (:attr:`Result.status`), and the status of a batch/bench row."""
 
     SOLVED = "solved"            # the certificate passed
-    NO_SOLUTION = "no_solution"  # proven (the proof is in ``message``)
+    NO_SOLUTION = "no_solution"  # proven: a checked Farkas vector (``info["farkas_y"]``)
     UNSOLVED = "unsolved"        # the method gave up or its answer failed the certificate
     ERROR = "error"              # batch/bench rows only: no verdict (unreadable input, a crash)
     TIMEOUT = "timeout"          # bench rows only: the isolated run was killed at its limit
@@ -42,6 +42,7 @@ class Termination(_StrEnum):
     SINGULAR = "singular_basis"
     INFEASIBLE = "infeasible"  # proven: the method's theory shows no solution exists
     NUMERICAL = "numerical_failure"
+    STALLED = "stalled"  # an iterative method made no progress in its merit over a window
     NOT_APPLICABLE = "not_applicable"  # the method cannot start on this M (e.g. zero diagonal)
     TIMEOUT = "timeout"  # batch rows: stopped by --timeout
     ERROR = "error"  # batch rows of inputs that could not be read or solved at all
@@ -68,6 +69,7 @@ ITERATION_LIMIT = Termination.ITERATION_LIMIT
 SINGULAR = Termination.SINGULAR
 INFEASIBLE = Termination.INFEASIBLE
 NUMERICAL = Termination.NUMERICAL
+STALLED = Termination.STALLED
 NOT_APPLICABLE = Termination.NOT_APPLICABLE
 
 
@@ -75,8 +77,9 @@ NOT_APPLICABLE = Termination.NOT_APPLICABLE
 class Outcome:
     """What a solver method hands back before certification.
 
-    ``proven_infeasible`` may be set only when the method's theory proves that no solution
-    exists (e.g. Lemke's secondary ray on a copositive-plus matrix); ``message`` says how.
+    ``proven_infeasible`` is a method's claim that no solution exists, with its Farkas vector in
+    ``info["farkas_y"]`` when it has one; the verdict is ``no_solution`` only when a vector
+    passes :func:`lcpcli.analysis.proof.check_farkas` on the user's data (see ``confirm``).
     ``checked`` is ``(certificate, w)`` when the method already certified ``z`` itself (``auto``
     does, to decide whether to fall back): the caller reuses it instead of checking twice.
     """

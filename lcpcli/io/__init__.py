@@ -12,7 +12,7 @@ is detected by the format readers (:class:`~lcpcli.io.files.StackedFile`) and re
 :mod:`lcpcli.io.stack`.
 ``save(problem, path)`` writes atomically: a temporary file in the same folder is renamed over
 the target only once it is complete, so a failed write leaves no partial file and never damages
-an existing one; :func:`~lcpcli.io.files.check_output` is what commands call first so that an
+an existing one; :func:`~lcpcli.io.writing.check_output` is what commands call first so that an
 output is never an input, a link or a device.
 
 Formats (chosen by extension, or ``fmt=``):
@@ -41,12 +41,14 @@ from lcpcli.core.problem import Problem
 from lcpcli.io.files import (
     MAX_TEXT_BYTES,
     StackedFile,
-    atomic_path,
     check_input_file,
-    check_output,
     decode_text,
-    output_lock,
     read_stdin_bytes,
+)
+from lcpcli.io.writing import (
+    atomic_path,
+    check_output,
+    output_lock,
     write_atomic_text,
 )
 

@@ -15,28 +15,17 @@ Inputs:
 
 The rules are stated once for users in docs/files.md ("Reading").
 
-Outputs (:func:`check_output`, called by the CLI before any work):
-
-* an output is never a symbolic link, a directory, a device, a FIFO or a socket (``--force``
-  does not change that), and never the same file (by device and inode) as an input;
-* files are replaced atomically (:func:`atomic_path`): a failed or refused run leaves an
-  existing file as it was;
-* an incrementally written output (batch results) is held by :func:`output_lock`, an ``flock``
-  on ``OUTPUT.lock`` beside it: a second writer is refused with the first one's pid.
+Outputs follow the rules of :mod:`lcpcli.io.writing` (the one writing layer).
 """
 
 from __future__ import annotations
 
-import contextlib
-import errno
 import json
 import os
 import stat
 import sys
-import tempfile
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterator
 from contextlib import contextmanager
-from pathlib import Path
 from typing import IO, Any
 
 from lcpcli.core.errors import ProblemError
@@ -232,161 +221,3 @@ def check_depth(obj: Any, label: str, limit: int = MAX_JSON_DEPTH) -> None:
                 raise ProblemError(f"{label} is nested more than {limit} levels deep")
             children = item.values() if isinstance(item, dict) else item
             stack.extend((c, depth + 1) for c in children)
-
-
-# ----------------------------------------------------------------------------- outputs
-def check_output(target: str | os.PathLike[str], inputs: Iterable[Any] = (), *,
-                 force: bool = True, stdout: bool = True) -> None:
-    """Refuse an output before any work is done (ProblemError naming ``target``).
-
-    Refused: a symbolic link, anything that is not a regular file (directory, device, FIFO,
-    socket; whatever ``force`` says), the same file as one of ``inputs`` (compared by device
-    and inode, so hard links and other spellings count), a missing folder, and an existing
-    file when ``force`` is false.  ``-`` is stdout: accepted when ``stdout`` is true.
-    """
-    if str(target) == "-":
-        if not stdout:
-            raise ProblemError("'-' is not a file here: --json prints the result on stdout",
-                               "--output")
-        return
-    source = str(target)
-    try:
-        st = os.lstat(target)
-    except FileNotFoundError:
-        st = None
-    except OSError as exc:
-        raise ProblemError(str(_stat_error(exc)), source) from None
-    if st is None:
-        folder = Path(target).parent
-        if not folder.is_dir():
-            raise ProblemError(f"folder {folder} does not exist", source)
-        return
-    if stat.S_ISLNK(st.st_mode):
-        raise ProblemError(f"is a symbolic link (to {os.readlink(target)}); give the path of "
-                           f"a regular file", source)
-    if not stat.S_ISREG(st.st_mode):
-        raise ProblemError(f"is {file_kind(st.st_mode)}, not a regular file: refusing to "
-                           f"write to it", source)
-    for item in inputs:
-        if item is None or str(item) == "-":
-            continue
-        try:
-            ist = os.stat(item)
-        except OSError:
-            continue
-        if (ist.st_dev, ist.st_ino) == (st.st_dev, st.st_ino):
-            raise ProblemError(f"is the same file as the input {item}: refusing to overwrite "
-                               f"it (choose another output file)", source)
-    if not force:
-        raise ProblemError("exists already (use --force to overwrite)", source)
-
-
-def _check_replaceable(target: Path) -> None:
-    """The last check before a rename: ``target`` is absent or a regular file (no link)."""
-    try:
-        st = os.lstat(target)
-    except FileNotFoundError:
-        return
-    if stat.S_ISLNK(st.st_mode) or not stat.S_ISREG(st.st_mode):
-        raise ProblemError(f"is {file_kind(st.st_mode)}, not a regular file: refusing to "
-                           f"replace it", str(target))
-
-
-@contextmanager
-def atomic_path(target: str | os.PathLike[str]) -> Iterator[Path]:
-    """Yield a temporary path beside ``target``; rename it over ``target`` on success only.
-
-    An existing ``target`` that is not a regular file (or is a symbolic link) is refused
-    before anything is written, so a device or a directory is never replaced.
-    """
-    target = Path(target)
-    folder = target.parent
-    if not folder.is_dir():
-        raise ProblemError(f"folder {folder} does not exist", str(target))
-    _check_replaceable(target)
-    try:
-        fd, name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=folder)
-    except OSError as exc:
-        raise ProblemError(f"cannot create a file in {folder} "
-                           f"({exc.strerror or type(exc).__name__})", str(target)) from None
-    os.close(fd)
-    tmp = Path(name)
-    try:
-        yield tmp
-        os.chmod(tmp, _target_mode(target))
-        _check_replaceable(target)
-        os.replace(tmp, target)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
-
-
-def _target_mode(target: Path) -> int:
-    """The existing file's mode, else what a plain ``open(..., "w")`` would give (umask)."""
-    try:
-        return target.stat().st_mode & 0o777
-    except OSError:
-        umask = os.umask(0)
-        os.umask(umask)
-        return 0o666 & ~umask
-
-
-def write_atomic_text(target: str | os.PathLike[str], text: str) -> None:
-    """Write a text file atomically (result files of the CLI)."""
-    with atomic_path(target) as tmp:
-        tmp.write_text(text, encoding="utf-8")
-
-
-def lock_path(target: str | os.PathLike[str]) -> Path:
-    """The lock file of an incrementally written output: ``OUTPUT.lock`` beside it."""
-    target = Path(target)
-    return target.with_name(target.name + ".lock")
-
-
-@contextmanager
-def output_lock(target: str | os.PathLike[str]) -> Iterator[None]:
-    """Hold an exclusive ``flock`` on ``OUTPUT.lock`` while ``target`` is being written.
-
-    A second writer of the same output is refused at once (ProblemError with the first one's
-    pid).  The lock file is removed when the holder is done; one left by a killed run holds
-    no lock and is taken over.
-    """
-    import fcntl
-
-    lock = lock_path(target)
-    flags = os.O_RDWR | os.O_CREAT | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_CLOEXEC", 0)
-    while True:
-        try:
-            fd = os.open(lock, flags, 0o644)
-        except OSError as exc:
-            reason = "is a symbolic link" if exc.errno == errno.ELOOP else \
-                (exc.strerror or type(exc).__name__)
-            raise ProblemError(f"cannot create the lock file {lock} ({reason})",
-                               str(target)) from None
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            holder = os.read(fd, 32).decode(errors="replace").strip() or "?"
-            os.close(fd)
-            raise ProblemError(f"is being written by another lcpcli run (pid {holder}; lock "
-                               f"file {lock}): wait for it to finish or choose another "
-                               f"output", str(target)) from None
-        except OSError:
-            os.close(fd)
-            raise
-        mine = os.fstat(fd)
-        try:
-            now = os.stat(lock)
-        except FileNotFoundError:
-            now = None
-        if now is not None and (now.st_dev, now.st_ino) == (mine.st_dev, mine.st_ino):
-            break
-        os.close(fd)  # the previous holder removed this lock file meanwhile: take a new one
-    try:
-        os.ftruncate(fd, 0)
-        os.write(fd, f"{os.getpid()}\n".encode())
-        yield
-    finally:
-        with contextlib.suppress(OSError):
-            os.unlink(lock)  # while still holding it: nobody can lock this inode after us
-        os.close(fd)

@@ -353,20 +353,22 @@ def write_group(g: Any, problem: Problem) -> None:
 
 
 def write(problem: Problem, path: Path) -> None:
-    import h5py
+    """Write ``problem`` into the new file ``path`` (through :func:`lcpcli.io.writing.open_hdf5`:
+    a full disk is an OutputError, never a failed HDF5 flush)."""
+    from lcpcli.io.writing import open_hdf5
 
-    with h5py.File(path, "w") as f:
+    with open_hdf5(path, "w") as f:
         write_group(f, problem)
 
 
 def write_many(problems: list[Problem], path: Path) -> None:
     """One group per problem (named by ``problem.name``, which must be unique)."""
-    import h5py
+    from lcpcli.io.writing import open_hdf5
 
     names = [p.name for p in problems]
     if len(set(names)) != len(names) or not all(names):
         raise ProblemError("problems written to one HDF5 file need unique, non-empty names")
-    with h5py.File(path, "w") as f:
+    with open_hdf5(path, "w") as f:
         for p in problems:
             write_group(f.create_group(p.name), p)
 

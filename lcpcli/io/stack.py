@@ -31,6 +31,7 @@ Errors are :class:`ProblemError` with a one-line message; readers leave the file
 
 from __future__ import annotations
 
+import contextlib
 import math
 import shutil
 import stat
@@ -48,8 +49,9 @@ import numpy as np
 from lcpcli.core.errors import ProblemError
 from lcpcli.core.numeric import kind_name, real_array
 from lcpcli.core.problem import Problem, check_size
-from lcpcli.io.files import MAX_NAME_BYTES, atomic_path, check_input_file, open_input
+from lcpcli.io.files import MAX_NAME_BYTES, check_input_file, open_input
 from lcpcli.io.npz_format import ZIP_ERRORS, zip_error
+from lcpcli.io.writing import Hdf5Handle, StagedFiles, atomic_path, open_hdf5, writing
 
 #: Extensions of stack files and their formats.
 STACK_FORMATS = {".h5": "hdf5", ".hdf5": "hdf5", ".hdf": "hdf5", ".npz": "npz"}
@@ -595,7 +597,7 @@ def list_names(path: str | Path) -> list[str]:
 # ---------------------------------------------------------------------------- writer
 class StackWriter:
     """Write a stack chunk by chunk to ``path`` (a new file; callers go through
-    :func:`~lcpcli.io.files.atomic_path`).  ``fmt`` is "hdf5" or "npz"; ``bounds`` is None,
+    :func:`~lcpcli.io.writing.atomic_path`).  ``fmt`` is "hdf5" or "npz"; ``bounds`` is None,
     "shared" (give ``lower``/``upper`` of shape (n,) here) or "per_problem" (give them with
     every :meth:`append`).  :meth:`close` completes the file and returns K.
     """
@@ -617,7 +619,11 @@ class StackWriter:
         if fmt == "hdf5":
             import h5py
 
-            self.f = self._stack.enter_context(h5py.File(self.path, "w"))
+            # through a SafeSink (lcpcli.io.writing): a full disk is an error to report, never
+            # a failed HDF5 flush (which segfaults at exit); closed by abort() or close()
+            self.h5 = Hdf5Handle(self.path, "w")
+            self.f = self.h5.file
+            self._stack.callback(self.h5.close)
             self.d = {}
             for key in keys:
                 row = (n, n) if key == "M" else (n,)
@@ -659,6 +665,7 @@ class StackWriter:
                 d = self.d["names"]
                 d.resize(self.K, axis=0)
                 d[k0:self.K] = np.array(list(names or []), dtype=object)
+            self.h5.check()  # stop at the first failed write
         else:
             self.K += c
             for key, arr in data.items():
@@ -666,8 +673,10 @@ class StackWriter:
                                     .cast("B"))
 
     def abort(self) -> None:
-        """Stop without completing the file (the caller's atomic_path removes it)."""
-        self._stack.close()
+        """Stop without completing the file (the caller's atomic_path removes it); a write
+        failure met while closing is not raised (the error on its way is)."""
+        with contextlib.suppress(Exception):
+            self._stack.close()
 
     def close(self) -> int:
         """Complete the file; returns the number of problems written."""
@@ -909,12 +918,10 @@ def write_stack_from(source: str | Path, path: str | Path) -> int:
 def write_groups(problems: Iterable[tuple[str, Problem]], path: str | Path) -> int:
     """One HDF5 group per problem, named by ``problem.name`` (unique, checked), streamed;
     written atomically.  Returns the number of problems."""
-    import h5py
-
     from lcpcli.io.hdf5_format import write_group
 
     seen: set[str] = set()
-    with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:
+    with atomic_path(path) as tmp, open_hdf5(tmp, "w") as f:
         for label, p in problems:
             check_member_name(p.name)
             if p.name in seen:
@@ -945,9 +952,10 @@ def write_folder(source: str | Path, folder: str | Path, fmt: str, *,
                  force: bool = False) -> int:
     """One file per problem of ``source`` in ``folder`` (created if missing), named
     ``NAME.EXT`` (EXT from ``fmt``: json, npz, h5/hdf5, dat).  Every target is checked before
-    anything is written (:func:`~lcpcli.io.files.check_output`: an existing file is refused
-    unless ``force``, an input never overwritten); each file is written atomically."""
-    from lcpcli.io import check_output, detect_format, save
+    anything is written (:func:`~lcpcli.io.writing.check_output`: an existing file is refused
+    unless ``force``, an input never overwritten); the files are written all or nothing
+    (:class:`~lcpcli.io.writing.StagedFiles`: a bad problem or a full disk leaves none)."""
+    from lcpcli.io import _module, check_output, detect_format
 
     kind = detect_format("", fmt)
     ext = {"json": ".json", "npz": ".npz", "hdf5": ".h5", "dat": ".dat"}[kind]
@@ -961,20 +969,25 @@ def write_folder(source: str | Path, folder: str | Path, fmt: str, *,
             raise ProblemError(f"two problems are named '{name}'; files need unique names",
                                str(source))
         seen.add(name)
+    created = None
     if not folder.exists():
         try:
             folder.mkdir()
         except OSError as exc:
             raise ProblemError(f"cannot create the folder ({exc.strerror or type(exc).__name__})",
                                str(folder)) from None
+        created = folder
     targets = [folder / f"{name}{ext}" for name in names]
-    for t in targets:
-        check_output(t, inputs=[source], force=force)
-    count = 0
-    for (_label, p), t in zip(source_problems(source), targets, strict=True):
-        save(p, t, fmt=kind)
-        count += 1
-    return count
+    with StagedFiles(created) as staged:  # all files, or none (and no folder we made)
+        for t in targets:
+            check_output(t, inputs=[source], force=force)
+        write = _module(kind).write
+        for (_label, p), t in zip(source_problems(source), targets, strict=True):
+            tmp = staged.add(t)
+            with writing(t):
+                write(p, tmp)
+        staged.commit()
+    return len(targets)
 
 
 def check_output_folder(folder: str | Path) -> None:

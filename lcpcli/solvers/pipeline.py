@@ -14,12 +14,17 @@ the user gave.
 2. **Run** the method on the scaled problem and map ``z`` (and a Farkas vector) back exactly.
    When a two-sided run ends with neither an answer nor a proof, the method is run once more
    with ``D M D``, which keeps the matrix classes its guarantees are stated for (a secondary
-   ray proves infeasibility only on a copositive-plus matrix).
+   ray proves infeasibility only on a copositive-plus matrix).  When, after the polish below,
+   there is still no certified answer and no proof while the scaled matrix's entries span
+   more than ``2^GEOMETRIC_SPREAD``, the method is run once more on Curtis and Reid's
+   geometric scaling (:func:`lcpcli.analysis.scaling.geometric`), which undoes any power-of-two
+   row and column scaling of a matrix whose entries are of one size.
 3. **Polish**: when a method says it converged but its answer fails the certificate,
    :func:`lcpcli.solvers.support.refine` re-solves the method's final basis (when it reports
    one) or the active set the certificate names (with sign repair); the better answer is kept.
    A method that gave up is not polished (its leftover is not an answer to refine).  The
-   verdict is always the certificate's, given by the caller.
+   verdict is always the certificate's (and a no_solution's proof is checked by the caller,
+   :func:`lcpcli.analysis.proof.confirm`).
 
 Small path: a method that declares ``Method.fast`` is first asked for its answer from one
 compiled call (balance test, kernel, polish, certificate).  It answers only when the steps
@@ -34,7 +39,14 @@ from typing import Any
 import numpy as np
 
 from lcpcli.analysis._scaling import is_symmetric_dense
-from lcpcli.analysis.scaling import Scaling, equilibrate, is_balanced
+from lcpcli.analysis.scaling import (
+    GEOMETRIC_SPREAD,
+    Scaling,
+    equilibrate,
+    geometric,
+    is_balanced,
+    spread,
+)
 from lcpcli.core.certificate import check
 from lcpcli.core.numeric import float64_array
 from lcpcli.core.problem import Problem
@@ -66,37 +78,60 @@ def run_method(spec: Any, problem: Problem, tol: float, options: dict[str, Any])
         out = fast(problem, tol, options)  # a balanced problem, certified: nothing else to do
         if out is not None:
             return out
-    kind = "none" if options.get("trace") else getattr(spec, "scaling", "none")
+    requested = "none" if options.get("trace") else getattr(spec, "scaling", "none")
+    kind = requested
     if kind != "none" and is_balanced(problem):
         kind = "none"  # nothing to equilibrate (one compiled pass; no symmetry test needed)
     symmetric = kind == "symmetric" or (kind == "auto" and is_symmetric(problem))
-    out = _run_scaled(spec, problem, tol, options, kind, symmetric)
+    scaling = equilibrate(problem, symmetric) if kind != "none" else None
+    out = _run_scaled(spec, problem, tol, options, scaling)
     if (kind == "auto" and not symmetric and out.termination != CONVERGED
             and not out.proven_infeasible):
-        again = _run_scaled(spec, problem, tol, options, kind, True)
+        again = _run_scaled(spec, problem, tol, options, equilibrate(problem, True))
         if again.proven_infeasible or again.termination == CONVERGED:
             again.message += " (rerun with D M D scaling, which keeps M's class)"
             again.iterations += out.iterations
             out = again
-    if out.termination == CONVERGED:
-        z = out.z = float64_array(out.z)
-        if out.checked is None or out.checked[0].tol != tol:
-            out.checked = check(problem, z, tol)
-        cert = out.checked[0]
-        if not cert.passed:
-            polished = refine(problem, z, basis=out.info.get("basis"))
-            if polished is not None and polished[1] < cert.error:
-                out.z = polished[0]
-                out.checked = None  # the caller certifies the polished z
-                out.message += (f"; active-set polish: certified error {cert.error:.2g} -> "
-                                f"{polished[1]:.2g}")
-                out.info["polished"] = True
+    passed = _polish(problem, out, tol)
+    if (requested != "none" and not passed and not out.proven_infeasible
+            and spread(problem, scaling) > GEOMETRIC_SPREAD):
+        # Ruiz's scaling balanced the row and column maxima but left entries far apart: rerun on
+        # Curtis and Reid's least-squares scaling (invariant under row and column scalings)
+        keep = requested == "symmetric" or (requested == "auto" and is_symmetric(problem))
+        geo = geometric(problem, keep)
+        if geo is not None:
+            again = _run_scaled(spec, problem, tol, options, geo)
+            if _polish(problem, again, tol) or again.proven_infeasible:
+                again.message = f"{out.message}; rerun on the geometric scaling: {again.message}"
+                again.iterations += out.iterations
+                out = again
     return out
 
 
-def _run_scaled(spec: Any, problem: Problem, tol: float, options: dict[str, Any], kind: str,
-                symmetric: bool) -> Outcome:
-    scaling = equilibrate(problem, symmetric) if kind != "none" else None
+def _polish(problem: Problem, out: Outcome, tol: float) -> bool:
+    """Step 3 of the module docstring on ``out``, in place; whether its answer passes the
+    certificate (``out.checked`` is then set for the caller to reuse)."""
+    if out.termination != CONVERGED:
+        return False
+    z = out.z = float64_array(out.z)
+    if out.checked is None or out.checked[0].tol != tol:
+        out.checked = check(problem, z, tol)
+    cert = out.checked[0]
+    if cert.passed:
+        return True
+    polished = refine(problem, z, basis=out.info.get("basis"))
+    if polished is not None and polished[1] < cert.error:
+        out.z = polished[0]
+        out.checked = check(problem, out.z, tol)
+        out.message += (f"; active-set polish: certified error {cert.error:.2g} -> "
+                        f"{polished[1]:.2g}")
+        out.info["polished"] = True
+        return out.checked[0].passed
+    return False
+
+
+def _run_scaled(spec: Any, problem: Problem, tol: float, options: dict[str, Any],
+                scaling: Scaling | None) -> Outcome:
     if scaling is None:
         return spec.run(problem, tol=tol, **options)
     out = spec.run(scaling.apply(problem), tol=tol, **_scaled_options(options, scaling))
@@ -104,7 +139,7 @@ def _run_scaled(spec: Any, problem: Problem, tol: float, options: dict[str, Any]
     out.checked = None  # a method's own certificate is of the scaled problem: w, units differ
     y = out.info.get("farkas_y")
     if y is not None:
-        out.info["farkas_y"] = scaling.unscale_w(np.asarray(y)).tolist()
+        out.info["farkas_y"] = scaling.farkas_back(y).tolist()
     out.message += f" [{scaling.describe()}]"
     out.info["scaling"] = {"kind": scaling.kind, "row_exponents": [int(scaling.row.min()),
                                                                    int(scaling.row.max())],

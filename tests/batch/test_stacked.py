@@ -193,15 +193,18 @@ import os
 import numpy as np
 from pathlib import Path
 from lcpcli.api import solve_many
-from lcpcli.batch.stack_output import Hdf5StackWriter
+from lcpcli.batch.records import SolveOptions
+from lcpcli.batch.stack_output import Hdf5StackWriter, chunk_digest, options_fingerprint
 from lcpcli.io.stack import stack_info, open_stack
 
 info = stack_info({str(path)!r})
-w = Hdf5StackWriter(Path({str(out)!r}), [info], resume=False)
+opts = options_fingerprint(SolveOptions("auto", None, {{}}))
+w = Hdf5StackWriter(Path({str(out)!r}), [info], resume=False, options=opts)
 with open_stack(info.path) as r:
+    digest = chunk_digest(r.read(0, min(info.K, w.chunk(info))))  # chunk 0 holds all 300
     part = r.read(0, 100)
 res = solve_many(part.M, part.q, on_error="mark")
-w.write(info, np.arange(100), None, res, None)
+w.write(info, np.arange(100), None, res, None, 0, digest)
 w.groups[info.path]["z"][100:200] = 7.0  # the next chunk, cut before its status
 os._exit(9)
 """

@@ -375,9 +375,10 @@ def test_siconos_peer_is_certified_like_our_methods() -> None:
     assert lemke.iterations == 2 ** 5 - 1  # Siconos counts the complementary pivots only
 
 
-def test_cli_exits_1_when_a_method_claims_a_false_proof(capsys) -> None:
-    """`lcpcli bench` exits non-zero when it finds a defect: a registered method that
-    'proves' infeasibility of solvable problems (the verdict solve gives it is no_solution)."""
+def test_cli_exits_1_when_a_method_claims_a_false_proof(capsys, monkeypatch) -> None:
+    """A made-up proof of infeasibility never becomes ``no_solution`` (no Farkas vector passes
+    :func:`lcpcli.analysis.proof.check_farkas`); and should the proof check ever accept one,
+    `lcpcli bench` exits non-zero with a defect."""
     from lcpcli.cli import main
     from lcpcli.core.errors import EXIT_NOT_SOLVED
     from lcpcli.core.result import RAY, Outcome
@@ -386,16 +387,31 @@ def test_cli_exits_1_when_a_method_claims_a_false_proof(capsys) -> None:
     def false_proof(problem, *, tol):
         return Outcome(np.zeros(problem.n), 1, RAY, "a made-up proof", proven_infeasible=True)
 
-    register(Method(name="false-proof-test", run=false_proof, summary="lies (test)"))
-    try:
-        with pytest.raises(SystemExit) as exc:
-            main(["bench", "--suite", "hard", "--n", "3", "-m", "false-proof-test",
-                  "--no-peers", "--repeat", "1", "--timeout", "0", "--json"])
-    finally:
-        unregister("false-proof-test")
-    assert exc.value.code == EXIT_NOT_SOLVED
-    rows = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
-    assert any(r["defect"] for r in rows)
+    def bench_rows() -> tuple[int, list[dict]]:
+        register(Method(name="false-proof-test", run=false_proof, summary="lies (test)"))
+        try:
+            with pytest.raises(SystemExit) as exc:
+                main(["bench", "--suite", "hard", "--n", "3", "-m", "false-proof-test",
+                      "--no-peers", "--repeat", "1", "--timeout", "0", "--json"])
+        finally:
+            unregister("false-proof-test")
+        out = capsys.readouterr().out.splitlines()
+        return exc.value.code, [json.loads(line) for line in out]
+
+    _, rows = bench_rows()
+    # no_solution only where the proof search found a true Farkas vector (infeasible cases)
+    assert rows and not any(r["defect"] for r in rows)
+    assert all(r["expected"] == "infeasible" for r in rows if r["status"] == "no_solution")
+
+    class Accepted:  # a proof check that accepts anything: the bench must catch the lie
+        y = np.zeros(0)
+
+        def as_dict(self) -> dict:
+            return {}
+
+    monkeypatch.setattr("lcpcli.api.confirm", lambda problem, outcome: Accepted())
+    code, rows = bench_rows()
+    assert code == EXIT_NOT_SOLVED and any(r["defect"] for r in rows)
 
 
 def test_methods_above_their_size_limit_are_skipped_not_errors() -> None:

@@ -720,10 +720,11 @@ def _file_kind_cases() -> list[Case]:
              sub=True, memory=True),
         Case("zero-z0", "memory", ["solve", "{d}/ok.json", "--z0", "{d}/zero.json"], BAD,
              "is a character device", sub=True, memory=True),
+        # one line on stderr, as the README promises (issue 23: was an error row on stdout)
         Case("dir-solve", "exit-code", ["solve", "{d}/dir.json"], BAD,
-             "is a directory, not a problem file", rows=True, env={"COLUMNS": "300"}),
+             "is a directory, not a problem file", env={"COLUMNS": "300"}),
         Case("dir-solve-json", "exit-code", ["solve", "{d}/dir.json", "--json"], BAD,
-             "is a directory, not a problem file", rows=True),
+             "is a directory, not a problem file"),
         Case("dir-info", "exit-code", ["info", "{d}/dir.h5"], BAD, "is a directory"),
         Case("dir-convert", "exit-code", ["convert", "{d}/dir.json", "{d}/out_d.json"], BAD,
              "is a directory", absent=("out_d.json",)),
@@ -1157,7 +1158,7 @@ def test_bad_input(case: Case, fixtures: Path) -> None:
     if case.id == "out-lock-held":  # another writer holds the output
         import fcntl
 
-        from lcpcli.io.files import lock_path
+        from lcpcli.io.writing import lock_path
 
         fd = os.open(lock_path(fixtures / "existing.jsonl"), os.O_RDWR | os.O_CREAT)
         os.write(fd, b"4242\n")

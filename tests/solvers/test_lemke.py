@@ -217,7 +217,12 @@ def test_solver_never_claims_solved_without_the_certificate():
     res = certify_outcome(p, lie, "liar", 0.0, 1e-8)
     assert res.status == "unsolved" and "certificate failed" in res.message
     lie_proof = Outcome(np.ones(p.n), 1, "ray_termination", "no", proven_infeasible=True)
-    # a claimed proof of infeasibility is reported, but a good point would still win
+    # a claimed proof of infeasibility needs a Farkas vector that passes its check (this
+    # problem is solvable: none exists), and a good point wins anyway
     good = Outcome(np.array([4 / 3, 7 / 3]), 1, "ray_termination", "x", proven_infeasible=True)
     assert certify_outcome(p, good, "m", 0.0, 1e-8).status == "solved"
-    assert certify_outcome(p, lie_proof, "m", 0.0, 1e-8).status == "no_solution"
+    res = certify_outcome(p, lie_proof, "m", 0.0, 1e-8)
+    assert res.status == "unsolved" and "no Farkas vector" in res.message
+    fake_y = Outcome(np.ones(p.n), 1, "ray_termination", "no", proven_infeasible=True,
+                     info={"farkas_y": [1.0, 1.0]})
+    assert certify_outcome(p, fake_y, "m", 0.0, 1e-8).status == "unsolved"

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import math
 from collections.abc import Iterator
 from fractions import Fraction
 from typing import Any
@@ -195,9 +196,11 @@ def render_result(result: Any, problem: Any, file: str | None = None,
     head.add_row("residual", f"{cert.residual:.3e}  {natural}")
     head.add_row("error", f"{cert.error:.3e}  componentwise (tol {cert.tol:.1e}): backward error "
                           f"{cert.backward_error:.2e} x growth {cert.growth:.3g}")
-    if forward is not None:
+    if forward is not None and math.isfinite(forward.bound):
+        relative = (f"relative {forward.relative:.2e}" if math.isfinite(forward.relative)
+                    else "relative: n/a (z = 0)")
         head.add_row("forward error", f"||z - z*||_inf <= {forward.bound:.2e} "
-                                      f"(relative {forward.relative:.2e}; {forward.how})")
+                                      f"({relative}; {forward.how})")
     if problem.kind != "lcp":
         head.add_row("bounds / equalities",
                      f"bound violation {cert.bound_violation:.2e}, "

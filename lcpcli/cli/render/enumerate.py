@@ -23,6 +23,7 @@ from lcpcli.analysis.enumeration import (
     FOUND,
     INCOMPLETE,
     NONE,
+    UNCERTIFIED,
     UNIQUE,
     UNKNOWN,
     Enumeration,
@@ -32,6 +33,8 @@ from lcpcli.analysis.enumeration import (
 from lcpcli.cli.render.common import fit, fmt
 from lcpcli.cli.render.doc import Grid, Heading, Page, Para
 
+#: The verdict of a search that found no cone but no proof either (a text key only).
+UNPROVEN = "none, unproven"
 #: Show the complementary matrix in the table up to this n.
 MATRIX_MAX_N = 4
 #: Show the basic values y in the table up to this n.
@@ -44,14 +47,24 @@ VERDICT_TEXT = {
     FINITE: ("finitely many solutions", "bold green"),
     CONTINUUM: ("a continuum of solutions (a singular cone holds more than one point)",
                 "bold green"),
-    NONE: ("no solution: no complementary cone contains q (proof by exhaustion)",
-           "bold yellow"),
+    NONE: ("no solution: no complementary cone contains q, and a Farkas vector y (in the JSON) "
+           "proves that no z >= 0 has Mz + q >= 0", "bold yellow"),
+    UNPROVEN: ("undecided: no complementary cone contains q in floating point, but no Farkas "
+               "vector proves infeasibility (z >= 0 with Mz + q >= 0 may exist), so nothing "
+               "is proven", "bold red"),
+    UNCERTIFIED: ("undecided: cones contain q, but no point of them passes the certificate "
+                  "in the problem's units (extreme data)", "bold red"),
     FOUND: ("a solution (stopped at the first one)", "bold green"),
     INCOMPLETE: ("solutions found; some singular cones containing q were not resolved "
                  "(LP limit), so there may be more", "bold green"),
     UNKNOWN: ("undecided: no solution found, but some singular cones containing q were not "
               "resolved (LP limit)", "bold red"),
 }
+
+
+def _verdict(res: Enumeration) -> str:
+    """The key of :data:`VERDICT_TEXT` for ``res``: ``none`` only with its proof."""
+    return UNPROVEN if res.verdict == NONE and res.proof is None else res.verdict
 
 
 def _complementary(M: np.ndarray, cone: Any) -> np.ndarray:
@@ -72,6 +85,8 @@ def _complementary(M: np.ndarray, cone: Any) -> np.ndarray:
 
 def _matrix_text(A: np.ndarray) -> str:
     cells = [[fmt(x) for x in row] for row in A]
+    if not cells:  # n = 0: the empty matrix
+        return "[]"
     width = max(len(c) for row in cells for c in row)
     return "\n".join("[" + " ".join(c.rjust(width) for c in row) + "]" for row in cells)
 
@@ -164,7 +179,7 @@ def render_enumeration(res: Enumeration, problem: Any, file: str | None, *,
         parts.append(fit(cone_table(res, M, all_cones)))
     if res.solutions:
         parts.append(fit(solutions_table(res)))
-    text, style = VERDICT_TEXT[res.verdict]
+    text, style = VERDICT_TEXT[_verdict(res)]
     parts.append(Text.assemble(("verdict: ", "bold"), (text, style)))
     if covers is not None:
         if covers:
@@ -221,7 +236,7 @@ def enumeration_pages(res: Enumeration, problem: Any, file: str | None, *, all_c
                            _vec(sol.w), str(len(sol.cones)), f"{sol.certificate.error:.1e}"]
                           for k, sol in enumerate(res.solutions[:MAX_ROWS], 1)],
                          ["r", "l", "l", "r", "r"], "solutions"))
-    page.append(Para(f"Verdict: {VERDICT_TEXT[res.verdict][0]}."))
+    page.append(Para(f"Verdict: {VERDICT_TEXT[_verdict(res)][0]}."))
     if covers is not None:
         page.append(Para("K(M) = R^2: the four cones cover the plane, so LCP(q, M) has a "
                          "solution for every q." if covers else

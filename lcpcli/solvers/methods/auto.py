@@ -17,8 +17,9 @@ methods: condition on the class report -> method, reason); no method is named he
 
 Every attempt is certified with :func:`lcpcli.core.certificate.certify` and the first that
 passes is returned: the certificate decides, never the classification.  A method's *proof*
-that no solution exists (Lemke's secondary ray on a copositive-plus M, or a Farkas
-certificate) ends the search with ``no_solution``.  ``message`` names what is known of M, the
+that no solution exists ends the search with ``no_solution`` only when its Farkas vector passes
+the check of :mod:`lcpcli.analysis.proof` (a ray without one is a failed attempt: the search
+goes on).  ``message`` names what is known of M, the
 method that succeeded and every failed attempt; ``info["attempts"]`` has the details
 (method, reason, status, error, iterations, seconds), ``info["classify_seconds"]`` the time
 spent classifying and planning, ``info["certify_seconds"]`` the time spent certifying attempts.
@@ -35,6 +36,7 @@ from typing import Any
 import numpy as np
 
 from lcpcli.analysis.classify import Classifier
+from lcpcli.analysis.proof import confirm
 from lcpcli.core.certificate import check
 from lcpcli.core.errors import OptionError
 from lcpcli.core.numeric import float64_array
@@ -168,8 +170,8 @@ def plan_and_run(problem: Any, tol: float, options: Mapping[str, Any]) -> Outcom
         else:
             cert, w = check(problem, z, tol)
             t_certify += perf_counter() - t2
-        status = (SOLVED if cert.passed else
-                  NO_SOLUTION if out.proven_infeasible else UNSOLVED)
+        proof = None if cert.passed else confirm(problem, out)
+        status = SOLVED if cert.passed else NO_SOLUTION if proof is not None else UNSOLVED
         attempts.append({"method": name, "reason": why, "status": status,
                          "termination": out.termination, "iterations": iterations,
                          "error": cert.error, "seconds": t2 - t1, "message": out.message})
@@ -185,7 +187,8 @@ def plan_and_run(problem: Any, tol: float, options: Mapping[str, Any]) -> Outcom
             return Outcome(z, total_it, out.termination,
                            f"auto ({c.report.describe()}): {name} proved that no solution "
                            f"exists: {out.message}", proven_infeasible=True,
-                           info=_info(name, attempts, c, regime, t_start, t_methods, t_certify))
+                           info={**_info(name, attempts, c, regime, t_start, t_methods,
+                                         t_certify), "farkas_y": proof.y.tolist()})
         if best is None or cert.error < best[0]:
             best = (cert.error, z, out.termination)
     tried = "; ".join(f"{a['method']}: {a['message']}" for a in attempts) or "no method applies"

@@ -7,7 +7,8 @@ Problem: LCP(q, M), ``w = M z + q``.  Visits the ``2^n`` complementary matrices 
 Matrix classes: any square M (no assumption at all), for small n: the cost is ``2^n`` small
 LU solves.  By default it stops at the first solution; with ``all=true`` it visits every cone
 and reports how many distinct solutions exist.  When no cone contains q the LCP has no
-solution: the exhaustive search is the proof (``no_solution``).  ``max_n`` (default 24)
+solution; the verdict is ``no_solution`` when a Farkas vector then proves it
+(:mod:`lcpcli.analysis.proof`), else ``unsolved``.  ``max_n`` (default 24)
 refuses larger problems.
 """
 
@@ -19,6 +20,7 @@ import numpy as np
 
 from lcpcli.analysis.enumeration import basis_names, enumerate_cones
 from lcpcli.core.result import CONVERGED, INFEASIBLE, NUMERICAL, Outcome
+from lcpcli.core.text import plural
 from lcpcli.solvers.options import bool_option
 from lcpcli.solvers.registry import Cost, Guarantee, Method, Option, when
 
@@ -42,16 +44,25 @@ def run(problem: Any, *, tol: float, max_n: int = DEFAULT_MAX_N,
     info = {"verdict": res.verdict, "cones_examined": res.examined, "cones_total": res.total,
             "solutions": len(res.solutions), **res.counts}
     if not res.solutions and res.verdict != "none":
+        why = (f"q lies in {plural(res.counts['uncertified'], 'cone')}, but no point found "
+               f"there passes the certificate (extreme data, or an ill-conditioned cone)"
+               if res.verdict == "uncertified" else
+               f"{plural(res.counts['singular_unresolved'], 'singular cone')} containing q "
+               f"not resolved (LP limit)")
         return Outcome(np.zeros(n), res.examined, NUMERICAL,
-                       f"no solution found, but {res.counts['singular_unresolved']:,} singular "
-                       f"cones containing q were not resolved (LP limit): nothing is proven",
-                       info=info)
+                       f"no solution found: {why}; nothing is proven", info=info)
     if not res.solutions:
+        searched = (f"none of the 2^{n} = {res.total:,} complementary cones contains q "
+                    f"({res.counts['pruned']:,} excluded by sign tests, "
+                    f"{res.counts['singular']:,} singular)")
+        if res.proof is None:
+            return Outcome(np.zeros(n), res.examined, NUMERICAL,
+                           f"{searched}, but no Farkas vector proves infeasibility (a z >= 0 "
+                           f"with Mz + q >= 0 may exist): a floating-point search proves "
+                           f"nothing", info=info)
         return Outcome(np.zeros(n), res.examined, INFEASIBLE,
-                       f"none of the 2^{n} = {res.total:,} complementary cones contains q "
-                       f"({res.counts['pruned']:,} excluded by sign tests, "
-                       f"{res.counts['singular']:,} singular): the LCP has no solution",
-                       proven_infeasible=True, info=info)
+                       f"{searched}; {res.proof.describe()}", proven_infeasible=True,
+                       info={**info, "farkas_y": res.proof.y.tolist()})
     first = res.solutions[0]
     cone = ", ".join(basis_names(first.cones[0], n))
     if all:
@@ -70,7 +81,8 @@ METHODS = [
         name="enum",
         run=run,
         summary="Enumeration of the 2^n complementary cones (seed 004), exhaustive",
-        guarantees=(Guarantee(when(), "a solution, or the proof that none exists (2^n cones)"),),
+        guarantees=(Guarantee(when(), "every solution (2^n cones); no_solution with a checked "
+                                        "Farkas vector"),),
         max_n=DEFAULT_MAX_N,
         cost=Cost.EXHAUSTIVE,
         kinds=("lcp",),

@@ -4,11 +4,10 @@ Problem: LCP(q, M), ``w = M z + q``; the augmented system is ``w = q + M z + d z
 covering vector ``d > 0`` (default all ones) and the artificial variable ``z0``.
 
 Matrix classes: finds a solution for P-matrices, and for copositive-plus matrices (e.g. positive
-semidefinite ones) whenever one exists.  A secondary ray on a copositive-plus matrix proves
-there is no solution; on other matrices a ray proves nothing and is reported as ``unsolved``.
-Independently of the class, when the ray yields ``y >= 0`` with ``M^T y <= 0`` and
-``q^T y < 0`` (a Farkas certificate: no ``z >= 0`` has ``M z + q >= 0``) the verdict is
-``no_solution`` with that proof.
+semidefinite ones) whenever one exists.  A secondary ray suggests infeasibility (on a
+copositive-plus matrix its direction is a Farkas vector in exact arithmetic); the verdict is
+``no_solution`` only when a vector ``y >= 0`` with ``M^T y <= 0`` and ``q^T y < 0`` passes the
+componentwise check of :mod:`lcpcli.analysis.proof`, else ``unsolved``.
 
 Cost: O(n^2) per pivot (rank-one tableau update in the compiled kernel
 :mod:`lcpcli.solvers.kernels.lemke`).  The final basis is
@@ -22,7 +21,8 @@ from typing import Any
 
 import numpy as np
 
-from lcpcli.analysis.classify import farkas_certificate, is_psd
+from lcpcli.analysis.classify import is_psd
+from lcpcli.analysis.proof import prove_infeasible
 from lcpcli.core.errors import OptionError
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, RAY, Outcome
 from lcpcli.core.text import plural
@@ -114,20 +114,28 @@ def polish(M: np.ndarray, q: np.ndarray, z: np.ndarray, basic: np.ndarray) -> np
 
 def ray_outcome(problem: Any, M: np.ndarray, q: np.ndarray, z: np.ndarray, pivots: int,
                 ray_dz: np.ndarray, z0: float) -> Outcome:
-    """Classify a secondary-ray termination: proven infeasible, or merely unsolved."""
-    y = farkas_certificate(M, q, ray_dz)
+    """Classify a secondary-ray termination: proven infeasible (a Farkas vector that passes
+    :func:`lcpcli.analysis.proof.check_farkas`), or merely unsolved.
+
+    On a copositive-plus M (tested: positive semidefinite) the ray direction is a Farkas vector
+    in exact arithmetic (Cottle-Pang-Stone, Theorem 4.4.13); in floating point the ray may come
+    from rounding (a solvable problem near an infeasible one), so it is a proof only when the
+    vector (or one found by the linear program of :func:`prove_infeasible`) passes the check.
+    """
+    psd = is_psd(M)
+    proof = prove_infeasible(problem, (ray_dz,), search=psd)
     base = f"ray termination after {plural(pivots, 'pivot')} (z0 = {z0:.3g})"
-    if y is not None:
-        return Outcome(np.maximum(z, 0.0), pivots, RAY,
-                       f"{base}; Farkas certificate y >= 0 with M^T y <= 0, q^T y = "
-                       f"{float(q @ y):.3g} < 0: no z >= 0 has Mz + q >= 0",
-                       proven_infeasible=True, info={"farkas_y": y.tolist()})
-    if is_psd(M):
-        return Outcome(np.maximum(z, 0.0), pivots, RAY,
-                       f"{base}; M is positive semidefinite (copositive-plus), for which "
-                       f"Lemke's secondary ray proves that no solution exists",
-                       proven_infeasible=True)
-    return Outcome(np.maximum(z, 0.0), pivots, RAY,
+    z = np.maximum(z, 0.0)
+    if proof is not None:
+        return Outcome(z, pivots, RAY, f"{base}; {proof.describe()}", proven_infeasible=True,
+                       info={"farkas_y": proof.y.tolist()})
+    if psd:
+        return Outcome(z, pivots, RAY,
+                       f"{base}; M is positive semidefinite (copositive-plus), where the ray "
+                       f"would prove infeasibility in exact arithmetic, but no Farkas vector "
+                       f"passes the check, so this ray comes from rounding and proves nothing "
+                       f"(try another method)")
+    return Outcome(z, pivots, RAY,
                    f"{base}; M is not known to be copositive-plus, so this proves nothing "
                    f"(try another method)")
 
@@ -135,7 +143,8 @@ def ray_outcome(problem: Any, M: np.ndarray, q: np.ndarray, z: np.ndarray, pivot
 #: Lemke's classes (both Lemke methods, and the inner LCP of the MLCP methods).
 GUARANTEES = (
     Guarantee(when("p_matrix"), "finite: the unique solution"),
-    Guarantee(when("psd"), "copositive-plus: a solution, or a proof that none exists"),
+    Guarantee(when("psd"), "copositive-plus: a solution, or a checked Farkas proof that "
+                          "none exists"),
 )
 
 METHODS = [

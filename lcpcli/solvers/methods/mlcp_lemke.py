@@ -14,8 +14,8 @@ problem and the answer is certified on the original MLCP.
 Matrix classes: MLCPs whose free block can be completed to an invertible principal block
 (e.g. Siconos' diodeBridge, A of rank 2 of 3) and whose transformed LCP is in Lemke's class:
 P-matrices and copositive-plus (PSD) ones (principal pivoting preserves both).  A secondary
-ray is ``no_solution`` only with a proof (Farkas vector, or PSD transformed matrix), else
-``unsolved``.
+ray is ``no_solution`` only with a Farkas vector of the MLCP itself that passes the check of
+:mod:`lcpcli.analysis.proof` (found by its linear program), else ``unsolved``.
 """
 
 from __future__ import annotations
@@ -25,13 +25,10 @@ from typing import Any
 import numpy as np
 
 from lcpcli.analysis.mlcp import choose_pivot_set, reduce
+from lcpcli.analysis.proof import prove_infeasible
 from lcpcli.core.errors import ProblemError
 from lcpcli.core.result import NUMERICAL, Outcome
-from lcpcli.solvers.methods.mlcp_schur import (
-    PROOF_COND_MAX,
-    _positive,
-    solve_reduced,
-)
+from lcpcli.solvers.methods.mlcp_schur import _positive, solve_reduced
 from lcpcli.solvers.options import positive_int
 from lcpcli.solvers.registry import Cost, Guarantee, Method, Option, when
 
@@ -54,16 +51,17 @@ def run(problem: Any, *, tol: float, cond_max: float = 1e12,
            f"(pivot block cond ~ {red.cond:.2e})" if len(J) else
            f"free variables pivoted in (Schur complement, cond(A) ~ {red.cond:.2e})")
     msg = f"{how}; Lemke: {out.message}"
-    proven = bool(out.proven_infeasible) and red.cond <= PROOF_COND_MAX
-    if proven:
-        msg += " (the pivoted LCP is equivalent to the MLCP, so the proof carries over)"
+    proof = prove_infeasible(problem, search=True) if out.proven_infeasible else None
+    if proof is not None:
+        msg += f" (on the MLCP itself: {proof.describe()})"
     elif out.proven_infeasible:
-        msg += (f" (not carried over to the MLCP: the pivot block's condition {red.cond:.1e} "
-                f"is too large for a proof)")
+        msg += (" (not carried over to the MLCP: no Farkas vector of the MLCP passes the "
+                "check, so nothing is proven)")
     return Outcome(z, int(out.iterations) + int(red.S.size), out.termination, msg,
-                   proven_infeasible=proven,
+                   proven_infeasible=proof is not None,
                    info={"swapped": [int(j) + problem.n_eq for j in J],
-                         "pivot_cond": red.cond})
+                         "pivot_cond": red.cond,
+                         **({"farkas_y": proof.y.tolist()} if proof else {})})
 
 
 METHODS = [

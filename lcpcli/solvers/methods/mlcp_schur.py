@@ -20,16 +20,13 @@ from typing import Any
 import numpy as np
 
 from lcpcli.analysis.mlcp import polish, recover, schur
+from lcpcli.analysis.proof import prove_infeasible
 from lcpcli.core.errors import OptionError, ProblemError
 from lcpcli.core.problem import Problem
 from lcpcli.core.result import CONVERGED, NUMERICAL, Outcome
 from lcpcli.solvers.options import positive_int
 from lcpcli.solvers.pipeline import run_method
 from lcpcli.solvers.registry import Cost, Guarantee, Method, Option, get_method, when
-
-#: Largest pivot-block condition under which an infeasibility proof on the reduced LCP is
-#: reported as a proof for the MLCP (above it, roundoff in the reduction could fake one).
-PROOF_COND_MAX = 1e8
 
 
 def _positive(value: Any) -> float:
@@ -72,14 +69,16 @@ def run(problem: Any, *, tol: float, inner: str = "lemke", cond_max: float = 1e1
     z, out = solve_reduced(problem, red, inner, tol, max_iter)
     msg = (f"Schur complement (cond(A) ~ {red.cond:.2e}), inner {inner}: {out.message}")
     term = out.termination
-    proven = bool(out.proven_infeasible) and red.cond <= PROOF_COND_MAX
-    if proven:
-        msg += " (the reduced LCP is equivalent to the MLCP, so the proof carries over)"
+    proof = prove_infeasible(problem, search=True) if out.proven_infeasible else None
+    proven = proof is not None
+    if proof is not None:
+        msg += f" (on the MLCP itself: {proof.describe()})"
     elif out.proven_infeasible:
-        msg += (f" (not carried over to the MLCP: the reduction's condition {red.cond:.1e} "
-                f"is too large for a proof)")
+        msg += (" (not carried over to the MLCP: no Farkas vector of the MLCP passes the "
+                "check, so nothing is proven)")
     return Outcome(z, int(out.iterations), term if term else CONVERGED, msg,
-                   proven_infeasible=proven, info={"cond_A": red.cond})
+                   proven_infeasible=proven,
+                   info={"cond_A": red.cond, **({"farkas_y": proof.y.tolist()} if proof else {})})
 
 
 METHODS = [

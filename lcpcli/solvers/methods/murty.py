@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from lcpcli.analysis.classify import exact_p_matrix, not_p_witness
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, SINGULAR, Outcome
 from lcpcli.core.text import plural
 from lcpcli.solvers.kernels.lemke import polish_kernel
@@ -91,12 +92,32 @@ def _run(problem: Any, *, tol: float, max_iter: int | None, z0: np.ndarray | Non
     if status == BAD_PIVOT:
         var = "w" if basic[bad] < n else "z"
         return Outcome(z, int(pivots), SINGULAR,
-                       f"Murty: non-positive pivot for {var}{bad + 1} after "
-                       f"{plural(pivots, 'pivot')}{warm}; "
-                       f"M is not a P-matrix, outside the method's class")
+                       f"Murty: pivot for {var}{bad + 1} not positive beyond the tolerance "
+                       f"after {plural(pivots, 'pivot')}{warm}; {_class_words(M, basic, bad)}")
     return Outcome(z, int(pivots), ITERATION_LIMIT,
                    f"Murty: pivot limit {limit} reached{warm} (M may not be a P-matrix; "
                    f"raise --max-iter if it is)")
+
+
+
+def _class_words(M: np.ndarray, basic: np.ndarray, bad: int) -> str:
+    """What a bad pivot shows about M: "not a P-matrix" only with a principal minor that is
+    exactly ``<= 0`` (the pivot is ``det M[a+j] / det M[a]`` or ``det M[a-j] / det M[a]`` for
+    the z-basic set ``a``; a positive diagonal scaling keeps the signs of the minors)."""
+    n = M.shape[0]
+    alpha = [i for i in range(n) if basic[i] >= n]
+    witness = not_p_witness(M, [sorted(set(alpha) | {bad}), [i for i in alpha if i != bad],
+                                alpha])
+    if witness is not None:
+        names = ", ".join(str(i + 1) for i in witness)
+        return (f"M is not a P-matrix (its principal minor on {{{names}}} is exactly <= 0), "
+                f"outside the method's class")
+    if exact_p_matrix(M) is True:
+        return ("M is a P-matrix (every principal minor is positive in exact arithmetic), but "
+                "too close to losing the property for this method's pivot tolerance (try "
+                "lemke or dantzig)")
+    return ("no principal minor is exactly <= 0, so M may be a P-matrix that is too close to "
+            "losing the property for this method's pivot tolerance (try lemke or dantzig)")
 
 
 METHODS = [

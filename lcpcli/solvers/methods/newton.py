@@ -20,8 +20,11 @@ rule; shortened steps must decrease the current merit); when the Newton system
 is singular or its solution is not a sufficient descent direction, a Levenberg-Marquardt step
 ``(H^T H + lam I) d = -H^T Phi`` (``lam`` proportional to ``||Phi||``) is tried, and failing that a
 step along ``-grad Psi = -H^T Phi`` (De Luca, Facchinei and Kanzow's scheme).  Sparse M: the Newton
-systems are solved by sparse LU (``scipy.sparse.linalg.splu``), never densified.  After the
-iterations an active-set re-solve is tried (see :func:`lcpcli.solvers.support.refine`).
+systems are solved by sparse LU (``scipy.sparse.linalg.splu``), never densified.  Shortened
+steps follow the quadratic model of the merit (:func:`_backtrack`).  The iteration stops with
+termination ``stalled`` when the best merit fell by less than ``STALL_DECREASE`` (relative) over
+the last ``STALL_WINDOW`` iterations.  After the iterations an active-set re-solve is tried
+(see :func:`lcpcli.solvers.support.refine`).
 
 Matrix classes: ``newton`` converges globally (to a stationary point of the merit, which solves
 the problem) for P0 matrices with bounded level sets, e.g. **P-matrices**, and for **monotone
@@ -40,13 +43,16 @@ from typing import Any
 import numpy as np
 
 from lcpcli.core.certificate import matrix_norm_inf
-from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, NUMERICAL, Outcome
+from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, NUMERICAL, STALLED, Outcome
 from lcpcli.core.text import plural
 from lcpcli.solvers.options import positive_int, vector_option
 from lcpcli.solvers.registry import Cost, Guarantee, Method, Option, when
 from lcpcli.solvers.support import certified_error, refine, start_point
 
 DEFAULT_MAX_ITER = 200
+#: Stagnation: stop (termination ``stalled``) when the best merit fell by less than
+#: STALL_DECREASE (relative) over the last STALL_WINDOW iterations.
+STALL_WINDOW, STALL_DECREASE = 30, 1e-3
 #: Armijo constant, backtracking factor, smallest step.
 SIGMA, BETA, MIN_STEP = 1e-4, 0.5, 1e-12
 #: Descent test for the Newton direction: grad . d <= -RHO ||d||^P.
@@ -57,16 +63,23 @@ NONMONOTONE = 5
 KINK = 1.0 - 1.0 / np.sqrt(2.0)
 
 
-def _psi(s: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``psi(s, t) = s + t - sqrt(s^2 + t^2)`` and its partials (stable form, kink-safe)."""
-    r = np.hypot(s, t)
+def _psi_value(s: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """``psi(s, t)`` alone (the line search needs no partials); see :func:`_psi`."""
     ssum = s + t
-    with np.errstate(invalid="ignore", divide="ignore"):
-        # s + t - r = 2 s t / (s + t + r) when s + t > 0 avoids cancellation
-        val = np.where(ssum > 0, 2.0 * s * t / np.where(ssum > 0, ssum + r, 1.0), ssum - r)
-        safe = np.where(r > 0, r, 1.0)
-        ds = np.where(r > 0, 1.0 - s / safe, KINK)
-        dt = np.where(r > 0, 1.0 - t / safe, KINK)
+    return np.where(ssum > 0, 2.0 * s * t / (ssum + np.hypot(s, t)), ssum - np.hypot(s, t))
+
+
+def _psi(s: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``psi(s, t) = s + t - sqrt(s^2 + t^2)`` and its partials (stable form, kink-safe).
+
+    Callers run it under ``np.errstate(all="ignore")`` (one context for the whole iteration:
+    a context per call cost more than the arithmetic at small n)."""
+    r = np.hypot(s, t)
+    val = _psi_value(s, t)
+    kink = r == 0
+    safe = r + kink  # 1 at the kink, where the partials are KINK
+    ds = np.where(kink, KINK, 1.0 - s / safe)
+    dt = np.where(kink, KINK, 1.0 - t / safe)
     return val, ds, dt
 
 
@@ -82,18 +95,27 @@ class _Residual:
         self.upper = np.flatnonzero(~lf & uf)
         self.both = np.flatnonzero(lf & uf)
         self.free = np.flatnonzero(~lf & ~uf)
+        # a plain LCP (every z_i >= 0, no upper bound): Phi = psi(z, w) in one call
+        self.plain = self.lower.size == lo.shape[0] and not np.any(lo)
+
+    def value(self, z: np.ndarray, w: np.ndarray) -> np.ndarray:
+        """``Phi(z, w)`` alone (what the line search needs)."""
+        if self.plain and self.variant != "min":
+            return _psi_value(z, w)
+        return self(z, w)[0]
 
     def __call__(self, z: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        if self.plain and self.variant != "min":
+            return _psi(z, w)
         n = z.shape[0]
         phi, a, b = np.empty(n), np.zeros(n), np.zeros(n)
         lo, up = self.lo, self.up
         if self.variant == "min":
-            with np.errstate(invalid="ignore"):
-                s = z - lo
-                low = s <= w
-                v = np.where(low, s, w)
-                hi = (z - up) >= v
-                phi[:] = np.where(hi, z - up, v)
+            s = z - lo
+            low = s <= w
+            v = np.where(low, s, w)
+            hi = (z - up) >= v
+            phi[:] = np.where(hi, z - up, v)
             zpart = hi | low
             a[:] = np.where(zpart, 1.0, 0.0)
             b[:] = np.where(zpart, 0.0, 1.0)
@@ -135,18 +157,15 @@ def _newton_direction(M: Any, sparse: bool, a: np.ndarray, b: np.ndarray,
         except RuntimeError:
             return None
     else:
-        import scipy.linalg as sla  # scipy is imported on first use (start-up budget)
+        from scipy.linalg.lapack import dgesv  # LAPACK directly: one call, no wrappers
 
         H = b[:, None] * M
         H[np.diag_indices(n)] += a
-        try:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")
-                lu, piv = sla.lu_factor(H, check_finite=False)
-                if np.min(np.abs(np.diag(lu))) <= 1e-15 * max(np.max(np.abs(lu)), 1e-300):
-                    return None
-                d = sla.lu_solve((lu, piv), -phi, check_finite=False)
-        except (np.linalg.LinAlgError, ValueError):
+        if not np.all(np.isfinite(H)):
+            return None
+        lu, _, d, info = dgesv(H, -phi, overwrite_a=True, overwrite_b=True)
+        piv = np.abs(lu.diagonal())
+        if info != 0 or piv.min() <= 1e-15 * max(float(np.abs(lu).max()), 1e-300):
             return None
     return d if np.all(np.isfinite(d)) else None
 
@@ -167,14 +186,15 @@ def _lm_direction(M: Any, sparse: bool, a: np.ndarray, b: np.ndarray, phi: np.nd
                 K = (H.T @ H + lam * sp.identity(n)).tocsc()
                 d = spla.splu(K).solve(-grad)
             else:
-                import scipy.linalg as sla  # scipy is imported on first use (start-up budget)
+                from scipy.linalg.lapack import dposv  # LAPACK directly: one call
 
                 H = b[:, None] * M
                 H[np.diag_indices(n)] += a
                 K = H.T @ H
                 K[np.diag_indices(n)] += lam
-                d = sla.cho_solve(sla.cho_factor(K, check_finite=False), -grad,
-                                  check_finite=False)
+                _, d, info = dposv(K, -grad)
+                if info != 0:
+                    return None
     except (np.linalg.LinAlgError, ValueError, RuntimeError):
         return None
     return d if np.all(np.isfinite(d)) else None
@@ -183,6 +203,20 @@ def _lm_direction(M: Any, sparse: bool, a: np.ndarray, b: np.ndarray, phi: np.nd
 def run_newton(problem: Any, *, tol: float, variant: str = "fb", max_iter: int | None = None,
                z0: np.ndarray | None = None) -> Outcome:
     """Semismooth Newton with Armijo line search; ``variant`` is ``"fb"`` or ``"min"``."""
+    with np.errstate(all="ignore"):
+        return _run_newton(problem, tol, variant, max_iter, z0)
+
+
+def _stalled(best: list[float]) -> bool:
+    """No progress: the best merit of the last :data:`STALL_WINDOW` iterations is not below
+    ``(1 - STALL_DECREASE)`` times the best merit before them (``best[k]``: the best merit
+    after iteration k)."""
+    return (len(best) > STALL_WINDOW
+            and best[-1] > (1.0 - STALL_DECREASE) * best[-1 - STALL_WINDOW])
+
+
+def _run_newton(problem: Any, tol: float, variant: str, max_iter: int | None,
+                z0: np.ndarray | None) -> Outcome:
     name = "Newton-FB" if variant == "fb" else "Newton-min"
     M = problem.M
     sparse = problem.sparse
@@ -207,6 +241,7 @@ def run_newton(problem: Any, *, tol: float, variant: str = "fb", max_iter: int |
     phi, a, b = resid(z, w)
     merit = 0.5 * float(phi @ phi)
     history = [merit]
+    best_merit = [merit]
     grad_steps = 0
     lm_steps = 0
     it = 0
@@ -244,27 +279,39 @@ def run_newton(problem: Any, *, tol: float, variant: str = "fb", max_iter: int |
         while True:
             zt = z + t * d
             wt = w + t * dw
-            phit, at, bt = resid(zt, wt)
+            phit = resid.value(zt, wt)
             merit_t = 0.5 * float(phit @ phit)
             ref = max(history) if t == 1.0 else merit  # non-monotone test for the full step
-            if np.isfinite(merit_t) and merit_t <= ref + SIGMA * t * slope:
+            if merit_t <= ref + SIGMA * t * slope:  # False for NaN
                 break
-            t *= BETA
+            t = _backtrack(t, merit, slope, merit_t)
             if t < MIN_STEP:
                 break
         if t < MIN_STEP:
             termination, why = NUMERICAL, "line search failed (no decrease of the merit function)"
             break
-        z, w, phi, a, b, merit = zt, wt, phit, at, bt, merit_t
+        z = zt
         w = matvec(z) + problem.q  # fresh product: no drift from the w + t dw updates
         phi, a, b = resid(z, w)
         merit = 0.5 * float(phi @ phi)
         history.append(merit)
         del history[:-NONMONOTONE]
-        err = certified_error(problem, z)
-        if err < best_err:
-            best_z, best_err = z.copy(), err
+        best_merit.append(min(best_merit[-1], merit))
+        if merit < best_merit[-2] or it % STALL_WINDOW == 0:  # a certificate costs ~ an iteration
+            err = certified_error(problem, z)
+            if err < best_err:
+                best_z, best_err = z.copy(), err
+        if _stalled(best_merit):
+            termination = STALLED
+            why = (f"no progress: the merit function fell by less than {STALL_DECREASE:g} "
+                   f"(relative) over the last {STALL_WINDOW} iterations")
+            break
+        del best_merit[:-STALL_WINDOW - 1]
     z_out, err_out = best_z, best_err
+    if termination != CONVERGED:
+        err = certified_error(problem, z)
+        if err < err_out:
+            z_out, err_out = z, err
     if err_out > 0:
         polished = refine(problem, z_out)
         if polished is not None and polished[1] < err_out:
@@ -278,6 +325,16 @@ def run_newton(problem: Any, *, tol: float, variant: str = "fb", max_iter: int |
                    f"{name}: {why} after {plural(it, 'iteration')}{extra} "
                    f"(certified error {err_out:.2e})",
                    info={"gradient_steps": grad_steps, "lm_steps": lm_steps})
+
+
+def _backtrack(t: float, merit: float, slope: float, merit_t: float) -> float:
+    """The next trial step after ``t`` failed the Armijo test: the minimiser of the quadratic
+    through ``merit``, ``slope`` and ``merit_t``, kept in ``[t/10, t/2]`` (``BETA t`` when the
+    model gives nothing; Dennis and Schnabel, 6.3.2)."""
+    denom = 2.0 * (merit_t - merit - slope * t)
+    if not (denom > 0 and np.isfinite(denom)):
+        return BETA * t
+    return min(BETA * t, max(0.1 * t, -slope * t * t / denom))
 
 
 def run_fb(problem: Any, *, tol: float, max_iter: int | None = None,

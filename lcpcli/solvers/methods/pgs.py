@@ -73,11 +73,13 @@ def _run_sor(problem: Any, *, tol: float, omega: float, max_iter: int | None,
                        f"({bad.size} such entr{'y' if bad.size == 1 else 'ies'}); "
                        f"the update z_i -= r_i / M_ii is undefined")
     diag = np.where(diag > 0, diag, 1.0)
+    q = np.ascontiguousarray(problem.q, dtype=np.float64)
+    if kernel is None:  # traces show the user's numbers
+        M, q, diag = _rows_in_range(M, q, diag)
     mu = matrix_norm_inf(M)
     mu = mu if mu > 0 else 1.0
-    qnorm = float(np.max(np.abs(problem.q))) if n else 0.0
+    qnorm = float(np.max(np.abs(q))) if n else 0.0
     limit = max_iter or DEFAULT_MAX_ITER
-    q = np.ascontiguousarray(problem.q, dtype=np.float64)
     if kernel is not None:  # the traced replica takes the dense or CSR matrix itself
         Mx = M.tocsr() if problem.sparse else np.ascontiguousarray(M, dtype=np.float64)
 
@@ -117,9 +119,51 @@ def _run_sor(problem: Any, *, tol: float, omega: float, max_iter: int | None,
     if status == K.DIVERGED:
         return Outcome(z, int(sweeps), NUMERICAL,
                        f"{label} diverged (non-finite iterate after {plural(sweeps, 'sweep')})")
+    if sweeps < limit:  # the target was tightened to rounding level: more sweeps cannot help
+        return Outcome(z, int(sweeps), NUMERICAL,
+                       f"{label}: normwise error at rounding level after "
+                       f"{plural(sweeps, 'sweep')}, but certified error {err:.2e} > tol")
     return Outcome(z, int(sweeps), ITERATION_LIMIT,
                    f"{label}: sweep limit {limit} reached with error {err:.2e} "
                    f"(raise --max-iter, or M may be outside the method's class)")
+
+
+#: Rows whose largest entry (of M and q) lies outside [2^-ROW_RANGE, 2^ROW_RANGE], or rows whose
+#: largest entries differ by more than 2^ROW_SPREAD, are first scaled by powers of two.
+ROW_RANGE, ROW_SPREAD = 500, 100
+
+
+def _rows_in_range(M: Any, q: np.ndarray, diag: np.ndarray) -> tuple[Any, np.ndarray, np.ndarray]:
+    """``(D M, D q, D diag)`` with ``D`` the powers of two that bring each row's largest entry
+    near 1, when the rows are out of range (see :data:`ROW_RANGE`); else the arguments.
+
+    Every sweep of (P)SOR is the same on the row-scaled copy (row ``i``'s update divides
+    ``(M z + q)_i`` by ``M_ii``), but its normwise stopping test and the sums ``M z + q`` stay
+    finite and meaningful: on ``diag(1e308, 1)`` the unscaled test ``||r|| <= tol (mu ||z|| +
+    ||q||)`` overflows to Inf and passes at once, and a row of 1e-300 next to rows of 1 is
+    never looked at."""
+    if M.shape[0] == 0:
+        return M, q, diag
+    absq = np.abs(q)
+    if hasattr(M, "tocsr"):
+        A = M.tocsr()
+        peak = np.maximum(absq, np.asarray(abs(A).max(axis=1).todense()).ravel())
+    else:
+        peak = np.maximum(absq, np.max(np.abs(M), axis=1))
+    e = np.where(peak > 0, np.frexp(peak)[1], 0).astype(np.int64)
+    if e.max() <= ROW_RANGE and e.min() >= -ROW_RANGE and e.max() - e.min() <= ROW_SPREAD:
+        return M, q, diag
+    # D = 2^-e in two exact steps (2^1074, for a subnormal row, is not a double)
+    half = np.ldexp(1.0, (-(e // 2)).astype(np.int32))
+    rest = np.ldexp(1.0, (-(e - e // 2)).astype(np.int32))
+    if hasattr(M, "tocsr"):
+        import scipy.sparse as sp  # only for sparse data out of range
+
+        Ms = sp.diags(rest) @ (sp.diags(half) @ A)
+        Ms = Ms.tocsr()
+    else:
+        Ms = np.ascontiguousarray((M * half[:, None]) * rest[:, None])
+    return Ms, np.ascontiguousarray(q * half * rest), diag * half * rest
 
 
 def run_pgs(problem: Any, *, tol: float, max_iter: int | None = None,

@@ -89,14 +89,17 @@ def murty_traced(M: np.ndarray, q: np.ndarray, max_iter: int, piv_tol: float, ne
         if not p > piv_tol * max(scale, 1e-300):
             status = BAD_PIVOT
             bad = r
+            # exact (fractions) and not positive: a principal minor ratio <= 0, so not P;
+            # in floating point only the tolerance was shown
+            why_not_p = (" (M is not a P-matrix)" if kind is object and not p > 0 else
+                         " beyond the pivot tolerance (a P-matrix has positive pivots only)")
             trace.append({"kind": "principal", "pivot": pivots + 1, "row": r + 1,
                           "entering": entering, "leaving": leaving,
                           "pivot_element": {"row": r + 1, "column": entering, "value": scalar(p)},
                           "rule": "bad_pivot",
                           "reason": (f"least index with q' < 0 is row {r + 1} ({leaving} = "
                                      f"{num(qb[r])}); its diagonal entry M'_rr = {num(p)} is not "
-                                     f"positive (M is not a P-matrix): no pivot is made"),
-                          **state()})
+                                     f"positive{why_not_p}: no pivot is made"), **state()})
             break
         value = qb[r]
         pivot_update(T, qb, r, r)

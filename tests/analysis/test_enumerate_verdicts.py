@@ -1,0 +1,57 @@
+"""``enumerate`` on extreme data: every solution it lists passes the certificate in the user's
+units, and ``no_solution`` comes with a Farkas vector (issue 22).
+
+Checked independently: ``tests/references.py`` (``componentwise_error``, ``farkas_certifies``).
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from references import componentwise_error, farkas_certifies
+
+from lcpcli.analysis.enumeration import enumerate_cones
+from lcpcli.core.problem import Problem
+
+#: Entries spanning the double range, with signs and zeros.
+EXTREME = [1e300, -1e300, 1e-300, -1e-300, 1.0, -1.0, 0.0, 1e200, -1e200, 1e-200, 5e-324]
+
+
+def _pair(n: int) -> st.SearchStrategy:
+    entries = st.sampled_from(EXTREME)
+    return st.tuples(st.lists(entries, min_size=n * n, max_size=n * n),
+                     st.lists(entries, min_size=n, max_size=n))
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.integers(1, 3).flatmap(_pair))
+def test_every_listed_solution_is_certified_and_every_proof_checks(data) -> None:
+    flat, q = data
+    n = len(q)
+    M, q = np.array(flat).reshape(n, n), np.array(q)
+    res = enumerate_cones(Problem.create(M, q))
+    with np.errstate(all="ignore"):
+        for sol in res.solutions:
+            assert np.all(np.isfinite(sol.z))
+            assert componentwise_error(M, q, sol.z) <= 1e-8, (M.tolist(), q.tolist(), sol.z)
+    if res.status == "solved":
+        assert res.solutions
+    elif res.status == "no_solution":
+        assert res.verdict == "none" and farkas_certifies(M, q, res.proof.y)
+
+
+def test_the_issue_examples_are_not_solved_falsely(cli) -> None:
+    # found by a random search of 2 x 2 problems with entries 1e300 / 1e-300: cones contain q
+    # on the equilibrated problem, but the point does not survive the way back
+    for M, q in (([[1e-300, 1e200], [1e-300, -1e-300]], [-1.0, 1.0]),
+                 ([[1.0, 1.0], [0.0, 1e-200]], [1e300, -1e300])):
+        out = cli("enumerate", "-", "--json", stdin=json.dumps({"M": M, "q": q}))
+        data = json.loads(out.stdout)
+        for sol in data["solutions"]:
+            z = np.array([np.nan if v is None else v for v in sol["z"]])
+            with np.errstate(all="ignore"):
+                assert componentwise_error(np.array(M), np.array(q), z) <= 1e-8
+        assert out.returncode == (0 if data["status"] == "solved" else 1)

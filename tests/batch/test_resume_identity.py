@@ -1,0 +1,245 @@
+"""``--resume`` keeps only results computed from the same data, and fails in one line otherwise.
+
+A stacked result records a SHA-256 digest per chunk of its input and the solve options; a
+per-file batch records ``input_hash`` per row.  Resuming against other data (same path, K and n),
+other options, a file without fingerprints (an older lcpcli) or a damaged status is refused with
+one line and exit code 2; nothing of the result file is changed by the refusal.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import h5py
+import numpy as np
+import pytest
+
+from lcpcli.api import solve_many
+from lcpcli.batch.output import read_rows
+from lcpcli.io.stack import write_stack
+from tests.conftest import ROOT
+
+
+def pd_stack(K: int, n: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    rng = np.random.default_rng(seed)
+    A = rng.standard_normal((K, n, n))
+    return A @ A.transpose(0, 2, 1) / n + np.eye(n), rng.standard_normal((K, n))
+
+
+def one_line(res, reason: str) -> None:
+    assert res.returncode == 2, (res.returncode, res.stderr[-1500:])
+    lines = res.stderr.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("lcpcli: error: "), res.stderr[-1500:]
+    assert reason in lines[0], lines[0]
+    assert "Traceback" not in res.stderr
+
+
+@pytest.mark.parametrize("ext", ["h5", "npz", "jsonl", "csv"])
+def test_resume_against_another_stack_is_refused(cli, tmp_path, ext):
+    """The same path, K and n, other data: refused (5,000 wrong 'solved' answers were kept);
+    the same data again: everything skipped, the answers unchanged."""
+    M, q = pd_stack(400, 5)
+    stack = tmp_path / "s.h5"
+    write_stack(stack, M, q)
+    out = tmp_path / f"r.{ext}"
+    assert cli("solve", str(stack), "-o", str(out), "--json").returncode == 0
+    res = cli("solve", str(stack), "-o", str(out), "--resume", "--json")
+    assert res.returncode == 0 and json.loads(res.stdout.splitlines()[-1])["skipped"] == 400
+    before = out.read_bytes()
+    write_stack(stack, M, -q)  # another stack under the same name
+    one_line(cli("solve", str(stack), "-o", str(out), "--resume"), "other data")
+    assert out.read_bytes() == before
+
+
+def test_resume_with_other_options_is_refused(cli, tmp_path):
+    M, q = pd_stack(50, 4)
+    stack = tmp_path / "s.h5"
+    write_stack(stack, M, q)
+    for ext in ("h5", "npz"):
+        out = tmp_path / f"r.{ext}"
+        assert cli("solve", str(stack), "-o", str(out)).returncode == 0
+        one_line(cli("solve", str(stack), "-o", str(out), "--resume", "--tol", "1e-6"),
+                 "computed with")
+        one_line(cli("solve", str(stack), "-o", str(out), "--resume", "-m", "lemke"),
+                 "computed with")
+
+
+def test_results_without_fingerprint_are_refused(cli, tmp_path):
+    """Files of an older lcpcli (no digests, no input_hash, the old CSV header): refused with
+    a message saying to run without --resume."""
+    M, q = pd_stack(30, 4)
+    stack = tmp_path / "s.h5"
+    write_stack(stack, M, q)
+    out = tmp_path / "r.h5"
+    assert cli("solve", str(stack), "-o", str(out)).returncode == 0
+    with h5py.File(out, "a") as f:
+        del f["s"]["chunk_digest"]
+        del f["s"].attrs["solve_options"]
+    one_line(cli("solve", str(stack), "-o", str(out), "--resume"), "without --resume")
+    rows = tmp_path / "r.jsonl"
+    assert cli("solve", str(stack), "-o", str(rows)).returncode == 0
+    lines = [json.loads(x) for x in rows.read_text().splitlines()]
+    rows.write_text("".join(json.dumps({k: v for k, v in r.items() if k != "input_hash"}) + "\n"
+                            for r in lines))
+    one_line(cli("solve", str(stack), "-o", str(rows), "--resume"), "older lcpcli")
+    p = tmp_path / "p.json"
+    p.write_text(json.dumps({"M": M[0].tolist(), "q": q[0].tolist()}))
+    old_csv = tmp_path / "old.csv"
+    old_csv.write_text("source,problem,status,method,n,iterations,seconds,residual,error,"
+                       "message,index\n" f"{p},p,solved,auto,4,3,0.1,0.0,0.0,ok,\n")
+    one_line(cli("solve", str(p), "-o", str(old_csv), "--resume"), "without --resume")
+
+
+def test_per_file_batch_resume_checks_each_input(cli, tmp_path):
+    """A problem file changed since its row was written: refused; unchanged: skipped."""
+    M, q = pd_stack(3, 4)
+    files = []
+    for k in range(3):
+        f = tmp_path / f"p{k}.json"
+        f.write_text(json.dumps({"M": M[k].tolist(), "q": q[k].tolist()}))
+        files.append(str(f))
+    for ext in ("jsonl", "csv", "h5"):
+        out = tmp_path / f"r.{ext}"
+        assert cli("solve", *files[:2], "-o", str(out)).returncode == 0
+        res = cli("solve", *files, "-o", str(out), "--resume", "--json")
+        assert res.returncode == 0, res.stderr
+        assert json.loads(res.stdout.splitlines()[-1])["skipped"] == 2
+        rows = read_rows(out)
+        assert all(len(r["input_hash"]) == 32 for r in rows) and len(rows) == 3
+    (tmp_path / "p1.json").write_text(json.dumps({"M": M[1].tolist(), "q": (-q[1]).tolist()}))
+    for ext in ("jsonl", "csv", "h5"):
+        one_line(cli("solve", *files, "-o", str(tmp_path / f"r.{ext}"), "--resume"),
+                 "computed from other content")
+
+
+def test_status_77_is_one_line(cli, tmp_path):
+    """A stacked result whose status holds 77 (was exit 3 KeyError)."""
+    M, q = pd_stack(20, 3)
+    stack = tmp_path / "s.h5"
+    write_stack(stack, M, q)
+    out = tmp_path / "r.h5"
+    assert cli("solve", str(stack), "-o", str(out)).returncode == 0
+    with h5py.File(out, "a") as f:
+        f["s"]["status"][4] = 77
+    one_line(cli("solve", str(stack), "-o", str(out), "--resume"), "holds 77")
+    npz = tmp_path / "r.npz"
+    assert cli("solve", str(stack), "-o", str(npz)).returncode == 0
+    with np.load(npz) as d:
+        arrays = {k: d[k] for k in d.files}
+    arrays["status"][4] = 77
+    np.savez(npz, **arrays)
+    one_line(cli("solve", str(stack), "-o", str(npz), "--resume"), "holds 77")
+
+
+@pytest.mark.parametrize("ext", ["csv", "h5", "jsonl"])
+def test_file_names_that_are_not_utf8(tmp_path, ext):
+    """A problem file named with the byte 0xff (was exit 3 UnicodeEncodeError for .csv and
+    .h5): solved, written, and found again by --resume."""
+    M, q = pd_stack(2, 3)
+    folder = tmp_path / "in"
+    folder.mkdir()
+    for k, name in enumerate((b"caf\xe9.json", b"plain.json")):
+        path = os.path.join(os.fsencode(folder), name)
+        with open(path, "w") as fh:
+            json.dump({"M": M[k].tolist(), "q": q[k].tolist()}, fh)
+    out = tmp_path / f"r.{ext}"
+    env = dict(os.environ)
+    env["PYTHONPATH"] = str(ROOT) + os.pathsep + env.get("PYTHONPATH", "")
+    for extra in ([], ["--resume"]):
+        res = subprocess.run([sys.executable, "-m", "lcpcli", "solve", str(folder), "-o",
+                              str(out), "--json", *extra], capture_output=True, env=env,
+                             cwd=ROOT, timeout=120)
+        assert res.returncode == 0 and b"Traceback" not in res.stderr, res.stderr
+    assert json.loads(res.stdout.splitlines()[-1])["skipped"] == 2
+    assert len(read_rows(out)) == 2
+    if ext == "csv":  # the name's own bytes, as the file system holds them
+        assert b"caf\xe9.json" in out.read_bytes()
+
+
+def test_stacked_result_row_matches_fresh_solve_after_resume(cli, tmp_path):
+    """Resuming an interrupted stacked .h5 (statuses of the second half reset) gives the
+    answers of a fresh solve: the fingerprint check does not disturb a legitimate resume."""
+    M, q = pd_stack(300, 6)
+    stack = tmp_path / "s.h5"
+    write_stack(stack, M, q)
+    out = tmp_path / "r.h5"
+    assert cli("solve", str(stack), "-o", str(out)).returncode == 0
+    with h5py.File(out, "a") as f:
+        f["s"]["status"][150:] = -1
+        f["s"]["z"][150:] = np.nan
+    res = cli("solve", str(stack), "-o", str(out), "--resume", "--json")
+    assert json.loads(res.stdout.splitlines()[-1])["skipped"] == 150
+    with h5py.File(out) as f:
+        np.testing.assert_allclose(f["s"]["z"][...], solve_many(M, q).z, atol=1e-12)
+
+
+def test_kill_9_of_a_jobs_2_batch_leaves_no_worker_traceback(tmp_path):
+    """kill -9 of the parent of a --jobs 2 batch: the workers exit quietly (each printed a
+    BrokenPipeError traceback before)."""
+    M, q = pd_stack(600, 4)
+    folder = tmp_path / "in"
+    folder.mkdir()
+    for k in range(600):
+        (folder / f"p{k:03d}.json").write_text(json.dumps({"M": M[k].tolist(),
+                                                           "q": q[k].tolist()}))
+    out = tmp_path / "r.jsonl"
+    env = dict(os.environ)
+    env["PYTHONPATH"] = str(ROOT) + os.pathsep + env.get("PYTHONPATH", "")
+    proc = subprocess.Popen([sys.executable, "-m", "lcpcli", "solve", str(folder), "-o",
+                             str(out), "-j", "2", "-q", "-m", "pgs", "-O", "max_iter=20000"],
+                            stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, env=env,
+                            cwd=ROOT)
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline and (not out.exists() or out.stat().st_size < 2000):
+        time.sleep(0.05)
+    os.kill(proc.pid, signal.SIGKILL)
+    _, err = proc.communicate(timeout=60)  # the pipe closes when the workers have exited too
+    assert b"Traceback" not in err and b"BrokenPipeError" not in err, err.decode()[-2000:]
+
+
+def test_solve_a_directory_named_like_a_problem_is_one_line(cli, tmp_path):
+    (tmp_path / "adir.json").mkdir()
+    res = cli("solve", str(tmp_path / "adir.json"))
+    one_line(res, "is a directory")
+    assert res.stdout == ""
+
+
+def test_resume_with_a_new_stack_adds_its_group_by_copy(tmp_path, monkeypatch):
+    """A resumed stacked .h5 given one more input stack: its group is added in a copy renamed
+    over the file, so a full disk then leaves the file byte for byte as it was; with space,
+    the first stack is skipped and the second solved."""
+    import errno
+
+    from lcpcli.batch.records import SolveOptions
+    from lcpcli.batch.run import run_batch
+    from lcpcli.core.errors import OutputError
+
+    M, q = pd_stack(200, 4, seed=1)
+    write_stack(tmp_path / "a.h5", M, q)
+    write_stack(tmp_path / "b.h5", M, -q)
+    out = tmp_path / "r.h5"
+    run_batch([str(tmp_path / "a.h5")], SolveOptions(), output=out)
+    before = out.read_bytes()
+    real = os.pwrite
+
+    def full(fd, data, offset):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(os, "pwrite", full)
+    with pytest.raises(OutputError, match="no space left on device"):
+        run_batch([str(tmp_path / "a.h5"), str(tmp_path / "b.h5")], SolveOptions(),
+                  output=out, resume=True)
+    monkeypatch.setattr(os, "pwrite", real)
+    assert out.read_bytes() == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.h5", "b.h5", "r.h5"]
+    report = run_batch([str(tmp_path / "a.h5"), str(tmp_path / "b.h5")], SolveOptions(),
+                       output=out, resume=True)
+    assert (report.skipped, report.new) == (200, 200)
+    with h5py.File(out) as f:
+        np.testing.assert_allclose(f["a"]["z"][...], solve_many(M, q).z, atol=1e-12)
+        np.testing.assert_allclose(f["b"]["z"][...], solve_many(M, -q).z, atol=1e-12)
