@@ -126,7 +126,8 @@ def solve(problem: Problem | Any, q: Any = None, method: str | None = None, *,
             tried, note = warm_start(problem, warm, tol)
             if tried is not None:
                 factors = tried.info.pop("blocks", None)
-                res = certify_outcome(problem, tried, "bpp", time.perf_counter() - start, tol)
+                res = certify_outcome(problem, tried, "bpp", time.perf_counter() - start, tol,
+                                      basis=True)
                 if res.solved:  # never no_solution: the warm start proves nothing
                     res.factors = factors  # the next warm start on the same M reuses them
                     return res
@@ -147,11 +148,18 @@ def solve(problem: Problem | Any, q: Any = None, method: str | None = None, *,
 
 
 def certify_outcome(problem: Problem, outcome: Outcome, method: str, seconds: float,
-                    tol: float) -> Result:
-    """Turn a method's raw :class:`Outcome` into a verdict by checking its answer."""
+                    tol: float, basis: bool = False) -> Result:
+    """Turn a method's raw :class:`Outcome` into a verdict by checking its answer.
+
+    ``basis``: record the final basis (:attr:`Result.basis`) in the same certificate pass
+    (warm starts, whose next step needs it); otherwise it is computed on first use."""
     z = float64_array(outcome.z)
+    states = None
     if outcome.checked is not None and outcome.checked[0].tol == tol:
         cert, w = outcome.checked  # the method certified this very z (auto does)
+    elif basis:
+        states = np.empty(problem.n, dtype=np.int8)
+        cert, w = check(problem, z, tol, state=states)
     else:
         cert, w = check(problem, z, tol)
     message = outcome.message
@@ -173,8 +181,8 @@ def certify_outcome(problem: Problem, outcome: Outcome, method: str, seconds: fl
                        f"tol {tol:.3g}{_why(cert)}")
     # positional, in the order of Result's fields (this is on the small-solve path)
     return Result(status, method, z, w, outcome.iterations, seconds, cert, message,
-                  outcome.termination, problem.name, outcome.trace, dict(outcome.info), None,
-                  None, problem)  # the basis: on first use (Result.basis)
+                  outcome.termination, problem.name, outcome.trace, dict(outcome.info), states,
+                  None, None if states is not None else problem)  # else: on first use
 
 
 def _why(cert: Any) -> str:
