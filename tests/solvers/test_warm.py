@@ -325,3 +325,20 @@ def test_batch_jsonl_rows_carry_the_basis(cli, tmp_path) -> None:
     rows = [json.loads(line) for line in (tmp_path / "rows.jsonl").read_text().splitlines()]
     expected = lcpcli.solve(M, q).to_dict()["basis"]
     assert [row["basis"] for row in rows] == [expected, expected]
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_warm_on_psd_matrices_keeps_the_cold_verdict(seed: int) -> None:
+    """Rank-deficient PSD M (n = 200, rank 100; outside BPP's class: singular blocks), q making
+    the LCP solvable: a warm start from a random basis ends with the cold verdict (solved), by
+    BPP or by the cold fallback, and its answer passes the certificate."""
+    n = 200
+    rng = np.random.default_rng(seed)
+    B = rng.standard_normal((n, n // 2))
+    M = B @ B.T / n
+    x = np.maximum(rng.standard_normal(n), 0)
+    q = -M @ x + np.where(x > 0, 0.0, rng.uniform(0, 1, n))  # x solves it
+    cold = lcpcli.solve(M, q)
+    r = lcpcli.solve(M, q, warm=rng.random(n) < 0.5)
+    assert r.status == cold.status == "solved"
+    assert r.method in ("bpp", "auto")
