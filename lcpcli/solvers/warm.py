@@ -43,7 +43,7 @@ WARM_MIN_N = 200
 
 #: BPP iterations a warm start may take before the cold solve takes over (a nearby basis ends
 #: in a few; outside BPP's class the method may take its full limit, O(n^3) each).
-WARM_MAX_ITER = 50
+WARM_MAX_ITER = 20
 
 
 def uses_warm_basis(spec: Method, problem: Any) -> bool:
