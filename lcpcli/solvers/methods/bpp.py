@@ -3,7 +3,7 @@
 Problem: LCP(q, M), ``w = M z + q`` (MLCP: the first ``n_eq`` variables free, always basic).
 A *basis* is the set ``F`` of basic z's (the other pairs have ``w_i`` basic and ``z_i = 0``); its
 basic solution solves ``M_FF z_F = -q_F`` and sets ``w_G = q_G + M_GF z_F`` (G the complement).
-Every iteration factors ``M_FF`` once and finds the *infeasible* pairs (``z_i < 0`` in F,
+Every iteration solves for the basic solution and finds the *infeasible* pairs (``z_i < 0`` in F,
 ``w_i < 0`` in G); with none, the basic solution solves the problem.  Otherwise (Júdice &
 Pires, "A block principal pivoting algorithm for large-scale strictly monotone linear
 complementarity problems", Computers & Operations Research 21, 1994):
@@ -20,8 +20,11 @@ start: :mod:`lcpcli.solvers.warm`) ends it in one or two.  On other matrices ``M
 singular (reported as ``singular_basis``) or the pivot limit may be reached; the answer is
 judged by the shared certificate, never by this module.
 
-Cost: one dense LU of ``M_FF`` (O(|F|^3)) and one product with M (O(n^2)) per iteration; a sparse
-M is densified.  ``z0`` starts from the basis ``{i: z0_i > 0}`` (or give ``basis=``, booleans).
+Cost: one product with M (O(n^2)) per iteration, and a dense factorisation of ``M_FF``
+(Cholesky for a symmetric M, else LU; O(|F|^3)) only when the basis has moved more than
+``2 sqrt(n)`` pairs from the last factored one (:class:`Blocks`: bordered Schur-complement
+solves otherwise); a sparse M is densified.  ``z0`` starts from the basis ``{i: z0_i > 0}``
+(or give ``basis=``).
 """
 
 from __future__ import annotations
