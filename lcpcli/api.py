@@ -67,7 +67,7 @@ def dense_check(method: str | None) -> Any:
 
 
 def solve(problem: Problem | Any, q: Any = None, method: str | None = None, *,
-          tol: float | None = None, **options: Any) -> Result:
+          tol: float | None = None, warm: Any = None, **options: Any) -> Result:
     """Solve ``problem`` with ``method`` and certify the answer.
 
     Two ways to call it: ``solve(problem, "lemke", tol=...)`` with a :class:`Problem`, or
@@ -84,6 +84,12 @@ def solve(problem: Problem | Any, q: Any = None, method: str | None = None, *,
     when the method proved it (the proof is in ``message``); ``unsolved`` otherwise.
     ``seconds`` times the method (with its equilibration and final polish, see
     :mod:`lcpcli.solvers.pipeline`), not file reading or certification.
+
+    ``warm``: a previous :class:`Result`, a basis (booleans, True: ``z_i`` basic) or a point
+    ``z0``.  With ``auto``, BPP or a pivoting method, block principal pivoting first runs from
+    that basis (:mod:`lcpcli.solvers.warm`; one factorisation when the basis is still right);
+    if that does not end certified, ``method`` runs cold (with ``z0`` from ``warm`` when it
+    takes one), so the verdict is never worse than cold.  Other methods get ``z0`` only.
     """
     if not isinstance(problem, Problem):  # solve(M, q, method=...): arrays, not a Problem
         if q is None or isinstance(q, str):
@@ -111,17 +117,49 @@ def solve(problem: Problem | Any, q: Any = None, method: str | None = None, *,
     tol = validate_tol(spec.default_tol if tol is None else tol)
     spec.prepare_once()
     start = time.perf_counter()
+    if warm is not None:
+        from lcpcli.solvers.warm import check_warm, uses_warm_basis, warm_point, warm_start
+
+        check_warm(problem, warm)
+        note = ""
+        if uses_warm_basis(spec, problem):
+            tried, note = warm_start(problem, warm, tol)
+            if tried is not None:
+                factors = tried.info.pop("blocks", None)
+                res = certify_outcome(problem, tried, "bpp", time.perf_counter() - start, tol,
+                                      basis=True)
+                if res.solved:  # never no_solution: the warm start proves nothing
+                    res.factors = factors  # the next warm start on the same M reuses them
+                    return res
+                note = f"its answer failed the certificate (error {res.error:.2g})"
+        if "z0" in spec.options and opts.get("z0") is None:  # the cold run starts from z0
+            z0 = warm_point(problem, warm)
+            if z0 is not None:
+                opts = spec.parse_options({**options, "z0": z0})
+        if note:
+            outcome = run_method(spec, problem, tol, opts)
+            outcome.message += f" (warm start from the given basis did not end certified: " \
+                               f"{note}; solved cold)"
+            return certify_outcome(problem, outcome, spec.name, time.perf_counter() - start,
+                                   tol)
     outcome: Outcome = run_method(spec, problem, tol, opts)
     seconds = time.perf_counter() - start
     return certify_outcome(problem, outcome, spec.name, seconds, tol)
 
 
 def certify_outcome(problem: Problem, outcome: Outcome, method: str, seconds: float,
-                    tol: float) -> Result:
-    """Turn a method's raw :class:`Outcome` into a verdict by checking its answer."""
+                    tol: float, basis: bool = False) -> Result:
+    """Turn a method's raw :class:`Outcome` into a verdict by checking its answer.
+
+    ``basis``: record the final basis (:attr:`Result.basis`) in the same certificate pass
+    (warm starts, whose next step needs it); otherwise it is computed on first use."""
     z = float64_array(outcome.z)
+    states = None
     if outcome.checked is not None and outcome.checked[0].tol == tol:
         cert, w = outcome.checked  # the method certified this very z (auto does)
+    elif basis:
+        states = np.empty(problem.n, dtype=np.int8)
+        cert, w = check(problem, z, tol, state=states)
     else:
         cert, w = check(problem, z, tol)
     message = outcome.message
@@ -143,7 +181,8 @@ def certify_outcome(problem: Problem, outcome: Outcome, method: str, seconds: fl
                        f"tol {tol:.3g}{_why(cert)}")
     # positional, in the order of Result's fields (this is on the small-solve path)
     return Result(status, method, z, w, outcome.iterations, seconds, cert, message,
-                  outcome.termination, problem.name, outcome.trace, dict(outcome.info))
+                  outcome.termination, problem.name, outcome.trace, dict(outcome.info), states,
+                  None, None if states is not None else problem)  # else: on first use
 
 
 def _why(cert: Any) -> str:
@@ -211,7 +250,7 @@ def _check_stack(M: Any, q: Any, method: str | None, lower: Any, upper: Any, n_e
 def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None = None,
                lower: Any = None, upper: Any = None, n_eq: int = 0, threads: int | None = None,
                backend: str | None = None, on_error: str = "raise",
-               plan: StackPlan | None = None,
+               plan: StackPlan | None = None, warm: Any = None,
                **options: Any) -> StackResult:
     """Solve a stack of K problems of one size n and certify every answer.
 
@@ -239,6 +278,12 @@ def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None =
     anything with ``__dlpack__`` on a CUDA device): the stack is not copied to the host and
     ``z``, ``w`` come back as CuPy arrays (:func:`lcpcli.solvers.backends.cuda.
     solve_many_device`).
+
+    ``warm``: the :class:`StackResult` of a previous stack of the same shape (or a (K, n)
+    array of points ``z0``, or of booleans: bases): problem ``k`` is solved by
+    ``solve(..., warm=row k)`` (see :func:`solve`; a row with NaN, e.g. of an ``error``
+    problem, is solved cold).  A first version: a Python loop over the problems, no batched
+    kernel, so it pays only where a warm :func:`solve` beats a batched cold one (n >= 200).
 
     ``on_error``: ``"raise"`` (a problem with NaN or Inf data raises :class:`ProblemError`
     naming its index; problems before it are solved first) or ``"mark"`` (its status is
@@ -281,7 +326,10 @@ def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None =
     messages: dict[int, str] = {}
     methods_of: dict[int, str] = {}
     results: dict[int, Result] = {}
-    if plan is None:
+    rows = _warm_rows(warm, K, n)
+    if rows is not None:  # warm starts: one problem at a time
+        run_spec, kernel_options = None, {}
+    elif plan is None:
         run_spec, kernel_options = _batched_method(spec, kind, options, M, q, lower, upper)
     else:
         run_spec = None if plan.kernel_method is None else get_method(plan.kernel_method)
@@ -321,7 +369,8 @@ def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None =
             messages[k] = str(exc)
             continue
         try:
-            r = solve(problem, spec.name, tol=tol, **options)
+            row = None if rows is None or not np.all(np.isfinite(rows[k])) else rows[k]
+            r = solve(problem, spec.name, tol=tol, warm=row, **options)
         except LcpError as exc:
             status[k], error[k], residual[k] = codes[Status.ERROR], np.inf, np.nan
             messages[k] = str(exc)
@@ -331,6 +380,7 @@ def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None =
         iterations[k], error[k], residual[k] = r.iterations, r.error, r.residual
         messages[k] = r.message
         methods_of[k] = r.method
+        r.basis  # noqa: B018  (computed now: the Result then no longer holds the problem)
         results[k] = r
     retried = np.zeros(K, bool)
     retried[retry] = run_spec is not None
@@ -339,6 +389,16 @@ def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None =
                        seconds=time.perf_counter() - start, retried=retried,
                        messages=messages, methods=methods_of, batched=run_spec is not None,
                        results=results)
+
+
+def _warm_rows(warm: Any, K: int, n: int) -> np.ndarray | None:
+    """The (K, n) warm-start rows of :func:`solve_many` (points, or booleans: bases)."""
+    if warm is None:
+        return None
+    rows = np.asarray(warm.z if isinstance(warm, StackResult) else warm)
+    if rows.shape != (K, n):
+        raise OptionError(f"warm start of a stack must have shape ({K}, {n}), got {rows.shape}")
+    return rows
 
 
 #: Problems of one size a list needs before :func:`solve_each` stacks them.
@@ -375,13 +435,14 @@ def solve_each(problems: list[Problem], method: str | None = None, *, tol: float
                 out[i].problem_name = p.name
                 continue
             z = res.z[j].copy()
-            cert, w = check(p, z, res.tol)
+            basis = np.empty(p.n, dtype=np.int8)
+            cert, w = check(p, z, res.tol, state=basis)
             status = SOLVED if cert.passed else UNSOLVED
             out[i] = Result(status=status, method=res.method_of(j), z=z, w=w,
                             iterations=int(res.iterations[j]), seconds=share,
                             certificate=cert, message=res.message(j),
                             termination=CONVERGED if cert.passed else Termination.NUMERICAL,
-                            problem_name=p.name, info={"batched": True})
+                            problem_name=p.name, info={"batched": True}, known_basis=basis)
     for i, p in enumerate(problems):
         if out[i] is None:
             out[i] = solve(p, method, tol=tol, **options)

@@ -28,9 +28,11 @@ def solve(
     omega: float = typer.Option(None, "--omega",
                                 help="Relaxation parameter of psor, 0 < omega < 2."),
     z0: Path = typer.Option(None, "--z0", metavar="FILE",
-                            help="Warm start z: a JSON list, a result JSON with \"z\", or an "
-                                 "NPZ/NPY array (methods pgs, psor, newton, newton-min, murty, "
-                                 "auto)."),
+                            help="Warm start z: a JSON list, a result JSON with \"z\" (a "
+                                 "previous --json: its basis), or an NPZ/NPY array. auto, bpp "
+                                 "and the pivoting methods first pivot (BPP) from its basis, "
+                                 "then solve cold if needed; pgs, psor, newton, newton-min start "
+                                 "from z."),
     option: list[str] = typer.Option(None, "--option", "-O", metavar="KEY=VALUE",
                                      help="Other method option (repeatable)."),
     problem: str = typer.Option(None, "--problem", "-p",
@@ -143,7 +145,8 @@ def solve(
 
     prob = load(file, problem, check_dense=dense_check(method))  # the budget, from the header
     try:
-        result = solve_problem(prob, method, tol=tol, **opts)
+        warm = opts.pop("z0", None)  # lcpcli.solve's warm start (the basis of z0)
+        result = solve_problem(prob, method, tol=tol, warm=warm, **opts)
     except ProblemError as exc:  # a work budget (lcpcli.core.limits) refused it: name the file
         raise exc.with_source(file) from None
     payload = result.to_dict(file=file)

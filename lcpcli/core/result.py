@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from enum import Enum
 from typing import Any
 
 import numpy as np
 
-from lcpcli.core.certificate import Certificate
+from lcpcli.core.certificate import BETWEEN, Certificate
 from lcpcli.core.text import plural
 
 
@@ -115,10 +115,48 @@ class Result:
     problem_name: str = ""
     trace: list[dict[str, Any]] | None = None
     info: dict[str, Any] = field(default_factory=dict)
+    #: The final basis once known (see :attr:`basis`).
+    known_basis: np.ndarray | None = field(default=None, repr=False)
+    #: The factors of the final basis block kept by a warm-started solve (an object of
+    #: :mod:`lcpcli.solvers.methods.bpp`): the next warm start on the same M reuses them.
+    factors: Any = field(default=None, repr=False, compare=False)
+    #: The problem, until :attr:`basis` is first asked for (then dropped).
+    basis_source: Any = field(default=None, repr=False, compare=False)
+
+    @property
+    def basis(self) -> np.ndarray | None:
+        """The final basis: each pair's state as the certificate scores ``z`` (int8 codes of
+        :mod:`lcpcli.core.certificate`: 0 ``z_i`` at its lower bound and ``w_i`` basic, 1 at
+        its upper bound, 2 ``z_i`` basic with ``w_i = 0``); see :mod:`lcpcli.solvers.warm`.
+        Computed on first use (one certificate pass), so that solves that never ask pay
+        nothing; None when the Result has neither."""
+        if self.known_basis is None and self.basis_source is not None:
+            from lcpcli.core.certificate import check
+
+            states = np.empty(self.n, dtype=np.int8)
+            check(self.basis_source, self.z, self.certificate.tol, state=states)
+            self.known_basis, self.basis_source = states, None
+        return self.known_basis
+
+    def __getstate__(self) -> list[Any]:
+        """Pickled (process pools) with its basis computed and without the problem or the
+        factors (which hold the matrix and closures)."""
+        self.basis  # noqa: B018
+        return [getattr(self, f.name) if f.name not in ("factors", "basis_source") else None
+                for f in fields(self)]
+
+    def __setstate__(self, state: list[Any]) -> None:
+        for f, value in zip(fields(self), state, strict=True):
+            object.__setattr__(self, f.name, value)
 
     @property
     def solved(self) -> bool:
         return self.status == SOLVED
+
+    @property
+    def z_basic(self) -> np.ndarray | None:
+        """Booleans: ``z_i`` basic (``w_i = 0``) in the final basis; None without one."""
+        return None if self.basis is None else self.basis == BETWEEN
 
     @property
     def residual(self) -> float:
@@ -151,6 +189,7 @@ class Result:
             "certificate": {k: _float(v) if isinstance(v, float) else v
                             for k, v in self.certificate.as_dict().items()},
         }
+        out["basis"] = None if self.basis is None else basis_text(self.basis)
         if self.trace is not None:
             out["trace"] = self.trace
         return out
@@ -173,6 +212,17 @@ class Result:
             f"error: {float(self.certificate.error):.3e} (tol {float(self.certificate.tol):.1e})",
             f"  z = {z}",
             f"  w = {w}"])
+
+
+#: The letter of each basis state code in ``--json`` (``"basis"``): ``L`` z_i at its lower
+#: bound (LCP: z_i = 0, w_i basic), ``U`` at its upper bound, ``F`` z_i basic (w_i = 0).
+BASIS_LETTERS = "LUF"
+
+
+def basis_text(codes: np.ndarray) -> str:
+    """A basis as one letter per pair (:data:`BASIS_LETTERS`), e.g. ``"FLLF"``."""
+    return np.frombuffer(BASIS_LETTERS.encode(), dtype=np.uint8)[np.asarray(codes, dtype=np.intp)] \
+        .tobytes().decode("ascii")
 
 
 def _float(x: float) -> float | None:

@@ -1,0 +1,142 @@
+"""Warm starts from a basis: the final basis of a previous solve starts the next one.
+
+Conventions: ``w = M z + q``; a *basis* is each pair's state, the int8 codes of
+:mod:`lcpcli.core.certificate` (``AT_LOWER`` 0: ``z_i`` at its lower bound, ``w_i`` basic;
+``AT_UPPER`` 1: at its upper bound; ``BETWEEN`` 2: ``z_i`` basic, ``w_i = 0``).  Every
+:class:`~lcpcli.core.result.Result` carries the basis of its ``z`` as the certificate scored it
+(:func:`lcpcli.api.certify_outcome`), so one definition serves every method: ``z_i`` off its
+bounds is basic; at a degenerate pair (``z_i`` and ``w_i`` both zero) the certificate's cheaper
+state wins.
+
+A warm start (:func:`warm_start`, ``lcpcli.solve(p, warm=...)``, ``lcpcli solve --z0 FILE``)
+takes a previous :class:`Result`, a basis (booleans, True: ``z_i`` basic, or letters such as
+``"FLLF"``), or a point ``z0`` (its basis is that of ``z0`` and ``w0 = M z0 + q``).  For an
+LCP or MLCP with a dense M it runs block principal pivoting (:mod:`lcpcli.solvers.methods.bpp`)
+from that basis: when the basis is still right, its basic solution is the answer after one
+factorisation; when a few pairs changed, block pivots fix them in a few more.  For a box LCP
+or a sparse M (never densified here) the basic solution of the basis (``z`` at the bounds of
+the ``L``/``U`` pairs, the ``F`` rows solved, sparse LU for a sparse M) is tried.  An answer
+counts only when it passes the certificate; otherwise (a wrong basis on a matrix outside BPP's
+class, a singular block) the caller solves the problem cold, so a warm start never gives a
+worse verdict than a cold one, and never ``no_solution``.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from lcpcli.core.certificate import AT_LOWER, AT_UPPER, BETWEEN, check
+from lcpcli.core.errors import OptionError
+from lcpcli.core.result import BASIS_LETTERS, CONVERGED, Outcome, Result
+from lcpcli.core.text import plural
+from lcpcli.solvers.methods import bpp
+from lcpcli.solvers.registry import Cost, Method
+from lcpcli.solvers.support import _solve_active_set, start_point
+
+#: Below this n a warm start does not pivot from the basis (unless the method asked for is
+#: bpp): the compiled cold kernels are faster there than one BPP iteration in Python
+#: (benchmarks/bench_warm.py: at n = 100 a warm BPP step took about 2x a cold solve).
+WARM_MIN_N = 200
+
+
+#: BPP iterations a warm start may take before the cold solve takes over (a nearby basis ends
+#: in a few; outside BPP's class the method may take its full limit, O(n^3) each).
+WARM_MAX_ITER = 20
+
+
+def uses_warm_basis(spec: Method, problem: Any) -> bool:
+    """Does a warm start try pivoting from the basis before running ``spec`` cold?  For
+    ``bpp``, and for ``auto`` and the pivoting methods from n = :data:`WARM_MIN_N` on;
+    iterative methods take the warm ``z0`` instead."""
+    if spec.name == "bpp":
+        return True
+    return (spec.planner or spec.cost == Cost.PIVOTING) and problem.n >= WARM_MIN_N
+
+
+def check_warm(problem: Any, warm: Any) -> None:
+    """OptionError unless ``warm`` (a Result, a basis or a point) has one entry per pair."""
+    size = warm.n if isinstance(warm, Result) else len(warm) if isinstance(warm, str) \
+        else np.size(warm)
+    if size != problem.n:
+        what = "z0" if warm_point_given(warm) else "basis" if not isinstance(warm, Result) \
+            else "result"
+        raise OptionError(f"warm start {what} has length {size}, the problem has n = "
+                          f"{problem.n}")
+
+
+def warm_point_given(warm: Any) -> bool:
+    """Is ``warm`` a point ``z0`` (numbers), not a Result or a basis?"""
+    return not isinstance(warm, (Result, str)) and np.asarray(warm).dtype.kind != "b"
+
+
+def warm_point(problem: Any, warm: Any) -> np.ndarray | None:
+    """The ``z0`` of a warm start (a Result's z, or the point given), or None for a basis."""
+    if isinstance(warm, Result):
+        return start_point(problem, warm.z)
+    if isinstance(warm, str):
+        return None
+    arr = np.asarray(warm)
+    if arr.dtype.kind == "b":
+        return None
+    return start_point(problem, arr)
+
+
+def warm_basis(problem: Any, warm: Any) -> np.ndarray:
+    """The basis (int8 state codes) of a warm start, made valid for ``problem`` (free MLCP
+    variables basic; a pair never at an infinite bound).  OptionError on a length mismatch or
+    an unknown letter."""
+    n = problem.n
+    if isinstance(warm, Result) and warm.basis is not None:
+        states = np.asarray(warm.basis, dtype=np.int8)
+    elif isinstance(warm, str):
+        unknown = set(warm) - set(BASIS_LETTERS)
+        if unknown:
+            raise OptionError(f"a basis is one letter per pair from {BASIS_LETTERS!r}, got "
+                              f"{''.join(sorted(unknown))!r}")
+        states = np.array([BASIS_LETTERS.index(c) for c in warm], dtype=np.int8)
+    elif not isinstance(warm, Result) and np.asarray(warm).dtype.kind == "b":
+        states = np.where(np.asarray(warm).ravel(), BETWEEN, AT_LOWER).astype(np.int8)
+    else:
+        z0 = warm_point(problem, warm)
+        states = np.empty(n, dtype=np.int8)
+        check(problem, z0, state=states)
+        return states
+    if states.shape != (n,):
+        raise OptionError(f"warm-start basis has length {states.size}, the problem has n = {n}")
+    lo, up = problem.bounds()
+    states = states.copy()
+    states[(states == AT_LOWER) & ~np.isfinite(lo)] = AT_UPPER
+    mask = (states == AT_UPPER) & ~np.isfinite(up)
+    states[mask] = np.where(np.isfinite(lo[mask]), AT_LOWER, BETWEEN)
+    states[:problem.n_eq] = BETWEEN
+    return states
+
+
+def warm_start(problem: Any, warm: Any, tol: float) -> tuple[Outcome | None, str]:
+    """Solve ``problem`` from the basis of ``warm`` (see the module docstring).
+
+    Returns ``(outcome, note)``: an :class:`Outcome` that says it converged (the caller
+    certifies it, and solves cold if it fails), or None and why the warm start ended without
+    an answer.  Never a claim of infeasibility.
+    """
+    states = warm_basis(problem, warm)
+    F = states == BETWEEN
+    if problem.kind in ("lcp", "mlcp") and not problem.sparse:
+        factors = warm.factors if isinstance(warm, Result) else None
+        out = bpp.run(problem, tol=tol, basis=F, blocks=factors, keep_blocks=True,
+                      max_iter=WARM_MAX_ITER)
+        if out.termination != CONVERGED:
+            return None, out.message
+        changed = int(np.count_nonzero(np.isin(np.arange(problem.n), out.info["basis"]) != F))
+        out.message = (f"warm start: {out.message} ({plural(changed, 'pair')} of "
+                       f"{problem.n} changed state)")
+        out.info["warm"] = True
+        return out, ""
+    lo, up = problem.bounds()
+    z = _solve_active_set(problem, np.zeros(problem.n), states, lo, up)
+    if z is None:
+        return None, "the warm basis's block is singular"
+    return Outcome(z, 1, CONVERGED, "warm start: the basic solution of the given basis "
+                                    "(1 factorisation)", info={"warm": True}), ""
