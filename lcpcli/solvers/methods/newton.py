@@ -57,6 +57,18 @@ STALL_WINDOW, STALL_DECREASE = 30, 1e-3
 SIGMA, BETA, MIN_STEP = 1e-4, 0.5, 1e-12
 #: Descent test for the Newton direction: grad . d <= -RHO ||d||^P.
 RHO, P_EXP = 1e-10, 2.1
+
+
+def _square(x: float) -> float:
+    """``x * x`` (Inf beyond the double range, where ``x ** 2`` raises OverflowError)."""
+    return x * x
+
+
+def _descent_size(d: np.ndarray) -> float:
+    """``||d||^P_EXP`` of the sufficient-descent test, Inf where it leaves the double range
+    (a direction that large is never accepted: extreme data must not raise OverflowError)."""
+    with np.errstate(over="ignore"):
+        return float(np.power(np.linalg.norm(d), P_EXP))
 #: Length of the merit history of the non-monotone test (full steps only; 1 = monotone Armijo).
 NONMONOTONE = 5
 #: Value of psi's partial derivatives at the kink (0, 0) (an element of the generalized Jacobian).
@@ -258,11 +270,11 @@ def _run_newton(problem: Any, tol: float, variant: str, max_iter: int | None,
         grad = a * phi + rmatvec(b * phi)
         d = _newton_direction(M, sparse, a, b, phi)
         slope = float(grad @ d) if d is not None else 0.0
-        if d is None or slope > -RHO * float(np.linalg.norm(d)) ** P_EXP:
-            lam = min(1.0, float(np.sqrt(2.0 * merit))) * max(1.0, mu) ** 2 * 1e-3
+        if d is None or slope > -RHO * _descent_size(d):
+            lam = min(1.0, float(np.sqrt(2.0 * merit))) * _square(max(1.0, mu)) * 1e-3
             d = _lm_direction(M, sparse, a, b, phi, grad, max(lam, 1e-14))
             slope = float(grad @ d) if d is not None else 0.0
-            if d is not None and slope < -RHO * float(np.linalg.norm(d)) ** P_EXP:
+            if d is not None and slope < -RHO * _descent_size(d):
                 lm_steps += 1
             else:
                 d = None
