@@ -2,9 +2,14 @@
 
 from __future__ import annotations
 
+import collections
+import contextlib
+import itertools
 import os
 from collections.abc import Callable, Iterator
 from typing import Any
+
+import numpy as np
 
 from lcpcli.batch.pool import make_chunks
 from lcpcli.batch.records import SolveOptions, Task, error_row
@@ -35,6 +40,14 @@ def iter_dask(tasks: list[Task], opts: SolveOptions, address: Any, *,
     """
     if not tasks:
         return
+    with _connected(address) as client:
+        yield from _dask_rows(client, tasks, opts, on_timing, chunk_size)
+
+
+@contextlib.contextmanager
+def _connected(address: Any) -> Iterator[Any]:
+    """A Client of the scheduler at ``address`` (closed after), or ``address`` itself when it
+    is a Client; current while the block runs."""
     try:
         from distributed import Client
     except ImportError:
@@ -56,10 +69,82 @@ def iter_dask(tasks: list[Task], opts: SolveOptions, address: Any, *,
         client = address
     try:
         with client.as_current():
-            yield from _dask_rows(client, tasks, opts, on_timing, chunk_size)
+            yield client
     finally:
         if own:
             client.close()
+
+
+def stack_chunk_task(path: str, info: Any, start: int, stop: int, todo: np.ndarray,
+                     opts: SolveOptions, plan: Any, digest: bool) -> tuple[Any, ...]:
+    """Run on a Dask worker: read problems ``start + todo`` of the stack at ``path`` (a path
+    every worker sees) through the reading layer and solve them on one thread (the cluster's
+    workers give the parallelism); :func:`lcpcli.batch.stacked.solve_part`'s tuple."""
+    from lcpcli.batch.stacked import solve_part
+    from lcpcli.io.stack import open_stack
+
+    with open_stack(path) as reader:
+        return solve_part(reader, info, start, stop, todo, opts, plan, threads=1, digest=digest)
+
+
+def iter_stack_dask(path: str, info: Any, opts: SolveOptions, done: np.ndarray, address: Any,
+                    *, chunk: int, digest: bool) -> Iterator[tuple[Any, ...]]:
+    """The chunks of one stacked input solved as Dask tasks, yielded in stack order as
+    ``(start, todo, names, digest, res, read_s, solve_s)`` (what the local path yields, so the
+    client writes the same output).  The first chunk with work is solved alone and its plan
+    (:func:`lcpcli.api.plan_stack`) sent with the others, as the local path plans once per
+    stack; at most two tasks per worker thread are in flight.  A chunk whose task failed (its
+    worker lost beyond Dask's retries, or an exception) is solved in this process instead."""
+    from lcpcli.batch.stacked import solve_part
+    from lcpcli.io.stack import open_stack
+
+    absolute = os.path.abspath(path)
+    work = []
+    for start in range(0, info.K, chunk):
+        stop = min(info.K, start + chunk)
+        todo = np.flatnonzero(~done[start:stop])
+        if todo.size:
+            work.append((start, stop, todo))
+    if not work:
+        return
+    with _connected(address) as client:
+        workers = client.scheduler_info().get("workers", {})
+        window = max(2, 2 * sum(int(w.get("nthreads", 1)) for w in workers.values()))
+        plan = None
+
+        def submit(item: tuple[int, int, np.ndarray]) -> Any:
+            return client.submit(stack_chunk_task, absolute, info, item[0], item[1], item[2],
+                                 opts, plan, digest, pure=False)
+
+        def result(fut: Any, item: tuple[int, int, np.ndarray]) -> tuple[Any, ...]:
+            try:
+                return fut.result()
+            except Exception:  # noqa: BLE001 - a lost chunk is solved here, not dropped
+                with open_stack(path) as reader:
+                    return solve_part(reader, info, item[0], item[1], item[2], opts, plan,
+                                      threads=1, digest=digest)
+            finally:
+                fut.release()
+
+        first = result(submit(work[0]), work[0])
+        plan = first[3]
+        yield (work[0][0], work[0][2], first[0], first[1], first[2], first[4], first[5])
+        pending: collections.deque[tuple[Any, tuple[int, int, np.ndarray]]] = \
+            collections.deque()
+        rest = iter(work[1:])
+        try:
+            for item in itertools.islice(rest, window):
+                pending.append((submit(item), item))
+            while pending:
+                fut, item = pending.popleft()
+                names, fingerprint, res, _plan, read_s, solve_s = result(fut, item)
+                nxt = next(rest, None)
+                if nxt is not None:
+                    pending.append((submit(nxt), nxt))
+                yield item[0], item[2], names, fingerprint, res, read_s, solve_s
+        finally:
+            for fut, _item in pending:
+                fut.cancel()
 
 
 def _dask_rows(client: Any, tasks: list[Task], opts: SolveOptions,

@@ -69,7 +69,8 @@ def run_batch(inputs: Iterable[str], opts: SolveOptions, *, recursive: bool = Fa
     Client) is given.  On KeyboardInterrupt the output is closed cleanly, then it propagates.
 
     Stacked inputs (:mod:`lcpcli.io.stack`) are solved chunk by chunk in this process, the
-    batched kernels running ``jobs`` threads (:mod:`lcpcli.batch.stacked`); ``on_row`` then
+    batched kernels running ``jobs`` threads (:mod:`lcpcli.batch.stacked`), or as Dask tasks
+    with ``scheduler``; ``on_row`` then
     gets rows only when given, and ``on_progress(count, counts)`` follows each chunk.  A batch
     is either all stacks or no stack.
     """
@@ -89,7 +90,7 @@ def run_batch(inputs: Iterable[str], opts: SolveOptions, *, recursive: bool = Fa
     canonical = get_method(opts.method).name  # unknown method: OptionError before any work
     opts = SolveOptions(canonical, opts.tol, dict(opts.options))
     inputs = [str(i) for i in inputs]
-    stacked = _stacked_inputs(inputs, timeout=timeout, scheduler=scheduler)
+    stacked = _stacked_inputs(inputs, timeout=timeout)
     if output is not None:
         from lcpcli.batch import output as batch_output
         from lcpcli.io import check_output
@@ -99,7 +100,7 @@ def run_batch(inputs: Iterable[str], opts: SolveOptions, *, recursive: bool = Fa
     if stacked:
         return _run_stacked(inputs, opts, output=output, resume=resume, threads=jobs,
                             start=start, on_start=on_start, on_row=on_row,
-                            on_progress=on_progress)
+                            on_progress=on_progress, scheduler=scheduler)
     if output is not None:
         from lcpcli.batch import output as batch_output
 
@@ -129,7 +130,7 @@ def run_batch(inputs: Iterable[str], opts: SolveOptions, *, recursive: bool = Fa
                     on_start=on_start, on_row=on_row)
 
 
-def _stacked_inputs(inputs: list[str], *, timeout: float | None, scheduler: Any) -> bool:
+def _stacked_inputs(inputs: list[str], *, timeout: float | None) -> bool:
     """Whether this is a batch of stacked files (all of them; a mix is refused)."""
     from lcpcli.core.errors import OptionError
     from lcpcli.io.stack import is_stack
@@ -144,15 +145,12 @@ def _stacked_inputs(inputs: list[str], *, timeout: float | None, scheduler: Any)
     if timeout is not None:
         raise OptionError("--timeout does not apply to stacked inputs (their chunks are solved "
                           "by compiled threads); bound the work with --max-iter")
-    if scheduler is not None:
-        raise OptionError("--scheduler does not apply to stacked inputs (solved by compiled "
-                          "threads in this process)")
     return True
 
 
 def _run_stacked(inputs: list[str], opts: SolveOptions, *, output: Any, resume: bool,
                  threads: int, start: float, on_start: Any, on_row: Any,
-                 on_progress: Any) -> BatchReport:
+                 on_progress: Any, scheduler: Any = None) -> BatchReport:
     """A batch of stacked files (see :mod:`lcpcli.batch.stacked`), output locked."""
     from lcpcli.batch.stacked import run_stacks
 
@@ -173,7 +171,8 @@ def _run_stacked(inputs: list[str], opts: SolveOptions, *, output: Any, resume: 
         report.setup_seconds = time.perf_counter() - start
         try:
             run_stacks(inputs, opts, report, output=output, resume=resume, threads=threads,
-                       on_start=on_start, on_progress=on_progress, on_row=on_row, write=write)
+                       on_start=on_start, on_progress=on_progress, on_row=on_row, write=write,
+                       scheduler=scheduler)
         except KeyboardInterrupt:
             report.interrupted = True
             raise

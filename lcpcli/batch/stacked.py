@@ -63,12 +63,14 @@ def run_stacks(inputs: list[str], opts: SolveOptions, report: BatchReport, *,
                on_start: Callable[[int, int], None] | None,
                on_progress: Callable[[int, dict[str, int]], None] | None,
                on_row: Callable[[dict[str, Any]], None] | None,
-               write: Callable[[Callable[[], None]], None]) -> None:
+               write: Callable[[Callable[[], None]], None], scheduler: Any = None) -> None:
     """Solve every problem of the stacked ``inputs`` into ``report`` (see the module docstring).
 
     ``write(fn)`` runs an output write (the caller holds signals around it and times it);
     ``on_progress(count, counts)`` after each chunk with the number of problems it finished
     and the status counts so far; ``on_row`` gets each row when given (the ``--json`` stream).
+    ``scheduler`` (a Dask address or Client): chunks are solved as tasks on its workers
+    (:func:`lcpcli.batch.cluster.iter_stack_dask`), written here as locally.
     """
     from lcpcli.batch import stack_output
     from lcpcli.io.stack import chunk_size, stack_info
@@ -119,7 +121,8 @@ def run_stacks(inputs: list[str], opts: SolveOptions, report: BatchReport, *,
             _run_one(path, info, opts, report, tally, stats, writer, done_masks[path],
                      threads=threads,
                      chunk=writer.chunk(info) if writer is not None else chunk_size(info.n),
-                     on_progress=on_progress, on_row=on_row, write=write)
+                     on_progress=on_progress, on_row=on_row, write=write,
+                     scheduler=scheduler)
     finally:
         if writer is not None:
             write(writer.close)
@@ -144,59 +147,86 @@ def _check_identity(info: Any, writer: Any, output: Any) -> None:
                                    str(output))
 
 
-def _run_one(path: str, info: Any, opts: SolveOptions, report: BatchReport, tally: Tally,
-             stats: BatchStats, writer: Any, done: np.ndarray, *, threads: int, chunk: int,
-             on_progress: Any, on_row: Any, write: Any) -> None:
-    """One stacked input, chunk by chunk (the plan is made on the first chunk solved)."""
+def solve_part(reader: Any, info: Any, start: int, stop: int, todo: np.ndarray,
+               opts: SolveOptions, plan: Any, *, threads: int, digest: bool,
+               ) -> tuple[list[str] | None, bytes, Any, Any, float, float]:
+    """Read problems ``start + todo`` of the open stack ``reader`` and solve them with
+    :func:`lcpcli.api.solve_many` (``plan``: made here on this chunk when None).  Returns the
+    chunk's names (of ``todo``), the digest of the whole chunk (``digest``: else ``b""``), the
+    result, the plan, and the read and solve seconds.  The one chunk step of the local and the
+    Dask paths (:func:`lcpcli.batch.cluster.stack_chunk_task`)."""
     from lcpcli.api import plan_stack, solve_many
     from lcpcli.batch.stack_output import chunk_digest
+
+    t0 = time.perf_counter()
+    part = reader.read(start, stop)
+    fingerprint = chunk_digest(part) if digest else b""
+    t1 = time.perf_counter()
+    M, q = part.M, part.q
+    lo, up = part.lower, part.upper
+    if todo.size != stop - start:
+        M, q = M[todo], q[todo]
+        lo = None if lo is None else lo[todo]
+        up = None if up is None else up[todo]
+    names = part.names if todo.size == stop - start or part.names is None else \
+        [part.names[i] for i in todo.tolist()]
+    options = dict(opts.options)
+    if plan is None:
+        plan = plan_stack(M, q, opts.method, lower=lo, upper=up, n_eq=info.n_eq, **options)
+    res = solve_many(M, q, opts.method, tol=opts.tol, lower=lo, upper=up, n_eq=info.n_eq,
+                     threads=threads, on_error="mark", plan=plan, **options)
+    return names, fingerprint, res, plan, t1 - t0, time.perf_counter() - t1
+
+
+def _local_parts(path: str, info: Any, opts: SolveOptions, done: np.ndarray, *, threads: int,
+                 chunk: int, digest: bool) -> Any:
+    """``(start, todo, names, digest, res, read_s, solve_s)`` of each chunk with work, in
+    order, solved in this process (the plan is made on the first chunk solved)."""
     from lcpcli.io.stack import open_stack
 
-    stem = Path(path).stem
     plan = None
-    options = dict(opts.options)
     with open_stack(path) as reader:
         for start in range(0, info.K, chunk):
             stop = min(info.K, start + chunk)
             todo = np.flatnonzero(~done[start:stop])
             if todo.size == 0:
                 continue
-            t0 = time.perf_counter()
-            part = reader.read(start, stop)
-            digest = chunk_digest(part) if writer is not None else b""
-            t1 = time.perf_counter()
-            stats.read_seconds += t1 - t0
-            M, q = part.M, part.q
-            lo, up = part.lower, part.upper
-            if todo.size != stop - start:
-                M, q = M[todo], q[todo]
-                lo = None if lo is None else lo[todo]
-                up = None if up is None else up[todo]
-            names = part.names if todo.size == stop - start or part.names is None else \
-                [part.names[i] for i in todo.tolist()]
-            if plan is None:
-                plan = plan_stack(M, q, opts.method, lower=lo, upper=up, n_eq=info.n_eq,
-                                  **options)
-            res = solve_many(M, q, opts.method, tol=opts.tol, lower=lo, upper=up,
-                             n_eq=info.n_eq, threads=threads, on_error="mark", plan=plan,
-                             **options)
-            t2 = time.perf_counter()
-            stats.solve_seconds += t2 - t1
-            stats.method_seconds += res.seconds
-            stats.problems += len(res)
-            positions = todo + start
-            rows = result_rows(path, stem, positions, names, res) \
-                if (on_row is not None or (writer is not None and writer.wants_rows)) else None
-            if writer is not None:
-                write(lambda: writer.write(info, positions, names, res, rows,  # noqa: B023
-                                           start // chunk, digest))  # noqa: B023
-            add_to_tally(tally, path, stem, positions, names, res)
-            report.new += len(res)
-            if rows is not None and on_row is not None:
-                for row in rows:
-                    on_row(row)
-            if on_progress:
-                on_progress(len(res), dict(tally.counts))
+            names, fingerprint, res, plan, read_s, solve_s = solve_part(
+                reader, info, start, stop, todo, opts, plan, threads=threads, digest=digest)
+            yield start, todo, names, fingerprint, res, read_s, solve_s
+
+
+def _run_one(path: str, info: Any, opts: SolveOptions, report: BatchReport, tally: Tally,
+             stats: BatchStats, writer: Any, done: np.ndarray, *, threads: int, chunk: int,
+             on_progress: Any, on_row: Any, write: Any, scheduler: Any = None) -> None:
+    """One stacked input, chunk by chunk: solved here, or as Dask tasks when ``scheduler``."""
+    stem = Path(path).stem
+    if scheduler is None:
+        parts = _local_parts(path, info, opts, done, threads=threads, chunk=chunk,
+                             digest=writer is not None)
+    else:
+        from lcpcli.batch.cluster import iter_stack_dask
+
+        parts = iter_stack_dask(path, info, opts, done, scheduler, chunk=chunk,
+                                digest=writer is not None)
+    for start, todo, names, digest, res, read_s, solve_s in parts:
+        stats.read_seconds += read_s
+        stats.solve_seconds += solve_s
+        stats.method_seconds += res.seconds
+        stats.problems += len(res)
+        positions = todo + start
+        rows = result_rows(path, stem, positions, names, res) \
+            if (on_row is not None or (writer is not None and writer.wants_rows)) else None
+        if writer is not None:
+            write(lambda: writer.write(info, positions, names, res, rows,  # noqa: B023
+                                       start // chunk, digest))  # noqa: B023
+        add_to_tally(tally, path, stem, positions, names, res)
+        report.new += len(res)
+        if rows is not None and on_row is not None:
+            for row in rows:
+                on_row(row)
+        if on_progress:
+            on_progress(len(res), dict(tally.counts))
 
 
 def add_to_tally(tally: Tally, source: str, stem: str, positions: np.ndarray,

@@ -33,6 +33,11 @@ import numpy as np
 
 from lcpcli.core.errors import ProblemError
 
+try:  # the optional C encoder (extra "fast"); json_text's output means the same without it
+    import orjson as _orjson
+except ImportError:  # pragma: no cover - depends on the environment
+    _orjson = None
+
 #: numpy dtype kinds accepted as real numbers (signed int, unsigned int, float).
 REAL_KINDS = "iuf"
 #: numpy dtype kinds accepted for sparse index arrays.
@@ -137,7 +142,21 @@ _FLOAT64 = np.dtype(np.float64)
 def json_text(obj: Any) -> str:
     """``obj`` as strict JSON text (no newline), every non-finite float written as ``null``
     (the output rule in the module docstring; the one encoder of every JSON that lcpcli
-    writes).  Finite data costs one ``json.dumps``; only output holding Inf/NaN is walked."""
+    writes).  Finite data costs one ``json.dumps``; only output holding Inf/NaN is walked.
+
+    With orjson installed, it writes the text when it can (about 5x faster): compact
+    separators and shortest round-trip floats (``1e-05`` as ``0.00001``), Inf/NaN as ``null``
+    natively, so ``json.loads`` of either text gives the same value.  What orjson refuses or
+    writes differently goes to ``json.dumps``: numpy scalars, non-string keys, integers beyond
+    64 bits, lone surrogates, and any text that is not ASCII (``json.dumps`` escapes it, so the
+    output stays ASCII on any terminal)."""
+    if _orjson is not None:
+        try:
+            text = _orjson.dumps(obj).decode("ascii")
+        except (TypeError, ValueError):  # JSONEncodeError is a TypeError; decode a ValueError
+            pass
+        else:
+            return text
     try:
         return json.dumps(obj, allow_nan=False)
     except ValueError:

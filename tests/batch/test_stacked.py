@@ -129,7 +129,8 @@ def test_nan_problem_is_an_error_row_and_the_rest_is_solved(cli, tmp_path):
 
 @pytest.mark.parametrize("extra,match", [
     (["--timeout", "5"], "--timeout"),
-    (["--scheduler", "tcp://localhost:1"], "--scheduler"),
+    # --scheduler applies to stacks (tests/batch/test_dask_stacks.py): here none listens
+    (["--scheduler", "tcp://localhost:1"], "cannot reach the Dask scheduler"),
 ])
 def test_options_that_do_not_apply_to_stacks(cli, stack, extra, match):
     res = cli("solve", str(stack[0]), *extra)

@@ -1,0 +1,169 @@
+"""The orjson fast paths of :func:`lcpcli.io.files.parse_json` and
+:func:`lcpcli.core.numeric.json_text` give what the stdlib gives: the same decoded values (same
+types: an integer beyond 64 bits stays an int), the same refusals and messages (duplicate keys
+at any depth, integer length), and output text that decodes to the same value."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from lcpcli.core import numeric
+from lcpcli.core.errors import ProblemError
+from lcpcli.io import files, json_format, load
+
+orjson = pytest.importorskip("orjson")
+
+SAMPLES = Path(__file__).resolve().parents[2] / "samples"
+
+
+def _stdlib_parse(monkeypatch: pytest.MonkeyPatch, text: str) -> Any:
+    with monkeypatch.context() as m:
+        m.setattr(files, "_orjson", None)
+        return files.parse_json(text)
+
+
+def _same(a: Any, b: Any) -> bool:
+    """Equal values of equal types (``1`` and ``1.0`` differ; NaN equals NaN; -0.0 is not 0.0)."""
+    if type(a) is not type(b):
+        return False
+    if isinstance(a, dict):
+        return list(a) == list(b) and all(_same(a[k], b[k]) for k in a)
+    if isinstance(a, list):
+        return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b, strict=True))
+    if isinstance(a, float):
+        return (math.isnan(a) and math.isnan(b)) or (a == b and math.copysign(1, a)
+                                                      == math.copysign(1, b))
+    return a == b
+
+
+@pytest.mark.parametrize("path", sorted(SAMPLES.glob("*.json")), ids=lambda p: p.name)
+def test_samples_parse_and_load_the_same(path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    text = path.read_text(encoding="utf-8")
+    assert _same(files.parse_json(text), _stdlib_parse(monkeypatch, text))
+    if "M" not in json.loads(text):
+        return
+    try:
+        with monkeypatch.context() as m:
+            m.setattr(files, "_orjson", None)
+            slow = load(path)
+    except ProblemError as exc:  # a sample of a refused input: refused the same way
+        with pytest.raises(ProblemError) as got:
+            load(path)
+        assert str(got.value) == str(exc)
+        return
+    fast = load(path)
+    assert fast.name == slow.name and fast.n_eq == slow.n_eq
+    for a, b in ((fast.M, slow.M), (fast.q, slow.q)):
+        a = a.toarray() if hasattr(a, "toarray") else np.asarray(a)
+        b = b.toarray() if hasattr(b, "toarray") else np.asarray(b)
+        assert np.array_equal(a, b, equal_nan=True)
+
+
+def test_sample_problems_take_the_fast_path() -> None:
+    """The sample problem files are decoded by orjson, not sent back to the stdlib."""
+    problems = [p for p in sorted(SAMPLES.glob("*.json")) if '"M"' in p.read_text("utf-8")]
+    assert problems
+    for path in problems:
+        assert files._fast_parse(path.read_text(encoding="utf-8"))[0], path.name
+
+
+numbers = st.one_of(
+    st.floats(allow_nan=False, allow_infinity=False),
+    st.floats(min_value=-1e-300, max_value=1e-300),
+    st.integers(min_value=-(2**70), max_value=2**70),
+    st.integers(min_value=-(10**30), max_value=10**30),
+    st.sampled_from([2**63 - 1, 2**63, 2**64 - 1, 2**64, -(2**63), -(2**63) - 1, 5e-324,
+                     1.7976931348623157e308, -0.0, 0]))
+keys = st.text(st.sampled_from('ab:{"\\ é'), min_size=0, max_size=3)
+documents = st.recursive(
+    numbers | st.none() | st.booleans() | keys,
+    lambda inner: st.lists(inner, max_size=5) | st.dictionaries(keys, inner, max_size=4),
+    max_leaves=30)
+
+
+@settings(max_examples=300, deadline=None)
+@given(doc=documents, indent=st.sampled_from([None, 1]))
+def test_documents_parse_the_same(doc: Any, indent: int | None) -> None:
+    text = json.dumps(doc, indent=indent)
+    expected = json.loads(text)
+    assert _same(files.parse_json(text), expected)
+    assert _same(files.parse_json(text.encode()), expected)
+
+
+@settings(max_examples=200, deadline=None)
+@given(doc=st.dictionaries(keys, documents, min_size=1, max_size=4), data=st.data())
+def test_duplicate_keys_refused_with_orjson(doc: dict[str, Any], data: st.DataObject) -> None:
+    """A key repeated in any object (top level or nested) is refused, as by the stdlib."""
+    key = data.draw(st.sampled_from(sorted(doc)))
+    inner = json.dumps(doc)[1:-1]
+    dup = json.dumps(key) + ": 1"
+    for text in ("{" + inner + ", " + dup + "}", '{"x": [{' + inner + ", " + dup + "}]}"):
+        with pytest.raises(ProblemError, match="appears twice in one object"):
+            files.parse_json(text)
+
+
+@pytest.mark.parametrize("text", ['{"a": 1, "a": 1}', '[{"a": 1}, {"b": {"c": 2, "c": 3}}]',
+                                  '{"M": [[1]], "q": [1], "q": [1]}',
+                                  '{"a:": 1, "a": 2, "a": 3}'])
+def test_duplicate_keys_refused_fixed(text: str) -> None:
+    with pytest.raises(ProblemError, match="appears twice"):
+        files.parse_json(text)
+
+
+@pytest.mark.parametrize("literal", ["1" * 19, "-" + "9" * 19, "1" * 700, "1e400", "-1e400",
+                                     "NaN", "Infinity", "[" * 3000 + "]" * 3000,
+                                     "[" * 150 + "]" * 150])
+def test_long_and_special_numbers_as_stdlib(literal: str,
+                                            monkeypatch: pytest.MonkeyPatch) -> None:
+    text = '{"q": [' + literal + "]}"
+    try:
+        expected: Any = _stdlib_parse(monkeypatch, text)
+    except ProblemError as exc:
+        with pytest.raises(ProblemError) as got:
+            files.parse_json(text)
+        assert str(got.value) == str(exc)
+    else:
+        assert _same(files.parse_json(text), expected)
+
+
+def test_problem_with_long_integer_reads_as_before(monkeypatch: pytest.MonkeyPatch) -> None:
+    text = '{"M": [[18446744073709551617]], "q": [-1]}'
+    fast = json_format.read_text(text)
+    with monkeypatch.context() as m:
+        m.setattr(files, "_orjson", None)
+        slow = json_format.read_text(text)
+    assert np.array_equal(np.asarray(fast.M), np.asarray(slow.M))
+
+
+rows = st.recursive(
+    st.floats() | st.integers(min_value=-(2**70), max_value=2**70) | st.none() | st.booleans()
+    | st.text(max_size=4),
+    lambda inner: st.lists(inner, max_size=5) | st.dictionaries(st.text(max_size=3), inner,
+                                                                max_size=4),
+    max_leaves=30)
+
+
+@settings(max_examples=300, deadline=None)
+@given(row=rows)
+def test_json_text_means_the_same(row: Any) -> None:
+    """Same value as the stdlib text, non-finite numbers as null, ASCII only, no NaN token."""
+    fast = numeric.json_text(row)
+    with pytest.MonkeyPatch.context() as m:
+        m.setattr(numeric, "_orjson", None)
+        slow = numeric.json_text(row)
+    assert fast.isascii() and "NaN" not in fast and "Infinity" not in fast
+    assert _same(json.loads(fast), json.loads(slow))
+
+
+def test_json_text_numpy_and_nonfinite() -> None:
+    row = {"x": np.float64(1.5), "y": [math.inf, -math.inf, math.nan, 1e-5, 1e16], 3: "k"}
+    assert json.loads(numeric.json_text(row)) == {"x": 1.5, "y": [None, None, None, 1e-5, 1e16],
+                                                  "3": "k"}
