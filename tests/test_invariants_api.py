@@ -19,7 +19,6 @@ from invariants import (
     check_verdict,
     farkas_ok,
     farkas_vector,
-    report_known_bugs,
 )
 
 import lcpcli
@@ -32,9 +31,8 @@ SETTINGS = settings(max_examples=40, deadline=None,
                     suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
 
 
-def solve_checked(case: Case, method: str, sparse: bool = False) -> str | None:
-    """Solve with ``method`` (``sparse``: M as scipy CSR); assert the invariants; return a
-    known verdict bug, if any."""
+def solve_checked(case: Case, method: str, sparse: bool = False) -> None:
+    """Solve with ``method`` (``sparse``: M as scipy CSR); assert the invariants."""
     M = case.M
     if sparse:
         import scipy.sparse as sp
@@ -44,21 +42,21 @@ def solve_checked(case: Case, method: str, sparse: bool = False) -> str | None:
     assert res.z.shape == (case.n,) and res.w.shape == (case.n,)
     if res.status == Status.SOLVED:
         check_solved(case, res.z, res.certificate.tol)
-    return check_verdict(case, res.status, res.message, method, res.info)
+    check_verdict(case, res.status, res.message, method, res.info)
 
 
 @SETTINGS
 @given(case=cases(max_n=8), sparse=st.booleans())
 def test_every_method_answers_every_valid_problem(case: Case, sparse: bool) -> None:
-    report_known_bugs([bug for method in METHODS[case.kind]
-                       if (bug := solve_checked(case, method, sparse)) is not None])
+    for method in METHODS[case.kind]:
+        solve_checked(case, method, sparse)
 
 
 @settings(max_examples=8, deadline=None,
           suppress_health_check=[HealthCheck.too_slow])
 @given(case=cases(max_n=60, kinds=("lcp",), classes=("pd", "p", "qpos", "infeasible")))
 def test_auto_answers_larger_problems(case: Case) -> None:
-    report_known_bugs([bug] if (bug := solve_checked(case, "auto")) else [])
+    solve_checked(case, "auto")
 
 
 @SETTINGS
@@ -81,7 +79,6 @@ def test_solve_many_answers_every_problem_of_a_stack(case: Case, method: str,
     positive = Case(case.cls if case.cls != "infeasible" else "qpos", case.kind, case.M,
                     np.abs(case.q), case.lower, case.upper, case.n_eq, case.row_exp,
                     case.col_exp, True)
-    bugs = []
     for k in range(K):
         status = STATUS_OF_CODE[int(res.status[k])]
         assert status != Status.ERROR, res.message(k)
@@ -89,11 +86,8 @@ def test_solve_many_answers_every_problem_of_a_stack(case: Case, method: str,
         if status == Status.SOLVED:
             check_solved(this, res.z[k], res.tol)
         one = res.results.get(k)
-        bug = check_verdict(this, status, res.message(k), res.method_of(k),
-                            one.info if one is not None else None)
-        if bug is not None:
-            bugs.append(bug)
-    report_known_bugs(bugs)
+        check_verdict(this, status, res.message(k), res.method_of(k),
+                      one.info if one is not None else None)
 
 
 # ------------------------------------------------------------------ the issue's examples
@@ -170,10 +164,6 @@ def test_certificate_sees_a_row_whose_terms_all_underflow() -> None:
                               np.array([-480, 455, 46])), res.z, res.certificate.tol)
 
 
-@pytest.mark.xfail(strict=False, reason="issue 22 (verdict helper's area, found by these "
-                   "tests): solvers/pipeline.py maps the Farkas vector of the equilibrated "
-                   "problem back with Scaling.unscale_w (D_r^-1 y~) instead of D_r y~; the "
-                   "verdict is right, the y it reports fails M^T y <= 0")
 @pytest.mark.parametrize("e", [-22, 30])
 def test_farkas_vector_of_a_scaled_problem_checks(e: int) -> None:
     """The Laplacian of a weighted path (PSD, M 1 = 0) with sum(q) < 0 has no solution; y = 1
@@ -188,10 +178,6 @@ def test_farkas_vector_of_a_scaled_problem_checks(e: int) -> None:
     assert farkas_ok(case, farkas_vector(res.info))
 
 
-@pytest.mark.xfail(strict=False, reason="issue 22 problem 2 (verdict helper's area, found by "
-                   "these tests): Lemke's secondary ray passes farkas_certificate's normwise "
-                   "test (relative to max|M|) on a nonnegative M with entries 1e-191 .. 1e251, "
-                   "and the LCP is called no_solution")
 @pytest.mark.parametrize("method", ["auto", "lemke", "lemke-tableau"])
 def test_no_false_farkas_proof_on_a_copositive_matrix(method: str) -> None:
     """M >= 0 (copositive) with q = (0, -d): z = (0, d / M_22) solves it."""
@@ -246,10 +232,6 @@ def test_enumeration_with_subnormal_entries() -> None:
     assert lcpcli.solve(M, q, method="enum").solved
 
 
-@pytest.mark.xfail(strict=False, reason="issue 22 problem 3 (verdict helper's area, found by "
-                   "these tests): enumerate lists (and 'enumerate' exits 0 on) a solution whose "
-                   "certificate fails with error 1; here no double vector solves the LCP (the "
-                   "exact z_4 is about 6e-325)")
 def test_enumeration_lists_certified_solutions_only() -> None:
     from lcpcli.analysis.enumeration import enumerate_cones
 
