@@ -188,11 +188,11 @@ def test_no_false_farkas_proof_on_a_copositive_matrix(method: str) -> None:
     assert res.status != Status.NO_SOLUTION, res.message
 
 
-@pytest.mark.xfail(strict=False, reason="issue 22 problem 3 (verdict helper's area, found by "
-                   "these tests): enumeration says no cone contains q for a diagonally "
-                   "dominant (P) matrix with rows scaled 2^-980 .. 2^978; lemke and murty "
-                   "solve it")
 def test_enumeration_finds_the_solution_of_a_scaled_p_matrix() -> None:
+    """A diagonally dominant (P) matrix with rows scaled 2^-980 .. 2^978: its solution has
+    z_2 = 1.7e-311, which the equilibrated copy holds as a subnormal with 4 digits (every cone
+    containing q failed the certificate: 'uncertified'); the cone solved again in the
+    problem's own units passes it."""
     d = np.array([1.9010915662951598e-211, 2.0773386235504175e+275, 1.9196119217864076e-239,
                   1.4196068833898572e+133, 7.8886090522101181e-031, 7.6640267886133241e+294,
                   3.3810849992682576e+271, 1.0305838031355413e-229])
@@ -216,10 +216,15 @@ def test_enumeration_finds_the_solution_of_a_scaled_p_matrix() -> None:
     assert lcpcli.solve(M, q, method="enum").solved
 
 
-@pytest.mark.xfail(strict=False, reason="issue 22 problem 3 (verdict helper's area, found by "
-                   "these tests): enumeration says no cone contains q for diag(5,5,3,2,5,5,4,2,"
-                   "5,4) plus subnormal off-diagonal entries (a P-matrix: one solution)")
 def test_enumeration_with_subnormal_entries() -> None:
+    """diag(5,5,3,2,5,5,4,2,5,4) plus subnormal off-diagonal entries: a P-matrix, one
+    solution, z* = (0,0,1,z_4,0,0,1/4,0,1/5,1/4) with w_4 = 0 and z_4 about t/40 = 1.2e-325
+    (t = 5e-324; in rationals), below the smallest subnormal: no double vector passes the
+    certificate (z_4 = 0 leaves w_4 = -t/20, error 0.026; z_4 = t gives error 0.49).  Every
+    method, enumeration included, says so honestly: unsolved, never solved, never
+    no_solution."""
+    from fractions import Fraction
+
     t, m = 5e-324, 1e-310
     noise = [[0, 0, -t, m, -t, -m, 0, -t, 3 * t, -m], [t, 0, 0, -t, m, 3 * t, -m, m, -m, m],
              [0, -m, 0, 0, -m, m, t, 0, -t, -m], [m, t, -t, 0, 3 * t, t, 0, -m, t, 3 * t],
@@ -228,8 +233,19 @@ def test_enumeration_with_subnormal_entries() -> None:
              [-t, -t, -t, 3 * t, 3 * t, -t, m, 3 * t, 0, 0], [m, t, t, m, -m, -m, m, m, m, 0]]
     M = np.diag([5.0, 5, 3, 2, 5, 5, 4, 2, 5, 4]) + np.array(noise)
     q = np.array([1.0, 3, -3, 0, 3, 3, -1, 1, -1, -1])
-    assert lcpcli.solve(M, q, method="lemke").solved
-    assert lcpcli.solve(M, q, method="enum").solved
+    z = np.array([0, 0, 1, 0, 0, 0, 0.25, 0, 0.2, 0.25])
+    w4 = sum(Fraction(float(M[3, j])) * Fraction(float(z[j])) for j in range(10))
+    z4 = -w4 / Fraction(float(M[3, 3]))  # w_4 = 0 needs this z_4 > 0, which rounds to 0
+    assert 0 < z4 < Fraction(t) / 2
+    for z4 in (0.0, t):
+        assert not lcpcli.certify(lcpcli.Problem.create(M, q), np.where(
+            np.arange(10) == 3, z4, z)).passed
+    for method in METHODS["lcp"]:
+        res = lcpcli.solve(M, q, method=method)
+        assert res.status == Status.UNSOLVED, (method, res.message)
+    from lcpcli.analysis.enumeration import UNCERTIFIED, enumerate_cones
+
+    assert enumerate_cones(lcpcli.Problem.create(M, q)).verdict == UNCERTIFIED
 
 
 def test_enumeration_lists_certified_solutions_only() -> None:
@@ -244,3 +260,24 @@ def test_enumeration_lists_certified_solutions_only() -> None:
     found = enumerate_cones(prob)
     assert all(s.certificate.passed for s in found.solutions), \
         [s.certificate.error for s in found.solutions]
+
+
+def test_sparse_certificate_keeps_q_when_the_terms_cancel() -> None:
+    """The Laplacian [[1,-1],[-1,1]] with q = (1,-2) (no solution: y = (1,1)), rows scaled
+    2^(-287, 119) and columns 2^(207, 435): at this z the terms of each row cancel exactly and
+    w = q.  The CSR certificate added q first (w_1 = q_1 + t_1 + t_2 = 0: q_1 absorbed) and
+    passed the point with error 0, so ip on the sparse copy said 'solved'; the dense
+    certificate (terms first) gives error 0.5."""
+    import scipy.sparse as sp
+
+    r, c = np.array([-287, 119]), np.array([207, 435])
+    M = np.ldexp(np.array([[1.0, -1.0], [-1.0, 1.0]]), r[:, None] + c[None, :])
+    q = np.ldexp(np.array([1.0, -2.0]), r)
+    z = np.array([float.fromhex("0x1.f1813411fdfafp-85"), float.fromhex("0x1.f1813411fdfafp-313")])
+    dense = lcpcli.certify(lcpcli.Problem.create(M, q), z)
+    sparse = lcpcli.certify(lcpcli.Problem.create(sp.csr_matrix(M), q), z)
+    assert not dense.passed and not sparse.passed
+    assert sparse.error == dense.error
+    case = Case("infeasible", "lcp", M, q, row_exp=r, col_exp=c, solvable=False)
+    for method in METHODS["lcp"]:
+        solve_checked(case, method, sparse=True)

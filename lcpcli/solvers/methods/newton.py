@@ -259,7 +259,8 @@ def _run_newton(problem: Any, tol: float, variant: str, max_iter: int | None,
         d = _newton_direction(M, sparse, a, b, phi)
         slope = float(grad @ d) if d is not None else 0.0
         if d is None or slope > -RHO * float(np.linalg.norm(d)) ** P_EXP:
-            lam = min(1.0, float(np.sqrt(2.0 * merit))) * max(1.0, mu) ** 2 * 1e-3
+            # mu^2 saturates below the largest double (||M|| near 1e300: OverflowError)
+            lam = min(1.0, float(np.sqrt(2.0 * merit))) * min(max(1.0, mu), 1e150) ** 2 * 1e-3
             d = _lm_direction(M, sparse, a, b, phi, grad, max(lam, 1e-14))
             slope = float(grad @ d) if d is not None else 0.0
             if d is not None and slope < -RHO * float(np.linalg.norm(d)) ** P_EXP:
