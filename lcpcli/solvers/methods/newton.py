@@ -47,7 +47,7 @@ from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, NUMERICAL, STALLED, O
 from lcpcli.core.text import plural
 from lcpcli.solvers.options import positive_int, vector_option
 from lcpcli.solvers.registry import Cost, Guarantee, Method, Option, when
-from lcpcli.solvers.support import certified_error, refine, start_point
+from lcpcli.solvers.support import certified_error, refine, stalled, start_point
 
 DEFAULT_MAX_ITER = 200
 #: Stagnation: stop (termination ``stalled``) when the best merit fell by less than
@@ -207,14 +207,6 @@ def run_newton(problem: Any, *, tol: float, variant: str = "fb", max_iter: int |
         return _run_newton(problem, tol, variant, max_iter, z0)
 
 
-def _stalled(best: list[float]) -> bool:
-    """No progress: the best merit of the last :data:`STALL_WINDOW` iterations is not below
-    ``(1 - STALL_DECREASE)`` times the best merit before them (``best[k]``: the best merit
-    after iteration k)."""
-    return (len(best) > STALL_WINDOW
-            and best[-1] > (1.0 - STALL_DECREASE) * best[-1 - STALL_WINDOW])
-
-
 def _run_newton(problem: Any, tol: float, variant: str, max_iter: int | None,
                 z0: np.ndarray | None) -> Outcome:
     name = "Newton-FB" if variant == "fb" else "Newton-min"
@@ -302,7 +294,7 @@ def _run_newton(problem: Any, tol: float, variant: str, max_iter: int | None,
             err = certified_error(problem, z)
             if err < best_err:
                 best_z, best_err = z.copy(), err
-        if _stalled(best_merit):
+        if stalled(best_merit, STALL_WINDOW, STALL_DECREASE):
             termination = STALLED
             why = (f"no progress: the merit function fell by less than {STALL_DECREASE:g} "
                    f"(relative) over the last {STALL_WINDOW} iterations")
