@@ -281,3 +281,16 @@ def test_sparse_certificate_keeps_q_when_the_terms_cancel() -> None:
     case = Case("infeasible", "lcp", M, q, row_exp=r, col_exp=c, solvable=False)
     for method in METHODS["lcp"]:
         solve_checked(case, method, sparse=True)
+
+
+@pytest.mark.parametrize("sparse", [False, True])
+def test_newton_on_an_extreme_infeasible_laplacian(sparse: bool) -> None:
+    """2 [[1,-1],[-1,1]] with q = (0, -1), rows scaled 2^(-463, 327) and columns 2^(241, -259):
+    Newton's descent test ||d||^2.1 raised OverflowError (exit 3 through auto) on a direction
+    of size ~1e300; every method now answers (never 'solved': y = (1, 1) proves infeasibility)."""
+    r, c = np.array([-463, 327]), np.array([241, -259])
+    M = np.ldexp(np.array([[2.0, -2.0], [-2.0, 2.0]]), r[:, None] + c[None, :])
+    q = np.ldexp(np.array([0.0, -1.0]), r)
+    case = Case("infeasible", "lcp", M, q, row_exp=r, col_exp=c, solvable=False)
+    for method in METHODS["lcp"]:
+        solve_checked(case, method, sparse=sparse)

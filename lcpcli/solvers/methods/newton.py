@@ -207,6 +207,12 @@ def run_newton(problem: Any, *, tol: float, variant: str = "fb", max_iter: int |
         return _run_newton(problem, tol, variant, max_iter, z0)
 
 
+def _descent(d: np.ndarray) -> float:
+    """``RHO ||d||^P_EXP``, the descent a direction must promise; Inf where that overflows
+    (a direction of size 1e300 on extreme data: a float power raised OverflowError)."""
+    return float(RHO * np.power(np.float64(np.linalg.norm(d)), P_EXP))
+
+
 def _run_newton(problem: Any, tol: float, variant: str, max_iter: int | None,
                 z0: np.ndarray | None) -> Outcome:
     name = "Newton-FB" if variant == "fb" else "Newton-min"
@@ -250,12 +256,12 @@ def _run_newton(problem: Any, tol: float, variant: str, max_iter: int | None,
         grad = a * phi + rmatvec(b * phi)
         d = _newton_direction(M, sparse, a, b, phi)
         slope = float(grad @ d) if d is not None else 0.0
-        if d is None or slope > -RHO * float(np.linalg.norm(d)) ** P_EXP:
+        if d is None or slope > -_descent(d):
             # mu^2 saturates below the largest double (||M|| near 1e300: OverflowError)
             lam = min(1.0, float(np.sqrt(2.0 * merit))) * min(max(1.0, mu), 1e150) ** 2 * 1e-3
             d = _lm_direction(M, sparse, a, b, phi, grad, max(lam, 1e-14))
             slope = float(grad @ d) if d is not None else 0.0
-            if d is not None and slope < -RHO * float(np.linalg.norm(d)) ** P_EXP:
+            if d is not None and slope < -_descent(d):
                 lm_steps += 1
             else:
                 d = None
