@@ -214,6 +214,12 @@ def test_enumeration_finds_the_solution_of_a_scaled_p_matrix() -> None:
                   -1.6905424996341288e+271, -1.0305838031355413e-229])
     assert lcpcli.solve(M, q, method="lemke").solved
     assert lcpcli.solve(M, q, method="enum").solved
+    from lcpcli.analysis.enumeration import UNIQUE, enumerate_cones
+
+    every = enumerate_cones(lcpcli.Problem.create(M, q), all_cones=True)
+    assert every.verdict == UNIQUE and len(every.cones) == 2**8
+    assert sorted(c.code for c in every.cones) == list(range(2**8))  # the rescued cone once
+    assert [c.code for c in every.cones if c.feasible] == every.solutions[0].cones
 
 
 def test_enumeration_with_subnormal_entries() -> None:

@@ -435,7 +435,13 @@ def _rescue(found: Enumeration, problem: Any, tol: float) -> None:
         if not cert.passed:
             continue
         found.solutions.append(Solution(z, w, cert, [code]))
-        found.cones.append(Cone(code, found.n, True, False, cone_y(code, z, w), z, w))
+        cone = Cone(code, found.n, True, False, cone_y(code, z, w), z, w)
+        listed = [i for i, c in enumerate(found.cones) if c.code == code]  # all_cones lists it
+        if listed:
+            cone.det, cone.rank = found.cones[listed[0]].det, found.cones[listed[0]].rank
+            found.cones[listed[0]] = cone
+        else:
+            found.cones.append(cone)
         found.counts["uncertified"] -= 1
         found.counts["feasible"] += 1
         added += 1
