@@ -31,7 +31,6 @@ from __future__ import annotations
 
 import json
 import math
-import warnings
 from dataclasses import dataclass, field
 from fractions import Fraction
 from typing import Any
@@ -326,49 +325,16 @@ def farkas_vector(info: dict[str, Any]) -> Any:
     return None
 
 
-def known_verdict_bug(case: Case, status: str, message: str, method: str) -> str | None:
-    """The reason, naming the bug of issue 22 (the verdict half, not this test's area), when a
-    verdict is wrong in a way that is already reported; None otherwise."""
-    if status == "no_solution" and case.solvable:
-        which = ("problem 3: enumeration on extreme data" if method == "enum" else
-                 "problem 2: a secondary ray or a normwise Farkas test taken as a proof")
-        return (f"issue 22 {which} (verdict helper): false no_solution by {method} on a "
-                f"solvable {case.cls} {case.kind} problem: {message[:160]}")
-    return None
-
-
 def check_verdict(case: Case, status: str, message: str, method: str,
-                  info: dict[str, Any] | None) -> str | None:
-    """A ``no_solution`` must be true: on a problem infeasible by construction it may come
-    without a vector (its Farkas vector, when given, must check); on a solvable problem it is
-    a false proof.  Returns the reason of a known verdict bug (see :func:`known_verdict_bug`)
-    for the caller to xfail on, after its other checks."""
+                  info: dict[str, Any] | None) -> None:
+    """A ``no_solution`` must be true: only on a problem infeasible by construction (never on
+    a box LCP with a solution), and its Farkas vector, when the result carries one, must pass
+    the exact check of :func:`farkas_ok`."""
     assert status in ("solved", "no_solution", "unsolved"), status
     if status != "no_solution":
-        return None
-    bug = known_verdict_bug(case, status, message, method)
-    if bug is not None:
-        return bug
-    assert case.kind != "box" or not case.solvable, "no_solution on a box LCP with a solution"
+        return
+    assert not case.solvable, (f"false no_solution by {method} on a solvable {case.cls} "
+                               f"{case.kind} problem (n = {case.n}): {message}")
     y = farkas_vector(info or {})
-    if y is not None and not farkas_ok(case, y):
-        if "equilibrated" in message:
-            return ("issue 22 (verdict helper): solvers/pipeline.py maps a Farkas vector of the "
-                    "equilibrated problem back with Scaling.unscale_w (D_r^-1 y~) instead of "
-                    "D_r y~, so the reported y fails M^T y <= 0 when the row factors differ "
-                    f"({method}: {message[:120]})")
-        raise AssertionError(f"no_solution whose Farkas vector fails the check: {message}")
-    return None
-
-
-class KnownVerdictBug(UserWarning):
-    """A wrong verdict of a kind already reported (issue 22, the verdict half), met by a
-    property test: shown in the warnings summary, not failed here; each kind has its own
-    deterministic xfail test (tests/test_invariants_api.py) that will XPASS once fixed, and
-    then :func:`known_verdict_bug` and the Farkas exception of :func:`check_verdict` go."""
-
-
-def report_known_bugs(bugs: list[str]) -> None:
-    """Warn (never silently pass) about the known verdict bugs an example met."""
-    for bug in bugs:
-        warnings.warn(bug, KnownVerdictBug, stacklevel=2)
+    assert y is None or farkas_ok(case, y), \
+        f"no_solution whose Farkas vector fails the check ({method}): {message}"

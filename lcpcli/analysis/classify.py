@@ -128,7 +128,7 @@ def is_symmetric(M: Any, tol: float = SYM_TOL) -> bool:
         worst = float(asym.max()) if asym.size else 0.0
         if worst == 0.0:
             return True
-        if worst > tol * (max_abs(A) + float(sd.max()) ** 2):  # fails for every pair's scale
+        if worst > tol * (max_abs(A) + np.float64(sd.max()) ** 2):  # fails for every pair's scale
             return False
         scale = np.maximum(np.abs(A), np.abs(A.T)) + np.outer(sd, sd)
         return bool(np.all(asym <= tol * scale))

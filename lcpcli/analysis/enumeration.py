@@ -73,6 +73,9 @@ UNCERTIFIED = "uncertified"  # cones contain q, but no point of them passes the 
 
 #: At most this many singular cones are resolved by LP (each costs about 3 LPs).
 MAX_LPS = 2000
+#: At most this many nonsingular cones that contain q but whose point failed the certificate
+#: on the equilibrated problem are solved again on the data as given (see :func:`_rescue`).
+MAX_RESCUES = 256
 
 
 @dataclass
@@ -151,6 +154,10 @@ class Enumeration:
     seconds: float
     complete: bool
     proof: Any = None
+    #: Codes of nonsingular cones that contain q but whose point failed the certificate
+    #: (at most :data:`MAX_RESCUES`; ``rescue_overflow``: more were met).
+    rescue: list[int] = field(default_factory=list)
+    rescue_overflow: bool = False
 
     @property
     def status(self) -> Status:
@@ -340,8 +347,15 @@ def enumerate_cones(problem: Any, *, stop_at_first: bool = False, all_cones: boo
                        keep_cones=keep_cones, fast=fast, max_lp=max_lp)
     if scaling is not None:
         _unscale(found, scaling, problem, tol)
+    _rescue(found, problem, tol)
     if found.verdict == NONE:
         found.proof = prove_infeasible(problem, search=True)
+        if found.proof is None and scaling is not None:
+            # the LP of the search is not scale-free: search the equilibrated copy, then check
+            # its vector, mapped back (y = D_r y~), on the problem as given
+            scaled = prove_infeasible(work, search=True)
+            if scaled is not None:
+                found.proof = prove_infeasible(problem, [scaling.farkas_back(scaled.y)])
     return found
 
 
@@ -368,6 +382,7 @@ def _unscale(found: Enumeration, scaling: Scaling, problem: Any, tol: float) -> 
             kept.append(sol)
         else:
             found.counts["uncertified"] += 1
+            _note_rescue(found, sol.cones[0])
     if len(kept) < len(found.solutions):
         found.solutions = kept
         if not kept:
@@ -386,6 +401,59 @@ def _unscale(found: Enumeration, scaling: Scaling, problem: Any, tol: float) -> 
         if cone.det is not None:
             with np.errstate(over="ignore"):
                 cone.det = float(np.ldexp(cone.det, -int(shift[zb].sum())))
+
+
+def _note_rescue(found: Enumeration, code: int) -> None:
+    """Remember cone ``code`` for :func:`_rescue` (up to :data:`MAX_RESCUES` cones)."""
+    if len(found.rescue) < MAX_RESCUES:
+        found.rescue.append(code)
+    else:
+        found.rescue_overflow = True
+
+
+def _rescue(found: Enumeration, problem: Any, tol: float) -> None:
+    """Solve again, on the data as given, the nonsingular cones that contain q but whose point
+    failed the certificate on the equilibrated problem, and keep the points that pass it.
+
+    The equilibration that makes the cone search independent of units can push a component
+    of the solution into the subnormal range, where it keeps few digits (a P-matrix with rows
+    scaled 2^-980 .. 2^978 whose solution has ``z_2 = 1.7e-311``): the same cone solved in
+    the problem's own units (each block equilibrated by itself, :func:`solve_cone`) may hold
+    the digits.  Only certified points are added, so nothing uncertified is ever reported;
+    the verdict counts them as if found by the search."""
+    if not found.rescue:
+        return
+    M = np.ascontiguousarray(problem.dense_M(), dtype=np.float64)
+    q = np.ascontiguousarray(problem.q, dtype=np.float64)
+    added = 0
+    for code in found.rescue:
+        with np.errstate(all="ignore"):
+            z, w = solve_cone(M, q, code)
+        if any(_same(sol.z, z) for sol in found.solutions if np.all(np.isfinite(z))):
+            continue
+        cert = certify(problem, z, tol)
+        if not cert.passed:
+            continue
+        found.solutions.append(Solution(z, w, cert, [code]))
+        cone = Cone(code, found.n, True, False, cone_y(code, z, w), z, w)
+        listed = [i for i, c in enumerate(found.cones) if c.code == code]  # all_cones lists it
+        if listed:
+            cone.det, cone.rank = found.cones[listed[0]].det, found.cones[listed[0]].rank
+            found.cones[listed[0]] = cone
+        else:
+            found.cones.append(cone)
+        found.counts["uncertified"] -= 1
+        found.counts["feasible"] += 1
+        added += 1
+    found.rescue = []
+    if not added:
+        return
+    found.cones.sort(key=lambda c: c.r)
+    if found.verdict in (UNCERTIFIED, UNIQUE, FINITE):
+        found.verdict = (INCOMPLETE if found.rescue_overflow else
+                         UNIQUE if len(found.solutions) == 1 else FINITE)
+    elif found.verdict == UNKNOWN:
+        found.verdict = INCOMPLETE
 
 
 def _enumerate(problem: Any, *, stop_at_first: bool, all_cones: bool, max_n: int, tol: float,
@@ -409,6 +477,7 @@ def _enumerate(problem: Any, *, stop_at_first: bool, all_cones: bool, max_n: int
     counts = {"feasible": 0, "singular": 0, "singular_with_q": 0, "pruned": 0,
               "uncertified": 0, "singular_unresolved": 0}
     lps = 0
+    uncertified: list[int] = []
     continuum_seen = False
     done = 0
     size = min(FIRST_CHUNK, total) if stop_at_first else min(chunk, total)
@@ -459,6 +528,8 @@ def _enumerate(problem: Any, *, stop_at_first: bool, all_cones: bool, max_n: int
                 cert = certify(problem, z, tol)
                 if not cert.passed:
                     counts["uncertified"] += 1
+                    if status[t] == FEASIBLE:
+                        uncertified.append(code)
                     continue
                 solutions.append(Solution(z, M @ z + q, cert, [code], continuum))
             counts["feasible"] += 1
@@ -492,8 +563,11 @@ def _enumerate(problem: Any, *, stop_at_first: bool, all_cones: bool, max_n: int
     seconds = time.perf_counter() - start_time
     cones = all_cone_details(M, q, feasible_cones) if all_cones else _add_det(M, feasible_cones)
     cones.sort(key=lambda c: c.r)
-    return Enumeration(n=n, verdict=verdict, solutions=solutions, cones=cones, examined=done,
-                       total=total, counts=counts, seconds=seconds, complete=not stopped)
+    found = Enumeration(n=n, verdict=verdict, solutions=solutions, cones=cones, examined=done,
+                        total=total, counts=counts, seconds=seconds, complete=not stopped)
+    for code in uncertified:
+        _note_rescue(found, code)
+    return found
 
 
 def _add_det(M: np.ndarray, cones: list[Cone]) -> list[Cone]:

@@ -212,13 +212,35 @@ def _dense(M: Any) -> np.ndarray:
     return M.toarray() if hasattr(M, "toarray") else np.asarray(M, dtype=np.float64)
 
 
-def _project(y: np.ndarray, lo: np.ndarray, up: np.ndarray) -> np.ndarray:
-    """``y`` with its entries of the wrong sign, and those below 2^-45 of its largest, set to 0."""
+def _project(y: np.ndarray, lo: np.ndarray, up: np.ndarray, M: Any = None,
+             q: np.ndarray | None = None) -> np.ndarray:
+    """``y`` with its entries of the wrong sign set to 0, and the negligible ones: with ``M``
+    and ``q``, an entry whose every term ``|y_i M_ij|`` is below 2^-45 of its column's
+    ``(|M|^T |y|)_j`` and whose ``|y_i q_i|`` is below 2^-45 of ``|q|^T |y|`` (the same entries
+    on any row and column scaling of the problem: a Farkas vector mapped back from an
+    equilibrated copy may span 2^60 and more); without them, the entries below 2^-45 of
+    the largest."""
     lower_only, upper_only = sides(lo, up)
     boxed = np.isfinite(lo) & np.isfinite(up)
     y = np.where((lower_only & (y < 0)) | (upper_only & (y > 0)) | boxed, 0.0, y)
     big = float(np.max(np.abs(y))) if y.size else 0.0
-    return np.where(np.abs(y) <= 2.0 ** -45 * big, 0.0, y)
+    if M is None or q is None or not big:
+        return np.where(np.abs(y) <= 2.0 ** -45 * big, 0.0, y)
+    with np.errstate(all="ignore"):
+        ay = np.abs(y)
+        A = abs(M)
+        col = np.asarray(A.T @ ay).ravel()
+        qy = float(np.abs(q) @ ay)
+        if not (np.all(np.isfinite(col)) and np.isfinite(qy)):
+            return np.where(np.abs(y) <= 2.0 ** -45 * big, 0.0, y)
+        inv = np.where(col > 0, 1.0 / np.where(col > 0, col, 1.0), 0.0)
+        if hasattr(A, "multiply"):  # sparse: the largest share of each row
+            share = np.asarray(A.multiply(inv[None, :]).max(axis=1).toarray()).ravel() * ay
+        else:
+            share = (np.max(A * inv[None, :], axis=1) if A.size else np.zeros(0)) * ay
+        qshare = np.abs(q) * ay
+        small = (share <= 2.0 ** -45) & (qshare <= 2.0 ** -45 * qy)
+    return np.where(small, 0.0, y)
 
 
 def _refine(M: np.ndarray, y: np.ndarray, lo: np.ndarray, up: np.ndarray) -> np.ndarray:
@@ -240,7 +262,7 @@ def _refine(M: np.ndarray, y: np.ndarray, lo: np.ndarray, up: np.ndarray) -> np.
         d = np.linalg.lstsq(A, A @ y[S], rcond=None)[0]
     out = y.copy()
     out[S] = y[S] - d
-    return _project(out, lo, up)
+    return _project(out, lo, up, M)
 
 
 def _single_rows(M: Any, q: np.ndarray, lo: np.ndarray, up: np.ndarray) -> Iterable[np.ndarray]:
@@ -338,7 +360,7 @@ def prove_infeasible(problem: Any, candidates: Iterable[Any] = (), *,
         for raw in tries:
             if raw.shape[0] != n or not np.all(np.isfinite(raw)):
                 continue
-            y = _project(raw, lo, up)
+            y = _project(raw, lo, up, M, q)
             if not np.any(y):
                 continue
             last = check_farkas(M, q, lo, up, y)

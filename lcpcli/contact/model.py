@@ -344,12 +344,39 @@ def _solve_islands(clcp: ContactLCP, method: str, tol: float | None, z0: np.ndar
     if failed:  # a method that "converged" to a point its certificate rejects failed numerically
         termination = results[failed[0]["index"] - 1].termination
         termination = NUMERICAL if termination == CONVERGED else termination
+    info: dict[str, Any] = {"islands": reports}
+    y = scene_farkas(clcp.problem.n, lay, [(r["index"] - 1, results[r["index"] - 1])
+                                           for r in infeasible])
+    if y is not None:
+        info["farkas_y"] = y.tolist()
     outcome = Outcome(z=z, iterations=sum(r["iterations"] for r in reports),
                       termination=termination, message=msg, proven_infeasible=bool(infeasible),
-                      info={"islands": reports})
+                      info=info)
     tol_used = get_method(method).default_tol if tol is None else float(tol)
     result = certify_outcome(clcp.problem, outcome, method, seconds, tol_used)
     return z, result, reports
+
+
+def scene_farkas(n: int, layout: IslandLayout,
+                 infeasible: list[tuple[int, Any]]) -> np.ndarray | None:
+    """The scene's Farkas vector from the first ``(island index, result)`` in ``infeasible``
+    whose result carries one (``info["farkas_y"]``), zero outside that island; None if none
+    carries one.
+
+    The scene's M is block diagonal in the islands' unknowns (no row of one island has an entry
+    in another's columns), so ``M^T y`` is the island's ``M_k^T y_k`` on its columns and 0
+    elsewhere, and ``q^T y = q_k^T y_k``: a Farkas vector of the island, padded with zeros, is
+    one of the scene (checked again on the whole LCP by the verdict, never taken on trust),
+    which spares the whole-scene linear program (unsolved above a few thousand unknowns)."""
+    for k, res in infeasible:
+        yk = res.info.get("farkas_y")
+        rows = layout.unknowns(k)
+        if yk is None or np.shape(yk) != rows.shape:
+            continue
+        y = np.zeros(n)
+        y[rows] = np.asarray(yk, dtype=np.float64)
+        return y
+    return None
 
 
 def impact_from(clcp: ContactLCP, z: np.ndarray, result: Any = None,

@@ -366,13 +366,14 @@ cdef int certify_csr(Py_ssize_t n, const double* data, const index_t* indices,
         if z[j] != 0.0 and not (SMALL <= fabs(z[j]) <= BIG):
             return _fail(out, 2)
     for i in range(n):
-        wi = q[i]
+        wi = 0.0
         ai = 0.0
         for p in range(indptr[i], indptr[i + 1]):
             t = data[p] * z[indices[p]]
             wi = wi + t
             ai = ai + fabs(t)
-        w[i] = wi
+        wi = wi + q[i]  # terms first, then q, as certify_dense: terms that cancel exactly
+        w[i] = wi       # must not swallow q_i (w = 0 where the exact w is q_i < 0)
         a[i] = ai
         s[i] = ai + fabs(q[i])
         if not (isfinite(wi) and isfinite(ai)) or s[i] > BIG or 0.0 < s[i] < SMALL:

@@ -41,6 +41,13 @@ def certified_error(problem: Any, z: np.ndarray) -> float:
     return certify(problem, z).error
 
 
+def stalled(best: list[float], window: int, decrease: float) -> bool:
+    """Stagnation of an iterative method (termination ``stalled``): the best merit of the last
+    ``window`` steps is not below ``(1 - decrease)`` times the best merit before them
+    (``best[k]``: the best merit after step k, a non-increasing list)."""
+    return len(best) > window and best[-1] > (1.0 - decrease) * best[-1 - window]
+
+
 def diagonal(M: Any) -> np.ndarray:
     """The diagonal of a dense or scipy.sparse matrix, as a float array."""
     return np.asarray(M.diagonal(), dtype=np.float64).ravel()

@@ -29,7 +29,6 @@ from invariants import (
     cases,
     check_solved,
     check_verdict,
-    report_known_bugs,
     strict_json,
 )
 
@@ -75,13 +74,13 @@ def write_problem(case: Case, folder: Path, fmt: str) -> tuple[str, str | None]:
     return str(path), None
 
 
-def assert_verdict(case: Case, code: int, row: dict, method: str) -> str | None:
+def assert_verdict(case: Case, code: int, row: dict, method: str) -> None:
     """Exit code and status agree; the status is true (see tests/invariants.py)."""
     status = row["status"]
     assert code == (0 if status == "solved" else 1), (code, status)
     if status == "solved":
         check_solved(case, row["z"], row["certificate"]["tol"])
-    return check_verdict(case, status, row["message"], method, None)
+    check_verdict(case, status, row["message"], method, row.get("info"))
 
 
 def one_line_error(code: int, err: str) -> None:
@@ -105,7 +104,7 @@ def test_solve_json_every_input_format(tmp_path: Path, case: Case, data: st.Data
     lines = out.splitlines()
     assert len(lines) == 1, out
     row = strict_json(lines[0])
-    report_known_bugs([bug] if (bug := assert_verdict(case, code, row, method)) else [])
+    assert_verdict(case, code, row, method)
 
 
 @SETTINGS
@@ -119,7 +118,7 @@ def test_solve_output_every_format(tmp_path: Path, case: Case) -> None:
     code, out, err = cli("solve", file, "--json")
     assert code in (0, 1), err
     row = strict_json(out)
-    bug = assert_verdict(case, code, row, "auto")
+    assert_verdict(case, code, row, "auto")
     code_j, _, err = cli("solve", file, "-o", folder / "r.json")
     assert code_j == code, err
     assert strict_json((folder / "r.json").read_text())["status"] == row["status"]
@@ -139,7 +138,6 @@ def test_solve_output_every_format(tmp_path: Path, case: Case) -> None:
         else:
             rows = read_rows(target)
         assert [r["status"] for r in rows] == [row["status"]], ext
-    report_known_bugs([bug] if bug else [])
 
 
 @settings(max_examples=15, deadline=None,
@@ -192,17 +190,11 @@ def test_enumerate_and_info_json(tmp_path: Path, case: Case) -> None:
     assert code in (0, 1), err
     res = strict_json(out)
     assert code == (0 if res["solutions"] else 1)
-    bugs = []
-    for sol in res["solutions"]:
-        if sol["error"] is None or sol["error"] > 1e-8:  # listed although its certificate fails
-            bugs.append(f"issue 22 problem 3 (verdict helper): enumerate lists a solution whose "
-                        f"certificate fails (error {sol['error']}) and exits {code}")
-            continue
+    for sol in res["solutions"]:  # listed solutions are certified ones
+        assert sol["error"] is not None and sol["error"] <= 1e-8, sol
         check_solved(case, sol["z"], 1e-8)
-    report_known_bugs(bugs)
-    if not res["solutions"] and res["status"] == "no_solution" and case.solvable:
-        report_known_bugs(["issue 22 problem 3 (verdict helper): enumerate finds no solution "
-                           f"of a solvable {case.cls} problem"])
+    assert not (case.solvable and res["status"] == "no_solution"), \
+        f"enumerate finds no solution of a solvable {case.cls} problem"
 
 
 # ---------------------------------------------------------------------------- invalid data

@@ -92,6 +92,9 @@ METHODS = [
             "all": Option(bool_option, False, "visit every cone and count the distinct solutions"),
         },
         aliases=("enumerate", "enumeration"),
-        scaling="auto",
+        # enumerate_cones equilibrates by itself (Ruiz, else Curtis-Reid) and solves a cone
+        # whose point fails there again in the problem's units: a second scaling around it
+        # would hide those units
+        scaling="none",
     ),
 ]

@@ -14,6 +14,10 @@ the active set ``{i : z_i > w_i}`` is guessed and ``M_BB z_B = -q_B`` re-solved 
 when singular, as for rank-deficient PSD matrices); the rounded point is kept when it scores
 better, so that the certificate (which recomputes ``w = M z + q``) can pass at the roundoff level.
 
+Stagnation: when the best merit ``max(gap, ||r||_inf)`` fell by less than ``STALL_DECREASE``
+(relative) over the last ``STALL_WINDOW`` iterations, the method stops with termination
+``stalled`` (a given ``--max-iter`` is then not run out to no purpose).
+
 Matrix classes: **monotone LCPs (M positive semidefinite, not necessarily symmetric)**, where it
 converges in a number of iterations that grows slowly with n; a problem without a solution makes
 the iterates diverge, which is reported as ``unsolved`` (never as a proof).  It may also work on
@@ -29,17 +33,20 @@ import numpy as np
 
 from lcpcli.analysis.classify import is_symmetric
 from lcpcli.core.certificate import matrix_norm_inf
-from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, NUMERICAL, Outcome
+from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, NUMERICAL, STALLED, Outcome
 from lcpcli.core.text import plural
 from lcpcli.solvers.options import positive_int
 from lcpcli.solvers.registry import Cost, Guarantee, Method, Option, when
-from lcpcli.solvers.support import certified_error, refine
+from lcpcli.solvers.support import certified_error, refine, stalled
 
 DEFAULT_MAX_ITER = 100
 #: Fraction of the step to the boundary that is taken.
 STEP_FRACTION = 0.99995
 #: Try the active-set rounding when the certified error of the iterate is below this.
 ROUND_BELOW = 1e-3
+#: Stagnation (termination ``stalled``): the best merit ``max(gap, ||r||_inf)`` fell by less
+#: than STALL_DECREASE (relative) over the last STALL_WINDOW iterations.
+STALL_WINDOW, STALL_DECREASE = 20, 1e-3
 
 
 class _Factor:
@@ -76,7 +83,8 @@ def _max_step(x: np.ndarray, dx: np.ndarray) -> float:
     neg = dx < 0
     if not np.any(neg):
         return 1.0
-    return float(min(1.0, np.min(-x[neg] / dx[neg])))
+    with np.errstate(over="ignore"):  # a tiny dx_i: no bound from that entry (Inf)
+        return float(min(1.0, np.min(-x[neg] / dx[neg])))
 
 
 def run(problem: Any, *, tol: float, max_iter: int | None = None) -> Outcome:
@@ -106,6 +114,7 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None) -> Outcome:
     it = 0
     rounded = False
     zmax0 = float(np.max(z))
+    best_merit: list[float] = []
     while True:
         wz = matvec(z) + q
         err = certified_error(problem, z)
@@ -127,9 +136,17 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None) -> Outcome:
             termination = NUMERICAL
             why = "iterates diverge (the problem may have no solution, or M is not monotone)"
             break
-        it += 1
         r = wz - w
         gap = float(z @ w) / n
+        merit = max(gap, float(np.max(np.abs(r))))
+        best_merit.append(min(best_merit[-1], merit) if best_merit else merit)
+        if stalled(best_merit, STALL_WINDOW, STALL_DECREASE):
+            termination = STALLED
+            why = (f"no progress: the merit max(gap, ||r||) fell by less than "
+                   f"{STALL_DECREASE:g} (relative) over the last {STALL_WINDOW} iterations")
+            break
+        del best_merit[:-STALL_WINDOW - 1]
+        it += 1
         d = w / z
         try:
             with warnings.catch_warnings():

@@ -47,7 +47,7 @@ from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, NUMERICAL, STALLED, O
 from lcpcli.core.text import plural
 from lcpcli.solvers.options import positive_int, vector_option
 from lcpcli.solvers.registry import Cost, Guarantee, Method, Option, when
-from lcpcli.solvers.support import certified_error, refine, start_point
+from lcpcli.solvers.support import certified_error, refine, stalled, start_point
 
 DEFAULT_MAX_ITER = 200
 #: Stagnation: stop (termination ``stalled``) when the best merit fell by less than
@@ -57,18 +57,6 @@ STALL_WINDOW, STALL_DECREASE = 30, 1e-3
 SIGMA, BETA, MIN_STEP = 1e-4, 0.5, 1e-12
 #: Descent test for the Newton direction: grad . d <= -RHO ||d||^P.
 RHO, P_EXP = 1e-10, 2.1
-
-
-def _square(x: float) -> float:
-    """``x * x`` (Inf beyond the double range, where ``x ** 2`` raises OverflowError)."""
-    return x * x
-
-
-def _descent_size(d: np.ndarray) -> float:
-    """``||d||^P_EXP`` of the sufficient-descent test, Inf where it leaves the double range
-    (a direction that large is never accepted: extreme data must not raise OverflowError)."""
-    with np.errstate(over="ignore"):
-        return float(np.power(np.linalg.norm(d), P_EXP))
 #: Length of the merit history of the non-monotone test (full steps only; 1 = monotone Armijo).
 NONMONOTONE = 5
 #: Value of psi's partial derivatives at the kink (0, 0) (an element of the generalized Jacobian).
@@ -219,12 +207,10 @@ def run_newton(problem: Any, *, tol: float, variant: str = "fb", max_iter: int |
         return _run_newton(problem, tol, variant, max_iter, z0)
 
 
-def _stalled(best: list[float]) -> bool:
-    """No progress: the best merit of the last :data:`STALL_WINDOW` iterations is not below
-    ``(1 - STALL_DECREASE)`` times the best merit before them (``best[k]``: the best merit
-    after iteration k)."""
-    return (len(best) > STALL_WINDOW
-            and best[-1] > (1.0 - STALL_DECREASE) * best[-1 - STALL_WINDOW])
+def _descent(d: np.ndarray) -> float:
+    """``RHO ||d||^P_EXP``, the descent a direction must promise; Inf where that overflows
+    (a direction of size 1e300 on extreme data: a float power raised OverflowError)."""
+    return float(RHO * np.power(np.float64(np.linalg.norm(d)), P_EXP))
 
 
 def _run_newton(problem: Any, tol: float, variant: str, max_iter: int | None,
@@ -270,11 +256,12 @@ def _run_newton(problem: Any, tol: float, variant: str, max_iter: int | None,
         grad = a * phi + rmatvec(b * phi)
         d = _newton_direction(M, sparse, a, b, phi)
         slope = float(grad @ d) if d is not None else 0.0
-        if d is None or slope > -RHO * _descent_size(d):
-            lam = min(1.0, float(np.sqrt(2.0 * merit))) * _square(max(1.0, mu)) * 1e-3
+        if d is None or slope > -_descent(d):
+            # mu^2 saturates below the largest double (||M|| near 1e300: OverflowError)
+            lam = min(1.0, float(np.sqrt(2.0 * merit))) * min(max(1.0, mu), 1e150) ** 2 * 1e-3
             d = _lm_direction(M, sparse, a, b, phi, grad, max(lam, 1e-14))
             slope = float(grad @ d) if d is not None else 0.0
-            if d is not None and slope < -RHO * _descent_size(d):
+            if d is not None and slope < -_descent(d):
                 lm_steps += 1
             else:
                 d = None
@@ -313,7 +300,7 @@ def _run_newton(problem: Any, tol: float, variant: str, max_iter: int | None,
             err = certified_error(problem, z)
             if err < best_err:
                 best_z, best_err = z.copy(), err
-        if _stalled(best_merit):
+        if stalled(best_merit, STALL_WINDOW, STALL_DECREASE):
             termination = STALLED
             why = (f"no progress: the merit function fell by less than {STALL_DECREASE:g} "
                    f"(relative) over the last {STALL_WINDOW} iterations")

@@ -16,7 +16,11 @@ saying so.
 Storage: a dense ``numpy`` M or a ``scipy.sparse`` CSR M (the sweep runs over the CSR arrays,
 O(nnz) per sweep, never densified).  Warm start: option ``z0`` (projected onto the box first).
 Stopping: a normwise scaled error (estimated during the sweep, confirmed by one exact product
-``M z``), its target tightened tenfold until the componentwise certificate passes.
+``M z``), its target tightened tenfold until the componentwise certificate passes.  The sweeps
+run in blocks of ``STALL_BLOCK``; when the best normwise error after each block fell by less
+than ``STALL_DECREASE`` (relative) over the last ``STALL_WINDOW`` blocks the method stops with
+termination ``stalled`` (a cycle, e.g. PGS on a non-symmetric P-matrix, or a fixed point
+that is not a solution) instead of running to the sweep limit.
 """
 
 from __future__ import annotations
@@ -26,17 +30,28 @@ from typing import Any
 import numpy as np
 
 from lcpcli.core.certificate import matrix_norm_inf
-from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, NOT_APPLICABLE, NUMERICAL, Outcome
+from lcpcli.core.result import (
+    CONVERGED,
+    ITERATION_LIMIT,
+    NOT_APPLICABLE,
+    NUMERICAL,
+    STALLED,
+    Outcome,
+)
 from lcpcli.core.text import plural
 from lcpcli.solvers.kernels import pgs as K
 from lcpcli.solvers.options import bool_option, omega_option, positive_int, vector_option
 from lcpcli.solvers.registry import BatchSpec, Cost, Guarantee, Method, Option, Requirement, when
-from lcpcli.solvers.support import certified_error, diagonal, start_point
+from lcpcli.solvers.support import certified_error, diagonal, stalled, start_point
 
 #: Sweep limit when none is given.
 DEFAULT_MAX_ITER = 10_000
 #: Default relaxation of ``psor``.
 DEFAULT_OMEGA = 1.3
+#: Stagnation (termination ``stalled``): the sweeps run in blocks of STALL_BLOCK; stop when the
+#: best normwise error after a block fell by less than STALL_DECREASE (relative) over the last
+#: STALL_WINDOW blocks (1,000 sweeps).
+STALL_BLOCK, STALL_WINDOW, STALL_DECREASE = 50, 20, 1e-3
 
 
 def run_sor(problem: Any, *, tol: float, omega: float = 1.0, max_iter: int | None = None,
@@ -102,9 +117,19 @@ def _run_sor(problem: Any, *, tol: float, omega: float, max_iter: int | None,
     # the kernel stops on a cheap normwise estimate; the certificate is componentwise, so keep
     # sweeping with a tighter internal target until the certificate itself is met
     sweeps, target = 0, tol
+    best: list[float] = []  # the best normwise error after each block of sweeps
+    stuck = False
     while True:
-        status, done, err = sweep(limit - sweeps, target)
+        status, done, err = sweep(min(limit - sweeps, STALL_BLOCK), target)
         sweeps += int(done)
+        if status == K.LIMIT and sweeps < limit:
+            best.append(min(best[-1], err) if best else err)
+            if not stalled(best, STALL_WINDOW, STALL_DECREASE):
+                del best[:-STALL_WINDOW - 1]
+                continue
+            stuck = True
+            err = certified_error(problem, z)
+            break
         if status != K.CONVERGED:
             break
         err = certified_error(problem, z)
@@ -119,6 +144,13 @@ def _run_sor(problem: Any, *, tol: float, omega: float, max_iter: int | None,
     if status == K.DIVERGED:
         return Outcome(z, int(sweeps), NUMERICAL,
                        f"{label} diverged (non-finite iterate after {plural(sweeps, 'sweep')})")
+    if stuck:
+        return Outcome(z, int(sweeps), STALLED,
+                       f"{label}: no progress: the normwise error fell by less than "
+                       f"{STALL_DECREASE:g} (relative) over the last "
+                       f"{STALL_WINDOW * STALL_BLOCK:,} sweeps, after "
+                       f"{plural(sweeps, 'sweep')} (certified error {err:.2e}; M may be "
+                       f"outside the method's class, or the problem has no solution)")
     if sweeps < limit:  # the target was tightened to rounding level: more sweeps cannot help
         return Outcome(z, int(sweeps), NUMERICAL,
                        f"{label}: normwise error at rounding level after "
