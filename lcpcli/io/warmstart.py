@@ -25,6 +25,7 @@ from lcpcli.core.errors import ProblemError
 from lcpcli.core.numeric import REAL_KINDS, check_dtype, real_array
 from lcpcli.core.problem import MAX_N
 from lcpcli.io.files import MAX_TEXT_BYTES, check_input_file, open_input, read_json_file, too_big
+from lcpcli.io.npz_format import ZIP_ERRORS
 
 #: The type of a warm start read with the names of its unknowns (None: matched by position).
 Named = tuple[np.ndarray, list[str] | None]
@@ -53,7 +54,7 @@ def read_warm_start(path: str | Path, source: str | None = None) -> Named:
             values, names = _from_json(p)
     except ProblemError as exc:
         raise exc.with_source(src) from None
-    except (ValueError, OSError, EOFError, zipfile.BadZipFile, NotImplementedError) as exc:
+    except (*ZIP_ERRORS, ValueError) as exc:  # the archive errors of the problem readers
         first = str(exc).splitlines()[0][:100] if str(exc) else type(exc).__name__
         raise ProblemError(f"cannot read a vector ({first})", src) from None
     if not np.all(np.isfinite(values)):
