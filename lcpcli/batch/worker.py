@@ -88,8 +88,12 @@ def solve_tasks(tasks: list[Task], opts: SolveOptions,
 
 
 def prepare_method(method: str) -> None:
-    """Load the method's compiled kernel (outside any timing); unknown methods raise."""
+    """Load the method's compiled kernel and the optional fast JSON codec (outside any timing,
+    once per worker: a batch reads and writes JSON for every problem); unknown methods raise."""
+    from lcpcli.core.numeric import load_fast_json
     from lcpcli.solvers.registry import get_method
+
+    load_fast_json()
 
     spec = get_method(method)
     if spec.prepare is not None:

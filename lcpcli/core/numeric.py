@@ -33,10 +33,32 @@ import numpy as np
 
 from lcpcli.core.errors import ProblemError
 
-try:  # the optional C encoder (extra "fast"); json_text's output means the same without it
-    import orjson as _orjson
-except ImportError:  # pragma: no cover - depends on the environment
-    _orjson = None
+#: The optional C JSON codec (orjson, extra "fast"; every result means the same without it):
+#: None until loaded.  A batch worker loads it up front (:func:`load_fast_json`, about 2 ms
+#: once); a one-liner does not pay that import: below :data:`FAST_JSON_MIN_BYTES` of text the
+#: standard library is as fast.
+_orjson: Any = None
+FAST_JSON_MIN_BYTES = 1 << 16
+
+
+def load_fast_json() -> Any:
+    """Import orjson (once) and return it; None when it is not installed."""
+    global _orjson
+    if _orjson is None:
+        try:
+            import orjson
+        except ImportError:  # pragma: no cover - depends on the environment
+            return None
+        _orjson = orjson
+    return _orjson
+
+
+def fast_json(size: int = 0) -> Any:
+    """orjson when it is loaded, or when a text of ``size`` bytes is worth loading it for;
+    else None (the caller uses the standard library)."""
+    if _orjson is None and size >= FAST_JSON_MIN_BYTES:
+        return load_fast_json()
+    return _orjson
 
 #: numpy dtype kinds accepted as real numbers (signed int, unsigned int, float).
 REAL_KINDS = "iuf"
@@ -150,9 +172,10 @@ def json_text(obj: Any) -> str:
     writes differently goes to ``json.dumps``: numpy scalars, non-string keys, integers beyond
     64 bits, lone surrogates, and any text that is not ASCII (``json.dumps`` escapes it, so the
     output stays ASCII on any terminal)."""
-    if _orjson is not None:
+    codec = _orjson  # only when loaded (a batch worker): one row is not worth the import
+    if codec is not None:
         try:
-            text = _orjson.dumps(obj).decode("ascii")
+            text = codec.dumps(obj).decode("ascii")
         except (TypeError, ValueError):  # JSONEncodeError is a TypeError; decode a ValueError
             pass
         else:

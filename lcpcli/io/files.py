@@ -29,11 +29,7 @@ from contextlib import contextmanager
 from typing import IO, Any
 
 from lcpcli.core.errors import ProblemError
-
-try:  # the optional C parser (extra "fast"); every result equals the stdlib's (see parse_json)
-    import orjson as _orjson
-except ImportError:  # pragma: no cover - depends on the environment
-    _orjson = None
+from lcpcli.core.numeric import fast_json
 
 #: Largest text file (JSON, Siconos .dat, warm start) or stdin read, in bytes (256 MiB).
 MAX_TEXT_BYTES = 256 * 2**20
@@ -236,12 +232,13 @@ def _fast_parse(text: str | bytes) -> tuple[bool, Any]:
     orjson keeps the last of duplicate keys, so the keys found must account for every ``:`` in
     the text (each key has one; others must lie in the strings found, :func:`_string_colons`;
     with a backslash in the text, which may escape a ``:``, the stdlib parses instead)."""
-    if _orjson is None:
+    codec = fast_json(len(text))
+    if codec is None:
         return False, None
     if _long_integer(text):
         return False, None
     try:
-        value = _orjson.loads(text)
+        value = codec.loads(text)
     except (ValueError, TypeError):
         return False, None
     is_bytes = isinstance(text, (bytes, bytearray))

@@ -36,7 +36,6 @@ import errno
 import io
 import os
 import re
-import secrets
 import stat
 from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
@@ -269,7 +268,7 @@ def _create_temp(target: Path) -> tuple[int, Path]:
     folder = target.parent
     stem = target.name[:200]
     for _ in range(100):
-        tmp = folder / f".{stem}.{secrets.token_hex(4)}.tmp"
+        tmp = folder / f".{stem}.{os.urandom(4).hex()}.tmp"  # os: no secrets/hmac import
         try:
             fd = os.open(tmp, os.O_RDWR | os.O_CREAT | os.O_EXCL | _NOFOLLOW | _CLOEXEC, 0o600)
         except FileExistsError:

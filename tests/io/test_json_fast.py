@@ -21,12 +21,21 @@ from lcpcli.io import files, json_format, load
 
 orjson = pytest.importorskip("orjson")
 
+
+@pytest.fixture(autouse=True, scope="module")
+def _fast_json_loaded() -> Any:
+    """orjson loaded, as in a batch worker (a one-liner loads it only for large texts)."""
+    before = numeric._orjson
+    numeric._orjson = orjson
+    yield
+    numeric._orjson = before
+
 SAMPLES = Path(__file__).resolve().parents[2] / "samples"
 
 
 def _stdlib_parse(monkeypatch: pytest.MonkeyPatch, text: str) -> Any:
     with monkeypatch.context() as m:
-        m.setattr(files, "_orjson", None)
+        m.setattr(numeric, "_orjson", None)
         return files.parse_json(text)
 
 
@@ -52,7 +61,7 @@ def test_samples_parse_and_load_the_same(path: Path, monkeypatch: pytest.MonkeyP
         return
     try:
         with monkeypatch.context() as m:
-            m.setattr(files, "_orjson", None)
+            m.setattr(numeric, "_orjson", None)
             slow = load(path)
     except ProblemError as exc:  # a sample of a refused input: refused the same way
         with pytest.raises(ProblemError) as got:
@@ -138,7 +147,7 @@ def test_problem_with_long_integer_reads_as_before(monkeypatch: pytest.MonkeyPat
     text = '{"M": [[18446744073709551617]], "q": [-1]}'
     fast = json_format.read_text(text)
     with monkeypatch.context() as m:
-        m.setattr(files, "_orjson", None)
+        m.setattr(numeric, "_orjson", None)
         slow = json_format.read_text(text)
     assert np.array_equal(np.asarray(fast.M), np.asarray(slow.M))
 
@@ -171,3 +180,20 @@ def test_json_text_numpy_and_nonfinite() -> None:
     row = {"x": np.float64(1.5), "y": [math.inf, -math.inf, math.nan, 1e-5, 1e16], 3: "k"}
     assert json.loads(numeric.json_text(row)) == {"x": 1.5, "y": [None, None, None, 1e-5, 1e16],
                                                   "3": "k"}
+
+
+def test_a_one_liner_loads_orjson_only_for_a_large_text(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Small texts are parsed and written without importing orjson (start-up); a text of
+    FAST_JSON_MIN_BYTES or more loads it; a batch worker loads it up front."""
+    from lcpcli.batch.worker import prepare_method
+
+    monkeypatch.setattr(numeric, "_orjson", None)
+    assert files.parse_json('{"M": [[1]], "q": [1]}') == {"M": [[1]], "q": [1]}
+    assert numeric.json_text({"z": [0.5]}) == '{"z": [0.5]}'  # the stdlib's separators
+    assert numeric._orjson is None
+    big = '{"q": [' + ", ".join(["1.5"] * (numeric.FAST_JSON_MIN_BYTES // 4)) + "]}"
+    assert files.parse_json(big)["q"][0] == 1.5
+    assert numeric._orjson is orjson
+    monkeypatch.setattr(numeric, "_orjson", None)
+    prepare_method("lemke")
+    assert numeric._orjson is orjson
