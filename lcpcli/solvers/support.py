@@ -41,11 +41,26 @@ def certified_error(problem: Any, z: np.ndarray) -> float:
     return certify(problem, z).error
 
 
-def stalled(best: list[float], window: int, decrease: float) -> bool:
-    """Stagnation of an iterative method (termination ``stalled``): the best merit of the last
-    ``window`` steps is not below ``(1 - decrease)`` times the best merit before them
-    (``best[k]``: the best merit after step k, a non-increasing list)."""
-    return len(best) > window and best[-1] > (1.0 - decrease) * best[-1 - window]
+class StallWatch:
+    """Stagnation of an iterative method (termination ``stalled``): after each step,
+    :meth:`update` with the step's merit says whether the best merit of the last ``window``
+    steps is not below ``(1 - decrease)`` times the best merit before them.  Keeps only the
+    last ``window + 1`` running bests."""
+
+    __slots__ = ("window", "decrease", "best")
+
+    def __init__(self, window: int, decrease: float, first: float | None = None) -> None:
+        self.window, self.decrease = window, decrease
+        self.best: list[float] = [] if first is None else [first]
+
+    def update(self, merit: float) -> bool:
+        """Record one step's merit; True when the method has stalled."""
+        best = self.best
+        best.append(min(best[-1], merit) if best else merit)
+        if len(best) > self.window and best[-1] > (1.0 - self.decrease) * best[-1 - self.window]:
+            return True
+        del best[:-self.window - 1]
+        return False
 
 
 def diagonal(M: Any) -> np.ndarray:

@@ -37,7 +37,7 @@ from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, NUMERICAL, STALLED, O
 from lcpcli.core.text import plural
 from lcpcli.solvers.options import positive_int
 from lcpcli.solvers.registry import Cost, Guarantee, Method, Option, when
-from lcpcli.solvers.support import certified_error, refine, stalled
+from lcpcli.solvers.support import StallWatch, certified_error, refine
 
 DEFAULT_MAX_ITER = 100
 #: Fraction of the step to the boundary that is taken.
@@ -114,7 +114,7 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None) -> Outcome:
     it = 0
     rounded = False
     zmax0 = float(np.max(z))
-    best_merit: list[float] = []
+    watch = StallWatch(STALL_WINDOW, STALL_DECREASE)
     while True:
         wz = matvec(z) + q
         err = certified_error(problem, z)
@@ -139,13 +139,11 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None) -> Outcome:
         r = wz - w
         gap = float(z @ w) / n
         merit = max(gap, float(np.max(np.abs(r))))
-        best_merit.append(min(best_merit[-1], merit) if best_merit else merit)
-        if stalled(best_merit, STALL_WINDOW, STALL_DECREASE):
+        if watch.update(merit):
             termination = STALLED
             why = (f"no progress: the merit max(gap, ||r||) fell by less than "
                    f"{STALL_DECREASE:g} (relative) over the last {STALL_WINDOW} iterations")
             break
-        del best_merit[:-STALL_WINDOW - 1]
         it += 1
         d = w / z
         try:

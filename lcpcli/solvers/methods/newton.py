@@ -47,7 +47,7 @@ from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, NUMERICAL, STALLED, O
 from lcpcli.core.text import plural
 from lcpcli.solvers.options import positive_int, vector_option
 from lcpcli.solvers.registry import Cost, Guarantee, Method, Option, when
-from lcpcli.solvers.support import certified_error, refine, stalled, start_point
+from lcpcli.solvers.support import StallWatch, certified_error, refine, start_point
 
 DEFAULT_MAX_ITER = 200
 #: Stagnation: stop (termination ``stalled``) when the best merit fell by less than
@@ -239,7 +239,7 @@ def _run_newton(problem: Any, tol: float, variant: str, max_iter: int | None,
     phi, a, b = resid(z, w)
     merit = 0.5 * float(phi @ phi)
     history = [merit]
-    best_merit = [merit]
+    watch = StallWatch(STALL_WINDOW, STALL_DECREASE, first=merit)
     grad_steps = 0
     lm_steps = 0
     it = 0
@@ -295,17 +295,15 @@ def _run_newton(problem: Any, tol: float, variant: str, max_iter: int | None,
         merit = 0.5 * float(phi @ phi)
         history.append(merit)
         del history[:-NONMONOTONE]
-        best_merit.append(min(best_merit[-1], merit))
-        if merit < best_merit[-2] or it % STALL_WINDOW == 0:  # a certificate costs ~ an iteration
+        if merit < watch.best[-1] or it % STALL_WINDOW == 0:  # a certificate costs ~ an iteration
             err = certified_error(problem, z)
             if err < best_err:
                 best_z, best_err = z.copy(), err
-        if stalled(best_merit, STALL_WINDOW, STALL_DECREASE):
+        if watch.update(merit):
             termination = STALLED
             why = (f"no progress: the merit function fell by less than {STALL_DECREASE:g} "
                    f"(relative) over the last {STALL_WINDOW} iterations")
             break
-        del best_merit[:-STALL_WINDOW - 1]
     z_out, err_out = best_z, best_err
     if termination != CONVERGED:
         err = certified_error(problem, z)

@@ -42,7 +42,7 @@ from lcpcli.core.text import plural
 from lcpcli.solvers.kernels import pgs as K
 from lcpcli.solvers.options import bool_option, omega_option, positive_int, vector_option
 from lcpcli.solvers.registry import BatchSpec, Cost, Guarantee, Method, Option, Requirement, when
-from lcpcli.solvers.support import certified_error, diagonal, stalled, start_point
+from lcpcli.solvers.support import StallWatch, certified_error, diagonal, start_point
 
 #: Sweep limit when none is given.
 DEFAULT_MAX_ITER = 10_000
@@ -117,15 +117,13 @@ def _run_sor(problem: Any, *, tol: float, omega: float, max_iter: int | None,
     # the kernel stops on a cheap normwise estimate; the certificate is componentwise, so keep
     # sweeping with a tighter internal target until the certificate itself is met
     sweeps, target = 0, tol
-    best: list[float] = []  # the best normwise error after each block of sweeps
+    watch = StallWatch(STALL_WINDOW, STALL_DECREASE)  # the normwise error after each block
     stuck = False
     while True:
         status, done, err = sweep(min(limit - sweeps, STALL_BLOCK), target)
         sweeps += int(done)
         if status == K.LIMIT and sweeps < limit:
-            best.append(min(best[-1], err) if best else err)
-            if not stalled(best, STALL_WINDOW, STALL_DECREASE):
-                del best[:-STALL_WINDOW - 1]
+            if not watch.update(err):
                 continue
             stuck = True
             err = certified_error(problem, z)
