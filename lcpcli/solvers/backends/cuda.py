@@ -28,7 +28,7 @@ import numpy as np
 from lcpcli.core.errors import OptionError
 from lcpcli.solvers.backends import SOURCE
 from lcpcli.solvers.backends.c import lemke_args, retry_on_cpu, sor_args
-from lcpcli.solvers.batched import KERNEL_SOLVED, Backend, StackOut
+from lcpcli.solvers.batched import KERNEL_RETRY, KERNEL_SOLVED, Backend, StackOut
 
 #: The one-line reason this backend cannot run here.
 NEEDS = "the cuda backend needs CuPy and a CUDA device (pip install \"lcpcli[gpu]\")"
@@ -125,9 +125,13 @@ def _grid(K: int, slot_bytes: int, per_block: int, cp: Any) -> int:
 
 
 def _outputs(K: int, n: int, cp: Any) -> dict[str, Any]:
-    return {"z": cp.zeros((K, n)), "w": cp.zeros((K, n)), "code": cp.ones(K, cp.int8),
-            "iterations": cp.zeros(K, cp.int64), "error": cp.full(K, np.inf),
-            "residual": cp.full(K, np.nan)}
+    """The device outputs of a stack: not computed yet (``code`` RETRY, ``error`` Inf), except
+    for n = 0, where every problem is solved by the empty z (code SOLVED, error 0)."""
+    empty = n == 0
+    return {"z": cp.zeros((K, n)), "w": cp.zeros((K, n)),
+            "code": cp.full(K, KERNEL_SOLVED if empty else KERNEL_RETRY, cp.int8),
+            "iterations": cp.zeros(K, cp.int64), "error": cp.full(K, 0.0 if empty else np.inf),
+            "residual": cp.full(K, 0.0 if empty else np.nan)}
 
 
 def run_lemke(Md: Any, qd: Any, *, tol: float, options: Mapping[str, Any], scaling: str,
@@ -143,10 +147,7 @@ def run_lemke(Md: Any, qd: Any, *, tol: float, options: Mapping[str, Any], scali
         raise OptionError(f"unknown cuda Lemke variant '{variant}' (thread, warp)")
     K, n = qd.shape
     o = _outputs(K, n, cp)
-    if K == 0 or n == 0:
-        o["code"][...] = KERNEL_SOLVED
-        o["error"][...] = 0.0
-        o["residual"][...] = 0.0
+    if K == 0 or n == 0:  # nothing to solve: every (empty) problem is solved by z = ()
         return o
     a = lemke_args(n, options, scaling)
     dw, iw = workspace("lemke", n)
@@ -188,10 +189,7 @@ def run_sor(Md: Any, qd: Any, lo: Any, up: Any, *, tol: float,
     cp = require_cupy()
     K, n = qd.shape
     o = _outputs(K, n, cp)
-    if K == 0 or n == 0:
-        o["code"][...] = KERNEL_SOLVED
-        o["error"][...] = 0.0
-        o["residual"][...] = 0.0
+    if K == 0 or n == 0:  # nothing to solve: every (empty) problem is solved by z = ()
         return o
     a = sor_args(options)
     if lo is not None:
