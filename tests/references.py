@@ -110,6 +110,18 @@ def exact_lemke_sequence(M: np.ndarray, q: np.ndarray, max_pivots: int = 5000):
     return "max_pivots", seq, None
 
 
+def _dense_data(M: Any, q: Any, x: Any, lo: Any, up: Any, n_eq: int) -> tuple[np.ndarray, ...]:
+    """Dense float copies of ``M, q, x`` and the bounds (LCP bounds, the first ``n_eq``
+    variables free, when none are given)."""
+    M = np.asarray(M.toarray() if hasattr(M, "toarray") else M, dtype=float)
+    q = np.asarray(q, dtype=float)
+    n = q.size
+    if lo is None:
+        lo = np.where(np.arange(n) < n_eq, -np.inf, 0.0)
+        up = np.full(n, np.inf)
+    return M, q, np.asarray(x, dtype=float), lo, up
+
+
 def componentwise_error(M: Any, q: np.ndarray, z: np.ndarray, lo: np.ndarray | None = None,
                         up: np.ndarray | None = None, n_eq: int = 0,
                         w: np.ndarray | None = None) -> float:
@@ -121,13 +133,8 @@ def componentwise_error(M: Any, q: np.ndarray, z: np.ndarray, lo: np.ndarray | N
     ``w``: use this ``M z + q`` (e.g. the exact one, rounded once) instead of the one computed
     here in floating point.
     """
-    M = np.asarray(M.toarray() if hasattr(M, "toarray") else M, dtype=float)
-    q = np.asarray(q, dtype=float)
-    z = np.asarray(z, dtype=float)
+    M, q, z, lo, up = _dense_data(M, q, z, lo, up, n_eq)
     n = q.size
-    if lo is None:
-        lo = np.where(np.arange(n) < n_eq, -np.inf, 0.0)
-        up = np.full(n, np.inf)
     if not np.all(np.isfinite(z)):
         return float("inf")
     has_data = q != 0
@@ -259,13 +266,8 @@ def farkas_certifies(M: Any, q: np.ndarray, y: Any, lo: np.ndarray | None = None
     is infinite and ``>= 0`` where ``lo_i`` is (within the margin), and
     ``q^T y + sum_i max(g_i lo_i, g_i up_i)`` (finite bounds only) must be below ``-margin``.
     """
-    M = np.asarray(M.toarray() if hasattr(M, "toarray") else M, dtype=float)
-    q = np.asarray(q, dtype=float)
-    y = np.asarray(y, dtype=float)
+    M, q, y, lo, up = _dense_data(M, q, y, lo, up, n_eq)
     n = q.size
-    if lo is None:
-        lo = np.where(np.arange(n) < n_eq, -np.inf, 0.0)
-        up = np.full(n, np.inf)
     if y.shape != (n,) or not np.all(np.isfinite(y)) or not np.any(y != 0):
         return False
     gamma = Fraction(4 * (n + 2), 2 ** 53)
