@@ -14,7 +14,7 @@ import numpy as np
 
 from lcpcli.core.certificate import AT_LOWER, AT_UPPER, BETWEEN, certify, check
 from lcpcli.core.errors import OptionError
-from lcpcli.solvers.tolerances import POLISHED
+from lcpcli.core.tolerances import POLISHED
 
 
 def start_point(problem: Any, z0: np.ndarray | None, default: float = 0.0) -> np.ndarray:

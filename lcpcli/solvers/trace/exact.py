@@ -158,7 +158,7 @@ def exact_trace(problem: Any, method: str, data: ExactData, *, covering: Any = N
 
     Same replica, same rule, same tolerances as the floating-point trace, the numbers exact.
     """
-    from lcpcli.solvers.tolerances import PIVOT_TOL, TIE_TOL
+    from lcpcli.core.tolerances import PIVOT_TOL, TIE_TOL
 
     n = problem.n
     if method in ("lemke", "lemke-tableau", "lemke-revised"):

@@ -1,4 +1,4 @@
-"""The pivoting methods' tolerances, defined once (kernel-free, so the teaching replicas can use
+"""The pivoting tolerances, defined once (kernel-free, so the teaching replicas can use
 them without loading a compiled kernel).
 
 Both are relative: a pivot is compared with the largest entry of its column, a ratio with the
