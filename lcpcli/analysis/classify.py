@@ -30,6 +30,7 @@ import numpy as np
 
 from lcpcli.analysis._scaling import dense_minima
 from lcpcli.core.problem import is_sparse, problem_kind
+from lcpcli.core.tolerances import P_TEST_PIVOT_TOL
 
 #: Relative tolerance of the symmetry test: ``|m_ij - m_ji| <= SYM_TOL (max(|m_ij|, |m_ji|)
 #: + sqrt(|m_ii m_jj|))`` for every pair (invariant under ``D M D`` and global scaling).
@@ -38,9 +39,6 @@ SYM_TOL = 1e-10
 #: symmetric part S: PD when ``E - delta I`` has a Cholesky factor, PSD when ``E + delta I`` has
 #: one, with ``delta = DEF_TOL sqrt(n) ||E||_inf``.
 DEF_TOL = 1e-10
-#: Relative pivot tolerance of the exact P-matrix test: a pivot counts as positive when it
-#: exceeds this fraction of the magnitude of the terms it was computed from.
-PIVOT_TOL = 1e-12
 #: Dense sizes up to which the O(n^3) tests (definiteness, H-matrix, P-matrix) are run at all.
 DENSE_TEST_MAX_N = 6000
 #: Sparse sizes up to which the sparse-LU tests are run.
@@ -381,8 +379,8 @@ def _balanced(K: np.ndarray) -> np.ndarray:
 def _minor_pivots_positive(K: np.ndarray) -> bool:
     """All principal minors of K positive?  Depth-first over the index sets, one principal
     pivot (a Schur complement step) per set: ``det(K_{I+j}) / det(K_I)`` is the pivot, and a
-    pivot counts as positive when it exceeds ``PIVOT_TOL`` times the magnitude of the terms it
-    was computed from (a scale-free test: the same on ``D1 K D2``)."""
+    pivot counts as positive when it exceeds ``P_TEST_PIVOT_TOL`` times the magnitude of the
+    terms it was computed from (a scale-free test: the same on ``D1 K D2``)."""
     return _first_small_pivot(K) is None
 
 
@@ -404,7 +402,7 @@ def _small_pivot_sets(K: np.ndarray) -> Iterator[list[int]]:
         # T: magnitude of its terms
         for pos in range(len(idx)):
             p = S[pos, pos]
-            if not p > PIVOT_TOL * T[pos, pos]:
+            if not p > P_TEST_PIVOT_TOL * T[pos, pos]:
                 yield sorted(chain + [idx[pos]])
                 continue
             rest = list(range(pos + 1, len(idx)))
@@ -462,7 +460,7 @@ def not_p_witness(M: Any, candidates: list[list[int]] | None = None) -> list[int
         K = _unit_diagonal_symmetric(normalised(A))
         prod = K * K.T
         prod[np.diag_indices(n)] = 0.0
-        flagged = np.argwhere(np.triu(1.0 - prod <= PIVOT_TOL * (1.0 + np.abs(prod)), 1))
+        flagged = np.argwhere(np.triu(1.0 - prod <= P_TEST_PIVOT_TOL * (1.0 + np.abs(prod)), 1))
         tried += [[int(i), int(j)] for i, j in flagged[:64]]
     searched: Iterator[list[int]] = iter(())
     if dense and n <= EXACT_P_MAX_N:
@@ -552,7 +550,7 @@ def p_matrix(M: Any, pd: bool | None = None, h_matrix: bool | None = None,
         K = _unit_diagonal_symmetric(normalised(A))
         prod = K * K.T  # k_ij k_ji: the 2 x 2 minors are 1 - k_ij k_ji (unit diagonal)
         prod[np.diag_indices(n)] = 0.0
-        bad = 1.0 - prod <= PIVOT_TOL * (1.0 + np.abs(prod))
+        bad = 1.0 - prod <= P_TEST_PIVOT_TOL * (1.0 + np.abs(prod))
         if np.any(bad):
             return _refuted(M, [[int(v) for v in ij] for ij in np.argwhere(bad)[:64]])
     if pd:
