@@ -63,11 +63,6 @@ class StallWatch:
         return False
 
 
-def diagonal(M: Any) -> np.ndarray:
-    """The diagonal of a dense or scipy.sparse matrix, as a float array."""
-    return np.asarray(M.diagonal(), dtype=np.float64).ravel()
-
-
 def refine(problem: Any, z: np.ndarray, rounds: int = 4, basis: list[int] | None = None,
            good_enough: float = POLISHED) -> tuple[np.ndarray, float] | None:
     """Polish ``z`` by re-solving the equations its active set implies; None if nothing better.
