@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from lcpcli.analysis._scaling import dense_minima
+from lcpcli.analysis._scaling import dense_minima, is_symmetric_dense
 from lcpcli.core.problem import is_sparse, problem_kind
 from lcpcli.core.tolerances import P_TEST_PIVOT_TOL
 
@@ -101,16 +101,26 @@ def symmetric_part(M: Any) -> Any:
 
 
 # ---------------------------------------------------------------------------- symmetry
-def is_symmetric(M: Any, tol: float = SYM_TOL) -> bool:
-    """Is M symmetric up to rounding?  (The one symmetry test of the package.)
+def is_symmetric(M: Any, tol: float) -> bool:
+    """Is M (dense or scipy.sparse) symmetric to the relative tolerance ``tol``?  (The one
+    symmetry test of the package; every caller states its tolerance.)
 
     Entry pair (i, j) passes when ``|m_ij - m_ji| <= tol (max(|m_ij|, |m_ji|) +
     sqrt(|m_ii| |m_jj|))``: relative to the pair itself and to the diagonal (which bounds
     ``|m_ij|`` for PSD matrices, and is where the rounding of a product ``A W A^T`` lives).
     The same answer on ``D M D`` for any positive diagonal D and on ``2^k M``.
+
+    ``tol = SYM_TOL`` (:data:`SYM_TOL`): symmetric up to rounding, the class report's and
+    the methods' question ("is the symmetric part all of M?").  ``tol = 0``: exactly
+    symmetric, every pair equal (what a congruence ``D M D`` keeps, and what a symmetric
+    factorisation of M itself needs); decided by one early-exit pass (compiled for dense M).
     """
     if M.shape[0] != M.shape[1]:
         return False
+    if tol == 0.0:
+        if _is_sparse(M):
+            return (M != M.T).nnz == 0
+        return is_symmetric_dense(M)
     A = normalised(M)
     sd = np.sqrt(np.abs(diagonal(A)))
     if _is_sparse(A):
@@ -570,7 +580,7 @@ def p_matrix(M: Any, pd: bool | None = None, h_matrix: bool | None = None,
         pd_b = definiteness(B).kind == PD
         if pd_b:
             return True, "positive definite after a positive diagonal scaling"
-        if is_symmetric(B):  # P iff PD for a symmetric matrix
+        if is_symmetric(B, SYM_TOL):  # P iff PD for a symmetric matrix
             return _refuted(M, [], "diagonally similar to a symmetric matrix not shown PD")
     return None, "unknown (no sufficient test applies)"
 
@@ -809,7 +819,7 @@ class Classifier:
         return bool(np.any(rows != 0))
 
     def _symmetry(self) -> None:
-        self.report.symmetric = is_symmetric(self.problem.M)
+        self.report.symmetric = is_symmetric(self.problem.M, SYM_TOL)
 
     def _signs(self) -> None:
         r = self.report
