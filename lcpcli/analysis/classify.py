@@ -118,7 +118,7 @@ def is_symmetric(M: Any, tol: float) -> bool:
     if M.shape[0] != M.shape[1]:
         return False
     if tol == 0.0:
-        if _is_sparse(M):
+        if not isinstance(M, np.ndarray) and _is_sparse(M):
             return (M != M.T).nnz == 0
         return is_symmetric_dense(M)
     A = normalised(M)
