@@ -27,10 +27,10 @@ from lcpcli.core.result import (
     Status,
     Termination,
 )
+from lcpcli.core.text import option_name
+from lcpcli.solvers import DEFAULT_METHOD
 from lcpcli.solvers.pipeline import run_method
 from lcpcli.solvers.registry import Cost, Method, get_method
-
-DEFAULT_METHOD = "auto"
 
 
 def check_dense_ok(problem: Problem, spec: Method) -> None:
@@ -513,7 +513,7 @@ def _batched_method(spec: Method, kind: str, options: dict[str, Any], M: np.ndar
                     upper: np.ndarray | None) -> tuple[Method | None, dict[str, Any]]:
     """The method whose batched kernel runs the stack and the kernel's options, or
     (None, {}) when the stack is solved one problem at a time (see :func:`solve_many`)."""
-    given = {k.replace("-", "_"): v for k, v in options.items()
+    given = {option_name(k): v for k, v in options.items()
              if v is not None and v is not False}
     if spec.planner:
         if set(given) - {"max_iter"} or q.shape[0] == 0:

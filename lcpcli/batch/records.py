@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from lcpcli.core.result import Status, Termination
+from lcpcli.solvers import DEFAULT_METHOD
 
 #: Status (and termination) of a row whose input could not be read or solved at all.
 ERROR = Status.ERROR
@@ -33,7 +34,7 @@ class Task:
 class SolveOptions:
     """What every problem of a batch is solved with (picklable, sent to the workers)."""
 
-    method: str = "auto"  # = lcpcli.api.DEFAULT_METHOD
+    method: str = DEFAULT_METHOD
     tol: float | None = None
     options: dict[str, Any] = field(default_factory=dict)
 

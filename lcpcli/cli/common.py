@@ -15,8 +15,7 @@ from lcpcli.core.errors import (
     EXIT_SOLVED,
     OptionError,
 )
-from lcpcli.core.limits import MAX_ITER
-from lcpcli.core.text import plural
+from lcpcli.core.text import option_name, plural
 
 #: The exit code of the work finished so far (what a broken pipe on stdout exits with).
 _PENDING = {"code": EXIT_OK}
@@ -103,7 +102,7 @@ def parse_key_values(pairs: list[str] | None) -> dict[str, str]:
         key, sep, value = item.partition("=")
         if not sep or not key.strip():
             raise OptionError(f"method option must look like KEY=VALUE, got {item!r}")
-        out[key.strip().replace("-", "_")] = value.strip()
+        out[option_name(key.strip())] = value.strip()
     return out
 
 
@@ -164,7 +163,7 @@ def write_json_line(obj: Any) -> None:
     sys.stdout.flush()
 
 
-__all__ = ["EXIT_BAD_INPUT", "MAX_ITER", "MethodListCommand", "PipeClosed", "StdoutGuard",
+__all__ = ["EXIT_BAD_INPUT", "MethodListCommand", "PipeClosed", "StdoutGuard",
            "duration", "exit_code_for", "parse_key_values", "pending_exit", "plural",
            "progress_allowed", "stderr_console", "stderr_is_terminal", "stdout_console",
            "write_json_line"]

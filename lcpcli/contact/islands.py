@@ -27,6 +27,7 @@ import numpy as np
 
 from lcpcli.contact.scene import Scene
 from lcpcli.core.problem import Problem, is_sparse
+from lcpcli.solvers import DEFAULT_METHOD
 
 #: Warm start, islands of at least WARM_NEWTON_MIN_N unknowns whose ``z0`` does not already
 #: pass the certificate: first this method from ``z0`` ...
@@ -153,7 +154,7 @@ def island_problems(problem: Problem, lay: IslandLayout, storage: str = "auto",
     return out
 
 
-def solve_problems(problems: list[Problem], method: str = "auto", tol: float | None = None,
+def solve_problems(problems: list[Problem], method: str = DEFAULT_METHOD, tol: float | None = None,
                    z0s: list[np.ndarray] | None = None, jobs: int = 1,
                    **options: Any) -> list[Any]:
     """Solve the island LCPs; one certified :class:`Result` per problem, in order.

@@ -40,10 +40,10 @@ from lcpcli.core.errors import OptionError, ProblemError
 from lcpcli.core.limits import check_dense_work
 from lcpcli.core.problem import Problem, is_sparse
 from lcpcli.core.result import CONVERGED, NO_SOLUTION, NUMERICAL, SOLVED, Outcome
+from lcpcli.solvers import DEFAULT_METHOD
 
 #: Default method, per island: ``auto`` classifies each island's LCP and picks a method (Lemke
 #: for the small dense islands, iterative sparse methods for big sparse ones).
-DEFAULT_METHOD = "auto"
 #: Default softness (no regularisation: rigid contacts).
 DEFAULT_SOFTNESS = 0.0
 CONVENTION = ("w = M z + q, 0 <= z _|_ w >= 0; z = impulses; normals point from B to A; "

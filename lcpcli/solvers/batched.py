@@ -75,9 +75,9 @@ def _cpu_lemke(M: Any, q: Any, lower: Any, upper: Any, *, tol: float,
                options: Mapping[str, Any], out: StackOut, threads: int,
                scaling: str = "none") -> None:
     from lcpcli.analysis.scaling import BALANCED, MAX_ROUNDS, Q_BALANCED
+    from lcpcli.core.tolerances import PIVOT_TOL, POLISHED, TIE_TOL
     from lcpcli.solvers.kernels import batch
     from lcpcli.solvers.methods.lemke import covering_vector, default_max_iter
-    from lcpcli.solvers.tolerances import PIVOT_TOL, POLISHED, TIE_TOL
 
     n = M.shape[1]
     d = covering_vector(n, options.get("covering"))

@@ -16,10 +16,10 @@ from hypothesis import strategies as st
 
 from lcpcli.api import solve_many
 from lcpcli.core.errors import OptionError
+from lcpcli.core.tolerances import PIVOT_TOL, POLISHED, TIE_TOL
 from lcpcli.solvers import batched
 from lcpcli.solvers.backends import cuda
 from lcpcli.solvers.kernels import stack_c
-from lcpcli.solvers.tolerances import PIVOT_TOL, POLISHED, TIE_TOL
 
 
 def same_answers(M, q, method, lower=None, upper=None, **options):

@@ -21,8 +21,8 @@ def lemke_args(n: int, options: Mapping[str, Any], scaling: str) -> dict[str, An
     ``max_iter``, ``piv_tol``, ``tie_tol``, ``polished`` and ``balance``
     (None or (balanced, q_balanced, max_rounds))."""
     from lcpcli.analysis.scaling import BALANCED, MAX_ROUNDS, Q_BALANCED
+    from lcpcli.core.tolerances import PIVOT_TOL, POLISHED, TIE_TOL
     from lcpcli.solvers.methods.lemke import covering_vector, default_max_iter
-    from lcpcli.solvers.tolerances import PIVOT_TOL, POLISHED, TIE_TOL
 
     return {"d": covering_vector(n, options.get("covering")),
             "max_iter": int(options.get("max_iter") or default_max_iter(n)),

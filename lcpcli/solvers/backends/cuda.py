@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from lcpcli.core.errors import OptionError
+from lcpcli.solvers import DEFAULT_METHOD
 from lcpcli.solvers.backends import SOURCE
 from lcpcli.solvers.backends.c import lemke_args, retry_on_cpu, sor_args
 from lcpcli.solvers.batched import KERNEL_RETRY, KERNEL_SOLVED, Backend, StackOut
@@ -332,7 +333,7 @@ def solve_many_device(M: Any, q: Any, method: str | None, *, tol: float | None,
                           "MLCP (n_eq > 0) as host arrays")
     K, n = qd.shape
     lo, up = _bounds(lower, upper, K, n, cp)
-    spec = get_method(api.DEFAULT_METHOD if method is None else method)
+    spec = get_method(DEFAULT_METHOD if method is None else method)
     kind = "box" if lo is not None else "lcp"
     if kind not in spec.kinds:
         raise OptionError(f"method '{spec.name}' does not handle {kind.upper()} problems")

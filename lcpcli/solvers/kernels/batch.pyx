@@ -296,7 +296,7 @@ def lemke_stack(M, q, d, int64_t max_iter, double piv_tol, double tie_tol, doubl
     ``balance``: None (no equilibration) or ``(balanced, q_balanced, max_rounds)`` of
     :mod:`lcpcli.analysis.scaling`: each problem that is not balanced is equilibrated first.
     ``polished``: the end basis is re-solved unless the certified error is at most this
-    (:data:`lcpcli.solvers.tolerances.POLISHED`; 0: always).
+    (:data:`lcpcli.core.tolerances.POLISHED`; 0: always).
     """
     cdef int eqv[3]
     cdef const int* eq = NULL

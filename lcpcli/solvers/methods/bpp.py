@@ -34,7 +34,7 @@ from typing import Any
 
 import numpy as np
 
-from lcpcli.analysis._scaling import is_symmetric_dense
+from lcpcli.analysis.classify import is_symmetric
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, SINGULAR, Outcome
 from lcpcli.core.text import plural
 from lcpcli.solvers.options import positive_int, vector_option
@@ -279,7 +279,7 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None,
         F = start_point(problem, z0) > 0
         start = f" from the warm-start basis ({int(F.sum())} z basic)"
     if blocks is None or not blocks.reuse(M, q):
-        blocks = Blocks(M, q, is_symmetric_dense(M))
+        blocks = Blocks(M, q, is_symmetric(M, 0.0))
     status, z, its, singles, F, factors = pivot(M, q, F, free, limit, block_tries,
                                                 blocks=blocks)
     info: dict[str, Any] = {"basis": np.flatnonzero(F).tolist(), "single_pivots": singles,
