@@ -277,6 +277,43 @@ cdef int _fail(CertOut* out, int status) noexcept nogil:
     return status
 
 
+cdef void _link(Py_ssize_t n, const double* M, Py_ssize_t ldm, const double* z,
+                const double* s, const double* kappa, const Py_ssize_t* cols, Py_ssize_t nc,
+                Py_ssize_t* parent) noexcept nogil:
+    """Union rows i (nodes 0..n-1) and columns j (nodes n + j) wherever z_j != 0 counts in row
+    i: ``|M_ij| / s_i >= 2^-10 kappa_j`` (invariant under scaling).  Once every column with
+    z_j != 0 is in one set, a row joins it through its first such term and the rest of the row
+    changes nothing (the partition is the same as linking every term)."""
+    cdef Py_ssize_t i, j, k, ri, rj, nz = 0, colsets
+    cdef bint joined
+    cdef const double* row
+    cdef double m, inv
+    for k in range(nc):
+        if z[cols[k]] != 0.0:
+            nz += 1
+    colsets = nz  # sets holding a column with z_j != 0 (each starts alone)
+    for i in range(n):
+        row = M + i * ldm
+        inv = INFINITY if s[i] == 0.0 else 1.0 / s[i]
+        joined = False  # row i's set holds a column (rows before i never change again)
+        for k in range(nc):
+            j = cols[k]
+            m = fabs(row[j])
+            if m != 0.0 and z[j] != 0.0 and m * inv >= THETA * kappa[j]:
+                ri = _find(parent, i)
+                rj = _find(parent, n + j)
+                if ri != rj:
+                    if joined:  # two sets that each hold such a column become one
+                        colsets -= 1
+                    joined = True
+                    if ri < rj:
+                        parent[rj] = ri
+                    else:
+                        parent[ri] = rj
+                if colsets == 1:
+                    break
+
+
 cdef int certify_dense(Py_ssize_t n, const double* M, Py_ssize_t ldm, const double* q,
                        const double* z, Py_ssize_t n_eq, const double* lo, const double* up,
                        double* w, double* work, Py_ssize_t* iwork, signed char* state,
@@ -317,26 +354,37 @@ cdef int certify_dense(Py_ssize_t n, const double* M, Py_ssize_t ldm, const doub
     for i in range(2 * n):
         parent[i] = i
     if nc > 0:
-        for i in range(n):
-            row = M + i * ldm
-            inv = INFINITY if s[i] == 0.0 else 1.0 / s[i]
-            for k in range(nc):
-                j = cols[k]
-                m = fabs(row[j])
-                if m != 0.0:
-                    t = m * inv
-                    if t > kappa[j]:
-                        kappa[j] = t
-        # rows are linked through a z_j != 0 wherever z_j's share of the row is within 2^-10 of
-        # its largest share in any row: |M_ij| / s_i >= 2^-10 kappa_j (invariant under scaling)
-        for i in range(n):
-            row = M + i * ldm
-            inv = INFINITY if s[i] == 0.0 else 1.0 / s[i]
-            for k in range(nc):
-                j = cols[k]
-                m = fabs(row[j])
-                if m != 0.0 and z[j] != 0.0 and m * inv >= THETA * kappa[j]:
-                    _union(parent, i, n + j)
+        if 2 * nc >= n:  # most columns: a contiguous max over the whole row (vectorised)
+            for i in range(n):
+                row = M + i * ldm
+                if s[i] == 0.0:
+                    for j in range(n):
+                        if row[j] != 0.0:
+                            kappa[j] = INFINITY
+                    continue
+                inv = 1.0 / s[i]
+                for j in range(n):
+                    t = fabs(row[j]) * inv
+                    kappa[j] = t if t > kappa[j] else kappa[j]
+            # kappa stays 0 off the columns that may move (as the gathered loop leaves it)
+            k = 0
+            for j in range(n):
+                if k < nc and cols[k] == j:
+                    k += 1
+                else:
+                    kappa[j] = 0.0
+        else:
+            for i in range(n):
+                row = M + i * ldm
+                inv = INFINITY if s[i] == 0.0 else 1.0 / s[i]
+                for k in range(nc):
+                    j = cols[k]
+                    m = fabs(row[j])
+                    if m != 0.0:
+                        t = m * inv
+                        if t > kappa[j]:
+                            kappa[j] = t
+        _link(n, M, ldm, z, s, kappa, cols, nc, parent)
     for k in range(nc):
         j = cols[k]
         if kappa[j] == 0.0:      # a zero column: moving z_j is never negligible
