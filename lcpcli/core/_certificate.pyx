@@ -223,34 +223,11 @@ cdef int _finish(Py_ssize_t n, const double* q, const double* z, Py_ssize_t n_eq
     return 0
 
 
-cdef inline void _row_dot(const double* row, const double* z, Py_ssize_t n, double* dot,
-                          double* absdot) noexcept nogil:
-    """sum_j row_j z_j and sum_j |row_j z_j| with four partial sums each (SIMD lanes)."""
-    cdef double s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0
-    cdef double a0 = 0.0, a1 = 0.0, a2 = 0.0, a3 = 0.0
-    cdef double t0, t1, t2, t3
-    cdef Py_ssize_t j = 0
-    while j + 4 <= n:
-        t0 = row[j] * z[j]
-        t1 = row[j + 1] * z[j + 1]
-        t2 = row[j + 2] * z[j + 2]
-        t3 = row[j + 3] * z[j + 3]
-        s0 += t0
-        s1 += t1
-        s2 += t2
-        s3 += t3
-        a0 += fabs(t0)
-        a1 += fabs(t1)
-        a2 += fabs(t2)
-        a3 += fabs(t3)
-        j += 4
-    while j < n:
-        t0 = row[j] * z[j]
-        s0 += t0
-        a0 += fabs(t0)
-        j += 1
-    dot[0] = (s0 + s1) + (s2 + s3)
-    absdot[0] = (a0 + a1) + (a2 + a3)
+cdef extern from "rowpass.h" nogil:
+    void _row_dot "lcpcli_row_dot"(const double* row, const double* z, Py_ssize_t n,
+                                   double* dot, double* absdot) noexcept
+    void _col_max "lcpcli_col_max"(double* kappa, const double* row, double inv,
+                                   Py_ssize_t n) noexcept
 
 
 cdef inline int _needs_move(double zj, Py_ssize_t j, Py_ssize_t n_eq, const double* lo,
@@ -362,10 +339,7 @@ cdef int certify_dense(Py_ssize_t n, const double* M, Py_ssize_t ldm, const doub
                         if row[j] != 0.0:
                             kappa[j] = INFINITY
                     continue
-                inv = 1.0 / s[i]
-                for j in range(n):
-                    t = fabs(row[j]) * inv
-                    kappa[j] = t if t > kappa[j] else kappa[j]
+                _col_max(kappa, row, 1.0 / s[i], n)
             # kappa stays 0 off the columns that may move (as the gathered loop leaves it)
             k = 0
             for j in range(n):
