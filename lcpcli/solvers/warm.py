@@ -129,7 +129,9 @@ def warm_start(problem: Any, warm: Any, tol: float) -> tuple[Outcome | None, str
                       max_iter=WARM_MAX_ITER)
         if out.termination != CONVERGED:
             return None, out.message
-        changed = int(np.count_nonzero(np.isin(np.arange(problem.n), out.info["basis"]) != F))
+        final = np.zeros(problem.n, dtype=bool)
+        final[out.info["basis"]] = True
+        changed = int(np.count_nonzero(final != F))
         out.message = (f"warm start: {out.message} ({plural(changed, 'pair')} of "
                        f"{problem.n} changed state)")
         out.info["warm"] = True
