@@ -123,11 +123,11 @@ def solve(problem: Problem | Any, q: Any = None, method: str | None = None, *,
         check_warm(problem, warm)
         note = ""
         if uses_warm_basis(spec, problem):
-            tried, note = warm_start(problem, warm, tol)
+            tried, note = warm_start(problem, warm, tol, spec.name)
             if tried is not None:
                 factors = tried.info.pop("blocks", None)
-                res = certify_outcome(problem, tried, "bpp", time.perf_counter() - start, tol,
-                                      basis=True)
+                res = certify_outcome(problem, tried, tried.info.pop("method", "bpp"),
+                                      time.perf_counter() - start, tol, basis=True)
                 if res.solved:  # never no_solution: the warm start proves nothing
                     res.factors = factors  # the next warm start on the same M reuses them
                     return res

@@ -157,6 +157,27 @@ class Blocks:
                 z[F] = zF[F]
         return z if np.all(np.isfinite(z)) else None
 
+    def solve_rhs(self, F: np.ndarray, b: np.ndarray) -> np.ndarray | None:
+        """``y`` with ``M_FF y_F = b_F`` and 0 off F (a length-n vector), through the factors
+        (bordered when ``F`` is near the factored basis, else refactored); None when the block
+        is singular."""
+        n = self.q.shape[0]
+        far = self.F0 is None or np.count_nonzero(F != self.F0) > self.max_k
+        if far and not self._refactor(F):
+            return None
+        out = np.zeros(n)
+        if np.array_equal(F, self.F0):
+            out[self.idx0] = self.solve0(b[self.idx0])
+        else:
+            y = self._bordered(F, b)
+            if y is None:
+                if not self._refactor(F):
+                    return None
+                out[self.idx0] = self.solve0(b[self.idx0])
+            else:
+                out[F] = y[F]
+        return out if np.all(np.isfinite(out)) else None
+
     def refine(self, F: np.ndarray, z: np.ndarray, w: np.ndarray) -> np.ndarray:
         """One step of iterative refinement of the basic z of ``F`` (the one just solved),
         given ``w = M z + q``, whose rows in F should be 0."""
