@@ -271,6 +271,9 @@ class StackResult:
     batched: bool = True
     #: The :class:`Result` of each problem solved on its own (retried, or no batched kernel).
     results: dict[int, Result] = field(default_factory=dict)
+    #: (K, n) int8: each solved problem's final basis (codes of :data:`BASIS_LETTERS`), for a
+    #: warm-started next stack (``solve_many(..., warm=this)``); None when not recorded.
+    basis: np.ndarray | None = None
 
     def method_of(self, k: int) -> str:
         """The method that produced problem k's answer."""

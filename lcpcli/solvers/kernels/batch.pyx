@@ -79,8 +79,10 @@ cdef int _balance(const double* M, const double* q, const double* d, Py_ssize_t 
 cdef void _lemke_one(const double* M, const double* q, const double* d, Py_ssize_t n,
                      int64_t max_iter, double piv_tol, double tie_tol, double tol,
                      double polished, const int* eq, double* z, double* w, signed char* code,
-                     int64_t* iters, double* err, double* res) noexcept nogil:
-    """Lemke (tableau) and the certificate of one problem.  The problem is equilibrated first
+                     int64_t* iters, double* err, double* res,
+                     signed char* state=NULL) noexcept nogil:
+    """Lemke (tableau) and the certificate of one problem (``state``, when not NULL, receives
+    each pair's state as the certificate scores the answer).  The problem is equilibrated first
     when it is not balanced (as the one-problem pipeline does; the answer is mapped back
     exactly and certified on the problem as given); the end basis is re-solved (polish) only
     when the tableau's answer is not certified at rounding level (``polished``: most answers
@@ -135,14 +137,14 @@ cdef void _lemke_one(const double* M, const double* q, const double* d, Py_ssize
         iters[0] = out.pivots
         for i in range(n):
             z[i] = 0.0 if out.status == LEMKE_TRIVIAL or raw[i] < 0.0 else raw[i]
-        certify_dense(n, M, n, q, z, 0, NULL, NULL, w, cwork, iwork, NULL, &cert)
+        certify_dense(n, M, n, q, z, 0, NULL, NULL, w, cwork, iwork, state, &cert)
         if out.status == LEMKE_OK and not (cert.status == 0 and cert.error <= polished):
             # not at rounding level (cancellation in the tableau updates, or a failure): the
             # end basis re-solved by LU with one refinement step (polish keeps the better of
             # that and the tableau's answer), then certified again
             rc = polish(M, q, n, raw, basic, z)
             if rc == 0:
-                certify_dense(n, M, n, q, z, 0, NULL, NULL, w, cwork, iwork, NULL, &cert)
+                certify_dense(n, M, n, q, z, 0, NULL, NULL, w, cwork, iwork, state, &cert)
         if rc == 0:
             if cert.status == 0:
                 err[0] = cert.error
@@ -153,6 +155,211 @@ cdef void _lemke_one(const double* M, const double* q, const double* d, Py_ssize
     free(basic)
     free(iwork)
     free(rc_exp)
+
+
+#: Block pivots without a new lowest count of infeasible pairs before the warm start's
+#: least-index single pivots (Júdice & Pires' p; lcpcli.solvers.methods.bpp.BLOCK_TRIES).
+cdef int W_BLOCK_TRIES = 3
+#: A basic value is infeasible below -W_NEG_TOL times its scale (bpp.NEG_TOL).
+cdef double W_NEG_TOL = 1e-12
+
+
+cdef int _basic_solution(const double* M, const double* q, Py_ssize_t n,
+                         const signed char* F, double* A, Py_ssize_t* idx, Py_ssize_t* piv,
+                         double* r, double* z) noexcept nogil:
+    """The basic solution of basis ``F`` (1: z_i basic): ``M_FF z_F = -q_F`` by LU with
+    partial pivoting (the factors stay in ``A``, ``piv`` and ``idx`` for :func:`_refine`),
+    ``z`` 0 off F.  Returns -1 when ``M_FF`` is singular (a pivot at most 1e-14 times the
+    block's largest entry), else the block's size.  ``A``: n*n, ``idx``, ``piv``: n, ``r``: n."""
+    cdef Py_ssize_t i, j, k, m = 0, p
+    cdef double big = 0.0, t, a
+    for i in range(n):
+        z[i] = 0.0
+        if F[i]:
+            idx[m] = i
+            m += 1
+    if m == 0:
+        return 0
+    for i in range(m):
+        for j in range(m):
+            a = M[idx[i] * n + idx[j]]
+            A[i * m + j] = a
+            if fabs(a) > big:
+                big = fabs(a)
+    if not (big > 0.0):
+        return -1
+    for k in range(m):  # LU in place, rows swapped as piv records
+        p = k
+        for i in range(k + 1, m):
+            if fabs(A[i * m + k]) > fabs(A[p * m + k]):
+                p = i
+        piv[k] = p
+        if not (fabs(A[p * m + k]) > 1e-14 * big):
+            return -1
+        if p != k:
+            for j in range(m):
+                t = A[k * m + j]
+                A[k * m + j] = A[p * m + j]
+                A[p * m + j] = t
+        for i in range(k + 1, m):
+            A[i * m + k] = A[i * m + k] / A[k * m + k]
+            t = A[i * m + k]
+            for j in range(k + 1, m):
+                A[i * m + j] = A[i * m + j] - t * A[k * m + j]
+    for i in range(m):
+        r[i] = -q[idx[i]]
+    _lu_solve(A, piv, m, r)
+    for i in range(m):
+        z[idx[i]] = r[i]
+    return m
+
+
+cdef void _refine(const double* M, const double* q, Py_ssize_t n, const double* A,
+                  const Py_ssize_t* idx, const Py_ssize_t* piv, Py_ssize_t m, double* r,
+                  double* z) noexcept nogil:
+    """One step of iterative refinement of the basic solution of :func:`_basic_solution`."""
+    cdef Py_ssize_t i, j
+    cdef double t
+    for i in range(m):
+        t = q[idx[i]]
+        for j in range(m):
+            t = t + M[idx[i] * n + idx[j]] * z[idx[j]]
+        r[i] = -t
+    _lu_solve(A, piv, m, r)
+    for i in range(m):
+        z[idx[i]] = z[idx[i]] + r[i]
+
+
+cdef void _lu_solve(const double* A, const Py_ssize_t* piv, Py_ssize_t m,
+                    double* b) noexcept nogil:
+    """``b <- (LU)^-1 P b`` for the factors of :func:`_basic_solution`."""
+    cdef Py_ssize_t i, j
+    cdef double t
+    for i in range(m):
+        if piv[i] != i:
+            t = b[i]
+            b[i] = b[piv[i]]
+            b[piv[i]] = t
+    for i in range(m):
+        for j in range(i):
+            b[i] = b[i] - A[i * m + j] * b[j]
+    for i in range(m - 1, -1, -1):
+        for j in range(i + 1, m):
+            b[i] = b[i] - A[i * m + j] * b[j]
+        b[i] = b[i] / A[i * m + i]
+
+
+cdef int _bpp_one(const double* M, const double* q, Py_ssize_t n, const signed char* F0,
+                  int64_t max_iter, double tol, double* z, double* w, signed char* state,
+                  int64_t* iters, double* err, double* res) noexcept nogil:
+    """Block principal pivoting from the basis ``F0`` (as lcpcli.solvers.methods.bpp: block
+    pivots while the count of infeasible pairs falls, Murty's least-index single pivot after
+    W_BLOCK_TRIES without progress), judged by the certificate.  A basic solution with
+    ``z_F >= 0`` goes to the certificate first (a basis that is still right ends there, with
+    no pass of its own over M); one that fails it is refined once and certified again, and
+    its infeasible pairs are read from the certificate's ``w`` and row scales.  Returns 1 when
+    an answer passed (z, w, state, iters, err, res filled), 0 otherwise (singular block,
+    iteration limit, an answer that stays uncertified: the caller solves cold)."""
+    cdef double* work = <double*>malloc((n * n + 8 * n + 1) * sizeof(double))
+    cdef Py_ssize_t* iwork = <Py_ssize_t*>malloc((5 * n + 1) * sizeof(Py_ssize_t))
+    cdef signed char* F = <signed char*>malloc(n + 1)
+    cdef double* A
+    cdef double* r
+    cdef double* cwork
+    cdef double* scale
+    cdef Py_ssize_t i, j, m, count, best = n + 1, first
+    cdef Py_ssize_t* idx
+    cdef Py_ssize_t* piv
+    cdef int tries = W_BLOCK_TRIES, ok = 0, refined
+    cdef int64_t it
+    cdef double zmax, t, sc
+    cdef bint nonneg, have_w
+    cdef CertOut cert
+    if work == NULL or iwork == NULL or F == NULL:
+        free(work)
+        free(iwork)
+        free(F)
+        return 0
+    A = work
+    r = work + n * n
+    cwork = work + n * n + n  # 5 n for the certificate: a, then the row scales s
+    scale = cwork + n
+    idx = iwork + 3 * n
+    piv = iwork + 4 * n
+    for i in range(n):
+        F[i] = 1 if F0[i] else 0
+    it = 0
+    while it < max_iter:
+        it += 1
+        m = _basic_solution(M, q, n, F, A, idx, piv, r, z)
+        if m < 0:
+            break
+        zmax = 1.0
+        for i in range(n):
+            if fabs(z[i]) > zmax:
+                zmax = fabs(z[i])
+        nonneg = True
+        for i in range(n):
+            if F[i] and z[i] < -W_NEG_TOL * zmax:
+                nonneg = False
+                break
+        have_w = False
+        if nonneg:
+            refined = 0
+            while True:
+                certify_dense(n, M, n, q, z, 0, NULL, NULL, w, cwork, iwork, state, &cert)
+                if _passed(&cert, tol):
+                    ok = 1
+                    break
+                if refined or m == 0:
+                    break
+                _refine(M, q, n, A, idx, piv, m, r, z)
+                refined = 1
+            if ok:
+                iters[0] = it
+                err[0] = cert.error
+                res[0] = cert.residual
+                break
+            have_w = cert.status == 0  # w and the row scales of this z are in place
+        count = 0
+        first = -1
+        for i in range(n):  # infeasible pairs: marked in r (1.0) for the flip
+            r[i] = 0.0
+            if F[i]:
+                if z[i] < -W_NEG_TOL * zmax:
+                    r[i] = 1.0
+            else:
+                if have_w:
+                    t, sc = w[i], scale[i]
+                else:
+                    t = q[i]
+                    sc = fabs(q[i])
+                    for j in range(n):
+                        t = t + M[i * n + j] * z[j]
+                        sc = sc + fabs(M[i * n + j] * z[j])
+                if t < -W_NEG_TOL * sc:
+                    r[i] = 1.0
+            if r[i] != 0.0:
+                count += 1
+                if first < 0:
+                    first = i
+        if count == 0:  # every basic variable nonnegative, but no certified answer
+            break
+        if count < best:
+            best = count
+            tries = W_BLOCK_TRIES
+        elif tries > 0:
+            tries -= 1
+        else:  # Murty's least-index rule: one pivot (finite on P-matrices)
+            F[first] = 1 - F[first]
+            continue
+        for i in range(n):
+            if r[i] != 0.0:
+                F[i] = 1 - F[i]
+    free(work)
+    free(iwork)
+    free(F)
+    return ok
 
 
 cdef void _sor_one(const double* M, const double* q, const double* lo_in, const double* up_in,
@@ -319,6 +526,53 @@ def lemke_stack(M, q, d, int64_t max_iter, double piv_tol, double tie_tol, doubl
         _lemke_one(a.M + k * nn, a.q + k * n, dp, n, max_iter, piv_tol, tie_tol, tol, polished,
                    eq, a.z + k * n, a.w + k * n, a.code + k, a.iters + k, a.err + k,
                    a.residual + k)
+
+
+def lemke_warm_stack(M, q, d, basis, int64_t max_iter, int64_t warm_iter, double piv_tol,
+                     double tie_tol, double tol, z, w, code, iters, err, residual, state,
+                     warm, int threads, balance=None, double polished=0.0):
+    """Warm-started stack: problem k first runs block principal pivoting from its basis
+    ``basis[k]`` ((K, n) int8, 1: z_i basic; a row whose first entry is negative has none) for
+    at most ``warm_iter`` iterations (one factorisation of ``M_FF`` each; one when the basis
+    is still right); an answer that passes the certificate is kept (``warm[k]`` = 1), any
+    other ending (singular block, limit, failed certificate) runs Lemke cold on it in the same
+    call (:func:`lemke_stack`'s arguments and outputs).  ``state`` ((K, n) int8) receives each
+    certified answer's basis (the certificate's pair states) for the next step.
+    """
+    cdef int eqv[3]
+    cdef const int* eq = NULL
+    if balance is not None:
+        eqv[0], eqv[1], eqv[2] = balance
+        eq = eqv
+    cdef _Stack a = _checked(M, q, z, w, code, iters, err, residual, "lemke_warm_stack")
+    cdef Py_ssize_t K = a.K, n = a.n, nn = a.n * a.n, k
+    cdef cnp.ndarray da
+    cdef double* dp = NULL
+    cdef cnp.ndarray ba = inout(basis, cnp.NPY_INT8, K, n)
+    cdef cnp.ndarray sa = inout(state, cnp.NPY_INT8, K, n)
+    cdef cnp.ndarray wa = inout(warm, cnp.NPY_INT8, K, -1)
+    cdef signed char* bp = <signed char*>cnp.PyArray_DATA(ba)
+    cdef signed char* sp = <signed char*>cnp.PyArray_DATA(sa)
+    cdef signed char* wp = <signed char*>cnp.PyArray_DATA(wa)
+    if d is not None:
+        da = _stack(d, 1)
+        if cnp.PyArray_DIM(da, 0) != n:
+            raise ValueError("lemke_warm_stack: the covering vector must have length n")
+        dp = f64_ptr(da)
+    if _empty(a):
+        return
+    for k in prange(K, nogil=True, schedule="dynamic", chunksize=64,
+                    num_threads=threads if threads > 0 else 1):
+        wp[k] = 0
+        if bp[k * n] >= 0 and _bpp_one(a.M + k * nn, a.q + k * n, n, bp + k * n, warm_iter,
+                                       tol, a.z + k * n, a.w + k * n, sp + k * n, a.iters + k,
+                                       a.err + k, a.residual + k):
+            wp[k] = 1
+            a.code[k] = B_SOLVED
+        else:
+            _lemke_one(a.M + k * nn, a.q + k * n, dp, n, max_iter, piv_tol, tie_tol, tol,
+                       polished, eq, a.z + k * n, a.w + k * n, a.code + k, a.iters + k,
+                       a.err + k, a.residual + k, sp + k * n)
 
 
 def sor_stack(M, q, lo, up, double omega, int64_t max_iter, double tol, z, w, code, iters,
