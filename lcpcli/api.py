@@ -335,7 +335,7 @@ def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None =
     else:
         run_spec = None if plan.kernel_method is None else get_method(plan.kernel_method)
         kernel_options = plan.kernel_options
-    bases = None  # warm: the cpu Lemke kernel starts from each basis; else one at a time
+    bases = warmed = None  # warm: the cpu Lemke kernel starts from each basis; else one by one
     if rows is not None:
         from lcpcli.solvers.warm_stack import stack_bases, uses_warm_kernel
 
@@ -356,8 +356,8 @@ def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None =
         if bases is not None:
             from lcpcli.solvers.warm_stack import lemke_warm
 
-            bases, _ = lemke_warm(M, q, bases, tol=tol, options=kernel_options, out=out,
-                                  threads=threads, scaling=run_spec.scaling)
+            bases, warmed = lemke_warm(M, q, bases, tol=tol, options=kernel_options, out=out,
+                                       threads=threads, scaling=run_spec.scaling)
         else:
             kernel(M, q, lower, upper, tol=tol, options=kernel_options, out=out,
                    threads=threads, scaling=run_spec.scaling)
@@ -407,7 +407,8 @@ def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None =
                        residual=residual, method=name, tol=tol,
                        seconds=time.perf_counter() - start, retried=retried,
                        messages=messages, methods=methods_of, batched=run_spec is not None,
-                       results=results, basis=bases)
+                       results=results, basis=bases,
+                       warmed=None if warmed is None else warmed.astype(bool))
 
 
 def _warm_rows(warm: Any, K: int, n: int) -> np.ndarray | None:
@@ -425,7 +426,8 @@ STACK_MIN = 8
 
 
 def solve_each(problems: list[Problem], method: str | None = None, *, tol: float | None = None,
-               threads: int | None = None, **options: Any) -> list[Result]:
+               threads: int | None = None, warms: list[Any] | None = None,
+               **options: Any) -> list[Result]:
     """``[solve(p, method, tol=tol, **options) for p in problems]``, faster for many small ones.
 
     Dense LCPs of one size, at least :data:`STACK_MIN` of them, are stacked and solved by
@@ -433,7 +435,9 @@ def solve_each(problems: list[Problem], method: str | None = None, *, tol: float
     recomputed for its :class:`Result` (the same definition the kernel checked), and the
     problems the kernel handed back come with the Result of their own :func:`solve`.  Other
     problems are solved one by one.  ``seconds`` of a stacked problem is its share of the
-    stack's time; ``info["batched"]`` marks them.
+    stack's time; ``info["batched"]`` marks them.  ``warms``: one warm start per problem (a
+    basis, booleans, or None: cold), as ``solve_many(warm=)`` and ``solve(warm=)`` take them;
+    ``info["warm"]`` then says whether the warm start gave the answer.
     """
     out: list[Result | None] = [None] * len(problems)
     groups: dict[int, list[int]] = {}
@@ -443,9 +447,15 @@ def solve_each(problems: list[Problem], method: str | None = None, *, tol: float
     for idx in groups.values():
         if len(idx) < STACK_MIN:
             continue
+        warm = None
+        if warms is not None and any(warms[i] is not None for i in idx):
+            # rows as points: 1 where z_i is basic, NaN for a problem without one (cold)
+            warm = np.stack([np.asarray(warms[i], dtype=bool).astype(np.float64)
+                             if warms[i] is not None else np.full(problems[i].n, np.nan)
+                             for i in idx])
         res = solve_many(np.stack([problems[i].M for i in idx]),
                          np.stack([problems[i].q for i in idx]), method, tol=tol,
-                         threads=threads, **options)
+                         threads=threads, warm=warm, **options)
         share = res.seconds / len(idx)
         for j, i in enumerate(idx):
             p = problems[i]
@@ -462,9 +472,14 @@ def solve_each(problems: list[Problem], method: str | None = None, *, tol: float
                             certificate=cert, message=res.message(j),
                             termination=CONVERGED if cert.passed else Termination.NUMERICAL,
                             problem_name=p.name, info={"batched": True}, known_basis=basis)
+            if res.warmed is not None:
+                out[i].info["warm"] = bool(res.warmed[j])
     for i, p in enumerate(problems):
         if out[i] is None:
-            out[i] = solve(p, method, tol=tol, **options)
+            warm = None if warms is None else warms[i]
+            out[i] = solve(p, method, tol=tol, warm=warm, **options)
+            if warm is not None:
+                out[i].info["warm"] = bool(out[i].info.get("warm", False))
     return out  # type: ignore[return-value]
 
 

@@ -25,7 +25,7 @@ from lcpcli.core.errors import OptionError
 from lcpcli.core.result import StackResult
 
 #: BPP iterations a problem may take from its warm basis before cold Lemke takes over.
-WARM_ITER = 8
+WARM_ITER = 2
 
 
 def uses_warm_kernel(spec: Any, lower: Any, K: int, n: int, backend: str) -> bool:
