@@ -130,7 +130,7 @@ def warm_start(problem: Any, warm: Any, tol: float,
     if method.startswith("lemke") and problem.kind == "lcp" and not problem.sparse:
         M = np.ascontiguousarray(problem.dense_M(), dtype=np.float64)
         q = np.ascontiguousarray(problem.q, dtype=np.float64)
-        out = lemke_warm.run(M, q, F, blocks=factors)
+        out = lemke_warm.run(M, q, F, blocks=factors, problem=problem)
         if out.termination != CONVERGED:
             return None, out.message
         out.message = f"warm start: {out.message}"

@@ -130,7 +130,8 @@ class Blocks:
         self._columns, self._schur = {}, None
         self.solve0 = _factor(self.M[np.ix_(idx, idx)], self.symmetric) if idx.size else \
             (lambda b: b)
-        if self.solve0 is None:
+        if self.solve0 is None:  # singular: nothing factored (the next basis refactors)
+            self.F0 = None
             return False
         self.x0 = self.solve0(-self.q[idx])
         return True
@@ -182,7 +183,7 @@ class Blocks:
         """One step of iterative refinement of the basic z of ``F`` (the one just solved),
         given ``w = M z + q``, whose rows in F should be 0."""
         idx = np.flatnonzero(F)
-        if idx.size == 0:
+        if idx.size == 0 or self.F0 is None:
             return z
         out = z.copy()
         if np.array_equal(F, self.F0):

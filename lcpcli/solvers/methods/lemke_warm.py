@@ -38,6 +38,7 @@ from lcpcli.analysis._scaling import is_symmetric_dense
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, RAY, SINGULAR, Outcome
 from lcpcli.core.text import plural
 from lcpcli.solvers.methods.bpp import NEG_TOL, Blocks
+from lcpcli.solvers.support import better
 from lcpcli.solvers.tolerances import PIVOT_TOL
 
 #: Pivots a warm start may take before the cold solve takes over (a nearby basis needs a
@@ -95,8 +96,34 @@ class _Basis:
         self.slots[p] = var
 
 
+def repair(M: np.ndarray, F: np.ndarray, tol: float = 1e-13) -> np.ndarray:
+    """A basis whose block is nonsingular, from ``F`` (booleans): greedy diagonal pivoting on
+    ``M_FF`` (the largest diagonal entry of the remaining Schur complement pivots); the pairs
+    left when none exceeds ``tol`` times the block's largest entry leave the basis (their
+    ``w_i`` becomes basic), as simplex codes repair a singular basis.  Contact LCPs need it:
+    redundant contacts make M singular, and the basis ``{i: z0_i > 0}`` of a previous answer
+    can have a singular block.  O(|F|^3)."""
+    idx = np.flatnonzero(F)
+    A = M[np.ix_(idx, idx)].astype(np.float64)
+    big = float(np.max(np.abs(A), initial=0.0))
+    alive = np.ones(idx.size, dtype=bool)
+    keep = np.zeros(idx.size, dtype=bool)
+    while alive.any():
+        diag = np.where(alive, np.abs(np.diag(A)), -1.0)
+        p = int(np.argmax(diag))
+        if not diag[p] > tol * big:
+            break
+        keep[p], alive[p] = True, False
+        A -= np.outer(A[:, p], A[p, :]) / A[p, p]
+        A[p, :] = 0.0
+        A[:, p] = 0.0
+    out = np.zeros_like(F, dtype=bool)
+    out[idx[keep]] = True
+    return out
+
+
 def run(M: np.ndarray, q: np.ndarray, F: np.ndarray, *, blocks: Blocks | None = None,
-        max_pivots: int = WARM_MAX_PIVOTS) -> Outcome:
+        max_pivots: int = WARM_MAX_PIVOTS, problem: Any = None) -> Outcome:
     """Lemke's method for LCP(q, M) (dense M, C-contiguous float64) from the complementary basis
     ``F`` (booleans, True: ``z_i`` basic); see the module docstring.
 
@@ -113,6 +140,9 @@ def run(M: np.ndarray, q: np.ndarray, F: np.ndarray, *, blocks: Blocks | None = 
     info: dict[str, Any] = {"blocks": blocks}
     done = blocks.factorisations
     z = blocks.solve(F)
+    if z is None:  # a singular block: repaired (the dependent z's leave the basis)
+        F = repair(M, F)
+        z = blocks.solve(F)
     if z is None:
         return Outcome(np.zeros(n), 0, SINGULAR, "warm Lemke: the given basis's block M_FF is "
                                                   "singular", info=info)
@@ -126,7 +156,7 @@ def run(M: np.ndarray, q: np.ndarray, F: np.ndarray, *, blocks: Blocks | None = 
         scale = np.abs(q[rows]) + np.abs(M[rows]) @ np.abs(z)
         neg[rows[x[rows] < -NEG_TOL * scale]] = True
     if not neg.any():
-        return _final(M, q, F, blocks, 0, done, info, "the given basis is feasible")
+        return _final(M, q, F, blocks, 0, done, info, "the given basis is feasible", problem)
     # z0 enters along the covering ray d = B0 e: x(t) = x + t e; the most negative leaves
     d = np.where(F, 0.0, 1.0) - M @ F.astype(np.float64)
     p = int(np.argmin(x))
@@ -167,22 +197,28 @@ def run(M: np.ndarray, q: np.ndarray, F: np.ndarray, *, blocks: Blocks | None = 
             Fend[zs[zs < 2 * n] - n] = True
             return _final(M, q, Fend, blocks, pivots, done, info,
                           f"the artificial variable left after {plural(pivots, 'pivot')} "
-                          f"from the given basis ({int(F.sum())} z basic)")
+                          f"from the given basis ({int(F.sum())} z basic)", problem)
     return Outcome(np.zeros(n), pivots, ITERATION_LIMIT,
                    f"warm Lemke: {plural(pivots, 'pivot')} without a solution", info=info)
 
 
 def _final(M: np.ndarray, q: np.ndarray, F: np.ndarray, blocks: Blocks, pivots: int, done: int,
-           info: dict[str, Any], how: str) -> Outcome:
-    """The basic solution of the complementary basis ``F``, solved afresh and refined once."""
+           info: dict[str, Any], how: str, problem: Any = None) -> Outcome:
+    """The basic solution of the complementary basis ``F``, solved afresh and refined once;
+    with ``problem`` given and entries at rounding level (``<= 1e-14 ||z||``: degenerate
+    basic z's, which a tableau leaves exactly 0), the candidate with them set to 0 too, the
+    one the certificate scores better kept."""
     n = q.shape[0]
     z = blocks.solve(F)
     if z is None:
         return Outcome(np.zeros(n), pivots, SINGULAR,
                        "warm Lemke: the final basis's block is singular", info=info)
-    z = blocks.refine(F, z, M @ z + q)
+    z = np.maximum(blocks.refine(F, z, M @ z + q), 0.0)
+    tiny = (z != 0.0) & (z <= 1e-14 * float(np.max(z, initial=0.0)))
+    if problem is not None and tiny.any():
+        z = better(problem, [z, np.where(tiny, 0.0, z)])[0]
     info["basis"] = np.flatnonzero(F).tolist()
     info["factorisations"] = blocks.factorisations - done
-    return Outcome(np.maximum(z, 0.0), max(pivots, 1), CONVERGED,
+    return Outcome(z, max(pivots, 1), CONVERGED,
                    f"warm Lemke: {how} ({plural(blocks.factorisations - done, 'factorisation')})",
                    info=info)
