@@ -5,13 +5,18 @@ the same shape, a (K, n) array of bases, booleans with True: ``z_i`` basic, or o
 ``z0``, whose bases are ``{i: z0_i > 0}``).  When the stack runs Lemke's batched kernel on the
 ``"cpu"`` backend (LCPs below n = 200: :func:`uses_warm_kernel`), every problem runs, in the
 same compiled call (:func:`lcpcli.solvers.kernels.batch.lemke_warm_stack`), block principal
-pivoting from its basis: one factorisation of ``M_FF`` when the basis is still right, a few
-when pairs changed (Júdice & Pires' block pivots with Murty's least-index fallback, at most
-:data:`WARM_ITER`).  The answer is kept only when it passes the certificate; any other
-problem is solved by cold Lemke in the same call, and what that leaves uncertified goes
-through the one-problem pipeline as in a cold stack.  Verdicts are therefore those of a cold
-stack; the warm start never claims ``no_solution``.  Each certified answer's basis (the
-certificate's pair states) is returned for the next step (:attr:`StackResult.basis`).
+pivoting from its basis (one factorisation of ``M_FF`` when the basis is still right, at most
+:data:`WARM_ITER` iterations: Júdice & Pires' block pivots, Murty's least-index fallback), then
+Lemke with the covering ray from that basis (the compiled form of
+:mod:`lcpcli.solvers.methods.lemke_warm`: cold Lemke on the principal pivot transform on the
+basis, at most ``lemke_warm.WARM_MAX_PIVOTS`` pivots).  A singular basis block is repaired
+(the dependent pairs leave the basis).  The answer is kept only when it passes the
+certificate; any other problem is solved by cold Lemke in the same call, and what that leaves
+uncertified goes through the one-problem pipeline as in a cold stack.  The warm start never
+claims ``no_solution``, so a problem's verdict is never worse than a cold stack's (it can be
+better: the warm path sets rounding-level basic z's to 0 when the certificate prefers it,
+which the cold kernel does not).  Each certified answer's basis (the certificate's pair
+states) is returned for the next step (:attr:`StackResult.basis`).
 """
 
 from __future__ import annotations
@@ -75,6 +80,7 @@ def lemke_warm(M: np.ndarray, q: np.ndarray, bases: np.ndarray, *, tol: float,
     from lcpcli.analysis.scaling import BALANCED, MAX_ROUNDS, Q_BALANCED
     from lcpcli.solvers.kernels import batch
     from lcpcli.solvers.methods.lemke import covering_vector, default_max_iter
+    from lcpcli.solvers.methods.lemke_warm import WARM_MAX_PIVOTS
     from lcpcli.solvers.tolerances import PIVOT_TOL, POLISHED, TIE_TOL
 
     K, n = q.shape
@@ -83,7 +89,8 @@ def lemke_warm(M: np.ndarray, q: np.ndarray, bases: np.ndarray, *, tol: float,
     balance = None if scaling == "none" else (BALANCED, Q_BALANCED, MAX_ROUNDS)
     state = np.zeros((K, n), np.int8)
     warm = np.zeros(K, np.int8)
-    batch.lemke_warm_stack(M, q, d, bases, limit, WARM_ITER, PIVOT_TOL, TIE_TOL, tol, out.z,
+    batch.lemke_warm_stack(M, q, d, bases, limit, WARM_ITER, WARM_MAX_PIVOTS, PIVOT_TOL,
+                           TIE_TOL, tol, out.z,
                            out.w, out.code, out.iterations, out.error, out.residual, state,
                            warm, threads, balance, POLISHED)
     return state, warm

@@ -702,15 +702,17 @@ def lemke_stack(M, q, d, int64_t max_iter, double piv_tol, double tie_tol, doubl
                    a.residual + k)
 
 
-def lemke_warm_stack(M, q, d, basis, int64_t max_iter, int64_t warm_iter, double piv_tol,
-                     double tie_tol, double tol, z, w, code, iters, err, residual, state,
-                     warm, int threads, balance=None, double polished=0.0):
-    """Warm-started stack: problem k first runs block principal pivoting from its basis
-    ``basis[k]`` ((K, n) int8, 1: z_i basic; a row whose first entry is negative has none) for
-    at most ``warm_iter`` iterations (one factorisation of ``M_FF`` each; one when the basis
-    is still right); an answer that passes the certificate is kept (``warm[k]`` = 1), any
-    other ending (singular block, limit, failed certificate) runs Lemke cold on it in the same
-    call (:func:`lemke_stack`'s arguments and outputs).  ``state`` ((K, n) int8) receives each
+def lemke_warm_stack(M, q, d, basis, int64_t max_iter, int64_t warm_iter,
+                     int64_t warm_pivots, double piv_tol, double tie_tol, double tol, z, w,
+                     code, iters, err, residual, state, warm, int threads, balance=None,
+                     double polished=0.0):
+    """Warm-started stack: problem k starts from its basis ``basis[k]`` ((K, n) int8, 1: z_i
+    basic; a row whose first entry is negative has none): block principal pivoting for at most
+    ``warm_iter`` iterations (:func:`_bpp_one`: one factorisation of ``M_FF`` when the basis is
+    still right), then Lemke with the covering ray from that basis for at most
+    ``warm_pivots`` pivots (:func:`_ppt_lemke_one`); an answer that passes the certificate is
+    kept (``warm[k]`` = 1), any other ending runs Lemke cold on it in the same call
+    (:func:`lemke_stack`'s arguments and outputs).  ``state`` ((K, n) int8) receives each
     certified answer's basis (the certificate's pair states) for the next step.
     """
     cdef int eqv[3]
@@ -742,7 +744,7 @@ def lemke_warm_stack(M, q, d, basis, int64_t max_iter, int64_t warm_iter, double
                 _bpp_one(a.M + k * nn, a.q + k * n, n, bp + k * n, warm_iter, tol,
                          a.z + k * n, a.w + k * n, sp + k * n, a.iters + k, a.err + k,
                          a.residual + k)
-                or _ppt_lemke_one(a.M + k * nn, a.q + k * n, n, bp + k * n, max_iter,
+                or _ppt_lemke_one(a.M + k * nn, a.q + k * n, n, bp + k * n, warm_pivots,
                                   piv_tol, tie_tol, tol, a.z + k * n, a.w + k * n,
                                   sp + k * n, a.iters + k, a.err + k, a.residual + k)):
             wp[k] = 1
