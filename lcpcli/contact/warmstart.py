@@ -49,11 +49,18 @@ def warm_start(path: str | Path, unknowns: list[str]) -> tuple[np.ndarray, str]:
                                f"e.g. written by --impulses, is matched by name)",
                                f"--z0 {path}")
         return values, f"warm start: {values.shape[0]} values by position"
-    given = dict(zip(names, values.tolist(), strict=True))
-    z0 = np.array([given.get(nm, 0.0) for nm in unknowns])
-    hits = sum(nm in given for nm in unknowns)
+    z0, hits = match_by_name(values, names, unknowns)
     return z0, (f"warm start: {hits} of {len(unknowns)} unknowns matched by name "
                 f"({len(names) - hits} in the file unused)")
+
+
+def match_by_name(values: np.ndarray, names: list[str],
+                  unknowns: list[str]) -> tuple[np.ndarray, int]:
+    """``z0`` for an LCP with ``unknowns`` from ``values`` named ``names`` (an unknown that is
+    new gets 0, a name that is gone is dropped), and how many matched."""
+    given = dict(zip(names, np.asarray(values).tolist(), strict=True))
+    z0 = np.array([given.get(nm, 0.0) for nm in unknowns])
+    return z0, sum(nm in given for nm in unknowns)
 
 
 def check_impulses_path(path: str | Path) -> None:
