@@ -30,6 +30,7 @@ import numpy as np
 
 from lcpcli.contact.model import build, solve
 from lcpcli.contact.scene import Scene
+from lcpcli.solvers import DEFAULT_METHOD
 
 #: Gravity (m/s^2), along -z in 3-D (-y in 2-D).
 GRAVITY = 9.81
@@ -62,7 +63,7 @@ def advance(scene: Scene, velocity: np.ndarray, omega: np.ndarray, dt: float) ->
 
 
 def simulate(scene: Scene, steps: int, dt: float = 0.01, *, warm: bool = True,
-             friction: int = 4, softness: float | None = None, method: str = "auto",
+             friction: int = 4, softness: float | None = None, method: str = DEFAULT_METHOD,
              **options: Any) -> list[Step]:
     """Step ``scene`` ``steps`` times (see the module docstring); one :class:`Step` each.
     ``friction``, ``softness``: as :func:`lcpcli.contact.build` takes them; ``method`` and

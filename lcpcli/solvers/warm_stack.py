@@ -78,10 +78,10 @@ def lemke_warm(M: np.ndarray, q: np.ndarray, bases: np.ndarray, *, tol: float,
     basis of every certified answer and the (K,) int8 mark of the problems the warm start
     itself solved."""
     from lcpcli.analysis.scaling import BALANCED, MAX_ROUNDS, Q_BALANCED
+    from lcpcli.core.tolerances import PIVOT_TOL, POLISHED, TIE_TOL
     from lcpcli.solvers.kernels import batch
     from lcpcli.solvers.methods.lemke import covering_vector, default_max_iter
     from lcpcli.solvers.methods.lemke_warm import WARM_MAX_PIVOTS
-    from lcpcli.solvers.tolerances import PIVOT_TOL, POLISHED, TIE_TOL
 
     K, n = q.shape
     d = covering_vector(n, options.get("covering"))

@@ -37,9 +37,9 @@ import numpy as np
 from lcpcli.analysis._scaling import is_symmetric_dense
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, RAY, SINGULAR, Outcome
 from lcpcli.core.text import plural
+from lcpcli.core.tolerances import PIVOT_TOL
 from lcpcli.solvers.methods.bpp import NEG_TOL, Blocks
 from lcpcli.solvers.support import better
-from lcpcli.solvers.tolerances import PIVOT_TOL
 
 #: Pivots a warm start may take before the cold solve takes over (a nearby basis needs a
 #: handful; each costs O(n^2), a cold Lemke about n/2 pivots of O(n^2)).
