@@ -262,6 +262,50 @@ def _sparse_file(path: Path, n: int) -> None:
                         q=np.ones(n))
 
 
+def test_sparse_factorisation_budget_default_and_override(monkeypatch: pytest.MonkeyPatch
+                                                          ) -> None:
+    """The issue's sparse5e7.npz (n = 5e7, few nonzeros): SuperLU failed with "gstrf was called
+    with invalid arguments" (exit 3) after 69 s and 8 GB; the budget refuses it from n alone,
+    naming the override and the workspace, and lets the sweeping methods run."""
+    from lcpcli.api import check_sparse_work
+    from lcpcli.solvers.registry import get_method
+
+    monkeypatch.delenv(limits.SPARSE_N_ENV, raising=False)
+    assert limits.sparse_n_budget() == limits.SPARSE_N_BUDGET
+    for method in ("auto", "ip", "newton", "newton-min"):
+        with pytest.raises(ProblemError, match=re.escape(
+                f"n = 50,000,000: method '{method}' factorises the sparse M (SuperLU needs about "
+                f"18.63 GiB of workspace before any fill-in): over the sparse-factorisation "
+                f"budget n <= 2,000,000; set {limits.SPARSE_N_ENV}=50000000 to run it anyway")):
+            check_sparse_work(50_000_000, get_method(method))
+        check_sparse_work(limits.SPARSE_N_BUDGET, get_method(method))
+    for method in ("pgs", "psor"):
+        check_sparse_work(50_000_000, get_method(method))
+    monkeypatch.setenv(limits.SPARSE_N_ENV, "60_000_000")
+    check_sparse_work(50_000_000, get_method("auto"))
+    for bad in ("abc", "-5", str(limits.SPARSE_N_FLOOR - 1)):
+        monkeypatch.setenv(limits.SPARSE_N_ENV, bad)
+        with pytest.raises(OptionError, match=limits.SPARSE_N_ENV):
+            limits.sparse_n_budget()
+
+
+def test_cli_refuses_a_sparse_factorisation_over_the_budget(tmp_path: Path) -> None:
+    """solve of a sparse M over the budget (set low here): one line, exit 2, before SuperLU
+    starts; -m pgs runs; the override runs auto."""
+    n = limits.SPARSE_N_FLOOR + 1
+    np.savez_compressed(tmp_path / "s.npz", M_format=np.array("csr"),
+                        M_shape=np.array([n, n]), M_data=np.full(n, 2.0),
+                        M_indices=np.arange(n), M_indptr=np.arange(n + 1), q=-np.ones(n))
+    env = {limits.SPARSE_N_ENV: str(limits.SPARSE_N_FLOOR)}
+    case = Case("sparse-budget", "internal", ["solve", "{d}/s.npz"], BAD,
+                f"{{d}}/s.npz: n = {n:,}: method 'auto' factorises the sparse M", env=env)
+    assert problems(case, run_in_process(case, tmp_path), tmp_path, {}) == []
+    for args, run_env in ((["solve", "{d}/s.npz", "-m", "pgs", "--json"], env),
+                          (["solve", "{d}/s.npz", "--json"], {limits.SPARSE_N_ENV: str(n)})):
+        ok = Case("ok", "lenient", args, 0, None, env=run_env)
+        assert problems(ok, run_in_process(ok, tmp_path), tmp_path, {}) == []
+
+
 def test_pivot_checks_the_dense_budget(tmp_path: Path) -> None:
     _sparse_file(tmp_path / "s.npz", 150)
     case = Case("pivot", "lenient", ["pivot", "{d}/s.npz", "-d", "z1"], BAD,
