@@ -238,7 +238,8 @@ def _run(tasks: list[Any], bad_inputs: list[dict[str, Any]], opts: SolveOptions,
             done -= wanted
             tasks = [t for t in tasks if (t.source, t.problem) not in done]
             bad_inputs = [r for r in bad_inputs if key(r) not in done]
-        writer = batch_output.open_writer(output, resume=resume)
+        # a new batch replaces a previous result file only once complete
+        writer = batch_output.open_writer(output, resume=resume, keep_previous=True)
     report.setup_seconds = time.perf_counter() - start
     if on_start:
         on_start(report.total, report.skipped)
@@ -255,6 +256,7 @@ def _run(tasks: list[Any], bad_inputs: list[dict[str, Any]], opts: SolveOptions,
         if on_row:
             on_row(row)
 
+    complete = False
     try:
         for row in bad_inputs:
             emit(row)
@@ -267,6 +269,7 @@ def _run(tasks: list[Any], bad_inputs: list[dict[str, Any]], opts: SolveOptions,
                 emit(row)
         finally:
             rows.close()
+        complete = True
     except KeyboardInterrupt:
         report.interrupted = True
         raise
@@ -274,7 +277,7 @@ def _run(tasks: list[Any], bad_inputs: list[dict[str, Any]], opts: SolveOptions,
         if writer is not None:
             t0 = time.perf_counter()
             with signals_deferred():
-                writer.close()
+                writer.close(complete=complete)
             stats.write_seconds += time.perf_counter() - t0
         report.wall_seconds = time.perf_counter() - start
     return report
