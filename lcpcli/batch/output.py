@@ -33,11 +33,12 @@ disk or a permission error is one line (``OutputError``, exit 2) and leaves the 
 resumable, and a resumed HDF5 file is checked for links out of it first.
 
 Input identity: every written row carries ``input_hash``, a SHA-256 digest (16 bytes) of the
-content of the file it was solved from (:func:`input_fingerprint`; a stacked row: of its chunk).
-``--resume`` recomputes it and refuses a result file whose rows were computed from other data
-(or that has no fingerprints: written by an older lcpcli).  File names that are not valid
-UTF-8 are kept: as ``\\udcXX`` escapes in JSON Lines and HDF5, as their original bytes in CSV
-(Python's ``surrogateescape``).
+content of the file it was solved from (:func:`input_fingerprint`; a stacked row: of its chunk),
+and a per-file batch's rows ``solve_options`` (method, tol and options, JSON).  ``--resume``
+recomputes them and refuses a result file whose rows were computed from other data or with
+other settings (or that has no fingerprints: written by an older lcpcli).  File names that
+are not valid UTF-8 are kept: as ``\\udcXX`` escapes in JSON Lines and HDF5, as their original
+bytes in CSV (Python's ``surrogateescape``).
 """
 
 from __future__ import annotations
@@ -80,9 +81,14 @@ from lcpcli.io.writing import (
 FSYNC_SECONDS = 1.0
 #: Flat columns of the CSV output.
 CSV_COLUMNS = ("source", "problem", "status", "method", "n", "iterations", "seconds",
-               "residual", "error", "message", "index", "input_hash")
+               "residual", "error", "message", "index", "input_hash", "solve_options")
 #: The row field holding the fingerprint of the row's input (see the module docstring).
 INPUT_HASH = "input_hash"
+#: The row field holding the solve options of a per-file batch (method, tol, options as JSON:
+#: :func:`lcpcli.batch.stack_output.options_fingerprint`), which ``--resume`` compares.
+SOLVE_OPTIONS = "solve_options"
+#: CSV columns an older lcpcli did not write (its rows come without these keys).
+_NEWER_COLUMNS = (INPUT_HASH, SOLVE_OPTIONS)
 _KINDS = {".jsonl": "jsonl", ".ndjson": "jsonl", ".csv": "csv", ".h5": "hdf5", ".hdf5": "hdf5",
           ".npz": "npz"}
 
@@ -148,7 +154,7 @@ def read_jsonl(path: Path) -> list[dict[str, Any]]:
 def _csv_value(col: str, text: str) -> Any:
     if text == "":
         return None if col not in ("source", "problem", "status", "method", "message") else ""
-    if col == INPUT_HASH:
+    if col in _NEWER_COLUMNS:
         return text
     if col in ("n", "iterations", "index"):
         return int(text)
@@ -165,10 +171,9 @@ def read_csv(path: Path) -> list[dict[str, Any]]:
     text = data.decode("utf-8", errors="surrogateescape")  # names as written (raw bytes)
     rows = []
     for rec in csv.DictReader(io.StringIO(text, newline="")):
-        # a file of an older lcpcli has no input_hash column: its rows come without the key
+        # a file of an older lcpcli lacks the newer columns: its rows come without the keys
         columns = [c for c in CSV_COLUMNS if c in rec]
-        if None in rec or len(columns) < len(CSV_COLUMNS) - 1 or (
-                INPUT_HASH not in columns and len(columns) != len(CSV_COLUMNS) - 1):
+        if None in rec or any(c not in rec for c in CSV_COLUMNS if c not in _NEWER_COLUMNS):
             continue  # not a complete record
         try:
             rows.append({c: _csv_value(c, rec[c] or "") for c in columns})

@@ -214,9 +214,10 @@ def test_resume_after_kill_9(cli, slow_folder, tmp_path):
         f.write(b'{"file": "x", "status": "sol')
     before = out.read_bytes().splitlines()[:-1]
     assert len(read_rows(out)) == len(before) >= 12  # the torn line is ignored
-    r = cli("solve", str(slow_folder), "-m", "lemke", "-j", "2", "--max-iter", "2000",
-            "-o", str(out), "--resume", "--json", cwd=tmp_path)
-    assert r.returncode == 1, r.stderr  # murty23 within 2000 pivots: unsolved
+    # the same solve settings (--resume refuses others); murty23 stopped by --timeout
+    r = cli("solve", str(slow_folder), "-m", "lemke", "-j", "2", "--max-iter", "1000000000",
+            "--timeout", "2", "-o", str(out), "--resume", "--json", cwd=tmp_path)
+    assert r.returncode == 1, r.stderr  # murty23 within 2 s: unsolved
     summary = json.loads(r.stdout)
     assert summary["skipped"] == len(before) and summary["new"] == 30 - len(before)
     rows = read_rows(out)
@@ -226,7 +227,8 @@ def test_resume_after_kill_9(cli, slow_folder, tmp_path):
     assert keys[(str(slow_folder / "e12.json"), "e12")]["status"] == "unsolved"
     assert sum(r["status"] == "solved" for r in rows) == 29
     # a second resume has nothing left to do
-    report = lib([slow_folder], output=out, resume=True, jobs=1)
+    report = lib([slow_folder], output=out, resume=True, jobs=1, method="lemke",
+                 max_iter=1_000_000_000)
     assert report.new == 0 and report.skipped == 30 and len(read_rows(out)) == 30
 
 
@@ -241,8 +243,8 @@ def test_sigterm_leaves_valid_hdf5_and_resume(cli, slow_folder, tmp_path):
     assert not journal_path(out).exists()
     first = by_key(read_rows(out))
     assert len(first) >= 12
-    r = cli("solve", str(slow_folder), "-m", "lemke", "--max-iter", "2000", "-o", str(out),
-            "--resume", "-q",
+    r = cli("solve", str(slow_folder), "-m", "lemke", "--max-iter", "1000000000",
+            "--timeout", "2", "-o", str(out), "--resume", "-q",
             cwd=tmp_path)
     assert r.returncode == 1
     rows = by_key(read_rows(out))
