@@ -49,6 +49,12 @@ SPARSE_N_FLOOR = 10_000
 #: SuperLU's workspace per row of the factorised matrix, before any fill-in (measured with
 #: scipy 1.17: 467 MB at n = 1e6, 1.69 GB at 4e6, 4.1 GB at 1e7 for a diagonal M).
 SPARSE_LU_ROW_BYTES = 400
+#: A warm start read for a problem of n unknowns holds n values; one that names its unknowns
+#: (matched by name: ``contact-matrix --z0`` of the previous step's impulses, whose contacts may
+#: be gone) up to WARM_START_NAMED_FACTOR * n + WARM_START_SLACK.  Checked from the NPZ/NPY
+#: header, before anything is decompressed (:func:`warm_start_entries`).
+WARM_START_NAMED_FACTOR = 4
+WARM_START_SLACK = 1024
 #: From this n on, an enumeration of the 2^n complementary cones is announced before it starts.
 ENUM_ANNOUNCE_N = 20
 
@@ -141,3 +147,9 @@ def check_sparse_factorisation(n: int, step: str, *, instead: str = "",
     raise ProblemError(f"n = {n:,}: {step} (SuperLU needs about {workspace:,.2f} GiB of "
                        f"workspace before any fill-in): over the sparse-factorisation budget "
                        f"n <= {budget:,}; set {SPARSE_N_ENV}={n} to run it anyway{hint}", source)
+
+
+def warm_start_entries(n: int, named: bool) -> int:
+    """The most values a warm start for n unknowns may hold: n by position, more by name
+    (:data:`WARM_START_NAMED_FACTOR`, :data:`WARM_START_SLACK`)."""
+    return WARM_START_NAMED_FACTOR * n + WARM_START_SLACK if named else n

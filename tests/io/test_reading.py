@@ -111,11 +111,15 @@ def test_named_warm_start_is_matched_by_name(files: Path) -> None:
     assert names == ["n[c1]"] and values.tolist() == [0.5]
 
 
-@pytest.mark.parametrize(("bomb", "words"), [
-    ("bomb_z.npz", "vector of 60,000,000 entries is too long"),
-    ("bomb_unknowns.npz", "array 'unknowns' of 1,133 MiB is over the limit of 256 MiB"),
+@pytest.mark.parametrize(("bomb", "words", "cli_words"), [
+    ("bomb_z.npz", "vector of 60,000,000 entries is too long", None),
+    ("bomb_unknowns.npz", "array 'unknowns' of 1,133 MiB is over the limit of 256 MiB",
+     # the scene's LCP has 1 unknown: the values are refused first, from their header
+     "declares 3,000,000 values but the problem has n = 1 (at most 1,028 (by name) expected): "
+     "refused before reading them"),
 ])
-def test_zip_bomb_refused_from_declared_sizes(files: Path, bomb: str, words: str) -> None:
+def test_zip_bomb_refused_from_declared_sizes(files: Path, bomb: str, words: str,
+                                              cli_words: str | None) -> None:
     """Refused from the zip directory and the .npy headers: nothing is decompressed (the
     allocation peak stays far below the declared size), and the CLI runs under 1 GiB."""
     tracemalloc.start()
@@ -127,7 +131,44 @@ def test_zip_bomb_refused_from_declared_sizes(files: Path, bomb: str, words: str
         tracemalloc.stop()
     assert peak < 20 * 2**20
     _refused(files, ["contact-matrix", "{d}/scene.json", "--solve", "--z0", f"{{d}}/{bomb}"],
-             f"--z0 {{d}}/{bomb}: {words}", sub=True)
+             f"--z0 {{d}}/{bomb}: {cli_words or words}", sub=True)
+
+
+def test_warm_start_bounded_by_the_problems_n(files: Path, tmp_path: Path) -> None:
+    """The issue's zip bomb in --z0 within the vector limit (50,000,000 values, 400 MB, in a
+    1.7 MB file) for a problem of n = 2: refused from the .npy header with n known, nothing
+    decompressed (it was decompressed whole: 426 MB); by position exactly n values, by name a
+    few more (limits.warm_start_entries)."""
+    _zip_bomb(tmp_path / "bomb.npz", {"z.npy": (_npy_header((50_000_000,)), 400_000_000)})
+    words = ("declares 50,000,000 values but the problem has n = 2 (2 expected): refused "
+             "before reading them")
+    tracemalloc.start()
+    try:
+        with pytest.raises(ProblemError, match=re.escape(words)):
+            read_warm_start(tmp_path / "bomb.npz", n=2)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 20 * 2**20
+    (tmp_path / "a.json").write_text(json.dumps(PROBLEM))
+    _refused(tmp_path, ["solve", "{d}/a.json", "--z0", "{d}/bomb.npz"],
+             f"--z0 {{d}}/bomb.npz: {words}", sub=True)
+    most = limits.warm_start_entries(3, named=True)
+    assert most == limits.WARM_START_NAMED_FACTOR * 3 + limits.WARM_START_SLACK
+    for size, named, ok in ((3, False, True), (4, False, False), (most, True, True),
+                            (most + 1, True, False)):
+        path = tmp_path / f"z{size}{named}.npy"
+        np.save(path, np.zeros(size))
+        if named:
+            path = path.with_suffix(".npz")
+            np.savez(path, z=np.zeros(size), unknowns=np.array([f"u{k}" for k in range(size)]))
+        if ok:
+            assert read_warm_start(path, n=3, by_name=True)[0].shape == (size,)
+        else:
+            with pytest.raises(ProblemError, match="refused before reading them"):
+                read_warm_start(path, n=3, by_name=True)
+    _refused(tmp_path, ["solve", "{d}/a.json", "--z0", "{d}/z4False.npy"],
+             "--z0 {d}/z4False.npy: declares 4 values but the problem has n = 2")
 
 
 # ------------------------------------------------------------------------------ JSON bounds
