@@ -252,6 +252,27 @@ def test_sigterm_leaves_valid_hdf5_and_resume(cli, slow_folder, tmp_path):
     assert all(strip(rows[k]) == strip(v) for k, v in first.items())
 
 
+@pytest.mark.parametrize("ext", ["jsonl", "h5"])
+def test_sigterm_of_a_new_batch_keeps_the_previous_result(slow_folder, tmp_path, ext):
+    """SIGTERM of a new batch (no --resume) over an existing result file: exit 143, the
+    message says the previous file is kept, and it is byte for byte as it was with no
+    temporary file beside it (the batch wrote to one, replaced only when complete)."""
+    out = tmp_path / f"r.{ext}"
+    out.write_bytes(b"the previous results\n")
+    proc = _popen(["solve", str(slow_folder), "-m", "lemke", "-j", "1", "--timeout", "300",
+                   "--max-iter", "1000000000", "-o", str(out), "-q"], tmp_path)
+    end = time.monotonic() + 40
+    while time.monotonic() < end and not any(p.name.endswith(".tmp") and p.stat().st_size > 2048
+                                             for p in tmp_path.iterdir()):
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=30)
+    assert proc.returncode == 143 and "Traceback" not in err, err
+    assert f"{out} is kept as it was (a new batch replaces it only when complete)" in err
+    assert out.read_bytes() == b"the previous results\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == [out.name]
+
+
 def test_hdf5_repaired_from_journal(cli, folder, tmp_path):
     """kill -9 in the middle of an HDF5 write: the journal rebuilds the file on --resume."""
     base, _ = folder
