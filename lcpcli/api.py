@@ -53,6 +53,16 @@ def check_dense_work(n: int, spec: Method) -> None:
                                         "sweep)")
 
 
+def check_sparse_work(n: int, spec: Method) -> None:
+    """ProblemError when ``spec`` factorises a sparse n x n M (sparse LU: ``ip``, ``newton``,
+    ... and ``auto``, whose plan may) above the sparse-factorisation budget of
+    :mod:`lcpcli.core.limits`; sweeping methods (O(nnz) per sweep) are not checked."""
+    if n > limits.SPARSE_N_FLOOR and (spec.planner or spec.cost is Cost.FACTORING):
+        limits.check_sparse_factorisation(n, f"method '{spec.name}' factorises the sparse M",
+                                          instead="use a sweeping method (-m pgs, -m psor: "
+                                                  "O(nnz) per sweep)")
+
+
 def dense_check(method: str | None) -> Any:
     """:func:`check_dense_work` for ``method`` as a one-argument hook for
     :func:`lcpcli.io.load` (``check_dense=``: refused from the file's header, before a dense M
@@ -111,6 +121,7 @@ def solve(problem: Problem | Any, q: Any = None, method: str | None = None, *,
                           f"(it handles: {', '.join(k.upper() for k in spec.kinds)})")
     if problem.sparse:
         check_dense_ok(problem, spec)
+        check_sparse_work(problem.n, spec)
     else:
         check_dense_work(problem.n, spec)
     opts = spec.parse_options(options)

@@ -114,10 +114,6 @@ def solve(
         opts["covering"] = covering
     if omega is not None:
         opts["omega"] = omega
-    if z0 is not None:
-        from lcpcli.io.warmstart import load_z0
-
-        opts["z0"] = load_z0(z0)
     if backend is not None:  # unknown, or cuda without a device: one line, exit 2
         from lcpcli.solvers.batched import set_default_backend
 
@@ -133,6 +129,10 @@ def solve(
     trace = (trace or layout is not None or pivot_step is not None or step or fmt != "text"
              or bool(exact))
     if wants_batch(files, output, problem=problem, **batch):
+        if z0 is not None:  # one warm start for problems of any size: the vector limit only
+            from lcpcli.io.warmstart import load_z0
+
+            opts["z0"] = load_z0(z0)
         if trace:
             raise OptionError("--trace (and --layout, --pivot, --step, --format) shows one "
                               "problem's steps; it does not apply to a batch")
@@ -148,6 +148,10 @@ def solve(
     from lcpcli.api import dense_check
 
     prob = load(file, problem, check_dense=dense_check(method))  # the budget, from the header
+    if z0 is not None:  # n values, checked from the header before it is decompressed
+        from lcpcli.io.warmstart import load_z0
+
+        opts["z0"] = load_z0(z0, n=prob.n)
     try:
         warm = opts.pop("z0", None)  # lcpcli.solve's warm start (the basis of z0)
         result = solve_problem(prob, method, tol=tol, warm=warm, **opts)
