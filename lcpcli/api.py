@@ -9,10 +9,8 @@ from typing import Any
 import numpy as np
 
 from lcpcli.analysis.proof import confirm
-from lcpcli.core import limits
 from lcpcli.core.certificate import check, validate_tol
 from lcpcli.core.errors import LcpError, OptionError
-from lcpcli.core.limits import DENSE_N_ENV, DENSE_N_FLOOR
 from lcpcli.core.numeric import check_dtype, float64_array, real_array
 from lcpcli.core.problem import Problem, check_bounds, is_sparse, problem_kind
 from lcpcli.core.result import (
@@ -28,42 +26,13 @@ from lcpcli.core.result import (
     Termination,
 )
 from lcpcli.solvers.pipeline import run_method
-from lcpcli.solvers.registry import Cost, Method, get_method
-
-DEFAULT_METHOD = "auto"
-
-
-def check_dense_ok(problem: Problem, spec: Method) -> None:
-    """OptionError when ``spec`` would densify a huge sparse M (checked before any work)."""
-    n = problem.n
-    if spec.densifies(problem):
-        raise OptionError(f"method '{spec.name}' works on a dense {n} x {n} matrix "
-                          f"({n * n * 8 / 2**30:.1f} GiB) but M is sparse (nnz={problem.M.nnz}); "
-                          f"choose a method for large sparse problems (see 'lcpcli methods'), "
-                          f"or set {DENSE_N_ENV}={n} to densify it anyway")
-
-
-def check_dense_work(n: int, spec: Method) -> None:
-    """ProblemError when ``spec`` factorises or pivots on a dense n x n M above the dense-work
-    budget of :mod:`lcpcli.core.limits` (``auto`` included: it factorises; sweeping methods,
-    O(n^2) per sweep, are not checked).  One comparison up to ``DENSE_N_FLOOR``."""
-    if n > DENSE_N_FLOOR and (spec.planner or spec.cost in (Cost.PIVOTING, Cost.FACTORING)):
-        limits.check_dense_work(n, f"method '{spec.name}' factorises or pivots on the dense M",
-                                instead="use a sweeping method (-m pgs, -m psor: O(n^2) per "
-                                        "sweep)")
-
-
-def dense_check(method: str | None) -> Any:
-    """:func:`check_dense_work` for ``method`` as a one-argument hook for
-    :func:`lcpcli.io.load` (``check_dense=``: refused from the file's header, before a dense M
-    is read); None when the method is not limited or unknown (:func:`solve` says so)."""
-    try:
-        spec = get_method(DEFAULT_METHOD if method is None else method)
-    except OptionError:
-        return None
-    if not (spec.planner or spec.cost in (Cost.PIVOTING, Cost.FACTORING)):
-        return None
-    return lambda n: check_dense_work(n, spec)
+from lcpcli.solvers.registry import Method, get_method
+from lcpcli.solvers.request import (  # noqa: F401  (re-exported)
+    DEFAULT_METHOD,
+    check_dense_ok,
+    check_dense_work,
+    dense_check,
+)
 
 
 def solve(problem: Problem | Any, q: Any = None, method: str | None = None, *,

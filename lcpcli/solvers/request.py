@@ -1,0 +1,59 @@
+"""A solve request: ``(problem, method, tol, options)`` resolved and validated once.
+
+:func:`resolve` is the one place where a method name becomes a registered :class:`Method`
+(``None``: :data:`DEFAULT_METHOD`), the problem kind and size are checked against it, its
+options are parsed, the default tolerance is filled in and validated (:func:`resolve_tol`) and
+its compiled kernels are loaded.  :func:`lcpcli.solve`, the contact solver, batch runs and
+benchmarks all go through it; the resulting :class:`Request` is what the dispatcher
+(:func:`lcpcli.solvers.pipeline.run_method`) runs.
+
+Checks, each defined here once: :func:`check_kind` (the method handles the problem kind),
+:func:`check_dense_ok` (a method that densifies is refused on a huge sparse M) and
+:func:`check_dense_work` (the dense-work budget of :mod:`lcpcli.core.limits`).  All raise
+:class:`OptionError` / :class:`ProblemError` before any work.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+from lcpcli.core import limits
+from lcpcli.core.errors import OptionError
+from lcpcli.core.limits import DENSE_N_ENV, DENSE_N_FLOOR
+from lcpcli.solvers.registry import Cost, Method, get_method
+
+#: The method used when none is named.
+DEFAULT_METHOD = "auto"
+
+
+def check_dense_ok(problem: Any, spec: Method) -> None:
+    """OptionError when ``spec`` would densify a huge sparse M (:meth:`Method.densifies`)."""
+    n = problem.n
+    if spec.densifies(problem):
+        raise OptionError(f"method '{spec.name}' works on a dense {n} x {n} matrix "
+                          f"({n * n * 8 / 2**30:.1f} GiB) but M is sparse (nnz={problem.M.nnz}); "
+                          f"choose a method for large sparse problems (see 'lcpcli methods'), "
+                          f"or set {DENSE_N_ENV}={n} to densify it anyway")
+
+
+def check_dense_work(n: int, spec: Method) -> None:
+    """ProblemError when ``spec`` factorises or pivots on a dense n x n M above the
+    dense-work budget of :mod:`lcpcli.core.limits`.  One comparison up to ``DENSE_N_FLOOR``."""
+    if n > DENSE_N_FLOOR and (spec.planner or spec.cost in (Cost.PIVOTING, Cost.FACTORING)):
+        limits.check_dense_work(n, f"method '{spec.name}' factorises or pivots on the dense M",
+                                instead="use a sweeping method (-m pgs, -m psor: O(n^2) per "
+                                        "sweep)")
+
+
+def dense_check(method: str | None) -> Callable[[int], None] | None:
+    """:func:`check_dense_work` for ``method`` as a one-argument hook for
+    :func:`lcpcli.io.load` (``check_dense=``: refused from the file's header, before a dense M
+    is read); None when the method is not limited or unknown (:func:`lcpcli.solve` says so)."""
+    try:
+        spec = get_method(DEFAULT_METHOD if method is None else method)
+    except OptionError:
+        return None
+    if not (spec.planner or spec.cost in (Cost.PIVOTING, Cost.FACTORING)):
+        return None
+    return lambda n: check_dense_work(n, spec)
