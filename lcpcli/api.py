@@ -11,7 +11,7 @@ import numpy as np
 from lcpcli.analysis.proof import confirm
 from lcpcli.core.certificate import check, validate_tol
 from lcpcli.core.errors import LcpError, OptionError
-from lcpcli.core.numeric import check_dtype, float64_array, real_array
+from lcpcli.core.numeric import check_dtype, real_array
 from lcpcli.core.problem import Problem, check_bounds, is_sparse, problem_kind
 from lcpcli.core.result import (
     CONVERGED,
@@ -25,13 +25,14 @@ from lcpcli.core.result import (
     Status,
     Termination,
 )
-from lcpcli.solvers.pipeline import run_method
+from lcpcli.solvers.pipeline import certified, run_method
 from lcpcli.solvers.registry import Method, get_method
 from lcpcli.solvers.request import (  # noqa: F401  (re-exported)
     DEFAULT_METHOD,
     check_dense_ok,
     check_dense_work,
     dense_check,
+    resolve,
 )
 
 
@@ -73,18 +74,8 @@ def solve(problem: Problem | Any, q: Any = None, method: str | None = None, *,
         if method is not None or not isinstance(q, str):
             raise TypeError("lcpcli.solve(problem, method, tol=...) takes a method name second")
         method = q
-    method = DEFAULT_METHOD if method is None else method
-    spec = get_method(method)
-    if problem.kind not in spec.kinds:
-        raise OptionError(f"method '{spec.name}' does not handle {problem.kind.upper()} problems "
-                          f"(it handles: {', '.join(k.upper() for k in spec.kinds)})")
-    if problem.sparse:
-        check_dense_ok(problem, spec)
-    else:
-        check_dense_work(problem.n, spec)
-    opts = spec.parse_options(options)
-    tol = validate_tol(spec.default_tol if tol is None else tol)
-    spec.prepare_once()
+    request = resolve(problem, method, tol, options)
+    spec, tol, opts = request.spec, request.tol, request.options
     start = time.perf_counter()
     if warm is not None:
         from lcpcli.solvers.warm import check_warm, uses_warm_basis, warm_point, warm_start
@@ -122,15 +113,9 @@ def certify_outcome(problem: Problem, outcome: Outcome, method: str, seconds: fl
 
     ``basis``: record the final basis (:attr:`Result.basis`) in the same certificate pass
     (warm starts, whose next step needs it); otherwise it is computed on first use."""
-    z = float64_array(outcome.z)
-    states = None
-    if outcome.checked is not None and outcome.checked[0].tol == tol:
-        cert, w = outcome.checked  # the method certified this very z (auto does)
-    elif basis:
-        states = np.empty(problem.n, dtype=np.int8)
-        cert, w = check(problem, z, tol, state=states)
-    else:
-        cert, w = check(problem, z, tol)
+    states = np.empty(problem.n, dtype=np.int8) if basis else None
+    cert, w = certified(problem, outcome, tol, states)  # reused when the dispatcher made it
+    z = outcome.z
     message = outcome.message
     if cert.passed:
         status = SOLVED
@@ -148,10 +133,8 @@ def certify_outcome(problem: Problem, outcome: Outcome, method: str, seconds: fl
         if outcome.termination == CONVERGED:
             message = (f"{message}, but the certificate failed: error {cert.error:.3g} > "
                        f"tol {tol:.3g}{_why(cert)}")
-    # positional, in the order of Result's fields (this is on the small-solve path)
-    return Result(status, method, z, w, outcome.iterations, seconds, cert, message,
-                  outcome.termination, problem.name, outcome.trace, dict(outcome.info), states,
-                  None, None if states is not None else problem)  # else: on first use
+    return Result.certified(status, method, z, w, outcome, seconds, cert, message, problem,
+                            states)
 
 
 def _why(cert: Any) -> str:

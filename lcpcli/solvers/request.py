@@ -15,16 +15,49 @@ Checks, each defined here once: :func:`check_kind` (the method handles the probl
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
 from typing import Any
 
 from lcpcli.core import limits
+from lcpcli.core.certificate import validate_tol
 from lcpcli.core.errors import OptionError
 from lcpcli.core.limits import DENSE_N_ENV, DENSE_N_FLOOR
 from lcpcli.solvers.registry import Cost, Method, get_method
 
 #: The method used when none is named.
 DEFAULT_METHOD = "auto"
+
+_NO_OPTIONS: Mapping[str, Any] = {}
+
+
+@dataclass(frozen=True, slots=True)
+class Request:
+    """A validated request: the ``problem``, the registered method ``spec``, the tolerance
+    ``tol`` of the certificate and the parsed ``options`` (defaults filled in)."""
+
+    problem: Any
+    spec: Method
+    tol: float
+    options: dict[str, Any]
+
+
+def method_of(method: str | None) -> Method:
+    """The registered method called ``method`` (None: :data:`DEFAULT_METHOD`); OptionError
+    if unknown."""
+    return get_method(DEFAULT_METHOD if method is None else method)
+
+
+def resolve_tol(spec: Method, tol: Any) -> float:
+    """The certificate's tolerance: ``tol`` validated, or ``spec``'s default when None."""
+    return validate_tol(spec.default_tol if tol is None else tol)
+
+
+def check_kind(spec: Method, kind: str) -> None:
+    """OptionError when ``spec`` does not handle problems of ``kind``."""
+    if kind not in spec.kinds:
+        raise OptionError(f"method '{spec.name}' does not handle {kind.upper()} problems "
+                          f"(it handles: {', '.join(k.upper() for k in spec.kinds)})")
 
 
 def check_dense_ok(problem: Any, spec: Method) -> None:
@@ -37,10 +70,16 @@ def check_dense_ok(problem: Any, spec: Method) -> None:
                           f"or set {DENSE_N_ENV}={n} to densify it anyway")
 
 
+def dense_limited(spec: Method) -> bool:
+    """Whether ``spec`` factorises or pivots on a dense M (``auto`` included: it factorises;
+    sweeping methods, O(n^2) per sweep, are not limited)."""
+    return spec.planner or spec.cost in (Cost.PIVOTING, Cost.FACTORING)
+
+
 def check_dense_work(n: int, spec: Method) -> None:
-    """ProblemError when ``spec`` factorises or pivots on a dense n x n M above the
+    """ProblemError when ``spec`` (:func:`dense_limited`) works on a dense n x n M above the
     dense-work budget of :mod:`lcpcli.core.limits`.  One comparison up to ``DENSE_N_FLOOR``."""
-    if n > DENSE_N_FLOOR and (spec.planner or spec.cost in (Cost.PIVOTING, Cost.FACTORING)):
+    if n > DENSE_N_FLOOR and dense_limited(spec):
         limits.check_dense_work(n, f"method '{spec.name}' factorises or pivots on the dense M",
                                 instead="use a sweeping method (-m pgs, -m psor: O(n^2) per "
                                         "sweep)")
@@ -49,11 +88,34 @@ def check_dense_work(n: int, spec: Method) -> None:
 def dense_check(method: str | None) -> Callable[[int], None] | None:
     """:func:`check_dense_work` for ``method`` as a one-argument hook for
     :func:`lcpcli.io.load` (``check_dense=``: refused from the file's header, before a dense M
-    is read); None when the method is not limited or unknown (:func:`lcpcli.solve` says so)."""
+    is read); None when the method is not limited or unknown (:func:`resolve` says so)."""
     try:
-        spec = get_method(DEFAULT_METHOD if method is None else method)
+        spec = method_of(method)
     except OptionError:
         return None
-    if not (spec.planner or spec.cost in (Cost.PIVOTING, Cost.FACTORING)):
+    if not dense_limited(spec):
         return None
     return lambda n: check_dense_work(n, spec)
+
+
+def check_problem(problem: Any, spec: Method) -> None:
+    """The kind, densify and dense-work checks of ``spec`` on ``problem``."""
+    if problem.kind not in spec.kinds:
+        check_kind(spec, problem.kind)
+    if problem.sparse:
+        check_dense_ok(problem, spec)
+    else:
+        check_dense_work(problem.n, spec)
+
+
+def resolve(problem: Any, method: str | None, tol: Any = None,
+            options: Mapping[str, Any] = _NO_OPTIONS) -> Request:
+    """The validated :class:`Request` (see the module docstring); OptionError / ProblemError
+    before any work.  Loads the method's compiled kernels once per process
+    (:meth:`Method.prepare_once`), outside any timed region."""
+    spec = method_of(method)
+    check_problem(problem, spec)
+    opts = spec.parse_options(options)
+    tol = validate_tol(spec.default_tol if tol is None else tol)
+    spec.prepare_once()
+    return Request(problem, spec, tol, opts)
