@@ -21,7 +21,7 @@ new fact that changes the value cannot be left out of the key without changing t
 
 Rule: a value stored under a key equals what a fresh computation with the same facts returns
 (``tests/solvers/test_memo.py`` checks every memo is hit and that a hit equals a fresh
-computation).  Each memo is bounded (it stops storing when full) and counts hits and misses.
+computation).  Each memo is bounded (it stops storing when full) and counts its misses.
 """
 
 from __future__ import annotations
@@ -30,39 +30,38 @@ from collections.abc import Hashable
 from typing import Any
 
 
-class Memo:
-    """A bounded dictionary with hit and miss counts (a full memo stores nothing more)."""
+class Memo(dict):
+    """A bounded dictionary that counts its misses (a full memo stores nothing more).
 
-    __slots__ = ("name", "limit", "store", "hits", "misses")
+    Look-ups are the dictionary's own ``get`` (C speed: the memos are on the small-solve
+    path); a caller that finds nothing computes the value and :meth:`puts <put>` it, which counts a
+    miss, so a repeated call that leaves ``misses`` unchanged was served from the memo."""
+
+    __slots__ = ("name", "limit", "misses")
 
     def __init__(self, name: str, limit: int) -> None:
+        super().__init__()
         self.name = name
         self.limit = limit
-        self.store: dict[Hashable, Any] = {}
-        self.hits = 0
         self.misses = 0
 
-    def get(self, key: Hashable) -> Any:
-        """The value stored under ``key``, or None (counted as a miss)."""
-        found = self.store.get(key)
-        if found is None:
-            self.misses += 1
-        else:
-            self.hits += 1
-        return found
-
     def put(self, key: Hashable, value: Any) -> Any:
-        """Store ``value`` under ``key`` unless the memo is full; return ``value``."""
-        if len(self.store) < self.limit:
-            self.store[key] = value
+        """Count a miss and store ``value`` under ``key`` unless the memo is full; return
+        ``value``."""
+        self.misses += 1
+        if len(self) < self.limit:
+            self[key] = value
         return value
 
     def clear(self) -> None:
-        self.store.clear()
-        self.hits = self.misses = 0
+        super().clear()
+        self.misses = 0
 
-    def __len__(self) -> int:
-        return len(self.store)
+    def __hash__(self) -> int:  # a module-level singleton, compared by identity
+        return id(self)
+
+    def __eq__(self, other: object) -> bool:
+        return self is other
 
 
 OPTION_DEFAULTS = Memo("option defaults", 4096)

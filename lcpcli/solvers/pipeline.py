@@ -99,20 +99,24 @@ def certified(problem: Problem, out: Outcome, tol: float,
 def _pipeline(spec: Any, problem: Problem, tol: float, options: dict[str, Any]) -> Outcome:
     """Steps 1-3 of the module docstring for a method that is not a planner."""
     requested = "none" if options.get("trace") else getattr(spec, "scaling", "none")
-    kind = requested
-    if kind != "none" and is_balanced(problem):
-        kind = "none"  # nothing to equilibrate (one compiled pass; no symmetry test needed)
-    symmetric = kind == "symmetric" or (kind == "auto" and is_symmetric(problem))
-    scaling = equilibrate(problem, symmetric) if kind != "none" else None
-    out = _run_scaled(spec, problem, tol, options, scaling)
-    if (kind == "auto" and not symmetric and out.termination != CONVERGED
-            and not out.proven_infeasible):
-        again = _run_scaled(spec, problem, tol, options, equilibrate(problem, True))
-        if again.proven_infeasible or again.termination == CONVERGED:
-            again.message += " (rerun with D M D scaling, which keeps M's class)"
-            again.iterations += out.iterations
-            out = again
-    passed = _polish(problem, out, tol)
+    if requested == "none" or is_balanced(problem):  # nothing to equilibrate (one compiled
+        scaling = None                                # pass; no symmetry test needed)
+        out = spec.run(problem, tol=tol, **options)
+        passed = _polish(problem, out, tol)
+        if passed or requested == "none":
+            return out  # certified (or nothing more to try): the small problems' path
+    else:
+        symmetric = requested == "symmetric" or (requested == "auto" and is_symmetric(problem))
+        scaling = equilibrate(problem, symmetric)
+        out = _run_scaled(spec, problem, tol, options, scaling)
+        if (requested == "auto" and not symmetric and out.termination != CONVERGED
+                and not out.proven_infeasible):
+            again = _run_scaled(spec, problem, tol, options, equilibrate(problem, True))
+            if again.proven_infeasible or again.termination == CONVERGED:
+                again.message += " (rerun with D M D scaling, which keeps M's class)"
+                again.iterations += out.iterations
+                out = again
+        passed = _polish(problem, out, tol)
     if (requested != "none" and not passed and not out.proven_infeasible
             and spread(problem, scaling) > GEOMETRIC_SPREAD):
         # Ruiz's scaling balanced the row and column maxima but left entries far apart: rerun on

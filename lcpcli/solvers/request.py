@@ -31,7 +31,7 @@ DEFAULT_METHOD = "auto"
 _NO_OPTIONS: Mapping[str, Any] = {}
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True)
 class Request:
     """A validated request: the ``problem``, the registered method ``spec``, the tolerance
     ``tol`` of the certificate and the parsed ``options`` (defaults filled in)."""
@@ -98,23 +98,18 @@ def dense_check(method: str | None) -> Callable[[int], None] | None:
     return lambda n: check_dense_work(n, spec)
 
 
-def check_problem(problem: Any, spec: Method) -> None:
-    """The kind, densify and dense-work checks of ``spec`` on ``problem``."""
-    if problem.kind not in spec.kinds:
-        check_kind(spec, problem.kind)
-    if problem.sparse:
-        check_dense_ok(problem, spec)
-    else:
-        check_dense_work(problem.n, spec)
-
-
 def resolve(problem: Any, method: str | None, tol: Any = None,
             options: Mapping[str, Any] = _NO_OPTIONS) -> Request:
     """The validated :class:`Request` (see the module docstring); OptionError / ProblemError
     before any work.  Loads the method's compiled kernels once per process
     (:meth:`Method.prepare_once`), outside any timed region."""
-    spec = method_of(method)
-    check_problem(problem, spec)
+    spec = get_method(DEFAULT_METHOD if method is None else method)
+    if problem.kind not in spec.kinds:
+        check_kind(spec, problem.kind)
+    if problem.sparse:
+        check_dense_ok(problem, spec)
+    elif problem.n > DENSE_N_FLOOR:
+        check_dense_work(problem.n, spec)
     opts = spec.parse_options(options)
     tol = validate_tol(spec.default_tol if tol is None else tol)
     spec.prepare_once()

@@ -293,7 +293,7 @@ def test_opening_memo_gives_what_planning_afresh_gives(n, diag, monkeypatch):
     """The opening (auto's regime and first step) equals a fresh plan, for positive, zero and
     negative diagonals and for sizes below and above enum's limit, hit or miss: it is stored
     exactly when the O(n) diagonal test alone decided it (a positive diagonal, or n = 1), and
-    then the second call is a hit; otherwise (the symmetry test ran too) both calls miss."""
+    then the second call is a hit; otherwise (the symmetry test ran too) nothing is stored."""
     rng = np.random.default_rng(n)
     A = rng.standard_normal((n, n))
     M = A - np.diag(np.diag(A)) + diag * np.eye(n) * n
@@ -308,7 +308,7 @@ def test_opening_memo_gives_what_planning_afresh_gives(n, diag, monkeypatch):
     assert len(memo.OPENINGS) == int(stored)
     p = Problem.create(M, q)
     second = policy.opening(p, Classifier(p))
-    assert (memo.OPENINGS.hits, memo.OPENINGS.misses) == ((1, 1) if stored else (0, 2))
+    assert memo.OPENINGS.misses == int(stored)  # stored: the second call was served
     assert first == second == _fresh_opening(Problem.create(M, q))
 
 
