@@ -37,6 +37,8 @@ def test_dense_solve_and_inverse_match_numpy(m):
     np.testing.assert_allclose(dense.inv(A), np.linalg.inv(A), rtol=1e-10, atol=1e-13)
     if m >= dense.LAPACK_MIN:
         assert dense.lapack_bound()
+        if dense._numpy_blas_files():  # a numpy wheel: its OpenBLAS, not scipy's
+            assert dense.lapack_source() in dense._numpy_blas_files()
 
 
 def test_dense_singular_is_an_error_both_ways():

@@ -25,6 +25,7 @@ import numpy as np
 from lcpcli.core.certificate import from_kernel
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, NUMERICAL, Outcome
 from lcpcli.core.text import plural
+from lcpcli.solvers.kernels.dense import bind_numpy_lapack
 from lcpcli.solvers.kernels.lemke_revised import (
     MAX_ITER,
     OK,
@@ -142,6 +143,9 @@ METHODS = [
         # the faster of the two on benchmarks/bench_lemke.py (CPU time, n = 10..1000)
         aliases=("lemke",),
         scaling="auto",
+        # numpy's OpenBLAS for refactorisations from 64 basic variables: bound before timing,
+        # never scipy.linalg (kernels/dense.pyx)
+        prepare=bind_numpy_lapack,
         # stacks: the tableau kernel (same lexicographic pivot rule; faster for small n)
         batch=BatchSpec("lemke", ("covering", "max_iter"), runs_as="lemke-tableau"),
     ),
