@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass
+from time import perf_counter
 from typing import Any
 
 import numpy as np
@@ -65,7 +65,7 @@ def solve(problem: Problem | Any, q: Any = None, method: str | None = None, *,
         if q is None or isinstance(q, str):
             raise TypeError("lcpcli.solve(M, q, method=...) needs q after M (or pass a Problem)")
         data = {k: options.pop(k) for k in ("n_eq", "lower", "upper") if k in options}
-        if is_sparse(problem):
+        if type(problem) is not np.ndarray and is_sparse(problem):
             check_dtype(problem.dtype, "M")
         else:
             problem = real_array(problem, "M")
@@ -76,7 +76,7 @@ def solve(problem: Problem | Any, q: Any = None, method: str | None = None, *,
         method = q
     request = resolve(problem, method, tol, options)
     spec, tol, opts = request.spec, request.tol, request.options
-    start = time.perf_counter()
+    start = perf_counter()
     if warm is not None:
         from lcpcli.solvers.warm import check_warm, uses_warm_basis, warm_point, warm_start
 
@@ -86,7 +86,7 @@ def solve(problem: Problem | Any, q: Any = None, method: str | None = None, *,
             tried, note = warm_start(problem, warm, tol)
             if tried is not None:
                 factors = tried.info.pop("blocks", None)
-                res = certify_outcome(problem, tried, "bpp", time.perf_counter() - start, tol,
+                res = certify_outcome(problem, tried, "bpp", perf_counter() - start, tol,
                                       basis=True)
                 if res.solved:  # never no_solution: the warm start proves nothing
                     res.factors = factors  # the next warm start on the same M reuses them
@@ -100,10 +100,10 @@ def solve(problem: Problem | Any, q: Any = None, method: str | None = None, *,
             outcome = run_method(spec, problem, tol, opts)
             outcome.message += f" (warm start from the given basis did not end certified: " \
                                f"{note}; solved cold)"
-            return certify_outcome(problem, outcome, spec.name, time.perf_counter() - start,
+            return certify_outcome(problem, outcome, spec.name, perf_counter() - start,
                                    tol)
     outcome: Outcome = run_method(spec, problem, tol, opts)
-    seconds = time.perf_counter() - start
+    seconds = perf_counter() - start
     return certify_outcome(problem, outcome, spec.name, seconds, tol)
 
 
@@ -251,7 +251,7 @@ def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None =
         get_backend,
     )
 
-    start = time.perf_counter()
+    start = perf_counter()
     if on_error not in ("raise", "mark"):
         raise OptionError(f"on_error must be 'raise' or 'mark', got {on_error!r}")
     backend = default_backend() if backend is None else backend
@@ -338,7 +338,7 @@ def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None =
     retried[retry] = run_spec is not None
     return StackResult(z=z, w=w, status=status, iterations=iterations, error=error,
                        residual=residual, method=name, tol=tol,
-                       seconds=time.perf_counter() - start, retried=retried,
+                       seconds=perf_counter() - start, retried=retried,
                        messages=messages, methods=methods_of, batched=run_spec is not None,
                        results=results)
 

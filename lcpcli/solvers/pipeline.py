@@ -76,8 +76,17 @@ def run_method(spec: Any, problem: Problem, tol: float, options: dict[str, Any])
     always the certificate of its ``z`` at ``tol`` (:func:`certified`)."""
     if spec.planner and getattr(spec, "scaling", "none") == "none":
         out = spec.run(problem, tol=tol, **options)
+        certified(problem, out, tol)
+        return out
+    requested = "none" if options.get("trace") else getattr(spec, "scaling", "none")
+    if requested == "none" or is_balanced(problem):  # nothing to equilibrate (one compiled
+        out = spec.run(problem, tol=tol, **options)   # pass; no symmetry test needed)
+        if _polish(problem, out, tol):
+            return out  # certified: the small problems' path ends here
+        if requested != "none":
+            out = _geometric(spec, problem, tol, options, out, requested, None)
     else:
-        out = _pipeline(spec, problem, tol, options)
+        out = _equilibrated(spec, problem, tol, options, requested)
     certified(problem, out, tol)
     return out
 
@@ -96,39 +105,41 @@ def certified(problem: Problem, out: Outcome, tol: float,
     return checked
 
 
-def _pipeline(spec: Any, problem: Problem, tol: float, options: dict[str, Any]) -> Outcome:
-    """Steps 1-3 of the module docstring for a method that is not a planner."""
-    requested = "none" if options.get("trace") else getattr(spec, "scaling", "none")
-    if requested == "none" or is_balanced(problem):  # nothing to equilibrate (one compiled
-        scaling = None                                # pass; no symmetry test needed)
-        out = spec.run(problem, tol=tol, **options)
-        passed = _polish(problem, out, tol)
-        if passed or requested == "none":
-            return out  # certified (or nothing more to try): the small problems' path
-    else:
-        symmetric = requested == "symmetric" or (requested == "auto" and is_symmetric(problem))
-        scaling = equilibrate(problem, symmetric)
-        out = _run_scaled(spec, problem, tol, options, scaling)
-        if (requested == "auto" and not symmetric and out.termination != CONVERGED
-                and not out.proven_infeasible):
-            again = _run_scaled(spec, problem, tol, options, equilibrate(problem, True))
-            if again.proven_infeasible or again.termination == CONVERGED:
-                again.message += " (rerun with D M D scaling, which keeps M's class)"
-                again.iterations += out.iterations
-                out = again
-        passed = _polish(problem, out, tol)
-    if (requested != "none" and not passed and not out.proven_infeasible
-            and spread(problem, scaling) > GEOMETRIC_SPREAD):
-        # Ruiz's scaling balanced the row and column maxima but left entries far apart: rerun on
-        # Curtis and Reid's least-squares scaling (invariant under row and column scalings)
-        keep = requested == "symmetric" or (requested == "auto" and is_symmetric(problem))
-        geo = geometric(problem, keep)
-        if geo is not None:
-            again = _run_scaled(spec, problem, tol, options, geo)
-            if _polish(problem, again, tol) or again.proven_infeasible:
-                again.message = f"{out.message}; rerun on the geometric scaling: {again.message}"
-                again.iterations += out.iterations
-                out = again
+def _equilibrated(spec: Any, problem: Problem, tol: float, options: dict[str, Any],
+                  requested: str) -> Outcome:
+    """Steps 1-3 of the module docstring for a problem that needs equilibrating."""
+    symmetric = requested == "symmetric" or (requested == "auto" and is_symmetric(problem))
+    scaling = equilibrate(problem, symmetric)
+    out = _run_scaled(spec, problem, tol, options, scaling)
+    if (requested == "auto" and not symmetric and out.termination != CONVERGED
+            and not out.proven_infeasible):
+        again = _run_scaled(spec, problem, tol, options, equilibrate(problem, True))
+        if again.proven_infeasible or again.termination == CONVERGED:
+            again.message += " (rerun with D M D scaling, which keeps M's class)"
+            again.iterations += out.iterations
+            out = again
+    if _polish(problem, out, tol):
+        return out
+    return _geometric(spec, problem, tol, options, out, requested, scaling)
+
+
+def _geometric(spec: Any, problem: Problem, tol: float, options: dict[str, Any], out: Outcome,
+               requested: str, scaling: Scaling | None) -> Outcome:
+    """The end of step 2 for an answer that failed the certificate after its polish: when
+    there is no proof either and the (scaled) matrix's entries span more than
+    ``2^GEOMETRIC_SPREAD``, the run on Curtis and Reid's geometric scaling, if it does better."""
+    if out.proven_infeasible or spread(problem, scaling) <= GEOMETRIC_SPREAD:
+        return out
+    # Ruiz's scaling balanced the row and column maxima but left entries far apart: rerun on
+    # Curtis and Reid's least-squares scaling (invariant under row and column scalings)
+    keep = requested == "symmetric" or (requested == "auto" and is_symmetric(problem))
+    geo = geometric(problem, keep)
+    if geo is not None:
+        again = _run_scaled(spec, problem, tol, options, geo)
+        if _polish(problem, again, tol) or again.proven_infeasible:
+            again.message = f"{out.message}; rerun on the geometric scaling: {again.message}"
+            again.iterations += out.iterations
+            out = again
     return out
 
 
