@@ -7,6 +7,9 @@ problem.  Each is memoised here, in a :class:`Memo` whose key lists every fact t
 on.  The key is built next to those facts, by the function named in each memo's comment, so a
 new fact that changes the value cannot be left out of the key without changing that function:
 
+* :data:`REQUESTS`: a request without options -> (method, validated tol, parsed default
+  options) (key: :func:`lcpcli.solvers.request.request_key`: the method's record, by ``id``
+  and checked on a hit, and the tol given; the problem's own checks always run);
 * :data:`OPTION_DEFAULTS`: a :class:`~lcpcli.solvers.registry.Method` -> its option defaults
   (key: the record's ``id``, checked against the record itself,
   :meth:`~lcpcli.solvers.registry.Method.parse_options`);
@@ -64,13 +67,14 @@ class Memo(dict):
         return self is other
 
 
+REQUESTS = Memo("requests", 1024)
 OPTION_DEFAULTS = Memo("option defaults", 4096)
 ATTEMPTS = Memo("auto attempts", 1024)
 ORDERS = Memo("policy orders", 1024)
 OPENINGS = Memo("auto openings", 4096)
 
 #: Every memo of the solve path.
-MEMOS = (OPTION_DEFAULTS, ATTEMPTS, ORDERS, OPENINGS)
+MEMOS = (REQUESTS, OPTION_DEFAULTS, ATTEMPTS, ORDERS, OPENINGS)
 
 
 def clear() -> None:

@@ -23,6 +23,7 @@ from lcpcli.core import limits
 from lcpcli.core.certificate import validate_tol
 from lcpcli.core.errors import OptionError
 from lcpcli.core.limits import DENSE_N_ENV, DENSE_N_FLOOR
+from lcpcli.solvers.memo import REQUESTS
 from lcpcli.solvers.registry import Cost, Method, get_method
 
 #: The method used when none is named.
@@ -104,13 +105,30 @@ def resolve(problem: Any, method: str | None, tol: Any = None,
     before any work.  Loads the method's compiled kernels once per process
     (:meth:`Method.prepare_once`), outside any timed region."""
     spec = get_method(DEFAULT_METHOD if method is None else method)
+    key = request_key(spec, tol) if not options else None
+    found = None if key is None else REQUESTS.get(key)
+    if found is not None and found[0] is not spec:  # another record under a reused id
+        found = None
     if problem.kind not in spec.kinds:
         check_kind(spec, problem.kind)
     if problem.sparse:
         check_dense_ok(problem, spec)
     elif problem.n > DENSE_N_FLOOR:
         check_dense_work(problem.n, spec)
-    opts = spec.parse_options(options)
-    tol = validate_tol(spec.default_tol if tol is None else tol)
-    spec.prepare_once()
-    return Request(problem, spec, tol, opts)
+    if found is None:
+        opts = spec.parse_options(options)
+        found = spec, resolve_tol(spec, tol), opts
+        spec.prepare_once()
+        if key is not None:
+            REQUESTS.put(key, found)
+    return Request(problem, spec, found[1], found[2])
+
+
+def request_key(spec: Method, tol: Any) -> tuple[Any, ...] | None:
+    """The key of :data:`lcpcli.solvers.memo.REQUESTS` for a request without options: the
+    parsed (default) options and the validated tol depend on the method's record (its ``id``;
+    the stored value holds the record, checked on a hit) and the tol given; None (not
+    memoised) for a tol that is not a float or None."""
+    if tol is not None and type(tol) is not float:
+        return None
+    return (id(spec), tol)

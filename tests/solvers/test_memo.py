@@ -25,12 +25,12 @@ from lcpcli.solvers.registry import get_method, methods
 @pytest.fixture(autouse=True)
 def fresh_memos(monkeypatch):
     """Every memo empty with zero counts for the test (module state restored after)."""
-    for name in ("OPTION_DEFAULTS", "ATTEMPTS", "ORDERS", "OPENINGS"):
+    for name in ("REQUESTS", "OPTION_DEFAULTS", "ATTEMPTS", "ORDERS", "OPENINGS"):
         old = getattr(memo, name)
         new = memo.Memo(old.name, old.limit)
         monkeypatch.setattr(memo, name, new)
         for module in ("lcpcli.solvers.registry", "lcpcli.solvers.policy",
-                       "lcpcli.solvers.methods.auto"):
+                       "lcpcli.solvers.methods.auto", "lcpcli.solvers.request"):
             mod = __import__(module, fromlist=[name])
             if hasattr(mod, name):
                 monkeypatch.setattr(mod, name, new)
@@ -45,15 +45,33 @@ def _pd(n: int, seed: int) -> Problem:
 def test_a_repeated_auto_solve_hits_every_memo_and_gives_the_same_result():
     p = _pd(10, 1)
     first = lcpcli.solve(p)
-    misses = {m.name: m.misses for m in (memo.OPTION_DEFAULTS, memo.ATTEMPTS, memo.ORDERS,
-                                         memo.OPENINGS)}
+    misses = {m.name: m.misses for m in (memo.REQUESTS, memo.ATTEMPTS, memo.OPENINGS)}
     second = lcpcli.solve(p)
-    for m in (memo.OPTION_DEFAULTS, memo.ATTEMPTS, memo.OPENINGS):
+    for m in (memo.REQUESTS, memo.ATTEMPTS, memo.OPENINGS):
         assert len(m) >= 1 and m.misses == misses[m.name], m.name  # served, not recomputed
     assert first.status == second.status == "solved"
     np.testing.assert_array_equal(first.z, second.z)
     assert first.message == second.message and first.certificate == second.certificate
     assert first.info["attempts"][0]["method"] == second.info["attempts"][0]["method"]
+
+
+@pytest.mark.parametrize("method, tol", [(None, None), ("lemke", None), ("pgs", 1e-6),
+                                         ("LEMKE", 1e-9)])
+def test_request_hit_equals_fresh(method, tol):
+    from lcpcli.solvers.request import Request, method_of, resolve, resolve_tol
+
+    p = _pd(5, 2)
+    first = resolve(p, method, tol)
+    misses = memo.REQUESTS.misses
+    hit = resolve(_pd(6, 3), method, tol)
+    assert memo.REQUESTS.misses == misses  # served from the memo
+    spec = method_of(method)
+    fresh = Request(p, spec, resolve_tol(spec, tol), spec.parse_options({}))
+    assert (hit.spec, hit.tol, hit.options) == (first.spec, first.tol, first.options) == (
+        fresh.spec, fresh.tol, fresh.options)
+    # the problem's own checks run on a hit too
+    with pytest.raises(Exception, match="does not handle MLCP"):
+        resolve(Problem.create(np.eye(3), -np.ones(3), n_eq=1), "lemke", tol)
 
 
 def test_option_defaults_hit_equals_fresh():
