@@ -75,7 +75,7 @@ def solve(problem: Problem | Any, q: Any = None, method: str | None = None, *,
             raise TypeError("lcpcli.solve(problem, method, tol=...) takes a method name second")
         method = q
     request = resolve(problem, method, tol, options)
-    spec, tol, opts = request.spec, request.tol, request.options
+    spec, tol, opts = request.spec, request.tol, request.given
     start = perf_counter()
     if warm is not None:
         from lcpcli.solvers.warm import check_warm, uses_warm_basis, warm_point, warm_start

@@ -35,12 +35,15 @@ _NO_OPTIONS: Mapping[str, Any] = {}
 @dataclass(slots=True)
 class Request:
     """A validated request: the ``problem``, the registered method ``spec``, the tolerance
-    ``tol`` of the certificate and the parsed ``options`` (defaults filled in)."""
+    ``tol`` of the certificate, the parsed ``options`` (defaults filled in) and ``given``:
+    those that differ from their defaults (what the dispatcher passes to ``Method.run``, whose
+    keyword defaults are the options' defaults: ``tests/solvers/test_memo.py`` checks it)."""
 
     problem: Any
     spec: Method
     tol: float
     options: dict[str, Any]
+    given: dict[str, Any]
 
 
 def method_of(method: str | None) -> Method:
@@ -117,11 +120,13 @@ def resolve(problem: Any, method: str | None, tol: Any = None,
         check_dense_work(problem.n, spec)
     if found is None:
         opts = spec.parse_options(options)
-        found = spec, resolve_tol(spec, tol), opts
+        defaults = spec.options
+        found = spec, resolve_tol(spec, tol), opts, {
+            k: v for k, v in opts.items() if v is not defaults[k].default}
         spec.prepare_once()
         if key is not None:
             REQUESTS.put(key, found)
-    return Request(problem, spec, found[1], found[2])
+    return Request(problem, spec, found[1], found[2], found[3])
 
 
 def request_key(spec: Method, tol: Any) -> tuple[Any, ...] | None:

@@ -66,12 +66,28 @@ def test_request_hit_equals_fresh(method, tol):
     hit = resolve(_pd(6, 3), method, tol)
     assert memo.REQUESTS.misses == misses  # served from the memo
     spec = method_of(method)
-    fresh = Request(p, spec, resolve_tol(spec, tol), spec.parse_options({}))
-    assert (hit.spec, hit.tol, hit.options) == (first.spec, first.tol, first.options) == (
-        fresh.spec, fresh.tol, fresh.options)
+    fresh = Request(p, spec, resolve_tol(spec, tol), spec.parse_options({}), {})
+    assert (hit.spec, hit.tol, hit.options, hit.given) == (
+        first.spec, first.tol, first.options, first.given) == (
+        fresh.spec, fresh.tol, fresh.options, fresh.given)
     # the problem's own checks run on a hit too
     with pytest.raises(Exception, match="does not handle MLCP"):
         resolve(Problem.create(np.eye(3), -np.ones(3), n_eq=1), "lemke", tol)
+
+
+def test_run_defaults_are_the_option_defaults():
+    """The dispatcher passes ``Method.run`` only the options that differ from their defaults
+    (``Request.given``): every method's keyword defaults must be its options' defaults."""
+    import inspect
+
+    for name, spec in methods().items():
+        params = inspect.signature(spec.run).parameters
+        for key, opt in spec.options.items():
+            assert key in params, (name, key)
+            assert params[key].default is opt.default or params[key].default == opt.default, \
+                (name, key)
+    r = lcpcli.solve(_pd(8, 4), "lemke", max_iter=1)
+    assert r.status == "unsolved" and r.iterations == 1  # a given option reaches run
 
 
 def test_option_defaults_hit_equals_fresh():
