@@ -3,9 +3,10 @@
 The problem is ``benchmarks/bench_lemke.py``'s (``M = A A^T + n I``, ``q ~ N(0, 1)``, seed
 2026 + n).  Ours: the wall time per call of the whole :func:`lcpcli.solve` (registry lookup,
 option parsing, kernel + polish, certificate, Result), the best of 100 batches of
-``--calls / 100`` calls, and the same for each part of the path.  Siconos: ``siconos_peer.py --solver Lemke
---repeat K``'s ``seconds_median`` (the C driver call from Python, one warm-up), measured before
-and after ours in the same run (the mean of the two is the reference).
+``--calls / 100`` calls, and the same for each part of the path.  Siconos:
+``siconos_peer.py --solver Lemke --repeat K``'s ``seconds_median`` (the C driver call from
+Python, one warm-up), measured before and after ours in the same run (the mean of the two is
+the reference).
 
     python benchmarks/bench_small.py [--n 10] [--calls 20000]
 

@@ -52,8 +52,9 @@ def solve(problem: Problem | Any, q: Any = None, method: str | None = None, *,
 
     The verdict is ``solved`` only if the recomputed certificate passes; ``no_solution`` only
     when the method proved it (the proof is in ``message``); ``unsolved`` otherwise.
-    ``seconds`` times the method (with its equilibration and final polish, see
-    :mod:`lcpcli.solvers.pipeline`), not file reading or certification.
+    ``seconds`` times the method as the dispatcher runs it (its equilibration, final polish and
+    the certificate of its answer, see :mod:`lcpcli.solvers.pipeline`), not request
+    validation, kernel loading (imports), file reading or the Result record.
 
     ``warm``: a previous :class:`Result`, a basis (booleans, True: ``z_i`` basic) or a point
     ``z0``.  With ``auto``, BPP or a pivoting method, block principal pivoting first runs from
