@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 from time import perf_counter
 from typing import Any
@@ -252,7 +253,7 @@ def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None =
         get_backend,
     )
 
-    start = perf_counter()
+    start = time.perf_counter()
     if on_error not in ("raise", "mark"):
         raise OptionError(f"on_error must be 'raise' or 'mark', got {on_error!r}")
     backend = default_backend() if backend is None else backend
@@ -339,7 +340,7 @@ def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None =
     retried[retry] = run_spec is not None
     return StackResult(z=z, w=w, status=status, iterations=iterations, error=error,
                        residual=residual, method=name, tol=tol,
-                       seconds=perf_counter() - start, retried=retried,
+                       seconds=time.perf_counter() - start, retried=retried,
                        messages=messages, methods=methods_of, batched=run_spec is not None,
                        results=results)
 
