@@ -2,10 +2,11 @@
 
 The problem is ``benchmarks/bench_lemke.py``'s (``M = A A^T + n I``, ``q ~ N(0, 1)``, seed
 2026 + n).  Ours: the wall time per call of the whole :func:`lcpcli.solve` (registry lookup,
-option parsing, kernel + polish, certificate, Result), the best of 5 batches of ``--calls``
-calls, and the same for each part of the path.  Siconos: ``siconos_peer.py --solver Lemke
---repeat K``'s ``seconds_median`` (the C driver call from Python, one warm-up), measured before
-and after ours in the same run (the mean of the two is the reference).
+option parsing, kernel + polish, certificate, Result), the best of 100 batches of
+``--calls / 100`` calls, and the same for each part of the path.  Siconos:
+``siconos_peer.py --solver Lemke --repeat K``'s ``seconds_median`` (the C driver call from
+Python, one warm-up), measured before and after ours in the same run (the mean of the two is
+the reference).
 
     python benchmarks/bench_small.py [--n 10] [--calls 20000]
 
@@ -30,17 +31,14 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 import lcpcli  # noqa: E402
-from lcpcli.analysis.scaling import BALANCE, equilibrate  # noqa: E402
+from lcpcli.analysis.scaling import equilibrate, is_balanced  # noqa: E402
 from lcpcli.api import certify_outcome  # noqa: E402
 from lcpcli.core.certificate import certify  # noqa: E402
 from lcpcli.core.problem import Problem  # noqa: E402
-from lcpcli.solvers.kernels.lemke_revised import (  # noqa: E402
-    lemke_solve,
-    lemke_solve_certified,
-)
+from lcpcli.solvers.kernels.lemke_revised import lemke_solve_certified  # noqa: E402
 from lcpcli.solvers.methods.lemke import PIVOT_TOL, TIE_TOL  # noqa: E402
 from lcpcli.solvers.pipeline import run_method  # noqa: E402
-from lcpcli.solvers.registry import get_method  # noqa: E402
+from lcpcli.solvers.request import resolve  # noqa: E402
 
 SHARED = Path(os.environ.get("LCPCLI_SHARED", ROOT.parent / "shared"))
 PEER = SHARED / "peers" / "siconos_peer.py"
@@ -52,15 +50,17 @@ def make_problem(n: int, seed: int = 2026) -> Problem:
     return Problem.create(A @ A.T + n * np.eye(n), rng.standard_normal(n), name=f"rand{n}")
 
 
-def per_call(f, calls: int) -> float:
-    """Seconds per call: the best of 5 batches of ``calls`` calls (after one warm-up)."""
+def per_call(f, calls: int, batches: int = 100) -> float:
+    """Seconds per call: the best of ``batches`` batches of ``calls / batches`` calls (after
+    one warm-up; many short batches: robust on a machine shared with other work)."""
     f()
+    each = max(1, calls // batches)
     best = float("inf")
-    for _ in range(5):
+    for _ in range(batches):
         t0 = time.perf_counter()
-        for _ in range(calls):
+        for _ in range(each):
             f()
-        best = min(best, (time.perf_counter() - t0) / calls)
+        best = min(best, (time.perf_counter() - t0) / each)
     return best
 
 
@@ -88,23 +88,26 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     prob = make_problem(args.n)
     sic_before = siconos(prob, 2000)
-    spec = get_method("lemke")
+    req = resolve(prob, "lemke")
+    spec, opts = req.spec, req.options
     M = np.ascontiguousarray(prob.M)
-    out = run_method(spec, prob, 1e-8, spec.parse_options({}))
-    opts = spec.parse_options({})
+    out = run_method(spec, prob, 1e-8, opts)
+    M_arr, q_arr = prob.dense_M().copy(), prob.q.copy()
     parts = {
         "lcpcli.solve(p, 'lemke')": lambda: lcpcli.solve(prob, "lemke"),
-        "  get_method + parse_options": lambda: get_method("lemke").parse_options({}),
-        "  pipeline small path (Method.fast -> Outcome)": lambda: run_method(spec, prob, 1e-8,
+        "  request.resolve (method, checks, options, tol)": lambda: resolve(prob, "lemke"),
+        "  dispatcher run_method (-> certified Outcome)": lambda: run_method(spec, prob, 1e-8,
                                                                              opts),
-        "    one C call: balance test, kernel, polish, certificate": lambda:
-            lemke_solve_certified(M, prob.q, None, 1000, PIVOT_TOL, TIE_TOL, 50, BALANCE),
+        "    balance test (is_balanced, one C call)": lambda: is_balanced(prob),
+        "    method run (kernel call + Outcome)": lambda: spec.run(prob, tol=1e-8, **opts),
+        "      one C call: kernel, polish, certificate": lambda:
+            lemke_solve_certified(M, prob.q, None, 1000, PIVOT_TOL, TIE_TOL, 50),
         "  certify_outcome (Result)": lambda: certify_outcome(prob, out, "lemke-revised", 0.0,
                                                               1e-8),
         "for comparison:": None,
-        "  kernels.lemke_revised.lemke_solve (no certificate)": lambda: lemke_solve(
-            M, prob.q, None, 1000, PIVOT_TOL, TIE_TOL, 50),
-        "  method run without the small path": lambda: spec.run(prob, tol=1e-8),
+        "  lcpcli.solve(p) (auto)": lambda: lcpcli.solve(prob),
+        "  lcpcli.solve(M, q, method='lemke') (arrays)": lambda: lcpcli.solve(
+            M_arr, q_arr, method="lemke"),
         "  certify (w and certificate, from Python)": lambda: certify(prob, out.z, 1e-8),
         "  equilibrate (decides: no scaling)": lambda: equilibrate(prob, True),
     }

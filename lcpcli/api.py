@@ -4,16 +4,15 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from time import perf_counter
 from typing import Any
 
 import numpy as np
 
 from lcpcli.analysis.proof import confirm
-from lcpcli.core import limits
 from lcpcli.core.certificate import check, validate_tol
 from lcpcli.core.errors import LcpError, OptionError
-from lcpcli.core.limits import DENSE_N_ENV, DENSE_N_FLOOR
-from lcpcli.core.numeric import check_dtype, float64_array, real_array
+from lcpcli.core.numeric import check_dtype, real_array
 from lcpcli.core.problem import Problem, check_bounds, is_sparse, problem_kind
 from lcpcli.core.result import (
     CONVERGED,
@@ -28,52 +27,16 @@ from lcpcli.core.result import (
     Termination,
 )
 from lcpcli.core.text import option_name
-from lcpcli.solvers import DEFAULT_METHOD
-from lcpcli.solvers.pipeline import run_method
-from lcpcli.solvers.registry import Cost, Method, get_method
-
-
-def check_dense_ok(problem: Problem, spec: Method) -> None:
-    """OptionError when ``spec`` would densify a huge sparse M (checked before any work)."""
-    n = problem.n
-    if spec.densifies(problem):
-        raise OptionError(f"method '{spec.name}' works on a dense {n} x {n} matrix "
-                          f"({n * n * 8 / 2**30:.1f} GiB) but M is sparse (nnz={problem.M.nnz}); "
-                          f"choose a method for large sparse problems (see 'lcpcli methods'), "
-                          f"or set {DENSE_N_ENV}={n} to densify it anyway")
-
-
-def check_dense_work(n: int, spec: Method) -> None:
-    """ProblemError when ``spec`` factorises or pivots on a dense n x n M above the dense-work
-    budget of :mod:`lcpcli.core.limits` (``auto`` included: it factorises; sweeping methods,
-    O(n^2) per sweep, are not checked).  One comparison up to ``DENSE_N_FLOOR``."""
-    if n > DENSE_N_FLOOR and (spec.planner or spec.cost in (Cost.PIVOTING, Cost.FACTORING)):
-        limits.check_dense_work(n, f"method '{spec.name}' factorises or pivots on the dense M",
-                                instead="use a sweeping method (-m pgs, -m psor: O(n^2) per "
-                                        "sweep)")
-
-
-def check_sparse_work(n: int, spec: Method) -> None:
-    """ProblemError when ``spec`` factorises a sparse n x n M (sparse LU: ``ip``, ``newton``,
-    ... and ``auto``, whose plan may) above the sparse-factorisation budget of
-    :mod:`lcpcli.core.limits`; sweeping methods (O(nnz) per sweep) are not checked."""
-    if n > limits.SPARSE_N_FLOOR and (spec.planner or spec.cost is Cost.FACTORING):
-        limits.check_sparse_factorisation(n, f"method '{spec.name}' factorises the sparse M",
-                                          instead="use a sweeping method (-m pgs, -m psor: "
-                                                  "O(nnz) per sweep)")
-
-
-def dense_check(method: str | None) -> Any:
-    """:func:`check_dense_work` for ``method`` as a one-argument hook for
-    :func:`lcpcli.io.load` (``check_dense=``: refused from the file's header, before a dense M
-    is read); None when the method is not limited or unknown (:func:`solve` says so)."""
-    try:
-        spec = get_method(DEFAULT_METHOD if method is None else method)
-    except OptionError:
-        return None
-    if not (spec.planner or spec.cost in (Cost.PIVOTING, Cost.FACTORING)):
-        return None
-    return lambda n: check_dense_work(n, spec)
+from lcpcli.solvers.pipeline import certified, run_method
+from lcpcli.solvers.registry import Method, get_method
+from lcpcli.solvers.request import (  # noqa: F401  (re-exported)
+    DEFAULT_METHOD,
+    check_dense_ok,
+    check_dense_work,
+    check_sparse_work,
+    dense_check,
+    resolve,
+)
 
 
 def solve(problem: Problem | Any, q: Any = None, method: str | None = None, *,
@@ -92,8 +55,9 @@ def solve(problem: Problem | Any, q: Any = None, method: str | None = None, *,
 
     The verdict is ``solved`` only if the recomputed certificate passes; ``no_solution`` only
     when the method proved it (the proof is in ``message``); ``unsolved`` otherwise.
-    ``seconds`` times the method (with its equilibration and final polish, see
-    :mod:`lcpcli.solvers.pipeline`), not file reading or certification.
+    ``seconds`` times the method as the dispatcher runs it (its equilibration, final polish and
+    the certificate of its answer, see :mod:`lcpcli.solvers.pipeline`), not request
+    validation, kernel loading (imports), file reading or the Result record.
 
     ``warm``: a previous :class:`Result`, a basis (booleans, True: ``z_i`` basic) or a point
     ``z0``.  With ``auto``, BPP or a pivoting method, block principal pivoting first runs from
@@ -105,7 +69,7 @@ def solve(problem: Problem | Any, q: Any = None, method: str | None = None, *,
         if q is None or isinstance(q, str):
             raise TypeError("lcpcli.solve(M, q, method=...) needs q after M (or pass a Problem)")
         data = {k: options.pop(k) for k in ("n_eq", "lower", "upper") if k in options}
-        if is_sparse(problem):
+        if type(problem) is not np.ndarray and is_sparse(problem):
             check_dtype(problem.dtype, "M")
         else:
             problem = real_array(problem, "M")
@@ -114,20 +78,9 @@ def solve(problem: Problem | Any, q: Any = None, method: str | None = None, *,
         if method is not None or not isinstance(q, str):
             raise TypeError("lcpcli.solve(problem, method, tol=...) takes a method name second")
         method = q
-    method = DEFAULT_METHOD if method is None else method
-    spec = get_method(method)
-    if problem.kind not in spec.kinds:
-        raise OptionError(f"method '{spec.name}' does not handle {problem.kind.upper()} problems "
-                          f"(it handles: {', '.join(k.upper() for k in spec.kinds)})")
-    if problem.sparse:
-        check_dense_ok(problem, spec)
-        check_sparse_work(problem.n, spec)
-    else:
-        check_dense_work(problem.n, spec)
-    opts = spec.parse_options(options)
-    tol = validate_tol(spec.default_tol if tol is None else tol)
-    spec.prepare_once()
-    start = time.perf_counter()
+    request = resolve(problem, method, tol, options)
+    spec, tol, opts = request.spec, request.tol, request.given
+    start = perf_counter()
     if warm is not None:
         from lcpcli.solvers.warm import check_warm, uses_warm_basis, warm_point, warm_start
 
@@ -138,7 +91,7 @@ def solve(problem: Problem | Any, q: Any = None, method: str | None = None, *,
             if tried is not None:
                 factors = tried.info.pop("blocks", None)
                 res = certify_outcome(problem, tried, tried.info.pop("method", "bpp"),
-                                      time.perf_counter() - start, tol, basis=True)
+                                      perf_counter() - start, tol, basis=True)
                 if res.solved:  # never no_solution: the warm start proves nothing
                     res.factors = factors  # the next warm start on the same M reuses them
                     return res
@@ -151,10 +104,10 @@ def solve(problem: Problem | Any, q: Any = None, method: str | None = None, *,
             outcome = run_method(spec, problem, tol, opts)
             outcome.message += f" (warm start from the given basis did not end certified: " \
                                f"{note}; solved cold)"
-            return certify_outcome(problem, outcome, spec.name, time.perf_counter() - start,
+            return certify_outcome(problem, outcome, spec.name, perf_counter() - start,
                                    tol)
     outcome: Outcome = run_method(spec, problem, tol, opts)
-    seconds = time.perf_counter() - start
+    seconds = perf_counter() - start
     return certify_outcome(problem, outcome, spec.name, seconds, tol)
 
 
@@ -164,15 +117,9 @@ def certify_outcome(problem: Problem, outcome: Outcome, method: str, seconds: fl
 
     ``basis``: record the final basis (:attr:`Result.basis`) in the same certificate pass
     (warm starts, whose next step needs it); otherwise it is computed on first use."""
-    z = float64_array(outcome.z)
-    states = None
-    if outcome.checked is not None and outcome.checked[0].tol == tol:
-        cert, w = outcome.checked  # the method certified this very z (auto does)
-    elif basis:
-        states = np.empty(problem.n, dtype=np.int8)
-        cert, w = check(problem, z, tol, state=states)
-    else:
-        cert, w = check(problem, z, tol)
+    states = np.empty(problem.n, dtype=np.int8) if basis else None
+    cert, w = certified(problem, outcome, tol, states)  # reused when the dispatcher made it
+    z = outcome.z
     message = outcome.message
     if cert.passed:
         status = SOLVED
@@ -190,10 +137,8 @@ def certify_outcome(problem: Problem, outcome: Outcome, method: str, seconds: fl
         if outcome.termination == CONVERGED:
             message = (f"{message}, but the certificate failed: error {cert.error:.3g} > "
                        f"tol {tol:.3g}{_why(cert)}")
-    # positional, in the order of Result's fields (this is on the small-solve path)
-    return Result(status, method, z, w, outcome.iterations, seconds, cert, message,
-                  outcome.termination, problem.name, outcome.trace, dict(outcome.info), states,
-                  None, None if states is not None else problem)  # else: on first use
+    return Result.certified(status, method, z, w, outcome, seconds, cert, message, problem,
+                            states)
 
 
 def _why(cert: Any) -> str:

@@ -6,3 +6,5 @@ cdef int _ruiz(Py_ssize_t n, const double* M, Py_ssize_t ldm, const double* data
                bint symmetric, int balanced, int q_balanced, int max_rounds,
                long long* r, long long* c, long long* rmax, long long* cmax) noexcept nogil
 cdef bint _symmetric(const double* M, Py_ssize_t n) noexcept nogil
+cdef bint _balanced(Py_ssize_t n, const double* M, Py_ssize_t ldm, const double* q,
+                    int balanced, int q_balanced, long long* work) noexcept nogil

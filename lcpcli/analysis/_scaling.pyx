@@ -284,3 +284,34 @@ def dense_minima(M, q):
             if v < qmin or v != v:
                 qmin = v
     return dmin, qmin
+
+
+cdef bint _balanced(Py_ssize_t n, const double* M, Py_ssize_t ldm, const double* q,
+                    int balanced, int q_balanced, long long* work) noexcept nogil:
+    """The equilibration's balance test, the one definition (one pass of :c:func:`_ruiz`):
+    True when :func:`lcpcli.analysis.scaling.equilibrate` leaves the dense problem alone.
+    ``work``: 4 n long longs."""
+    return not _ruiz(n, M, ldm, NULL, NULL, NULL, q, False, balanced, q_balanced, 1, work,
+                     work + n, work + 2 * n, work + 3 * n)
+
+
+def balanced_dense(M, q, int balanced, int q_balanced):
+    """:c:func:`_balanced` for a dense float64 (n, n) ``M`` (what
+    :func:`lcpcli.analysis.scaling.is_balanced` calls: one compiled call)."""
+    cdef cnp.ndarray qa = f64(q, -1, -1)
+    cdef Py_ssize_t n = cnp.PyArray_DIM(qa, 0)
+    if n == 0:
+        return True
+    cdef cnp.ndarray Ma = f64(M, n, n)
+    cdef long long small[256]
+    cdef long long* work = &small[0]
+    cdef bint out
+    if n > 64:
+        work = <long long*> malloc(4 * n * sizeof(long long))
+        if work == NULL:
+            raise MemoryError(f"scaling workspace for n = {n}")
+    with nogil:
+        out = _balanced(n, f64_ptr(Ma), n, f64_ptr(qa), balanced, q_balanced, work)
+    if n > 64:
+        free(work)
+    return bool(out)

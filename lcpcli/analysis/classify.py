@@ -24,6 +24,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass, fields
 from fractions import Fraction
 from itertools import chain, combinations, islice
+from operator import attrgetter
 from typing import Any
 
 import numpy as np
@@ -720,6 +721,15 @@ PROPERTIES: dict[str, str] = {
     "h_matrix": "H-matrix with positive diagonal",
     "p_matrix": "P-matrix",
 }
+
+#: The report fields that the O(n) diagonal test (``Classifier._diagonal_test``) may set and
+#: that conditions read (``definiteness`` through ``pd`` and ``psd``): a plan made on that test
+#: alone is a function of these (the key of auto's opening memo, :mod:`lcpcli.solvers.memo`).
+DIAGONAL_FACTS = ("positive_diagonal", "h_matrix", "p_matrix", "definiteness")
+#: The other fields that test sets: numbers and words that no condition reads.
+DIAGONAL_WORDS = ("diagonal_min", "zero_diagonal", "p_matrix_reason", "definiteness_test")
+#: ``diagonal_facts(report)``: the values of :data:`DIAGONAL_FACTS`, as a tuple.
+diagonal_facts = attrgetter(*DIAGONAL_FACTS)
 
 #: The properties decided by O(n) or O(n^2) tests (O(nnz) for a sparse M).
 CHEAP = frozenset({"sparse", "symmetric", "positive_diagonal", "nonnegative", "z_matrix",

@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from lcpcli.analysis._scaling import ruiz_exponents
+from lcpcli.analysis._scaling import balanced_dense, ruiz_exponents
 from lcpcli.core.problem import Problem
 
 #: A problem whose row and column maxima are all within 2^BALANCED of each other is left alone.
@@ -115,10 +115,12 @@ def equilibrate(problem: Problem, symmetric: bool) -> Scaling | None:
 def is_balanced(problem: Problem) -> bool:
     """True when :func:`equilibrate` would leave ``problem`` alone (one compiled pass; the
     answer does not depend on the ``symmetric`` choice)."""
+    M = problem.M
+    if type(M) is np.ndarray:
+        return balanced_dense(M, problem.q, BALANCED, Q_BALANCED)
     if problem.n == 0:
         return True
-    return ruiz_exponents(_matrix_arg(problem.M), problem.q, False, BALANCED, Q_BALANCED,
-                          1) is None
+    return ruiz_exponents(_matrix_arg(M), problem.q, False, BALANCED, Q_BALANCED, 1) is None
 
 
 def _matrix_arg(M: Any) -> Any:

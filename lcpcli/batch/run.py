@@ -85,9 +85,11 @@ def run_batch(inputs: Iterable[str], opts: SolveOptions, *, recursive: bool = Fa
                           "stop a running problem); bound the work with --max-iter instead")
     jobs = jobs or os.cpu_count() or 1
     start = time.perf_counter()
-    from lcpcli.solvers.registry import get_method
+    from lcpcli.solvers.request import method_of, resolve_tol
 
-    canonical = get_method(opts.method).name  # unknown method: OptionError before any work
+    spec = method_of(opts.method)  # unknown method or bad tol: OptionError before any work
+    canonical = spec.name
+    resolve_tol(spec, opts.tol)
     opts = SolveOptions(canonical, opts.tol, dict(opts.options))
     inputs = [str(i) for i in inputs]
     stacked = _stacked_inputs(inputs, timeout=timeout)

@@ -91,11 +91,8 @@ def prepare_method(method: str) -> None:
     """Load the method's compiled kernel and the optional fast JSON codec (outside any timing,
     once per worker: a batch reads and writes JSON for every problem); unknown methods raise."""
     from lcpcli.core.numeric import load_fast_json
-    from lcpcli.solvers.registry import get_method
+    from lcpcli.solvers.request import method_of
 
     load_fast_json()
-
-    spec = get_method(method)
-    if spec.prepare is not None:
-        spec.prepare()
+    method_of(method).prepare_once()
 

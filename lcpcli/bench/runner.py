@@ -207,7 +207,8 @@ def _default_solve() -> SolveFn:
 
 def resolve_methods(names: Iterable[str] | None) -> list[str]:
     """Canonical method names (aliases resolved, duplicates dropped); None = all registered."""
-    from lcpcli.solvers.registry import get_method, methods
+    from lcpcli.solvers.registry import methods
+    from lcpcli.solvers.request import method_of
 
     if names is None:
         return list(methods())
@@ -215,7 +216,7 @@ def resolve_methods(names: Iterable[str] | None) -> list[str]:
     for name in names:
         if not name.strip():
             continue
-        canon = get_method(name).name
+        canon = method_of(name).name
         if canon not in out:
             out.append(canon)
     if not out:

@@ -242,9 +242,9 @@ def warm_attempt(problem: Problem, method: str, tol: float | None,
     answer).  The tolerance is ``tol`` or ``method``'s default."""
     from lcpcli.api import certify_outcome, solve
     from lcpcli.core.result import CONVERGED, Outcome
-    from lcpcli.solvers.registry import get_method
+    from lcpcli.solvers.request import method_of, resolve_tol
 
-    limit = get_method(method).default_tol if tol is None else float(tol)
+    limit = resolve_tol(method_of(method), tol)
     given = certify_outcome(problem, Outcome(np.asarray(z0, dtype=np.float64), 0, CONVERGED,
                                              "the warm start z0 passes the certificate"),
                             "z0", 0.0, limit, basis=True)

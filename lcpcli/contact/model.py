@@ -256,10 +256,9 @@ def check_method(clcp: ContactLCP, method: str, islands: bool = True) -> None:
     """OptionError for an unknown method, or a densifying method on a huge sparse LCP (the
     whole scene's, or with ``islands`` the biggest island's); ProblemError for a method that
     factorises a sparse LCP over the sparse-factorisation budget (lcpcli.core.limits)."""
-    from lcpcli.api import check_dense_ok, check_sparse_work
-    from lcpcli.solvers.registry import get_method
+    from lcpcli.solvers.request import check_dense_ok, check_sparse_work, method_of
 
-    spec = get_method(method)
+    spec = method_of(method)
     if not islands or clcp.layout.count <= 1:
         check_dense_ok(clcp.problem, spec)  # one island: its LCP is the scene's
         if clcp.problem.sparse:
@@ -310,7 +309,7 @@ def solve(clcp: ContactLCP, method: str = DEFAULT_METHOD, tol: float | None = No
 def _solve_islands(clcp: ContactLCP, method: str, tol: float | None, z0: np.ndarray | None,
                    jobs: int, options: dict[str, Any]) -> tuple[np.ndarray, Any, list[Any]]:
     from lcpcli.api import certify_outcome
-    from lcpcli.solvers.registry import get_method
+    from lcpcli.solvers.request import method_of, resolve_tol
 
     lay, isl = clcp.layout, clcp.islands
     t0 = time.perf_counter()
@@ -358,7 +357,7 @@ def _solve_islands(clcp: ContactLCP, method: str, tol: float | None, z0: np.ndar
     outcome = Outcome(z=z, iterations=sum(r["iterations"] for r in reports),
                       termination=termination, message=msg, proven_infeasible=bool(infeasible),
                       info=info)
-    tol_used = get_method(method).default_tol if tol is None else float(tol)
+    tol_used = resolve_tol(method_of(method), tol)
     result = certify_outcome(clcp.problem, outcome, method, seconds, tol_used)
     return z, result, reports
 

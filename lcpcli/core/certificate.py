@@ -104,6 +104,8 @@ class Certificate:
 
 def validate_tol(tol: Any) -> float:
     """``tol`` as a float in ``[MIN_TOL, MAX_TOL]``; :class:`OptionError` otherwise."""
+    if type(tol) is float and MIN_TOL <= tol <= MAX_TOL:  # the usual case, in one step
+        return tol
     try:
         value = float(tol)
     except (TypeError, ValueError):

@@ -126,6 +126,8 @@ def real_array(value: Any, label: str, *, scan: bool = True) -> np.ndarray:
     ``scan`` checks the elements of Python lists one by one (booleans hide in float arrays);
     callers that already know the list holds no booleans pass ``scan=False``.
     """
+    if type(value) is np.ndarray and value.dtype is _FLOAT64:
+        return value  # native float64: real numbers already (the usual case, in one step)
     if isinstance(value, (list, tuple)) and scan:
         scan_nested(value, label)
     elif not isinstance(value, (list, tuple, np.ndarray)) and not hasattr(value, "dtype") \

@@ -29,6 +29,7 @@ from typing import Any
 
 import numpy as np
 
+from lcpcli.core._finite import all_finite
 from lcpcli.core.errors import ProblemError
 
 #: Largest dense matrix accepted, in entries (2.5e8 float64 entries = 2 GB).
@@ -107,7 +108,7 @@ class Problem:
 
     def __post_init__(self) -> None:
         self.q = _c_float(self.q)
-        if is_sparse(self.M):
+        if type(self.M) is not np.ndarray and is_sparse(self.M):
             if self.M.format != "csr" or self.M.data.dtype != np.float64:
                 self.M = self.M.tocsr().astype(np.float64)
         else:
@@ -131,8 +132,7 @@ class Problem:
         if q.shape[0] != n:
             raise ProblemError(f"q has length {q.shape[0]} but M is {n} x {n}")
         _check_finite(M, "M")
-        if not np.all(np.isfinite(q)):
-            raise ProblemError("q contains NaN or Inf")
+        _check_finite(q, "q")
         try:
             n_eq = int(n_eq)
         except (TypeError, ValueError):
@@ -197,7 +197,7 @@ class Problem:
 
 # ---------------------------------------------------------------------- helpers
 def _as_matrix(M: Any) -> Any:
-    if is_sparse(M):
+    if type(M) is not np.ndarray and is_sparse(M):
         if M.ndim != 2:
             raise ProblemError("M must be 2-D")
         check_size(*M.shape, sparse=True, nnz=M.nnz)
@@ -254,8 +254,8 @@ def _c_float(a: Any) -> np.ndarray:
 
 
 def _check_finite(M: Any, label: str) -> None:
-    data = M.data if is_sparse(M) else M
-    if not np.all(np.isfinite(data)):
+    data = M.data if type(M) is not np.ndarray and is_sparse(M) else M
+    if not all_finite(data):
         raise ProblemError(f"{label} contains NaN or Inf")
 
 

@@ -93,6 +93,15 @@ class Outcome:
     info: dict[str, Any] = field(default_factory=dict)
     checked: tuple[Certificate, np.ndarray] | None = None
 
+    @classmethod
+    def converged(cls, z: np.ndarray, iterations: int, message: str,
+                  info: dict[str, Any] | None = None,
+                  checked: tuple[Certificate, np.ndarray] | None = None) -> Outcome:
+        """A run that says it converged (no claim of infeasibility, no trace); the small-solve
+        paths build it here, positionally, without binding keywords."""
+        return cls(z, iterations, Termination.CONVERGED, message, False, None,
+                   {} if info is None else info, checked)
+
 
 @dataclass(slots=True)
 class Result:
@@ -122,6 +131,17 @@ class Result:
     factors: Any = field(default=None, repr=False, compare=False)
     #: The problem, until :attr:`basis` is first asked for (then dropped).
     basis_source: Any = field(default=None, repr=False, compare=False)
+
+    @classmethod
+    def certified(cls, status: Status, method: str, z: np.ndarray, w: np.ndarray,
+                  outcome: Outcome, seconds: float, certificate: Certificate, message: str,
+                  problem: Any, known_basis: np.ndarray | None = None) -> Result:
+        """The Result of ``outcome`` certified on ``problem`` (what
+        :func:`lcpcli.api.certify_outcome` builds); without ``known_basis`` the basis is
+        computed from ``problem`` on first use."""
+        return cls(status, method, z, w, outcome.iterations, seconds, certificate, message,
+                   outcome.termination, problem.name, outcome.trace, dict(outcome.info),
+                   known_basis, None, None if known_basis is not None else problem)
 
     @property
     def basis(self) -> np.ndarray | None:

@@ -1,8 +1,8 @@
 """How every method is run: equilibrate, run, map the answer back, polish.
 
 :func:`run_method` is the one place that does this, for :func:`lcpcli.solve` and for ``auto``'s
-attempts alike.  Conventions: ``w = M z + q``; options and results in the units of the problem
-the user gave.
+attempts alike, and certifies the answer (see "Dispatcher" below).  Conventions:
+``w = M z + q``; options and results in the units of the problem the user gave.
 
 1. **Equilibrate** (:mod:`lcpcli.analysis.scaling`) when the method asks for it
    (``Method.scaling``): ``"auto"`` scales a symmetric M as ``D M D`` (keeps symmetry and
@@ -26,10 +26,10 @@ the user gave.
    verdict is always the certificate's (and a no_solution's proof is checked by the caller,
    :func:`lcpcli.analysis.proof.confirm`).
 
-Small path: a method that declares ``Method.fast`` is first asked for its answer from one
-compiled call (balance test, kernel, polish, certificate).  It answers only when the steps
-above would do nothing more (the problem is balanced and the answer passes the certificate),
-so the result is the same; otherwise it returns None and the steps above run.
+Dispatcher: :func:`run_method` is entered once per method run and is the only place that
+certifies an answer or reuses a certificate (:func:`certified`); a method whose kernel
+certifies its own answer (``lemke-revised``: balance test aside, kernel, polish and certificate
+in one compiled call) hands it over in ``Outcome.checked``.
 """
 
 from __future__ import annotations
@@ -47,7 +47,7 @@ from lcpcli.analysis.scaling import (
     is_balanced,
     spread,
 )
-from lcpcli.core.certificate import check
+from lcpcli.core.certificate import Certificate, check
 from lcpcli.core.numeric import float64_array
 from lcpcli.core.problem import Problem
 from lcpcli.core.result import CONVERGED, Outcome
@@ -59,44 +59,79 @@ W_OPTIONS = ("covering",)
 
 
 def run_method(spec: Any, problem: Problem, tol: float, options: dict[str, Any]) -> Outcome:
-    """Run ``spec`` on ``problem`` as the module docstring says; return its :class:`Outcome`."""
-    if spec.planner and getattr(spec, "scaling", "none") == "none":  # auto runs this pipeline
-        plan_run = getattr(spec, "plan_run", None)                    # for each of its attempts
-        if plan_run is not None:
-            return plan_run(problem, tol, options)
-        return spec.run(problem, tol=tol, **options)
-    fast = getattr(spec, "fast", None)
-    if fast is not None and type(problem.M) is np.ndarray:
-        out = fast(problem, tol, options)  # a balanced problem, certified: nothing else to do
-        if out is not None:
-            return out
+    """The dispatcher: run ``spec`` on ``problem`` and certify its answer at ``tol``.
+
+    Every solve enters here once per method run: :func:`lcpcli.solve` with its
+    :class:`~lcpcli.solvers.request.Request`, and each attempt of a planner (``auto``, whose
+    ``run`` calls this for every method it tries).  A planner runs as it is; any other method
+    goes through the steps of the module docstring.  The returned Outcome's ``checked`` is
+    always the certificate of its ``z`` at ``tol`` (:func:`certified`)."""
+    if spec.planner and getattr(spec, "scaling", "none") == "none":
+        out = spec.run(problem, tol=tol, **options)
+        certified(problem, out, tol)
+        return out
     requested = "none" if options.get("trace") else getattr(spec, "scaling", "none")
-    kind = requested
-    if kind != "none" and is_balanced(problem):
-        kind = "none"  # nothing to equilibrate (one compiled pass; no symmetry test needed)
-    symmetric = kind == "symmetric" or (kind == "auto" and is_symmetric(problem.M, 0.0))
-    scaling = equilibrate(problem, symmetric) if kind != "none" else None
+    if requested == "none" or is_balanced(problem):  # nothing to equilibrate (one compiled
+        out = spec.run(problem, tol=tol, **options)   # pass; no symmetry test needed)
+        if _polish(problem, out, tol):
+            return out  # certified: the small problems' path ends here
+        if requested != "none":
+            out = _geometric(spec, problem, tol, options, out, requested, None)
+    else:
+        out = _equilibrated(spec, problem, tol, options, requested)
+    certified(problem, out, tol)
+    return out
+
+
+def certified(problem: Problem, out: Outcome, tol: float,
+              state: np.ndarray | None = None) -> tuple[Certificate, np.ndarray]:
+    """``(certificate, w)`` of ``out.z`` at ``tol``, stored in ``out.checked``: the one rule for
+    reusing a certificate.  ``out.checked`` is reused when it was made at this ``tol`` (by
+    whoever last set ``out.z``: a kernel that certified its own answer, the polish, an earlier
+    call); otherwise, or when the pair ``state`` codes are asked for, ``z`` is checked now
+    (:func:`lcpcli.core.certificate.check`)."""
+    checked = out.checked
+    if checked is None or checked[0].tol != tol or state is not None:
+        out.z = z = float64_array(out.z)
+        checked = out.checked = check(problem, z, tol, state=state)
+    return checked
+
+
+def _equilibrated(spec: Any, problem: Problem, tol: float, options: dict[str, Any],
+                  requested: str) -> Outcome:
+    """Steps 1-3 of the module docstring for a problem that needs equilibrating."""
+    symmetric = requested == "symmetric" or (requested == "auto" and is_symmetric(problem.M, 0.0))
+    scaling = equilibrate(problem, symmetric)
     out = _run_scaled(spec, problem, tol, options, scaling)
-    if (kind == "auto" and not symmetric and out.termination != CONVERGED
+    if (requested == "auto" and not symmetric and out.termination != CONVERGED
             and not out.proven_infeasible):
         again = _run_scaled(spec, problem, tol, options, equilibrate(problem, True))
         if again.proven_infeasible or again.termination == CONVERGED:
             again.message += " (rerun with D M D scaling, which keeps M's class)"
             again.iterations += out.iterations
             out = again
-    passed = _polish(problem, out, tol)
-    if (requested != "none" and not passed and not out.proven_infeasible
-            and spread(problem, scaling) > GEOMETRIC_SPREAD):
-        # Ruiz's scaling balanced the row and column maxima but left entries far apart: rerun on
-        # Curtis and Reid's least-squares scaling (invariant under row and column scalings)
-        keep = requested == "symmetric" or (requested == "auto" and is_symmetric(problem.M, 0.0))
-        geo = geometric(problem, keep)
-        if geo is not None:
-            again = _run_scaled(spec, problem, tol, options, geo)
-            if _polish(problem, again, tol) or again.proven_infeasible:
-                again.message = f"{out.message}; rerun on the geometric scaling: {again.message}"
-                again.iterations += out.iterations
-                out = again
+    if _polish(problem, out, tol):
+        return out
+    return _geometric(spec, problem, tol, options, out, requested, scaling)
+
+
+def _geometric(spec: Any, problem: Problem, tol: float, options: dict[str, Any], out: Outcome,
+               requested: str, scaling: Scaling | None) -> Outcome:
+    """The end of step 2 for an answer that failed the certificate after its polish: when
+    there is no proof either and the (scaled) matrix's entries span more than
+    ``2^GEOMETRIC_SPREAD``, the run on Curtis and Reid's geometric scaling, if it does better."""
+    if out.proven_infeasible or spread(problem, scaling) <= GEOMETRIC_SPREAD:
+        return out
+    # Ruiz's scaling balanced the row and column maxima but left entries far apart: rerun on
+    # Curtis and Reid's least-squares scaling (invariant under row and column scalings)
+    keep = requested == "symmetric" or (requested == "auto" and is_symmetric(problem.M, 0.0))
+    geo = geometric(problem, keep)
+    if geo is not None:
+        again = _run_scaled(spec, problem, tol, options, geo)
+        if _polish(problem, again, tol) or again.proven_infeasible:
+            again.message = f"{out.message}; rerun on the geometric scaling: {again.message}"
+            again.iterations += out.iterations
+            out = again
     return out
 
 
@@ -105,16 +140,14 @@ def _polish(problem: Problem, out: Outcome, tol: float) -> bool:
     certificate (``out.checked`` is then set for the caller to reuse)."""
     if out.termination != CONVERGED:
         return False
-    z = out.z = float64_array(out.z)
-    if out.checked is None or out.checked[0].tol != tol:
-        out.checked = check(problem, z, tol)
-    cert = out.checked[0]
+    cert = certified(problem, out, tol)[0]
+    z = out.z
     if cert.passed:
         return True
     polished = refine(problem, z, basis=out.info.get("basis"))
     if polished is not None and polished[1] < cert.error:
-        out.z = polished[0]
-        out.checked = check(problem, out.z, tol)
+        out.z, out.checked = polished[0], None
+        certified(problem, out, tol)
         out.message += (f"; active-set polish: certified error {cert.error:.2g} -> "
                         f"{polished[1]:.2g}")
         out.info["polished"] = True

@@ -33,7 +33,8 @@ from itertools import islice
 from pathlib import Path
 from typing import Any, NamedTuple
 
-from lcpcli.analysis.classify import Classifier, ClassReport
+from lcpcli.analysis.classify import Classifier, ClassReport, diagonal_facts
+from lcpcli.solvers.memo import OPENINGS, ORDERS
 from lcpcli.solvers.registry import Condition, Cost, Method, methods, when
 from lcpcli.solvers.registry import version as registry_version
 
@@ -160,30 +161,43 @@ def regime_of(c: Classifier) -> Regime:
     raise AssertionError("the last regime holds for every problem")
 
 
-def _startable(m: Method, c: Classifier, value: Callable[[str], bool | None]) -> bool:
-    """False when ``m`` cannot start on the problem (too large, a failed requirement)."""
+def cannot_start(m: Method, c: Classifier, value: Callable[[str], bool | None], *,
+                 needs: bool = True) -> str | None:
+    """Why ``m`` cannot start on the problem (too large, it would densify a huge sparse M,
+    a failed requirement: unless ``needs`` is False), or None when it can."""
     if m.max_n is None and not m.needs and (m.sparse or not c.report.sparse):
-        return True
-    if m.max_n is not None and c.report.n > m.max_n:
-        return False
-    if c.report.sparse and m.densifies(c.problem):
-        return False
-    return all(req.when.evaluate(value) is not False for req in m.needs)
+        return None
+    n = c.report.n
+    if m.max_n is not None and n > m.max_n:
+        return f"n = {n} is above its limit max_n = {m.max_n}"
+    if m.densifies(c.problem):
+        return f"would densify a sparse {n} x {n} matrix"
+    if needs:
+        failed = next((r for r in m.needs if r.when.evaluate(value) is False), None)
+        if failed is not None:
+            return f"needs {failed.when}: {failed.why}"
+    return None
+
+
+def table_key(kind: str, regime: Regime,
+              registry: Mapping[str, Method] | None) -> tuple[Any, ...]:
+    """The key of :data:`lcpcli.solvers.memo.ORDERS`: the ordered rows depend on the kind,
+    the regime and the registry (its version for the live one, else its records)."""
+    if registry is None:
+        return (kind, regime.name, registry_version())
+    return (kind, regime.name, tuple(map(id, registry.values())))
 
 
 _ORDER_CACHE: dict[tuple[Any, ...], list[Row]] = {}
 
 
 def _table(kind: str, regime: Regime, registry: Mapping[str, Method] | None) -> list[Row]:
-    """The ordered rows, cached per registry content (None: the live registry)."""
-    if registry is None:
-        key: tuple[Any, ...] = (kind, regime.name, registry_version())
-        registry = methods()
-    else:
-        key = (kind, regime.name, tuple(map(id, registry.values())))
-    table = _ORDER_CACHE.get(key)
+    """The ordered rows (memoised by :func:`table_key`; None: the live registry)."""
+    key = table_key(kind, regime, registry)
+    table = ORDERS.get(key)
     if table is None:
-        table = _ORDER_CACHE[key] = ordered(rows(kind, registry), regime)
+        reg = methods() if registry is None else registry
+        table = ORDERS.put(key, ordered(rows(kind, reg), regime))
     return table
 
 
@@ -201,9 +215,17 @@ def plan(problem: Any, c: Classifier, registry: Mapping[str, Method] | None = No
     return list(islice(steps, 1)) if first else list(steps)
 
 
-#: Openings of dense problems, by what decided them (see :func:`opening`).
-_OPENINGS: dict[tuple[Any, ...], tuple[Regime, Step | None]] = {}
-_OPENINGS_MAX = 4096
+def opening_key(c: Classifier) -> tuple[Any, ...] | None:
+    """The key of :data:`lcpcli.solvers.memo.OPENINGS` for a dense problem (None: sparse,
+    never memoised), after the O(n) diagonal test: the kind, n (the dense regimes depend on n
+    only), the registry's version and every fact that test decides
+    (:func:`lcpcli.analysis.classify.diagonal_facts`)."""
+    r = c.report
+    if r.sparse:
+        return None
+    if r.positive_diagonal is None:
+        c.run("positive_diagonal")
+    return (r.kind, r.n, registry_version(), diagonal_facts(r))
 
 
 def opening(problem: Any, c: Classifier) -> tuple[Regime, Step | None]:
@@ -211,18 +233,12 @@ def opening(problem: Any, c: Classifier) -> tuple[Regime, Step | None]:
     (``plan(problem, c, optimistic=True, first=True, regime=regime)``'s; None otherwise, or
     when no method applies).
 
-    Memoised for a dense problem whose plan needed only the O(n) diagonal test: then the
-    problem's kind, n, the registry and the facts that test established decide both (the
-    dense regimes depend on n only), and they are the key, so a repeated small solve skips the
-    regime and row walks.  Anything else is planned afresh."""
-    r = c.report
-    key = None
-    if not r.sparse:
-        if r.positive_diagonal is None:
-            c.run("positive_diagonal")
-        key = (r.kind, r.n, registry_version(), r.positive_diagonal, r.h_matrix, r.p_matrix,
-               r.definiteness)
-        found = _OPENINGS.get(key)
+    Memoised (:func:`opening_key`) for a dense problem whose plan needed only the O(n)
+    diagonal test, so a repeated small solve skips the regime and row walks.  Anything else is
+    planned afresh."""
+    key = opening_key(c)
+    if key is not None:
+        found = OPENINGS.get(key)
         if found is not None:
             return found
     before = c.tests_run
@@ -231,8 +247,17 @@ def opening(problem: Any, c: Classifier) -> tuple[Regime, Step | None]:
     if regime.optimistic:
         steps = plan(problem, c, optimistic=True, first=True, regime=regime)
         step = steps[0] if steps else None
-    if key is not None and c.tests_run == before and len(_OPENINGS) < _OPENINGS_MAX:
-        _OPENINGS[key] = (regime, step)
+    if key is not None and c.tests_run == before:
+        OPENINGS.put(key, (regime, step))
+    return regime, step
+
+
+def first_step(problem: Any, c: Classifier) -> tuple[Regime, Step | None]:
+    """``auto``'s first attempt and the regime: in an optimistic regime the :func:`opening`
+    (cheap tests only), otherwise the first step of the plan with every test it needs."""
+    regime, step = opening(problem, c)
+    if not regime.optimistic:
+        step = next(iter_plan(problem, c, regime=regime), None)
     return regime, step
 
 
@@ -251,7 +276,7 @@ def iter_plan(problem: Any, c: Classifier, registry: Mapping[str, Method] | None
         if holds is False or (holds is None and not optimistic):
             continue
         done.add(row.method)
-        if not _startable(row.spec, c, value):  # type: ignore[arg-type]
+        if cannot_start(row.spec, c, value) is not None:  # type: ignore[arg-type]
             continue
         if row.tier == 2:
             yield Step(row.method, row.reason, False)
@@ -270,7 +295,7 @@ def applicability(problem: Any, c: Classifier,
     zero diagonal entry).  ``auto_rank`` is the 1-based position in auto's plan (or None).
     """
     reg = methods() if registry is None else registry
-    kind, n = problem.kind, problem.n
+    kind = problem.kind
     rank = {s.method: i + 1 for i, s in enumerate(plan(problem, c, reg))}
     out = []
     for name, m in reg.items():
@@ -279,13 +304,8 @@ def applicability(problem: Any, c: Classifier,
                                   f"not {kind.upper()}")
         elif m.planner:
             applies, why = "yes", "picks a method from the classification (its plan below)"
-        elif m.max_n is not None and n > m.max_n:
-            applies, why = "no", f"n = {n} is above its limit max_n = {m.max_n}"
-        elif m.densifies(problem):
-            applies, why = "no", f"would densify a sparse {n} x {n} matrix"
-        elif (failed := next((r for r in m.needs if r.when.evaluate(c.get) is False),
-                             None)) is not None:
-            applies, why = "no", f"needs {failed.when}: {failed.why}"
+        elif (why_not := cannot_start(m, c, c.get)) is not None:
+            applies, why = "no", why_not
         else:
             applies, why = _guarantee_or_not(m, kind, c)
         out.append({"method": name, "applies": applies, "why": why,

@@ -22,6 +22,7 @@ from lcpcli.analysis.classify import PROPERTIES
 from lcpcli.core.errors import OptionError
 from lcpcli.core.limits import DENSE_N_BUDGET, DENSE_N_ENV, dense_n_budget
 from lcpcli.core.text import option_name
+from lcpcli.solvers.memo import OPTION_DEFAULTS
 
 #: A method that densifies M is refused on a sparse problem with more entries than this
 #: (``n * n``; 1e8 entries are 0.8 GB as float64): the dense-work budget of
@@ -29,9 +30,6 @@ from lcpcli.core.text import option_name
 MAX_DENSIFY_ENTRIES = DENSE_N_BUDGET ** 2
 #: Names of the methods whose ``prepare`` hook already ran in this process.
 _PREPARED: set[str] = set()
-#: Each method's option defaults (id -> (method, defaults)): parse_options is on the small-solve
-#: path, and a frozen record cannot cache them itself.
-_DEFAULTS: dict[int, tuple[Any, dict[str, Any]]] = {}
 
 
 @dataclass(frozen=True)
@@ -127,8 +125,9 @@ class Cost(enum.Enum):
 class Method:
     """A registered solver method.
 
-    ``run(problem, tol=..., **options) -> Outcome`` does the work; the caller
-    (:func:`lcpcli.api.solve`) times it and certifies its answer.  The policy data:
+    ``run(problem, tol=..., **options) -> Outcome`` does the work, the method's one door: the
+    dispatcher (:func:`lcpcli.solvers.pipeline.run_method`) calls it and certifies its
+    answer.  The policy data:
     ``guarantees`` (per matrix class), ``needs`` (what it cannot start without), ``max_n``
     (the largest n it accepts), ``cost`` and ``preference`` (auto's order: lower first among
     methods of the same cost), ``fallback`` (why auto may try it outside its guarantees;
@@ -159,20 +158,12 @@ class Method:
     #: Prose beyond the guarantees (shown after them in ``lcpcli methods``).
     notes: str = ""
     planner: bool = False
-    #: A planner's ``run`` with the parsed options as one mapping: ``plan_run(problem, tol,
-    #: options)`` (what :func:`lcpcli.solvers.pipeline.run_method` calls; None: ``run``).
-    plan_run: Callable[..., Any] | None = None
     #: How :mod:`lcpcli.solvers.pipeline` equilibrates the problem first: ``"auto"`` (``D M D``
     #: for a symmetric M, two-sided otherwise), ``"symmetric"`` (always ``D M D``) or ``"none"``.
     scaling: str = "none"
     #: The batched kernel for stacks of problems (:class:`BatchSpec`),
     #: or None: :func:`lcpcli.solve_many` then solves the stack one problem at a time.
     batch: BatchSpec | None = None
-    #: The small path of :func:`lcpcli.solvers.pipeline.run_method` for a dense problem:
-    #: ``fast(problem, tol, options)`` returns the method's certified :class:`Outcome` from one
-    #: compiled call when the problem needs no equilibration (the call makes the balance test)
-    #: and the answer passes the certificate, or None: the full pipeline then runs.
-    fast: Callable[..., Any] | None = None
 
     @property
     def matrix_classes(self) -> str:
@@ -200,12 +191,16 @@ class Method:
         limit = dense_n_budget() ** 2 if DENSE_N_ENV in os.environ else MAX_DENSIFY_ENTRIES
         return problem.n * problem.n > limit
 
+    def option_defaults(self) -> dict[str, Any]:
+        """Each option's default, by name (memoised in :data:`lcpcli.solvers.memo.
+        OPTION_DEFAULTS` for :meth:`parse_options`)."""
+        return {k: opt.default for k, opt in self.options.items()}
+
     def parse_options(self, given: Mapping[str, Any]) -> dict[str, Any]:
         """Defaults merged with ``given``; unknown names or bad values raise OptionError."""
-        defaults = _DEFAULTS.get(id(self))
+        defaults = OPTION_DEFAULTS.get(id(self))  # a frozen record cannot cache them itself
         if defaults is None or defaults[0] is not self:
-            defaults = _DEFAULTS[id(self)] = (self, {k: opt.default
-                                                     for k, opt in self.options.items()})
+            defaults = OPTION_DEFAULTS.put(id(self), (self, self.option_defaults()))
         out = dict(defaults[1])
         if not given:
             return out

@@ -37,6 +37,8 @@ def test_dense_solve_and_inverse_match_numpy(m):
     np.testing.assert_allclose(dense.inv(A), np.linalg.inv(A), rtol=1e-10, atol=1e-13)
     if m >= dense.LAPACK_MIN:
         assert dense.lapack_bound()
+        if dense._numpy_blas_files():  # a numpy wheel: its OpenBLAS, not scipy's
+            assert dense.lapack_source() in dense._numpy_blas_files()
 
 
 def test_dense_singular_is_an_error_both_ways():
@@ -171,10 +173,12 @@ def test_bench_reports_methods_that_error():
 
 
 def test_fused_call_certifies_like_the_certificate_module():
-    """Kernel + polish + certificate in one C call: the same z as the method, the same
-    certificate as lcpcli.core.certificate.check (the one definition)."""
+    """Kernel + polish + certificate in one C call: the same pivots and z as the kernel followed
+    by its polish, the same certificate as lcpcli.core.certificate.check (the one
+    definition)."""
     from lcpcli.core.certificate import check
-    from lcpcli.solvers.kernels.lemke_revised import OK, lemke_solve, lemke_solve_certified
+    from lcpcli.solvers.kernels.lemke import polish_kernel
+    from lcpcli.solvers.kernels.lemke_revised import OK, lemke_solve_certified
 
     rng = np.random.default_rng(8)
     for trial in range(40):
@@ -183,16 +187,17 @@ def test_fused_call_certifies_like_the_certificate_module():
         scale = 10.0 ** rng.integers(-3, 4)
         M = [A @ A.T + 0.1 * np.eye(n), A - A.T + np.eye(n)][trial % 2] * scale
         q = rng.standard_normal(n)
-        status, z, w, pivots, *_, cert = lemke_solve_certified(M, q, None, 5000, PIVOT_TOL,
-                                                               TIE_TOL, 50)
-        ref = lemke_solve(M, q, None, 5000, PIVOT_TOL, TIE_TOL, 50)
-        assert status == ref[0] and pivots == ref[2]
-        if status == OK:
-            np.testing.assert_array_equal(z, ref[1])
+        got = lemke_solve_certified(M, q, None, 5000, PIVOT_TOL, TIE_TOL, 50)
+        ref = lemke_revised_kernel(M, q, np.ones(n), 5000, PIVOT_TOL, TIE_TOL,
+                                   np.zeros((0, 3), dtype=np.int64), 50)
+        assert got.status == ref[0] and got.pivots == ref[2]
+        if got.status == OK:
+            np.testing.assert_array_equal(got.z, polish_kernel(M, q, ref[1], ref[3]))
+        cert = got.cert
         if cert is None:  # trivial: z = 0
             continue
-        c, w_ref = check(Problem.create(M, q), z, 1e-8)
-        np.testing.assert_array_equal(w, w_ref)
+        c, w_ref = check(Problem.create(M, q), got.z, 1e-8)
+        np.testing.assert_array_equal(got.w, w_ref)
         assert cert[0] == 0
         assert cert[1:] == (c.error, c.backward_error, c.growth, c.residual, c.bound_violation,
                             c.w_violation, c.complementarity, c.equality_residual, c.worst)

@@ -22,7 +22,7 @@ from lcpcli.api import solve
 from lcpcli.core.certificate import certify
 from lcpcli.core.problem import Problem
 from lcpcli.core.result import CONVERGED, NUMERICAL, Outcome, Status
-from lcpcli.solvers import policy
+from lcpcli.solvers import memo, policy
 from lcpcli.solvers.registry import (
     Cost,
     Guarantee,
@@ -290,16 +290,26 @@ def _fresh_opening(problem: Problem) -> tuple:
 @pytest.mark.parametrize("diag", [1.0, 0.0, -1.0])
 @pytest.mark.parametrize("n", [1, 3, 12, 30])
 def test_opening_memo_gives_what_planning_afresh_gives(n, diag, monkeypatch):
-    """The memoised opening (auto's regime and first step) equals a fresh plan, for positive,
-    zero and negative diagonals and for sizes below and above enum's limit, hit or miss."""
+    """The opening (auto's regime and first step) equals a fresh plan, for positive, zero and
+    negative diagonals and for sizes below and above enum's limit, hit or miss: it is stored
+    exactly when the O(n) diagonal test alone decided it (a positive diagonal, or n = 1), and
+    then the second call is a hit; otherwise (the symmetry test ran too) nothing is stored."""
     rng = np.random.default_rng(n)
     A = rng.standard_normal((n, n))
     M = A - np.diag(np.diag(A)) + diag * np.eye(n) * n
     q = -rng.random(n)
-    monkeypatch.setattr(policy, "_OPENINGS", {})
-    for _ in range(2):  # a miss, then a hit
-        p = Problem.create(M, q)
-        assert policy.opening(p, Classifier(p)) == _fresh_opening(p)
+    monkeypatch.setattr(memo, "OPENINGS", memo.Memo("openings (test)", 16))
+    monkeypatch.setattr(policy, "OPENINGS", memo.OPENINGS)
+    p = Problem.create(M, q)
+    c = Classifier(p)
+    first = policy.opening(p, c)
+    stored = c.tests_run == {"_diagonal"}
+    assert stored == (diag > 0 or (diag == 0 and n == 1))  # 1 x 1: m_11 = 0 decides all
+    assert len(memo.OPENINGS) == int(stored)
+    p = Problem.create(M, q)
+    second = policy.opening(p, Classifier(p))
+    assert memo.OPENINGS.misses == int(stored)  # stored: the second call was served
+    assert first == second == _fresh_opening(Problem.create(M, q))
 
 
 def test_opening_memo_follows_the_registry(monkeypatch):

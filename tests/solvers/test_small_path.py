@@ -1,5 +1,7 @@
-"""The pipeline's small path (``Method.fast``): one compiled call gives the same result as the
-full pipeline, and declines (None) whenever the full pipeline would do more."""
+"""The small path: ``lemke-revised``'s kernel certifies its own answer in the same compiled
+call (``Outcome.checked``), and the dispatcher (:func:`lcpcli.solvers.pipeline.run_method`)
+reuses that certificate instead of checking again.  The Result must be the one a fresh check
+gives: with the kernel's certificate dropped, every field is the same."""
 
 from __future__ import annotations
 
@@ -12,10 +14,19 @@ from hypothesis import strategies as st
 
 import lcpcli
 from lcpcli.analysis.scaling import is_balanced
+from lcpcli.core.certificate import check
 from lcpcli.core.problem import Problem
 from lcpcli.solvers import registry
-from lcpcli.solvers.methods import lemke_revised
 from lcpcli.solvers.pipeline import run_method
+
+
+def _without_kernel_certificate(spec):
+    """``spec`` whose runs hand back no certificate (the dispatcher then checks z itself)."""
+    def run(problem, **kw):
+        out = spec.run(problem, **kw)
+        out.checked = None
+        return out
+    return dataclasses.replace(spec, run=run)
 
 
 def _spd(n: int, seed: int, row_scale: float = 1.0) -> Problem:
@@ -31,9 +42,9 @@ def _spd(n: int, seed: int, row_scale: float = 1.0) -> Problem:
 
 @pytest.fixture
 def without_small_path(monkeypatch):
-    """Solve with lemke-revised's small path switched off (the full pipeline only)."""
+    """Solve with lemke-revised's own certificate dropped (the dispatcher checks z)."""
     spec = registry.get_method("lemke-revised")
-    plain = dataclasses.replace(spec, fast=None)
+    plain = _without_kernel_certificate(spec)
 
     def solve(problem, method="lemke", **kw):
         monkeypatch.setitem(registry._load(), "lemke-revised", plain)
@@ -64,26 +75,33 @@ def test_same_result_as_the_full_pipeline(n, without_small_path):
         _same(lcpcli.solve(p, "lemke"), without_small_path(p))
 
 
-def test_declines_what_the_full_pipeline_must_do():
-    opts = registry.get_method("lemke").parse_options({})
+@pytest.mark.parametrize("case", ["balanced", "unbalanced", "trace", "easy", "infeasible",
+                                  "tight tol"])
+def test_the_reused_certificate_is_a_fresh_check(case):
+    """Whatever path the answer took (the kernel's certificate on a balanced problem, a
+    scaled run whose certificate is of the scaled problem and so dropped, the tableau replica
+    of a trace, z = 0, a ray, a tolerance the answer does not meet), the Result's certificate
+    is check()'s of its z on the user's problem."""
     p = _spd(10, 1)
-    assert lemke_revised.fast(p, 1e-8, opts) is not None
-    # a problem the pipeline equilibrates first
-    unbalanced = _spd(10, 1, row_scale=1e6)
-    assert not is_balanced(unbalanced)
-    assert lemke_revised.fast(unbalanced, 1e-8, opts) is None
-    assert lcpcli.solve(unbalanced, "lemke").solved
-    # a trace (recorded by the tableau replica)
-    assert lemke_revised.fast(p, 1e-8, {**opts, "trace": True}) is None
-    # q >= 0 (z = 0, certified the ordinary way) and an infeasible problem (a ray)
-    easy = Problem.create(p.M, np.abs(p.q))
-    assert lemke_revised.fast(easy, 1e-8, opts) is None
-    assert lcpcli.solve(easy, "lemke").solved
-    infeasible = Problem.create(-np.eye(3), -np.ones(3))
-    assert lemke_revised.fast(infeasible, 1e-8, opts) is None
-    assert lcpcli.solve(infeasible, "lemke").status == "no_solution"
-    # a tolerance the answer does not meet
-    assert lemke_revised.fast(p, 1e-17, opts) is None  # tol below the rounding of this z
+    tol, opts = 1e-8, {}
+    if case == "unbalanced":
+        p = _spd(10, 1, row_scale=1e6)
+        assert not is_balanced(p)
+    elif case == "trace":
+        opts = {"trace": True}
+    elif case == "easy":
+        p = Problem.create(p.M, np.abs(p.q))
+    elif case == "infeasible":
+        p = Problem.create(-np.eye(3), -np.ones(3))
+    elif case == "tight tol":
+        tol = 1e-16  # rounding level: the kernel's answer may or may not meet it
+    res = lcpcli.solve(p, "lemke", tol=tol, **opts)
+    cert, w = check(p, res.z, tol)
+    assert res.certificate == cert
+    np.testing.assert_array_equal(res.w, w)
+    assert res.solved == cert.passed or res.status == "no_solution"
+    if case != "tight tol":
+        assert res.status == ("no_solution" if case == "infeasible" else "solved")
 
 
 def test_options_reach_the_compiled_call(without_small_path):
@@ -97,18 +115,19 @@ def test_options_reach_the_compiled_call(without_small_path):
 @given(n=st.integers(1, 12), seed=st.integers(0, 2**32 - 1),
        psd=st.booleans(), scale=st.sampled_from([1.0, 1e-3, 1e5]))
 def test_small_path_never_changes_a_result(n, seed, psd, scale):
-    """Random P and PSD problems, some not balanced: with or without the small path, the
-    Result is the same."""
+    """Random P and PSD problems, some not balanced: with or without the kernel's own
+    certificate, the dispatcher's Outcome is the same."""
     rng = np.random.default_rng(seed)
     A = rng.standard_normal((n, n))
     M = A @ A.T if psd else A @ A.T + np.eye(n)
     q = rng.standard_normal(n) * scale
     p = Problem.create(M, q)
     spec = registry.get_method("lemke-revised")
-    plain = dataclasses.replace(spec, fast=None)
+    plain = _without_kernel_certificate(spec)
     opts = spec.parse_options({})
     a = run_method(spec, p, 1e-8, opts)
     b = run_method(plain, p, 1e-8, opts)
     np.testing.assert_array_equal(a.z, b.z)
     assert (a.termination, a.iterations, a.message) == (b.termination, b.iterations, b.message)
     assert a.info == b.info
+    assert a.checked[0] == b.checked[0]

@@ -23,7 +23,7 @@ from libc.stdlib cimport free, malloc
 
 cimport numpy as cnp
 
-from lcpcli.analysis._scaling cimport _ruiz, _symmetric
+from lcpcli.analysis._scaling cimport _balanced, _ruiz, _symmetric
 from lcpcli.core._certificate cimport CertOut, certify_dense
 from lcpcli.core.arrays cimport f64_ptr, inout
 from lcpcli.solvers.kernels.lemke cimport (
@@ -63,8 +63,7 @@ cdef int _balance(const double* M, const double* q, const double* d, Py_ssize_t 
     cdef Py_ssize_t i, j
     # balanced already (one pass, as lcpcli.analysis.scaling.is_balanced): nothing to do, and
     # no symmetry test (it only chooses between D M D and two-sided scaling)
-    if not _ruiz(n, M, n, NULL, NULL, NULL, q, False, eq[0], eq[1], 1, r, c, r + 2 * n,
-                 r + 3 * n):
+    if _balanced(n, M, n, q, eq[0], eq[1], r):
         return 0
     if not _ruiz(n, M, n, NULL, NULL, NULL, q, _symmetric(M, n), eq[0], eq[1], eq[2], r, c,
                  r + 2 * n, r + 3 * n):

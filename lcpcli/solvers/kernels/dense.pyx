@@ -4,16 +4,17 @@
 Sizes below :data:`LAPACK_MIN` use the loops here (partial pivoting, row-oriented
 elimination: no library call, no import).  From ``LAPACK_MIN`` up, and once
 :func:`bind_lapack` has run, the same functions call LAPACK's ``dgetrf``/``dgetrs``/``dgetri``
-through the function pointers that ``scipy.linalg.cython_lapack`` exports as capsules in
-``__pyx_capi__`` (what ``cimport`` does underneath, without importing scipy when this module
-is imported).  A row-major buffer is LAPACK's column-major transpose, so the LAPACK path
+through function pointers: first those of the OpenBLAS that numpy's own build loaded
+(``numpy.libs``: ``scipy_dgetrf_64_`` and its siblings, 64-bit integers, called through the
+small wrappers below), found with ``dlopen``/``dlsym`` without importing anything; otherwise
+those that ``scipy.linalg.cython_lapack`` exports as capsules in ``__pyx_capi__`` (importing
+``scipy.linalg``, about 0.3 s).  A row-major buffer is LAPACK's column-major transpose, so the LAPACK path
 transposes in place first (O(m^2)) and factors ``A`` itself, as ``numpy.linalg.solve`` does
 (same pivoting, same answers).
 
 The crossover (:data:`LAPACK_MIN` = 64) is above the per-call one (32-40 on the development
-machine, single-threaded OpenBLAS: ``benchmarks/bench_kernels.py --crossover``) because binding
-LAPACK imports ``scipy.linalg`` once (about 0.3 s, the cost of 10^4 small solves): problems
-below 64 basic variables never import scipy.
+machine, single-threaded OpenBLAS: ``benchmarks/bench_kernels.py --crossover``); with numpy's
+OpenBLAS found, no size imports scipy (the dense Lemke path never does).
 
 All functions return 0 on success and ``k + 1`` when the ``k``-th pivot is exactly zero
 (LAPACK's ``info`` convention: singular to working precision means an exact zero pivot).
@@ -21,8 +22,10 @@ All functions return 0 on success and ``k + 1`` when the ``k``-th pivot is exact
 
 from cpython.pycapsule cimport PyCapsule_GetName, PyCapsule_GetPointer
 from libc.math cimport fabs
+from libc.stdint cimport int64_t
 from libc.stdlib cimport free, malloc
 from libc.string cimport memcpy
+from posix.dlfcn cimport RTLD_NOW, dlopen, dlsym
 
 cimport numpy as cnp
 
@@ -40,6 +43,66 @@ ctypedef void (*dgetri_t)(int* n, double* a, int* lda, int* ipiv, double* work, 
 cdef dgetrf_t _dgetrf = NULL
 cdef dgetrs_t _dgetrs = NULL
 cdef dgetri_t _dgetri = NULL
+
+# LAPACK with 64-bit integers (ILP64: numpy's bundled OpenBLAS), behind the wrappers below
+ctypedef void (*dgetrf64_t)(int64_t* m, int64_t* n, double* a, int64_t* lda, int64_t* ipiv,
+                            int64_t* info) noexcept nogil
+ctypedef void (*dgetrs64_t)(char* trans, int64_t* n, int64_t* nrhs, double* a, int64_t* lda,
+                            int64_t* ipiv, double* b, int64_t* ldb, int64_t* info) noexcept nogil
+ctypedef void (*dgetri64_t)(int64_t* n, double* a, int64_t* lda, int64_t* ipiv, double* work,
+                            int64_t* lwork, int64_t* info) noexcept nogil
+cdef dgetrf64_t _dgetrf64 = NULL
+cdef dgetrs64_t _dgetrs64 = NULL
+cdef dgetri64_t _dgetri64 = NULL
+#: Where the LAPACK in use comes from ("" until bound).
+cdef str _source = ""
+#: numpy's OpenBLAS symbols, 64-bit integer interface (numpy >= 2 wheels), by prefix.
+_ILP64_NAMES = (b"scipy_%s_64_", b"%s_64_")
+
+
+cdef void _dgetrf_ilp64(int* m, int* n, double* a, int* lda, int* ipiv,
+                        int* info) noexcept nogil:
+    cdef int64_t mm = m[0], nn = n[0], ld = lda[0], inf = 0
+    cdef Py_ssize_t k, r = mm if mm < nn else nn
+    cdef int64_t* piv = <int64_t*>malloc((r + 1) * sizeof(int64_t))
+    if piv == NULL:
+        info[0] = -1000
+        return
+    _dgetrf64(&mm, &nn, a, &ld, piv, &inf)
+    for k in range(r):
+        ipiv[k] = <int>piv[k]
+    free(piv)
+    info[0] = <int>inf
+
+
+cdef void _dgetrs_ilp64(char* trans, int* n, int* nrhs, double* a, int* lda, int* ipiv,
+                        double* b, int* ldb, int* info) noexcept nogil:
+    cdef int64_t nn = n[0], nr = nrhs[0], la = lda[0], lb = ldb[0], inf = 0
+    cdef Py_ssize_t k
+    cdef int64_t* piv = <int64_t*>malloc((nn + 1) * sizeof(int64_t))
+    if piv == NULL:
+        info[0] = -1000
+        return
+    for k in range(nn):
+        piv[k] = ipiv[k]
+    _dgetrs64(trans, &nn, &nr, a, &la, piv, b, &lb, &inf)
+    free(piv)
+    info[0] = <int>inf
+
+
+cdef void _dgetri_ilp64(int* n, double* a, int* lda, int* ipiv, double* work, int* lwork,
+                        int* info) noexcept nogil:
+    cdef int64_t nn = n[0], la = lda[0], lw = lwork[0], inf = 0
+    cdef Py_ssize_t k
+    cdef int64_t* piv = <int64_t*>malloc((nn + 1) * sizeof(int64_t))
+    if piv == NULL:
+        info[0] = -1000
+        return
+    for k in range(nn):
+        piv[k] = ipiv[k]
+    _dgetri64(&nn, a, &la, piv, work, &lw, &inf)
+    free(piv)
+    info[0] = <int>inf
 
 #: From this size up the LU, solves and inverses call LAPACK (once :func:`bind_lapack` ran).
 LAPACK_MIN = 64
@@ -67,21 +130,67 @@ cdef void* _pointer(object capi, str name) except NULL:
     return PyCapsule_GetPointer(cap, PyCapsule_GetName(cap))
 
 
-def bind_lapack():
-    """Bind dgetrf/dgetrs/dgetri from scipy's capsules (idempotent).
+def _numpy_blas_files():
+    """The OpenBLAS libraries numpy's wheel ships (``numpy.libs`` beside the package; numpy
+    loaded them already, so ``dlopen`` only finds them)."""
+    import glob
+    import os
 
-    Imports ``scipy.linalg`` (about 0.3 s), so callers do it only for a size that needs it
-    (see :func:`need`).  Without it the loops here are used at every size.
-    """
-    global _dgetrf, _dgetrs, _dgetri
+    import numpy
+    root = os.path.dirname(os.path.dirname(os.path.abspath(numpy.__file__)))
+    return sorted(glob.glob(os.path.join(root, "numpy.libs", "*openblas*")) +
+                  glob.glob(os.path.join(os.path.dirname(numpy.__file__), ".dylibs",
+                                         "*openblas*")))
+
+
+def bind_numpy_lapack():
+    """Bind dgetrf/dgetrs/dgetri from the OpenBLAS numpy loaded (no import); True if bound
+    (now or before)."""
+    global _dgetrf, _dgetrs, _dgetri, _dgetrf64, _dgetrs64, _dgetri64, _source
     if _dgetrf != NULL:
+        return True
+    cdef void* handle
+    cdef void* f
+    cdef void* s
+    cdef void* i
+    for path in _numpy_blas_files():
+        handle = dlopen(path.encode(), RTLD_NOW)
+        if handle == NULL:
+            continue
+        for pattern in _ILP64_NAMES:
+            f = dlsym(handle, pattern % b"dgetrf")
+            s = dlsym(handle, pattern % b"dgetrs")
+            i = dlsym(handle, pattern % b"dgetri")
+            if f != NULL and s != NULL and i != NULL:
+                _dgetrf64, _dgetrs64, _dgetri64 = <dgetrf64_t>f, <dgetrs64_t>s, <dgetri64_t>i
+                _dgetrs, _dgetri = _dgetrs_ilp64, _dgetri_ilp64
+                _dgetrf = _dgetrf_ilp64
+                _source = path
+                return True
+    return False
+
+
+def lapack_source():
+    """Where the bound LAPACK comes from: numpy's OpenBLAS file, "scipy", or "" (unbound)."""
+    return _source
+
+
+def bind_lapack():
+    """Bind dgetrf/dgetrs/dgetri (idempotent): numpy's OpenBLAS when found
+    (:func:`bind_numpy_lapack`), else scipy's capsules, which imports ``scipy.linalg``
+    (about 0.3 s), so callers do it only for a size that needs it (see :func:`need`).
+    Without either the loops here are used at every size.
+    """
+    global _dgetrf, _dgetrs, _dgetri, _source
+    if _dgetrf != NULL or bind_numpy_lapack():
         return
-    # heavy import (scipy.linalg, ~0.3 s): only when a large factorisation needs it
+    # heavy import (scipy.linalg, ~0.3 s): only when numpy's OpenBLAS was not found
     from scipy.linalg import cython_lapack
     capi = cython_lapack.__pyx_capi__
     _dgetrs = <dgetrs_t>_pointer(capi, "dgetrs")
     _dgetri = <dgetri_t>_pointer(capi, "dgetri")
     _dgetrf = <dgetrf_t>_pointer(capi, "dgetrf")
+    _source = "scipy"
 
 
 def need(Py_ssize_t m):

@@ -32,7 +32,6 @@ from libc.stdint cimport int64_t
 from libc.stdlib cimport free, malloc
 from libc.string cimport memcpy
 
-from lcpcli.analysis._scaling cimport _ruiz
 from lcpcli.core._certificate cimport CertOut, certify_dense
 from lcpcli.solvers.kernels.dense cimport invert
 from lcpcli.solvers.kernels.lemke cimport (
@@ -576,96 +575,49 @@ def _column_residual(MT, Ct, alpha, apos, Py_ssize_t m, int64_t e, Py_ssize_t n,
                            f64_ptr(xa), f64_ptr(acca), f64_ptr(sizea))
 
 
-def lemke_solve(M, q, d, int64_t max_iter, double piv_tol, double tie_tol,
-                int64_t refactor_every):
-    """Revised kernel and final polish in one call (the small-solve path: one C call).
+cdef class LemkeRun:
+    """What :func:`lemke_solve_certified` returns, by name: ``status`` (OK, RAY, MAX_ITER,
+    SINGULAR, TRIVIAL), ``z`` (polished on OK, else ``max(z, 0)`` of the kernel's), ``w = M z
+    + q``, ``pivots``, ``basis`` (sorted 0-based indices of the basic z's, a list), ``ray``
+    (the secondary ray's direction, None unless RAY), ``z0`` (the artificial variable's last
+    value), ``refactors`` and ``cert``: the tuple of
+    :func:`lcpcli.core._certificate.certify_arrays` (first entry 2: out of range, certify again
+    with :func:`lcpcli.core.certificate.check`, which rescales), None when TRIVIAL."""
 
-    ``d`` None means the covering vector of all ones.  Returns
-    ``(status, z, pivots, basis, ray_dz, z0, refactors)`` (``basis``: the sorted 0-based
-    indices of the basic z's, a list); on ``OK`` ``z`` is already
-    polished (:func:`lcpcli.solvers.kernels.lemke.polish_kernel`), otherwise it is the
-    kernel's raw ``z``.
-    """
-    cdef Py_ssize_t n = len(q)
-    cdef cnp.ndarray qa = f64(q, n, -1)
-    cdef cnp.ndarray Ma = f64(M, n, n)
-    cdef cnp.ndarray da
-    cdef const double* dp = NULL
-    if d is not None:
-        da = f64(d, n, -1)
-        dp = f64_ptr(da)
-    cdef cnp.ndarray z = empty_f64(n)
-    cdef cnp.ndarray ray = empty_f64(n)
-    cdef cnp.ndarray basic = empty_i64(n)
-    if n == 0:
-        return TRIVIAL, z, 0, [], ray, 0.0, 0
-    cdef const double* Mp = f64_ptr(Ma)
-    cdef const double* qp = f64_ptr(qa)
-    cdef double* zp = f64_ptr(z)
-    cdef double* rp = f64_ptr(ray)
-    cdef int64_t* bp = <int64_t*>cnp.PyArray_DATA(basic)
-    cdef LemkeOut out
-    cdef int rc = 0
-    cdef double* ones = NULL
-    cdef double* raw = NULL
-    with nogil:
-        if dp == NULL:
-            ones = _ones(n)
-            dp = ones
-        raw = <double*>malloc(n * sizeof(double))
-        if dp == NULL or raw == NULL:
-            rc = -1
-        else:
-            rc = lemke_revised(Mp, qp, dp, n, max_iter, piv_tol, tie_tol, NULL, 0,
-                               refactor_every, raw, bp, rp, &out)
-        if rc == 0:
-            if out.status == LEMKE_OK:
-                rc = polish(Mp, qp, n, raw, bp, zp)
-            else:
-                memcpy(zp, raw, n * sizeof(double))
-        free(ones)
-        free(raw)
-    if rc:
-        raise MemoryError()
-    return out.status, z, out.pivots, basis_list(bp, n), ray, out.z0, out.refactors
+    cdef readonly int status
+    cdef readonly object z
+    cdef readonly object w
+    cdef readonly int64_t pivots
+    cdef readonly list basis
+    cdef readonly object ray
+    cdef readonly double z0
+    cdef readonly int64_t refactors
+    cdef readonly object cert
+
+    def __repr__(self):
+        return (f"LemkeRun(status={self.status}, pivots={self.pivots}, "
+                f"refactors={self.refactors})")
 
 
-cdef bint _balanced(const double* M, const double* q, Py_ssize_t n, int balanced,
-                    int q_balanced) except -1:
-    """One pass of the equilibration's test (as :func:`lcpcli.analysis.scaling.is_balanced`)."""
-    cdef long long* work = <long long*>malloc(4 * n * sizeof(long long))
-    cdef int needed
-    if work == NULL:
-        raise MemoryError()
-    with nogil:
-        needed = _ruiz(n, M, n, NULL, NULL, NULL, q, False, balanced, q_balanced, 1, work,
-                       work + n, work + 2 * n, work + 3 * n)
-    free(work)
-    return not needed
+cdef LemkeRun _run(int status, object z, object w, int64_t pivots, list basis, object ray,
+                   double z0, int64_t refactors, object cert):
+    cdef LemkeRun r = LemkeRun.__new__(LemkeRun)
+    r.status, r.z, r.w, r.pivots, r.basis = status, z, w, pivots, basis
+    r.ray, r.z0, r.refactors, r.cert = ray, z0, refactors, cert
+    return r
 
 
 def lemke_solve_certified(M, q, d, int64_t max_iter, double piv_tol, double tie_tol,
-                          int64_t refactor_every, balance=None):
-    """Kernel, final polish and the certificate in one compiled call (the small-solve path).
+                          int64_t refactor_every):
+    """Kernel, final polish and the certificate in one compiled call (a :class:`LemkeRun`).
 
-    As :func:`lemke_solve`, plus ``w = M z + q`` and the certificate of the returned ``z``
-    (:c:func:`lcpcli.core._certificate.certify_dense`, the project's one definition, for an
-    LCP): returns ``(status, z, w, pivots, basic, ray_dz, z0, refactors, cert)`` with ``cert``
-    the tuple of :func:`lcpcli.core._certificate.certify_arrays` (its first entry 2 means: out
-    of range, certify again with :func:`lcpcli.core.certificate.check`, which rescales) and
-    ``ray_dz`` None unless the status is RAY.  On a status other than OK, ``z`` is
-    ``max(z, 0)`` of the kernel's answer.
-
-    ``balance``: None, or ``(balanced, q_balanced)`` of :mod:`lcpcli.analysis.scaling`: then
-    the call first makes the test of :func:`lcpcli.analysis.scaling.is_balanced` and returns
-    None, solving nothing, when the problem would be equilibrated (the pipeline's small path).
+    ``d`` None means the covering vector of all ones.  The certificate is
+    :c:func:`lcpcli.core._certificate.certify_dense`'s (the project's one definition, for an
+    LCP) of the returned ``z``.
     """
     cdef Py_ssize_t n = len(q)
     cdef cnp.ndarray qa = f64(q, n, -1)
     cdef cnp.ndarray Ma = f64(M, n, n)
-    if balance is not None and n > 0 and not _balanced(f64_ptr(Ma), f64_ptr(qa), n,
-                                                       balance[0], balance[1]):
-        return None
     cdef cnp.ndarray da
     cdef const double* dp = NULL
     if d is not None:
@@ -674,8 +626,8 @@ def lemke_solve_certified(M, q, d, int64_t max_iter, double piv_tol, double tie_
     cdef cnp.ndarray z = empty_f64(n)
     cdef cnp.ndarray w = empty_f64(n)
     if n == 0:
-        return (TRIVIAL, z, w, 0, [], None, 0.0, 0,
-                (0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1))
+        return _run(TRIVIAL, z, w, 0, [], None, 0.0, 0,
+                    (0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1))
     cdef const double* Mp = f64_ptr(Ma)
     cdef const double* qp = f64_ptr(qa)
     cdef double* zp = f64_ptr(z)
@@ -721,8 +673,8 @@ def lemke_solve_certified(M, q, d, int64_t max_iter, double piv_tol, double tie_
     finally:
         free(raw)
     if out.status == LEMKE_TRIVIAL:  # z = 0: the caller certifies it the ordinary way
-        return out.status, z, w, 0, basis, ray, 0.0, 0, None
-    return (out.status, z, w, out.pivots, basis, ray, out.z0, out.refactors,
-            (cert.status, cert.error, cert.backward_error, cert.growth, cert.residual,
-             cert.bound_violation, cert.w_violation, cert.complementarity,
-             cert.equality_residual, cert.worst))
+        return _run(out.status, z, w, 0, basis, ray, 0.0, 0, None)
+    return _run(out.status, z, w, out.pivots, basis, ray, out.z0, out.refactors,
+                (cert.status, cert.error, cert.backward_error, cert.growth, cert.residual,
+                 cert.bound_violation, cert.w_violation, cert.complementarity,
+                 cert.equality_residual, cert.worst))

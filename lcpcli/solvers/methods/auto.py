@@ -15,14 +15,14 @@ methods: condition on the class report -> method, reason); no method is named he
    the tests its condition names (symmetry, a Cholesky attempt, the H-matrix test, P-matrix
    tests only where a guarantee names P), and the methods are tried in the policy's order.
 
-Every attempt is certified with :func:`lcpcli.core.certificate.certify` and the first that
-passes is returned: the certificate decides, never the classification.  A method's *proof*
-that no solution exists ends the search with ``no_solution`` only when its Farkas vector passes
-the check of :mod:`lcpcli.analysis.proof` (a ray without one is a failed attempt: the search
-goes on).  ``message`` names what is known of M, the
-method that succeeded and every failed attempt; ``info["attempts"]`` has the details
-(method, reason, status, error, iterations, seconds), ``info["classify_seconds"]`` the time
-spent classifying and planning, ``info["certify_seconds"]`` the time spent certifying attempts.
+Every attempt runs through the dispatcher (:func:`lcpcli.solvers.pipeline.run_method`), which
+certifies it, and the first that passes is returned: the certificate decides, never the
+classification.  A method's *proof* that no solution exists ends the search with
+``no_solution`` only when its Farkas vector passes the check of :mod:`lcpcli.analysis.proof`
+(a ray without one is a failed attempt: the search goes on).  ``message`` names what is known
+of M, the method that succeeded and every failed attempt; ``info["attempts"]`` has the details
+(method, reason, status, error, iterations, seconds, certification included),
+``info["classify_seconds"]`` the time spent classifying and planning.
 
 Matrix classes: any; the guarantees are those of the methods it picks (see docs/methods.md).
 """
@@ -37,9 +37,7 @@ import numpy as np
 
 from lcpcli.analysis.classify import Classifier
 from lcpcli.analysis.proof import confirm
-from lcpcli.core.certificate import check
 from lcpcli.core.errors import OptionError
-from lcpcli.core.numeric import float64_array
 from lcpcli.core.result import (
     CONVERGED,
     ITERATION_LIMIT,
@@ -50,6 +48,7 @@ from lcpcli.core.result import (
     Status,
 )
 from lcpcli.solvers import policy
+from lcpcli.solvers.memo import ATTEMPTS
 from lcpcli.solvers.options import positive_int, vector_option
 from lcpcli.solvers.pipeline import run_method
 from lcpcli.solvers.policy import Step
@@ -65,7 +64,10 @@ def prepare() -> None:
             m.prepare_once()
 
 
-def _given_order(order: str, kind: str, registry: Mapping[str, Method]) -> list[Step]:
+def _given_order(order: str, c: Classifier, registry: Mapping[str, Method]) -> list[Step]:
+    """The steps of ``order=`` (a method that would densify a huge sparse M is left out, as in
+    a plan)."""
+    kind = c.report.kind
     steps = []
     for name in order.replace(",", " ").split():
         key = resolve(name)
@@ -73,22 +75,27 @@ def _given_order(order: str, kind: str, registry: Mapping[str, Method]) -> list[
         if spec is None or spec.planner or kind not in spec.kinds:
             raise OptionError(f"auto: method '{name}' in order= is unknown or does not "
                               f"handle {kind.upper()} problems")
-        steps.append(Step(spec.name, "given by order=", False))
+        if not spec.densifies(c.problem):
+            steps.append(Step(spec.name, "given by order=", False))
     return steps
 
 
-#: The method and parsed options of an attempt without a warm start, by (method, max_iter,
-#: registry version): the same on every call (a small solve would otherwise spend a
-#: microsecond here).
-_ATTEMPTS: dict[tuple[Any, ...], tuple[Method, dict[str, Any]]] = {}
+def attempt_key(name: str, max_iter: int | None) -> tuple[Any, ...]:
+    """The key of :data:`lcpcli.solvers.memo.ATTEMPTS`: an attempt's method and options
+    (without a warm start) depend on the method's name, the ``max_iter`` given and the
+    registry (its version)."""
+    return (name, max_iter, registry_version())
 
 
 def _attempt(name: str, max_iter: int | None, z0: np.ndarray | None
              ) -> tuple[Method, dict[str, Any]]:
-    """The method called ``name`` and its options for an attempt (prepared once)."""
-    key = (name, max_iter, registry_version())
-    if z0 is None and key in _ATTEMPTS:
-        return _ATTEMPTS[key]
+    """The method called ``name`` and its parsed options for an attempt (prepared once)."""
+    key = None
+    if z0 is None:
+        key = attempt_key(name, max_iter)
+        found = ATTEMPTS.get(key)
+        if found is not None:
+            return found
     spec = get_method(name)
     opts: dict[str, Any] = {}
     if "max_iter" in spec.options:
@@ -99,21 +106,14 @@ def _attempt(name: str, max_iter: int | None, z0: np.ndarray | None
         opts["z0"] = z0
     spec.prepare_once()
     found = spec, spec.parse_options(opts)
-    if z0 is None and len(_ATTEMPTS) < 1024:
-        _ATTEMPTS[key] = found
-    return found
+    return found if key is None else ATTEMPTS.put(key, found)
 
 
 def run(problem: Any, *, tol: float, max_iter: int | None = None,
         z0: np.ndarray | None = None, order: str | None = None) -> Outcome:
-    """Plan, try and certify methods until one's answer passes; see the module docstring."""
-    return plan_and_run(problem, tol, {"max_iter": max_iter, "z0": z0, "order": order})
-
-
-def plan_and_run(problem: Any, tol: float, options: Mapping[str, Any]) -> Outcome:
-    """:func:`run` with the parsed options as one mapping (how the pipeline calls a planner:
-    ``Method.plan_run``, without binding them as keywords on every small solve)."""
-    max_iter, z0, order = options.get("max_iter"), options.get("z0"), options.get("order")
+    """Plan, try and certify methods until one's answer passes; see the module docstring.
+    Each attempt goes through the dispatcher (:func:`lcpcli.solvers.pipeline.run_method`),
+    which certifies it."""
     if z0 is not None:
         z0 = start_point(problem, z0)  # length check before any method runs
     t_start = perf_counter()
@@ -122,23 +122,21 @@ def plan_and_run(problem: Any, tol: float, options: Mapping[str, Any]) -> Outcom
     if c.report.kind == "lcp" and (n == 0 or c.minima()[1] >= 0):
         return Outcome(np.zeros(n), 0, CONVERGED, "auto: q >= 0, so z = 0 solves the problem",
                        info={"chosen": None, "attempts": []})
-    regime, first = policy.opening(problem, c)
     queue: Iterator[Step]
     if order:
-        queue, replanned = iter(_given_order(order, problem.kind, methods())), True
-    elif regime.optimistic:
-        queue = iter(() if first is None else (first,))
-        replanned = False
+        regime = policy.regime_of(c)
+        queue, replanned = iter(_given_order(order, c, methods())), True
     else:
-        queue, replanned = policy.iter_plan(problem, c, regime=regime), True
+        regime, first = policy.first_step(problem, c)
+        queue, replanned = iter(() if first is None else (first,)), False
     attempts: list[dict[str, Any]] = []
     best: tuple[float, np.ndarray, Any] | None = None
     total_it = 0
-    t_methods = t_certify = 0.0
+    t_methods = 0.0
 
     while True:
         step = next(queue, None)
-        if step is None and not replanned:  # the optimistic first attempt failed: plan the rest
+        if step is None and not replanned:  # the first attempt failed: plan the rest
             queue = policy.iter_plan(problem, c, skip=[a["method"] for a in attempts],
                                      regime=regime)
             replanned = True
@@ -147,11 +145,9 @@ def plan_and_run(problem: Any, tol: float, options: Mapping[str, Any]) -> Outcom
             break
         name, why, _ = step
         spec, opts = _attempt(name, max_iter, z0)
-        if c.report.sparse and spec.densifies(problem):
-            continue  # it would densify a huge sparse M (api.check_dense_ok refuses that too)
         t1 = perf_counter()
         try:
-            out: Outcome = run_method(spec, problem, tol, opts)
+            out: Outcome = run_method(spec, problem, tol, opts)  # certified there
         except (np.linalg.LinAlgError, MemoryError, ValueError, RuntimeError) as exc:
             if isinstance(exc, OptionError):
                 raise
@@ -164,12 +160,8 @@ def plan_and_run(problem: Any, tol: float, options: Mapping[str, Any]) -> Outcom
         t_methods += t2 - t1
         iterations = int(out.iterations)
         total_it += iterations
-        z = float64_array(out.z)
-        if out.checked is not None and out.checked[0].tol == tol:
-            cert, w = out.checked  # the pipeline certified this z already
-        else:
-            cert, w = check(problem, z, tol)
-            t_certify += perf_counter() - t2
+        z = out.z
+        cert, w = out.checked  # type: ignore[misc]
         proof = None if cert.passed else confirm(problem, out)
         status = SOLVED if cert.passed else NO_SOLUTION if proof is not None else UNSOLVED
         attempts.append({"method": name, "reason": why, "status": status,
@@ -178,33 +170,32 @@ def plan_and_run(problem: Any, tol: float, options: Mapping[str, Any]) -> Outcom
         if status is SOLVED:
             failed = "".join(f"; {a['method']} failed first ({a['message']})"
                              for a in attempts[:-1]) if len(attempts) > 1 else ""
-            return Outcome(z, total_it, CONVERGED,
-                           f"auto ({c.report.describe()}): solved by {name} ({why}){failed}",
-                           False, None,
-                           _info(name, attempts, c, regime, t_start, t_methods, t_certify),
-                           (cert, w))
+            return Outcome.converged(z, total_it,
+                                     f"auto ({c.report.describe()}): solved by {name} ({why})"
+                                     f"{failed}",
+                                     _info(name, attempts, c, regime, t_start, t_methods),
+                                     (cert, w))
         if status is NO_SOLUTION:
             return Outcome(z, total_it, out.termination,
                            f"auto ({c.report.describe()}): {name} proved that no solution "
                            f"exists: {out.message}", proven_infeasible=True,
-                           info={**_info(name, attempts, c, regime, t_start, t_methods,
-                                         t_certify), "farkas_y": proof.y.tolist()})
+                           info={**_info(name, attempts, c, regime, t_start, t_methods),
+                                 "farkas_y": proof.y.tolist()})
         if best is None or cert.error < best[0]:
             best = (cert.error, z, out.termination)
     tried = "; ".join(f"{a['method']}: {a['message']}" for a in attempts) or "no method applies"
     z = best[1] if best else np.clip(np.zeros(n), problem.bounds()[0], None)
     return Outcome(z, total_it, best[2] if best else ITERATION_LIMIT,
                    f"auto ({c.report.describe()}): every suitable method failed ({tried})",
-                   info=_info(None, attempts, c, regime, t_start, t_methods, t_certify))
+                   info=_info(None, attempts, c, regime, t_start, t_methods))
 
 
 def _info(chosen: str | None, attempts: list[dict[str, Any]], c: Classifier, regime: Any,
-          t_start: float, t_methods: float, t_certify: float) -> dict[str, Any]:
+          t_start: float, t_methods: float) -> dict[str, Any]:
     """``Outcome.info`` of auto (see the module docstring)."""
     spent = perf_counter() - t_start
     return {"chosen": chosen, "attempts": attempts, "classification": c.report,
-            "regime": regime.name, "classify_seconds": spent - t_methods - t_certify,
-            "certify_seconds": t_certify}
+            "regime": regime.name, "classify_seconds": spent - t_methods}
 
 
 METHODS = [
@@ -217,7 +208,6 @@ METHODS = [
         kinds=("lcp", "mlcp", "box"),
         sparse=True,
         planner=True,
-        plan_run=plan_and_run,
         options={
             "max_iter": Option(positive_int, None,
                                "iteration / pivot limit passed to each method tried"),

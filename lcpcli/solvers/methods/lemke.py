@@ -27,6 +27,7 @@ from lcpcli.core.errors import OptionError
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, RAY, Outcome
 from lcpcli.core.text import plural
 from lcpcli.core.tolerances import PIVOT_TOL, TIE_TOL
+from lcpcli.solvers.kernels.dense import bind_numpy_lapack
 from lcpcli.solvers.kernels.lemke import MAX_ITER, OK, TRIVIAL, lemke_solve, polish_kernel
 from lcpcli.solvers.options import bool_option, positive_int, vector_option
 from lcpcli.solvers.registry import BatchSpec, Cost, Guarantee, Method, Option, when
@@ -163,6 +164,7 @@ METHODS = [
                                                  "kernel, same pivots; slow for large n)"),
         },
         scaling="auto",
+        prepare=bind_numpy_lapack,  # LAPACK from numpy's OpenBLAS, bound before timing
         batch=BatchSpec("lemke", ("covering", "max_iter")),
     ),
 ]

@@ -22,10 +22,10 @@ from typing import Any
 
 import numpy as np
 
-from lcpcli.analysis.scaling import BALANCE
 from lcpcli.core.certificate import from_kernel
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, NUMERICAL, Outcome
 from lcpcli.core.text import plural
+from lcpcli.solvers.kernels.dense import bind_numpy_lapack
 from lcpcli.solvers.kernels.lemke_revised import (
     MAX_ITER,
     OK,
@@ -76,15 +76,15 @@ def run(problem: Any, *, tol: float, covering: np.ndarray | None = None,
     d = None if covering is None else covering_vector(n, covering)  # None: all ones
     limit = max_iter or default_max_iter(n)
     # kernel, final polish and the certificate in one compiled call
-    status, z, w, pivots, basis, ray_dz, z0, refactors, cert = lemke_solve_certified(
-        M, q, d, limit, PIVOT_TOL, TIE_TOL, refactor_every or default_refactor_every(n))
+    got = lemke_solve_certified(M, q, d, limit, PIVOT_TOL, TIE_TOL,
+                                refactor_every or default_refactor_every(n))
+    status, z, pivots, refactors = got.status, got.z, got.pivots, got.refactors
     if status == TRIVIAL:
         return Outcome(np.zeros(n), 0, CONVERGED, "q >= 0: z = 0 solves the problem")
     if status == OK:
         # the certificate of this z for this problem, as check() computes it (out of range:
         # status 2, left to check(), which rescales)
-        return _converged(z, w, pivots, basis, refactors,
-                          from_kernel(cert, tol) if cert[0] != 2 else None)
+        return _converged(got, from_kernel(got.cert, tol) if got.cert[0] != 2 else None)
     info = {"refactorisations": refactors}
     if status == MAX_ITER:
         return Outcome(np.maximum(z, 0.0), pivots, ITERATION_LIMIT,
@@ -94,7 +94,7 @@ def run(problem: Any, *, tol: float, covering: np.ndarray | None = None,
                       f"basis block M^(alpha beta) became singular at a refactorisation "
                       f"after {plural(pivots, 'pivot')}", info=info)
     else:
-        out = ray_outcome(problem, M, q, z, pivots, ray_dz, z0)
+        out = ray_outcome(problem, M, q, z, pivots, got.ray, got.z0)
         out.info.update(info)
         if out.proven_infeasible:
             return out
@@ -110,38 +110,15 @@ def run(problem: Any, *, tol: float, covering: np.ndarray | None = None,
     return out
 
 
-def _converged(z: np.ndarray, w: np.ndarray, pivots: int, basis: list[int], refactors: int,
-               cert: Any) -> Outcome:
-    """The Outcome of a run whose artificial variable left the basis."""
-    # positional, in the order of Outcome's fields (this is on the small-solve path)
-    return Outcome(z, pivots, CONVERGED, f"artificial variable left the basis after "
-                                         f"{plural(pivots, 'pivot')} ({refactors} "
-                                         f"refactorisations)", False, None,
-                   {"refactorisations": refactors, "basis": basis},
-                   None if cert is None else (cert, w))
-
-
-def fast(problem: Any, tol: float, options: dict[str, Any]) -> Outcome | None:
-    """The pipeline's small path (``Method.fast``) for a dense LCP: the equilibration's balance
-    test, kernel, final polish and certificate in one compiled call.  Returns the Outcome when
-    the problem needs no equilibration and the answer passes the certificate (what
-    :func:`run` and the pipeline would return then); None otherwise (a trace, a problem to
-    equilibrate, a ray, a failed certificate): the pipeline then takes its full path."""
-    if options.get("trace"):
-        return None
-    q = problem.q
-    n = len(q)
-    covering = options.get("covering")
-    got = lemke_solve_certified(
-        problem.M, q, None if covering is None else covering_vector(n, covering),
-        options.get("max_iter") or default_max_iter(n), PIVOT_TOL, TIE_TOL,
-        options.get("refactor_every") or default_refactor_every(n), BALANCE)
-    if got is None or got[0] != OK:
-        return None
-    cert = from_kernel(got[8], tol)
-    if not cert.passed:
-        return None
-    return _converged(got[1], got[2], got[3], got[4], got[7], cert)
+def _converged(got: Any, cert: Any) -> Outcome:
+    """The Outcome of a kernel run (:class:`LemkeRun`) whose artificial variable left the
+    basis, with the kernel's certificate ``cert`` (None: left to the caller)."""
+    return Outcome.converged(got.z, got.pivots,
+                             f"artificial variable left the basis after "
+                             f"{plural(got.pivots, 'pivot')} ({got.refactors} "
+                             f"refactorisations)",
+                             {"refactorisations": got.refactors, "basis": got.basis},
+                             None if cert is None else (cert, got.w))
 
 
 METHODS = [
@@ -166,7 +143,9 @@ METHODS = [
         # the faster of the two on benchmarks/bench_lemke.py (CPU time, n = 10..1000)
         aliases=("lemke",),
         scaling="auto",
-        fast=fast,
+        # numpy's OpenBLAS for refactorisations from 64 basic variables: bound before timing,
+        # never scipy.linalg (kernels/dense.pyx)
+        prepare=bind_numpy_lapack,
         # stacks: the tableau kernel (same lexicographic pivot rule; faster for small n)
         batch=BatchSpec("lemke", ("covering", "max_iter"), runs_as="lemke-tableau"),
     ),

@@ -26,7 +26,8 @@ from lcpcli.core.problem import Problem
 from lcpcli.core.result import CONVERGED, NUMERICAL, Outcome
 from lcpcli.solvers.options import positive_int
 from lcpcli.solvers.pipeline import run_method
-from lcpcli.solvers.registry import Cost, Guarantee, Method, Option, get_method, when
+from lcpcli.solvers.registry import Cost, Guarantee, Method, Option, when
+from lcpcli.solvers.request import method_of, resolve
 
 
 def _positive(value: Any) -> float:
@@ -39,16 +40,15 @@ def _positive(value: Any) -> float:
 def solve_reduced(problem: Any, red: Any, inner: str, tol: float,
                   max_iter: int | None) -> tuple[np.ndarray, Outcome]:
     """Run the inner LCP method on a reduction's LCP; return (full z, inner outcome)."""
-    spec = get_method(inner)
+    spec = method_of(inner)
     if "lcp" not in spec.kinds:
         raise OptionError(f"inner method '{spec.name}' does not solve LCPs")
     sub = Problem.create(red.lcp_M, red.lcp_q, name=f"{problem.name}-reduced")
     opts: dict[str, Any] = {}
     if max_iter is not None and "max_iter" in spec.options:
         opts["max_iter"] = max_iter
-    opts = spec.parse_options(opts)
-    spec.prepare_once()
-    out = run_method(spec, sub, tol, opts)  # equilibrated, polished: as lcpcli.solve runs it
+    req = resolve(sub, spec.name, tol, opts)
+    out = run_method(req.spec, sub, req.tol, req.options)  # as lcpcli.solve runs it
     x = np.asarray(out.z, dtype=np.float64)
     M = np.asarray(problem.dense_M(), dtype=np.float64)
     if not np.all(np.isfinite(x)):

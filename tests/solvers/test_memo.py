@@ -1,0 +1,169 @@
+"""The memos of the solve path (:mod:`lcpcli.solvers.memo`): each is hit on a repeated solve,
+and a hit returns what a fresh computation returns."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+import lcpcli
+from lcpcli.analysis.classify import (
+    DIAGONAL_FACTS,
+    DIAGONAL_WORDS,
+    PROPERTIES,
+    Classifier,
+    ClassReport,
+)
+from lcpcli.core.problem import Problem
+from lcpcli.solvers import memo, policy
+from lcpcli.solvers.methods import auto
+from lcpcli.solvers.registry import get_method, methods
+
+
+@pytest.fixture(autouse=True)
+def fresh_memos(monkeypatch):
+    """Every memo empty with zero counts for the test (module state restored after)."""
+    for name in ("REQUESTS", "OPTION_DEFAULTS", "ATTEMPTS", "ORDERS", "OPENINGS"):
+        old = getattr(memo, name)
+        new = memo.Memo(old.name, old.limit)
+        monkeypatch.setattr(memo, name, new)
+        for module in ("lcpcli.solvers.registry", "lcpcli.solvers.policy",
+                       "lcpcli.solvers.methods.auto", "lcpcli.solvers.request"):
+            mod = __import__(module, fromlist=[name])
+            if hasattr(mod, name):
+                monkeypatch.setattr(mod, name, new)
+
+
+def _pd(n: int, seed: int) -> Problem:
+    rng = np.random.default_rng(seed)
+    A = rng.standard_normal((n, n))
+    return Problem.create(A @ A.T + n * np.eye(n), rng.standard_normal(n))
+
+
+def test_a_repeated_auto_solve_hits_every_memo_and_gives_the_same_result():
+    p = _pd(10, 1)
+    first = lcpcli.solve(p)
+    misses = {m.name: m.misses for m in (memo.REQUESTS, memo.ATTEMPTS, memo.OPENINGS)}
+    second = lcpcli.solve(p)
+    for m in (memo.REQUESTS, memo.ATTEMPTS, memo.OPENINGS):
+        assert len(m) >= 1 and m.misses == misses[m.name], m.name  # served, not recomputed
+    assert first.status == second.status == "solved"
+    np.testing.assert_array_equal(first.z, second.z)
+    assert first.message == second.message and first.certificate == second.certificate
+    assert first.info["attempts"][0]["method"] == second.info["attempts"][0]["method"]
+
+
+@pytest.mark.parametrize("method, tol", [(None, None), ("lemke", None), ("pgs", 1e-6),
+                                         ("LEMKE", 1e-9)])
+def test_request_hit_equals_fresh(method, tol):
+    from lcpcli.solvers.request import Request, method_of, resolve, resolve_tol
+
+    p = _pd(5, 2)
+    first = resolve(p, method, tol)
+    misses = memo.REQUESTS.misses
+    hit = resolve(_pd(6, 3), method, tol)
+    assert memo.REQUESTS.misses == misses  # served from the memo
+    spec = method_of(method)
+    fresh = Request(p, spec, resolve_tol(spec, tol), spec.parse_options({}), {})
+    assert (hit.spec, hit.tol, hit.options, hit.given) == (
+        first.spec, first.tol, first.options, first.given) == (
+        fresh.spec, fresh.tol, fresh.options, fresh.given)
+    # the problem's own checks run on a hit too
+    with pytest.raises(Exception, match="does not handle MLCP"):
+        resolve(Problem.create(np.eye(3), -np.ones(3), n_eq=1), "lemke", tol)
+
+
+def test_run_defaults_are_the_option_defaults():
+    """The dispatcher passes ``Method.run`` only the options that differ from their defaults
+    (``Request.given``): every method's keyword defaults must be its options' defaults."""
+    import inspect
+
+    for name, spec in methods().items():
+        params = inspect.signature(spec.run).parameters
+        for key, opt in spec.options.items():
+            assert key in params, (name, key)
+            assert params[key].default is opt.default or params[key].default == opt.default, \
+                (name, key)
+    r = lcpcli.solve(_pd(8, 4), "lemke", max_iter=1)
+    assert r.status == "unsolved" and r.iterations == 1  # a given option reaches run
+
+
+def test_option_defaults_hit_equals_fresh():
+    spec = get_method("lemke")
+    a = spec.parse_options({})
+    misses = memo.OPTION_DEFAULTS.misses
+    b = spec.parse_options({})
+    assert memo.OPTION_DEFAULTS.misses == misses  # a hit
+    assert a == b == spec.option_defaults()
+    a["max_iter"] = 7  # the caller's copy: the memo is not changed through it
+    assert spec.parse_options({}) == spec.option_defaults()
+    # another record under a reused id is not served the old defaults
+    other = dataclasses.replace(spec, options={})
+    memo.OPTION_DEFAULTS[id(other)] = (spec, spec.option_defaults())
+    assert other.parse_options({}) == {}
+
+
+@pytest.mark.parametrize("max_iter", [None, 5])
+def test_attempt_hit_equals_fresh(max_iter):
+    for name in ("lemke-revised", "pgs", "newton"):
+        spec, opts = auto._attempt(name, max_iter, None)
+        misses = memo.ATTEMPTS.misses
+        hit = auto._attempt(name, max_iter, None)
+        assert memo.ATTEMPTS.misses == misses and hit == (spec, opts)
+        fresh = get_method(name)
+        cap = max_iter if max_iter is not None else fresh.auto_max_iter
+        expected = fresh.parse_options({"max_iter": cap} if "max_iter" in fresh.options
+                                       and cap is not None else {})
+        assert hit[1] == expected
+    assert memo.ATTEMPTS.misses == 3 and len(memo.ATTEMPTS) == 3
+    # a warm start is never memoised
+    z0 = np.ones(3)
+    spec, opts = auto._attempt("pgs", max_iter, z0)
+    np.testing.assert_array_equal(opts["z0"], z0)
+    assert len(memo.ATTEMPTS) == 3
+
+
+def test_order_hit_equals_fresh():
+    for regime in policy.REGIMES:
+        for kind in ("lcp", "mlcp", "box"):
+            table = policy._table(kind, regime, None)
+            assert policy._table(kind, regime, None) is table
+            assert table == policy.ordered(policy.rows(kind, methods()), regime)
+    assert memo.ORDERS.misses == len(memo.ORDERS) == len(policy.REGIMES) * 3
+
+
+def test_opening_hit_equals_fresh():
+    for n in (2, 10, 40):
+        p = _pd(n, n)
+        first = policy.opening(p, Classifier(p))
+        misses = memo.OPENINGS.misses
+        q = _pd(n, n + 1)  # another problem with the same diagonal facts: served from the memo
+        c = Classifier(q)
+        assert policy.opening(q, c) == first
+        assert memo.OPENINGS.misses == misses
+        regime = policy.regime_of(c)
+        fresh = policy.plan(q, c, optimistic=True, first=True, regime=regime)
+        assert first == (regime, fresh[0] if fresh else None)
+
+
+@pytest.mark.parametrize("diag", [[2.0, 1.0, 3.0], [0.0, 1.0, 3.0], [-1.0, 1.0, 3.0],
+                                  [0.0, 0.0, 0.0]])
+def test_the_opening_key_lists_every_fact_the_diagonal_test_sets(diag):
+    """Structural: every report field the O(n) diagonal test sets is a fact of the opening key
+    (DIAGONAL_FACTS) or one that no condition reads (DIAGONAL_WORDS)."""
+    M = np.array([[diag[0], 1.0, 0.0], [1.0, diag[1], 0.5], [0.0, 0.5, diag[2]]])
+    p = Problem.create(M, -np.ones(3))
+    c = Classifier(p)
+    before = dataclasses.asdict(c.report)
+    c.minima()  # runs the diagonal test
+    after = dataclasses.asdict(c.report)
+    changed = {k for k in after if after[k] != before[k]}
+    assert changed <= set(DIAGONAL_FACTS) | set(DIAGONAL_WORDS), changed
+    assert not set(DIAGONAL_WORDS) & set(PROPERTIES)
+    # the properties conditions read are fields of DIAGONAL_FACTS or derived from them
+    derived = {name for name in PROPERTIES if isinstance(getattr(ClassReport, name, None),
+                                                         property)}
+    assert derived <= {"pd", "psd"}
+    assert policy.opening_key(c)[-1] == tuple(getattr(c.report, f) for f in DIAGONAL_FACTS)
