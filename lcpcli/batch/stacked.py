@@ -2,9 +2,9 @@
 
 Each input is a stack (:mod:`lcpcli.io.stack`: ``M`` (K, n, n), ``q`` (K, n), ...).  Chunks of
 :func:`lcpcli.io.stack.chunk_size` problems are read in order and solved by
-:func:`lcpcli.api.solve_many` (the batched kernel in threads, the certificate inside the same
+:func:`lcpcli.stacks.solve_many` (the batched kernel in threads, the certificate inside the same
 call, the full one-problem pipeline for what it could not certify; the method is planned once
-per stack by :func:`lcpcli.api.plan_stack`).  Results go to the output as stacked datasets
+per stack by :func:`lcpcli.stacks.plan_stack`).  Results go to the output as stacked datasets
 (``.h5``, ``.npz``: :mod:`lcpcli.batch.stack_output`) or as rows (``.jsonl``, ``.csv``, and the
 ``--json`` stream; row ``problem`` is the stacked problem's name), and ``--resume`` skips the
 problems the output already holds, once it has checked that they were computed from the same
@@ -151,12 +151,12 @@ def solve_part(reader: Any, info: Any, start: int, stop: int, todo: np.ndarray,
                opts: SolveOptions, plan: Any, *, threads: int, digest: bool,
                ) -> tuple[list[str] | None, bytes, Any, Any, float, float]:
     """Read problems ``start + todo`` of the open stack ``reader`` and solve them with
-    :func:`lcpcli.api.solve_many` (``plan``: made here on this chunk when None).  Returns the
+    :func:`lcpcli.stacks.solve_many` (``plan``: made here on this chunk when None).  Returns the
     chunk's names (of ``todo``), the digest of the whole chunk (``digest``: else ``b""``), the
     result, the plan, and the read and solve seconds.  The one chunk step of the local and the
     Dask paths (:func:`lcpcli.batch.cluster.stack_chunk_task`)."""
-    from lcpcli.api import plan_stack, solve_many
     from lcpcli.batch.stack_output import chunk_digest
+    from lcpcli.stacks import plan_stack, solve_many
 
     t0 = time.perf_counter()
     part = reader.read(start, stop)

@@ -187,9 +187,9 @@ def solve_problems(problems: list[Problem], method: str = "auto", tol: float | N
 
 def solve_cold(problems: list[Problem], method: str, tol: float | None,
                options: dict[str, Any], threads: int | None = None) -> list[Any]:
-    """Each problem from scratch, certified: :func:`lcpcli.api.solve_each` (islands of one size,
+    """Each problem from scratch, certified: :func:`lcpcli.stacks.solve_each` (islands of one size,
     8 or more, go through the batched kernels of ``lcpcli.solve_many`` in one call)."""
-    from lcpcli.api import solve_each
+    from lcpcli.stacks import solve_each
 
     return solve_each(problems, method, tol=tol, threads=threads, **options)
 

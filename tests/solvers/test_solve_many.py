@@ -213,3 +213,18 @@ def test_solve_each_matches_solve_one_by_one():
             assert r.certificate.passed and r.error <= 1e-8
     assert results[0].info.get("batched") and not results[-1].info.get("batched")
     assert "Farkas" in results[STACK_MIN + 3].message
+
+
+def test_stack_api_has_one_home_and_the_old_names_still_work() -> None:
+    """The stack API lives in lcpcli.stacks; lcpcli.solve_many and lcpcli.api.solve_many are
+    that very function (the move kept the public names)."""
+    import lcpcli
+    import lcpcli.api
+    import lcpcli.stacks
+
+    for name in ("solve_many", "solve_each", "plan_stack", "StackPlan", "STACK_MIN"):
+        assert getattr(lcpcli.api, name) is getattr(lcpcli.stacks, name)
+    assert lcpcli.solve_many is lcpcli.stacks.solve_many
+    assert lcpcli.solve_each is lcpcli.stacks.solve_each
+    with pytest.raises(AttributeError):
+        lcpcli.api.no_such_name  # noqa: B018
