@@ -15,7 +15,7 @@ from lcpcli.api import DEFAULT_METHOD, check_dense_work, solve
 from lcpcli.core.certificate import check, validate_tol
 from lcpcli.core.errors import LcpError, OptionError
 from lcpcli.core.numeric import check_dtype
-from lcpcli.core.problem import Problem, check_bounds, problem_kind
+from lcpcli.core.problem import Problem, check_bounds, check_n_eq, default_bound, problem_kind
 from lcpcli.core.result import (
     CONVERGED,
     SOLVED,
@@ -67,8 +67,8 @@ def _check_stack(M: Any, q: Any, method: str | None, lower: Any, upper: Any, n_e
         raise ProblemError(f"a stack needs M of shape (K, n, n) and q of shape (K, n); got M "
                            f"{M.shape} and q {q.shape}")
     check_size(n, n)
-    lower, upper = _stack_bounds(lower, upper, K, n, n_eq)
-    n_eq = _stack_n_eq(n_eq, n)
+    n_eq = check_n_eq(n_eq, n, bounded=lower is not None or upper is not None)
+    lower, upper = _stack_bounds(lower, upper, K, n)
     kind = problem_kind(n_eq, lower is not None)
     spec = get_method(DEFAULT_METHOD if method is None else method)
     if kind not in spec.kinds:
@@ -303,20 +303,19 @@ def _stack_array(a: Any, ndim: int, label: str) -> np.ndarray:
     return np.ascontiguousarray(arr, dtype=np.float64)
 
 
-def _stack_bounds(lower: Any, upper: Any, K: int, n: int,
-                  n_eq: Any) -> tuple[np.ndarray | None, np.ndarray | None]:
+def _stack_bounds(lower: Any, upper: Any, K: int,
+                  n: int) -> tuple[np.ndarray | None, np.ndarray | None]:
     """Bounds of shape (n,) or (K, n) as (K, n) arrays, checked by the rules of one problem's
-    (:func:`lcpcli.core.problem.check_bounds`; missing lower: 0; missing upper: +inf)."""
+    (:func:`lcpcli.core.problem.check_bounds`; a missing one by the one-sided bounds rule,
+    :func:`lcpcli.core.problem.default_bound`)."""
     from lcpcli.core.errors import ProblemError
 
     if lower is None and upper is None:
         return None, None
-    if n_eq:
-        raise ProblemError("give either n_eq (MLCP) or bounds (box LCP), not both")
     out = []
-    for value, label, default in ((lower, "lower", 0.0), (upper, "upper", np.inf)):
+    for value, label in ((lower, "lower"), (upper, "upper")):
         if value is None:
-            out.append(np.full((K, n), default))
+            out.append(default_bound(label, (K, n)))
             continue
         arr = np.asarray(value)
         check_dtype(arr.dtype, label)
@@ -328,16 +327,6 @@ def _stack_bounds(lower: Any, upper: Any, K: int, n: int,
     lo, up = out
     check_bounds(lo, up)
     return lo, up
-
-
-def _stack_n_eq(n_eq: Any, n: int) -> int:
-    from lcpcli.core.errors import ProblemError
-
-    if isinstance(n_eq, bool) or not isinstance(n_eq, (int, np.integer)):
-        raise ProblemError(f"n_eq must be an integer, got {n_eq!r}")
-    if not 0 <= int(n_eq) <= n:
-        raise ProblemError(f"n_eq = {n_eq} is outside 0..{n}")
-    return int(n_eq)
 
 
 def _batched_method(spec: Method, kind: str, options: dict[str, Any], M: np.ndarray,

@@ -8,8 +8,10 @@ both formats (HDF5: datasets at the root; NPZ: members ``NAME.npy``):
   :func:`~lcpcli.core.problem.check_size`, K at most :data:`MAX_STACK_PROBLEMS`;
 * ``names`` (K,), optional: strings (HDF5 variable-length UTF-8 or fixed-length; NPZ a numpy
   string array), each at most :data:`~lcpcli.io.files.MAX_NAME_BYTES`;
-* ``lower`` and ``upper``, optional, both or neither, of one shape: (n,) shared by every
-  problem or (K, n) (box LCPs);
+* ``lower`` and ``upper``, optional (box LCPs), each of shape (n,), shared by every problem,
+  or (K, n); one of them alone follows the one-sided bounds rule of :meth:`Problem.create`
+  and :func:`lcpcli.solve_many` (:func:`lcpcli.core.problem.default_bound`: a missing lower
+  bound is 0, a missing upper bound +inf);
 * ``n_eq``, optional, one integer ``0 <= n_eq <= n`` shared by every problem (MLCP: the first
   ``n_eq`` variables free), not together with bounds: in HDF5 a root *attribute* ``n_eq`` (as
   in the one-problem layout), in NPZ a member ``n_eq``.
@@ -33,11 +35,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from lcpcli.core.errors import ProblemError
-from lcpcli.core.problem import check_size
+from lcpcli.core.problem import check_n_eq, check_size
 from lcpcli.io.files import MAX_NAME_BYTES
 
 #: Extensions of stack files and their formats.
@@ -74,7 +77,11 @@ class StackInfo:
     n: int               # size of each
     n_eq: int            # 0 for LCP
     has_names: bool
-    bounds: str | None   # None, "shared" ((n,)) or "per_problem" ((K, n))
+    bounds: str | None   # None, "shared" (every stored bound (n,)) or "per_problem"
+    #: The shapes of the bounds the file stores ((n,) or (K, n)); None: not stored (a box LCP
+    #: given one bound gets the other by the one-sided bounds rule, core.problem.default_bound).
+    lower_shape: tuple[int, ...] | None = None
+    upper_shape: tuple[int, ...] | None = None
 
 
 @dataclass
@@ -110,7 +117,7 @@ def _stack_format(path: str | Path) -> str:
 
 def _layout(path: str, fmt: str, m_shape: tuple[int, ...], q_shape: tuple[int, ...] | None, *,
             names_shape: tuple[int, ...] | None, lower: tuple[int, ...] | None,
-            upper: tuple[int, ...] | None, n_eq: int | None) -> StackInfo:
+            upper: tuple[int, ...] | None, n_eq: Any) -> StackInfo:
     """Every rule on shapes, from the headers (one definition for both formats)."""
     if len(m_shape) != 3:
         raise ProblemError(f"a stack needs M of shape (K, n, n), got shape {m_shape}")
@@ -130,24 +137,16 @@ def _layout(path: str, fmt: str, m_shape: tuple[int, ...], q_shape: tuple[int, .
     if names_shape is not None and names_shape != (K,):
         raise ProblemError(f"names has shape {names_shape}; expected ({K},)")
     bounds = None
-    if (lower is None) != (upper is None):
-        given, missing = ("lower", "upper") if lower is not None else ("upper", "lower")
-        raise ProblemError(f"'{given}' without '{missing}': give both bounds or neither")
-    if lower is not None:
-        for label, shape in (("lower", lower), ("upper", upper)):
-            if shape not in ((n,), (K, n)):
-                raise ProblemError(f"{label} has shape {shape}; expected ({n},) or ({K}, {n})")
-        if lower != upper:
-            raise ProblemError(f"lower has shape {lower} but upper {upper}; give both of one "
-                               f"shape")
-        bounds = "shared" if lower == (n,) else "per_problem"
-    n_eq = n_eq or 0
-    if not 0 <= n_eq <= n:
-        raise ProblemError(f"n_eq = {n_eq} is outside 0..{n}")
-    if n_eq and bounds:
-        raise ProblemError("give either n_eq (MLCP) or bounds (box LCP), not both")
+    given = [shape for shape in (lower, upper) if shape is not None]
+    for label, shape in (("lower", lower), ("upper", upper)):
+        if shape is not None and shape not in ((n,), (K, n)):
+            raise ProblemError(f"{label} has shape {shape}; expected ({n},) or ({K}, {n})")
+    if given:
+        bounds = "shared" if all(shape == (n,) for shape in given) else "per_problem"
+    n_eq = check_n_eq(n_eq, n, bounded=bounds is not None)
     return StackInfo(path=path, fmt=fmt, K=K, n=n, n_eq=n_eq,
-                     has_names=names_shape is not None, bounds=bounds)
+                     has_names=names_shape is not None, bounds=bounds, lower_shape=lower,
+                     upper_shape=upper)
 
 
 def _check_names(text: list[str]) -> list[str]:

@@ -16,7 +16,7 @@ import numpy as np
 
 from lcpcli.core.errors import ProblemError
 from lcpcli.core.numeric import kind_name
-from lcpcli.core.problem import Problem
+from lcpcli.core.problem import Problem, default_bound
 from lcpcli.io.files import MAX_NAME_BYTES, check_input_file, open_input
 from lcpcli.io.npz_format import ZIP_ERRORS, zip_error
 from lcpcli.io.stack.layout import (
@@ -107,7 +107,7 @@ class _H5Source:
 
             self.info = _layout(str(path), "hdf5", shape("M"), shape("q"),
                                 names_shape=shape("names"), lower=shape("lower"),
-                                upper=shape("upper"), n_eq=h5.attr_int(f, "n_eq"))
+                                upper=shape("upper"), n_eq=h5.attr_int(f, "n_eq") or 0)
             if names is not None and self.info.K * longest > MAX_NAMES_DECLARED:
                 from lcpcli.io.files import too_big
 
@@ -324,12 +324,20 @@ class StackReader:
             self._src = src
             self.info: StackInfo = src.info
             n = self.info.n
+            #: The bounds shared by every problem ((n,): stored so, or filled by the one-sided
+            #: bounds rule); a bound stored per problem is read with each chunk.
+            self._side: dict[str, np.ndarray] = {}
+            if self.info.bounds is not None:
+                for label, shape in (("lower", self.info.lower_shape),
+                                     ("upper", self.info.upper_shape)):
+                    if shape is None:
+                        self._side[label] = default_bound(label, n)
+                    elif shape == (n,):
+                        self._side[label] = np.empty(n)
+                        src.whole(label, self._side[label])
             self._shared: tuple[np.ndarray, np.ndarray] | None = None
             if self.info.bounds == "shared":
-                lower, upper = np.empty(n), np.empty(n)
-                src.whole("lower", lower)
-                src.whole("upper", upper)
-                self._shared = (lower, upper)
+                self._shared = (self._side["lower"], self._side["upper"])
         except BaseException:
             self._stack.close()
             raise
@@ -360,14 +368,15 @@ class StackReader:
         self._src.rows("M", start, stop, M)
         q = np.empty((c, n))
         self._src.rows("q", start, stop, q)
-        lower = upper = None
-        if self._shared is not None:
-            lower = np.repeat(self._shared[0][None, :], c, axis=0)
-            upper = np.repeat(self._shared[1][None, :], c, axis=0)
-        elif self.info.bounds == "per_problem":
-            lower, upper = np.empty((c, n)), np.empty((c, n))
-            self._src.rows("lower", start, stop, lower)
-            self._src.rows("upper", start, stop, upper)
+        bounds: list[np.ndarray | None] = [None, None]
+        if self.info.bounds is not None:
+            for j, label in enumerate(("lower", "upper")):
+                if label in self._side:
+                    bounds[j] = np.repeat(self._side[label][None, :], c, axis=0)
+                else:
+                    bounds[j] = np.empty((c, n))
+                    self._src.rows(label, start, stop, bounds[j])
+        lower, upper = bounds
         return StackChunk(start, M, q, self.read_names(start, stop), lower, upper)
 
     def problem(self, chunk: StackChunk, i: int) -> Problem:

@@ -15,7 +15,7 @@ import numpy as np
 
 from lcpcli.core.errors import ProblemError
 from lcpcli.core.numeric import real_array
-from lcpcli.core.problem import check_size
+from lcpcli.core.problem import check_size, default_bound
 from lcpcli.io.stack.layout import (
     _NAME_BLOCK_BYTES,
     H5_CHUNK_BYTES,
@@ -163,7 +163,8 @@ def write_stack(path: str | Path, M: Any, q: Any, *, names: list[str] | None = N
     """Write K problems ``w = M[k] z + q[k]`` as a stack (format by extension), atomically.
 
     ``M`` (K, n, n), ``q`` (K, n), ``names`` K strings, ``lower``/``upper`` (n,) shared or
-    (K, n), ``n_eq`` shared.  HDF5: datasets chunked along K (about 1 MiB per chunk of M,
+    (K, n) (one of them alone: the other by the one-sided bounds rule, stored), ``n_eq``
+    shared.  HDF5: datasets chunked along K (about 1 MiB per chunk of M,
     uncompressed), names variable-length UTF-8, ``n_eq`` a root attribute.  NPZ: the layout
     ``np.savez`` writes (uncompressed members).
     """
@@ -175,7 +176,13 @@ def write_stack(path: str | Path, M: Any, q: Any, *, names: list[str] | None = N
     info = _layout(str(path), fmt, M.shape, q.shape,
                    names_shape=None if names is None else (len(names),),
                    lower=None if lo is None else lo.shape, upper=None if up is None else up.shape,
-                   n_eq=int(n_eq))
+                   n_eq=n_eq)
+    if info.bounds is not None:  # both stored: a missing one by the one-sided bounds rule
+        shape = (info.n,) if info.bounds == "shared" else (info.K, info.n)
+        lo = default_bound("lower", shape) if lo is None else \
+            np.ascontiguousarray(np.broadcast_to(lo, shape))
+        up = default_bound("upper", shape) if up is None else \
+            np.ascontiguousarray(np.broadcast_to(up, shape))
     with atomic_path(path) as tmp:
         w = StackWriter(tmp, fmt, info.n, n_eq=info.n_eq, names=names is not None,
                         bounds=info.bounds, lower=lo if info.bounds == "shared" else None,
