@@ -231,3 +231,63 @@ def test_problem_picks_one_stacked_problem(cli, tmp_path):
             np.testing.assert_allclose(row["z"], solve_many(M, q).z[k], atol=1e-12)
         res = cli("solve", str(path), "--problem", "zz")
         assert res.returncode == 2 and "no problem named 'zz'" in res.stderr
+
+
+def test_reader_thread_keeps_order_forwards_errors_and_stops_with_the_consumer():
+    """The read-ahead of the stacked path (batch.stacked._prefetched): items arrive in order,
+    an exception of the reader arrives after the items made before it, and a consumer that
+    stops early stops and joins the reader thread (no read outlives the batch)."""
+    import threading
+
+    from lcpcli.batch.stacked import _prefetched
+    from lcpcli.core.errors import ProblemError
+
+    def items(stop, fail_at=None, made=None):
+        for i in range(50):
+            if i == fail_at:
+                raise ProblemError("damaged chunk")
+            if made is not None:
+                made.append(i)
+            yield i
+
+    assert list(_prefetched(lambda stop: items(stop), depth=1)) == list(range(50))
+    got = []
+    with pytest.raises(ProblemError, match="damaged chunk"):
+        for i in _prefetched(lambda stop: items(stop, fail_at=7), depth=2):
+            got.append(i)
+    assert got == list(range(7))
+    made: list[int] = []
+    before = threading.active_count()
+    parts = _prefetched(lambda stop: items(stop, made=made), depth=1)
+    assert [next(parts), next(parts)] == [0, 1]
+    parts.close()
+    assert threading.active_count() == before  # the reader thread has ended
+    assert len(made) <= 2 + 2  # it read at most the queue's depth ahead, plus one in hand
+
+
+def test_pipelined_stack_equals_solve_many_chunk_by_chunk(tmp_path, monkeypatch):
+    """Reading in a thread beside the solver changes no result: many chunks, every array of
+    the result file equals solve_many's on the whole stack, and the digests equal those of
+    the chunks read alone."""
+    import lcpcli.io.stack as stack_mod
+    from lcpcli.batch.records import SolveOptions
+    from lcpcli.batch.run import run_batch
+    from lcpcli.batch.stack_output import chunk_digest
+    from lcpcli.io.stack import open_stack
+
+    M, q = pd_stack(1000, 5, seed=4)
+    path, out = tmp_path / "s.h5", tmp_path / "r.h5"
+    write_stack(path, M, q)
+    monkeypatch.setattr(stack_mod, "chunk_size", lambda n, **kw: 96)
+    run_batch([str(path)], SolveOptions(method="lemke"), output=out, jobs=2)
+    ref = solve_many(M, q, "lemke")
+    with h5py.File(out, "r") as f:
+        g = f["s"]
+        np.testing.assert_array_equal(g["z"][...], ref.z)
+        np.testing.assert_array_equal(g["status"][...], ref.status)
+        np.testing.assert_array_equal(g["iterations"][...], ref.iterations)
+        digests = g["chunk_digest"][...]
+    with open_stack(path) as reader:
+        for c in range(digests.shape[0]):
+            part = reader.read(c * 96, min(1000, (c + 1) * 96))
+            assert bytes(digests[c]) == chunk_digest(part)
