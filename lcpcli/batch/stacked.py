@@ -74,7 +74,7 @@ def run_stacks(inputs: list[str], opts: SolveOptions, report: BatchReport, *,
     (:func:`lcpcli.batch.cluster.iter_stack_dask`), written here as locally.
     """
     from lcpcli.batch import stack_output
-    from lcpcli.io.stack import chunk_size, stack_info
+    from lcpcli.io.stack import stack_info
 
     tally, stats = report.tally, report.stats
     infos: list[Any] = []
@@ -95,7 +95,8 @@ def run_stacks(inputs: list[str], opts: SolveOptions, report: BatchReport, *,
     if output is not None:
         writer = stack_output.open_stack_writer(output, [i for i in infos if i is not None],
                                                 resume=resume,
-                                                options=stack_output.options_fingerprint(opts))
+                                                options=stack_output.options_fingerprint(opts),
+                                                threads=threads)
     try:
         if writer is not None and resume:
             for info in infos:
@@ -121,7 +122,8 @@ def run_stacks(inputs: list[str], opts: SolveOptions, report: BatchReport, *,
                 continue
             _run_one(path, info, opts, report, tally, stats, writer, done_masks[path],
                      threads=threads,
-                     chunk=writer.chunk(info) if writer is not None else chunk_size(info.n),
+                     chunk=writer.chunk(info) if writer is not None else
+                     stack_output.batch_chunk(info.n, threads),
                      on_progress=on_progress, on_row=on_row, write=write,
                      scheduler=scheduler)
     finally:

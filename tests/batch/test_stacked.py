@@ -7,6 +7,8 @@ import json
 import h5py
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from lcpcli.api import solve_many
 from lcpcli.batch.output import read_rows
@@ -291,3 +293,44 @@ def test_pipelined_stack_equals_solve_many_chunk_by_chunk(tmp_path, monkeypatch)
         for c in range(digests.shape[0]):
             part = reader.read(c * 96, min(1000, (c + 1) * 96))
             assert bytes(digests[c]) == chunk_digest(part)
+
+
+@settings(max_examples=200, deadline=None)
+@given(n=st.integers(0, 3000), threads=st.integers(1, 256))
+def test_batch_chunk_gives_every_thread_work_within_the_memory_cap(n, threads):
+    """Chunks of a stacked batch come from n and the thread count: at least chunk_size(n)
+    (32 MiB of M), PER_THREAD problems per thread where M then stays within MAX_CHUNK_BYTES,
+    and never more than both."""
+    from lcpcli.batch.stack_output import MAX_CHUNK_BYTES, PER_THREAD, batch_chunk
+    from lcpcli.io.stack import chunk_size
+
+    c, per = batch_chunk(n, threads), max(8, 8 * n * n)
+    assert c >= chunk_size(n) >= 1
+    assert c >= PER_THREAD * threads or c * per > MAX_CHUNK_BYTES - per
+    assert c == chunk_size(n) or c * per <= MAX_CHUNK_BYTES
+
+
+def test_resume_with_other_jobs_uses_the_recorded_chunk(tmp_path, monkeypatch):
+    """A result file records its chunk: resumed with another --jobs (another batch_chunk), the
+    finished chunks are kept, the others solved, and the file ends equal to a run in one go."""
+    import lcpcli.io.stack as stack_mod
+    from lcpcli.batch.records import SolveOptions
+    from lcpcli.batch.run import run_batch
+
+    monkeypatch.setattr(stack_mod, "chunk_size", lambda n, **kw: 4)  # batch_chunk: 16 per thread
+    M, q = pd_stack(300, 5, seed=5)
+    path, out, ref = tmp_path / "s.h5", tmp_path / "r.h5", tmp_path / "ref.h5"
+    write_stack(path, M, q)
+    opts = SolveOptions(method="lemke")
+    run_batch([str(path)], opts, output=ref, jobs=1)
+    run_batch([str(path)], opts, output=out, jobs=1)
+    with h5py.File(out, "r+") as f:
+        assert int(f["s"].attrs["chunk"]) == 16
+        f["s"]["status"][100:] = NOT_DONE  # as if stopped after problem 99
+        f["s"]["chunk_digest"][7:] = 0
+    report = run_batch([str(path)], opts, output=out, jobs=8, resume=True)  # batch_chunk 128
+    assert report.skipped == 100 and report.new == 200
+    with h5py.File(out, "r") as f, h5py.File(ref, "r") as g:
+        assert int(f["s"].attrs["chunk"]) == 16
+        for key in ("z", "status", "chunk_digest"):
+            np.testing.assert_array_equal(f["s"][key][...], g["s"][key][...])
