@@ -1,7 +1,9 @@
 """Batches of stacked problem files: read a chunk, solve it in one call, write it.
 
 Each input is a stack (:mod:`lcpcli.io.stack`: ``M`` (K, n, n), ``q`` (K, n), ...).  Chunks of
-:func:`lcpcli.io.stack.chunk_size` problems are read in order and solved by
+:func:`lcpcli.batch.stack_output.batch_chunk` problems (from n and the thread count; row outputs:
+:func:`lcpcli.io.stack.chunk_size`) are read in order, by a reader thread one chunk ahead of
+the solver, and solved by
 :func:`lcpcli.stacks.solve_many` (the batched kernel in threads, the certificate inside the same
 call, the full one-problem pipeline for what it could not certify; the method is planned once
 per stack by :func:`lcpcli.stacks.plan_stack`).  Results go to the output as stacked datasets
