@@ -88,7 +88,10 @@ def cpu_case(n: int, K: int, repeat: int, threads: int) -> dict:
     return out
 
 
-def gpu_case(n: int, K: int, sample: int, repeat: int) -> dict:
+def gpu_case(n: int, K: int, sample: int, repeat: int,
+             min_blocks: tuple[int, ...] = (1, 2, 3, 4)) -> dict:
+    """The device at size n; ``warp`` is the shipped choice (backends/cuda.py's
+    WARP_MIN_BLOCKS), ``warp_mbK`` the warp kernel built with LCP_WARP_MIN_BLOCKS = K."""
     import cupy as cp
     import cupyx
 
@@ -104,16 +107,21 @@ def gpu_case(n: int, K: int, sample: int, repeat: int) -> dict:
     host = lcpcli.solve_many(M[idx], q[idx], "lemke")
     Md, qd = cp.asarray(M), cp.asarray(q)
     usable = []
-    for variant in ("thread", "warp"):
+    # the two kernels, and the warp kernel under tighter register budgets (__launch_bounds__
+    # minimum blocks per multiprocessor: more warps resident, perhaps spills)
+    configs = [("thread", "thread", ()), ("warp", "warp", ())] + [
+        (f"warp_mb{k}", "warp", (f"-DLCP_WARP_MIN_BLOCKS={k}",)) for k in min_blocks]
+    for label, variant, extra in configs:
         # verdicts on a subsample: the device's against the CPU's, problem by problem
         cuda.LEMKE_VARIANT = variant
+        cuda.EXTRA_OPTIONS = extra
         dev = lcpcli.solve_many(Md[cp.asarray(idx)], qd[cp.asarray(idx)], "lemke",
                                 backend="cuda")
         same = {"same_status": bool(np.array_equal(dev.status, host.status)),
                 "same_z": bool(np.array_equal(dev.z.get(), host.z)),
                 "same_pivots": bool(np.array_equal(dev.iterations, host.iterations)),
                 "device_retried": int(dev.retried.sum())}
-        out[f"{variant}_verdicts"] = same
+        out[f"{label}_verdicts"] = same
         times = []
         for _ in range(repeat):
             e0, e1 = cp.cuda.Event(), cp.cuda.Event()
@@ -124,12 +132,20 @@ def gpu_case(n: int, K: int, sample: int, repeat: int) -> dict:
             e1.synchronize()
             times.append(cp.cuda.get_elapsed_time(e0, e1) / 1e3)
         certified = int((o["code"] == KERNEL_SOLVED).sum())
-        out[f"{variant}_kernel_s"] = min(times)
-        out[f"{variant}_kernel_certified_per_s"] = certified / min(times)
+        out[f"{label}_kernel_s"] = min(times)
+        out[f"{label}_kernel_certified_per_s"] = certified / min(times)
         del o
+        try:  # registers per thread and spilled (local) bytes of this build
+            at = cuda.kernel("lcp_lemke_warp_stack" if variant == "warp"
+                             else "lcp_lemke_stack", n).attributes
+            out[f"{label}_regs_local_bytes"] = [int(at["num_regs"]),
+                                                int(at["local_size_bytes"])]
+        except Exception:  # noqa: BLE001, S110 - optional figures
+            pass
         if same["same_status"] and same["same_z"] and same["same_pivots"]:
-            usable.append((min(times), variant))
+            usable.append((min(times), label, variant, extra))
     out["verdict_sample"] = int(idx.size)
+    cuda.EXTRA_OPTIONS = ()
     # projected Gauss-Seidel (the "sor" kernel, omega = 1) on the same stack, kernel alone
     pgs = get_method("pgs")
     times = []
@@ -146,7 +162,7 @@ def gpu_case(n: int, K: int, sample: int, repeat: int) -> dict:
     del o
     try:  # registers and local memory of each kernel (what limits its occupancy)
         out["kernel_attributes"] = {
-            name: {k: int(v) for k, v in cuda.kernel(name).attributes.items()
+            name: {k: int(v) for k, v in cuda.kernel(name, n).attributes.items()
                    if k in ("num_regs", "local_size_bytes", "shared_size_bytes",
                             "max_threads_per_block")}
             for name in ("lcp_lemke_stack", "lcp_lemke_warp_stack", "lcp_sor_stack")}
@@ -156,7 +172,10 @@ def gpu_case(n: int, K: int, sample: int, repeat: int) -> dict:
     if not usable:
         out["end_to_end"] = "skipped: no variant gave the CPU's verdicts"
         return out
-    cuda.LEMKE_VARIANT = out["end_to_end_variant"] = min(usable)[1]
+    best = min(usable)
+    out["end_to_end_variant"] = best[1]
+    cuda.LEMKE_VARIANT, cuda.EXTRA_OPTIONS = best[2], best[3]
+    out["chunk_bytes"] = cuda.CHUNK_BYTES
     # end to end from pinned host memory, then from pageable memory
     Mp = cupyx.empty_pinned(M.shape, np.float64)
     qp = cupyx.empty_pinned(q.shape, np.float64)
@@ -191,6 +210,9 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--threads", type=int, default=1, help="CPU threads (--cpu)")
     ap.add_argument("--sample", type=int, default=20_000, help="problems compared with the CPU")
+    ap.add_argument("--sizes", default="12,50", help="n of the device cases (comma-separated)")
+    ap.add_argument("--min-blocks", default="1,2,3,4",
+                    help="LCP_WARP_MIN_BLOCKS builds of the warp kernel to compare")
     args = ap.parse_args()
     info = {"date": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
             "python": platform.python_version(), "numpy": np.__version__,
@@ -205,8 +227,12 @@ def main() -> None:
 
         props = cp.cuda.runtime.getDeviceProperties(cp.cuda.Device().id)
         info.update(device=props["name"].decode(), cupy=cp.__version__)
-        for n, K in ((12, 1_000_000), (50, 100_000)):
-            cases.append(gpu_case(n, max(1, int(K * args.scale)), args.sample, args.repeat))
+        stacks = {12: 1_000_000, 24: 300_000, 32: 200_000, 50: 100_000}
+        blocks = tuple(int(b) for b in args.min_blocks.split(","))
+        for n in (int(x) for x in args.sizes.split(",")):
+            K = stacks.get(n, 100_000)
+            cases.append(gpu_case(n, max(1, int(K * args.scale)), args.sample, args.repeat,
+                                  blocks))
             print(json.dumps(cases[-1]), flush=True)
     path = args.out or (Path(os.environ["OUT"]) / "bench_gpu.json" if os.environ.get("OUT")
                         else None)

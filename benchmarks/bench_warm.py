@@ -15,7 +15,9 @@ A sequence of LCPs as in time stepping: M random positive definite (``A A^T / n 
   sequence, whose result carries the factors of its basis block (the same M reuses them);
 * ``bpp-chained``: the same with ``method="bpp"``, which pivots from the basis at every n
   (``auto`` and Lemke do from n = 200 on, ``lcpcli.solvers.warm.WARM_MIN_N``; below that
-  ``warm`` and ``chained`` are cold solves).
+  ``warm`` and ``chained`` are cold solves);
+* ``lemke-chained``: the same with ``method="lemke"``: Lemke with the covering ray started from
+  the previous basis (:mod:`lcpcli.solvers.methods.lemke_warm`; from n = 200 on, like ``auto``).
 
 Times: ``seconds`` (``Result.seconds``: the method's time, certification excluded) and
 ``wall`` (the whole call, with the certificate), medians over the steps (the first step of
@@ -41,8 +43,10 @@ import numpy as np  # noqa: E402
 
 import lcpcli  # noqa: E402
 
-KINDS = ("cold", "lemke-revised", "warm", "chained", "bpp-chained")
-WARM = ("warm", "chained", "bpp-chained")
+KINDS = ("cold", "lemke-revised", "warm", "chained", "bpp-chained", "lemke-chained")
+WARM = ("warm", "chained", "bpp-chained", "lemke-chained")
+#: The kinds whose previous result starts the next step of the same kind.
+CHAINS = ("chained", "bpp-chained", "lemke-chained")
 
 
 def _run(M: np.ndarray, q: np.ndarray, kind: str, prev: dict[str, object]) -> object:
@@ -52,6 +56,8 @@ def _run(M: np.ndarray, q: np.ndarray, kind: str, prev: dict[str, object]) -> ob
         return lcpcli.solve(M, q, "lemke-revised")
     if kind == "bpp-chained":
         return lcpcli.solve(M, q, "bpp", warm=prev["bpp-chained"])
+    if kind == "lemke-chained":
+        return lcpcli.solve(M, q, "lemke", warm=prev["lemke-chained"])
     return lcpcli.solve(M, q, warm=prev["cold" if kind == "warm" else "chained"])
 
 
@@ -61,7 +67,7 @@ def bench(n: int, steps: int, seed: int = 0) -> dict[str, object]:
     M = A @ A.T / n + np.eye(n)
     q = rng.standard_normal(n)
     first = lcpcli.solve(M, q)
-    prev: dict[str, object] = {"cold": first, "chained": first, "bpp-chained": first}
+    prev: dict[str, object] = {"cold": first, **{k: first for k in CHAINS}}
     times: dict[str, list[float]] = {k: [] for k in KINDS}
     secs: dict[str, list[float]] = {k: [] for k in KINDS}
     iters: dict[str, list[int]] = {k: [] for k in KINDS}
@@ -80,8 +86,8 @@ def bench(n: int, steps: int, seed: int = 0) -> dict[str, object]:
                 secs[kind].append(r.seconds)
                 iters[kind].append(r.iterations)
         diff = max(diff, *(float(np.max(np.abs(out[k].z - out["cold"].z)))
-                           for k in ("warm", "chained", "bpp-chained")))
-        prev = {k: out[k] for k in ("cold", "chained", "bpp-chained")}
+                           for k in WARM))
+        prev = {k: out[k] for k in ("cold", *CHAINS)}
     med = {k: statistics.median(v) for k, v in times.items()}
     med_s = {k: statistics.median(v) for k, v in secs.items()}
     return {"n": n, "steps": steps, "wall": med, "seconds": med_s,

@@ -20,7 +20,7 @@ timeout 150 $PY -m pytest tests/solvers/test_gpu_backend.py tests/solvers/test_s
     -p no:cacheprovider -o addopts="" -q -rs --timeout 120 2>&1 | tee "$OUT/tests.txt" | tail -25
 echo "tests: $(( $(date +%s) - t0 )) s"
 if command -v compute-sanitizer > /dev/null; then
-    timeout 80 compute-sanitizer --tool memcheck --print-limit 20 $PY benchmarks/gpu_sanitize.py > "$OUT/memcheck.txt" 2>&1
+    timeout 60 compute-sanitizer --tool memcheck --print-limit 20 $PY benchmarks/gpu_sanitize.py > "$OUT/memcheck.txt" 2>&1
     tail -4 "$OUT/memcheck.txt"
     timeout 60 compute-sanitizer --tool racecheck --print-limit 20 $PY benchmarks/gpu_sanitize.py warp > "$OUT/racecheck.txt" 2>&1
     tail -3 "$OUT/racecheck.txt"

@@ -22,10 +22,9 @@ from lcpcli.core.result import (
     Outcome,
     Result,
 )
+from lcpcli.solvers import DEFAULT_METHOD
 from lcpcli.solvers.pipeline import run_method
 from lcpcli.solvers.registry import Cost, Method, get_method
-
-DEFAULT_METHOD = "auto"
 
 
 def check_dense_ok(problem: Problem, spec: Method) -> None:
@@ -46,6 +45,16 @@ def check_dense_work(n: int, spec: Method) -> None:
         limits.check_dense_work(n, f"method '{spec.name}' factorises or pivots on the dense M",
                                 instead="use a sweeping method (-m pgs, -m psor: O(n^2) per "
                                         "sweep)")
+
+
+def check_sparse_work(n: int, spec: Method) -> None:
+    """ProblemError when ``spec`` factorises a sparse n x n M (sparse LU: ``ip``, ``newton``,
+    ... and ``auto``, whose plan may) above the sparse-factorisation budget of
+    :mod:`lcpcli.core.limits`; sweeping methods (O(nnz) per sweep) are not checked."""
+    if n > limits.SPARSE_N_FLOOR and (spec.planner or spec.cost is Cost.FACTORING):
+        limits.check_sparse_factorisation(n, f"method '{spec.name}' factorises the sparse M",
+                                          instead="use a sweeping method (-m pgs, -m psor: "
+                                                  "O(nnz) per sweep)")
 
 
 def dense_check(method: str | None) -> Any:
@@ -106,6 +115,7 @@ def solve(problem: Problem | Any, q: Any = None, method: str | None = None, *,
                           f"(it handles: {', '.join(k.upper() for k in spec.kinds)})")
     if problem.sparse:
         check_dense_ok(problem, spec)
+        check_sparse_work(problem.n, spec)
     else:
         check_dense_work(problem.n, spec)
     opts = spec.parse_options(options)
@@ -118,11 +128,11 @@ def solve(problem: Problem | Any, q: Any = None, method: str | None = None, *,
         check_warm(problem, warm)
         note = ""
         if uses_warm_basis(spec, problem):
-            tried, note = warm_start(problem, warm, tol)
+            tried, note = warm_start(problem, warm, tol, spec.name)
             if tried is not None:
                 factors = tried.info.pop("blocks", None)
-                res = certify_outcome(problem, tried, "bpp", time.perf_counter() - start, tol,
-                                      basis=True)
+                res = certify_outcome(problem, tried, tried.info.pop("method", "bpp"),
+                                      time.perf_counter() - start, tol, basis=True)
                 if res.solved:  # never no_solution: the warm start proves nothing
                     res.factors = factors  # the next warm start on the same M reuses them
                     return res

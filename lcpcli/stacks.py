@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from lcpcli.api import DEFAULT_METHOD, check_dense_work, solve
+from lcpcli.api import check_dense_work, solve
 from lcpcli.core.certificate import check, validate_tol
 from lcpcli.core.errors import LcpError, OptionError
 from lcpcli.core.numeric import check_dtype
@@ -26,6 +26,8 @@ from lcpcli.core.result import (
     Status,
     Termination,
 )
+from lcpcli.core.text import option_name
+from lcpcli.solvers import DEFAULT_METHOD
 from lcpcli.solvers.registry import Method, get_method
 
 #: Problems of a stack that ``auto`` classifies to choose the stack's method.
@@ -112,10 +114,13 @@ def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None =
     solve_many_device`).
 
     ``warm``: the :class:`StackResult` of a previous stack of the same shape (or a (K, n)
-    array of points ``z0``, or of booleans: bases): problem ``k`` is solved by
-    ``solve(..., warm=row k)`` (see :func:`solve`; a row with NaN, e.g. of an ``error``
-    problem, is solved cold).  A first version: a Python loop over the problems, no batched
-    kernel, so it pays only where a warm :func:`solve` beats a batched cold one (n >= 200).
+    array of points ``z0``, or of booleans: bases).  Below n = 200, when Lemke's batched
+    kernel runs on the ``"cpu"`` backend, every problem starts from its basis in that kernel
+    (:mod:`lcpcli.solvers.warm_stack`: block principal pivoting, then cold Lemke in the same
+    call if that is not certified); otherwise problem ``k`` is solved by ``solve(...,
+    warm=row k)`` (see :func:`solve`).  A row with NaN (e.g. of an ``error`` problem), or of a
+    problem the previous stack did not solve, is solved cold.  The result's ``basis`` holds
+    each answer's basis for the next step.
 
     ``on_error``: ``"raise"`` (a problem with NaN or Inf data raises :class:`ProblemError`
     naming its index; problems before it are solved first) or ``"mark"`` (its status is
@@ -159,13 +164,20 @@ def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None =
     methods_of: dict[int, str] = {}
     results: dict[int, Result] = {}
     rows = _warm_rows(warm, K, n)
-    if rows is not None:  # warm starts: one problem at a time
-        run_spec, kernel_options = None, {}
-    elif plan is None:
+    if plan is None:
         run_spec, kernel_options = _batched_method(spec, kind, options, M, q, lower, upper)
     else:
         run_spec = None if plan.kernel_method is None else get_method(plan.kernel_method)
         kernel_options = plan.kernel_options
+    bases = warmed = None  # warm: the cpu Lemke kernel starts from each basis; else one by one
+    if rows is not None:
+        from lcpcli.solvers.warm_stack import stack_bases, uses_warm_kernel
+
+        if run_spec is not None and uses_warm_kernel(run_spec, lower, K, n,
+                                                     choose_backend(backend, K, n)):
+            bases = stack_bases(warm, K, n)
+        else:
+            run_spec, kernel_options = None, {}
     name = spec.name
     if run_spec is not None:
         kernel = get_backend(choose_backend(backend, K, n)).kernel(run_spec.batch.kernel)
@@ -175,8 +187,14 @@ def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None =
         name = run_spec.batch.runs_as or run_spec.name
         out = StackOut.empty(K, n)  # the kernel writes the final arrays
         run_spec.prepare_once()
-        kernel(M, q, lower, upper, tol=tol, options=kernel_options, out=out, threads=threads,
-               scaling=run_spec.scaling)
+        if bases is not None:
+            from lcpcli.solvers.warm_stack import lemke_warm
+
+            bases, warmed = lemke_warm(M, q, bases, tol=tol, options=kernel_options, out=out,
+                                       threads=threads, scaling=run_spec.scaling)
+        else:
+            kernel(M, q, lower, upper, tol=tol, options=kernel_options, out=out,
+                   threads=threads, scaling=run_spec.scaling)
         z, w, iterations, error, residual = out.z, out.w, out.iterations, out.error, \
             out.residual
         status = np.where(out.code == KERNEL_SOLVED, codes[Status.SOLVED],
@@ -212,7 +230,10 @@ def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None =
         iterations[k], error[k], residual[k] = r.iterations, r.error, r.residual
         messages[k] = r.message
         methods_of[k] = r.method
-        r.basis  # noqa: B018  (computed now: the Result then no longer holds the problem)
+        if bases is not None and r.basis is not None:
+            bases[k] = r.basis
+        else:
+            r.basis  # noqa: B018  (computed now: the Result then no longer holds the problem)
         results[k] = r
     retried = np.zeros(K, bool)
     retried[retry] = run_spec is not None
@@ -220,7 +241,8 @@ def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None =
                        residual=residual, method=name, tol=tol,
                        seconds=time.perf_counter() - start, retried=retried,
                        messages=messages, methods=methods_of, batched=run_spec is not None,
-                       results=results)
+                       results=results, basis=bases,
+                       warmed=None if warmed is None else warmed.astype(bool))
 
 
 def _warm_rows(warm: Any, K: int, n: int) -> np.ndarray | None:
@@ -238,7 +260,8 @@ STACK_MIN = 8
 
 
 def solve_each(problems: list[Problem], method: str | None = None, *, tol: float | None = None,
-               threads: int | None = None, **options: Any) -> list[Result]:
+               threads: int | None = None, warms: list[Any] | None = None,
+               **options: Any) -> list[Result]:
     """``[solve(p, method, tol=tol, **options) for p in problems]``, faster for many small ones.
 
     Dense LCPs of one size, at least :data:`STACK_MIN` of them, are stacked and solved by
@@ -246,7 +269,9 @@ def solve_each(problems: list[Problem], method: str | None = None, *, tol: float
     recomputed for its :class:`Result` (the same definition the kernel checked), and the
     problems the kernel handed back come with the Result of their own :func:`solve`.  Other
     problems are solved one by one.  ``seconds`` of a stacked problem is its share of the
-    stack's time; ``info["batched"]`` marks them.
+    stack's time; ``info["batched"]`` marks them.  ``warms``: one warm start per problem (a
+    basis, booleans, or None: cold), as ``solve_many(warm=)`` and ``solve(warm=)`` take them;
+    ``info["warm"]`` then says whether the warm start gave the answer.
     """
     out: list[Result | None] = [None] * len(problems)
     groups: dict[int, list[int]] = {}
@@ -256,9 +281,15 @@ def solve_each(problems: list[Problem], method: str | None = None, *, tol: float
     for idx in groups.values():
         if len(idx) < STACK_MIN:
             continue
+        warm = None
+        if warms is not None and any(warms[i] is not None for i in idx):
+            # rows as points: 1 where z_i is basic, NaN for a problem without one (cold)
+            warm = np.stack([np.asarray(warms[i], dtype=bool).astype(np.float64)
+                             if warms[i] is not None else np.full(problems[i].n, np.nan)
+                             for i in idx])
         res = solve_many(np.stack([problems[i].M for i in idx]),
                          np.stack([problems[i].q for i in idx]), method, tol=tol,
-                         threads=threads, **options)
+                         threads=threads, warm=warm, **options)
         share = res.seconds / len(idx)
         for j, i in enumerate(idx):
             p = problems[i]
@@ -275,9 +306,14 @@ def solve_each(problems: list[Problem], method: str | None = None, *, tol: float
                             certificate=cert, message=res.message(j),
                             termination=CONVERGED if cert.passed else Termination.NUMERICAL,
                             problem_name=p.name, info={"batched": True}, known_basis=basis)
+            if res.warmed is not None:
+                out[i].info["warm"] = bool(res.warmed[j])
     for i, p in enumerate(problems):
         if out[i] is None:
-            out[i] = solve(p, method, tol=tol, **options)
+            warm = None if warms is None else warms[i]
+            out[i] = solve(p, method, tol=tol, warm=warm, **options)
+            if warm is not None:
+                out[i].info["warm"] = bool(out[i].info.get("warm", False))
     return out  # type: ignore[return-value]
 
 
@@ -334,7 +370,7 @@ def _batched_method(spec: Method, kind: str, options: dict[str, Any], M: np.ndar
                     upper: np.ndarray | None) -> tuple[Method | None, dict[str, Any]]:
     """The method whose batched kernel runs the stack and the kernel's options, or
     (None, {}) when the stack is solved one problem at a time (see :func:`solve_many`)."""
-    given = {k.replace("-", "_"): v for k, v in options.items()
+    given = {option_name(k): v for k, v in options.items()
              if v is not None and v is not False}
     if spec.planner:
         if set(given) - {"max_iter"} or q.shape[0] == 0:

@@ -28,8 +28,9 @@ from typing import Any
 
 import numpy as np
 
-from lcpcli.analysis._scaling import dense_minima
+from lcpcli.analysis._scaling import dense_minima, is_symmetric_dense
 from lcpcli.core.problem import is_sparse, problem_kind
+from lcpcli.core.tolerances import P_TEST_PIVOT_TOL
 
 #: Relative tolerance of the symmetry test: ``|m_ij - m_ji| <= SYM_TOL (max(|m_ij|, |m_ji|)
 #: + sqrt(|m_ii m_jj|))`` for every pair (invariant under ``D M D`` and global scaling).
@@ -38,9 +39,6 @@ SYM_TOL = 1e-10
 #: symmetric part S: PD when ``E - delta I`` has a Cholesky factor, PSD when ``E + delta I`` has
 #: one, with ``delta = DEF_TOL sqrt(n) ||E||_inf``.
 DEF_TOL = 1e-10
-#: Relative pivot tolerance of the exact P-matrix test: a pivot counts as positive when it
-#: exceeds this fraction of the magnitude of the terms it was computed from.
-PIVOT_TOL = 1e-12
 #: Dense sizes up to which the O(n^3) tests (definiteness, H-matrix, P-matrix) are run at all.
 DENSE_TEST_MAX_N = 6000
 #: Sparse sizes up to which the sparse-LU tests are run.
@@ -103,16 +101,26 @@ def symmetric_part(M: Any) -> Any:
 
 
 # ---------------------------------------------------------------------------- symmetry
-def is_symmetric(M: Any, tol: float = SYM_TOL) -> bool:
-    """Is M symmetric up to rounding?  (The one symmetry test of the package.)
+def is_symmetric(M: Any, tol: float) -> bool:
+    """Is M (dense or scipy.sparse) symmetric to the relative tolerance ``tol``?  (The one
+    symmetry test of the package; every caller states its tolerance.)
 
     Entry pair (i, j) passes when ``|m_ij - m_ji| <= tol (max(|m_ij|, |m_ji|) +
     sqrt(|m_ii| |m_jj|))``: relative to the pair itself and to the diagonal (which bounds
     ``|m_ij|`` for PSD matrices, and is where the rounding of a product ``A W A^T`` lives).
     The same answer on ``D M D`` for any positive diagonal D and on ``2^k M``.
+
+    ``tol = SYM_TOL`` (:data:`SYM_TOL`): symmetric up to rounding, the class report's and
+    the methods' question ("is the symmetric part all of M?").  ``tol = 0``: exactly
+    symmetric, every pair equal (what a congruence ``D M D`` keeps, and what a symmetric
+    factorisation of M itself needs); decided by one early-exit pass (compiled for dense M).
     """
     if M.shape[0] != M.shape[1]:
         return False
+    if tol == 0.0:
+        if not isinstance(M, np.ndarray) and _is_sparse(M):
+            return (M != M.T).nnz == 0
+        return is_symmetric_dense(M)
     A = normalised(M)
     sd = np.sqrt(np.abs(diagonal(A)))
     if _is_sparse(A):
@@ -381,8 +389,8 @@ def _balanced(K: np.ndarray) -> np.ndarray:
 def _minor_pivots_positive(K: np.ndarray) -> bool:
     """All principal minors of K positive?  Depth-first over the index sets, one principal
     pivot (a Schur complement step) per set: ``det(K_{I+j}) / det(K_I)`` is the pivot, and a
-    pivot counts as positive when it exceeds ``PIVOT_TOL`` times the magnitude of the terms it
-    was computed from (a scale-free test: the same on ``D1 K D2``)."""
+    pivot counts as positive when it exceeds ``P_TEST_PIVOT_TOL`` times the magnitude of the
+    terms it was computed from (a scale-free test: the same on ``D1 K D2``)."""
     return _first_small_pivot(K) is None
 
 
@@ -404,7 +412,7 @@ def _small_pivot_sets(K: np.ndarray) -> Iterator[list[int]]:
         # T: magnitude of its terms
         for pos in range(len(idx)):
             p = S[pos, pos]
-            if not p > PIVOT_TOL * T[pos, pos]:
+            if not p > P_TEST_PIVOT_TOL * T[pos, pos]:
                 yield sorted(chain + [idx[pos]])
                 continue
             rest = list(range(pos + 1, len(idx)))
@@ -462,7 +470,7 @@ def not_p_witness(M: Any, candidates: list[list[int]] | None = None) -> list[int
         K = _unit_diagonal_symmetric(normalised(A))
         prod = K * K.T
         prod[np.diag_indices(n)] = 0.0
-        flagged = np.argwhere(np.triu(1.0 - prod <= PIVOT_TOL * (1.0 + np.abs(prod)), 1))
+        flagged = np.argwhere(np.triu(1.0 - prod <= P_TEST_PIVOT_TOL * (1.0 + np.abs(prod)), 1))
         tried += [[int(i), int(j)] for i, j in flagged[:64]]
     searched: Iterator[list[int]] = iter(())
     if dense and n <= EXACT_P_MAX_N:
@@ -552,7 +560,7 @@ def p_matrix(M: Any, pd: bool | None = None, h_matrix: bool | None = None,
         K = _unit_diagonal_symmetric(normalised(A))
         prod = K * K.T  # k_ij k_ji: the 2 x 2 minors are 1 - k_ij k_ji (unit diagonal)
         prod[np.diag_indices(n)] = 0.0
-        bad = 1.0 - prod <= PIVOT_TOL * (1.0 + np.abs(prod))
+        bad = 1.0 - prod <= P_TEST_PIVOT_TOL * (1.0 + np.abs(prod))
         if np.any(bad):
             return _refuted(M, [[int(v) for v in ij] for ij in np.argwhere(bad)[:64]])
     if pd:
@@ -572,7 +580,7 @@ def p_matrix(M: Any, pd: bool | None = None, h_matrix: bool | None = None,
         pd_b = definiteness(B).kind == PD
         if pd_b:
             return True, "positive definite after a positive diagonal scaling"
-        if is_symmetric(B):  # P iff PD for a symmetric matrix
+        if is_symmetric(B, SYM_TOL):  # P iff PD for a symmetric matrix
             return _refuted(M, [], "diagonally similar to a symmetric matrix not shown PD")
     return None, "unknown (no sufficient test applies)"
 
@@ -811,7 +819,7 @@ class Classifier:
         return bool(np.any(rows != 0))
 
     def _symmetry(self) -> None:
-        self.report.symmetric = is_symmetric(self.problem.M)
+        self.report.symmetric = is_symmetric(self.problem.M, SYM_TOL)
 
     def _signs(self) -> None:
         r = self.report

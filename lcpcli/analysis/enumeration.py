@@ -57,6 +57,11 @@ RTOL = 1e-9
 #: itself: the kernel equilibrates each block by powers of two (rows, then columns) first, so
 #: the test is the same on any power-of-two row and column scaling of M.
 PIVOT_RTOL = 1e-12
+#: Relative tolerance of the n = 2 cone geometry (:func:`in_cone_2d`, :func:`cone_interiors_2d`,
+#: the pictures of ``lcpcli enumerate``), on columns scaled to unit largest entry: a 2 x 2
+#: complementary matrix whose determinant is at most this is degenerate (its cone a ray, a line
+#: or a half-plane), and a point is inside a cone when its coordinates exceed it.
+CONE_2D_TOL = 1e-12
 #: First block of cones when stopping at the first solution (then doubling, aligned).
 FIRST_CHUNK = 4096
 #: Smallest n for which the fast (depth-first pivoting) kernel is used.
@@ -611,21 +616,36 @@ def generators_2d(M: np.ndarray) -> dict[str, np.ndarray]:
             "z1": -np.asarray(M[:, 0], dtype=float), "z2": -np.asarray(M[:, 1], dtype=float)}
 
 
-def in_cone_2d(A: np.ndarray, x: np.ndarray, rtol: float = 1e-12) -> bool:
+def _unit(v: np.ndarray) -> np.ndarray:
+    """``v`` scaled to unit largest entry (a zero vector stays zero)."""
+    peak = float(np.max(np.abs(v)))
+    return v / peak if peak > 0 else v
+
+
+def unit_columns_2d(A: np.ndarray) -> np.ndarray:
+    """The 2 x 2 ``A`` with each column scaled to unit largest entry: cone membership does not
+    change when a generator is scaled by a positive factor, so the tests on the result are
+    relative and nothing overflows (columns of size 1e300)."""
+    return np.column_stack([_unit(np.asarray(A[:, j], dtype=float)) for j in range(2)])
+
+
+def degenerate_2d(A: np.ndarray) -> bool:
+    """Whether the cone ``Pos(A)`` of a 2 x 2 ``A`` is degenerate (a ray, a line or a
+    half-plane, no interior of its own): ``|det|`` of the unit columns at most
+    :data:`CONE_2D_TOL` (a zero column included)."""
+    U = unit_columns_2d(A)
+    return not abs(U[0, 0] * U[1, 1] - U[0, 1] * U[1, 0]) > CONE_2D_TOL
+
+
+def in_cone_2d(A: np.ndarray, x: np.ndarray, rtol: float = CONE_2D_TOL) -> bool:
     """Whether ``x`` is in ``Pos(A)`` for a 2 x 2 ``A`` (degenerate A: rays / a line).
 
     Membership does not change when a column of ``A`` or ``x`` is scaled by a positive factor,
-    so each is normalised to unit largest entry first: the tests are relative and nothing
-    overflows (columns of size 1e300).
+    so each is normalised to unit largest entry first (:func:`unit_columns_2d`).
     """
-    def unit(v: np.ndarray) -> np.ndarray:
-        peak = float(np.max(np.abs(v)))
-        return v / peak if peak > 0 else v
-
-    A = np.column_stack([unit(np.asarray(A[:, j], dtype=float)) for j in range(2)])
-    x = unit(np.asarray(x, dtype=float))
-    det = A[0, 0] * A[1, 1] - A[0, 1] * A[1, 0]
-    if abs(det) > 1e-12:
+    A = unit_columns_2d(A)
+    x = _unit(np.asarray(x, dtype=float))
+    if not degenerate_2d(A):
         y = np.linalg.solve(A, x)
         return bool(np.all(y >= -rtol * max(1.0, float(np.max(np.abs(y))))))
     for j in range(2):  # degenerate: x must be a nonnegative multiple of a column
@@ -633,9 +653,24 @@ def in_cone_2d(A: np.ndarray, x: np.ndarray, rtol: float = 1e-12) -> bool:
         if np.max(np.abs(a)) == 0:
             continue
         cross = a[0] * x[1] - a[1] * x[0]
-        if abs(cross) <= 1e-12 and a @ x >= 0:
+        if abs(cross) <= CONE_2D_TOL and a @ x >= 0:
             return True
     return bool(np.max(np.abs(x)) == 0)
+
+
+def cone_interiors_2d(M: np.ndarray, pts: np.ndarray) -> np.ndarray:
+    """(4, P) booleans for a 2 x 2 ``M`` and points ``pts`` (2, P): row ``code`` says which
+    points lie strictly inside the complementary cone ``Pos(A_code)`` (every coordinate above
+    :data:`CONE_2D_TOL` on the unit columns); a degenerate cone (:func:`degenerate_2d`) holds
+    none.  The regions that ``lcpcli enumerate`` draws for n = 2."""
+    pts = np.asarray(pts, dtype=float)
+    out = np.zeros((4, pts.shape[1]), dtype=bool)
+    for code in range(4):
+        A = complementary_matrix(np.asarray(M, dtype=float), code)
+        if degenerate_2d(A):
+            continue
+        out[code] = np.all(np.linalg.solve(unit_columns_2d(A), pts) > CONE_2D_TOL, axis=0)
+    return out
 
 
 def covers_plane(M: Any) -> bool:

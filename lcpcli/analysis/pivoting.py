@@ -179,6 +179,28 @@ class PivotTransform:
     def names(self, tup: tuple[Var, ...]) -> list[str]:
         return [var_name(v, self.n) for v in tup]
 
+    def basic_solution(self) -> np.ndarray:
+        """``z`` (n entries, the artificial variable left out) of the basic solution: ``z' = 0``
+        and ``w' = q'``, so ``z_j = q'_k`` where ``z_j`` is the k-th dependent variable, else
+        0 (in the arithmetic of ``q'``: fractions for an exact transform)."""
+        z = np.zeros(self.n, dtype=self.q_prime.dtype)
+        for k, (kind, j) in enumerate(self.dependent):
+            if kind == "z" and j < self.n:
+                z[j] = self.q_prime[k]
+        return z
+
+    @property
+    def solves(self) -> bool:
+        """Whether this basis solves the LCP at ``z' = 0`` (Lemke's answer; Murty, ch. 1):
+        the artificial variable is independent (so 0), ``q' >= 0`` (exactly, in the arithmetic
+        of ``q'``), and no pair has ``w_i`` and ``z_i`` both positive (a non-complementary
+        basis of ``--any-basis`` may).  The renderers state this, they do not decide it."""
+        if ("z", self.n) in self.dependent or not all(v >= 0 for v in self.q_prime):
+            return False
+        value = dict(zip(self.dependent, self.q_prime, strict=True))
+        return all(not (value.get(("w", i), 0) > 0 and value.get(("z", i), 0) > 0)
+                   for i in range(self.n))
+
     def to_dict(self) -> dict[str, Any]:
         """The JSON schema of ``lcpcli pivot --json`` (index sets 1-based)."""
         def one(xs: list[int]) -> list[int]:

@@ -21,7 +21,11 @@ Crash safety (Ctrl-C, SIGTERM, ``kill -9``):
   the HDF5 file was damaged mid-write it is rebuilt from what is readable plus the journal,
   atomically.
 
-A new run (without ``--resume``) replaces an existing output file.
+A new run (without ``--resume``) over an existing result file writes its rows to a temporary
+file beside it and replaces the file only when the batch is complete (:class:`ReplacingWriter`):
+a full disk, an error, Ctrl-C, SIGTERM or ``kill -9`` leave the previous file (and its journal)
+as they were.  Without a previous file the rows are written in place as above, so an
+interrupted first run is resumable.
 
 Every file here is written through :mod:`lcpcli.io.writing`: result files and the journal are
 opened without following links (a symbolic link is refused, never written through), a full
@@ -29,15 +33,17 @@ disk or a permission error is one line (``OutputError``, exit 2) and leaves the 
 resumable, and a resumed HDF5 file is checked for links out of it first.
 
 Input identity: every written row carries ``input_hash``, a SHA-256 digest (16 bytes) of the
-content of the file it was solved from (:func:`input_fingerprint`; a stacked row: of its chunk).
-``--resume`` recomputes it and refuses a result file whose rows were computed from other data
-(or that has no fingerprints: written by an older lcpcli).  File names that are not valid
-UTF-8 are kept: as ``\\udcXX`` escapes in JSON Lines and HDF5, as their original bytes in CSV
-(Python's ``surrogateescape``).
+content of the file it was solved from (:func:`input_fingerprint`; a stacked row: of its chunk),
+and a per-file batch's rows ``solve_options`` (method, tol and options, JSON).  ``--resume``
+recomputes them and refuses a result file whose rows were computed from other data or with
+other settings (or that has no fingerprints: written by an older lcpcli).  File names that
+are not valid UTF-8 are kept: as ``\\udcXX`` escapes in JSON Lines and HDF5, as their original
+bytes in CSV (Python's ``surrogateescape``).
 """
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import hashlib
 import io
@@ -46,16 +52,18 @@ import math
 import os
 import time
 from abc import ABC, abstractmethod
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-from lcpcli.core.errors import OptionError, ProblemError
+from lcpcli.core.errors import OptionError, OutputError, ProblemError
 from lcpcli.core.numeric import json_text
 from lcpcli.io.files import open_input
 from lcpcli.io.writing import (
     AppendFile,
     ForeignObjectError,
     Hdf5Handle,
+    StagedFiles,
     atomic_path,
     check_dataset,
     check_hdf5_tree,
@@ -63,6 +71,7 @@ from lcpcli.io.writing import (
     own_file,
     read_own_file,
     remove_file,
+    restated,
     truncate_file,
     write_atomic_text,
     writing,
@@ -72,9 +81,14 @@ from lcpcli.io.writing import (
 FSYNC_SECONDS = 1.0
 #: Flat columns of the CSV output.
 CSV_COLUMNS = ("source", "problem", "status", "method", "n", "iterations", "seconds",
-               "residual", "error", "message", "index", "input_hash")
+               "residual", "error", "message", "index", "input_hash", "solve_options")
 #: The row field holding the fingerprint of the row's input (see the module docstring).
 INPUT_HASH = "input_hash"
+#: The row field holding the solve options of a per-file batch (method, tol, options as JSON:
+#: :func:`lcpcli.batch.stack_output.options_fingerprint`), which ``--resume`` compares.
+SOLVE_OPTIONS = "solve_options"
+#: CSV columns an older lcpcli did not write (its rows come without these keys).
+_NEWER_COLUMNS = (INPUT_HASH, SOLVE_OPTIONS)
 _KINDS = {".jsonl": "jsonl", ".ndjson": "jsonl", ".csv": "csv", ".h5": "hdf5", ".hdf5": "hdf5",
           ".npz": "npz"}
 
@@ -140,7 +154,7 @@ def read_jsonl(path: Path) -> list[dict[str, Any]]:
 def _csv_value(col: str, text: str) -> Any:
     if text == "":
         return None if col not in ("source", "problem", "status", "method", "message") else ""
-    if col == INPUT_HASH:
+    if col in _NEWER_COLUMNS:
         return text
     if col in ("n", "iterations", "index"):
         return int(text)
@@ -157,10 +171,9 @@ def read_csv(path: Path) -> list[dict[str, Any]]:
     text = data.decode("utf-8", errors="surrogateescape")  # names as written (raw bytes)
     rows = []
     for rec in csv.DictReader(io.StringIO(text, newline="")):
-        # a file of an older lcpcli has no input_hash column: its rows come without the key
+        # a file of an older lcpcli lacks the newer columns: its rows come without the keys
         columns = [c for c in CSV_COLUMNS if c in rec]
-        if None in rec or len(columns) < len(CSV_COLUMNS) - 1 or (
-                INPUT_HASH not in columns and len(columns) != len(CSV_COLUMNS) - 1):
+        if None in rec or any(c not in rec for c in CSV_COLUMNS if c not in _NEWER_COLUMNS):
             continue  # not a complete record
         try:
             rows.append({c: _csv_value(c, rec[c] or "") for c in columns})
@@ -276,9 +289,12 @@ class _LineWriter(ABC):
     #: Records may span lines (quoted newlines in CSV): torn tails are found record-wise.
     multiline = False
 
-    def __init__(self, path: Path, resume: bool, header: str = "") -> None:
+    def __init__(self, path: Path, resume: bool, header: str = "", *,
+                 staged: bool = False) -> None:
         self.path = path
-        if resume and own_file(path) is not None:  # a link: refused, never appended to
+        if staged:  # an empty temporary file of a ReplacingWriter: written in place
+            pass
+        elif resume and own_file(path) is not None:  # a link: refused, never appended to
             first = _complete_lines(path)[0][:1]
             if header and first and first[0] + b"\n" != header.encode():
                 raise ProblemError(f"cannot be resumed: its first line is not the header "
@@ -305,15 +321,17 @@ class _LineWriter(ABC):
         self.file.sync()
         self.last_sync = time.monotonic()
 
-    def close(self) -> None:
+    def close(self, complete: bool = True) -> None:
+        """Close (``complete``: whether the batch ended; rows written in place stay either
+        way, resumable)."""
         self.file.close()
 
 
 class JsonlWriter(_LineWriter):
     """One JSON object per line."""
 
-    def __init__(self, path: Path, resume: bool) -> None:
-        super().__init__(path, resume)
+    def __init__(self, path: Path, resume: bool, *, staged: bool = False) -> None:
+        super().__init__(path, resume, staged=staged)
 
     def _line(self, row: dict[str, Any]) -> str:
         return json_text(row) + "\n"
@@ -337,8 +355,8 @@ class CsvWriter(_LineWriter):
 
     multiline = True
 
-    def __init__(self, path: Path, resume: bool) -> None:
-        super().__init__(path, resume, header=",".join(CSV_COLUMNS) + "\n")
+    def __init__(self, path: Path, resume: bool, *, staged: bool = False) -> None:
+        super().__init__(path, resume, header=",".join(CSV_COLUMNS) + "\n", staged=staged)
         self.buffer = io.StringIO()
         self.csv = csv.writer(self.buffer, lineterminator="\n")
         # the csv module quotes a field holding the line terminator, not a lone "\r"
@@ -374,17 +392,21 @@ class Hdf5Writer:
     the row without z and w, from which :func:`read_hdf5` rebuilds the JSONL row exactly.
     """
 
-    def __init__(self, path: Path, resume: bool) -> None:
+    def __init__(self, path: Path, resume: bool, *, staged: bool = False) -> None:
         self.path = path
         jpath = journal_path(path)
-        # resumed: a linked result or journal is refused (own_file), never followed
-        if resume and (own_file(path) is not None or own_file(jpath) is not None):
-            self._recover(path, jpath)
+        self.journal: JsonlWriter | None = None
+        if staged:  # the empty temporary file of a ReplacingWriter: no journal (a kill -9
+            self.h5 = Hdf5Handle(path, "w")  # leaves the previous file, this one is dropped)
         else:
-            remove_file(jpath)  # a stale journal (a link: the link, never its target)
-            self._create_empty(path)
-        self.journal = JsonlWriter(jpath, resume=True)
-        self.h5 = Hdf5Handle(path, "r+")  # O_NOFOLLOW; written through a SafeSink
+            # resumed: a linked result or journal is refused (own_file), never followed
+            if resume and (own_file(path) is not None or own_file(jpath) is not None):
+                self._recover(path, jpath)
+            else:
+                remove_file(jpath)  # a stale journal (a link: the link, never its target)
+                self._create_empty(path)
+            self.journal = JsonlWriter(jpath, resume=True)
+            self.h5 = Hdf5Handle(path, "r+")  # O_NOFOLLOW; written through a SafeSink
         self.file = self.h5.file
         self.names = set(self.file.keys())
         self.last_flush = time.monotonic()
@@ -425,7 +447,8 @@ class Hdf5Writer:
             self._create_empty(path, rows + extra)
 
     def write(self, rows: list[dict[str, Any]]) -> None:
-        self.journal.write(rows)  # first: the rows survive a failure of the HDF5 file
+        if self.journal is not None:
+            self.journal.write(rows)  # first: the rows survive a failure of the HDF5 file
         with writing(self.path, self.KEPT):
             for row in rows:
                 _write_group(self.file, row, self.names)
@@ -438,18 +461,82 @@ class Hdf5Writer:
            "with --resume"
 
     def sync(self) -> None:
-        self.journal.sync()
+        if self.journal is not None:
+            self.journal.sync()
         self.h5.flush()
         self.last_flush = time.monotonic()
 
-    def close(self) -> None:
+    def close(self, complete: bool = True) -> None:
+        """Close the HDF5 file, then remove the journal (``complete`` as for
+        :meth:`_LineWriter.close`: Ctrl-C and SIGTERM close cleanly too)."""
         if self.h5.sink.fd < 0:
             return
         try:
             self.h5.close(self.KEPT)  # the HDF5 file first: the journal is its backup
         finally:
-            self.journal.close()
-        remove_file(journal_path(self.path))  # only once the HDF5 file is complete
+            if self.journal is not None:
+                self.journal.close()
+        if self.journal is not None:
+            remove_file(journal_path(self.path))  # only once the HDF5 file is complete
+
+
+class ReplacingWriter:
+    """A new batch over an existing result file: the rows go to a temporary file beside it
+    (:class:`lcpcli.io.writing.StagedFiles`: ``O_CREAT | O_EXCL | O_NOFOLLOW``), which is
+    renamed over it by :meth:`close` with ``complete``; any other end (a write failure, an
+    error, Ctrl-C, SIGTERM) removes the temporary file, so the previous file -- and an HDF5
+    file's journal -- stay byte for byte as they were (a ``kill -9`` leaves the temporary file
+    ``.NAME.XXXXXXXX.tmp`` beside them, nothing else).  Write failures name the result file."""
+
+    #: What a write failure leaves (the message says it).
+    KEPT = "the previous file is kept as it was: free space, then run again"
+
+    def __init__(self, path: Path, kind: str) -> None:
+        self.path, self.kind = path, kind
+        self.staged: StagedFiles | None = StagedFiles()
+        tmp = self.staged.add(path)
+        try:
+            with self._failures():
+                cls = {"jsonl": JsonlWriter, "csv": CsvWriter}.get(kind, Hdf5Writer)
+                self.inner: Any = cls(tmp, resume=False, staged=True)
+        except BaseException:
+            self.staged.abort()
+            raise
+
+    @contextlib.contextmanager
+    def _failures(self) -> Iterator[None]:
+        """A write failure of the temporary file, restated for the result file."""
+        try:
+            yield
+        except OutputError as exc:
+            raise restated(exc, self.path, self.KEPT) from None
+
+    def write(self, rows: list[dict[str, Any]]) -> None:
+        with self._failures():
+            self.inner.write(rows)
+
+    def sync(self) -> None:
+        with self._failures():
+            self.inner.sync()
+
+    def close(self, complete: bool = True) -> None:
+        """With ``complete`` (the batch ended): replace the result file; otherwise drop the
+        temporary file and keep the previous one."""
+        staged, self.staged = self.staged, None
+        if staged is None:
+            return
+        try:
+            if not complete:
+                with contextlib.suppress(Exception):  # the error on its way is the one to report
+                    self.inner.close(complete=False)
+                return
+            with self._failures():
+                self.inner.close()
+                if self.kind == "hdf5":  # the previous file's journal: its rows are not ours
+                    remove_file(journal_path(self.path))
+                staged.commit()
+        finally:
+            staged.abort()  # nothing left after a commit
 
 
 def _write_group(f: Any, row: dict[str, Any], names: set[str]) -> None:
@@ -492,13 +579,25 @@ def checked_output(path: str | os.PathLike[str]) -> tuple[Path, str]:
     return path, kind
 
 
-def open_writer(path: str | os.PathLike[str], *, resume: bool = False) -> Any:
-    """A writer for ``path`` (kind from the extension): ``write(rows)``, ``sync()``, ``close()``.
+def replaced_when_complete(path: str | os.PathLike[str], resume: bool) -> bool:
+    """Whether a new batch writes beside ``path`` and replaces it only once complete
+    (:class:`ReplacingWriter`): a previous result file exists and this is no ``--resume``."""
+    return not resume and os.path.lexists(path)
 
-    Without ``resume`` an existing file is replaced; with it, rows are appended after the
-    finished ones (a torn tail is cut, an HDF5 file is repaired from its journal).
+
+def open_writer(path: str | os.PathLike[str], *, resume: bool = False,
+                keep_previous: bool = False) -> Any:
+    """A writer for ``path`` (kind from the extension): ``write(rows)``, ``sync()``,
+    ``close(complete=True)``.
+
+    Without ``resume`` an existing file is replaced: at once, or with ``keep_previous`` only
+    when ``close(complete=True)`` ends the batch (:class:`ReplacingWriter`); with ``resume``,
+    rows are appended after the finished ones (a torn tail is cut, an HDF5 file is repaired
+    from its journal).
     """
     path, kind = checked_output(path)
+    if kind != "npz" and keep_previous and replaced_when_complete(path, resume):
+        return ReplacingWriter(path, kind)
     if kind == "jsonl":
         return JsonlWriter(path, resume)
     if kind == "csv":

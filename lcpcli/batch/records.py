@@ -9,10 +9,12 @@ that could not be read have ``status = "error"``, ``termination = "error"``, ``n
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass, field
 from typing import Any
 
 from lcpcli.core.result import Status, Termination
+from lcpcli.solvers import DEFAULT_METHOD
 
 #: Status (and termination) of a row whose input could not be read or solved at all.
 ERROR = Status.ERROR
@@ -33,7 +35,7 @@ class Task:
 class SolveOptions:
     """What every problem of a batch is solved with (picklable, sent to the workers)."""
 
-    method: str = "auto"  # = lcpcli.api.DEFAULT_METHOD
+    method: str = DEFAULT_METHOD
     tol: float | None = None
     options: dict[str, Any] = field(default_factory=dict)
 
@@ -59,3 +61,29 @@ def timeout_row(task: Task, seconds: float, method: str) -> dict[str, Any]:
     return error_row(task.source, task.problem, TIMEOUT, method, status=Status.UNSOLVED,
                      termination=TIMEOUT, seconds=seconds)
 
+
+
+def options_difference(recorded: str, now: str) -> str:
+    """Which settings differ between two solve-options fingerprints (JSON: method, tol,
+    options), in words: ``"method was 'lemke', now 'pgs'"``, ``"tol was 1e-06, now the
+    default"``, ``"option max_iter was 10, now 20"``; the raw texts when one is not such a
+    fingerprint."""
+    try:
+        old, new = json.loads(recorded), json.loads(now)
+        parts = []
+        for name in ("method", "tol"):
+            if old.get(name) != new.get(name):
+                parts.append(f"{name} was {_setting(old.get(name))}, now "
+                             f"{_setting(new.get(name))}")
+        old_opts, new_opts = old.get("options") or {}, new.get("options") or {}
+        for name in sorted(set(old_opts) | set(new_opts)):
+            if old_opts.get(name) != new_opts.get(name):
+                parts.append(f"option {name} was {_setting(old_opts.get(name))}, now "
+                             f"{_setting(new_opts.get(name))}")
+    except (ValueError, TypeError, AttributeError):
+        return f"{recorded}, now {now}"
+    return "; ".join(parts) or f"{recorded}, now {now}"
+
+
+def _setting(value: Any) -> str:
+    return "the default" if value is None else repr(value)

@@ -13,7 +13,7 @@ from typing import Any
 from lcpcli.batch.cluster import iter_dask
 from lcpcli.batch.inputs import expand_inputs
 from lcpcli.batch.pool import iter_local
-from lcpcli.batch.records import SolveOptions, key
+from lcpcli.batch.records import SolveOptions, key, options_difference
 from lcpcli.batch.report import BatchReport, BatchStats, Tally
 from lcpcli.batch.worker import prepare_method
 
@@ -181,20 +181,27 @@ def _run_stacked(inputs: list[str], opts: SolveOptions, *, output: Any, resume: 
     return report
 
 
-def _check_fingerprint(row: dict[str, Any], now: str | None, output: Any) -> None:
-    """Refuse to resume from a row computed from other content than its source has now, or
-    from a row without a fingerprint (written by an older lcpcli)."""
-    from lcpcli.batch.output import INPUT_HASH
+def _check_fingerprint(row: dict[str, Any], now: str | None, options: str, output: Any
+                       ) -> None:
+    """Refuse to resume from a row computed from other content than its source has now or
+    with other solve options (``options``: this run's fingerprint of them), or from a row
+    without these fingerprints (written by an older lcpcli)."""
+    from lcpcli.batch.output import INPUT_HASH, SOLVE_OPTIONS
     from lcpcli.core.errors import ProblemError
 
-    if INPUT_HASH not in row:
-        raise ProblemError("holds results without the fingerprint of their inputs (written by "
-                           "an older lcpcli), so they cannot be checked against them: run "
-                           "again without --resume", str(output))
+    if INPUT_HASH not in row or SOLVE_OPTIONS not in row:
+        raise ProblemError("holds results without the fingerprint of their inputs and solve "
+                           "options (written by an older lcpcli), so they cannot be checked "
+                           "against them: run again without --resume", str(output))
     if row[INPUT_HASH] != now:
         raise ProblemError(f"holds results of {row.get('source')} computed from other content "
                            f"than the file has now: run again without --resume, or give "
                            f"another --output", str(output))
+    if row[SOLVE_OPTIONS] != options:
+        raise ProblemError(f"holds results of {row.get('source')} computed with other "
+                           f"settings: {options_difference(str(row[SOLVE_OPTIONS]), options)}; "
+                           f"give the same settings, or run again without --resume",
+                           str(output))
 
 
 def _identity(path: str | os.PathLike[str]) -> tuple[int, int] | None:
@@ -223,14 +230,16 @@ def _run(tasks: list[Any], bad_inputs: list[dict[str, Any]], opts: SolveOptions,
         return fingerprints[source]
 
     from lcpcli.batch import output as batch_output
+    from lcpcli.batch.stack_output import options_fingerprint
 
+    options = options_fingerprint(opts)
     if output is not None:
         if resume:
             wanted = {(t.source, t.problem) for t in tasks} | {key(r) for r in bad_inputs}
             for row in batch_output.read_rows(output):  # links refused, never followed
                 k = key(row)
                 if k in wanted:
-                    _check_fingerprint(row, fingerprint(k[0]), output)
+                    _check_fingerprint(row, fingerprint(k[0]), options, output)
                     wanted.discard(k)  # a duplicate line counts once
                     tally.add(row)
                     report.skipped += 1
@@ -238,7 +247,8 @@ def _run(tasks: list[Any], bad_inputs: list[dict[str, Any]], opts: SolveOptions,
             done -= wanted
             tasks = [t for t in tasks if (t.source, t.problem) not in done]
             bad_inputs = [r for r in bad_inputs if key(r) not in done]
-        writer = batch_output.open_writer(output, resume=resume)
+        # a new batch replaces a previous result file only once complete
+        writer = batch_output.open_writer(output, resume=resume, keep_previous=True)
     report.setup_seconds = time.perf_counter() - start
     if on_start:
         on_start(report.total, report.skipped)
@@ -246,7 +256,8 @@ def _run(tasks: list[Any], bad_inputs: list[dict[str, Any]], opts: SolveOptions,
     def emit(row: dict[str, Any]) -> None:
         if writer is not None:
             t0 = time.perf_counter()
-            stamped = {**row, batch_output.INPUT_HASH: fingerprint(str(row.get("source", "")))}
+            stamped = {**row, batch_output.INPUT_HASH: fingerprint(str(row.get("source", ""))),
+                       batch_output.SOLVE_OPTIONS: options}
             with signals_deferred():
                 writer.write([stamped])
             stats.write_seconds += time.perf_counter() - t0
@@ -255,6 +266,7 @@ def _run(tasks: list[Any], bad_inputs: list[dict[str, Any]], opts: SolveOptions,
         if on_row:
             on_row(row)
 
+    complete = False
     try:
         for row in bad_inputs:
             emit(row)
@@ -267,6 +279,7 @@ def _run(tasks: list[Any], bad_inputs: list[dict[str, Any]], opts: SolveOptions,
                 emit(row)
         finally:
             rows.close()
+        complete = True
     except KeyboardInterrupt:
         report.interrupted = True
         raise
@@ -274,7 +287,7 @@ def _run(tasks: list[Any], bad_inputs: list[dict[str, Any]], opts: SolveOptions,
         if writer is not None:
             t0 = time.perf_counter()
             with signals_deferred():
-                writer.close()
+                writer.close(complete=complete)
             stats.write_seconds += time.perf_counter() - t0
         report.wall_seconds = time.perf_counter() - start
     return report

@@ -164,6 +164,11 @@ def run_batch_command(files: list[str], *, method: str, tol: float | None,
     # stacks: rows only for the --json stream (building them costs more than solving)
     stacked = any(is_stack(f) for f in files)
     row_sink = (write_json_line if stream_rows else None) if stacked else on_row
+    kept = False  # a new batch over a previous result file replaces it only once complete
+    if output is not None and not stacked:
+        from lcpcli.batch.output import replaced_when_complete
+
+        kept = replaced_when_complete(output, resume)
     if show_bar:
         from lcpcli.cli.render.batch import make_progress
 
@@ -186,6 +191,8 @@ def run_batch_command(files: list[str], *, method: str, tol: float | None,
             if state["total"] else ""
         where = f"; finished results are in {output}: run again with --resume to go on" \
             if output is not None else ""
+        if kept:
+            where = f"; {output} is kept as it was (a new batch replaces it only when complete)"
         sys.stderr.write(f"lcpcli: {what}{done}{where}\n")
         return EXIT_TERMINATED if isinstance(exc, _Terminated) else EXIT_INTERRUPTED
     finally:

@@ -2,8 +2,12 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
+import signal
 import sys
+import threading
+from collections.abc import Iterator
 from typing import Any
 
 import typer.core
@@ -15,8 +19,7 @@ from lcpcli.core.errors import (
     EXIT_SOLVED,
     OptionError,
 )
-from lcpcli.core.limits import MAX_ITER
-from lcpcli.core.text import plural
+from lcpcli.core.text import option_name, plural
 
 #: The exit code of the work finished so far (what a broken pipe on stdout exits with).
 _PENDING = {"code": EXIT_OK}
@@ -103,7 +106,7 @@ def parse_key_values(pairs: list[str] | None) -> dict[str, str]:
         key, sep, value = item.partition("=")
         if not sep or not key.strip():
             raise OptionError(f"method option must look like KEY=VALUE, got {item!r}")
-        out[key.strip().replace("-", "_")] = value.strip()
+        out[option_name(key.strip())] = value.strip()
     return out
 
 
@@ -155,16 +158,34 @@ def exit_code_for(statuses: list[str]) -> int:
     return pending_exit(code)
 
 
+@contextlib.contextmanager
+def signals_deferred() -> Iterator[None]:
+    """Hold SIGINT and SIGTERM back while the block runs (main thread, where the platform
+    can): a Ctrl-C arriving mid-write is delivered after it, so a line is written whole."""
+    block = getattr(signal, "pthread_sigmask", None)
+    if block is None or threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    old = block(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
+    try:
+        yield
+    finally:
+        block(signal.SIG_SETMASK, old)
+
+
 def write_json_line(obj: Any) -> None:
-    """One JSON object on stdout (nothing else goes there with ``--json``; non-finite numbers
-    as ``null``: :func:`lcpcli.core.numeric.json_text`)."""
+    """One JSON object on stdout, as one whole line (nothing else goes there with ``--json``;
+    non-finite numbers as ``null``: :func:`lcpcli.core.numeric.json_text`); an interrupt
+    never cuts a line: it takes effect after the line is out."""
     from lcpcli.core.numeric import json_text  # imports numpy: not at --help time
 
-    sys.stdout.write(json_text(obj) + "\n")
-    sys.stdout.flush()
+    line = json_text(obj) + "\n"
+    with signals_deferred():
+        sys.stdout.write(line)
+        sys.stdout.flush()
 
 
-__all__ = ["EXIT_BAD_INPUT", "MAX_ITER", "MethodListCommand", "PipeClosed", "StdoutGuard",
+__all__ = ["EXIT_BAD_INPUT", "MethodListCommand", "PipeClosed", "StdoutGuard",
            "duration", "exit_code_for", "parse_key_values", "pending_exit", "plural",
            "progress_allowed", "stderr_console", "stderr_is_terminal", "stdout_console",
            "write_json_line"]

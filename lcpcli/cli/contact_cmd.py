@@ -8,6 +8,7 @@ from pathlib import Path
 import typer
 
 from lcpcli.cli.common import MethodListCommand
+from lcpcli.solvers import DEFAULT_METHOD
 
 
 def contact_matrix(
@@ -23,7 +24,7 @@ def contact_matrix(
                                  help="Polyhedral friction with K tangent directions per contact "
                                       "with mu > 0 (3-D: K >= 3; 2-D and planar 3-D scenes: 2) "
                                       "[default: 0, frictionless]."),
-    method: str = typer.Option("auto", "--method", "-m",
+    method: str = typer.Option(DEFAULT_METHOD, "--method", "-m",
                                help="Solver method for --solve, per island (listed below)."),
     tol: float = typer.Option(None, "--tol",
                               help="Tolerance on the certified error (see the README)."),

@@ -8,6 +8,7 @@ import typer
 
 from lcpcli.cli.common import MethodListCommand
 from lcpcli.cli.export import EXACT_HELP
+from lcpcli.solvers import DEFAULT_METHOD
 
 
 def solve(
@@ -17,7 +18,8 @@ def solve(
     more_files: list[str] = typer.Argument(None, metavar="FILE", show_default=False,  # noqa: B008
                                            help="More files, folders or globs: a batch "
                                                 "(see docs/batch.md)."),
-    method: str = typer.Option("auto", "--method", "-m", help="Solver method (listed below)."),
+    method: str = typer.Option(DEFAULT_METHOD, "--method", "-m",
+                               help="Solver method (listed below)."),
     tol: float = typer.Option(None, "--tol",
                               help="Tolerance on the certified error for the verdict 'solved' "
                                    "[default: the method's, 1e-8 for pivoting]."),
@@ -96,24 +98,22 @@ def solve(
     not solved (no_solution or unsolved); 2 bad usage or bad input; 3 internal error.
     """
     from lcpcli.api import solve as solve_problem
-    from lcpcli.cli.common import MAX_ITER, exit_code_for, parse_key_values, write_json_line
+    from lcpcli.cli.common import exit_code_for, parse_key_values, write_json_line
     from lcpcli.core.errors import OptionError, ProblemError
     from lcpcli.core.numeric import json_text
     from lcpcli.io import check_output, load, write_atomic_text
+    from lcpcli.solvers.options import positive_int
 
     opts: dict[str, object] = parse_key_values(option)
-    if max_iter is not None:
-        if max_iter > MAX_ITER:
-            raise OptionError(f"--max-iter {max_iter} is too large (limit {MAX_ITER:,})")
-        opts["max_iter"] = max_iter
+    if max_iter is not None:  # checked up front, by the rule of -O max_iter=
+        try:
+            opts["max_iter"] = positive_int(max_iter)
+        except ValueError as exc:
+            raise OptionError(f"option 'max_iter' (--max-iter): {exc}") from None
     if covering is not None:
         opts["covering"] = covering
     if omega is not None:
         opts["omega"] = omega
-    if z0 is not None:
-        from lcpcli.io.warmstart import load_z0
-
-        opts["z0"] = load_z0(z0)
     if backend is not None:  # unknown, or cuda without a device: one line, exit 2
         from lcpcli.solvers.batched import set_default_backend
 
@@ -129,6 +129,10 @@ def solve(
     trace = (trace or layout is not None or pivot_step is not None or step or fmt != "text"
              or bool(exact))
     if wants_batch(files, output, problem=problem, **batch):
+        if z0 is not None:  # one warm start for problems of any size: the vector limit only
+            from lcpcli.io.warmstart import load_z0
+
+            opts["z0"] = load_z0(z0)
         if trace:
             raise OptionError("--trace (and --layout, --pivot, --step, --format) shows one "
                               "problem's steps; it does not apply to a batch")
@@ -144,6 +148,10 @@ def solve(
     from lcpcli.api import dense_check
 
     prob = load(file, problem, check_dense=dense_check(method))  # the budget, from the header
+    if z0 is not None:  # n values, checked from the header before it is decompressed
+        from lcpcli.io.warmstart import load_z0
+
+        opts["z0"] = load_z0(z0, n=prob.n)
     try:
         warm = opts.pop("z0", None)  # lcpcli.solve's warm start (the basis of z0)
         result = solve_problem(prob, method, tol=tol, warm=warm, **opts)

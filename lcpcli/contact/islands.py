@@ -27,6 +27,7 @@ import numpy as np
 
 from lcpcli.contact.scene import Scene
 from lcpcli.core.problem import Problem, is_sparse
+from lcpcli.solvers import DEFAULT_METHOD
 
 #: Warm start, islands of at least WARM_NEWTON_MIN_N unknowns whose ``z0`` does not already
 #: pass the certificate: first this method from ``z0`` ...
@@ -153,45 +154,76 @@ def island_problems(problem: Problem, lay: IslandLayout, storage: str = "auto",
     return out
 
 
-def solve_problems(problems: list[Problem], method: str = "auto", tol: float | None = None,
+def solve_problems(problems: list[Problem], method: str = DEFAULT_METHOD, tol: float | None = None,
                    z0s: list[np.ndarray] | None = None, jobs: int = 1,
                    **options: Any) -> list[Any]:
     """Solve the island LCPs; one certified :class:`Result` per problem, in order.
 
-    ``z0s``: warm starts, one per problem (:func:`warm_attempt`); the problems they do not solve,
-    and all problems without them, go to :func:`solve_cold` (``jobs > 1``: in a process pool
-    when the work is large enough, :data:`PARALLEL_MIN_UNKNOWNS`).  ``Result.info["warm"]`` says
-    whether the warm start gave the answer.
+    ``z0s``: warm starts, one per problem (:func:`warm_attempt`); the problems they do not solve
+    start pivoting from the basis of their ``z0`` (``{i: z0_i > 0}`` as the certificate reads
+    ``z0`` and ``w0 = M z0 + q``): islands of one size stacked in the batched kernel
+    (:mod:`lcpcli.solvers.warm_stack`), others by ``lcpcli.solve(warm=basis)``, each solved
+    cold where that does not end certified.  Problems without ``z0`` go to :func:`solve_cold`
+    (``jobs > 1``: in a process pool when the work is large enough,
+    :data:`PARALLEL_MIN_UNKNOWNS`; warm-started problems stay in this process).
+    ``Result.info["warm"]`` says whether the warm start gave the answer.
     """
     results: list[Any] = [None] * len(problems)
     todo = list(range(len(problems)))
+    warms: list[Any] | None = None
     if z0s is not None:
-        todo = []
+        todo, warms = [], []
+        stacked = _stacked_warm(problems)
         for i, (p, z0) in enumerate(zip(problems, z0s, strict=True)):
-            res = warm_attempt(p, method, tol, z0)
+            if stacked[i]:  # the batched kernel tries z0's basis first: no pass here
+                todo.append(i)
+                warms.append(np.asarray(z0) > 0)
+                continue
+            res, basis = warm_attempt(p, method, tol, z0)
             if res is None:
                 todo.append(i)
+                warms.append(basis)
             else:
                 results[i] = res
     cold = [problems[i] for i in todo]
     total = sum(p.n for p in cold)
-    if jobs > 1 and len(cold) >= 2 * jobs and total >= PARALLEL_MIN_UNKNOWNS:
+    if warms is None and jobs > 1 and len(cold) >= 2 * jobs and \
+            total >= PARALLEL_MIN_UNKNOWNS:
         answers = _solve_parallel(cold, method, tol, jobs, options)
     else:
-        answers = solve_cold(cold, method, tol, options)
+        answers = solve_cold(cold, method, tol, options, warms=warms)
     for i, res in zip(todo, answers, strict=True):
-        res.info["warm"] = False
+        res.info["warm"] = bool(res.info.get("warm", False))
         results[i] = res
     return results
 
 
+def _stacked_warm(problems: list[Problem]) -> list[bool]:
+    """The problems whose warm start goes straight to the batched kernel
+    (:mod:`lcpcli.solvers.warm_stack`): dense LCPs below n = 200 with at least
+    ``lcpcli.stacks.STACK_MIN`` of their size.  Their kernel's first step is the basic solution
+    of ``z0``'s basis, certified: ``z0`` itself when it was the answer, without the separate
+    certificate :func:`warm_attempt` would take."""
+    from lcpcli.solvers.warm import WARM_MIN_N
+    from lcpcli.stacks import STACK_MIN
+
+    small = [p.kind == "lcp" and not p.sparse and p.n < WARM_MIN_N for p in problems]
+    sizes: dict[int, int] = {}
+    for p, ok in zip(problems, small, strict=True):
+        if ok:
+            sizes[p.n] = sizes.get(p.n, 0) + 1
+    return [ok and sizes[p.n] >= STACK_MIN for p, ok in zip(problems, small, strict=True)]
+
+
 def solve_cold(problems: list[Problem], method: str, tol: float | None,
-               options: dict[str, Any], threads: int | None = None) -> list[Any]:
-    """Each problem from scratch, certified: :func:`lcpcli.stacks.solve_each` (islands of one size,
-    8 or more, go through the batched kernels of ``lcpcli.solve_many`` in one call)."""
+               options: dict[str, Any], threads: int | None = None,
+               warms: list[Any] | None = None) -> list[Any]:
+    """Each problem from scratch (or from its basis in ``warms``), certified:
+    :func:`lcpcli.stacks.solve_each` (islands of one size, 8 or more, go through the batched
+    kernels of ``lcpcli.solve_many`` in one call)."""
     from lcpcli.stacks import solve_each
 
-    return solve_each(problems, method, tol=tol, threads=threads, **options)
+    return solve_each(problems, method, tol=tol, threads=threads, warms=warms, **options)
 
 
 def solve_one(problem: Problem, method: str, tol: float | None, z0: np.ndarray | None,
@@ -200,11 +232,14 @@ def solve_one(problem: Problem, method: str, tol: float | None, z0: np.ndarray |
     return solve_problems([problem], method, tol, None if z0 is None else [z0], 1, **options)[0]
 
 
-def warm_attempt(problem: Problem, method: str, tol: float | None, z0: np.ndarray) -> Any:
-    """The warm start's answer, or None: ``z0`` itself if it passes the certificate (method
-    ``z0``, no iteration); otherwise, on problems of at least :data:`WARM_NEWTON_MIN_N`
-    unknowns, :data:`WARM_METHOD` from ``z0`` (at most :data:`WARM_MAX_ITER` iterations) if it
-    solves it.  The tolerance is ``tol`` or ``method``'s default."""
+def warm_attempt(problem: Problem, method: str, tol: float | None,
+                 z0: np.ndarray) -> tuple[Any, np.ndarray]:
+    """``(answer, basis)``: the warm start's answer, or None: ``z0`` itself if it passes the
+    certificate (method ``z0``, no iteration); otherwise, on problems of at least
+    :data:`WARM_NEWTON_MIN_N` unknowns, :data:`WARM_METHOD` from ``z0`` (at most
+    :data:`WARM_MAX_ITER` iterations) if it solves it.  ``basis``: booleans, ``z_i`` basic in
+    ``z0``'s basis as the certificate reads it (where the pivoting starts when there is no
+    answer).  The tolerance is ``tol`` or ``method``'s default."""
     from lcpcli.api import certify_outcome, solve
     from lcpcli.core.result import CONVERGED, Outcome
     from lcpcli.solvers.registry import get_method
@@ -212,16 +247,17 @@ def warm_attempt(problem: Problem, method: str, tol: float | None, z0: np.ndarra
     limit = get_method(method).default_tol if tol is None else float(tol)
     given = certify_outcome(problem, Outcome(np.asarray(z0, dtype=np.float64), 0, CONVERGED,
                                              "the warm start z0 passes the certificate"),
-                            "z0", 0.0, limit)
+                            "z0", 0.0, limit, basis=True)
+    basis = given.z_basic
     if given.solved:
         given.info["warm"] = True
-        return given
+        return given, basis
     if problem.n >= WARM_NEWTON_MIN_N:
         warm = solve(problem, WARM_METHOD, tol=tol, z0=z0, max_iter=WARM_MAX_ITER)
         if warm.solved:
             warm.info["warm"] = True
-            return warm
-    return None
+            return warm, basis
+    return None, basis
 
 
 def _chunks(sizes: list[int], parts: int) -> list[list[int]]:

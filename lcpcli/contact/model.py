@@ -40,10 +40,10 @@ from lcpcli.core.errors import OptionError, ProblemError
 from lcpcli.core.limits import check_dense_work
 from lcpcli.core.problem import Problem, is_sparse
 from lcpcli.core.result import CONVERGED, NO_SOLUTION, NUMERICAL, SOLVED, Outcome
+from lcpcli.solvers import DEFAULT_METHOD
 
 #: Default method, per island: ``auto`` classifies each island's LCP and picks a method (Lemke
 #: for the small dense islands, iterative sparse methods for big sparse ones).
-DEFAULT_METHOD = "auto"
 #: Default softness (no regularisation: rigid contacts).
 DEFAULT_SOFTNESS = 0.0
 CONVENTION = ("w = M z + q, 0 <= z _|_ w >= 0; z = impulses; normals point from B to A; "
@@ -254,18 +254,24 @@ def contact_meta(scene: Scene, asm: Assembly, k: int, fc: np.ndarray, names: lis
 
 def check_method(clcp: ContactLCP, method: str, islands: bool = True) -> None:
     """OptionError for an unknown method, or a densifying method on a huge sparse LCP (the
-    whole scene's, or with ``islands`` the biggest island's)."""
-    from lcpcli.api import check_dense_ok
+    whole scene's, or with ``islands`` the biggest island's); ProblemError for a method that
+    factorises a sparse LCP over the sparse-factorisation budget (lcpcli.core.limits)."""
+    from lcpcli.api import check_dense_ok, check_sparse_work
     from lcpcli.solvers.registry import get_method
 
     spec = get_method(method)
     if not islands or clcp.layout.count <= 1:
         check_dense_ok(clcp.problem, spec)  # one island: its LCP is the scene's
+        if clcp.problem.sparse:
+            check_sparse_work(clcp.problem.n, spec)
         return
     sizes = clcp.island_sizes()
     big = int(np.argmax(sizes))
     one = IslandLayout(perm=clcp.layout.unknowns(big), offsets=np.array([0, int(sizes[big])]))
-    check_dense_ok(island_problems(clcp.problem, one, clcp.storage)[0], spec)
+    biggest = island_problems(clcp.problem, one, clcp.storage)[0]
+    check_dense_ok(biggest, spec)
+    if biggest.sparse:
+        check_sparse_work(biggest.n, spec)
 
 
 def check_z0(clcp: ContactLCP, z0: Any) -> np.ndarray:

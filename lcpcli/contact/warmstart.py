@@ -28,20 +28,21 @@ from lcpcli.core.numeric import json_text
 FORMAT = "lcpcli-contact-impulses"
 
 
-def read_named(path: str | Path) -> tuple[np.ndarray, list[str] | None]:
+def read_named(path: str | Path, n: int | None = None) -> tuple[np.ndarray, list[str] | None]:
     """Values and, when the file gives them, the names of the unknowns (ProblemError if bad).
 
     One reader for every warm start (:func:`lcpcli.io.warmstart.read_warm_start`): the same
-    reading rules as problem files (docs/files.md, "Reading").
+    reading rules as problem files (docs/files.md, "Reading"); ``n``, the LCP's unknowns,
+    bounds the values declared (matched by name: a few more) before any is decompressed.
     """
     from lcpcli.io.warmstart import read_warm_start
 
-    return read_warm_start(path)
+    return read_warm_start(path, n=n, by_name=True)
 
 
 def warm_start(path: str | Path, unknowns: list[str]) -> tuple[np.ndarray, str]:
     """``z0`` for an LCP with these unknowns, and a one-line note on how it was matched."""
-    values, names = read_named(path)
+    values, names = read_named(path, len(unknowns))
     if names is None:
         if values.shape[0] != len(unknowns):
             raise ProblemError(f"has {values.shape[0]} values but the contact LCP has "
@@ -49,11 +50,18 @@ def warm_start(path: str | Path, unknowns: list[str]) -> tuple[np.ndarray, str]:
                                f"e.g. written by --impulses, is matched by name)",
                                f"--z0 {path}")
         return values, f"warm start: {values.shape[0]} values by position"
-    given = dict(zip(names, values.tolist(), strict=True))
-    z0 = np.array([given.get(nm, 0.0) for nm in unknowns])
-    hits = sum(nm in given for nm in unknowns)
+    z0, hits = match_by_name(values, names, unknowns)
     return z0, (f"warm start: {hits} of {len(unknowns)} unknowns matched by name "
                 f"({len(names) - hits} in the file unused)")
+
+
+def match_by_name(values: np.ndarray, names: list[str],
+                  unknowns: list[str]) -> tuple[np.ndarray, int]:
+    """``z0`` for an LCP with ``unknowns`` from ``values`` named ``names`` (an unknown that is
+    new gets 0, a name that is gone is dropped), and how many matched."""
+    given = dict(zip(names, np.asarray(values).tolist(), strict=True))
+    z0 = np.array([given.get(nm, 0.0) for nm in unknowns])
+    return z0, sum(nm in given for nm in unknowns)
 
 
 def check_impulses_path(path: str | Path) -> None:

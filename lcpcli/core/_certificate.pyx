@@ -223,34 +223,11 @@ cdef int _finish(Py_ssize_t n, const double* q, const double* z, Py_ssize_t n_eq
     return 0
 
 
-cdef inline void _row_dot(const double* row, const double* z, Py_ssize_t n, double* dot,
-                          double* absdot) noexcept nogil:
-    """sum_j row_j z_j and sum_j |row_j z_j| with four partial sums each (SIMD lanes)."""
-    cdef double s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0
-    cdef double a0 = 0.0, a1 = 0.0, a2 = 0.0, a3 = 0.0
-    cdef double t0, t1, t2, t3
-    cdef Py_ssize_t j = 0
-    while j + 4 <= n:
-        t0 = row[j] * z[j]
-        t1 = row[j + 1] * z[j + 1]
-        t2 = row[j + 2] * z[j + 2]
-        t3 = row[j + 3] * z[j + 3]
-        s0 += t0
-        s1 += t1
-        s2 += t2
-        s3 += t3
-        a0 += fabs(t0)
-        a1 += fabs(t1)
-        a2 += fabs(t2)
-        a3 += fabs(t3)
-        j += 4
-    while j < n:
-        t0 = row[j] * z[j]
-        s0 += t0
-        a0 += fabs(t0)
-        j += 1
-    dot[0] = (s0 + s1) + (s2 + s3)
-    absdot[0] = (a0 + a1) + (a2 + a3)
+cdef extern from "rowpass.h" nogil:
+    void _row_dot "lcpcli_row_dot"(const double* row, const double* z, Py_ssize_t n,
+                                   double* dot, double* absdot) noexcept
+    void _col_max "lcpcli_col_max"(double* kappa, const double* row, double inv,
+                                   Py_ssize_t n) noexcept
 
 
 cdef inline int _needs_move(double zj, Py_ssize_t j, Py_ssize_t n_eq, const double* lo,
@@ -275,6 +252,43 @@ cdef int _fail(CertOut* out, int status) noexcept nogil:
     out.worst = -1
     out.status = status
     return status
+
+
+cdef void _link(Py_ssize_t n, const double* M, Py_ssize_t ldm, const double* z,
+                const double* s, const double* kappa, const Py_ssize_t* cols, Py_ssize_t nc,
+                Py_ssize_t* parent) noexcept nogil:
+    """Union rows i (nodes 0..n-1) and columns j (nodes n + j) wherever z_j != 0 counts in row
+    i: ``|M_ij| / s_i >= 2^-10 kappa_j`` (invariant under scaling).  Once every column with
+    z_j != 0 is in one set, a row joins it through its first such term and the rest of the row
+    changes nothing (the partition is the same as linking every term)."""
+    cdef Py_ssize_t i, j, k, ri, rj, nz = 0, colsets
+    cdef bint joined
+    cdef const double* row
+    cdef double m, inv
+    for k in range(nc):
+        if z[cols[k]] != 0.0:
+            nz += 1
+    colsets = nz  # sets holding a column with z_j != 0 (each starts alone)
+    for i in range(n):
+        row = M + i * ldm
+        inv = INFINITY if s[i] == 0.0 else 1.0 / s[i]
+        joined = False  # row i's set holds a column (rows before i never change again)
+        for k in range(nc):
+            j = cols[k]
+            m = fabs(row[j])
+            if m != 0.0 and z[j] != 0.0 and m * inv >= THETA * kappa[j]:
+                ri = _find(parent, i)
+                rj = _find(parent, n + j)
+                if ri != rj:
+                    if joined:  # two sets that each hold such a column become one
+                        colsets -= 1
+                    joined = True
+                    if ri < rj:
+                        parent[rj] = ri
+                    else:
+                        parent[ri] = rj
+                if colsets == 1:
+                    break
 
 
 cdef int certify_dense(Py_ssize_t n, const double* M, Py_ssize_t ldm, const double* q,
@@ -317,26 +331,34 @@ cdef int certify_dense(Py_ssize_t n, const double* M, Py_ssize_t ldm, const doub
     for i in range(2 * n):
         parent[i] = i
     if nc > 0:
-        for i in range(n):
-            row = M + i * ldm
-            inv = INFINITY if s[i] == 0.0 else 1.0 / s[i]
-            for k in range(nc):
-                j = cols[k]
-                m = fabs(row[j])
-                if m != 0.0:
-                    t = m * inv
-                    if t > kappa[j]:
-                        kappa[j] = t
-        # rows are linked through a z_j != 0 wherever z_j's share of the row is within 2^-10 of
-        # its largest share in any row: |M_ij| / s_i >= 2^-10 kappa_j (invariant under scaling)
-        for i in range(n):
-            row = M + i * ldm
-            inv = INFINITY if s[i] == 0.0 else 1.0 / s[i]
-            for k in range(nc):
-                j = cols[k]
-                m = fabs(row[j])
-                if m != 0.0 and z[j] != 0.0 and m * inv >= THETA * kappa[j]:
-                    _union(parent, i, n + j)
+        if 2 * nc >= n:  # most columns: a contiguous max over the whole row (vectorised)
+            for i in range(n):
+                row = M + i * ldm
+                if s[i] == 0.0:
+                    for j in range(n):
+                        if row[j] != 0.0:
+                            kappa[j] = INFINITY
+                    continue
+                _col_max(kappa, row, 1.0 / s[i], n)
+            # kappa stays 0 off the columns that may move (as the gathered loop leaves it)
+            k = 0
+            for j in range(n):
+                if k < nc and cols[k] == j:
+                    k += 1
+                else:
+                    kappa[j] = 0.0
+        else:
+            for i in range(n):
+                row = M + i * ldm
+                inv = INFINITY if s[i] == 0.0 else 1.0 / s[i]
+                for k in range(nc):
+                    j = cols[k]
+                    m = fabs(row[j])
+                    if m != 0.0:
+                        t = m * inv
+                        if t > kappa[j]:
+                            kappa[j] = t
+        _link(n, M, ldm, z, s, kappa, cols, nc, parent)
     for k in range(nc):
         j = cols[k]
         if kappa[j] == 0.0:      # a zero column: moving z_j is never negligible

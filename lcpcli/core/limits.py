@@ -8,6 +8,13 @@ starts, so that a small file that declares a large problem cannot run for hours:
   factorisation or dense pivoting (about ``n^3`` = 1e12 operations at n = 10,000) -- runs up
   to n = :data:`DENSE_N_BUDGET`; above it the step is refused (one line, exit 2) unless
   ``LCPCLI_MAX_DENSE_N`` (:data:`DENSE_N_ENV`) raises the budget;
+* **sparse factorisation** -- a sparse LU factorisation of M (SuperLU, in ``ip``, ``newton``,
+  ``newton-min`` and ``auto``), whose workspace is about :data:`SPARSE_LU_ROW_BYTES` per row
+  before any fill-in, whatever the number of nonzeros -- runs up to n =
+  :data:`SPARSE_N_BUDGET` (0.75 GiB of workspace); above it the method is refused (one line,
+  exit 2) unless ``LCPCLI_MAX_SPARSE_N`` (:data:`SPARSE_N_ENV`) raises the budget (a sparse
+  NPZ of 1 MB declaring n = 5e7 made SuperLU fail with "gstrf was called with invalid
+  arguments" after 69 s and 8 GB);
 * **enumeration** of the ``2^n`` complementary cones is refused above ``--max-n`` (default
   24, :mod:`lcpcli.analysis.enumeration`) and announced on stderr (one ``lcpcli: note:``
   line, :func:`announce`) from n = :data:`ENUM_ANNOUNCE_N` (about a million cones) on.
@@ -33,6 +40,21 @@ DENSE_N_ENV = "LCPCLI_MAX_DENSE_N"
 #: Dense work is never refused up to this n (the checks start above it: one comparison on the
 #: small-solve path, no look at the environment).
 DENSE_N_FLOOR = 100
+#: Largest n for a sparse LU factorisation of M by default.
+SPARSE_N_BUDGET = 2_000_000
+#: The environment variable that overrides :data:`SPARSE_N_BUDGET` (an integer >= SPARSE_N_FLOOR).
+SPARSE_N_ENV = "LCPCLI_MAX_SPARSE_N"
+#: A sparse factorisation is never refused up to this n.
+SPARSE_N_FLOOR = 10_000
+#: SuperLU's workspace per row of the factorised matrix, before any fill-in (measured with
+#: scipy 1.17: 467 MB at n = 1e6, 1.69 GB at 4e6, 4.1 GB at 1e7 for a diagonal M).
+SPARSE_LU_ROW_BYTES = 400
+#: A warm start read for a problem of n unknowns holds n values; one that names its unknowns
+#: (matched by name: ``contact-matrix --z0`` of the previous step's impulses, whose contacts may
+#: be gone) up to WARM_START_NAMED_FACTOR * n + WARM_START_SLACK.  Checked from the NPZ/NPY
+#: header, before anything is decompressed (:func:`warm_start_entries`).
+WARM_START_NAMED_FACTOR = 4
+WARM_START_SLACK = 1024
 #: From this n on, an enumeration of the 2^n complementary cones is announced before it starts.
 ENUM_ANNOUNCE_N = 20
 
@@ -57,19 +79,30 @@ def power_of_two(n: int) -> str:
     return f"2^{n} = {2 ** n:,}" if n < 64 else f"2^{n:,}"
 
 
-def dense_n_budget() -> int:
-    """The largest n for dense work: ``$LCPCLI_MAX_DENSE_N`` if set, else DENSE_N_BUDGET."""
-    raw = os.environ.get(DENSE_N_ENV)
+def _budget(env: str, default: int, floor: int, work: str) -> int:
+    """The budget ``$env`` if set (an integer >= ``floor``, else OptionError), else ``default``."""
+    raw = os.environ.get(env)
     if raw is None or not raw.strip():
-        return DENSE_N_BUDGET
+        return default
     try:
         value = int(raw.strip().replace("_", ""))
     except ValueError:
         value = 0
-    if value < DENSE_N_FLOOR:
-        raise OptionError(f"{DENSE_N_ENV}={raw[:40]!r} must be an integer >= {DENSE_N_FLOOR} (the "
-                          f"largest n for dense work)")
+    if value < floor:
+        raise OptionError(f"{env}={raw[:40]!r} must be an integer >= {floor} (the largest n "
+                          f"for {work})")
     return value
+
+
+def dense_n_budget() -> int:
+    """The largest n for dense work: ``$LCPCLI_MAX_DENSE_N`` if set, else DENSE_N_BUDGET."""
+    return _budget(DENSE_N_ENV, DENSE_N_BUDGET, DENSE_N_FLOOR, "dense work")
+
+
+def sparse_n_budget() -> int:
+    """The largest n for a sparse factorisation: ``$LCPCLI_MAX_SPARSE_N`` if set, else
+    SPARSE_N_BUDGET."""
+    return _budget(SPARSE_N_ENV, SPARSE_N_BUDGET, SPARSE_N_FLOOR, "a sparse factorisation")
 
 
 def dense_cost(n: int, cubic: bool = True) -> str:
@@ -96,3 +129,27 @@ def check_dense_work(n: int, step: str, *, instead: str = "", cubic: bool = True
     hint = f", or {instead}" if instead else ""
     raise ProblemError(f"n = {n:,}: {step} ({dense_cost(n, cubic)}): over the dense-work budget "
                        f"n <= {budget:,}; set {DENSE_N_ENV}={n} to run it anyway{hint}", source)
+
+
+def check_sparse_factorisation(n: int, step: str, *, instead: str = "",
+                               source: str | None = None) -> None:
+    """ProblemError (exit 2) when ``step`` -- a sparse LU factorisation of an n x n matrix --
+    is over the sparse-factorisation budget (its workspace alone is about
+    ``n * SPARSE_LU_ROW_BYTES``).  Called before anything is factorised; ``instead`` and
+    ``source`` as for :func:`check_dense_work`."""
+    if n <= SPARSE_N_FLOOR:
+        return
+    budget = sparse_n_budget()
+    if n <= budget:
+        return
+    hint = f", or {instead}" if instead else ""
+    workspace = n * SPARSE_LU_ROW_BYTES / 2**30
+    raise ProblemError(f"n = {n:,}: {step} (SuperLU needs about {workspace:,.2f} GiB of "
+                       f"workspace before any fill-in): over the sparse-factorisation budget "
+                       f"n <= {budget:,}; set {SPARSE_N_ENV}={n} to run it anyway{hint}", source)
+
+
+def warm_start_entries(n: int, named: bool) -> int:
+    """The most values a warm start for n unknowns may hold: n by position, more by name
+    (:data:`WARM_START_NAMED_FACTOR`, :data:`WARM_START_SLACK`)."""
+    return WARM_START_NAMED_FACTOR * n + WARM_START_SLACK if named else n

@@ -271,9 +271,17 @@ class StackResult:
     batched: bool = True
     #: The :class:`Result` of each problem solved on its own (retried, or no batched kernel).
     results: dict[int, Result] = field(default_factory=dict)
+    #: (K, n) int8: each solved problem's final basis (codes of :data:`BASIS_LETTERS`), for a
+    #: warm-started next stack (``solve_many(..., warm=this)``); None when not recorded.
+    basis: np.ndarray | None = None
+    #: (K,) bool: the problems a warm start answered (:mod:`lcpcli.solvers.warm_stack`, by
+    #: block principal pivoting from the previous basis); None without a warm start.
+    warmed: np.ndarray | None = None
 
     def method_of(self, k: int) -> str:
         """The method that produced problem k's answer."""
+        if self.warmed is not None and self.warmed[k] and k not in self.methods:
+            return "bpp"
         return self.methods.get(k, self.method)
 
     def __len__(self) -> int:

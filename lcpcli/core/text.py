@@ -15,6 +15,13 @@ def plural(count: int, word: str, many: str | None = None) -> str:
     return f"{count if -1000 < count < 1000 else format(count, ',')} {many or word + 's'}"
 
 
+def option_name(key: str) -> str:
+    """The registered spelling of a method option's name: hyphens as underscores, so that
+    ``-O max-iter=50`` and ``max_iter=50`` name the same option (the one normalisation of the
+    registry, the command line and ``solve_many``)."""
+    return key.replace("-", "_")
+
+
 def show_warning(message: Warning | str, category: type[Warning], filename: str, lineno: int,
                  file: object = None, line: str | None = None) -> None:
     """Warnings as one ``lcpcli: warning:`` line on stderr (no source path, no code line); a

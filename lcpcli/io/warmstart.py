@@ -8,8 +8,11 @@ file with an array ``z`` (or a single array; with ``unknowns`` beside ``z``: the
 files only, JSON bounded by :func:`lcpcli.io.files.parse_json` (size, duplicate keys, integer
 length, nesting), the zip directory and ``.npy`` headers checked (types, shapes, declared
 sizes) before any data is decompressed, and the data rule of :mod:`lcpcli.core.numeric` (real
-numbers only: numeric text, booleans and complex numbers are refused).  Errors raise
-:class:`~lcpcli.core.errors.ProblemError` naming the file.
+numbers only: numeric text, booleans and complex numbers are refused).  Given the problem's
+``n``, the declared length is checked against it from the ``.npy`` header, before anything is
+decompressed: n values, or for a file that names its unknowns and is matched by name at most
+:func:`lcpcli.core.limits.warm_start_entries` (without ``n``: the vector limit ``MAX_N``).
+Errors raise :class:`~lcpcli.core.errors.ProblemError` naming the file.
 """
 
 from __future__ import annotations
@@ -22,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from lcpcli.core.errors import ProblemError
+from lcpcli.core.limits import warm_start_entries
 from lcpcli.core.numeric import REAL_KINDS, check_dtype, real_array
 from lcpcli.core.problem import MAX_N
 from lcpcli.io.files import MAX_TEXT_BYTES, check_input_file, open_input, read_json_file, too_big
@@ -31,27 +35,33 @@ from lcpcli.io.npz_format import ZIP_ERRORS
 Named = tuple[np.ndarray, list[str] | None]
 
 
-def load_z0(path: str | Path) -> np.ndarray:
-    """Read a warm-start vector ``z0`` (see the module docstring); 1-D, finite floats."""
-    return read_warm_start(path)[0]
+def load_z0(path: str | Path, n: int | None = None) -> np.ndarray:
+    """Read a warm-start vector ``z0`` (see the module docstring); 1-D, finite floats; with
+    ``n`` (the problem's), one declaring more than n values is refused before anything is
+    decompressed (a shorter one by the solver's check of z0)."""
+    return read_warm_start(path, n=n)[0]
 
 
-def read_warm_start(path: str | Path, source: str | None = None) -> Named:
+def read_warm_start(path: str | Path, source: str | None = None, *, n: int | None = None,
+                    by_name: bool = False) -> Named:
     """A warm start's values and, when the file gives them, the names of its unknowns.
 
-    ``source`` prefixes errors (default ``--z0 PATH``).
+    ``source`` prefixes errors (default ``--z0 PATH``).  ``n``: the problem's size, which
+    bounds the declared length before any data is read (:class:`Bound`); ``by_name``: the
+    caller matches a file that names its unknowns by name, so it may hold more values.
     """
     p = Path(path)
     src = source or f"--z0 {p}"
+    bound = Bound(n, by_name)
     try:
         check_input_file(p, "a vector file")
         suffix = p.suffix.lower()
         if suffix == ".npz":
-            values, names = _from_npz(p)
+            values, names = _from_npz(p, bound)
         elif suffix == ".npy":
-            values, names = _from_npy(p), None
+            values, names = _from_npy(p, bound), None
         else:
-            values, names = _from_json(p)
+            values, names = _from_json(p)  # read already: its length is the caller's to check
     except ProblemError as exc:
         raise exc.with_source(src) from None
     except (*ZIP_ERRORS, ValueError) as exc:  # the archive errors of the problem readers
@@ -62,13 +72,31 @@ def read_warm_start(path: str | Path, source: str | None = None) -> Named:
     return values, names
 
 
-def _vector_shape(shape: tuple[int, ...]) -> None:
-    """A vector (or an n x 1 / 1 x n matrix) of at most MAX_N entries, from a header."""
+class Bound:
+    """How many values a warm start may hold: at most MAX_N; for a problem of ``n`` unknowns,
+    n (or, named and matched ``by_name``, :func:`~lcpcli.core.limits.warm_start_entries`)."""
+
+    def __init__(self, n: int | None, by_name: bool) -> None:
+        self.n, self.by_name = n, by_name
+
+    def check(self, size: int, named: bool) -> None:
+        """ProblemError when ``size`` values declared by a header are more than allowed."""
+        if size > MAX_N:
+            raise ProblemError(f"vector of {size:,} entries is too long (limit n = {MAX_N:,})")
+        if self.n is None:
+            return
+        most = warm_start_entries(self.n, named and self.by_name)
+        if size > most:
+            what = f"at most {most:,} (by name)" if most != self.n else f"{self.n:,}"
+            raise ProblemError(f"declares {size:,} values but the problem has n = {self.n:,} "
+                               f"({what} expected): refused before reading them")
+
+
+def _vector_shape(shape: tuple[int, ...], bound: Bound, named: bool = False) -> None:
+    """A vector (or an n x 1 / 1 x n matrix) within ``bound``, from a header."""
     if len(shape) > 2 or (len(shape) == 2 and 1 not in shape):
         raise ProblemError(f"expected a vector, got shape {shape}")
-    if math.prod(shape) > MAX_N:
-        raise ProblemError(f"vector of {math.prod(shape):,} entries is too long "
-                           f"(limit n = {MAX_N:,})")
+    bound.check(math.prod(shape), named)
 
 
 def _names(names: Any, n: int) -> list[str]:
@@ -102,7 +130,7 @@ def _from_json(p: Path) -> Named:
     return real_array(obj, "z0"), names
 
 
-def _from_npy(p: Path) -> np.ndarray:
+def _from_npy(p: Path, bound: Bound) -> np.ndarray:
     from lcpcli.io.npz_format import read_npy_header
 
     with open_input(p, "a vector file") as fh:
@@ -110,13 +138,13 @@ def _from_npy(p: Path) -> np.ndarray:
         if dtype.hasobject:
             raise ProblemError("holds pickled Python objects; refused for safety")
         check_dtype(dtype, "z0", kinds=REAL_KINDS)
-        _vector_shape(tuple(shape))
+        _vector_shape(tuple(shape), bound)
         fh.seek(0)
         arr = np.lib.format.read_array(fh, allow_pickle=False)
     return np.asarray(arr, dtype=np.float64).reshape(-1)
 
 
-def _from_npz(p: Path) -> Named:
+def _from_npz(p: Path, bound: Bound) -> Named:
     """``z`` (or the one array) and ``unknowns``, every member checked from the zip directory
     and its ``.npy`` header (declared sizes included) before anything is decompressed."""
     from lcpcli.io.npz_format import MAX_MEMBERS, Member
@@ -136,7 +164,7 @@ def _from_npz(p: Path) -> Named:
                                f"named 'z'")
         member = Member(zf, entries[key], key)
         member.check("z0")
-        _vector_shape(member.shape)
+        _vector_shape(member.shape, bound, named=key == "z" and "unknowns" in entries)
         names_member = None
         if key == "z" and "unknowns" in entries:
             names_member = Member(zf, entries["unknowns"], "unknowns")

@@ -89,6 +89,12 @@ def output_error(exc: BaseException, path: str | os.PathLike[str], note: str = "
     return OutputError(str(path), WRITE_ERRORS[code] + (f" ({note})" if note else ""))
 
 
+def restated(exc: OutputError, path: str | os.PathLike[str], note: str = "") -> OutputError:
+    """``exc`` (a failed write) naming ``path`` instead, with ``note`` in place of its own."""
+    reason = next((r for r in WRITE_ERRORS.values() if exc.reason.startswith(r)), exc.reason)
+    return OutputError(str(path), reason + (f" ({note})" if note else ""))
+
+
 @contextmanager
 def writing(path: str | os.PathLike[str], note: str = "") -> Iterator[None]:
     """Turn a failed write inside the block into ``OutputError(path)`` (other errors pass)."""

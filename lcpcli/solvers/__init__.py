@@ -6,4 +6,11 @@ Layout: ``methods/`` holds one module per method, each defining ``METHODS``, a l
 functions, so that listing the methods (``lcpcli solve --help``) stays cheap.
 
 Adding a method = adding one module to ``methods/``; nothing else needs to change.
+
+:data:`DEFAULT_METHOD` lives here, in the package itself (numpy-free), so that the command line
+can show it as the default of ``--method`` without loading the registry.
 """
+
+#: The method used when none is named (``lcpcli.solve``, ``solve_many``, the contact solver,
+#: batches, ``lcpcli solve`` and ``lcpcli contact --method``): the planner ``auto``.
+DEFAULT_METHOD = "auto"

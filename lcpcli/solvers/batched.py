@@ -88,8 +88,8 @@ def _cpu_lemke(M: Any, q: Any, lower: Any, upper: Any, *, tol: float,
                options: Mapping[str, Any], out: StackOut, threads: int,
                scaling: str = "none") -> None:
     from lcpcli.analysis.scaling import BALANCED, MAX_ROUNDS, Q_BALANCED
+    from lcpcli.core.tolerances import PIVOT_TOL, POLISHED, TIE_TOL
     from lcpcli.solvers.kernels import batch
-    from lcpcli.solvers.tolerances import PIVOT_TOL, POLISHED, TIE_TOL
 
     p = kernel_params("lemke", M.shape[1], options)
     balance = None if scaling == "none" else (BALANCED, Q_BALANCED, MAX_ROUNDS)

@@ -38,7 +38,7 @@ from typing import Any
 
 import numpy as np
 
-from lcpcli.analysis._scaling import is_symmetric_dense
+from lcpcli.analysis.classify import is_symmetric
 from lcpcli.analysis.scaling import (
     GEOMETRIC_SPREAD,
     Scaling,
@@ -58,14 +58,6 @@ Z_OPTIONS = ("z0",)
 W_OPTIONS = ("covering",)
 
 
-def is_symmetric(problem: Problem) -> bool:
-    """Exact symmetry of M (what ``D M D`` needs to keep)."""
-    M = problem.M
-    if problem.sparse:
-        return (M != M.T).nnz == 0
-    return is_symmetric_dense(M)
-
-
 def run_method(spec: Any, problem: Problem, tol: float, options: dict[str, Any]) -> Outcome:
     """Run ``spec`` on ``problem`` as the module docstring says; return its :class:`Outcome`."""
     if spec.planner and getattr(spec, "scaling", "none") == "none":  # auto runs this pipeline
@@ -82,7 +74,7 @@ def run_method(spec: Any, problem: Problem, tol: float, options: dict[str, Any])
     kind = requested
     if kind != "none" and is_balanced(problem):
         kind = "none"  # nothing to equilibrate (one compiled pass; no symmetry test needed)
-    symmetric = kind == "symmetric" or (kind == "auto" and is_symmetric(problem))
+    symmetric = kind == "symmetric" or (kind == "auto" and is_symmetric(problem.M, 0.0))
     scaling = equilibrate(problem, symmetric) if kind != "none" else None
     out = _run_scaled(spec, problem, tol, options, scaling)
     if (kind == "auto" and not symmetric and out.termination != CONVERGED
@@ -97,7 +89,7 @@ def run_method(spec: Any, problem: Problem, tol: float, options: dict[str, Any])
             and spread(problem, scaling) > GEOMETRIC_SPREAD):
         # Ruiz's scaling balanced the row and column maxima but left entries far apart: rerun on
         # Curtis and Reid's least-squares scaling (invariant under row and column scalings)
-        keep = requested == "symmetric" or (requested == "auto" and is_symmetric(problem))
+        keep = requested == "symmetric" or (requested == "auto" and is_symmetric(problem.M, 0.0))
         geo = geometric(problem, keep)
         if geo is not None:
             again = _run_scaled(spec, problem, tol, options, geo)

@@ -21,6 +21,7 @@ from typing import Any
 from lcpcli.analysis.classify import PROPERTIES
 from lcpcli.core.errors import OptionError
 from lcpcli.core.limits import DENSE_N_BUDGET, DENSE_N_ENV, dense_n_budget
+from lcpcli.core.text import option_name
 
 #: A method that densifies M is refused on a sparse problem with more entries than this
 #: (``n * n``; 1e8 entries are 0.8 GB as float64): the dense-work budget of
@@ -214,7 +215,7 @@ class Method:
         if not given:
             return out
         for key, value in given.items():
-            key_norm = key.replace("-", "_")
+            key_norm = option_name(key)
             if key_norm not in self.options:
                 known = ", ".join(sorted(self.options)) or "none"
                 raise OptionError(f"method '{self.name}' has no option '{key}' "

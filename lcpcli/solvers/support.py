@@ -14,7 +14,7 @@ import numpy as np
 
 from lcpcli.core.certificate import AT_LOWER, AT_UPPER, BETWEEN, certify, check
 from lcpcli.core.errors import OptionError
-from lcpcli.solvers.tolerances import POLISHED
+from lcpcli.core.tolerances import POLISHED
 
 
 def start_point(problem: Any, z0: np.ndarray | None, default: float = 0.0) -> np.ndarray:
@@ -61,11 +61,6 @@ class StallWatch:
             return True
         del best[:-self.window - 1]
         return False
-
-
-def diagonal(M: Any) -> np.ndarray:
-    """The diagonal of a dense or scipy.sparse matrix, as a float array."""
-    return np.asarray(M.diagonal(), dtype=np.float64).ravel()
 
 
 def refine(problem: Any, z: np.ndarray, rounds: int = 4, basis: list[int] | None = None,

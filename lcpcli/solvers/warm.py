@@ -31,7 +31,7 @@ from lcpcli.core.certificate import AT_LOWER, AT_UPPER, BETWEEN, check
 from lcpcli.core.errors import OptionError
 from lcpcli.core.result import BASIS_LETTERS, CONVERGED, Outcome, Result
 from lcpcli.core.text import plural
-from lcpcli.solvers.methods import bpp
+from lcpcli.solvers.methods import bpp, lemke_warm
 from lcpcli.solvers.registry import Cost, Method
 from lcpcli.solvers.support import _solve_active_set, start_point
 
@@ -114,22 +114,36 @@ def warm_basis(problem: Any, warm: Any) -> np.ndarray:
     return states
 
 
-def warm_start(problem: Any, warm: Any, tol: float) -> tuple[Outcome | None, str]:
-    """Solve ``problem`` from the basis of ``warm`` (see the module docstring).
+def warm_start(problem: Any, warm: Any, tol: float,
+               method: str = "bpp") -> tuple[Outcome | None, str]:
+    """Solve ``problem`` from the basis of ``warm`` (see the module docstring) with the
+    warm-startable ``method``'s pivoting (``lemke*``: Lemke from the basis,
+    :mod:`lcpcli.solvers.methods.lemke_warm`, for a dense LCP; otherwise BPP).
 
     Returns ``(outcome, note)``: an :class:`Outcome` that says it converged (the caller
-    certifies it, and solves cold if it fails), or None and why the warm start ended without
-    an answer.  Never a claim of infeasibility.
+    certifies it, and solves cold if it fails; ``info["method"]`` names what ran), or None and
+    why the warm start ended without an answer.  Never a claim of infeasibility.
     """
     states = warm_basis(problem, warm)
     F = states == BETWEEN
+    factors = warm.factors if isinstance(warm, Result) else None
+    if method.startswith("lemke") and problem.kind == "lcp" and not problem.sparse:
+        M = np.ascontiguousarray(problem.dense_M(), dtype=np.float64)
+        q = np.ascontiguousarray(problem.q, dtype=np.float64)
+        out = lemke_warm.run(M, q, F, blocks=factors, problem=problem)
+        if out.termination != CONVERGED:
+            return None, out.message
+        out.message = f"warm start: {out.message}"
+        out.info.update(warm=True, method=method)
+        return out, ""
     if problem.kind in ("lcp", "mlcp") and not problem.sparse:
-        factors = warm.factors if isinstance(warm, Result) else None
         out = bpp.run(problem, tol=tol, basis=F, blocks=factors, keep_blocks=True,
                       max_iter=WARM_MAX_ITER)
         if out.termination != CONVERGED:
             return None, out.message
-        changed = int(np.count_nonzero(np.isin(np.arange(problem.n), out.info["basis"]) != F))
+        final = np.zeros(problem.n, dtype=bool)
+        final[out.info["basis"]] = True
+        changed = int(np.count_nonzero(final != F))
         out.message = (f"warm start: {out.message} ({plural(changed, 'pair')} of "
                        f"{problem.n} changed state)")
         out.info["warm"] = True

@@ -23,6 +23,7 @@ from lcpcli.analysis.classify import (
     INDEFINITE,
     PD,
     PSD,
+    SYM_TOL,
     Classifier,
     ClassReport,
     classify,
@@ -244,17 +245,39 @@ def test_symmetry_tolerance_is_relative_to_the_entries():
     A = rng.standard_normal((40, 25))
     W = np.diag(rng.random(25) + 0.1)
     M = (A @ W) @ A.T  # rounding may make it asymmetric at 1e-16
-    assert is_symmetric(M)
+    assert is_symmetric(M, SYM_TOL)
     E = M.copy()
     E[3, 7] *= 1 + 1e-13
-    assert is_symmetric(E)
+    assert is_symmetric(E, SYM_TOL)
     E[3, 7] = M[3, 7] + 1e-6 * abs(M[3, 7]) + 1e-6
-    assert not is_symmetric(E)
+    assert not is_symmetric(E, SYM_TOL)
     # a tiny entry far from the diagonal's scale is compared with its own pair, not with max|M|
     T = np.diag([1e6, 1e6, 1.0])
     T[0, 2], T[2, 0] = 1e-3, 2e-3
-    assert not is_symmetric(T)
-    assert is_symmetric(sp.csr_matrix(M)) and not is_symmetric(sp.csr_matrix(T))
+    assert not is_symmetric(T, SYM_TOL)
+    assert is_symmetric(sp.csr_matrix(M), SYM_TOL)
+    assert not is_symmetric(sp.csr_matrix(T), SYM_TOL)
+
+
+@settings(max_examples=60, deadline=None)
+@given(n=st.integers(1, 6), seed=st.integers(0, 2**32 - 1),
+       change=st.sampled_from(["none", "rounding", "large"]))
+def test_exact_symmetry_is_the_tolerant_test_at_tol_zero(n, seed, change):
+    """``is_symmetric(M, 0.0)`` (the exact test the scaling and BPP use) is "every pair
+    equal", on dense and sparse M alike, and implies the tolerant test; a rounding-level
+    asymmetry passes the tolerant test only."""
+    rng = np.random.default_rng(seed)
+    A = rng.standard_normal((n, n))
+    M = A + A.T
+    if change != "none" and n > 1:
+        M[0, n - 1] *= 1 + (1e-14 if change == "rounding" else 1e-3)
+    equal = bool(np.array_equal(M, M.T))
+    for form in (M, sp.csr_matrix(M)):
+        assert is_symmetric(form, 0.0) is equal
+        if equal:
+            assert is_symmetric(form, SYM_TOL)
+        else:
+            assert is_symmetric(form, SYM_TOL) is (change == "rounding")
 
 
 # ---------------------------------------------------------------------------- invariances

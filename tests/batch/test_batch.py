@@ -214,9 +214,10 @@ def test_resume_after_kill_9(cli, slow_folder, tmp_path):
         f.write(b'{"file": "x", "status": "sol')
     before = out.read_bytes().splitlines()[:-1]
     assert len(read_rows(out)) == len(before) >= 12  # the torn line is ignored
-    r = cli("solve", str(slow_folder), "-m", "lemke", "-j", "2", "--max-iter", "2000",
-            "-o", str(out), "--resume", "--json", cwd=tmp_path)
-    assert r.returncode == 1, r.stderr  # murty23 within 2000 pivots: unsolved
+    # the same solve settings (--resume refuses others); murty23 stopped by --timeout
+    r = cli("solve", str(slow_folder), "-m", "lemke", "-j", "2", "--max-iter", "1000000000",
+            "--timeout", "2", "-o", str(out), "--resume", "--json", cwd=tmp_path)
+    assert r.returncode == 1, r.stderr  # murty23 within 2 s: unsolved
     summary = json.loads(r.stdout)
     assert summary["skipped"] == len(before) and summary["new"] == 30 - len(before)
     rows = read_rows(out)
@@ -226,7 +227,8 @@ def test_resume_after_kill_9(cli, slow_folder, tmp_path):
     assert keys[(str(slow_folder / "e12.json"), "e12")]["status"] == "unsolved"
     assert sum(r["status"] == "solved" for r in rows) == 29
     # a second resume has nothing left to do
-    report = lib([slow_folder], output=out, resume=True, jobs=1)
+    report = lib([slow_folder], output=out, resume=True, jobs=1, method="lemke",
+                 max_iter=1_000_000_000)
     assert report.new == 0 and report.skipped == 30 and len(read_rows(out)) == 30
 
 
@@ -241,13 +243,34 @@ def test_sigterm_leaves_valid_hdf5_and_resume(cli, slow_folder, tmp_path):
     assert not journal_path(out).exists()
     first = by_key(read_rows(out))
     assert len(first) >= 12
-    r = cli("solve", str(slow_folder), "-m", "lemke", "--max-iter", "2000", "-o", str(out),
-            "--resume", "-q",
+    r = cli("solve", str(slow_folder), "-m", "lemke", "--max-iter", "1000000000",
+            "--timeout", "2", "-o", str(out), "--resume", "-q",
             cwd=tmp_path)
     assert r.returncode == 1
     rows = by_key(read_rows(out))
     assert len(rows) == 30
     assert all(strip(rows[k]) == strip(v) for k, v in first.items())
+
+
+@pytest.mark.parametrize("ext", ["jsonl", "h5"])
+def test_sigterm_of_a_new_batch_keeps_the_previous_result(slow_folder, tmp_path, ext):
+    """SIGTERM of a new batch (no --resume) over an existing result file: exit 143, the
+    message says the previous file is kept, and it is byte for byte as it was with no
+    temporary file beside it (the batch wrote to one, replaced only when complete)."""
+    out = tmp_path / f"r.{ext}"
+    out.write_bytes(b"the previous results\n")
+    proc = _popen(["solve", str(slow_folder), "-m", "lemke", "-j", "1", "--timeout", "300",
+                   "--max-iter", "1000000000", "-o", str(out), "-q"], tmp_path)
+    end = time.monotonic() + 40
+    while time.monotonic() < end and not any(p.name.endswith(".tmp") and p.stat().st_size > 2048
+                                             for p in tmp_path.iterdir()):
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=30)
+    assert proc.returncode == 143 and "Traceback" not in err, err
+    assert f"{out} is kept as it was (a new batch replaces it only when complete)" in err
+    assert out.read_bytes() == b"the previous results\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == [out.name]
 
 
 def test_hdf5_repaired_from_journal(cli, folder, tmp_path):

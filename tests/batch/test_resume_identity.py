@@ -117,6 +117,52 @@ def test_per_file_batch_resume_checks_each_input(cli, tmp_path):
                  "computed from other content")
 
 
+@pytest.mark.parametrize("ext", ["jsonl", "csv", "h5"])
+def test_per_file_batch_resume_checks_the_settings(cli, tmp_path, ext):
+    """Per-file --resume with another method, tol or option: refused with one line naming the
+    setting, the result file unchanged (the settings were not recorded: results of another
+    method were kept); the same settings: the finished rows are skipped."""
+    M, q = pd_stack(3, 4)
+    files = []
+    for k in range(3):
+        f = tmp_path / f"p{k}.json"
+        f.write_text(json.dumps({"M": M[k].tolist(), "q": q[k].tolist()}))
+        files.append(str(f))
+    out = tmp_path / f"r.{ext}"
+    assert cli("solve", *files[:2], "-o", str(out), "-m", "lemke", "--max-iter", "50"
+               ).returncode == 0
+    before = out.read_bytes()
+    for args, words in (
+            (["-m", "pgs", "--max-iter", "50"], "method was 'lemke-revised', now 'pgs'"),
+            (["-m", "lemke", "--max-iter", "50", "--tol", "1e-6"],
+             "tol was the default, now 1e-06"),
+            (["-m", "lemke", "--max-iter", "60"], "option max_iter was 50, now 60"),
+            (["-m", "lemke"], "option max_iter was 50, now the default")):
+        one_line(cli("solve", *files, "-o", str(out), "--resume", *args),
+                 f"holds results of {files[0]} computed with other settings: {words}; give "
+                 f"the same settings, or run again without --resume")
+        assert out.read_bytes() == before
+    res = cli("solve", *files, "-o", str(out), "--resume", "-m", "lemke", "--max-iter", "50",
+              "--json")
+    assert res.returncode == 0, res.stderr
+    assert json.loads(res.stdout.splitlines()[-1])["skipped"] == 2
+    assert {r["solve_options"] for r in read_rows(out)} == {
+        '{"method": "lemke-revised", "options": {"max_iter": 50}, "tol": null}'}
+
+
+def test_per_file_rows_without_solve_options_are_refused(cli, tmp_path):
+    """Rows of an older lcpcli (input_hash but no solve_options): refused, run without --resume."""
+    p = tmp_path / "p.json"
+    M, q = pd_stack(1, 3)
+    p.write_text(json.dumps({"M": M[0].tolist(), "q": q[0].tolist()}))
+    out = tmp_path / "r.jsonl"
+    assert cli("solve", str(p), "-o", str(out)).returncode == 0
+    rows = [json.loads(x) for x in out.read_text().splitlines()]
+    out.write_text("".join(json.dumps({k: v for k, v in r.items() if k != "solve_options"})
+                           + "\n" for r in rows))
+    one_line(cli("solve", str(p), "-o", str(out), "--resume"), "older lcpcli")
+
+
 def test_status_77_is_one_line(cli, tmp_path):
     """A stacked result whose status holds 77 (was exit 3 KeyError)."""
     M, q = pd_stack(20, 3)

@@ -8,6 +8,7 @@ a timeout.
 
 from __future__ import annotations
 
+import io
 import json
 import os
 import re
@@ -203,7 +204,11 @@ def test_csv_names_with_commas_quotes_newlines_resume(cli, tmp_path):
 
 
 def _interrupt_after_first_line(proc: subprocess.Popen, stream: str) -> tuple[bytes, bytes]:
+    """The first line of ``stream``, then SIGINT, then everything else.  ``proc``'s pipes must
+    be unbuffered (``bufsize=0``): communicate() reads the file descriptors directly, so bytes
+    a buffered readline() had read ahead would be lost (a record's first half)."""
     pipe = proc.stderr if stream == "stderr" else proc.stdout
+    assert isinstance(pipe, io.RawIOBase), "popen(..., bufsize=0)"
     first = pipe.readline()  # type: ignore[union-attr]
     proc.send_signal(signal.SIGINT)
     out, err = proc.communicate(timeout=120)
@@ -216,7 +221,7 @@ def test_enumerate_beyond_2_24_cones_estimates_and_stops_on_ctrl_c(tmp_path):
     A = rng.standard_normal((n, n))
     save(Problem.create(A @ A.T / n + np.eye(n), rng.standard_normal(n)), tmp_path / "e.json")
     proc = popen("enumerate", "e.json", "--max-n", "30", cwd=tmp_path, stdout=subprocess.PIPE,
-                 stderr=subprocess.PIPE)
+                 stderr=subprocess.PIPE, bufsize=0)
     out, err = _interrupt_after_first_line(proc, "stderr")
     text = err.decode()
     assert text.startswith("lcpcli: enumerating 2^30 = 1,073,741,824 complementary cones")
@@ -228,7 +233,7 @@ def test_enumerate_beyond_2_24_cones_estimates_and_stops_on_ctrl_c(tmp_path):
 def test_bench_stops_on_ctrl_c_with_the_finished_runs(tmp_path):
     proc = popen("bench", "--suite", "hard", "--n", "3", "-m", "lemke,murty", "--no-peers",
                  "--timeout", "0", "--json", cwd=tmp_path, stdout=subprocess.PIPE,
-                 stderr=subprocess.PIPE)
+                 stderr=subprocess.PIPE, bufsize=0)
     out, err = _interrupt_after_first_line(proc, "stdout")
     records = [json.loads(line) for line in out.decode().splitlines()]
     assert proc.returncode == 130, err

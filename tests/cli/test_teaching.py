@@ -225,6 +225,9 @@ def test_principal_and_sweep_traces(cli, samples, method, kind):
         assert [(s["entering"], s["leaving"]) for s in steps[1:]] == [("z1", "w1"),
                                                                       ("z2", "w2")]
         assert "Principal pivots at a glance" in text and "alpha = beta = {1, 2}" in text
+        # the JSON says how the method ended, and the page states that, not its own test
+        assert [s.get("end") for s in steps] == [None, None, "solved"]
+        assert "this basis solves the LCP" in text
     elif kind == "dantzig":
         assert [s["sets"]["clamped"] for s in d["trace"]] == [[], [1], [1, 2]]
         assert "Events at a glance" in text

@@ -7,6 +7,7 @@ import re
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 import lcpcli
 import lcpcli.core.errors as errors
@@ -72,3 +73,50 @@ def test_result_rows_map_non_finite_numbers_to_null():
     c = Certificate(1e-17, 1e-17, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1, 1e-8, True)
     assert c.as_dict() == dataclasses.asdict(c)
     assert list(c.as_dict()) == [f.name for f in dataclasses.fields(c)]
+
+
+def _sources() -> list[tuple[Path, str]]:
+    return [(p, p.read_text()) for p in sorted((ROOT / "lcpcli").rglob("*.py"))
+            + sorted((ROOT / "lcpcli").rglob("*.pyx"))]
+
+
+def _definers(pattern: str) -> list[str]:
+    """The package modules (relative paths) that match ``pattern`` (multi-line)."""
+    return [str(p.relative_to(ROOT)) for p, text in _sources() if re.search(pattern, text, re.M)]
+
+
+def test_every_tolerance_of_core_tolerances_is_defined_there_only():
+    import lcpcli.core.tolerances as tolerances
+
+    names = [n for n in vars(tolerances) if n.isupper()]
+    assert {"PIVOT_TOL", "TIE_TOL", "POLISHED", "P_TEST_PIVOT_TOL"} <= set(names)
+    for name in names:
+        assert _definers(rf"^{name}\s*[:=]") == ["lcpcli/core/tolerances.py"], name
+        assert "#: " in (ROOT / "lcpcli/core/tolerances.py").read_text().split(f"\n{name}")[0]
+
+
+@pytest.mark.parametrize("pattern, home", [
+    (r"^def diagonal\(", "lcpcli/analysis/classify.py"),
+    (r"^def is_symmetric\(", "lcpcli/analysis/classify.py"),
+    (r"^def default_max_iter\(n: int\) -> int:\n.*\n\s+return max\(1000, 100 \* n\)",
+     "lcpcli/solvers/methods/lemke.py"),
+    (r"^DEFAULT_METHOD\s*=", "lcpcli/solvers/__init__.py"),
+    (r"^def option_name\(", "lcpcli/core/text.py"),
+    (r"^MAX_ITER\s*=\s*2\s*\*\*", "lcpcli/core/limits.py"),
+])
+def test_each_shared_term_has_one_definition(pattern, home):
+    assert _definers(pattern) == [home]
+
+
+def test_option_names_and_the_default_method_are_used_not_respelled():
+    # no module spells the normalisation or the default method out again
+    assert _definers(r'\.replace\("-", "_"\)') == ["lcpcli/core/text.py"]
+    assert _definers(r'typer\.Option\("auto", "--method"') == []
+    assert _definers(r'method: str = "auto"') == []
+    from lcpcli.core.text import option_name
+    from lcpcli.solvers import DEFAULT_METHOD
+    from lcpcli.solvers.registry import get_method
+
+    assert option_name("max-iter") == "max_iter" and option_name("omega") == "omega"
+    assert get_method(DEFAULT_METHOD).planner
+    assert get_method("lemke").parse_options({"max-iter": 7})["max_iter"] == 7

@@ -111,11 +111,15 @@ def test_named_warm_start_is_matched_by_name(files: Path) -> None:
     assert names == ["n[c1]"] and values.tolist() == [0.5]
 
 
-@pytest.mark.parametrize(("bomb", "words"), [
-    ("bomb_z.npz", "vector of 60,000,000 entries is too long"),
-    ("bomb_unknowns.npz", "array 'unknowns' of 1,133 MiB is over the limit of 256 MiB"),
+@pytest.mark.parametrize(("bomb", "words", "cli_words"), [
+    ("bomb_z.npz", "vector of 60,000,000 entries is too long", None),
+    ("bomb_unknowns.npz", "array 'unknowns' of 1,133 MiB is over the limit of 256 MiB",
+     # the scene's LCP has 1 unknown: the values are refused first, from their header
+     "declares 3,000,000 values but the problem has n = 1 (at most 1,028 (by name) expected): "
+     "refused before reading them"),
 ])
-def test_zip_bomb_refused_from_declared_sizes(files: Path, bomb: str, words: str) -> None:
+def test_zip_bomb_refused_from_declared_sizes(files: Path, bomb: str, words: str,
+                                              cli_words: str | None) -> None:
     """Refused from the zip directory and the .npy headers: nothing is decompressed (the
     allocation peak stays far below the declared size), and the CLI runs under 1 GiB."""
     tracemalloc.start()
@@ -127,7 +131,44 @@ def test_zip_bomb_refused_from_declared_sizes(files: Path, bomb: str, words: str
         tracemalloc.stop()
     assert peak < 20 * 2**20
     _refused(files, ["contact-matrix", "{d}/scene.json", "--solve", "--z0", f"{{d}}/{bomb}"],
-             f"--z0 {{d}}/{bomb}: {words}", sub=True)
+             f"--z0 {{d}}/{bomb}: {cli_words or words}", sub=True)
+
+
+def test_warm_start_bounded_by_the_problems_n(files: Path, tmp_path: Path) -> None:
+    """The issue's zip bomb in --z0 within the vector limit (50,000,000 values, 400 MB, in a
+    1.7 MB file) for a problem of n = 2: refused from the .npy header with n known, nothing
+    decompressed (it was decompressed whole: 426 MB); by position exactly n values, by name a
+    few more (limits.warm_start_entries)."""
+    _zip_bomb(tmp_path / "bomb.npz", {"z.npy": (_npy_header((50_000_000,)), 400_000_000)})
+    words = ("declares 50,000,000 values but the problem has n = 2 (2 expected): refused "
+             "before reading them")
+    tracemalloc.start()
+    try:
+        with pytest.raises(ProblemError, match=re.escape(words)):
+            read_warm_start(tmp_path / "bomb.npz", n=2)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 20 * 2**20
+    (tmp_path / "a.json").write_text(json.dumps(PROBLEM))
+    _refused(tmp_path, ["solve", "{d}/a.json", "--z0", "{d}/bomb.npz"],
+             f"--z0 {{d}}/bomb.npz: {words}", sub=True)
+    most = limits.warm_start_entries(3, named=True)
+    assert most == limits.WARM_START_NAMED_FACTOR * 3 + limits.WARM_START_SLACK
+    for size, named, ok in ((3, False, True), (4, False, False), (most, True, True),
+                            (most + 1, True, False)):
+        path = tmp_path / f"z{size}{named}.npy"
+        np.save(path, np.zeros(size))
+        if named:
+            path = path.with_suffix(".npz")
+            np.savez(path, z=np.zeros(size), unknowns=np.array([f"u{k}" for k in range(size)]))
+        if ok:
+            assert read_warm_start(path, n=3, by_name=True)[0].shape == (size,)
+        else:
+            with pytest.raises(ProblemError, match="refused before reading them"):
+                read_warm_start(path, n=3, by_name=True)
+    _refused(tmp_path, ["solve", "{d}/a.json", "--z0", "{d}/z4False.npy"],
+             "--z0 {d}/z4False.npy: declares 4 values but the problem has n = 2")
 
 
 # ------------------------------------------------------------------------------ JSON bounds
@@ -260,6 +301,50 @@ def _sparse_file(path: Path, n: int) -> None:
     np.savez_compressed(path, M_format=np.array("csr"), M_shape=np.array([n, n]),
                         M_data=np.ones(3), M_indices=np.array([1, 2, 0]), M_indptr=indptr,
                         q=np.ones(n))
+
+
+def test_sparse_factorisation_budget_default_and_override(monkeypatch: pytest.MonkeyPatch
+                                                          ) -> None:
+    """The issue's sparse5e7.npz (n = 5e7, few nonzeros): SuperLU failed with "gstrf was called
+    with invalid arguments" (exit 3) after 69 s and 8 GB; the budget refuses it from n alone,
+    naming the override and the workspace, and lets the sweeping methods run."""
+    from lcpcli.api import check_sparse_work
+    from lcpcli.solvers.registry import get_method
+
+    monkeypatch.delenv(limits.SPARSE_N_ENV, raising=False)
+    assert limits.sparse_n_budget() == limits.SPARSE_N_BUDGET
+    for method in ("auto", "ip", "newton", "newton-min"):
+        with pytest.raises(ProblemError, match=re.escape(
+                f"n = 50,000,000: method '{method}' factorises the sparse M (SuperLU needs about "
+                f"18.63 GiB of workspace before any fill-in): over the sparse-factorisation "
+                f"budget n <= 2,000,000; set {limits.SPARSE_N_ENV}=50000000 to run it anyway")):
+            check_sparse_work(50_000_000, get_method(method))
+        check_sparse_work(limits.SPARSE_N_BUDGET, get_method(method))
+    for method in ("pgs", "psor"):
+        check_sparse_work(50_000_000, get_method(method))
+    monkeypatch.setenv(limits.SPARSE_N_ENV, "60_000_000")
+    check_sparse_work(50_000_000, get_method("auto"))
+    for bad in ("abc", "-5", str(limits.SPARSE_N_FLOOR - 1)):
+        monkeypatch.setenv(limits.SPARSE_N_ENV, bad)
+        with pytest.raises(OptionError, match=limits.SPARSE_N_ENV):
+            limits.sparse_n_budget()
+
+
+def test_cli_refuses_a_sparse_factorisation_over_the_budget(tmp_path: Path) -> None:
+    """solve of a sparse M over the budget (set low here): one line, exit 2, before SuperLU
+    starts; -m pgs runs; the override runs auto."""
+    n = limits.SPARSE_N_FLOOR + 1
+    np.savez_compressed(tmp_path / "s.npz", M_format=np.array("csr"),
+                        M_shape=np.array([n, n]), M_data=np.full(n, 2.0),
+                        M_indices=np.arange(n), M_indptr=np.arange(n + 1), q=-np.ones(n))
+    env = {limits.SPARSE_N_ENV: str(limits.SPARSE_N_FLOOR)}
+    case = Case("sparse-budget", "internal", ["solve", "{d}/s.npz"], BAD,
+                f"{{d}}/s.npz: n = {n:,}: method 'auto' factorises the sparse M", env=env)
+    assert problems(case, run_in_process(case, tmp_path), tmp_path, {}) == []
+    for args, run_env in ((["solve", "{d}/s.npz", "-m", "pgs", "--json"], env),
+                          (["solve", "{d}/s.npz", "--json"], {limits.SPARSE_N_ENV: str(n)})):
+        ok = Case("ok", "lenient", args, 0, None, env=run_env)
+        assert problems(ok, run_in_process(ok, tmp_path), tmp_path, {}) == []
 
 
 def test_pivot_checks_the_dense_budget(tmp_path: Path) -> None:

@@ -138,24 +138,25 @@ def fill(folder: Path) -> None:
                          ids=[w[0] for w in WRITE_PATHS])
 def test_full_disk_every_write_path(full_disk, inputs, name, template, target):
     """ENOSPC on a real tmpfs: exit 2, one line, previous output intact, nothing partial
-    (``convert DIR s.h5 --stack`` segfaulted here, exit 139, before io.writing)."""
+    (``convert DIR s.h5 --stack`` segfaulted here, exit 139, before io.writing; a new batch
+    replaced its previous result file as it started, before ReplacingWriter).  Without a
+    previous file, a batch leaves a resumable prefix that --resume completes."""
     out = full_disk / target
-    if not name.startswith("batch "):  # a new batch replaces its result file as it starts
-        _previous(out)
+    _previous(out)
     fill(full_disk)
     res = run_cli(*_args(template, inputs, out))
     line = one_line(res, "no space left on device")
     assert str(full_disk) in line
+    _assert_previous_intact(out)
     if name.startswith("batch "):
+        out.unlink()
+        line = one_line(run_cli(*_args(template, inputs, out)), "no space left on device")
         _assert_resumable(out, full_disk, template, inputs)
-    else:
-        _assert_previous_intact(out)
 
 
 def _assert_resumable(out: Path, folder: Path, template: list[str], inputs: dict) -> None:
-    """A batch result file is written in place (a new run replaces the previous file when it
-    starts): after a failure it is absent or holds complete rows only, and --resume
-    completes it."""
+    """A first batch result file is written in place: after a failure it is absent or holds
+    complete rows only, and --resume completes it."""
     from lcpcli.batch.output import read_rows
 
     extra = {p.name for p in folder.iterdir()} - {out.name, "filler", f"{out.name}.journal"}
@@ -236,12 +237,15 @@ def run_limited(limit: int, *args: str) -> subprocess.CompletedProcess[str]:
                          ids=lambda w: w if isinstance(w, str) else None)
 def test_file_size_limit_is_one_line(tmp_path, inputs, name, template, target):
     """Writes past RLIMIT_FSIZE fail with EFBIG (no root needed): one line, exit 2, and the
-    previous output intact (one-file outputs) or a resumable prefix (batch rows)."""
+    previous output intact; a first batch (no previous file) leaves a resumable prefix."""
     out = tmp_path / target
     _previous(out)
     res = run_limited(64 * 1024, *_args(template, inputs, out))
     one_line(res, "file too large")
+    _assert_previous_intact(out)
     if name.startswith("batch "):
+        out.unlink()
+        one_line(run_limited(64 * 1024, *_args(template, inputs, out)), "file too large")
         if target.endswith(".h5"):  # the rows are in the journal; --resume rebuilds the file
             assert (tmp_path / "r.h5.journal").exists()
         res = run_cli(*_args(template, inputs, out), "--resume", "-q")
@@ -249,8 +253,6 @@ def test_file_size_limit_is_one_line(tmp_path, inputs, name, template, target):
         from lcpcli.batch.output import read_rows
 
         assert sorted(r["problem"] for r in read_rows(out)) == [f"p{k:03d}" for k in range(300)]
-    else:
-        _assert_previous_intact(out)
 
 
 READONLY_RUNNER = """
@@ -595,3 +597,84 @@ def test_unstack_is_all_or_nothing(cli, tmp_path):
         assert folder.exists() == existed
         if existed:
             assert list(folder.iterdir()) == []
+
+
+# ----------------------------------------------------------------------------- a new batch
+def _fail_tmp_writes_after(monkeypatch, calls: int) -> None:
+    """ENOSPC for writes to a temporary file ``.NAME.XXXXXXXX.tmp`` after ``calls`` of them
+    (other descriptors, such as the worker pipes, are left alone)."""
+    state = {"left": calls}
+    real_write, real_pwrite = os.write, os.pwrite
+
+    def gated(fd: int) -> None:
+        try:
+            name = os.readlink(f"/proc/self/fd/{fd}")
+        except OSError:
+            return
+        if name.endswith(".tmp"):
+            if state["left"] <= 0:
+                raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+            state["left"] -= 1
+
+    def write(fd, data):
+        gated(fd)
+        return real_write(fd, data)
+
+    def pwrite(fd, data, offset):
+        gated(fd)
+        return real_pwrite(fd, data, offset)
+
+    monkeypatch.setattr(os, "write", write)
+    monkeypatch.setattr(os, "pwrite", pwrite)
+
+
+@pytest.mark.parametrize("ext", ["jsonl", "csv", "h5"])
+@pytest.mark.parametrize("end", ["full disk", "interrupted", "complete"])
+def test_new_batch_replaces_the_previous_result_only_when_complete(tmp_path, monkeypatch,
+                                                                  inputs, ext, end):
+    """A new batch (no --resume) over an existing result file writes beside it: a full disk
+    in the middle or an interruption leaves the previous file -- and an HDF5 file's journal --
+    byte for byte as they were, with no temporary file; a complete batch replaces both (was:
+    the previous file was replaced as the batch started, so a full disk lost it)."""
+    from lcpcli.batch.output import journal_path, read_rows
+    from lcpcli.batch.records import SolveOptions
+    from lcpcli.batch.run import run_batch
+
+    out = tmp_path / f"r.{ext}"
+    out.write_bytes(PREVIOUS)
+    journal = journal_path(out)
+    if ext == "h5":
+        journal.write_bytes(PREVIOUS)
+    files = sorted(inputs["dir"].iterdir())[:40]
+    if end == "full disk":
+        _fail_tmp_writes_after(monkeypatch, 20)
+        with pytest.raises(OutputError) as exc:
+            run_batch(files, SolveOptions(), output=out, jobs=1)
+        monkeypatch.undo()
+        assert str(exc.value) == f"{out}: no space left on device (the previous file is kept " \
+                                 f"as it was: free space, then run again)"
+    elif end == "interrupted":
+        def stop(row):
+            if row["problem"] == "p010":
+                raise KeyboardInterrupt
+
+        with pytest.raises(KeyboardInterrupt):
+            run_batch(files, SolveOptions(), output=out, jobs=1, on_row=stop)
+    else:
+        report = run_batch(files, SolveOptions(), output=out, jobs=1)
+        assert report.exit_code == 0
+        assert sorted(r["problem"] for r in read_rows(out)) == [p.stem for p in files]
+        assert sorted(p.name for p in tmp_path.iterdir()) == [out.name]
+        assert out.stat().st_mode & 0o777 == 0o644 & ~_umask()
+        return
+    assert out.read_bytes() == PREVIOUS
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(
+        [out.name] + ([journal.name] if ext == "h5" else []))
+    if ext == "h5":
+        assert journal.read_bytes() == PREVIOUS
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask

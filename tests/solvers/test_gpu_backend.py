@@ -98,3 +98,14 @@ def test_auto_picks_the_device_for_large_stacks():
     K = batched.AUTO_CUDA_MIN_BYTES // (8 * 12 * 12) + 1
     assert batched.choose_backend("auto", K, 12) == "cuda"
     assert batched.choose_backend("auto", K - 2, 12) == "cpu"
+
+
+@pytest.mark.parametrize("n", [12, 50])
+@pytest.mark.parametrize("blocks", [1, 4])
+def test_warp_register_budgets_change_no_answer(n, blocks, monkeypatch):
+    """The warp kernel built with another __launch_bounds__ register budget (a speed choice,
+    WARP_MIN_BLOCKS) gives the CPU's status, z and pivots."""
+    monkeypatch.setattr(cuda, "LEMKE_VARIANT", "warp")
+    monkeypatch.setattr(cuda, "EXTRA_OPTIONS", (f"-DLCP_WARP_MIN_BLOCKS={blocks}",))
+    M, q = stack("mixed", 1500, n, seed=9)
+    assert_same(solve_many(M, q, "lemke"), solve_many(M, q, "lemke", backend="cuda"))

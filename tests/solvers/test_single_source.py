@@ -16,10 +16,10 @@ from hypothesis import strategies as st
 
 from lcpcli.api import solve_many
 from lcpcli.core.errors import OptionError
+from lcpcli.core.tolerances import PIVOT_TOL, POLISHED, TIE_TOL
 from lcpcli.solvers import batched
 from lcpcli.solvers.backends import cuda
 from lcpcli.solvers.kernels import stack_c
-from lcpcli.solvers.tolerances import PIVOT_TOL, POLISHED, TIE_TOL
 
 
 def same_answers(M, q, method, lower=None, upper=None, **options):
@@ -256,11 +256,35 @@ class _FakeArray(np.ndarray):
     def __cuda_array_interface__(self):  # what marks device memory to lcpcli.solve_many
         return {"shape": self.shape, "typestr": self.dtype.str, "version": 3}
 
-    def get(self, out=None):
+    def get(self, stream=None, out=None):
         if out is None:
             return np.array(self)
+        assert isinstance(out, np.ndarray) and out.flags.c_contiguous  # as CuPy requires
         out[...] = self
         return out
+
+    def set(self, a, stream=None):
+        assert self.shape == a.shape and a.flags.c_contiguous
+        self[...] = a
+
+
+class _FakeStream:
+    """A stand-in CUDA stream: a context manager that makes itself current."""
+
+    current = None
+
+    def __init__(self, non_blocking=False):
+        self.prev = None
+
+    def __enter__(self):
+        self.prev, _FakeStream.current = _FakeStream.current, self
+        return self
+
+    def __exit__(self, *exc):
+        _FakeStream.current = self.prev
+
+    def synchronize(self):
+        pass
 
 
 class _FakeKernel:
@@ -315,7 +339,9 @@ def _fake_cupy():
 
     source = cuda.source()
     kernels = {}  # kernel name -> [(C type, parameter name)], e.g. ("const double *", "M")
-    for name, params in re.findall(r'extern "C" __global__ void (\w+)\(([^)]*)\)', source):
+    for name, params in re.findall(
+            r'extern "C" __global__ void (?:__launch_bounds__\([^)]*\) )?(\w+)\(([^)]*)\)',
+            source):
         kernels[name] = [(m.group(1).strip(), m.group(2)) for m in
                          (re.match(r"(.*?)(\w+)$", " ".join(p.split())) for p in params.split(","))]
 
@@ -333,8 +359,11 @@ def _fake_cupy():
         from_dlpack=lambda x: wrap(np.from_dlpack(x)))
     runtime = types.SimpleNamespace(getDeviceCount=lambda: 1, memGetInfo=lambda: (8 << 30, 8 << 30))
     module = types.SimpleNamespace(get_function=lambda name: _FakeKernel(name, kernels[name]))
-    cp.cuda = types.SimpleNamespace(runtime=runtime, Device=lambda: types.SimpleNamespace(id=0))
+    cp.cuda = types.SimpleNamespace(runtime=runtime, Device=lambda: types.SimpleNamespace(id=0),
+                                    Stream=_FakeStream,
+                                    get_current_stream=lambda: _FakeStream.current)
     cp.RawModule = lambda code, options: module
+    assert len(kernels) == 3, sorted(kernels)  # every __global__ kernel's signature was read
     return cp
 
 
@@ -352,10 +381,18 @@ def fake_device(monkeypatch):
     batched._LOADED.pop("cuda", None)
 
 
+@pytest.mark.parametrize("chunked", [False, True])
 @pytest.mark.parametrize("variant", ["thread", "warp"])
 @pytest.mark.parametrize("kind", ["pd", "degenerate", "scaled", "mixed"])
-def test_cuda_backend_host_code_with_a_stand_in_device(fake_device, monkeypatch, kind, variant):
+def test_cuda_backend_host_code_with_a_stand_in_device(fake_device, monkeypatch, kind, variant,
+                                                       chunked):
+    """Host arrays go in chunks on two streams (chunked: 7 problems a chunk, the last one
+    short), device arrays in one launch: both give the CPU's answers."""
     monkeypatch.setattr(cuda, "LEMKE_VARIANT", variant)
+    if chunked:
+        n = make(kind)[1].shape[1]
+        monkeypatch.setattr(cuda, "CHUNK_BYTES", 7 * 8 * n * n)
+        assert len(cuda._chunks(150, n)) == 22
     M, q = make(kind)
     ref = solve_many(M, q, "lemke")
     res = solve_many(M, q, "lemke", backend="cuda")
@@ -368,11 +405,18 @@ def test_cuda_backend_host_code_with_a_stand_in_device(fake_device, monkeypatch,
     np.testing.assert_array_equal(dev.iterations, ref.iterations)
 
 
-def test_cuda_backend_sor_and_box_with_a_stand_in_device(fake_device):
+@pytest.mark.parametrize("chunked", [False, True])
+def test_cuda_backend_sor_and_box_with_a_stand_in_device(fake_device, monkeypatch, chunked):
+    """Projected SOR on LCPs and box LCPs (bounds shared or per problem), in one chunk or in
+    chunks of 9 problems."""
     M, q = pd(80, 7, seed=14)
     M = (M + M.transpose(0, 2, 1)) / 2
     lo, up = -np.ones(7), np.full(7, 0.5)
-    for kw in ({}, {"lower": lo, "upper": up}):
+    if chunked:
+        monkeypatch.setattr(cuda, "CHUNK_BYTES", 9 * 8 * 7 * 7)
+    per_problem = {"lower": np.tile(lo, (80, 1)) * np.linspace(0.5, 1, 80)[:, None],
+                   "upper": np.tile(up, (80, 1))}
+    for kw in ({}, {"lower": lo, "upper": up}, per_problem):
         ref = solve_many(M, q, "pgs", **kw)
         res = solve_many(M, q, "pgs", backend="cuda", **kw)
         np.testing.assert_array_equal(res.status, ref.status)

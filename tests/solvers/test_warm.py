@@ -222,7 +222,10 @@ def test_cli_json_basis_and_z0_result_file(cli, tmp_path) -> None:
                  "--json", "-m", method)
         assert r2.returncode == 0, r2.stderr
         second = json.loads(r2.stdout)
-        assert second["status"] == "solved" and second["method"] == "bpp"
+        # auto pivots from the basis by BPP, Lemke by Lemke from that basis (lemke_warm)
+        assert second["status"] == "solved"
+        assert second["method"] == ("bpp" if method == "auto" else "lemke-revised")
+        assert "warm start" in second["message"]
         cold = lcpcli.solve(M, q2)
         assert np.allclose(second["z"], cold.z, atol=1e-9)
 

@@ -28,6 +28,8 @@ from lcpcli.analysis.enumeration import (
     UNKNOWN,
     Enumeration,
     complementary_matrix,
+    cone_interiors_2d,
+    degenerate_2d,
     generators_2d,
 )
 from lcpcli.cli.render.common import fit, fmt
@@ -246,24 +248,6 @@ def enumeration_pages(res: Enumeration, problem: Any, file: str | None, *, all_c
 
 
 # ---------------------------------------------------------------------------- n = 2 drawings
-def _cone_membership(M: np.ndarray, pts: np.ndarray) -> np.ndarray:
-    """(4, P) booleans: point p in the interior-or-boundary of the nondegenerate cone r."""
-    out = np.zeros((4, pts.shape[1]), dtype=bool)
-    for code in range(4):
-        A = complementary_matrix(M, code)
-        # membership is unchanged by scaling a generator: unit columns, relative tests, no
-        # overflow for entries of 1e300 (as analysis.enumeration.in_cone_2d)
-        peak = np.max(np.abs(A), axis=0)
-        if np.any(peak == 0):
-            continue
-        A = A / peak
-        if abs(A[0, 0] * A[1, 1] - A[0, 1] * A[1, 0]) <= 1e-12:
-            continue
-        y = np.linalg.solve(A, pts)
-        out[code] = np.all(y > 1e-12, axis=0)
-    return out
-
-
 def _cone_number(code: int) -> int:
     """The number r of the 2 x 2 cone with code bits ``code`` (bit j = z_{j+1} basic), as the
     rigid-body collision article numbers them in its enumeration."""
@@ -314,6 +298,17 @@ class _Canvas:
         return out
 
 
+#: Half-width of the square that the character drawing shows (generators have unit length).
+TEXT_EXTENT = 1.15
+
+
+def text_grid(width: int, height: int) -> np.ndarray:
+    """The points (2, height * width) of the character cells, row by row from the top left."""
+    X, Y = np.meshgrid(np.linspace(-TEXT_EXTENT, TEXT_EXTENT, width),
+                       np.linspace(TEXT_EXTENT, -TEXT_EXTENT, height))
+    return np.vstack([X.ravel(), Y.ravel()])
+
+
 def draw_cones_text(M: Any, q: Any, width: int = 49, height: int = 21,
                     path: list[dict[str, Any]] | None = None) -> Text:
     """Character drawing of the four complementary cones and q (directions only).
@@ -326,12 +321,8 @@ def draw_cones_text(M: Any, q: Any, width: int = 49, height: int = 21,
     """
     M = np.asarray(M, dtype=float)
     q = np.asarray(q, dtype=float)
-    R = 1.15
-    xs = np.linspace(-R, R, width)
-    ys = np.linspace(R, -R, height)
-    X, Y = np.meshgrid(xs, ys)
-    pts = np.vstack([X.ravel(), Y.ravel()])
-    member = _cone_membership(M, pts)
+    R = TEXT_EXTENT
+    member = cone_interiors_2d(M, text_grid(width, height))  # decided by the analysis
     cover = member.sum(axis=0).reshape(height, width)
     which = np.argmax(member, axis=0).reshape(height, width)
     canvas = _Canvas(width, height)
@@ -436,7 +427,7 @@ def cones_figure(M: Any, q: Any, title: str = "",
         A = np.column_stack(cols)
         label = f"r = {_cone_number(code)}: Pos(" + ", ".join(
             (f"-M{j + 1}" if (code >> j) & 1 else f"I{j + 1}") for j in range(2)) + ")"
-        if abs(np.linalg.det(A)) <= 1e-12 * max(float(np.max(np.abs(A))) ** 2, 1e-300):
+        if degenerate_2d(A):
             ax.plot([], [], color=colours[code], label=label + " (degenerate)")
             continue
         a0, a1 = (np.arctan2(c[1], c[0]) for c in cols)

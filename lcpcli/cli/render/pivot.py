@@ -11,7 +11,6 @@ from __future__ import annotations
 
 from typing import Any
 
-import numpy as np
 from rich.console import Group
 
 from lcpcli.analysis.pivoting import ARTIFICIAL
@@ -198,10 +197,8 @@ def principal_pages(trace: list[dict[str, Any]], layout: str = "dictionary") -> 
             page.append(Para(f"Next: {nxt['reason']}."))
             if nxt.get("pivot_element") and nxt.get("rule") != "bad_pivot":
                 page.append(Para(_pivot_text(nxt["pivot_element"], layout, "principal") + "."))
-        elif k == len(states) - 1:
-            qp = np.asarray(st["q_prime"], dtype=float)
-            scale = 1.0 + (float(np.max(np.abs(qp))) if qp.size else 0.0)
-            if not qp.size or float(np.min(qp)) >= -1e-9 * scale:
+        elif k == len(states) - 1:  # how the method ended: recorded by the replica
+            if st.get("end") == "solved":
                 page.append(Para(f"No basic variable is negative: this basis solves the LCP "
                                  f"({_basis_values(st)}; all other variables are 0)."))
             else:
@@ -426,7 +423,7 @@ def pivot_pages(items: list[tuple[Any, dict[str, Any] | None]], M: Any, q: Any,
                          ["l", "r", "l"], "q' (Dai & Drumwright, eqs 2 and 3), in w' order"))
         if t.driving is not None:
             page.extend(_driving_blocks(t, step, layout))
-        elif ARTIFICIAL not in t.names(t.dependent) and float(np.min(t.q_prime)) >= 0:
+        elif t.solves:
             page.append(Para(f"{ARTIFICIAL} is independent (0) and q' >= 0: at z' = 0 this "
                              f"complementary basis solves the LCP (Lemke's answer)."))
         if t.full is not None:

@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from lcpcli.core.errors import OptionError
+from lcpcli.solvers import DEFAULT_METHOD
 from lcpcli.solvers.backends import SOURCE
 from lcpcli.solvers.backends.c import lemke_args, retry_on_cpu, sor_args
 from lcpcli.solvers.batched import KERNEL_RETRY, KERNEL_SOLVED, Backend, StackOut
@@ -47,6 +48,18 @@ WARPS_PER_BLOCK = 8
 SHARED_BYTES = 96 << 10
 #: NVRTC options: no contraction into FMA (the CPU build has none: the same rounding).
 NVRTC_OPTIONS = ("--std=c++11", "--fmad=false")
+#: The warp kernel's register budget by size: (largest n, blocks of 256 threads that must fit
+#: on one multiprocessor: the ``LCP_WARP_MIN_BLOCKS`` of its ``__launch_bounds__``).  On an
+#: H100 (benchmarks/README.md) 4 (64 registers, 384 bytes spilled) against 1 (244 registers):
+#: 1.48x faster at n = 12, 1.09x at n = 24, 1.17x at n = 32, 0.78x at n = 50.  Speed only:
+#: every build computes the same numbers.
+WARP_MIN_BLOCKS = ((32, 4),)
+#: Extra NVRTC options that replace the choice above (``-D`` tuning macros of lcp_stack.h),
+#: for benchmarks/bench_gpu.py; speed only, never a result.
+EXTRA_OPTIONS: tuple[str, ...] = ()
+#: Host stacks go to the device in chunks of about this many bytes of M, on two streams, so
+#: that the copy of one chunk overlaps the kernel of the one before.
+CHUNK_BYTES = 128 << 20
 #: DLPack device types of CUDA memory (kDLCUDA, kDLCUDAHost, kDLCUDAManaged).
 DLPACK_CUDA = (2, 3, 13)
 
@@ -83,16 +96,27 @@ def source() -> str:
 
 
 @functools.cache
-def _module(device: int) -> Any:
-    """The compiled module for ``device`` (NVRTC, once per process and device)."""
+def _module(device: int, extra: tuple[str, ...] = ()) -> Any:
+    """The compiled module for ``device`` (NVRTC, once per process, device and options)."""
     cp = require_cupy()
-    return cp.RawModule(code=source(), options=NVRTC_OPTIONS)
+    return cp.RawModule(code=source(), options=NVRTC_OPTIONS + extra)
 
 
-def kernel(name: str) -> Any:
-    """The device function ``name`` (``lcp_lemke_stack`` or ``lcp_sor_stack``)."""
+def build_options(name: str, n: int) -> tuple[str, ...]:
+    """The extra NVRTC options of kernel ``name`` for problems of size ``n``."""
+    if EXTRA_OPTIONS or name != "lcp_lemke_warp_stack":
+        return EXTRA_OPTIONS
+    for most, blocks in WARP_MIN_BLOCKS:
+        if n <= most:
+            return (f"-DLCP_WARP_MIN_BLOCKS={blocks}",)
+    return ()
+
+
+def kernel(name: str, n: int = 0) -> Any:
+    """The device function ``name`` (``lcp_lemke_stack``, ``lcp_lemke_warp_stack`` or
+    ``lcp_sor_stack``), as built for problems of size ``n``."""
     cp = require_cupy()
-    return _module(cp.cuda.Device().id).get_function(name)
+    return _module(cp.cuda.Device().id, build_options(name, n)).get_function(name)
 
 
 def on_device(a: Any) -> bool:
@@ -114,6 +138,16 @@ def as_device(a: Any, cp: Any) -> Any:
     if not isinstance(a, cp.ndarray):
         a = cp.from_dlpack(a) if on_device(a) and hasattr(a, "__dlpack__") else cp.asarray(a)
     return cp.ascontiguousarray(a, dtype=cp.float64)
+
+
+def _copy_in(a: Any, cp: Any) -> Any:
+    """Host array ``a`` on the device, copied on the current stream (asynchronous from pinned
+    memory: no staging copy); anything else as :func:`as_device`."""
+    if isinstance(a, np.ndarray) and a.dtype == np.float64 and a.flags.c_contiguous:
+        d = cp.empty(a.shape, cp.float64)
+        d.set(a, stream=cp.cuda.get_current_stream())
+        return d
+    return as_device(a, cp)
 
 
 def _grid(K: int, slot_bytes: int, per_block: int, cp: Any) -> int:
@@ -162,7 +196,7 @@ def run_lemke(Md: Any, qd: Any, *, tol: float, options: Mapping[str, Any], scali
         blocks = _grid(K, 8 * (dw + iw), BLOCK, cp)
         work = cp.empty(blocks * BLOCK * dw, cp.float64)
         iwork = cp.empty(blocks * BLOCK * iw, cp.int64)
-        kernel("lcp_lemke_stack")((blocks,), (BLOCK,), head + (work, iwork) + tail)
+        kernel("lcp_lemke_stack", n)((blocks,), (BLOCK,), head + (work, iwork) + tail)
         return o
     tdw, tiw = workspace("tableau", n)
     per_warp = 8 * (tdw + tiw)
@@ -171,7 +205,7 @@ def run_lemke(Md: Any, qd: Any, *, tol: float, options: Mapping[str, Any], scali
     blocks = _grid(K, 8 * (dw + iw), wpb, cp)
     work = cp.empty(blocks * wpb * dw, cp.float64)
     iwork = cp.empty(blocks * wpb * iw, cp.int64)
-    fn = kernel("lcp_lemke_warp_stack")
+    fn = kernel("lcp_lemke_warp_stack", n)
     shared = wpb * per_warp if use_shared else 0
     if shared > 48 << 10:
         fn.max_dynamic_shared_size_bytes = shared
@@ -199,7 +233,7 @@ def run_sor(Md: Any, qd: Any, lo: Any, up: Any, *, tol: float,
     work = cp.empty(blocks * BLOCK * dw, cp.float64)
     iwork = cp.empty(blocks * BLOCK * iw, cp.int64)
     dummy = cp.zeros(1)
-    kernel("lcp_sor_stack")(
+    kernel("lcp_sor_stack", n)(
         (blocks,), (BLOCK,),
         (np.int64(K), np.int64(n), Md, qd, np.int32(lo is not None),
          dummy if lo is None else lo, dummy if up is None else up, np.float64(a["omega"]),
@@ -216,19 +250,47 @@ def _bounds(lower: Any, upper: Any, K: int, n: int, cp: Any) -> tuple[Any, Any]:
     return cp.ascontiguousarray(lo), cp.ascontiguousarray(up)
 
 
+def _chunks(K: int, n: int) -> list[tuple[int, int]]:
+    """[start, stop) ranges of a host stack's problems: about :data:`CHUNK_BYTES` of M each."""
+    step = max(1, CHUNK_BYTES // max(1, 8 * n * n))
+    return [(a, min(K, a + step)) for a in range(0, K, step)]
+
+
 def _host_kernel(name: str):  # noqa: ANN202 - a StackKernel
     def run(M: Any, q: Any, lower: Any, upper: Any, *, tol: float,
             options: Mapping[str, Any], out: StackOut, threads: int,
             scaling: str = "none") -> None:
         cp = require_cupy()
-        Md, qd = as_device(M, cp), as_device(q, cp)
-        K, n = qd.shape
-        if name == "lemke":
-            o = run_lemke(Md, qd, tol=tol, options=options, scaling=scaling)
-        else:
-            o = run_sor(Md, qd, *_bounds(lower, upper, K, n, cp), tol=tol, options=options)
-        for key, arr in o.items():
-            arr.get(out=getattr(out, key))
+        K, n = np.shape(q)
+        streams = (cp.cuda.Stream(non_blocking=True), cp.cuda.Stream(non_blocking=True))
+        pending: list[tuple[Any, dict[str, Any], int, int, tuple[Any, Any]]] = []
+
+        def collect() -> None:  # the oldest chunk's outputs to the host
+            stream, o, a, b, _inputs = pending.pop(0)  # inputs held until the kernel ran
+            with stream:
+                for key, arr in o.items():
+                    arr.get(stream=stream, out=getattr(out, key)[a:b])
+            stream.synchronize()
+
+        # chunk c's copy in and kernel are queued on one stream while chunk c - 1's kernel
+        # runs on the other; its outputs are fetched one chunk later (pinned host memory
+        # makes the copies asynchronous; pageable memory still works, with less overlap)
+        for c, (a, b) in enumerate(_chunks(K, n)):
+            stream = streams[c % 2]
+            with stream:
+                Md, qd = _copy_in(M[a:b], cp), _copy_in(q[a:b], cp)
+                if name == "lemke":
+                    o = run_lemke(Md, qd, tol=tol, options=options, scaling=scaling)
+                else:
+                    lo = None if lower is None else np.broadcast_to(lower, (K, n))[a:b]
+                    up = None if upper is None else np.broadcast_to(upper, (K, n))[a:b]
+                    o = run_sor(Md, qd, *_bounds(lo, up, b - a, n, cp), tol=tol,
+                                options=options)
+            pending.append((stream, o, a, b, (Md, qd)))
+            if len(pending) > 1:
+                collect()
+        while pending:
+            collect()
         retry_on_cpu(name, M, q, lower, upper, tol=tol, options=options, out=out,
                      threads=threads, scaling=scaling)
     return run
@@ -254,7 +316,7 @@ def solve_many_device(M: Any, q: Any, method: str | None, *, tol: float | None,
     DLPack); ``status``, ``iterations``, ``error``, ``residual`` are host arrays (K,).  Only
     the problems the device hands back are copied to the host (and solved there by
     ``solve_many(..., backend="cpu")``, whose verdicts they get)."""
-    from lcpcli import api, stacks
+    from lcpcli import stacks
     from lcpcli.core.certificate import validate_tol
     from lcpcli.core.errors import ProblemError
     from lcpcli.core.result import STATUS_CODES, StackResult, Status
@@ -271,7 +333,7 @@ def solve_many_device(M: Any, q: Any, method: str | None, *, tol: float | None,
                           "MLCP (n_eq > 0) as host arrays")
     K, n = qd.shape
     lo, up = _bounds(lower, upper, K, n, cp)
-    spec = get_method(api.DEFAULT_METHOD if method is None else method)
+    spec = get_method(DEFAULT_METHOD if method is None else method)
     kind = "box" if lo is not None else "lcp"
     if kind not in spec.kinds:
         raise OptionError(f"method '{spec.name}' does not handle {kind.upper()} problems")

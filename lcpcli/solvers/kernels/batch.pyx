@@ -34,6 +34,7 @@ from lcpcli.solvers.kernels.lemke cimport (
     polish,
 )
 from lcpcli.solvers.kernels.pgs cimport PGS_CONVERGED, pgs_sweeps
+from lcpcli.solvers.kernels.simd cimport axpy
 
 cnp.import_array()
 
@@ -79,8 +80,10 @@ cdef int _balance(const double* M, const double* q, const double* d, Py_ssize_t 
 cdef void _lemke_one(const double* M, const double* q, const double* d, Py_ssize_t n,
                      int64_t max_iter, double piv_tol, double tie_tol, double tol,
                      double polished, const int* eq, double* z, double* w, signed char* code,
-                     int64_t* iters, double* err, double* res) noexcept nogil:
-    """Lemke (tableau) and the certificate of one problem.  The problem is equilibrated first
+                     int64_t* iters, double* err, double* res,
+                     signed char* state=NULL) noexcept nogil:
+    """Lemke (tableau) and the certificate of one problem (``state``, when not NULL, receives
+    each pair's state as the certificate scores the answer).  The problem is equilibrated first
     when it is not balanced (as the one-problem pipeline does; the answer is mapped back
     exactly and certified on the problem as given); the end basis is re-solved (polish) only
     when the tableau's answer is not certified at rounding level (``polished``: most answers
@@ -135,14 +138,14 @@ cdef void _lemke_one(const double* M, const double* q, const double* d, Py_ssize
         iters[0] = out.pivots
         for i in range(n):
             z[i] = 0.0 if out.status == LEMKE_TRIVIAL or raw[i] < 0.0 else raw[i]
-        certify_dense(n, M, n, q, z, 0, NULL, NULL, w, cwork, iwork, NULL, &cert)
+        certify_dense(n, M, n, q, z, 0, NULL, NULL, w, cwork, iwork, state, &cert)
         if out.status == LEMKE_OK and not (cert.status == 0 and cert.error <= polished):
             # not at rounding level (cancellation in the tableau updates, or a failure): the
             # end basis re-solved by LU with one refinement step (polish keeps the better of
             # that and the tableau's answer), then certified again
             rc = polish(M, q, n, raw, basic, z)
             if rc == 0:
-                certify_dense(n, M, n, q, z, 0, NULL, NULL, w, cwork, iwork, NULL, &cert)
+                certify_dense(n, M, n, q, z, 0, NULL, NULL, w, cwork, iwork, state, &cert)
         if rc == 0:
             if cert.status == 0:
                 err[0] = cert.error
@@ -153,6 +156,384 @@ cdef void _lemke_one(const double* M, const double* q, const double* d, Py_ssize
     free(basic)
     free(iwork)
     free(rc_exp)
+
+
+#: Block pivots without a new lowest count of infeasible pairs before the warm start's
+#: least-index single pivots (Júdice & Pires' p; lcpcli.solvers.methods.bpp.BLOCK_TRIES).
+cdef int W_BLOCK_TRIES = 3
+#: A basic value is infeasible below -W_NEG_TOL times its scale (bpp.NEG_TOL).
+cdef double W_NEG_TOL = 1e-12
+
+
+cdef int _basic_solution(const double* M, const double* q, Py_ssize_t n,
+                         signed char* F, double* A, Py_ssize_t* idx, Py_ssize_t* piv,
+                         double* r, double* z) noexcept nogil:
+    """The basic solution of basis ``F`` (1: z_i basic): ``M_FF z_F = -q_F`` by LU with
+    diagonal pivoting (the largest diagonal entry of the remaining Schur complement pivots, a
+    symmetric permutation kept in ``idx``; the factors stay in ``A`` for :func:`_refine`), ``z``
+    0 off F.  A basis whose block is singular is *repaired* as simplex codes repair theirs:
+    when no remaining diagonal entry exceeds 1e-13 times the block's largest entry, the pairs
+    not yet pivoted leave F (their w_i becomes basic), so the block solved is the nonsingular
+    principal block found so far (contact LCPs, whose redundant contacts make M singular, need
+    this).  Returns the size of the solved block.  ``A``: n*n, ``idx``, ``piv``: n,
+    ``r``: n."""
+    cdef Py_ssize_t i, j, k, m = 0, p, t_i
+    cdef double big = 0.0, t, a
+    for i in range(n):
+        z[i] = 0.0
+        if F[i]:
+            idx[m] = i
+            m += 1
+    if m == 0:
+        return 0
+    for i in range(m):
+        for j in range(m):
+            a = M[idx[i] * n + idx[j]]
+            A[i * m + j] = a
+            if fabs(a) > big:
+                big = fabs(a)
+    for k in range(m):
+        piv[k] = k
+    k = 0
+    while k < m:
+        p = k
+        for i in range(k + 1, m):
+            if fabs(A[i * m + i]) > fabs(A[p * m + p]):
+                p = i
+        if not (fabs(A[p * m + p]) > 1e-13 * big):
+            for i in range(k, m):  # repair: the pairs left unpivoted leave the basis
+                F[idx[i]] = 0
+            break
+        if p != k:  # symmetric swap of rows and columns k and p
+            for j in range(m):
+                t = A[k * m + j]
+                A[k * m + j] = A[p * m + j]
+                A[p * m + j] = t
+            for i in range(m):
+                t = A[i * m + k]
+                A[i * m + k] = A[i * m + p]
+                A[i * m + p] = t
+            t_i = idx[k]
+            idx[k] = idx[p]
+            idx[p] = t_i
+        for i in range(k + 1, m):
+            A[i * m + k] = A[i * m + k] / A[k * m + k]
+            t = A[i * m + k]
+            for j in range(k + 1, m):
+                A[i * m + j] = A[i * m + j] - t * A[k * m + j]
+        k += 1
+    if k < m:  # the repaired block: the leading k x k factors (stride m) compacted
+        for i in range(k):
+            for j in range(k):
+                A[i * k + j] = A[i * m + j]
+        m = k
+    for i in range(m):
+        r[i] = -q[idx[i]]
+    _lu_solve(A, piv, m, r)
+    for i in range(m):
+        z[idx[i]] = r[i]
+    return m
+
+
+cdef void _refine(const double* M, const double* q, Py_ssize_t n, const double* A,
+                  const Py_ssize_t* idx, const Py_ssize_t* piv, Py_ssize_t m, double* r,
+                  double* z) noexcept nogil:
+    """One step of iterative refinement of the basic solution of :func:`_basic_solution`."""
+    cdef Py_ssize_t i, j
+    cdef double t
+    for i in range(m):
+        t = q[idx[i]]
+        for j in range(m):
+            t = t + M[idx[i] * n + idx[j]] * z[idx[j]]
+        r[i] = -t
+    _lu_solve(A, piv, m, r)
+    for i in range(m):
+        z[idx[i]] = z[idx[i]] + r[i]
+
+
+cdef void _lu_solve(const double* A, const Py_ssize_t* piv, Py_ssize_t m,
+                    double* b) noexcept nogil:
+    """``b <- (LU)^-1 P b`` for the factors of :func:`_basic_solution`."""
+    cdef Py_ssize_t i, j
+    cdef double t
+    for i in range(m):
+        if piv[i] != i:
+            t = b[i]
+            b[i] = b[piv[i]]
+            b[piv[i]] = t
+    for i in range(m):
+        for j in range(i):
+            b[i] = b[i] - A[i * m + j] * b[j]
+    for i in range(m - 1, -1, -1):
+        for j in range(i + 1, m):
+            b[i] = b[i] - A[i * m + j] * b[j]
+        b[i] = b[i] / A[i * m + i]
+
+
+cdef int _bpp_one(const double* M, const double* q, Py_ssize_t n, const signed char* F0,
+                  int64_t max_iter, double tol, double* z, double* w, signed char* state,
+                  int64_t* iters, double* err, double* res) noexcept nogil:
+    """Block principal pivoting from the basis ``F0`` (as lcpcli.solvers.methods.bpp: block
+    pivots while the count of infeasible pairs falls, Murty's least-index single pivot after
+    W_BLOCK_TRIES without progress), judged by the certificate.  A basic solution with
+    ``z_F >= 0`` goes to the certificate first (a basis that is still right ends there, with
+    no pass of its own over M); one that fails it is refined once and certified again, and
+    its infeasible pairs are read from the certificate's ``w`` and row scales.  Returns 1 when
+    an answer passed (z, w, state, iters, err, res filled), 0 otherwise (singular block,
+    iteration limit, an answer that stays uncertified: the caller solves cold)."""
+    cdef double* work = <double*>malloc((n * n + 8 * n + 1) * sizeof(double))
+    cdef Py_ssize_t* iwork = <Py_ssize_t*>malloc((5 * n + 1) * sizeof(Py_ssize_t))
+    cdef signed char* F = <signed char*>malloc(n + 1)
+    cdef double* A
+    cdef double* r
+    cdef double* cwork
+    cdef double* scale
+    cdef Py_ssize_t i, j, m, count, best = n + 1, first
+    cdef Py_ssize_t* idx
+    cdef Py_ssize_t* piv
+    cdef int tries = W_BLOCK_TRIES, ok = 0
+    cdef int64_t it
+    cdef double zmax, t, sc
+    cdef bint nonneg, have_w
+    cdef CertOut cert
+    if work == NULL or iwork == NULL or F == NULL:
+        free(work)
+        free(iwork)
+        free(F)
+        return 0
+    A = work
+    r = work + n * n
+    cwork = work + n * n + n  # 5 n for the certificate: a, then the row scales s
+    scale = cwork + n
+    idx = iwork + 3 * n
+    piv = iwork + 4 * n
+    for i in range(n):
+        F[i] = 1 if F0[i] else 0
+    it = 0
+    while it < max_iter:
+        it += 1
+        m = _basic_solution(M, q, n, F, A, idx, piv, r, z)
+        if m < 0:
+            break
+        zmax = 1.0
+        for i in range(n):
+            if fabs(z[i]) > zmax:
+                zmax = fabs(z[i])
+        nonneg = True
+        for i in range(n):
+            if F[i] and z[i] < -W_NEG_TOL * zmax:
+                nonneg = False
+                break
+        have_w = False
+        if nonneg:
+            if _certify_basic(M, q, n, m, A, idx, piv, r, tol, z, w, cwork, iwork, state,
+                              &cert):
+                ok = 1
+                iters[0] = it
+                err[0] = cert.error
+                res[0] = cert.residual
+                break
+            have_w = cert.status == 0  # w and the row scales of this z are in place
+        count = 0
+        first = -1
+        for i in range(n):  # infeasible pairs: marked in r (1.0) for the flip
+            r[i] = 0.0
+            if F[i]:
+                if z[i] < -W_NEG_TOL * zmax:
+                    r[i] = 1.0
+            else:
+                if have_w:
+                    t, sc = w[i], scale[i]
+                else:
+                    t = q[i]
+                    sc = fabs(q[i])
+                    for j in range(n):
+                        t = t + M[i * n + j] * z[j]
+                        sc = sc + fabs(M[i * n + j] * z[j])
+                if t < -W_NEG_TOL * sc:
+                    r[i] = 1.0
+            if r[i] != 0.0:
+                count += 1
+                if first < 0:
+                    first = i
+        if count == 0:  # every basic variable nonnegative, but no certified answer
+            break
+        if count < best:
+            best = count
+            tries = W_BLOCK_TRIES
+        elif tries > 0:
+            tries -= 1
+        else:  # Murty's least-index rule: one pivot (finite on P-matrices)
+            F[first] = 1 - F[first]
+            continue
+        for i in range(n):
+            if r[i] != 0.0:
+                F[i] = 1 - F[i]
+    free(work)
+    free(iwork)
+    free(F)
+    return ok
+
+
+cdef int _certify_basic(const double* M, const double* q, Py_ssize_t n, Py_ssize_t m,
+                        const double* A, const Py_ssize_t* idx, const Py_ssize_t* piv,
+                        double* r, double tol, double* z, double* w, double* cwork,
+                        Py_ssize_t* iwork, signed char* state, CertOut* cert) noexcept nogil:
+    """Certify the basic solution ``z`` of :func:`_basic_solution` (its factors in ``A``): as
+    solved, then refined once, then with its entries at rounding level (<= 1e-14 ||z||)
+    set to exactly 0 (degenerate basic z's, which Lemke's tableau leaves nonbasic; a row
+    made only of such terms would read w_i / s_i ~ 1).  Returns 1 when one passed."""
+    cdef int step
+    cdef Py_ssize_t i
+    cdef double t
+    for step in range(3):
+        if step == 1:
+            if m == 0:
+                return 0
+            _refine(M, q, n, A, idx, piv, m, r, z)
+        elif step == 2:
+            t = 0.0
+            for i in range(n):
+                if fabs(z[i]) > t:
+                    t = fabs(z[i])
+            for i in range(n):
+                if fabs(z[i]) <= 1e-14 * t:
+                    z[i] = 0.0
+        certify_dense(n, M, n, q, z, 0, NULL, NULL, w, cwork, iwork, state, cert)
+        if _passed(cert, tol):
+            return 1
+    return 0
+
+
+cdef int _ppt_lemke_one(const double* M, const double* q, Py_ssize_t n,
+                        const signed char* F0, int64_t max_iter, double piv_tol,
+                        double tie_tol, double tol, double* z, double* w, signed char* state,
+                        int64_t* iters, double* err, double* res) noexcept nogil:
+    """Lemke with the covering ray started from the basis ``F0`` (lcpcli.solvers.methods.
+    lemke_warm's method, compiled): the principal pivot transform of (q, M) on F
+    (Cottle-Pang-Stone section 2.3: ``M'_FF = M_FF^-1``, ``M'_FG = -M_FF^-1 M_FG``,
+    ``M'_GF = M_GF M_FF^-1``, ``M'_GG = M_GG - M_GF M_FF^-1 M_FG``, ``q'_F = -M_FF^-1 q_F``,
+    ``q'_G = q_G - M_GF M_FF^-1 q_F``) turns the basis F into the all-w basis and the covering
+    vector ``B e`` into ``e``, so cold Lemke (:c:func:`lemke_tableau`) on (q', M') is Lemke
+    from F; its final basis, mapped back (``z_i`` basic for i in F when ``w'_i`` is, for i
+    not in F when ``z'_i`` is), is solved on (q, M) afresh and certified
+    (:func:`_certify_basic`).  A singular ``M_FF`` is repaired first (:func:`_basic_solution`).
+    Returns 1 when an answer passed (z, w, state, iters, err, res filled), else 0."""
+    cdef double* work = <double*>malloc((3 * n * n + 12 * n + 4) * sizeof(double))
+    cdef Py_ssize_t* iwork = <Py_ssize_t*>malloc((7 * n + 4) * sizeof(Py_ssize_t))
+    cdef int64_t* basic = <int64_t*>malloc((n + 1) * sizeof(int64_t))
+    cdef signed char* F = <signed char*>malloc(n + 1)
+    cdef double* X
+    cdef double* A
+    cdef double* Mp
+    cdef double* qp
+    cdef double* r
+    cdef double* zt
+    cdef double* ray
+    cdef double* d
+    cdef double* col
+    cdef double* cwork
+    cdef Py_ssize_t* idx
+    cdef Py_ssize_t* piv
+    cdef Py_ssize_t* pos
+    cdef Py_ssize_t i, j, a, m, p
+    cdef double t
+    cdef int ok = 0, rc
+    cdef LemkeOut out
+    cdef CertOut cert
+    if work == NULL or iwork == NULL or basic == NULL or F == NULL:
+        free(work)
+        free(iwork)
+        free(basic)
+        free(F)
+        return 0
+    A = work
+    Mp = A + n * n
+    qp = Mp + n * n
+    r = qp + n
+    zt = r + n
+    ray = zt + n
+    d = ray + n
+    col = d + n
+    cwork = col + n  # 5 n
+    X = cwork + 5 * n  # n * n
+    idx = iwork + 3 * n  # the certificate takes the first 3 n
+    piv = idx + n
+    pos = piv + n
+    for i in range(n):
+        F[i] = 1 if F0[i] else 0
+        d[i] = 1.0
+    m = _basic_solution(M, q, n, F, A, idx, piv, r, z)  # F repaired when M_FF is singular
+    for i in range(n):
+        pos[i] = -1
+    for a in range(m):
+        pos[idx[a]] = a
+    # X = M_FF^-1 [columns j of F: e_pos(j); others: M_Fj] (m x n, row-major; the rows of the
+    # factors are swept with vector axpys), the columns not in F negated: the rows of M' in F
+    for a in range(m):
+        for j in range(n):
+            p = pos[j]
+            X[a * n + j] = (1.0 if p == a else 0.0) if p >= 0 else M[idx[a] * n + j]
+    for i in range(m):  # L (unit lower) then U, as _lu_solve does for one column
+        for j in range(i):
+            axpy(X + i * n, X + j * n, -A[i * m + j], n)
+    for i in range(m - 1, -1, -1):
+        for j in range(i + 1, m):
+            axpy(X + i * n, X + j * n, -A[i * m + j], n)
+        t = A[i * m + i]
+        for j in range(n):
+            X[i * n + j] = X[i * n + j] / t
+    for a in range(m):
+        for j in range(n):
+            if pos[j] < 0:
+                X[a * n + j] = -X[a * n + j]
+        for j in range(n):
+            Mp[idx[a] * n + j] = X[a * n + j]
+    for i in range(n):  # rows not in F: M_iG (0 on F) + M_iF X
+        if pos[i] >= 0:
+            continue
+        for j in range(n):
+            Mp[i * n + j] = 0.0 if pos[j] >= 0 else M[i * n + j]
+        for a in range(m):
+            t = M[i * n + idx[a]]
+            if t != 0.0:
+                axpy(Mp + i * n, X + a * n, t, n)
+    for i in range(n):  # q'_F = z_F (the basic solution), q'_G = w_G
+        if pos[i] >= 0:
+            qp[i] = z[i]
+        else:
+            t = q[i]
+            for a in range(m):
+                t = t + M[i * n + idx[a]] * z[idx[a]]
+            qp[i] = t
+    rc = lemke_tableau(Mp, qp, d, n, max_iter, piv_tol, tie_tol, NULL, 0, zt, basic, ray, &out)
+    if rc == 0 and (out.status == LEMKE_OK or out.status == LEMKE_TRIVIAL):
+        # the original basis: z_i basic for i in F when w'_i is, else when z'_i is
+        for i in range(n):
+            col[i] = 0.0  # marks of basic w' (col) and z' (ray)
+            ray[i] = 0.0
+        if out.status == LEMKE_OK:
+            for a in range(n):
+                if basic[a] < n:
+                    col[basic[a]] = 1.0
+                elif basic[a] < 2 * n:
+                    ray[basic[a] - n] = 1.0
+        else:  # q' >= 0: the all-w' basis
+            for i in range(n):
+                col[i] = 1.0
+        for i in range(n):
+            F[i] = 1 if (F[i] and col[i] != 0.0) or (not F[i] and ray[i] != 0.0) else 0
+        m = _basic_solution(M, q, n, F, A, idx, piv, r, z)
+        if _certify_basic(M, q, n, m, A, idx, piv, r, tol, z, w, cwork, iwork, state, &cert):
+            ok = 1
+            iters[0] = out.pivots + 1
+            err[0] = cert.error
+            res[0] = cert.residual
+    free(work)
+    free(iwork)
+    free(basic)
+    free(F)
+    return ok
 
 
 cdef void _sor_one(const double* M, const double* q, const double* lo_in, const double* up_in,
@@ -296,7 +677,7 @@ def lemke_stack(M, q, d, int64_t max_iter, double piv_tol, double tie_tol, doubl
     ``balance``: None (no equilibration) or ``(balanced, q_balanced, max_rounds)`` of
     :mod:`lcpcli.analysis.scaling`: each problem that is not balanced is equilibrated first.
     ``polished``: the end basis is re-solved unless the certified error is at most this
-    (:data:`lcpcli.solvers.tolerances.POLISHED`; 0: always).
+    (:data:`lcpcli.core.tolerances.POLISHED`; 0: always).
     """
     cdef int eqv[3]
     cdef const int* eq = NULL
@@ -319,6 +700,59 @@ def lemke_stack(M, q, d, int64_t max_iter, double piv_tol, double tie_tol, doubl
         _lemke_one(a.M + k * nn, a.q + k * n, dp, n, max_iter, piv_tol, tie_tol, tol, polished,
                    eq, a.z + k * n, a.w + k * n, a.code + k, a.iters + k, a.err + k,
                    a.residual + k)
+
+
+def lemke_warm_stack(M, q, d, basis, int64_t max_iter, int64_t warm_iter,
+                     int64_t warm_pivots, double piv_tol, double tie_tol, double tol, z, w,
+                     code, iters, err, residual, state, warm, int threads, balance=None,
+                     double polished=0.0):
+    """Warm-started stack: problem k starts from its basis ``basis[k]`` ((K, n) int8, 1: z_i
+    basic; a row whose first entry is negative has none): block principal pivoting for at most
+    ``warm_iter`` iterations (:func:`_bpp_one`: one factorisation of ``M_FF`` when the basis is
+    still right), then Lemke with the covering ray from that basis for at most
+    ``warm_pivots`` pivots (:func:`_ppt_lemke_one`); an answer that passes the certificate is
+    kept (``warm[k]`` = 1), any other ending runs Lemke cold on it in the same call
+    (:func:`lemke_stack`'s arguments and outputs).  ``state`` ((K, n) int8) receives each
+    certified answer's basis (the certificate's pair states) for the next step.
+    """
+    cdef int eqv[3]
+    cdef const int* eq = NULL
+    if balance is not None:
+        eqv[0], eqv[1], eqv[2] = balance
+        eq = eqv
+    cdef _Stack a = _checked(M, q, z, w, code, iters, err, residual, "lemke_warm_stack")
+    cdef Py_ssize_t K = a.K, n = a.n, nn = a.n * a.n, k
+    cdef cnp.ndarray da
+    cdef double* dp = NULL
+    cdef cnp.ndarray ba = inout(basis, cnp.NPY_INT8, K, n)
+    cdef cnp.ndarray sa = inout(state, cnp.NPY_INT8, K, n)
+    cdef cnp.ndarray wa = inout(warm, cnp.NPY_INT8, K, -1)
+    cdef signed char* bp = <signed char*>cnp.PyArray_DATA(ba)
+    cdef signed char* sp = <signed char*>cnp.PyArray_DATA(sa)
+    cdef signed char* wp = <signed char*>cnp.PyArray_DATA(wa)
+    if d is not None:
+        da = _stack(d, 1)
+        if cnp.PyArray_DIM(da, 0) != n:
+            raise ValueError("lemke_warm_stack: the covering vector must have length n")
+        dp = f64_ptr(da)
+    if _empty(a):
+        return
+    for k in prange(K, nogil=True, schedule="dynamic", chunksize=64,
+                    num_threads=threads if threads > 0 else 1):
+        wp[k] = 0
+        if bp[k * n] >= 0 and (
+                _bpp_one(a.M + k * nn, a.q + k * n, n, bp + k * n, warm_iter, tol,
+                         a.z + k * n, a.w + k * n, sp + k * n, a.iters + k, a.err + k,
+                         a.residual + k)
+                or _ppt_lemke_one(a.M + k * nn, a.q + k * n, n, bp + k * n, warm_pivots,
+                                  piv_tol, tie_tol, tol, a.z + k * n, a.w + k * n,
+                                  sp + k * n, a.iters + k, a.err + k, a.residual + k)):
+            wp[k] = 1
+            a.code[k] = B_SOLVED
+        else:
+            _lemke_one(a.M + k * nn, a.q + k * n, dp, n, max_iter, piv_tol, tie_tol, tol,
+                       polished, eq, a.z + k * n, a.w + k * n, a.code + k, a.iters + k,
+                       a.err + k, a.residual + k, sp + k * n)
 
 
 def sor_stack(M, q, lo, up, double omega, int64_t max_iter, double tol, z, w, code, iters,

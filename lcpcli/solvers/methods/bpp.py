@@ -34,7 +34,7 @@ from typing import Any
 
 import numpy as np
 
-from lcpcli.analysis._scaling import is_symmetric_dense
+from lcpcli.analysis.classify import is_symmetric
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, SINGULAR, Outcome
 from lcpcli.core.text import plural
 from lcpcli.solvers.options import positive_int, vector_option
@@ -93,8 +93,12 @@ class Blocks:
         [ E_R^T      0         0   ] [l  ]   [ 0   ]
 
     at the cost of k solves with the factors and one k x k LU; ``F`` is refactored instead
-    when ``k`` exceeds :attr:`max_k` or the Schur complement is singular.  ``factorisations``
-    counts the full ones.
+    when ``k`` exceeds :attr:`max_k` or the Schur complement is singular.  The solved border
+    columns (``M_{F0 F0}^-1 M_{F0 j}``, ``M_{F0 F0}^-1 e_r``) depend on M and ``F0`` only, so
+    they are kept for the next bases and the next ``q`` (:meth:`reuse`: a time-stepping
+    sequence solves only the columns of pairs it has not bordered before), and so is the Schur
+    complement's LU of the last basis (for :meth:`refine`).  ``factorisations`` counts the full
+    ones.
     """
 
     def __init__(self, M: np.ndarray, q: np.ndarray, symmetric: bool) -> None:
@@ -105,6 +109,9 @@ class Blocks:
         self.factorisations = 0
         #: Pairs changed from the factored basis beyond which a new factorisation is cheaper.
         self.max_k = max(8, int(np.sqrt(q.shape[0])) * 2)
+        self._columns: dict[int, np.ndarray] = {}  # pair -> its solved border column
+        self._schur: tuple[bytes, Any, np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None \
+            = None
 
     def reuse(self, M: np.ndarray, q: np.ndarray) -> bool:
         """Take the new ``q`` of a problem with the same M (True), keeping the factors of the
@@ -120,9 +127,11 @@ class Blocks:
         idx = np.flatnonzero(F)
         self.F0, self.factorisations = F.copy(), self.factorisations + 1
         self.idx0 = idx
+        self._columns, self._schur = {}, None
         self.solve0 = _factor(self.M[np.ix_(idx, idx)], self.symmetric) if idx.size else \
             (lambda b: b)
-        if self.solve0 is None:
+        if self.solve0 is None:  # singular: nothing factored (the next basis refactors)
+            self.F0 = None
             return False
         self.x0 = self.solve0(-self.q[idx])
         return True
@@ -140,7 +149,7 @@ class Blocks:
         elif np.array_equal(F, self.F0):
             z[self.idx0] = self.x0
         else:
-            zF = self._bordered(F, -self.q)
+            zF = self._bordered(F, None)
             if zF is None:
                 if not self._refactor(F):
                     return None
@@ -149,11 +158,32 @@ class Blocks:
                 z[F] = zF[F]
         return z if np.all(np.isfinite(z)) else None
 
+    def solve_rhs(self, F: np.ndarray, b: np.ndarray) -> np.ndarray | None:
+        """``y`` with ``M_FF y_F = b_F`` and 0 off F (a length-n vector), through the factors
+        (bordered when ``F`` is near the factored basis, else refactored); None when the block
+        is singular."""
+        n = self.q.shape[0]
+        far = self.F0 is None or np.count_nonzero(F != self.F0) > self.max_k
+        if far and not self._refactor(F):
+            return None
+        out = np.zeros(n)
+        if np.array_equal(F, self.F0):
+            out[self.idx0] = self.solve0(b[self.idx0])
+        else:
+            y = self._bordered(F, b)
+            if y is None:
+                if not self._refactor(F):
+                    return None
+                out[self.idx0] = self.solve0(b[self.idx0])
+            else:
+                out[F] = y[F]
+        return out if np.all(np.isfinite(out)) else None
+
     def refine(self, F: np.ndarray, z: np.ndarray, w: np.ndarray) -> np.ndarray:
         """One step of iterative refinement of the basic z of ``F`` (the one just solved),
         given ``w = M z + q``, whose rows in F should be 0."""
         idx = np.flatnonzero(F)
-        if idx.size == 0:
+        if idx.size == 0 or self.F0 is None:
             return z
         out = z.copy()
         if np.array_equal(F, self.F0):
@@ -167,38 +197,70 @@ class Blocks:
             out[idx] += dz[idx]
         return out if np.all(np.isfinite(out)) else z
 
-    def _bordered(self, F: np.ndarray, b: np.ndarray) -> np.ndarray | None:
-        """Solve ``M_FF z_F = b_F`` through the factors of ``M_{F0 F0}`` (a length-n vector,
-        meaningful on F), or None when the Schur complement is singular."""
-        idx0 = self.idx0
-        added = np.flatnonzero(F & ~self.F0)
-        removed = np.flatnonzero(self.F0 & ~F)
-        pos = np.searchsorted(idx0, removed)  # places of the removed pairs within F0
-        a, r, m = added.size, removed.size, idx0.size
-        if m:
-            B = np.zeros((m, a + r))
-            B[:, :a] = self.M[np.ix_(idx0, added)]
-            B[pos, a + np.arange(r)] = 1.0
+    def _border(self, added: np.ndarray, pos: np.ndarray) -> np.ndarray:
+        """``M_{F0 F0}^-1 [M_{F0 A}, E_R]`` (R at places ``pos`` of F0), new columns solved in
+        one call and all kept (:attr:`_columns`: key ``j`` for an added pair, ``-1 - p`` for
+        the unit column of place ``p``)."""
+        idx0, cache = self.idx0, self._columns
+        keys = [int(j) for j in added] + [-1 - int(p) for p in pos]
+        new = [k for k in keys if k not in cache]
+        if new:
+            if len(cache) + len(new) > 8 * self.max_k:
+                cache.clear()
+                new = keys
+            B = np.zeros((idx0.size, len(new)))
+            for c, k in enumerate(new):
+                if k >= 0:
+                    B[:, c] = self.M[idx0, k]
+                else:
+                    B[-1 - k, c] = 1.0
             X = self.solve0(B)
-            x0 = self.solve0(b[idx0])
-        else:
-            X, x0 = np.zeros((0, a + r)), np.zeros(0)
-        C = np.zeros((a + r, m))
-        C[:a] = self.M[np.ix_(added, idx0)]
-        S = np.zeros((a + r, a + r))
-        S[:a, :a] = self.M[np.ix_(added, added)]
-        S -= np.vstack([C[:a] @ X, X[pos]]) if m else 0.0
-        rhs = np.concatenate([b[added], np.zeros(r)]) - (
-            np.concatenate([C[:a] @ x0, x0[pos]]) if m else 0.0)
-        from scipy.linalg import LinAlgWarning, lu_factor, lu_solve
+            for c, k in enumerate(new):
+                cache[k] = X[:, c]
+        X = np.empty((idx0.size, len(keys)))
+        for c, k in enumerate(keys):
+            X[:, c] = cache[k]
+        return X
 
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", LinAlgWarning)
-            lu = lu_factor(S, check_finite=False)
-        d = np.abs(np.diag(lu[0]))
-        if d.size and (not np.all(np.isfinite(d)) or d.min() <= 1e-10 * d.max()):
-            return None
-        u = lu_solve(lu, rhs, check_finite=False) if d.size else np.zeros(0)
+    def _bordered(self, F: np.ndarray, b: np.ndarray | None) -> np.ndarray | None:
+        """Solve ``M_FF z_F = b_F`` through the factors of ``M_{F0 F0}`` (a length-n vector,
+        meaningful on F; ``b`` None: ``-q``), or None when the Schur complement is
+        singular."""
+        idx0 = self.idx0
+        key = F.tobytes()
+        if self._schur is not None and self._schur[0] == key:
+            _, lu, X, added, removed, pos = self._schur
+        else:
+            from scipy.linalg import LinAlgWarning, lu_factor
+
+            added = np.flatnonzero(F & ~self.F0)
+            removed = np.flatnonzero(self.F0 & ~F)
+            pos = np.searchsorted(idx0, removed)  # places of the removed pairs within F0
+            a = added.size
+            X = self._border(added, pos) if idx0.size else np.zeros((0, a + removed.size))
+            S = np.zeros((a + removed.size, a + removed.size))
+            S[:a, :a] = self.M[np.ix_(added, added)]
+            if idx0.size:
+                S[:a] -= self.M[np.ix_(added, idx0)] @ X
+                S[a:] -= X[pos]
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", LinAlgWarning)
+                lu = lu_factor(S, check_finite=False)
+            d = np.abs(np.diag(lu[0]))
+            if d.size and (not np.all(np.isfinite(d)) or d.min() <= 1e-10 * d.max()):
+                return None
+            self._schur = (key, lu, X, added, removed, pos)
+        from scipy.linalg import lu_solve
+
+        a = added.size
+        if idx0.size:
+            x0 = self.x0 if b is None else self.solve0(b[idx0])
+            rhs = np.concatenate([(-self.q if b is None else b)[added]
+                                  - self.M[np.ix_(added, idx0)] @ x0, -x0[pos]])
+        else:
+            x0 = np.zeros(0)
+            rhs = np.concatenate([(-self.q if b is None else b)[added], np.zeros(pos.size)])
+        u = lu_solve(lu, rhs, check_finite=False) if rhs.size else np.zeros(0)
         out = np.zeros(self.q.shape[0])
         out[idx0] = x0 - X @ u
         out[removed] = 0.0
@@ -279,7 +341,7 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None,
         F = start_point(problem, z0) > 0
         start = f" from the warm-start basis ({int(F.sum())} z basic)"
     if blocks is None or not blocks.reuse(M, q):
-        blocks = Blocks(M, q, is_symmetric_dense(M))
+        blocks = Blocks(M, q, is_symmetric(M, 0.0))
     status, z, its, singles, F, factors = pivot(M, q, F, free, limit, block_tries,
                                                 blocks=blocks)
     info: dict[str, Any] = {"basis": np.flatnonzero(F).tolist(), "single_pivots": singles,

@@ -31,7 +31,7 @@ from typing import Any
 
 import numpy as np
 
-from lcpcli.analysis.classify import is_symmetric
+from lcpcli.analysis.classify import SYM_TOL, is_symmetric
 from lcpcli.core.certificate import matrix_norm_inf
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, NUMERICAL, STALLED, Outcome
 from lcpcli.core.text import plural
@@ -95,7 +95,7 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None) -> Outcome:
         return Outcome(np.zeros(n), 0, CONVERGED, "q >= 0: z = 0 solves the problem")
     sparse = problem.sparse
     M = problem.M.tocsr() if sparse else np.ascontiguousarray(problem.M, dtype=np.float64)
-    symmetric = is_symmetric(M)
+    symmetric = is_symmetric(M, SYM_TOL)
     lo, up = problem.bounds()
     mu_M = matrix_norm_inf(M)
     mu_M = mu_M if mu_M > 0 else 1.0

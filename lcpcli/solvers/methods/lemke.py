@@ -27,10 +27,10 @@ from lcpcli.analysis.proof import prove_infeasible
 from lcpcli.core.errors import OptionError
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, RAY, Outcome
 from lcpcli.core.text import plural
+from lcpcli.core.tolerances import PIVOT_TOL, TIE_TOL
 from lcpcli.solvers.kernels.lemke import MAX_ITER, OK, TRIVIAL, lemke_solve, polish_kernel
 from lcpcli.solvers.options import bool_option, positive_int, vector_option
 from lcpcli.solvers.registry import BatchSpec, Cost, Guarantee, Method, Option, when
-from lcpcli.solvers.tolerances import PIVOT_TOL, TIE_TOL
 
 #: Empty pivot record (the kernel records nothing).
 NO_RECORD = np.zeros((0, 3), dtype=np.int64)

@@ -27,21 +27,16 @@ import numpy as np
 from lcpcli.analysis.classify import exact_p_matrix, not_p_witness
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, SINGULAR, Outcome
 from lcpcli.core.text import plural
+from lcpcli.core.tolerances import PIVOT_TOL
 from lcpcli.solvers.kernels.lemke import polish_kernel
 from lcpcli.solvers.kernels.murty import BAD_PIVOT, OK, murty_kernel
+from lcpcli.solvers.methods.lemke import default_max_iter
 from lcpcli.solvers.options import bool_option, positive_int, vector_option
 from lcpcli.solvers.registry import Cost, Guarantee, Method, Option, when
 from lcpcli.solvers.support import start_point
 
-#: Pivot tolerance, relative to the largest entry of the pivot row.
-PIVOT_TOL = 1e-11
 #: A basic value counts as negative below ``-NEG_TOL * ||q||_inf``.
 NEG_TOL = 1e-13
-
-
-def default_max_iter(n: int) -> int:
-    """Pivot limit when none is given (finite for P-matrices, but possibly 2^n)."""
-    return max(1000, 100 * n)
 
 
 def run(problem: Any, *, tol: float, max_iter: int | None = None,

@@ -30,6 +30,7 @@ from typing import Any
 
 import numpy as np
 
+from lcpcli.analysis.classify import diagonal
 from lcpcli.core.certificate import matrix_norm_inf
 from lcpcli.core.result import (
     CONVERGED,
@@ -43,7 +44,7 @@ from lcpcli.core.text import plural
 from lcpcli.solvers.kernels import pgs as K
 from lcpcli.solvers.options import bool_option, omega_option, positive_int, vector_option
 from lcpcli.solvers.registry import BatchSpec, Cost, Guarantee, Method, Option, Requirement, when
-from lcpcli.solvers.support import StallWatch, certified_error, diagonal, start_point
+from lcpcli.solvers.support import StallWatch, certified_error, start_point
 
 #: Sweep limit when none is given.
 DEFAULT_MAX_ITER = 10_000

@@ -158,7 +158,7 @@ def exact_trace(problem: Any, method: str, data: ExactData, *, covering: Any = N
 
     Same replica, same rule, same tolerances as the floating-point trace, the numbers exact.
     """
-    from lcpcli.solvers.tolerances import PIVOT_TOL, TIE_TOL
+    from lcpcli.core.tolerances import PIVOT_TOL, TIE_TOL
 
     n = problem.n
     if method in ("lemke", "lemke-tableau", "lemke-revised"):
@@ -174,8 +174,8 @@ def exact_trace(problem: Any, method: str, data: ExactData, *, covering: Any = N
                                  PIVOT_TOL, TIE_TOL)
         return trace
     if method == "murty":
+        from lcpcli.solvers.methods.lemke import default_max_iter
         from lcpcli.solvers.methods.murty import NEG_TOL
-        from lcpcli.solvers.methods.murty import default_max_iter as murty_limit
         from lcpcli.solvers.support import start_point
         from lcpcli.solvers.trace.murty import murty_traced
 
@@ -185,7 +185,7 @@ def exact_trace(problem: Any, method: str, data: ExactData, *, covering: Any = N
         if z0 is not None:
             start = start_point(problem, z0)
             basic = np.where(start > 0, basic + n, basic).astype(np.int64)
-        *_, trace = murty_traced(data.M, data.q, max_iter or murty_limit(n), PIVOT_TOL,
+        *_, trace = murty_traced(data.M, data.q, max_iter or default_max_iter(n), PIVOT_TOL,
                                  NEG_TOL, basic)
         return trace
     if method == "dantzig":

@@ -24,6 +24,11 @@ OK = 0
 LIMIT = 1
 BAD_PIVOT = 2
 
+#: The ``end`` of the last trace entry per status: ``solved`` (no basic variable is negative
+#: by the method's rule, so this complementary basis solves the LCP), ``limit`` (the pivot
+#: limit stopped it), ``bad_pivot`` (a pivot not positive beyond the tolerance).
+END = {OK: "solved", LIMIT: "limit", BAD_PIVOT: "bad_pivot"}
+
 #: Up to this n the trace holds the whole tableau of each state.
 TABLEAU_MAX_N = 8
 
@@ -112,6 +117,8 @@ def murty_traced(M: np.ndarray, q: np.ndarray, max_iter: int, piv_tol: float, ne
                       "reason": (f"row {r + 1} is the least index with q' < 0 ({leaving} = "
                                  f"{num(value)}): {leaving} and {entering} exchange (principal "
                                  f"pivot on the diagonal entry M'_rr = {num(p)})"), **state()})
+    # how the method ended, on its last entry: the renderers state it, they do not re-decide it
+    trace[-1]["end"] = END[status]
     z = np.zeros(n)
     for i in range(n):
         if basic[i] >= n:

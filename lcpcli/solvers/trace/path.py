@@ -30,7 +30,7 @@ from lcpcli.analysis.pivoting import (
     principal_pivot,
     var_name,
 )
-from lcpcli.solvers.tolerances import PIVOT_TOL, TIE_TOL
+from lcpcli.core.tolerances import PIVOT_TOL, TIE_TOL
 from lcpcli.solvers.trace.lemke import (
     initial_formula,
     initial_formula_murty,

@@ -64,6 +64,56 @@ typedef long long lcp_i64;
 #define LCP_ANY(p) (p)
 #endif
 
+/* Reductions over the lanes of a warp (every lane gets the result; one lane: the value
+ * itself).  Min and max by comparison, as the serial loops compute them: the same value
+ * whatever the order (the operands are never NaN: each lane starts from a number and keeps
+ * only values that compare). */
+#if defined(__CUDACC_RTC__) || defined(__CUDACC__)
+#define LCP_SHFL(x, o) __shfl_xor_sync(0xffffffffu, (x), (o))
+#else
+#define LCP_SHFL(x, o) (x) /* never reached: lanes == 1 on the CPU */
+#endif
+LCP_FN double lcp_lanes_min(double x, lcp_i64 lanes)
+{
+    double y;
+    int o;
+    for (o = 16; lanes > 1 && o > 0; o >>= 1) {
+        y = LCP_SHFL(x, o);
+        if (y < x)
+            x = y;
+    }
+    return x;
+}
+LCP_FN double lcp_lanes_max(double x, lcp_i64 lanes)
+{
+    double y;
+    int o;
+    for (o = 16; lanes > 1 && o > 0; o >>= 1) {
+        y = LCP_SHFL(x, o);
+        if (y > x)
+            x = y;
+    }
+    return x;
+}
+LCP_FN lcp_i64 lcp_lanes_imax(lcp_i64 x, lcp_i64 lanes)
+{
+    lcp_i64 y;
+    int o;
+    for (o = 16; lanes > 1 && o > 0; o >>= 1) {
+        y = LCP_SHFL(x, o);
+        if (y > x)
+            x = y;
+    }
+    return x;
+}
+LCP_FN lcp_i64 lcp_lanes_isum(lcp_i64 x, lcp_i64 lanes)
+{
+    int o;
+    for (o = 16; lanes > 1 && o > 0; o >>= 1)
+        x += LCP_SHFL(x, o);
+    return x;
+}
+
 enum { LCP_SOLVED = 0, LCP_RETRY = 1 };
 enum { LCP_OK = 0, LCP_RAY = 1, LCP_MAX_ITER = 2, LCP_TRIVIAL = 3 };
 
@@ -361,7 +411,8 @@ LCP_FN int lcp_certify_warp(lcp_i64 n, const double *M, const double *q, const d
                             const double *lo, const double *up, double *w, double *work,
                             lcp_i64 *iwork, lcp_cert *out, lcp_i64 lane, lcp_i64 lanes)
 {
-    double *a = work, *s = work + n, *kappa = work + 2 * n;
+    /* rinv: 1 / s_i (Inf where s_i = 0), in the space lcp_cert_finish's compmin takes later */
+    double *a = work, *s = work + n, *kappa = work + 2 * n, *rinv = work + 3 * n;
     lcp_i64 *lab = iwork, *movable = iwork + 2 * n;
     lcp_i64 i, j, best;
     int bad = 0, changed;
@@ -378,6 +429,7 @@ LCP_FN int lcp_certify_warp(lcp_i64 n, const double *M, const double *q, const d
         w[i] = wi;
         a[i] = ai;
         s[i] = ai + fabs(q[i]);
+        rinv[i] = s[i] == 0.0 ? LCP_INF : 1.0 / s[i];
         if (!(LCP_ISFINITE(wi) && LCP_ISFINITE(ai)) || s[i] > BIG || (0.0 < s[i] && s[i] < SMALL))
             bad = 1;
     }
@@ -390,7 +442,7 @@ LCP_FN int lcp_certify_warp(lcp_i64 n, const double *M, const double *q, const d
         kappa[j] = 0.0;
         if (movable[j]) {
             for (i = 0; i < n; i++) {
-                inv = s[i] == 0.0 ? LCP_INF : 1.0 / s[i];
+                inv = rinv[i];
                 m = fabs(M[i * n + j]);
                 if (m != 0.0) {
                     t = m * inv;
@@ -410,7 +462,7 @@ LCP_FN int lcp_certify_warp(lcp_i64 n, const double *M, const double *q, const d
     do {
         changed = 0;
         for (i = lane; i < n; i += lanes) {
-            inv = s[i] == 0.0 ? LCP_INF : 1.0 / s[i];
+            inv = rinv[i];
             best = lab[i];
             for (j = 0; j < n; j++) {
                 m = fabs(M[i * n + j]);
@@ -428,7 +480,7 @@ LCP_FN int lcp_certify_warp(lcp_i64 n, const double *M, const double *q, const d
                 continue;
             best = lab[n + j];
             for (i = 0; i < n; i++) {
-                inv = s[i] == 0.0 ? LCP_INF : 1.0 / s[i];
+                inv = rinv[i];
                 m = fabs(M[i * n + j]);
                 if (m != 0.0 && m * inv >= LCP_THETA * kappa[j] && lab[i] < best)
                     best = lab[i];
@@ -814,6 +866,84 @@ LCP_FN lcp_i64 lcp_leaving_row(lcp_i64 n, lcp_i64 m, const double *T, const doub
     return cand[0];
 }
 
+/* lcp_initial_row split over the lanes (the same row: the minimum by reduction, the last
+ * index within the tie band by an index maximum); every lane returns it. */
+LCP_FN lcp_i64 lcp_initial_row_lanes(const double *q, const double *d, lcp_i64 n,
+                                     double tie_tol, lcp_i64 lane, lcp_i64 lanes)
+{
+    lcp_i64 i, r = -1;
+    double v, best = 0.0;
+    for (i = lane; i < n; i += lanes) {
+        v = q[i] / (d ? d[i] : 1.0);
+        if (v < best)
+            best = v;
+    }
+    best = lcp_lanes_min(best, lanes);
+    if (best >= 0.0)
+        return -1;
+    for (i = lane; i < n; i += lanes)
+        if (q[i] / (d ? d[i] : 1.0) <= best + tie_tol * fabs(best))
+            r = i;
+    return lcp_lanes_imax(r, lanes);
+}
+
+/* lcp_leaving_row split over the lanes: the maxima, the minimum ratio and the tied rows by
+ * reductions (the values lcp_leaving_row's loops compute); when more than one row ties and
+ * z0 is not among them (a degenerate step), lane 0 breaks the tie with lcp_leaving_row's
+ * lexicographic rule.  Every lane returns the row (-1: a ray); ctl: the lanes' broadcast
+ * slot. */
+LCP_FN lcp_i64 lcp_leaving_row_lanes(lcp_i64 n, lcp_i64 m, const double *T, const double *qb,
+                                     const double *col, double *keys, const lcp_i64 *basic,
+                                     const lcp_i64 *where, lcp_i64 *cand, double piv_tol,
+                                     double tie_tol, lcp_i64 *ctl, lcp_i64 lane, lcp_i64 lanes)
+{
+    lcp_i64 i, nc = 0, one = -1, z0_row = -1, nz = 2 * n;
+    double a, v, t, cmax = 0.0, qmax = 0.0, ptol, ztol, tmin = LCP_INF;
+    for (i = lane; i < n; i += lanes) {
+        a = fabs(col[i]);
+        if (a > cmax)
+            cmax = a;
+        if (qb[i] > qmax)
+            qmax = qb[i];
+    }
+    ptol = piv_tol * lcp_lanes_max(cmax, lanes);
+    ztol = LCP_DEGENERATE_RTOL * lcp_lanes_max(qmax, lanes);
+    for (i = lane; i < n; i += lanes) {
+        a = col[i];
+        if (a < -ptol) {
+            v = qb[i] > ztol ? qb[i] : 0.0;
+            t = v / (-a);
+            if (t < tmin)
+                tmin = t;
+        }
+    }
+    tmin = lcp_lanes_min(tmin, lanes);
+    if (tmin == LCP_INF)
+        return -1;
+    for (i = lane; i < n; i += lanes) {
+        a = col[i];
+        if (a < -ptol) {
+            v = qb[i] > ztol ? qb[i] : 0.0;
+            t = v / (-a);
+            if (t <= tmin + tie_tol * tmin) {
+                nc += 1;
+                one = i;
+                if (basic[i] == nz)
+                    z0_row = i;
+            }
+        }
+    }
+    z0_row = lcp_lanes_imax(z0_row, lanes);
+    if (z0_row >= 0)
+        return z0_row;
+    if (lcp_lanes_isum(nc, lanes) == 1)
+        return lcp_lanes_imax(one, lanes);
+    if (lane == 0)
+        ctl[0] = lcp_leaving_row(n, m, T, qb, col, keys, basic, where, cand, piv_tol, tie_tol);
+    LCP_SYNC();
+    return ctl[0];
+}
+
 /* Lemke's method (condensed tableau, covering vector d, lexicographic minimum-ratio rule:
  * Cottle-Pang-Stone, The Linear Complementarity Problem, 4.4-4.9) on one problem, as
  * lemke.pyx's lemke_tableau, split over the lanes; warp = 0: lcp_pivot (one lane only),
@@ -841,11 +971,13 @@ LCP_FN int lcp_lemke(lcp_i64 n, const double *M, const double *q, const double *
     }
     for (j = lane; j < m; j += lanes)
         where[n + j] = -(j + 1);
-    if (lane == 0)
-        ctl[0] = lcp_initial_row(q, d, n, tie_tol);
+    if (warp) {
+        r = lcp_initial_row_lanes(q, d, n, tie_tol, lane, lanes);
+    } else {
+        r = lcp_initial_row(q, d, n, tie_tol);
+    }
     LCP_SYNC();
     *pivots_out = 0;
-    r = ctl[0];
     if (r < 0)
         return LCP_TRIVIAL;
     /* initial pivot: z0 enters, row r's w leaves */
@@ -869,11 +1001,11 @@ LCP_FN int lcp_lemke(lcp_i64 n, const double *M, const double *q, const double *
         for (i = lane; i < n; i += lanes)
             col[i] = T[i * m + c];
         LCP_SYNC();
-        if (lane == 0)
-            ctl[1] = lcp_leaving_row(n, m, T, qb, col, keys, basic, where, cand, piv_tol,
-                                     tie_tol);
-        LCP_SYNC();
-        r = ctl[1];
+        if (warp)
+            r = lcp_leaving_row_lanes(n, m, T, qb, col, keys, basic, where, cand, piv_tol,
+                                      tie_tol, ctl + 1, lane, lanes);
+        else
+            r = lcp_leaving_row(n, m, T, qb, col, keys, basic, where, cand, piv_tol, tie_tol);
         if (r < 0) {
             status = LCP_RAY;
             break;
@@ -1307,7 +1439,12 @@ extern "C" __global__ void lcp_lemke_stack(
  * use_shared: the tableau part of each warp's workspace in dynamic shared memory
  * (blockDim.x / 32 * 8 * (LCP_TAB_DWORK(n) + LCP_TAB_IWORK(n)) bytes), else in work/iwork,
  * which hold LCP_LEMKE_DWORK(n) / LCP_LEMKE_IWORK(n) per warp of the grid either way. */
-extern "C" __global__ void lcp_lemke_warp_stack(
+/* LCP_WARP_MIN_BLOCKS: blocks of 256 threads the compiler must fit on one multiprocessor (its
+ * register budget); an NVRTC -D option (EXTRA_OPTIONS in backends/cuda.py), speed only. */
+#ifndef LCP_WARP_MIN_BLOCKS
+#define LCP_WARP_MIN_BLOCKS 1
+#endif
+extern "C" __global__ void __launch_bounds__(256, LCP_WARP_MIN_BLOCKS) lcp_lemke_warp_stack(
     lcp_i64 K, lcp_i64 n, const double *M, const double *q, int use_d, const double *d,
     lcp_i64 max_iter, double piv_tol, double tie_tol, double tol, double polished, int balanced,
     int q_balanced, int max_rounds, int use_shared, double *work, lcp_i64 *iwork, double *z,
