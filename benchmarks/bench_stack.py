@@ -15,6 +15,15 @@ each; Lemke needs about n / 2 pivots).  Prints problems per second and the ratio
 
     python benchmarks/bench_stack.py               # n = 12, K = 100,000 and n = 50, K = 20,000
     python benchmarks/bench_stack.py --quick       # K / 10
+    python benchmarks/bench_stack.py --vs-solve-many --jobs 2 --rounds 7 [--roots A B]
+
+``--vs-solve-many`` (issue 25, item 1): the stacked command line against ``solve_many`` on the
+same arrays, both on ``--jobs`` threads, interleaved round by round (the machine may be
+shared: the best of ``--rounds`` is kept for each).  The command line's rate counts the
+batch's own wall time (``wall_seconds`` of its summary: reading, digests, solving,
+certifying, writing ``-o results.h5``; not the interpreter's start), ``solve_many``'s the call
+alone on arrays already in memory (a fresh process per round, as the command line).
+``--roots`` compares checkouts (each a directory holding ``lcpcli/``) in the same rounds.
 """
 
 from __future__ import annotations
@@ -105,13 +114,78 @@ def siconos_case(npz: Path, K: int, cwd: Path) -> dict | None:
     return {"wall_seconds": wall, "problems_per_second": K / wall, "info_zero": ok}
 
 
+SOLVE_MANY = r"""
+import sys, time, numpy as np
+from lcpcli import solve_many
+M, q = np.load(sys.argv[1]), np.load(sys.argv[2])
+t = time.perf_counter()
+r = solve_many(M, q, threads=int(sys.argv[3]))
+print(time.perf_counter() - t, r.counts().get("solved", 0))
+"""
+
+
+def vs_solve_many(cases: list[tuple[int, int]], jobs: int, rounds: int, roots: list[Path],
+                  out: str) -> None:
+    """The stacked command line against solve_many, interleaved (see the module docstring)."""
+    results: dict = {"cpus": os.cpu_count(), "jobs": jobs, "rounds": rounds, "cases": []}
+    with tempfile.TemporaryDirectory() as tmp_name:
+        tmp = Path(tmp_name)
+        for n, K in cases:
+            M, q = make_stack(K, n)
+            stack, m_npy, q_npy = tmp / f"stack{n}.h5", tmp / "M.npy", tmp / "q.npy"
+            write_stack(stack, M, q)
+            np.save(m_npy, M)
+            np.save(q_npy, q)
+            del M, q
+            best: dict[str, float] = {}
+            for _ in range(rounds):
+                for root in roots:
+                    env = dict(os.environ, PYTHONPATH=str(root))
+                    cmd = [sys.executable, "-m", "lcpcli", "solve", str(stack), "-o",
+                           str(tmp / "results.h5"), "--json", "-j", str(jobs)]
+                    _, stdout = timed(cmd, tmp, env)
+                    summary = json.loads(stdout.splitlines()[-1])
+                    if summary["summary"]["counts"].get("solved") != K:
+                        raise SystemExit(f"not every problem was certified: {summary}")
+                    key = f"cli {root}"
+                    best[key] = min(best.get(key, np.inf), summary["wall_seconds"])
+                env = dict(os.environ, PYTHONPATH=str(roots[0]))
+                _, stdout = timed([sys.executable, "-c", SOLVE_MANY, str(m_npy), str(q_npy),
+                                   str(jobs)], tmp, env)
+                seconds, solved = stdout.split()
+                if int(solved) != K:
+                    raise SystemExit(f"solve_many certified {solved} of {K}")
+                best["solve_many"] = min(best.get("solve_many", np.inf), float(seconds))
+            row = {"n": n, "K": K, "seconds": best,
+                   "per_second": {k: K / v for k, v in best.items()},
+                   "ratio_to_solve_many": {k: best["solve_many"] / v for k, v in best.items()}}
+            results["cases"].append(row)
+            print(f"n = {n}, K = {K:,}, --jobs {jobs}, best of {rounds}: " + "; ".join(
+                f"{k} {v:.3f} s ({K / v:,.0f}/s, {best['solve_many'] / v:.2f}x solve_many)"
+                for k, v in best.items()), flush=True)
+            stack.unlink()
+    Path(out).parent.mkdir(parents=True, exist_ok=True)
+    Path(out).write_text(json.dumps(results, indent=2) + "\n")
+    print(f"wrote {out}")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="a tenth of the problems")
     ap.add_argument("--out", default=str(ROOT / "benchmarks" / "results" / "stack.json"))
+    ap.add_argument("--vs-solve-many", action="store_true",
+                    help="the stacked command line against solve_many on the same arrays")
+    ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--rounds", type=int, default=5)
+    ap.add_argument("--roots", nargs="*", type=Path, default=[ROOT])
     args = ap.parse_args()
     scale = 10 if args.quick else 1
     cases = [(12, 100_000 // scale), (50, 20_000 // scale)]
+    if args.vs_solve_many:
+        out = args.out if "--out" in sys.argv else str(
+            ROOT / "benchmarks" / "results" / "stack_vs_solve_many.json")
+        vs_solve_many(cases, args.jobs, args.rounds, [r.resolve() for r in args.roots], out)
+        return
     results = {"cpus": os.cpu_count(), "cases": []}
     with tempfile.TemporaryDirectory() as tmp_name:
         tmp = Path(tmp_name)

@@ -92,7 +92,7 @@ def iter_stack_dask(path: str, info: Any, opts: SolveOptions, done: np.ndarray, 
     """The chunks of one stacked input solved as Dask tasks, yielded in stack order as
     ``(start, todo, names, digest, res, read_s, solve_s)`` (what the local path yields, so the
     client writes the same output).  The first chunk with work is solved alone and its plan
-    (:func:`lcpcli.api.plan_stack`) sent with the others, as the local path plans once per
+    (:func:`lcpcli.stacks.plan_stack`) sent with the others, as the local path plans once per
     stack; at most two tasks per worker thread are in flight.  A chunk whose task failed (its
     worker lost beyond Dask's retries, or an exception) is solved in this process instead."""
     from lcpcli.batch.stacked import solve_part

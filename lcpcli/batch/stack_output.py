@@ -9,15 +9,16 @@ attributes ``source`` (the input as given), ``n``, ``K``, ``method``, ``tol`` an
 -1: not solved yet), ``iterations`` (K,) int64, ``error`` and ``residual`` (K,) float64 (NaN
 where none), ``names`` (K,) when the input has names, and the input's fingerprint (below).
 Each chunk's data are written and flushed, then its digest and ``status``, and flushed again,
-before the next chunk is read; Ctrl-C / SIGTERM close the file cleanly, so ``--resume`` finds
-every finished chunk.  The file is created complete (every group and dataset) in a temporary
-file renamed over the output, so a full disk at the start leaves the previous file as it was;
-a full disk later leaves a resumable file (``status`` -1 marks what is not done) and one line
-``PATH: no space left on device (...)``, exit 2.  The datasets are allocated in full when the
-file is created (``ALLOC_TIME_EARLY``), so writing a chunk changes data only, never HDF5's
-metadata: a ``kill -9`` leaves a readable file whose ``status`` says which problems finished
-(a chunk cut in the middle has ``status`` -1 and is solved again).  A file that is still
-unreadable is refused by ``--resume`` with a message (run again without it).
+before the next chunk's results are written (the next chunk is read meanwhile, by the reader
+thread of :mod:`lcpcli.batch.stacked`); Ctrl-C / SIGTERM close the file cleanly, so ``--resume``
+finds every finished chunk. The file is created complete (every group and dataset) in a
+temporary file renamed over the output, so a full disk at the start leaves the previous file as
+it was; a full disk later leaves a resumable file (``status`` -1 marks what is not done) and one
+line ``PATH: no space left on device (...)``, exit 2. The datasets are allocated in full when
+the file is created (``ALLOC_TIME_EARLY``), so writing a chunk changes data only, never HDF5's
+metadata: a ``kill -9`` leaves a readable file whose ``status`` says which problems finished (a
+chunk cut in the middle has ``status`` -1 and is solved again). A file that is still unreadable
+is refused by ``--resume`` with a message (run again without it).
 
 **Fingerprint** (``--resume`` never keeps results of other data): each group records
 ``chunk`` (problems per chunk), ``chunk_digest`` (chunks, 16) uint8, the SHA-256 digest of each
@@ -128,6 +129,26 @@ def _chunk_arrays(res: Any) -> dict[str, np.ndarray]:
             "residual": res.residual}
 
 
+#: Largest M (bytes) of one chunk of a stacked batch that :func:`batch_chunk` grows for its
+#: threads (three chunks are in memory at once: one read ahead, one solved, one written).
+MAX_CHUNK_BYTES = 256 * 2**20
+#: Problems per thread a chunk holds at least where that fits :data:`MAX_CHUNK_BYTES` (the
+#: kernels hand out problems 16 at a time).
+PER_THREAD = 16
+
+
+def batch_chunk(n: int, threads: int) -> int:
+    """Problems per chunk of a stacked batch of size-n problems on ``threads`` threads:
+    :func:`lcpcli.io.stack.chunk_size` (32 MiB of M), or more for large n, so that every
+    thread gets :data:`PER_THREAD` problems while M stays within :data:`MAX_CHUNK_BYTES`.
+    A result file records its chunk (``--resume`` reads it from there, whatever ``--jobs``);
+    row outputs, which do not, use :func:`chunk_size` alone."""
+    from lcpcli.io.stack import chunk_size
+
+    base = chunk_size(n)
+    return max(base, min(PER_THREAD * threads, MAX_CHUNK_BYTES // max(8, 8 * n * n)))
+
+
 def _chunks(K: int, chunk: int) -> int:
     return max(1, -(-K // chunk))
 
@@ -137,16 +158,15 @@ class Hdf5StackWriter:
 
     wants_rows = False
 
-    def __init__(self, path: Path, infos: list[Any], resume: bool, options: str = "{}") -> None:
-        from lcpcli.io.stack import chunk_size
-
-        self.path, self.options = path, options
+    def __init__(self, path: Path, infos: list[Any], resume: bool, options: str = "{}",
+                 threads: int = 1) -> None:
+        self.path, self.options, self.threads = path, options, threads
         if not (resume and own_file(path) is not None):  # a link is refused by own_file
             with atomic_path(path) as tmp, open_hdf5(tmp, "w") as f:  # complete, or nothing
                 f.attrs[MARK] = 1
                 taken: set[str] = set()
                 for info in infos:
-                    self._create(f, info, taken, chunk_size(info.n))
+                    self._create(f, info, taken, batch_chunk(info.n, threads))
         try:
             self.h5 = Hdf5Handle(path, "r+")
         except ProblemError as exc:
@@ -193,8 +213,6 @@ class Hdf5StackWriter:
     def _add_groups(self, infos: list[Any]) -> None:
         """Groups for new inputs of a resumed file, added in a copy renamed over it (never in
         place: a full disk in the middle must not damage the results it holds)."""
-        from lcpcli.io.stack import chunk_size
-
         with atomic_path(self.path) as tmp, open_hdf5(tmp, "w") as dst:
             src = Hdf5Handle(self.path, "r")
             try:
@@ -206,7 +224,7 @@ class Hdf5StackWriter:
                 src.close()
             taken = set(dst.keys())
             for info in infos:
-                self._create(dst, info, taken, chunk_size(info.n))
+                self._create(dst, info, taken, batch_chunk(info.n, self.threads))
 
     def _check_group(self, g: Any, info: Any) -> None:
         path = self.path
@@ -308,16 +326,15 @@ class NpzStackWriter:
 
     wants_rows = False
 
-    def __init__(self, path: Path, infos: list[Any], resume: bool, options: str = "{}") -> None:
-        from lcpcli.io.stack import chunk_size
-
+    def __init__(self, path: Path, infos: list[Any], resume: bool, options: str = "{}",
+                 threads: int = 1) -> None:
         if len(infos) != 1:
             raise OptionError(f"--output {path}: an .npz result file holds one stack; give one "
                               f"stacked input, or write .h5 (one group per stack)")
         info = self.info = infos[0]
         self.path, self.options = path, options
         self.arrays = _empty_arrays(info.K, info.n)
-        self.chunk_size = chunk_size(info.n)
+        self.chunk_size = batch_chunk(info.n, threads)
         self.digests = np.zeros((_chunks(info.K, self.chunk_size), DIGEST_BYTES), np.uint8)
         self.names: list[str] | None = [""] * info.K if info.has_names else None
         self.method, self.tol = "", float("nan")
@@ -467,14 +484,14 @@ class RowStackWriter:
 
 
 def open_stack_writer(path: str | Any, infos: list[Any], *, resume: bool,
-                      options: str = "{}") -> Any:
+                      options: str = "{}", threads: int = 1) -> Any:
     """The writer for a stacked batch's ``--output`` (kind by extension); ``options`` is the
-    :func:`options_fingerprint` of the run."""
+    :func:`options_fingerprint` of the run; ``threads`` the solver's (:func:`batch_chunk`)."""
     from lcpcli.batch.output import checked_output
 
     path, kind = checked_output(path)
     if kind == "hdf5":
-        return Hdf5StackWriter(path, infos, resume, options)
+        return Hdf5StackWriter(path, infos, resume, options, threads)
     if kind == "npz":
-        return NpzStackWriter(path, infos, resume, options)
+        return NpzStackWriter(path, infos, resume, options, threads)
     return RowStackWriter(path, infos, resume, options)

@@ -1,10 +1,12 @@
 """Batches of stacked problem files: read a chunk, solve it in one call, write it.
 
 Each input is a stack (:mod:`lcpcli.io.stack`: ``M`` (K, n, n), ``q`` (K, n), ...).  Chunks of
-:func:`lcpcli.io.stack.chunk_size` problems are read in order and solved by
-:func:`lcpcli.api.solve_many` (the batched kernel in threads, the certificate inside the same
+:func:`lcpcli.batch.stack_output.batch_chunk` problems (from n and the thread count; row outputs:
+:func:`lcpcli.io.stack.chunk_size`) are read in order, by a reader thread one chunk ahead of
+the solver, and solved by
+:func:`lcpcli.stacks.solve_many` (the batched kernel in threads, the certificate inside the same
 call, the full one-problem pipeline for what it could not certify; the method is planned once
-per stack by :func:`lcpcli.api.plan_stack`).  Results go to the output as stacked datasets
+per stack by :func:`lcpcli.stacks.plan_stack`).  Results go to the output as stacked datasets
 (``.h5``, ``.npz``: :mod:`lcpcli.batch.stack_output`) or as rows (``.jsonl``, ``.csv``, and the
 ``--json`` stream; row ``problem`` is the stacked problem's name), and ``--resume`` skips the
 problems the output already holds, once it has checked that they were computed from the same
@@ -14,8 +16,9 @@ output recorded (:func:`lcpcli.batch.stack_output.chunk_digest`), and the solve 
 
 from __future__ import annotations
 
+import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -73,7 +76,7 @@ def run_stacks(inputs: list[str], opts: SolveOptions, report: BatchReport, *,
     (:func:`lcpcli.batch.cluster.iter_stack_dask`), written here as locally.
     """
     from lcpcli.batch import stack_output
-    from lcpcli.io.stack import chunk_size, stack_info
+    from lcpcli.io.stack import stack_info
 
     tally, stats = report.tally, report.stats
     infos: list[Any] = []
@@ -94,7 +97,8 @@ def run_stacks(inputs: list[str], opts: SolveOptions, report: BatchReport, *,
     if output is not None:
         writer = stack_output.open_stack_writer(output, [i for i in infos if i is not None],
                                                 resume=resume,
-                                                options=stack_output.options_fingerprint(opts))
+                                                options=stack_output.options_fingerprint(opts),
+                                                threads=threads)
     try:
         if writer is not None and resume:
             for info in infos:
@@ -120,7 +124,8 @@ def run_stacks(inputs: list[str], opts: SolveOptions, report: BatchReport, *,
                 continue
             _run_one(path, info, opts, report, tally, stats, writer, done_masks[path],
                      threads=threads,
-                     chunk=writer.chunk(info) if writer is not None else chunk_size(info.n),
+                     chunk=writer.chunk(info) if writer is not None else
+                     stack_output.batch_chunk(info.n, threads),
                      on_progress=on_progress, on_row=on_row, write=write,
                      scheduler=scheduler)
     finally:
@@ -151,17 +156,36 @@ def solve_part(reader: Any, info: Any, start: int, stop: int, todo: np.ndarray,
                opts: SolveOptions, plan: Any, *, threads: int, digest: bool,
                ) -> tuple[list[str] | None, bytes, Any, Any, float, float]:
     """Read problems ``start + todo`` of the open stack ``reader`` and solve them with
-    :func:`lcpcli.api.solve_many` (``plan``: made here on this chunk when None).  Returns the
+    :func:`lcpcli.stacks.solve_many` (``plan``: made here on this chunk when None).  Returns the
     chunk's names (of ``todo``), the digest of the whole chunk (``digest``: else ``b""``), the
     result, the plan, and the read and solve seconds.  The one chunk step of the local and the
     Dask paths (:func:`lcpcli.batch.cluster.stack_chunk_task`)."""
-    from lcpcli.api import plan_stack, solve_many
+    part, fingerprint, read_s = read_part(reader, start, stop, digest=digest)
+    names, res, plan, solve_s = solve_read(part, info, todo, opts, plan, threads=threads)
+    return names, fingerprint, res, plan, read_s, solve_s
+
+
+def read_part(reader: Any, start: int, stop: int, *, digest: bool) -> tuple[Any, bytes, float]:
+    """Problems ``start .. stop-1`` of the open stack ``reader``, the digest of that chunk
+    (``digest``: else ``b""``) and the seconds both took: the reading half of
+    :func:`solve_part`."""
     from lcpcli.batch.stack_output import chunk_digest
 
     t0 = time.perf_counter()
     part = reader.read(start, stop)
     fingerprint = chunk_digest(part) if digest else b""
+    return part, fingerprint, time.perf_counter() - t0
+
+
+def solve_read(part: Any, info: Any, todo: np.ndarray, opts: SolveOptions, plan: Any, *,
+               threads: int) -> tuple[list[str] | None, Any, Any, float]:
+    """Solve problems ``todo`` (0-based in the chunk) of the chunk ``part`` read by
+    :func:`read_part`: the chunk's names (of ``todo``), the result, the plan (made here when
+    None) and the seconds: the solving half of :func:`solve_part`."""
+    from lcpcli.stacks import plan_stack, solve_many
+
     t1 = time.perf_counter()
+    start, stop = part.start, part.start + part.q.shape[0]
     M, q = part.M, part.q
     lo, up = part.lower, part.upper
     if todo.size != stop - start:
@@ -175,25 +199,91 @@ def solve_part(reader: Any, info: Any, start: int, stop: int, todo: np.ndarray,
         plan = plan_stack(M, q, opts.method, lower=lo, upper=up, n_eq=info.n_eq, **options)
     res = solve_many(M, q, opts.method, tol=opts.tol, lower=lo, upper=up, n_eq=info.n_eq,
                      threads=threads, on_error="mark", plan=plan, **options)
-    return names, fingerprint, res, plan, t1 - t0, time.perf_counter() - t1
+    return names, res, plan, time.perf_counter() - t1
+
+
+def _reads(path: str, info: Any, done: np.ndarray, chunk: int, digest: bool,
+           stop_event: threading.Event | None = None) -> Iterator[tuple[Any, ...]]:
+    """``(todo, part, digest, read_s)`` of each chunk with work, in order (the reader's side)."""
+    from lcpcli.io.stack import open_stack
+
+    with open_stack(path) as reader:
+        for start in range(0, info.K, chunk):
+            if stop_event is not None and stop_event.is_set():
+                return
+            stop = min(info.K, start + chunk)
+            todo = np.flatnonzero(~done[start:stop])
+            if todo.size:
+                yield (todo, *read_part(reader, start, stop, digest=digest))
+
+
+def _prefetched(items: Callable[[threading.Event], Iterator[Any]], depth: int) -> Iterator[Any]:
+    """The items of ``items(stop_event)`` made in a reader thread, at most ``depth`` ahead of
+    the consumer (memory: ``depth + 2`` chunks); its exceptions are raised here, in order.
+    When the consumer stops early (an error, Ctrl-C), the thread is told to stop and joined
+    before this generator closes, so no read outlives the batch."""
+    import queue
+
+    q: queue.Queue[tuple[str, Any]] = queue.Queue(maxsize=depth)
+    stop = threading.Event()
+
+    def put(item: tuple[str, Any]) -> bool:
+        while not stop.is_set():
+            try:
+                q.put(item, timeout=0.1)
+                return True
+            except queue.Full:
+                continue
+        return False
+
+    def run() -> None:
+        made = items(stop)
+        try:
+            for item in made:
+                if not put(("item", item)):
+                    return
+        except BaseException as exc:  # noqa: BLE001 - handed to the consumer
+            put(("error", exc))
+            return
+        finally:
+            made.close()  # the input file is closed in this thread, before it ends
+        put(("end", None))
+
+    thread = threading.Thread(target=run, name="lcpcli-stack-reader", daemon=True)
+    thread.start()
+    try:
+        while True:
+            kind, value = q.get()
+            if kind == "end":
+                return
+            if kind == "error":
+                raise value
+            yield value
+    finally:
+        stop.set()
+        thread.join()
+
+
+#: Chunks the reader thread of :func:`_local_parts` reads ahead of the solver.
+READ_AHEAD = 1
 
 
 def _local_parts(path: str, info: Any, opts: SolveOptions, done: np.ndarray, *, threads: int,
                  chunk: int, digest: bool) -> Any:
     """``(start, todo, names, digest, res, read_s, solve_s)`` of each chunk with work, in
-    order, solved in this process (the plan is made on the first chunk solved)."""
-    from lcpcli.io.stack import open_stack
-
+    order, solved in this process (the plan is made on the first chunk solved).  Reading (and
+    the chunk's digest) overlaps solving: a reader thread reads the next chunk while the
+    compiled kernel's threads solve this one (:func:`_prefetched`, :data:`READ_AHEAD`); the
+    caller writes each result in this thread, in order, as before."""
     plan = None
-    with open_stack(path) as reader:
-        for start in range(0, info.K, chunk):
-            stop = min(info.K, start + chunk)
-            todo = np.flatnonzero(~done[start:stop])
-            if todo.size == 0:
-                continue
-            names, fingerprint, res, plan, read_s, solve_s = solve_part(
-                reader, info, start, stop, todo, opts, plan, threads=threads, digest=digest)
-            yield start, todo, names, fingerprint, res, read_s, solve_s
+    parts = _prefetched(lambda stop: _reads(path, info, done, chunk, digest, stop), READ_AHEAD)
+    try:
+        for todo, part, fingerprint, read_s in parts:
+            names, res, plan, solve_s = solve_read(part, info, todo, opts, plan,
+                                                   threads=threads)
+            yield part.start, todo, names, fingerprint, res, read_s, solve_s
+    finally:
+        parts.close()
 
 
 def _run_one(path: str, info: Any, opts: SolveOptions, report: BatchReport, tally: Tally,

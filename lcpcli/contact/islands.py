@@ -201,11 +201,11 @@ def solve_problems(problems: list[Problem], method: str = DEFAULT_METHOD, tol: f
 def _stacked_warm(problems: list[Problem]) -> list[bool]:
     """The problems whose warm start goes straight to the batched kernel
     (:mod:`lcpcli.solvers.warm_stack`): dense LCPs below n = 200 with at least
-    ``lcpcli.api.STACK_MIN`` of their size.  Their kernel's first step is the basic solution
+    ``lcpcli.stacks.STACK_MIN`` of their size.  Their kernel's first step is the basic solution
     of ``z0``'s basis, certified: ``z0`` itself when it was the answer, without the separate
     certificate :func:`warm_attempt` would take."""
-    from lcpcli.api import STACK_MIN
     from lcpcli.solvers.warm import WARM_MIN_N
+    from lcpcli.stacks import STACK_MIN
 
     small = [p.kind == "lcp" and not p.sparse and p.n < WARM_MIN_N for p in problems]
     sizes: dict[int, int] = {}
@@ -219,9 +219,9 @@ def solve_cold(problems: list[Problem], method: str, tol: float | None,
                options: dict[str, Any], threads: int | None = None,
                warms: list[Any] | None = None) -> list[Any]:
     """Each problem from scratch (or from its basis in ``warms``), certified:
-    :func:`lcpcli.api.solve_each` (islands of one size, 8 or more, go through the batched
+    :func:`lcpcli.stacks.solve_each` (islands of one size, 8 or more, go through the batched
     kernels of ``lcpcli.solve_many`` in one call)."""
-    from lcpcli.api import solve_each
+    from lcpcli.stacks import solve_each
 
     return solve_each(problems, method, tol=tol, threads=threads, warms=warms, **options)
 

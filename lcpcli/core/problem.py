@@ -57,6 +57,32 @@ def check_size(n_rows: int, n_cols: int, *, sparse: bool = False, nnz: int | Non
             f"(limit {MAX_DENSE_ENTRIES} entries); store M sparse (CSR/COO) instead")
 
 
+#: The one-sided bounds rule, one definition for :meth:`Problem.create`,
+#: :func:`lcpcli.solve_many` and stacked files: a box LCP given only one of its bounds gets
+#: ``lower = 0`` / ``upper = +inf`` for the other (the LCP's own bound, ``z >= 0``).
+BOUND_DEFAULTS = {"lower": 0.0, "upper": math.inf}
+
+
+def default_bound(label: str, shape: int | tuple[int, ...]) -> np.ndarray:
+    """The bound ``label`` (``"lower"`` or ``"upper"``) a box LCP gets when only the other one
+    is given (:data:`BOUND_DEFAULTS`), as a float64 array of ``shape``."""
+    return np.full(shape, BOUND_DEFAULTS[label])
+
+
+def check_n_eq(n_eq: Any, n: int, *, bounded: bool = False) -> int:
+    """The rule on an MLCP's ``n_eq``, one definition for :meth:`Problem.create`,
+    :func:`lcpcli.solve_many` and stacked files: an integer (not a boolean, a float or text)
+    with ``0 <= n_eq <= n``, and no bounds beside a positive one (``bounded``); ProblemError
+    otherwise.  Returns it as an int."""
+    if isinstance(n_eq, (bool, np.bool_)) or not isinstance(n_eq, (int, np.integer)):
+        raise ProblemError(f"n_eq must be an integer, got {n_eq!r}")
+    if not 0 <= n_eq <= n:
+        raise ProblemError(f"n_eq = {n_eq} is outside 0..{n}")
+    if n_eq and bounded:
+        raise ProblemError("give either n_eq (MLCP) or bounds (box LCP), not both")
+    return int(n_eq)
+
+
 def check_bounds(lower: np.ndarray, upper: np.ndarray) -> None:
     """The rules on box bounds, for one problem (shape (n,)) or a stack ((K, n)): no NaN,
     ``lower < inf``, ``upper > -inf``, ``lower <= upper`` (ProblemError naming the first
@@ -133,18 +159,13 @@ class Problem:
             raise ProblemError(f"q has length {q.shape[0]} but M is {n} x {n}")
         _check_finite(M, "M")
         _check_finite(q, "q")
-        try:
-            n_eq = int(n_eq)
-        except (TypeError, ValueError):
-            raise ProblemError(f"n_eq must be an integer, got {n_eq!r}") from None
-        if not 0 <= n_eq <= n:
-            raise ProblemError(f"n_eq = {n_eq} is outside 0..{n}")
-        if lower is not None or upper is not None:
-            if n_eq:
-                raise ProblemError("give either n_eq (MLCP) or bounds (box LCP), not both")
-            lower = np.zeros(n) if lower is None else _as_vector(lower, "lower", inf=-math.inf)
-            upper = np.full(n, np.inf) if upper is None else _as_vector(upper, "upper",
-                                                                       inf=math.inf)
+        bounded = lower is not None or upper is not None
+        n_eq = check_n_eq(n_eq, n, bounded=bounded)
+        if bounded:
+            lower = default_bound("lower", n) if lower is None else \
+                _as_vector(lower, "lower", inf=-math.inf)
+            upper = default_bound("upper", n) if upper is None else \
+                _as_vector(upper, "upper", inf=math.inf)
             for vec, label in ((lower, "lower"), (upper, "upper")):
                 if vec.shape[0] != n:
                     raise ProblemError(f"{label} has length {vec.shape[0]} but M is {n} x {n}")

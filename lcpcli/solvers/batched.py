@@ -3,8 +3,9 @@
 A **stack** is ``M`` of shape (K, n, n) and ``q`` of shape (K, n) (problem ``k``, 0-based, is
 ``w = M[k] z + q[k]``), optionally with bounds ``lower``/``upper`` of shape (K, n) (a box LCP).
 A method that has a batched kernel declares it in its registry record
-(:attr:`lcpcli.solvers.registry.Method.batch`, a :class:`BatchSpec`): the kernel's name and
-the method options it understands.  Nothing here names a method.
+(:attr:`lcpcli.solvers.registry.Method.batch`, a :class:`BatchSpec`): the kernel's name, the
+method options it understands and, as ``params``, how those options (with the method's defaults)
+become the kernel's parameters (:func:`kernel_params`).  Nothing here names a method.
 
 **Backends.**  A backend maps kernel names to callables with one signature
 (:class:`StackKernel`)::
@@ -32,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from lcpcli.solvers.registry import BatchSpec  # noqa: F401  (the record methods declare)
+from lcpcli.solvers.registry import BatchSpec, methods
 
 #: Kernel ``code`` of a certified answer / of a problem handed back to the full pipeline.
 KERNEL_SOLVED = 0
@@ -70,6 +71,18 @@ def default_threads() -> int:
         return os.cpu_count() or 1
 
 
+def kernel_params(kernel: str, n: int, options: Mapping[str, Any]) -> dict[str, Any]:
+    """The parameters of the batched ``kernel`` for problems of size n: the
+    :attr:`BatchSpec.params` of the registered methods that declare ``kernel`` applied to
+    ``options`` (policy as data: the record names its kernel and its defaults; backends name
+    kernels only).  ``options`` as given when no record declares ``params``."""
+    for method in methods().values():
+        spec: BatchSpec | None = method.batch
+        if spec is not None and spec.kernel == kernel and spec.params is not None:
+            return spec.params(n, options)
+    return dict(options)
+
+
 # ------------------------------------------------------------------------------ CPU backend
 def _cpu_lemke(M: Any, q: Any, lower: Any, upper: Any, *, tol: float,
                options: Mapping[str, Any], out: StackOut, threads: int,
@@ -77,29 +90,24 @@ def _cpu_lemke(M: Any, q: Any, lower: Any, upper: Any, *, tol: float,
     from lcpcli.analysis.scaling import BALANCED, MAX_ROUNDS, Q_BALANCED
     from lcpcli.core.tolerances import PIVOT_TOL, POLISHED, TIE_TOL
     from lcpcli.solvers.kernels import batch
-    from lcpcli.solvers.methods.lemke import covering_vector, default_max_iter
 
-    n = M.shape[1]
-    d = covering_vector(n, options.get("covering"))
-    limit = options.get("max_iter") or default_max_iter(n)
+    p = kernel_params("lemke", M.shape[1], options)
     balance = None if scaling == "none" else (BALANCED, Q_BALANCED, MAX_ROUNDS)
-    batch.lemke_stack(M, q, d, limit, PIVOT_TOL, TIE_TOL, tol, out.z, out.w, out.code,
-                      out.iterations, out.error, out.residual, threads, balance, POLISHED)
+    batch.lemke_stack(M, q, p["covering"], p["max_iter"], PIVOT_TOL, TIE_TOL, tol, out.z, out.w,
+                      out.code, out.iterations, out.error, out.residual, threads, balance, POLISHED)
 
 
 def _cpu_sor(M: Any, q: Any, lower: Any, upper: Any, *, tol: float,
              options: Mapping[str, Any], out: StackOut, threads: int,
              scaling: str = "none") -> None:
     from lcpcli.solvers.kernels import batch
-    from lcpcli.solvers.methods.pgs import DEFAULT_MAX_ITER
 
+    p = kernel_params("sor", q.shape[1], options)
     if lower is None:
         out.z[...] = 0.0
     else:
         np.clip(0.0, lower, upper, out=out.z)  # the start point, projected onto the box
-    limit = options.get("max_iter") or DEFAULT_MAX_ITER
-    omega = float(options.get("omega") or 1.0)
-    batch.sor_stack(M, q, lower, upper, omega, limit, tol, out.z, out.w, out.code,
+    batch.sor_stack(M, q, lower, upper, p["omega"], p["max_iter"], tol, out.z, out.w, out.code,
                     out.iterations, out.error, out.residual, threads)
 
 

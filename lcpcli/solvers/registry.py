@@ -110,6 +110,11 @@ class BatchSpec:
     #: The registered method whose algorithm the kernel runs, when it is not the method that
     #: declares it (results name it).
     runs_as: str | None = None
+    #: ``params(n, options) -> dict``: the kernel's parameters for problems of size n from the
+    #: method options (parsed, or some missing), the method's defaults filled in; defined beside
+    #: the method, so that no backend names a method (:func:`lcpcli.solvers.batched.
+    #: kernel_params`).  Every record declaring one kernel gives the same function.
+    params: Callable[[int, Mapping[str, Any]], dict[str, Any]] | None = None
 
 
 class Cost(enum.Enum):

@@ -7,6 +7,8 @@ import json
 import h5py
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from lcpcli.api import solve_many
 from lcpcli.batch.output import read_rows
@@ -231,3 +233,104 @@ def test_problem_picks_one_stacked_problem(cli, tmp_path):
             np.testing.assert_allclose(row["z"], solve_many(M, q).z[k], atol=1e-12)
         res = cli("solve", str(path), "--problem", "zz")
         assert res.returncode == 2 and "no problem named 'zz'" in res.stderr
+
+
+def test_reader_thread_keeps_order_forwards_errors_and_stops_with_the_consumer():
+    """The read-ahead of the stacked path (batch.stacked._prefetched): items arrive in order,
+    an exception of the reader arrives after the items made before it, and a consumer that
+    stops early stops and joins the reader thread (no read outlives the batch)."""
+    import threading
+
+    from lcpcli.batch.stacked import _prefetched
+    from lcpcli.core.errors import ProblemError
+
+    def items(stop, fail_at=None, made=None):
+        for i in range(50):
+            if i == fail_at:
+                raise ProblemError("damaged chunk")
+            if made is not None:
+                made.append(i)
+            yield i
+
+    assert list(_prefetched(lambda stop: items(stop), depth=1)) == list(range(50))
+    got = []
+    with pytest.raises(ProblemError, match="damaged chunk"):
+        for i in _prefetched(lambda stop: items(stop, fail_at=7), depth=2):
+            got.append(i)
+    assert got == list(range(7))
+    made: list[int] = []
+    before = threading.active_count()
+    parts = _prefetched(lambda stop: items(stop, made=made), depth=1)
+    assert [next(parts), next(parts)] == [0, 1]
+    parts.close()
+    assert threading.active_count() == before  # the reader thread has ended
+    assert len(made) <= 2 + 2  # it read at most the queue's depth ahead, plus one in hand
+
+
+def test_pipelined_stack_equals_solve_many_chunk_by_chunk(tmp_path, monkeypatch):
+    """Reading in a thread beside the solver changes no result: many chunks, every array of
+    the result file equals solve_many's on the whole stack, and the digests equal those of
+    the chunks read alone."""
+    import lcpcli.io.stack as stack_mod
+    from lcpcli.batch.records import SolveOptions
+    from lcpcli.batch.run import run_batch
+    from lcpcli.batch.stack_output import chunk_digest
+    from lcpcli.io.stack import open_stack
+
+    M, q = pd_stack(1000, 5, seed=4)
+    path, out = tmp_path / "s.h5", tmp_path / "r.h5"
+    write_stack(path, M, q)
+    monkeypatch.setattr(stack_mod, "chunk_size", lambda n, **kw: 96)
+    run_batch([str(path)], SolveOptions(method="lemke"), output=out, jobs=2)
+    ref = solve_many(M, q, "lemke")
+    with h5py.File(out, "r") as f:
+        g = f["s"]
+        np.testing.assert_array_equal(g["z"][...], ref.z)
+        np.testing.assert_array_equal(g["status"][...], ref.status)
+        np.testing.assert_array_equal(g["iterations"][...], ref.iterations)
+        digests = g["chunk_digest"][...]
+    with open_stack(path) as reader:
+        for c in range(digests.shape[0]):
+            part = reader.read(c * 96, min(1000, (c + 1) * 96))
+            assert bytes(digests[c]) == chunk_digest(part)
+
+
+@settings(max_examples=200, deadline=None)
+@given(n=st.integers(0, 3000), threads=st.integers(1, 256))
+def test_batch_chunk_gives_every_thread_work_within_the_memory_cap(n, threads):
+    """Chunks of a stacked batch come from n and the thread count: at least chunk_size(n)
+    (32 MiB of M), PER_THREAD problems per thread where M then stays within MAX_CHUNK_BYTES,
+    and never more than both."""
+    from lcpcli.batch.stack_output import MAX_CHUNK_BYTES, PER_THREAD, batch_chunk
+    from lcpcli.io.stack import chunk_size
+
+    c, per = batch_chunk(n, threads), max(8, 8 * n * n)
+    assert c >= chunk_size(n) >= 1
+    assert c >= PER_THREAD * threads or c * per > MAX_CHUNK_BYTES - per
+    assert c == chunk_size(n) or c * per <= MAX_CHUNK_BYTES
+
+
+def test_resume_with_other_jobs_uses_the_recorded_chunk(tmp_path, monkeypatch):
+    """A result file records its chunk: resumed with another --jobs (another batch_chunk), the
+    finished chunks are kept, the others solved, and the file ends equal to a run in one go."""
+    import lcpcli.io.stack as stack_mod
+    from lcpcli.batch.records import SolveOptions
+    from lcpcli.batch.run import run_batch
+
+    monkeypatch.setattr(stack_mod, "chunk_size", lambda n, **kw: 4)  # batch_chunk: 16 per thread
+    M, q = pd_stack(300, 5, seed=5)
+    path, out, ref = tmp_path / "s.h5", tmp_path / "r.h5", tmp_path / "ref.h5"
+    write_stack(path, M, q)
+    opts = SolveOptions(method="lemke")
+    run_batch([str(path)], opts, output=ref, jobs=1)
+    run_batch([str(path)], opts, output=out, jobs=1)
+    with h5py.File(out, "r+") as f:
+        assert int(f["s"].attrs["chunk"]) == 16
+        f["s"]["status"][100:] = NOT_DONE  # as if stopped after problem 99
+        f["s"]["chunk_digest"][7:] = 0
+    report = run_batch([str(path)], opts, output=out, jobs=8, resume=True)  # batch_chunk 128
+    assert report.skipped == 100 and report.new == 200
+    with h5py.File(out, "r") as f, h5py.File(ref, "r") as g:
+        assert int(f["s"].attrs["chunk"]) == 16
+        for key in ("z", "status", "chunk_digest"):
+            np.testing.assert_array_equal(f["s"][key][...], g["s"][key][...])

@@ -169,8 +169,8 @@ def test_header_refusals(tmp_path, ext):
     refused(make("bo", M=M, q=q > 0), "'q' holds booleans")
     refused(make("nm", M=M, q=q, names=np.arange(4)), "'names' holds integers; expected strings")
     refused(make("nk", M=M, q=q, names=np.array([b"a", b"b"])), "names has shape (2,)")
-    refused(make("lo", M=M, q=q, lower=np.zeros(3)), "'lower' without 'upper'")
-    refused(make("bs", M=M, q=q, lower=np.zeros(3), upper=np.ones((4, 3))), "one shape")
+    refused(make("lo", M=M, q=q, lower=np.zeros((4, 2))), "lower has shape (4, 2)")
+    refused(make("up", M=M, q=q, upper=np.zeros(2)), "upper has shape (2,)")
     refused(make("bn", M=M, q=q, lower=np.zeros(5), upper=np.ones(5)), "lower has shape (5,)")
     if ext == "npz":
         refused(make("ne", M=M, q=q, n_eq=np.asarray(4)), "n_eq = 4 is outside 0..3")
@@ -271,3 +271,98 @@ def test_write_stack_checks_its_arguments(tmp_path):
     write_stack(tmp_path / "x.h5", M, q)
     with h5py.File(tmp_path / "x.h5") as f:
         assert f["M"].chunks == (3, 2, 2) and f["M"].compression is None
+
+
+BOUND_SHAPES = st.sampled_from([None, "shared", "per_problem"])
+BOUND_VALUES = st.sampled_from([-np.inf, -1.5, -0.5, 0.0, 0.5, 2.0, np.inf])
+
+
+def _bound(draw, shape: str | None, K: int, n: int) -> np.ndarray | None:
+    if shape is None:
+        return None
+    dims = (n,) if shape == "shared" else (K, n)
+    return np.array(draw(st.lists(BOUND_VALUES, min_size=int(np.prod(dims)),
+                                  max_size=int(np.prod(dims))))).reshape(dims)
+
+
+@st.composite
+def stacks_with_bounds(draw):
+    K, n = draw(st.integers(1, 3)), draw(st.integers(1, 3))
+    A = RNG.normal(size=(K, n, n))
+    M = A @ A.transpose(0, 2, 1) + np.eye(n)  # positive definite: every box LCP is solvable
+    q = RNG.normal(size=(K, n))
+    lower = _bound(draw, draw(BOUND_SHAPES), K, n)
+    upper = _bound(draw, draw(BOUND_SHAPES), K, n)
+    n_eq = draw(st.sampled_from([0, 0, 1, n, n + 1, -1]))
+    return M, q, lower, upper, n_eq
+
+
+def _row(b: np.ndarray | None, k: int) -> np.ndarray | None:
+    return None if b is None else (b if b.ndim == 1 else b[k])
+
+
+@settings(max_examples=60, deadline=None)
+@given(case=stacks_with_bounds(), ext=st.sampled_from(["h5", "npz"]))
+def test_stacked_file_solve_many_and_problem_create_agree_on_bounds_and_n_eq(
+        tmp_path_factory, case, ext):
+    """One rule for one-sided bounds and n_eq (core.problem.default_bound / check_n_eq): a
+    stacked file, lcpcli.solve_many and Problem.create accept the same data and, when they
+    do, mean the same problems (a missing lower bound 0, a missing upper bound +inf)."""
+    from lcpcli import solve_many
+    from lcpcli.core.certificate import certify
+    from lcpcli.core.problem import Problem
+
+    M, q, lower, upper, n_eq = case
+    K = q.shape[0]
+    try:
+        created = [Problem.create(M[k], q[k], n_eq=n_eq, lower=_row(lower, k),
+                                  upper=_row(upper, k)) for k in range(K)]
+    except ProblemError:
+        created = None
+    path = tmp_path_factory.mktemp("s") / f"s.{ext}"
+    arrays = {"M": M, "q": q, **({"lower": lower} if lower is not None else {}),
+              **({"upper": upper} if upper is not None else {})}
+    if ext == "h5":
+        with h5py.File(path, "w") as f:
+            for key, value in arrays.items():
+                f.create_dataset(key, data=value)
+            if n_eq:
+                f.attrs["n_eq"] = n_eq
+    else:
+        np.savez(path, **arrays, **({"n_eq": np.asarray(n_eq)} if n_eq else {}))
+    try:
+        read = list(iter_problems(path))
+    except ProblemError:
+        read = None
+    try:
+        res = solve_many(M, q, "auto", lower=lower, upper=upper, n_eq=n_eq)
+    except ProblemError:
+        res = None
+    assert (created is None) == (read is None) == (res is None), (created, read, res)
+    if created is None:
+        return
+    for k, (p, r) in enumerate(zip(created, read, strict=True)):
+        assert r.n_eq == p.n_eq == n_eq
+        for a, b in ((p.lower, r.lower), (p.upper, r.upper)):
+            assert (a is None) == (b is None)
+            if a is not None:
+                np.testing.assert_array_equal(a, b)
+        # solve_many's answer k is certified for the problem Problem.create made
+        assert res.statuses()[k].value == "solved"
+        assert certify(p, res.z[k], res.tol).passed
+
+
+@pytest.mark.parametrize("n_eq", [True, 1.0, "1", None])
+def test_n_eq_must_be_an_integer_everywhere(tmp_path, n_eq):
+    """The n_eq rule (core.problem.check_n_eq) is one: Problem.create, solve_many and
+    write_stack refuse the same non-integers."""
+    from lcpcli import solve_many
+    from lcpcli.core.problem import Problem
+
+    M, q = data(2, 3)
+    with pytest.raises(ProblemError, match="n_eq must be an integer"):
+        Problem.create(M[0], q[0], n_eq=n_eq)
+    with pytest.raises(ProblemError, match="n_eq must be an integer"):
+        solve_many(M, q, "auto", n_eq=n_eq)
+    with pytest.raises(ProblemError, match="n_eq must be an integer"):
+        write_stack(tmp_path / "s.h5", M, q, n_eq=n_eq)

@@ -213,3 +213,48 @@ def test_solve_each_matches_solve_one_by_one():
             assert r.certificate.passed and r.error <= 1e-8
     assert results[0].info.get("batched") and not results[-1].info.get("batched")
     assert "Farkas" in results[STACK_MIN + 3].message
+
+
+def test_stack_api_has_one_home_and_the_old_names_still_work() -> None:
+    """The stack API lives in lcpcli.stacks; lcpcli.solve_many and lcpcli.api.solve_many are
+    that very function (the move kept the public names)."""
+    import lcpcli
+    import lcpcli.api
+    import lcpcli.stacks
+
+    for name in ("solve_many", "solve_each", "plan_stack", "StackPlan", "STACK_MIN"):
+        assert getattr(lcpcli.api, name) is getattr(lcpcli.stacks, name)
+    assert lcpcli.solve_many is lcpcli.stacks.solve_many
+    assert lcpcli.solve_each is lcpcli.stacks.solve_each
+    with pytest.raises(AttributeError):
+        lcpcli.api.no_such_name  # noqa: B018
+
+
+def test_batched_kernels_take_their_parameters_from_the_method_records() -> None:
+    """Policy as data: a method's BatchSpec names its kernel and its parameter defaults; every
+    record declaring one kernel gives the same ``params``, and the backend modules import no
+    method module."""
+    import ast
+    from pathlib import Path
+
+    from lcpcli.solvers import registry
+    from lcpcli.solvers.methods.lemke import default_max_iter
+    from lcpcli.solvers.methods.pgs import DEFAULT_MAX_ITER
+
+    by_kernel: dict[str, set] = {}
+    for m in registry.methods().values():
+        if m.batch is not None:
+            by_kernel.setdefault(m.batch.kernel, set()).add(m.batch.params)
+    assert set(by_kernel) == {"lemke", "sor"}
+    assert all(len(p) == 1 and None not in p for p in by_kernel.values()), by_kernel
+    assert batched.kernel_params("lemke", 7, {}) == {"covering": None,
+                                                     "max_iter": default_max_iter(7)}
+    p = batched.kernel_params("lemke", 3, {"covering": 2.0, "max_iter": 5})
+    assert p["max_iter"] == 5 and p["covering"].tolist() == [2.0, 2.0, 2.0]
+    assert batched.kernel_params("lemke", 3, p)["covering"].tolist() == [2.0, 2.0, 2.0]
+    assert batched.kernel_params("sor", 4, {}) == {"omega": 1.0, "max_iter": DEFAULT_MAX_ITER}
+    root = Path(batched.__file__).parent
+    for path in [root / "batched.py", *sorted((root / "backends").glob("*.py"))]:
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom):
+                assert not (node.module or "").startswith("lcpcli.solvers.methods"), path

@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from lcpcli.solvers.batched import KERNEL_SOLVED, Backend, StackOut, get_backend
+from lcpcli.solvers.batched import KERNEL_SOLVED, Backend, StackOut, get_backend, kernel_params
 
 
 def lemke_args(n: int, options: Mapping[str, Any], scaling: str) -> dict[str, Any]:
@@ -22,20 +22,17 @@ def lemke_args(n: int, options: Mapping[str, Any], scaling: str) -> dict[str, An
     (None or (balanced, q_balanced, max_rounds))."""
     from lcpcli.analysis.scaling import BALANCED, MAX_ROUNDS, Q_BALANCED
     from lcpcli.core.tolerances import PIVOT_TOL, POLISHED, TIE_TOL
-    from lcpcli.solvers.methods.lemke import covering_vector, default_max_iter
 
-    return {"d": covering_vector(n, options.get("covering")),
-            "max_iter": int(options.get("max_iter") or default_max_iter(n)),
+    p = kernel_params("lemke", n, options)
+    return {"d": p["covering"], "max_iter": p["max_iter"],
             "piv_tol": PIVOT_TOL, "tie_tol": TIE_TOL, "polished": POLISHED,
             "balance": None if scaling == "none" else (BALANCED, Q_BALANCED, MAX_ROUNDS)}
 
 
 def sor_args(options: Mapping[str, Any]) -> dict[str, Any]:
-    """The SOR kernel's ``omega`` and ``max_iter`` (as the ``"cpu"`` kernel reads them)."""
-    from lcpcli.solvers.methods.pgs import DEFAULT_MAX_ITER
-
-    return {"omega": float(options.get("omega") or 1.0),
-            "max_iter": int(options.get("max_iter") or DEFAULT_MAX_ITER)}
+    """The SOR kernel's ``omega`` and ``max_iter`` (as the ``"cpu"`` kernel reads them; they do
+    not depend on n)."""
+    return kernel_params("sor", 0, options)
 
 
 def start_point(lower: Any, upper: Any, z: np.ndarray) -> None:

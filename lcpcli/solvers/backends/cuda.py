@@ -316,7 +316,7 @@ def solve_many_device(M: Any, q: Any, method: str | None, *, tol: float | None,
     DLPack); ``status``, ``iterations``, ``error``, ``residual`` are host arrays (K,).  Only
     the problems the device hands back are copied to the host (and solved there by
     ``solve_many(..., backend="cpu")``, whose verdicts they get)."""
-    from lcpcli import api
+    from lcpcli import stacks
     from lcpcli.core.certificate import validate_tol
     from lcpcli.core.errors import ProblemError
     from lcpcli.core.result import STATUS_CODES, StackResult, Status
@@ -341,8 +341,8 @@ def solve_many_device(M: Any, q: Any, method: str | None, *, tol: float | None,
     tol = validate_tol(spec.default_tol if tol is None else tol)
     qh = qd.get()
     loh, uph = (None, None) if lo is None else (lo.get(), up.get())
-    run_spec, kernel_options = api._batched_method(spec, kind, options, _HostRows(Md), qh,
-                                                   loh, uph)
+    run_spec, kernel_options = stacks._batched_method(spec, kind, options, _HostRows(Md), qh,
+                                                      loh, uph)
     if run_spec is None:
         raise OptionError(f"method '{spec.name}' (with these options) has no batched kernel: "
                           f"give the stack as host arrays")
@@ -362,10 +362,10 @@ def solve_many_device(M: Any, q: Any, method: str | None, *, tol: float | None,
     retried = np.zeros(K, bool)
     if retry.size:
         rd = cp.asarray(retry)
-        sub = api.solve_many(Md[rd].get(), qh[retry], spec.name, tol=tol,
-                             lower=None if loh is None else loh[retry],
-                             upper=None if uph is None else uph[retry], threads=threads,
-                             backend="cpu", on_error=on_error, **options)
+        sub = stacks.solve_many(Md[rd].get(), qh[retry], spec.name, tol=tol,
+                                lower=None if loh is None else loh[retry],
+                                upper=None if uph is None else uph[retry], threads=threads,
+                                backend="cpu", on_error=on_error, **options)
         o["z"][rd] = cp.asarray(sub.z)
         o["w"][rd] = cp.asarray(sub.w)
         status[retry], iterations[retry] = sub.status, sub.iterations

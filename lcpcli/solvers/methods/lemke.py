@@ -17,6 +17,7 @@ the conditioning of the basic block, not to the accumulated tableau updates.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -54,6 +55,13 @@ def covering_vector(n: int, covering: np.ndarray | None) -> np.ndarray | None:
 def default_max_iter(n: int) -> int:
     """Pivot limit when none is given: generous, but finite (Murty's family needs 2^n)."""
     return max(1000, 100 * n)
+
+
+def batch_params(n: int, options: Mapping[str, Any]) -> dict[str, Any]:
+    """The batched ``lemke`` kernel's parameters (:attr:`BatchSpec.params`): the covering
+    vector (None: all ones) and the pivot limit (default :func:`default_max_iter`)."""
+    return {"covering": covering_vector(n, options.get("covering")),
+            "max_iter": int(options.get("max_iter") or default_max_iter(n))}
 
 
 def run(problem: Any, *, tol: float, covering: np.ndarray | None = None,
@@ -165,6 +173,6 @@ METHODS = [
         },
         scaling="auto",
         prepare=bind_numpy_lapack,  # LAPACK from numpy's OpenBLAS, bound before timing
-        batch=BatchSpec("lemke", ("covering", "max_iter")),
+        batch=BatchSpec("lemke", ("covering", "max_iter"), params=batch_params),
     ),
 ]

@@ -37,6 +37,7 @@ from lcpcli.solvers.methods.lemke import (
     GUARANTEES,
     PIVOT_TOL,
     TIE_TOL,
+    batch_params,
     covering_vector,
     default_max_iter,
     ray_outcome,
@@ -147,6 +148,7 @@ METHODS = [
         # never scipy.linalg (kernels/dense.pyx)
         prepare=bind_numpy_lapack,
         # stacks: the tableau kernel (same lexicographic pivot rule; faster for small n)
-        batch=BatchSpec("lemke", ("covering", "max_iter"), runs_as="lemke-tableau"),
+        batch=BatchSpec("lemke", ("covering", "max_iter"), runs_as="lemke-tableau",
+                        params=batch_params),
     ),
 ]

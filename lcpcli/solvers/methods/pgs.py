@@ -25,6 +25,7 @@ that is not a solution) instead of running to the sweep limit.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -53,6 +54,14 @@ DEFAULT_OMEGA = 1.3
 #: best normwise error after a block fell by less than STALL_DECREASE (relative) over the last
 #: STALL_WINDOW blocks (1,000 sweeps).
 STALL_BLOCK, STALL_WINDOW, STALL_DECREASE = 50, 20, 1e-3
+
+
+def batch_params(n: int, options: Mapping[str, Any]) -> dict[str, Any]:
+    """The batched ``sor`` kernel's parameters (:attr:`BatchSpec.params`; n does not enter):
+    the relaxation ``omega`` (default 1, Gauss-Seidel) and the sweep limit (default
+    :data:`DEFAULT_MAX_ITER`)."""
+    return {"omega": float(options.get("omega") or 1.0),
+            "max_iter": int(options.get("max_iter") or DEFAULT_MAX_ITER)}
 
 
 def run_sor(problem: Any, *, tol: float, omega: float = 1.0, max_iter: int | None = None,
@@ -242,7 +251,7 @@ METHODS = [
         kinds=("lcp", "box"),
         sparse=True,
         options=dict(_COMMON),
-        batch=BatchSpec("sor", ("max_iter",), kinds=("lcp", "box")),
+        batch=BatchSpec("sor", ("max_iter",), kinds=("lcp", "box"), params=batch_params),
     ),
     Method(
         name="psor",
@@ -262,6 +271,7 @@ METHODS = [
         options={"omega": Option(omega_option, DEFAULT_OMEGA,
                                  f"relaxation, 0 < omega < 2 (default {DEFAULT_OMEGA})"),
                  **_COMMON},
-        batch=BatchSpec("sor", ("omega", "max_iter"), kinds=("lcp", "box")),
+        batch=BatchSpec("sor", ("omega", "max_iter"), kinds=("lcp", "box"),
+                        params=batch_params),
     ),
 ]
