@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 
 from lcpcli.api import check_dense_work, solve
-from lcpcli.core.certificate import check, validate_tol
+from lcpcli.core.certificate import check
 from lcpcli.core.errors import LcpError, OptionError
 from lcpcli.core.numeric import check_dtype
 from lcpcli.core.problem import Problem, check_bounds, check_n_eq, default_bound, problem_kind
@@ -27,8 +27,8 @@ from lcpcli.core.result import (
     Termination,
 )
 from lcpcli.core.text import option_name
-from lcpcli.solvers import DEFAULT_METHOD
 from lcpcli.solvers.registry import Method, get_method
+from lcpcli.solvers.request import check_kind, method_of, resolve_tol
 
 #: Problems of a stack that ``auto`` classifies to choose the stack's method.
 AUTO_SAMPLE = 8
@@ -72,10 +72,8 @@ def _check_stack(M: Any, q: Any, method: str | None, lower: Any, upper: Any, n_e
     n_eq = check_n_eq(n_eq, n, bounded=lower is not None or upper is not None)
     lower, upper = _stack_bounds(lower, upper, K, n)
     kind = problem_kind(n_eq, lower is not None)
-    spec = get_method(DEFAULT_METHOD if method is None else method)
-    if kind not in spec.kinds:
-        raise OptionError(f"method '{spec.name}' does not handle {kind.upper()} problems "
-                          f"(it handles: {', '.join(k.upper() for k in spec.kinds)})")
+    spec = method_of(method)
+    check_kind(spec, kind)
     spec.parse_options(options)  # unknown options and bad values: OptionError before any work
     check_dense_work(n, spec)  # K problems of dense work each: the budget of one
     return M, q, lower, upper, n_eq, spec, kind
@@ -154,7 +152,7 @@ def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None =
     K, n = q.shape
     if plan is not None and plan.method != spec.name:
         raise OptionError(f"plan= was made for method '{plan.method}', not '{spec.name}'")
-    tol = validate_tol(spec.default_tol if tol is None else tol)
+    tol = resolve_tol(spec, tol)
     if threads is None:
         threads = default_threads()
     elif not (isinstance(threads, int) and threads >= 1):

@@ -26,7 +26,6 @@ from typing import Any
 import numpy as np
 
 from lcpcli.core.errors import OptionError
-from lcpcli.solvers import DEFAULT_METHOD
 from lcpcli.solvers.backends import SOURCE
 from lcpcli.solvers.backends.c import lemke_args, retry_on_cpu, sor_args
 from lcpcli.solvers.batched import KERNEL_RETRY, KERNEL_SOLVED, Backend, StackOut
@@ -317,10 +316,9 @@ def solve_many_device(M: Any, q: Any, method: str | None, *, tol: float | None,
     the problems the device hands back are copied to the host (and solved there by
     ``solve_many(..., backend="cpu")``, whose verdicts they get)."""
     from lcpcli import stacks
-    from lcpcli.core.certificate import validate_tol
     from lcpcli.core.errors import ProblemError
     from lcpcli.core.result import STATUS_CODES, StackResult, Status
-    from lcpcli.solvers.registry import get_method
+    from lcpcli.solvers.request import check_kind, method_of, resolve_tol
 
     start = time.perf_counter()
     cp = require_cupy()
@@ -333,12 +331,11 @@ def solve_many_device(M: Any, q: Any, method: str | None, *, tol: float | None,
                           "MLCP (n_eq > 0) as host arrays")
     K, n = qd.shape
     lo, up = _bounds(lower, upper, K, n, cp)
-    spec = get_method(DEFAULT_METHOD if method is None else method)
+    spec = method_of(method)
     kind = "box" if lo is not None else "lcp"
-    if kind not in spec.kinds:
-        raise OptionError(f"method '{spec.name}' does not handle {kind.upper()} problems")
+    check_kind(spec, kind)
     spec.parse_options(options)
-    tol = validate_tol(spec.default_tol if tol is None else tol)
+    tol = resolve_tol(spec, tol)
     qh = qd.get()
     loh, uph = (None, None) if lo is None else (lo.get(), up.get())
     run_spec, kernel_options = stacks._batched_method(spec, kind, options, _HostRows(Md), qh,
