@@ -299,6 +299,21 @@ def _run_one(path: str, info: Any, opts: SolveOptions, report: BatchReport, tall
 
         parts = iter_stack_dask(path, info, opts, done, scheduler, chunk=chunk,
                                 digest=writer is not None)
+    try:
+        _consume(path, stem, info, parts, report, tally, stats, writer, chunk=chunk,
+                 on_progress=on_progress, on_row=on_row, write=write)
+    finally:
+        # closed here, not when the garbage collector finds it: closing joins the reader
+        # thread, which must not happen inside h5py (its lock held) on some later line
+        close = getattr(parts, "close", None)
+        if close is not None:
+            close()
+
+
+def _consume(path: str, stem: str, info: Any, parts: Any, report: BatchReport, tally: Tally,
+             stats: BatchStats, writer: Any, *, chunk: int, on_progress: Any, on_row: Any,
+             write: Any) -> None:
+    """Write, tally and report each solved chunk of ``parts`` in order."""
     for start, todo, names, digest, res, read_s, solve_s in parts:
         stats.read_seconds += read_s
         stats.solve_seconds += solve_s
