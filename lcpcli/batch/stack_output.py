@@ -46,7 +46,9 @@ from typing import Any
 
 import numpy as np
 
-from lcpcli.batch.output import DIGEST_BYTES, new_digest
+from lcpcli.batch import output
+from lcpcli.batch.output import DIGEST_BYTES, INPUT_HASH, checked_output, hdf5_text, new_digest
+from lcpcli.batch.records import options_difference
 from lcpcli.core.errors import OptionError, ProblemError
 from lcpcli.core.result import NOT_DONE, STATUS_CODES, status_counts
 from lcpcli.io.writing import (
@@ -91,7 +93,6 @@ def options_fingerprint(opts: Any) -> str:
 
 
 def _text(text: Any) -> str:
-    from lcpcli.batch.output import hdf5_text
 
     return hdf5_text(text)
 
@@ -421,9 +422,9 @@ class RowStackWriter:
     wants_rows = True
 
     def __init__(self, path: Path, infos: list[Any], resume: bool, options: str = "{}") -> None:
-        from lcpcli.batch import output
 
         self.path = path
+        self.options = options  # each row's solve_options: --resume refuses other settings
         self.finished: dict[str, list[dict[str, Any]]] = {}
         if resume and own_file(path) is not None:
             for row in output.read_rows(path):
@@ -440,14 +441,19 @@ class RowStackWriter:
                 if isinstance(r.get("index"), int) and 0 <= r["index"] < info.K]
 
     def recorded(self, info: Any) -> dict[int, bytes]:
-        from lcpcli.batch.output import INPUT_HASH
 
         chunk, out = self.chunk(info), {}
         for row in self._rows(info):
-            if INPUT_HASH not in row:
-                raise ProblemError(f"holds results of {info.path} without the fingerprint of "
-                                   f"their input (written by an older lcpcli), so they cannot "
-                                   f"be checked against it; {_RERUN}", str(self.path))
+            if INPUT_HASH not in row or output.SOLVE_OPTIONS not in row:
+                raise ProblemError(f"holds results of {info.path} without the fingerprints of "
+                                   f"their input and solve options (written by an older "
+                                   f"lcpcli), so they cannot be checked against them; {_RERUN}",
+                                   str(self.path))
+            if str(row[output.SOLVE_OPTIONS]) != self.options:
+                was = str(row[output.SOLVE_OPTIONS])
+                raise ProblemError(f"holds results of {info.path} computed with other "
+                                   f"settings: {options_difference(was, self.options)}; give "
+                                   f"the same settings, or {_RERUN}", str(self.path))
             try:
                 digest = bytes.fromhex(str(row[INPUT_HASH]))
             except ValueError:
@@ -475,9 +481,9 @@ class RowStackWriter:
 
     def write(self, info: Any, positions: np.ndarray, names: list[str] | None, res: Any,
               rows: list[dict[str, Any]], chunk_no: int, digest: bytes) -> None:
-        from lcpcli.batch.output import INPUT_HASH
 
-        self.writer.write([{**row, INPUT_HASH: digest.hex()} for row in rows])
+        self.writer.write([{**row, INPUT_HASH: digest.hex(), output.SOLVE_OPTIONS: self.options}
+                           for row in rows])
 
     def close(self) -> None:
         self.writer.close()
@@ -487,7 +493,6 @@ def open_stack_writer(path: str | Any, infos: list[Any], *, resume: bool,
                       options: str = "{}", threads: int = 1) -> Any:
     """The writer for a stacked batch's ``--output`` (kind by extension); ``options`` is the
     :func:`options_fingerprint` of the run; ``threads`` the solver's (:func:`batch_chunk`)."""
-    from lcpcli.batch.output import checked_output
 
     path, kind = checked_output(path)
     if kind == "hdf5":

@@ -56,17 +56,24 @@ def test_resume_against_another_stack_is_refused(cli, tmp_path, ext):
     assert out.read_bytes() == before
 
 
-def test_resume_with_other_options_is_refused(cli, tmp_path):
+@pytest.mark.parametrize("ext", ["h5", "npz", "jsonl", "csv"])
+def test_resume_with_other_options_is_refused(cli, tmp_path, ext):
+    """A stacked result (file or rows) resumed with another tol or method: one line, the
+    file unchanged (row outputs kept results of another method before); the same settings:
+    every problem skipped."""
     M, q = pd_stack(50, 4)
     stack = tmp_path / "s.h5"
     write_stack(stack, M, q)
-    for ext in ("h5", "npz"):
-        out = tmp_path / f"r.{ext}"
-        assert cli("solve", str(stack), "-o", str(out)).returncode == 0
-        one_line(cli("solve", str(stack), "-o", str(out), "--resume", "--tol", "1e-6"),
-                 "computed with")
-        one_line(cli("solve", str(stack), "-o", str(out), "--resume", "-m", "lemke"),
-                 "computed with")
+    out = tmp_path / f"r.{ext}"
+    assert cli("solve", str(stack), "-o", str(out)).returncode == 0
+    before = out.read_bytes()
+    one_line(cli("solve", str(stack), "-o", str(out), "--resume", "--tol", "1e-6"),
+             "computed with")
+    one_line(cli("solve", str(stack), "-o", str(out), "--resume", "-m", "pgs"),
+             "computed with")
+    assert out.read_bytes() == before
+    res = cli("solve", str(stack), "-o", str(out), "--resume", "--json")
+    assert res.returncode == 0 and json.loads(res.stdout.splitlines()[-1])["skipped"] == 50
 
 
 def test_results_without_fingerprint_are_refused(cli, tmp_path):
