@@ -6,16 +6,25 @@ is :func:`lcpcli.api.solve`."""
 from __future__ import annotations
 
 import time
+from collections import Counter
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
+from lcpcli.analysis.classify import Classifier
 from lcpcli.api import check_dense_work, solve
 from lcpcli.core.certificate import check
-from lcpcli.core.errors import LcpError, OptionError
+from lcpcli.core.errors import LcpError, OptionError, ProblemError
 from lcpcli.core.numeric import check_dtype
-from lcpcli.core.problem import Problem, check_bounds, check_n_eq, default_bound, problem_kind
+from lcpcli.core.problem import (
+    Problem,
+    check_bounds,
+    check_n_eq,
+    check_size,
+    default_bound,
+    problem_kind,
+)
 from lcpcli.core.result import (
     CONVERGED,
     SOLVED,
@@ -59,8 +68,6 @@ def plan_stack(M: Any, q: Any, method: str | None = None, *, lower: Any = None,
 def _check_stack(M: Any, q: Any, method: str | None, lower: Any, upper: Any, n_eq: Any,
                  options: dict[str, Any]) -> tuple[Any, ...]:
     """Arrays, bounds, n_eq, method and kind of a stack, checked (ProblemError/OptionError)."""
-    from lcpcli.core.errors import ProblemError
-    from lcpcli.core.problem import check_size
 
     M = _stack_array(M, 3, "M")
     q = _stack_array(q, 2, "q")
@@ -124,7 +131,6 @@ def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None =
     naming its index; problems before it are solved first) or ``"mark"`` (its status is
     ``error``; batch runs use this).
     """
-    from lcpcli.core.errors import ProblemError
     from lcpcli.solvers.batched import (
         KERNEL_SOLVED,
         StackOut,
@@ -327,7 +333,6 @@ def _on_device(a: Any) -> bool:
 def _stack_array(a: Any, ndim: int, label: str) -> np.ndarray:
     """``a`` as a C-contiguous float64 array of ``ndim`` dimensions (the data rule of
     :mod:`lcpcli.core.numeric`: real numbers only)."""
-    from lcpcli.core.errors import ProblemError
 
     arr = np.asarray(a)
     check_dtype(arr.dtype, label)
@@ -342,7 +347,6 @@ def _stack_bounds(lower: Any, upper: Any, K: int,
     """Bounds of shape (n,) or (K, n) as (K, n) arrays, checked by the rules of one problem's
     (:func:`lcpcli.core.problem.check_bounds`; a missing one by the one-sided bounds rule,
     :func:`lcpcli.core.problem.default_bound`)."""
-    from lcpcli.core.errors import ProblemError
 
     if lower is None and upper is None:
         return None, None
@@ -389,9 +393,7 @@ def _auto_choice(M: np.ndarray, q: np.ndarray, lower: np.ndarray | None,
     """The method ``auto`` would try first on most of a sample of the stack (problems with
     ``q >= 0`` and no bounds are skipped: z = 0 solves them; so are problems with NaN or Inf
     data), or None."""
-    from collections import Counter
 
-    from lcpcli.analysis.classify import Classifier
     from lcpcli.solvers import policy
 
     candidates = np.arange(q.shape[0]) if lower is not None else \

@@ -14,6 +14,7 @@ import numpy as np
 from lcpcli.batch.pool import make_chunks
 from lcpcli.batch.records import SolveOptions, Task, error_row
 from lcpcli.batch.worker import prepare_method, solve_tasks
+from lcpcli.core.errors import OptionError
 
 
 def _dask_chunk(tasks: list[Task], opts: SolveOptions,
@@ -51,7 +52,6 @@ def _connected(address: Any) -> Iterator[Any]:
     try:
         from distributed import Client
     except ImportError:
-        from lcpcli.core.errors import OptionError
 
         raise OptionError("--scheduler needs dask.distributed: pip install 'lcpcli[dask]'") \
             from None
@@ -60,7 +60,6 @@ def _connected(address: Any) -> Iterator[Any]:
         try:
             client = Client(address, timeout="20s", set_as_default=False)
         except (OSError, TimeoutError, ValueError) as exc:
-            from lcpcli.core.errors import OptionError
 
             raise OptionError(f"cannot reach the Dask scheduler at {address}: "
                               f"{str(exc).splitlines()[0] if str(exc) else type(exc).__name__}") \

@@ -10,7 +10,7 @@ from typing import Any
 
 from lcpcli.batch.records import Task, error_row
 from lcpcli.core.errors import ProblemError
-from lcpcli.io import PROBLEM_EXTENSIONS
+from lcpcli.io import PROBLEM_EXTENSIONS, detect_format, list_problems
 from lcpcli.io.files import check_input_file
 
 #: Characters that make an argument a glob pattern (when no file has that name).
@@ -29,7 +29,6 @@ def expand_inputs(inputs: Iterable[str], *, recursive: bool = False,
     missing), a directory named like a problem file (``x.json/``), a folder holding no problem
     file, a glob matching nothing.
     """
-    from lcpcli.io import detect_format, list_problems
 
     tasks: list[Task] = []
     errors: list[dict[str, Any]] = []

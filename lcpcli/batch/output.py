@@ -56,6 +56,8 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from lcpcli.core.errors import OptionError, OutputError, ProblemError
 from lcpcli.core.numeric import json_text
 from lcpcli.io.files import open_input
@@ -540,7 +542,6 @@ class ReplacingWriter:
 
 
 def _write_group(f: Any, row: dict[str, Any], names: set[str]) -> None:
-    import numpy as np
 
     base = _group_name(row.get("problem", ""))
     name, k = base, 1

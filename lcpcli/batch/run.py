@@ -16,6 +16,8 @@ from lcpcli.batch.pool import iter_local
 from lcpcli.batch.records import SolveOptions, key, options_difference
 from lcpcli.batch.report import BatchReport, BatchStats, Tally
 from lcpcli.batch.worker import prepare_method
+from lcpcli.core.errors import OptionError, ProblemError
+from lcpcli.io import check_output, output_lock
 
 
 @contextlib.contextmanager
@@ -74,7 +76,6 @@ def run_batch(inputs: Iterable[str], opts: SolveOptions, *, recursive: bool = Fa
     gets rows only when given, and ``on_progress(count, counts)`` follows each chunk.  A batch
     is either all stacks or no stack.
     """
-    from lcpcli.core.errors import OptionError
 
     if timeout is not None and not (timeout > 0 and math.isfinite(timeout)):
         raise OptionError(f"--timeout must be a positive number of seconds, got {timeout}")
@@ -95,7 +96,6 @@ def run_batch(inputs: Iterable[str], opts: SolveOptions, *, recursive: bool = Fa
     stacked = _stacked_inputs(inputs, timeout=timeout)
     if output is not None:
         from lcpcli.batch import output as batch_output
-        from lcpcli.io import check_output
 
         batch_output.output_kind(output)
         check_output(output, inputs=inputs)  # a link, a device, a directory or an input: refused
@@ -114,7 +114,6 @@ def run_batch(inputs: Iterable[str], opts: SolveOptions, *, recursive: bool = Fa
     if output is not None:  # never read our own result file back as an input
         own = _identity(output)
         if any(_identity(t.source) == own for t in tasks):
-            from lcpcli.core.errors import ProblemError
 
             raise ProblemError("holds problems of this batch (it was found among the inputs): "
                                "choose another output file", str(output))
@@ -124,7 +123,6 @@ def run_batch(inputs: Iterable[str], opts: SolveOptions, *, recursive: bool = Fa
                          output=None if output is None else str(output))
     with contextlib.ExitStack() as held:
         if output is not None:
-            from lcpcli.io import output_lock
 
             held.enter_context(output_lock(output))  # a second writer is refused here
         return _run(tasks, bad_inputs, opts, report, output=output, resume=resume,
@@ -134,7 +132,6 @@ def run_batch(inputs: Iterable[str], opts: SolveOptions, *, recursive: bool = Fa
 
 def _stacked_inputs(inputs: list[str], *, timeout: float | None) -> bool:
     """Whether this is a batch of stacked files (all of them; a mix is refused)."""
-    from lcpcli.core.errors import OptionError
     from lcpcli.io.stack import is_stack
 
     flags = [is_stack(i) for i in inputs]
@@ -167,7 +164,6 @@ def _run_stacked(inputs: list[str], opts: SolveOptions, *, output: Any, resume: 
 
     with contextlib.ExitStack() as held:
         if output is not None:
-            from lcpcli.io import output_lock
 
             held.enter_context(output_lock(output))
         report.setup_seconds = time.perf_counter() - start
@@ -189,7 +185,6 @@ def _check_fingerprint(row: dict[str, Any], now: str | None, options: str, outpu
     with other solve options (``options``: this run's fingerprint of them), or from a row
     without these fingerprints (written by an older lcpcli)."""
     from lcpcli.batch.output import INPUT_HASH, SOLVE_OPTIONS
-    from lcpcli.core.errors import ProblemError
 
     if INPUT_HASH not in row or SOLVE_OPTIONS not in row:
         raise ProblemError("holds results without the fingerprint of their inputs and solve "

@@ -27,6 +27,7 @@ import numpy as np
 from lcpcli.batch.records import SolveOptions, error_row
 from lcpcli.batch.report import BatchReport, BatchStats, Tally
 from lcpcli.core.errors import ProblemError
+from lcpcli.core.result import STATUS_CODES, STATUS_OF_CODE, Status
 
 
 def _problem_name(stem: str, k: int, names: list[str] | None, i: int) -> str:
@@ -40,7 +41,6 @@ def result_rows(source: str, stem: str, positions: np.ndarray, names: list[str] 
                 res: Any) -> list[dict[str, Any]]:
     """The batch rows of a solved chunk (the ``solve --json`` fields a stack keeps, plus
     ``source``, ``problem`` and ``index``, the 0-based position in the stack)."""
-    from lcpcli.core.result import STATUS_OF_CODE
 
     per = res.seconds / max(1, len(res))
     n = int(res.z.shape[1])
@@ -339,7 +339,6 @@ def add_to_tally(tally: Tally, source: str, stem: str, positions: np.ndarray,
     """Counts, the worst errors and the first error messages of a chunk, without rows."""
     import heapq
 
-    from lcpcli.core.result import STATUS_CODES, Status
 
     tally.add_counts(res.counts())
     ok = res.status != STATUS_CODES[Status.ERROR]

@@ -11,12 +11,21 @@ from __future__ import annotations
 import os
 import signal
 import sys
+import threading
 import time
 from pathlib import Path
 from typing import Any
 
-from lcpcli.cli.common import duration, plural
-from lcpcli.core.errors import EXIT_INTERRUPTED, EXIT_TERMINATED
+from lcpcli.cli.common import (
+    duration,
+    pending_exit,
+    plural,
+    progress_allowed,
+    stderr_console,
+    stdout_console,
+    write_json_line,
+)
+from lcpcli.core.errors import EXIT_INTERRUPTED, EXIT_TERMINATED, OptionError, ProblemError
 
 #: Up to this many problems, the batch summary lists every problem with its status.
 FEW_PROBLEMS = 20
@@ -74,7 +83,6 @@ def wants_batch(files: list[str], output: Any, *, problem: str | None = None,
 
 def _holds_several_problems(path: str) -> bool:
     """An HDF5 file with more than one problem group (errors: False, the solve reports them)."""
-    from lcpcli.core.errors import ProblemError
     from lcpcli.io import detect_format, list_problems
 
     try:
@@ -99,14 +107,6 @@ def run_batch_command(files: list[str], *, method: str, tol: float | None,
     """Run the batch, show progress and the summary; return the exit code (0/1/2, 130, 143)."""
     from lcpcli.batch.records import SolveOptions
     from lcpcli.batch.run import run_batch
-    from lcpcli.cli.common import (
-        pending_exit,
-        progress_allowed,
-        stderr_console,
-        stdout_console,
-        write_json_line,
-    )
-    from lcpcli.core.errors import OptionError
     from lcpcli.core.result import Status  # imports numpy: not at --help time
 
     if problem is not None:
@@ -244,6 +244,5 @@ def _maybe_estimate(state: dict[str, Any], quiet: bool) -> None:
 
 
 def _main_thread() -> bool:
-    import threading
 
     return threading.current_thread() is threading.main_thread() and os.name == "posix"

@@ -10,8 +10,23 @@ from typing import Any
 
 import typer
 
-from lcpcli.cli.common import MethodListCommand
-from lcpcli.core.errors import EXIT_INTERNAL, EXIT_INTERRUPTED, EXIT_NOT_SOLVED, EXIT_OK
+from lcpcli.cli.common import (
+    MethodListCommand,
+    duration,
+    pending_exit,
+    plural,
+    progress_allowed,
+    stderr_console,
+    stdout_console,
+    write_json_line,
+)
+from lcpcli.core.errors import (
+    EXIT_INTERNAL,
+    EXIT_INTERRUPTED,
+    EXIT_NOT_SOLVED,
+    EXIT_OK,
+    OptionError,
+)
 
 #: Largest ``--n`` of each built-in suite (hard: dense 4n x 4n families, Murty's needs 2^n
 #: pivots; random: its largest size; siconos: any, it only skips larger files).
@@ -23,7 +38,6 @@ ESTIMATE_AFTER_SECONDS = 10.0
 
 
 def _floats(text: str, label: str) -> list[float]:
-    from lcpcli.core.errors import OptionError
 
     try:
         vals = [float(x) for x in text.replace(";", ",").split(",") if x.strip()]
@@ -81,8 +95,6 @@ def bench(
     process died (an internal error; the rows say which).
     """
     from lcpcli.bench import runner as B
-    from lcpcli.cli.common import stderr_console, stdout_console, write_json_line
-    from lcpcli.core.errors import OptionError
 
     tols = _floats(tol, "--tol")
     if any(not (math.isfinite(t) and t > 0) for t in tols):
@@ -163,7 +175,6 @@ def bench(
         title += f" (interrupted after {tracker.done:,} of {tracker.total:,} runs)"
         sys.stderr.write(f"lcpcli: interrupted after {tracker.done:,} of {tracker.total:,} "
                          f"runs; the report below covers those\n")
-    from lcpcli.cli.common import pending_exit
 
     code = pending_exit(EXIT_INTERRUPTED if interrupted else EXIT_NOT_SOLVED if report.defects
                         else EXIT_INTERNAL if report.errors else EXIT_OK)
@@ -214,10 +225,8 @@ class _Tracker:
         self._task: Any = None
 
     def __enter__(self) -> _Tracker:
-        from lcpcli.cli.common import plural
 
         self._start = time.perf_counter()
-        from lcpcli.cli.common import progress_allowed
 
         if progress_allowed():
             from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn
@@ -234,7 +243,6 @@ class _Tracker:
         return self
 
     def record(self, rec: Any) -> None:
-        from lcpcli.cli.common import duration
 
         if rec.peer:
             key = (rec.problem, rec.tol, rec.peer)

@@ -3,11 +3,13 @@ multi-contact ``M = J W J^T``)."""
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import typer
 
-from lcpcli.cli.common import MethodListCommand
+from lcpcli.cli.common import MethodListCommand, exit_code_for, stdout_console, write_json_line
+from lcpcli.core.errors import OptionError, ProblemError
 from lcpcli.solvers import DEFAULT_METHOD
 
 
@@ -67,14 +69,11 @@ def contact_matrix(
     contact get unknowns; --solve solves one LCP per island. Exit codes: 0 built (and solved
     with --solve); 1 not solved; 2 bad scene or options; 3 internal error.
     """
-    import sys
 
-    from lcpcli.cli.common import exit_code_for, write_json_line
     from lcpcli.contact import build, load_scene, solve, to_json
     from lcpcli.contact.model import check_method
     from lcpcli.contact.scene import with_kinematic
     from lcpcli.contact.warmstart import check_impulses_path, warm_start, write_impulses
-    from lcpcli.core.errors import OptionError, ProblemError
     from lcpcli.io import check_output
     from lcpcli.io.writing import check_distinct
 
@@ -125,7 +124,6 @@ def contact_matrix(
     if as_json:
         write_json_line(to_json(clcp, impact))
     else:
-        from lcpcli.cli.common import stdout_console
         from lcpcli.cli.render.contact import render_impact, render_scene
 
         console = stdout_console()

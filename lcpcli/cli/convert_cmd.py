@@ -6,7 +6,7 @@ from pathlib import Path
 
 import typer
 
-from lcpcli.core.errors import EXIT_OK
+from lcpcli.core.errors import EXIT_OK, ProblemError
 
 
 def convert(
@@ -41,7 +41,6 @@ def convert(
     inode), a symbolic link, a directory or a device, whatever --force says. Exit codes: 0
     done; 2 bad usage or bad input.
     """
-    from lcpcli.core.errors import ProblemError
     from lcpcli.io import (
         PROBLEM_EXTENSIONS,
         atomic_path,

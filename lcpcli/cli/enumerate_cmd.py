@@ -9,8 +9,16 @@ from typing import Any
 
 import typer
 
-from lcpcli.cli.export import EXACT_HELP
-from lcpcli.core.errors import EXIT_INTERRUPTED, EXIT_NOT_SOLVED, EXIT_SOLVED
+from lcpcli.cli.common import (
+    duration,
+    pending_exit,
+    progress_allowed,
+    stderr_console,
+    stdout_console,
+    write_json_line,
+)
+from lcpcli.cli.export import EXACT_HELP, check_export_options, check_format, exact_cones
+from lcpcli.core.errors import EXIT_INTERRUPTED, EXIT_NOT_SOLVED, EXIT_SOLVED, OptionError
 
 #: Above this n, ``--all-cones`` is refused for the terminal table.
 ALL_CONES_TABLE_MAX_N = 12
@@ -60,9 +68,6 @@ def enumerate_command(
     1 no solution; 2 bad usage or bad input; 3 internal error.
     """
     from lcpcli.analysis.enumeration import check_problem, covers_plane, enumerate_cones
-    from lcpcli.cli.common import pending_exit, write_json_line
-    from lcpcli.cli.export import check_export_options, check_format
-    from lcpcli.core.errors import OptionError
     from lcpcli.core.numeric import json_text
     from lcpcli.io import check_output, load, write_atomic_text
     from lcpcli.io.writing import check_distinct
@@ -125,7 +130,6 @@ def enumerate_command(
     if output_path is not None and fmt == "text":
         write_atomic_text(output_path, json_text(payload) + "\n")
     if not as_json or fmt != "text":  # the tables in fractions; the JSON above keeps floats
-        from lcpcli.cli.export import exact_cones
 
         res, M = exact_cones(prob, exact, res, M)
     if fmt != "text":
@@ -142,7 +146,6 @@ def enumerate_command(
     if as_json:
         write_json_line(payload)
     elif fmt == "text":
-        from lcpcli.cli.common import stdout_console
         from lcpcli.cli.render.enumerate import draw_cones_text, render_enumeration
 
         drawing = draw_cones_text(M, prob.q, path=path) if n == 2 else None
@@ -185,20 +188,17 @@ class _Progress:
         self.done = done
         elapsed = time.perf_counter() - self._start
         if not self._estimated and self.total >= ESTIMATE_FROM_CONES and 0 < done < total:
-            from lcpcli.cli.common import duration
 
             self._estimated = True
             rate = done / max(elapsed, 1e-9)
             sys.stderr.write(f"lcpcli: about {duration((total - done) / rate)} to go at "
                              f"{rate:,.0f} cones/s\n")
         if self._bar is None:
-            from lcpcli.cli.common import progress_allowed
 
             if elapsed < 1.0 or done >= total or not progress_allowed():
                 return
             from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
-            from lcpcli.cli.common import stderr_console
 
             self._bar = Progress(TextColumn("cones"), BarColumn(),
                                  TextColumn("{task.completed:,}/{task.total:,}"),

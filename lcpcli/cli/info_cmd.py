@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import typer
 
+from lcpcli.cli.common import stdout_console, write_json_line
 from lcpcli.core.errors import EXIT_OK
 
 
@@ -31,11 +32,9 @@ def info(
     prob = load(file, problem, check_dense=budget)  # from the header, before M is read
     report = info_report(prob, file)
     if as_json:
-        from lcpcli.cli.common import write_json_line
 
         write_json_line(report)
     else:
-        from lcpcli.cli.common import stdout_console
         from lcpcli.cli.render.info import render_info
 
         stdout_console().print(render_info(report))

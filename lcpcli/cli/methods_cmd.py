@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import typer
 
+from lcpcli.cli.common import stdout_console, write_json_line
 from lcpcli.core.errors import EXIT_OK
 
 
@@ -20,7 +21,6 @@ def methods_command(
 
     registry = methods()
     if as_json:
-        from lcpcli.cli.common import write_json_line
 
         write_json_line([{"name": m.name, "aliases": list(m.aliases), "summary": m.summary,
                           "classes": m.matrix_classes, "kinds": list(m.kinds),
@@ -38,7 +38,6 @@ def methods_command(
                               "runs_as": m.batch.runs_as or m.name}}
                          for m in registry.values()])
         return EXIT_OK
-    from lcpcli.cli.common import stdout_console
     from lcpcli.cli.render.common import render_methods
 
     stdout_console().print(render_methods(registry))

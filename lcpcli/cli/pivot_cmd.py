@@ -3,13 +3,15 @@ sequence of bases."""
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 from typing import Any
 
 import typer
 
-from lcpcli.cli.export import EXACT_HELP
-from lcpcli.core.errors import EXIT_OK
+from lcpcli.cli.common import stdout_console, write_json_line
+from lcpcli.cli.export import EXACT_HELP, check_export_options, check_format, emit, note
+from lcpcli.core.errors import EXIT_OK, OptionError, ProblemError
 
 
 def pivot(
@@ -64,11 +66,8 @@ def pivot(
     names the blocking variable and the next Lemke step. Exit codes: 0 done; 2 bad input
     (bad basis, singular M^{alpha beta}, bad file, bad option).
     """
-    import sys
 
     from lcpcli.analysis.pivoting import parse_tuple, parse_var, principal_pivot
-    from lcpcli.cli.export import check_export_options, check_format, emit
-    from lcpcli.core.errors import OptionError
     from lcpcli.solvers.trace.path import driving_step
     from lcpcli.solvers.trace.path import follow as follow_path
     from lcpcli.solvers.trace.tableau import LAYOUTS
@@ -105,7 +104,6 @@ def pivot(
                                 any_basis=any_basis)
             items.append((t, driving_step(t, Maug) if drv is not None else None))
     if as_json:
-        from lcpcli.cli.common import write_json_line
 
         objs = []
         for t, st in items:
@@ -118,7 +116,6 @@ def pivot(
         write_json_line(payload)
         if fmt == "text":
             return EXIT_OK
-    from lcpcli.cli.common import stdout_console
     from lcpcli.cli.render.pivot import pivot_pages
 
     items, Maug, q = _exact_items(items, Maug, q, exact)
@@ -136,7 +133,6 @@ def _exact_items(items: list[tuple[Any, Any]], Maug: Any, q: Any,
                  flag: bool | None) -> tuple[list[tuple[Any, Any]], Any, Any]:
     """The bases recomputed in fractions for the pages (``--exact``, or by default on small
     rational data), with Lemke's rule applied again on the exact numbers."""
-    from lcpcli.cli.export import note
     from lcpcli.solvers.trace.exact import (
         AUTO_MAX_N,
         FLAG_MAX_ABS,
@@ -175,12 +171,10 @@ def load_augmented(path: str, covering: str | None = None,
     ``"1,2,1"``; default all ones) supplies the artificial column.  Returns ``(Maug, q, where)``
     with ``where`` saying where the artificial column came from.
     """
-    from pathlib import Path
 
     import numpy as np  # file reading happens in the command body (start-up budget)
 
     from lcpcli.analysis.pivoting import augment
-    from lcpcli.core.errors import ProblemError
     from lcpcli.core.limits import check_dense_work
     from lcpcli.io import detect_format, load
     from lcpcli.io.files import decode_text, parse_json, read_input_bytes

@@ -20,6 +20,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import typer.core
+
 _INT = re.compile(r"[+-]?\d+\Z")
 _FLOAT = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?\Z")
 
@@ -69,8 +71,10 @@ def install() -> None:
     release has no pydantic-based coercion)."""
     try:
         from typer import _coercion
-        from typer.core import _TyperParameter
     except ImportError:
+        return
+    _TyperParameter = getattr(typer.core, "_TyperParameter", None)
+    if _TyperParameter is None:
         return
     if getattr(_TyperParameter, "_lcpcli_plain", False) or not hasattr(
             _TyperParameter, "get_runtime_param"):

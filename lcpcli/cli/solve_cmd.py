@@ -2,12 +2,20 @@
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import typer
 
-from lcpcli.cli.common import MethodListCommand
-from lcpcli.cli.export import EXACT_HELP
+from lcpcli.cli.common import (
+    MethodListCommand,
+    exit_code_for,
+    parse_key_values,
+    stdout_console,
+    write_json_line,
+)
+from lcpcli.cli.export import EXACT_HELP, check_export_options, check_format, emit, exact_view
+from lcpcli.core.errors import OptionError, ProblemError
 from lcpcli.solvers import DEFAULT_METHOD
 
 
@@ -98,8 +106,6 @@ def solve(
     not solved (no_solution or unsolved); 2 bad usage or bad input; 3 internal error.
     """
     from lcpcli.api import solve as solve_problem
-    from lcpcli.cli.common import exit_code_for, parse_key_values, write_json_line
-    from lcpcli.core.errors import OptionError, ProblemError
     from lcpcli.core.numeric import json_text
     from lcpcli.io import check_output, load, write_atomic_text
     from lcpcli.solvers.options import positive_int
@@ -123,7 +129,6 @@ def solve(
     files = [file, *(more_files or [])]
     batch = {"recursive": recursive, "jobs": jobs, "resume": resume, "timeout": timeout,
              "quiet": quiet, "scheduler": scheduler}
-    from lcpcli.cli.export import check_export_options, check_format
 
     fmt = check_format(fmt)
     trace = (trace or layout is not None or pivot_step is not None or step or fmt != "text"
@@ -164,7 +169,6 @@ def solve(
     payload["forward_error_bound"] = forward.as_dict() if forward is not None else None
     code = exit_code_for([result.status])
     if result.trace is not None:  # the teaching view; the JSON above keeps the floats
-        from lcpcli.cli.export import exact_view
 
         result.trace = exact_view(prob, method, exact, opts, result.trace)
     if output is not None and fmt == "text":
@@ -174,7 +178,6 @@ def solve(
         if result.trace is not None and fmt != "text":
             _show_trace(result.trace, fmt, layout, output, file, pivot_step, False)
     else:
-        from lcpcli.cli.common import stdout_console
         from lcpcli.cli.render.common import render_result
 
         console = stdout_console()
@@ -189,7 +192,6 @@ def solve(
 
 def _traced_method(method: str) -> str:
     """The method that runs with ``--trace``: ``auto`` means Lemke; others must have a replica."""
-    from lcpcli.core.errors import OptionError
     from lcpcli.solvers.registry import get_method, methods
 
     if method == "auto":  # auto picks by matrix class; the teaching trace is Lemke's
@@ -202,7 +204,6 @@ def _traced_method(method: str) -> str:
 
 
 def _check_layout(layout: str | None) -> str:
-    from lcpcli.core.errors import OptionError
     from lcpcli.solvers.trace.tableau import LAYOUTS
 
     value = (layout or LAYOUTS[0]).lower()
@@ -214,10 +215,7 @@ def _check_layout(layout: str | None) -> str:
 def _show_trace(trace: list, fmt: str, layout: str, output: Path | None, file: str,
                 pivot_step: int | None, step: bool) -> bool:
     """The trace on the terminal or as an export; True when the export used stdout."""
-    import sys
 
-    from lcpcli.cli.common import stdout_console
-    from lcpcli.cli.export import emit
     from lcpcli.cli.render.pivot import full_pages, step_labels, step_numbers, step_pages
 
     whole = pivot_step is None and not step

@@ -25,8 +25,10 @@ from typing import Any
 
 import numpy as np
 
+from lcpcli.contact.assembly import choose_storage
 from lcpcli.contact.scene import Scene
 from lcpcli.core.problem import Problem, is_sparse
+from lcpcli.core.result import CONVERGED, Outcome
 from lcpcli.solvers import DEFAULT_METHOD
 
 #: Warm start, islands of at least WARM_NEWTON_MIN_N unknowns whose ``z0`` does not already
@@ -114,7 +116,6 @@ def layout(islands: Islands, unknown_contact: np.ndarray) -> IslandLayout:
 def island_problems(problem: Problem, lay: IslandLayout, storage: str = "auto",
                     name: str = "island") -> list[Problem]:
     """The islands' LCPs: principal blocks of ``problem.M`` (dense or CSR by ``storage``)."""
-    from lcpcli.contact.assembly import choose_storage
 
     M, q = problem.M, problem.q
     out = []
@@ -241,7 +242,6 @@ def warm_attempt(problem: Problem, method: str, tol: float | None,
     ``z0``'s basis as the certificate reads it (where the pivoting starts when there is no
     answer).  The tolerance is ``tol`` or ``method``'s default."""
     from lcpcli.api import certify_outcome, solve
-    from lcpcli.core.result import CONVERGED, Outcome
     from lcpcli.solvers.request import method_of, resolve_tol
 
     limit = resolve_tol(method_of(method), tol)

@@ -23,6 +23,7 @@ thousands of bodies is vectorised.  Every bad input raises :class:`ProblemError`
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -31,7 +32,16 @@ from typing import Any
 import numpy as np
 
 from lcpcli.core.errors import ProblemError
-from lcpcli.io.files import check_input_file, read_json_file
+from lcpcli.core.problem import MAX_SPARSE_NNZ
+from lcpcli.io import atomic_path
+from lcpcli.io.files import (
+    MAX_NAME_BYTES,
+    MAX_TEXT_BYTES,
+    check_input_file,
+    read_json_file,
+    too_big,
+)
+from lcpcli.io.writing import open_hdf5
 
 BODY_KEYS = {"name", "mass", "inertia", "orientation", "position", "velocity",
              "angular_velocity", "static", "kinematic"}
@@ -482,7 +492,6 @@ def check_coupling(scene: Scene, rows_per_contact: int = 1) -> None:
     entries (a star of 200,000 contacts on one body: 4e10).  Above the sparse-matrix limit of
     problem files (:data:`lcpcli.core.problem.MAX_SPARSE_NNZ`) it is a ProblemError; O(nc).
     """
-    from lcpcli.core.problem import MAX_SPARSE_NNZ
 
     nb = scene.n_bodies
     deg = np.bincount(scene.contact_a, minlength=nb) + np.bincount(scene.contact_b, minlength=nb)
@@ -503,7 +512,6 @@ def with_kinematic(scene: Scene, names: list[str]) -> Scene:
     named here becomes kinematic (the same thing for the LCP: no unknowns).  ProblemError for an
     unknown name or when a contact would join two fixed bodies.
     """
-    import dataclasses
 
     if not names:
         return scene
@@ -603,7 +611,6 @@ def _h5_text(d: Any, label: str) -> list[str]:
     """A 1-D string column (names) of at most MAX_ITEMS rows and MAX_TEXT_BYTES declared in all
     (fixed-length strings: rows x size; variable-length: rows x fill value), checked from the
     header before reading."""
-    from lcpcli.io.files import MAX_TEXT_BYTES, too_big
 
     count = _h5_count(d, label)
     if not _h5_text_kind(d):
@@ -648,7 +655,6 @@ def _h5_real(g: Any, key: str, shapes: tuple[tuple[int, ...], ...], fill: float 
 
 
 def _scene_from_hdf5(f: Any, path: Path) -> Scene:
-    from lcpcli.io.files import MAX_NAME_BYTES
     from lcpcli.io.hdf5_format import attr_int, attr_text
 
     dim = _dimension(attr_int(f, "dimension") if "dimension" in f.attrs else 3)
@@ -773,8 +779,6 @@ def write_scene_hdf5(scene: Scene, path: str | Path) -> None:
     """Write ``scene`` as an HDF5 scene (world inertias, identity orientations), atomically."""
     import h5py
 
-    from lcpcli.io import atomic_path
-    from lcpcli.io.writing import open_hdf5
 
     nb = scene.n_bodies
     with atomic_path(Path(path)) as tmp, open_hdf5(tmp, "w") as f:

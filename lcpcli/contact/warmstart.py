@@ -24,6 +24,7 @@ import numpy as np
 
 from lcpcli.core.errors import ProblemError
 from lcpcli.core.numeric import json_text
+from lcpcli.io import atomic_path
 
 FORMAT = "lcpcli-contact-impulses"
 
@@ -77,7 +78,6 @@ def check_impulses_path(path: str | Path) -> None:
 def write_impulses(path: str | Path, unknowns: list[str], z: np.ndarray, scene: str = "",
                    status: str = "") -> None:
     """Write an impulses file (``.json`` or ``.npz``, see the module docstring) atomically."""
-    from lcpcli.io import atomic_path
 
     p = Path(path)
     check_impulses_path(p)

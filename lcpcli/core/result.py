@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from lcpcli.core.certificate import BETWEEN, Certificate
+from lcpcli.core.certificate import BETWEEN, Certificate, check
 from lcpcli.core.text import plural
 
 
@@ -151,7 +151,6 @@ class Result:
         Computed on first use (one certificate pass), so that solves that never ask pay
         nothing; None when the Result has neither."""
         if self.known_basis is None and self.basis_source is not None:
-            from lcpcli.core.certificate import check
 
             states = np.empty(self.n, dtype=np.int8)
             check(self.basis_source, self.z, self.certificate.tol, state=states)

@@ -35,6 +35,7 @@ from lcpcli.io.sparse import (
     sparse_from_parts,
     sparse_parts,
 )
+from lcpcli.io.writing import open_hdf5
 
 #: A reader's hook for the caller's work budget: called with n of a dense M from its header.
 DenseCheck = Callable[[int], None] | None
@@ -355,7 +356,6 @@ def write_group(g: Any, problem: Problem) -> None:
 def write(problem: Problem, path: Path) -> None:
     """Write ``problem`` into the new file ``path`` (through :func:`lcpcli.io.writing.open_hdf5`:
     a full disk is an OutputError, never a failed HDF5 flush)."""
-    from lcpcli.io.writing import open_hdf5
 
     with open_hdf5(path, "w") as f:
         write_group(f, problem)
@@ -363,7 +363,6 @@ def write(problem: Problem, path: Path) -> None:
 
 def write_many(problems: list[Problem], path: Path) -> None:
     """One group per problem (named by ``problem.name``, which must be unique)."""
-    from lcpcli.io.writing import open_hdf5
 
     names = [p.name for p in problems]
     if len(set(names)) != len(names) or not all(names):

@@ -29,7 +29,7 @@ from lcpcli.core.limits import warm_start_entries
 from lcpcli.core.numeric import REAL_KINDS, check_dtype, real_array
 from lcpcli.core.problem import MAX_N
 from lcpcli.io.files import MAX_TEXT_BYTES, check_input_file, open_input, read_json_file, too_big
-from lcpcli.io.npz_format import ZIP_ERRORS
+from lcpcli.io.npz_format import MAX_MEMBERS, ZIP_ERRORS, Member, read_npy_header
 
 #: The type of a warm start read with the names of its unknowns (None: matched by position).
 Named = tuple[np.ndarray, list[str] | None]
@@ -131,7 +131,6 @@ def _from_json(p: Path) -> Named:
 
 
 def _from_npy(p: Path, bound: Bound) -> np.ndarray:
-    from lcpcli.io.npz_format import read_npy_header
 
     with open_input(p, "a vector file") as fh:
         shape, dtype = read_npy_header(fh)
@@ -147,7 +146,6 @@ def _from_npy(p: Path, bound: Bound) -> np.ndarray:
 def _from_npz(p: Path, bound: Bound) -> Named:
     """``z`` (or the one array) and ``unknowns``, every member checked from the zip directory
     and its ``.npy`` header (declared sizes included) before anything is decompressed."""
-    from lcpcli.io.npz_format import MAX_MEMBERS, Member
 
     with open_input(p, "a vector file") as fh, zipfile.ZipFile(fh) as zf:
         infos = zf.infolist()

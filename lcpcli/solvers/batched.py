@@ -26,6 +26,7 @@ CUDA) registers itself with :func:`register_backend` and is chosen with ``backen
 
 from __future__ import annotations
 
+import importlib
 import os
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -33,6 +34,8 @@ from typing import Any
 
 import numpy as np
 
+from lcpcli.core.errors import OptionError
+from lcpcli.core.tolerances import PIVOT_TOL, POLISHED, TIE_TOL
 from lcpcli.solvers.registry import BatchSpec, methods
 
 #: Kernel ``code`` of a certified answer / of a problem handed back to the full pipeline.
@@ -88,7 +91,6 @@ def _cpu_lemke(M: Any, q: Any, lower: Any, upper: Any, *, tol: float,
                options: Mapping[str, Any], out: StackOut, threads: int,
                scaling: str = "none") -> None:
     from lcpcli.analysis.scaling import BALANCED, MAX_ROUNDS, Q_BALANCED
-    from lcpcli.core.tolerances import PIVOT_TOL, POLISHED, TIE_TOL
     from lcpcli.solvers.kernels import batch
 
     p = kernel_params("lemke", M.shape[1], options)
@@ -125,7 +127,6 @@ class Backend:
 def _single_source(name: str) -> Callable[[], Backend]:
     """The factory of a backend of :mod:`lcpcli.solvers.backends` (imported on first use)."""
     def factory() -> Backend:
-        import importlib
 
         return importlib.import_module(f"lcpcli.solvers.backends.{name}").backend()
     return factory
@@ -187,7 +188,6 @@ def choose_backend(name: str, K: int, n: int) -> str:
 
 def get_backend(name: str) -> Backend:
     """The backend called ``name``; OptionError if there is none."""
-    from lcpcli.core.errors import OptionError
 
     if name not in _LOADED:
         if name not in _BACKENDS:

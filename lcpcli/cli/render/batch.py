@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 from rich.console import Group
@@ -39,7 +40,6 @@ def make_progress(console: Any) -> Progress:
 
 
 def _where(source: str, problem: str) -> str:
-    from pathlib import Path
 
     return source if Path(source).stem == problem else f"{source} : {problem}"
 

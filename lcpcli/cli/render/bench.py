@@ -21,6 +21,7 @@ from lcpcli.bench.runner import (
     peer_ratios,
     performance_profile,
     summarize,
+    work_precision,
 )
 from lcpcli.core.result import Status
 
@@ -256,7 +257,6 @@ def write_plot(report: BenchReport, path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from lcpcli.bench.runner import work_precision
     from lcpcli.io import atomic_path
 
     prof = performance_profile(report)

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import os
 import stat
 from collections.abc import Iterable, Iterator
 from pathlib import Path
@@ -11,6 +12,8 @@ import numpy as np
 
 from lcpcli.core.errors import ProblemError
 from lcpcli.core.problem import Problem
+from lcpcli.io import PROBLEM_EXTENSIONS, _module, check_output, detect_format, list_problems, load
+from lcpcli.io.files import file_kind
 from lcpcli.io.stack.layout import _stack_format, chunk_size
 from lcpcli.io.stack.readers import is_stack, iter_problems, list_names, open_stack
 from lcpcli.io.stack.writer import StackWriter
@@ -28,7 +31,6 @@ def check_member_name(name: str, what: str = "problem name") -> str:
 
 
 def _folder_files(folder: Path) -> list[Path]:
-    from lcpcli.io import PROBLEM_EXTENSIONS
 
     try:
         files = sorted(f for f in folder.iterdir()
@@ -47,7 +49,6 @@ def source_problems(source: str | Path) -> Iterator[tuple[str, Problem]]:
     files, sorted, names = file stems), a stack (the naming rule), a multi-group HDF5 file
     (names = group names) or a one-problem file (name = its stem).  ``label`` says where the
     problem comes from (used in messages)."""
-    from lcpcli.io import detect_format, list_problems, load
 
     path = Path(source)
     if str(source) != "-" and path.is_dir():
@@ -191,7 +192,6 @@ def write_groups(problems: Iterable[tuple[str, Problem]], path: str | Path) -> i
 
 def source_names(source: str | Path) -> list[str]:
     """The names :func:`source_problems` gives, without reading the problems' data."""
-    from lcpcli.io import list_problems
 
     path = Path(source)
     if path.is_dir():
@@ -212,7 +212,6 @@ def write_folder(source: str | Path, folder: str | Path, fmt: str, *,
     anything is written (:func:`~lcpcli.io.writing.check_output`: an existing file is refused
     unless ``force``, an input never overwritten); the files are written all or nothing
     (:class:`~lcpcli.io.writing.StagedFiles`: a bad problem or a full disk leaves none)."""
-    from lcpcli.io import _module, check_output, detect_format
 
     kind = detect_format("", fmt)
     ext = {"json": ".json", "npz": ".npz", "hdf5": ".h5", "dat": ".dat"}[kind]
@@ -250,9 +249,7 @@ def write_folder(source: str | Path, folder: str | Path, fmt: str, *,
 def check_output_folder(folder: str | Path) -> None:
     """An output folder: an existing directory (not a link), or missing with an existing
     parent (ProblemError naming it otherwise)."""
-    import os
 
-    from lcpcli.io.files import file_kind
 
     try:
         st = os.lstat(folder)

@@ -5,6 +5,7 @@ functions built on it."""
 from __future__ import annotations
 
 import math
+import os
 import struct
 import zipfile
 from collections.abc import Iterator
@@ -17,8 +18,8 @@ import numpy as np
 from lcpcli.core.errors import ProblemError
 from lcpcli.core.numeric import kind_name
 from lcpcli.core.problem import Problem, default_bound
-from lcpcli.io.files import MAX_NAME_BYTES, check_input_file, open_input
-from lcpcli.io.npz_format import ZIP_ERRORS, zip_error
+from lcpcli.io.files import MAX_NAME_BYTES, check_input_file, open_input, too_big
+from lcpcli.io.npz_format import MAX_MEMBERS, ZIP_ERRORS, Member, read_npy_header, zip_error
 from lcpcli.io.stack.layout import (
     _CHUNK_BUDGET,
     _NAME_BLOCK_BYTES,
@@ -48,7 +49,6 @@ def is_stack(path: str | Path) -> bool:
 
             with open_file(Path(path)) as f:
                 return is_stacked_root(f)
-        from lcpcli.io.npz_format import read_npy_header
 
         with open_input(path) as fh, zipfile.ZipFile(fh) as zf, zf.open("M.npy") as m:
             shape, _dtype = read_npy_header(m)
@@ -109,7 +109,6 @@ class _H5Source:
                                 names_shape=shape("names"), lower=shape("lower"),
                                 upper=shape("upper"), n_eq=h5.attr_int(f, "n_eq") or 0)
             if names is not None and self.info.K * longest > MAX_NAMES_DECLARED:
-                from lcpcli.io.files import too_big
 
                 raise too_big(self.info.K * longest, MAX_NAMES_DECLARED,
                               "the declared 'names' (rows x longest name or fill value)")
@@ -179,7 +178,6 @@ class _NpzSource:
             raise zip_error(exc) from None
 
     def _scan(self, path: Path) -> None:
-        from lcpcli.io.npz_format import MAX_MEMBERS, Member
 
         infos = self.zf.infolist()
         if len(infos) > MAX_MEMBERS:
@@ -201,7 +199,6 @@ class _NpzSource:
                         raise ProblemError(f"'names' are longer than {MAX_NAME_BYTES:,} bytes")
                     declared = member.size * member.dtype.itemsize
                     if declared > MAX_NAMES_DECLARED:
-                        from lcpcli.io.files import too_big
 
                         raise too_big(declared, MAX_NAMES_DECLARED, "the declared 'names'")
                 else:
@@ -232,7 +229,6 @@ class _NpzSource:
             raise ProblemError(f"damaged zip entry {info.filename}")
         name_len, extra_len = struct.unpack("<HH", head[26:30])
         start = info.header_offset + 30 + name_len + extra_len
-        import os
 
         if start + info.file_size > os.fstat(self.fh.fileno()).st_size:
             raise ProblemError(f"zip entry {info.filename} runs past the end of the file")

@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 
+from lcpcli.core.tolerances import PIVOT_TOL, POLISHED, TIE_TOL
 from lcpcli.solvers.batched import KERNEL_SOLVED, Backend, StackOut, get_backend, kernel_params
 
 
@@ -21,7 +22,6 @@ def lemke_args(n: int, options: Mapping[str, Any], scaling: str) -> dict[str, An
     ``max_iter``, ``piv_tol``, ``tie_tol``, ``polished`` and ``balance``
     (None or (balanced, q_balanced, max_rounds))."""
     from lcpcli.analysis.scaling import BALANCED, MAX_ROUNDS, Q_BALANCED
-    from lcpcli.core.tolerances import PIVOT_TOL, POLISHED, TIE_TOL
 
     p = kernel_params("lemke", n, options)
     return {"d": p["covering"], "max_iter": p["max_iter"],

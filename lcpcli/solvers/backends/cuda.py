@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from lcpcli.core.errors import OptionError
+from lcpcli.core.errors import OptionError, ProblemError
 from lcpcli.solvers.backends import SOURCE
 from lcpcli.solvers.backends.c import lemke_args, retry_on_cpu, sor_args
 from lcpcli.solvers.batched import KERNEL_RETRY, KERNEL_SOLVED, Backend, StackOut
@@ -316,7 +316,6 @@ def solve_many_device(M: Any, q: Any, method: str | None, *, tol: float | None,
     the problems the device hands back are copied to the host (and solved there by
     ``solve_many(..., backend="cpu")``, whose verdicts they get)."""
     from lcpcli import stacks
-    from lcpcli.core.errors import ProblemError
     from lcpcli.core.result import STATUS_CODES, StackResult, Status
     from lcpcli.solvers.request import check_kind, method_of, resolve_tol
 

@@ -35,6 +35,7 @@ from typing import Any
 import numpy as np
 
 from lcpcli.analysis.classify import is_symmetric
+from lcpcli.core.errors import OptionError
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, SINGULAR, Outcome
 from lcpcli.core.text import plural
 from lcpcli.solvers.options import positive_int, vector_option
@@ -333,7 +334,6 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None,
     if basis is not None:
         F = np.asarray(basis, dtype=bool).ravel()
         if F.shape[0] != n:
-            from lcpcli.core.errors import OptionError
 
             raise OptionError(f"basis has length {F.shape[0]}, the problem has n = {n}")
         start = f" from the given basis ({int(F.sum())} z basic)"
