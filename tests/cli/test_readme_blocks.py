@@ -65,9 +65,9 @@ def test_python_blocks_run_as_written(folder):
 def _command(line: str, folder: Path) -> str:
     """A console line for bash: this checkout's CLI, /tmp/ moved into ``folder``."""
     python = shlex.quote(sys.executable)
-    line = re.sub(r"(^|\|\s*)lcpcli\b", rf"\1{python} -m lcpcli", line)
-    line = re.sub(r"(^|\|\s*)python\b", rf"\1{python}", line)
-    return line.replace("/tmp/", f"{folder}/")
+    line = line.replace("/tmp/", f"{folder}/")  # first: the interpreter may live under /tmp
+    line = re.sub(r"(^|\|\s*)lcpcli\b", lambda m: f"{m.group(1)}{python} -m lcpcli", line)
+    return re.sub(r"(^|\|\s*)python\b", lambda m: f"{m.group(1)}{python}", line)
 
 
 @pytest.mark.parametrize("line", console_lines())
