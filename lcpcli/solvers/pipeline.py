@@ -28,8 +28,8 @@ attempts alike, and certifies the answer (see "Dispatcher" below).  Conventions:
 
 Dispatcher: :func:`run_method` is entered once per method run and is the only place that
 certifies an answer or reuses a certificate (:func:`certified`); a method whose kernel
-certifies its own answer (``lemke-revised``: balance test aside, kernel, polish and certificate
-in one compiled call) hands it over in ``Outcome.checked``.
+certifies its own answer (``lemke-revised``: balance test, kernel, polish and certificate in
+one compiled call, ``Method.balance_test``) hands it over in ``Outcome.checked``.
 """
 
 from __future__ import annotations
@@ -40,6 +40,7 @@ import numpy as np
 
 from lcpcli.analysis.classify import is_symmetric
 from lcpcli.analysis.scaling import (
+    BALANCE,
     GEOMETRIC_SPREAD,
     Scaling,
     equilibrate,
@@ -71,14 +72,19 @@ def run_method(spec: Any, problem: Problem, tol: float, options: dict[str, Any])
         certified(problem, out, tol)
         return out
     requested = "none" if options.get("trace") else getattr(spec, "scaling", "none")
-    if requested == "none" or is_balanced(problem):  # nothing to equilibrate (one compiled
-        out = spec.run(problem, tol=tol, **options)   # pass; no symmetry test needed)
+    if requested == "none":
+        out = spec.run(problem, tol=tol, **options)
+    elif spec.balance_test and type(problem.M) is np.ndarray:  # the test inside run's own
+        out = spec.run(problem, tol=tol, balance=BALANCE, **options)  # compiled call
+    else:  # one compiled pass; no symmetry test needed
+        out = spec.run(problem, tol=tol, **options) if is_balanced(problem) else None
+    if out is None:  # not balanced: nothing was solved
+        out = _equilibrated(spec, problem, tol, options, requested)
+    else:
         if _polish(problem, out, tol):
             return out  # certified: the small problems' path ends here
         if requested != "none":
             out = _geometric(spec, problem, tol, options, out, requested, None)
-    else:
-        out = _equilibrated(spec, problem, tol, options, requested)
     certified(problem, out, tol)
     return out
 
