@@ -67,11 +67,11 @@ def run_method(spec: Any, problem: Problem, tol: float, options: dict[str, Any])
     ``run`` calls this for every method it tries).  A planner runs as it is; any other method
     goes through the steps of the module docstring.  The returned Outcome's ``checked`` is
     always the certificate of its ``z`` at ``tol`` (:func:`certified`)."""
-    if spec.planner and getattr(spec, "scaling", "none") == "none":
+    if spec.planner and spec.scaling == "none":
         out = spec.run(problem, tol=tol, **options)
         certified(problem, out, tol)
         return out
-    requested = "none" if options.get("trace") else getattr(spec, "scaling", "none")
+    requested = "none" if options and options.get("trace") else spec.scaling
     if requested == "none":
         out = spec.run(problem, tol=tol, **options)
     elif spec.balance_test and type(problem.M) is np.ndarray:  # the test inside run's own

@@ -84,13 +84,15 @@ def run(problem: Any, *, tol: float, covering: np.ndarray | None = None,
                                 refactor_every or default_refactor_every(n), balance)
     if got is None:
         return None
-    status, z, pivots, refactors = got.status, got.z, got.pivots, got.refactors
-    if status == TRIVIAL:
-        return Outcome(np.zeros(n), 0, CONVERGED, "q >= 0: z = 0 solves the problem")
+    status = got.status
     if status == OK:
         # the certificate of this z for this problem, as check() computes it (out of range:
         # status 2, left to check(), which rescales)
-        return _converged(got, from_kernel(got.cert, tol) if got.cert[0] != 2 else None)
+        cert = got.cert
+        return _converged(got, from_kernel(cert, tol) if cert[0] != 2 else None)
+    if status == TRIVIAL:
+        return Outcome(np.zeros(n), 0, CONVERGED, "q >= 0: z = 0 solves the problem")
+    z, pivots, refactors = got.z, got.pivots, got.refactors
     info = {"refactorisations": refactors}
     if status == MAX_ITER:
         return Outcome(np.maximum(z, 0.0), pivots, ITERATION_LIMIT,
@@ -119,11 +121,11 @@ def run(problem: Any, *, tol: float, covering: np.ndarray | None = None,
 def _converged(got: Any, cert: Any) -> Outcome:
     """The Outcome of a kernel run (:class:`LemkeRun`) whose artificial variable left the
     basis, with the kernel's certificate ``cert`` (None: left to the caller)."""
-    return Outcome.converged(got.z, got.pivots,
+    pivots, refactors = got.pivots, got.refactors
+    return Outcome.converged(got.z, pivots,
                              f"artificial variable left the basis after "
-                             f"{plural(got.pivots, 'pivot')} ({got.refactors} "
-                             f"refactorisations)",
-                             {"refactorisations": got.refactors, "basis": got.basis},
+                             f"{plural(pivots, 'pivot')} ({refactors} refactorisations)",
+                             {"refactorisations": refactors, "basis": got.basis},
                              None if cert is None else (cert, got.w))
 
 
