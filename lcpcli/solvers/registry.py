@@ -228,6 +228,14 @@ class Method:
                 raise OptionError(f"option '{key}' of method '{self.name}': {exc}") from None
         return out
 
+    def given_options(self, parsed: Mapping[str, Any]) -> dict[str, Any]:
+        """The options of ``parsed`` (:meth:`parse_options`' result) that are not their
+        defaults: what the dispatcher passes to ``run``, whose keyword defaults are the options'
+        defaults (``tests/solvers/test_memo.py`` checks it), so that a small solve binds no
+        keyword it does not need."""
+        options = self.options
+        return {k: v for k, v in parsed.items() if v is not options[k].default}
+
 
 _REGISTRY: dict[str, Method] | None = None
 _ALIASES: dict[str, str] = {}

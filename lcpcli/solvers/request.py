@@ -130,9 +130,7 @@ def resolve(problem: Any, method: str | None, tol: Any = None,
         check_dense_work(problem.n, spec)
     if found is None:
         opts = spec.parse_options(options)
-        defaults = spec.options
-        found = spec, resolve_tol(spec, tol), opts, {
-            k: v for k, v in opts.items() if v is not defaults[k].default}
+        found = spec, resolve_tol(spec, tol), opts, spec.given_options(opts)
         spec.prepare_once()
         if key is not None:
             REQUESTS.put(key, found)
