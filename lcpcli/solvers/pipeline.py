@@ -172,9 +172,9 @@ def _run_scaled(spec: Any, problem: Problem, tol: float, options: dict[str, Any]
     if y is not None:
         out.info["farkas_y"] = scaling.farkas_back(y).tolist()
     out.message += f" [{scaling.describe()}]"
-    out.info["scaling"] = {"kind": scaling.kind, "row_exponents": [int(scaling.row.min()),
-                                                                   int(scaling.row.max())],
-                           "column_exponents": [int(scaling.col.min()), int(scaling.col.max())]}
+    rows, cols = scaling.ranges
+    out.info["scaling"] = {"kind": scaling.kind, "row_exponents": list(rows),
+                           "column_exponents": list(cols)}
     return out
 
 
