@@ -20,6 +20,8 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+
 from lcpcli.core import limits
 from lcpcli.core.certificate import validate_tol
 from lcpcli.core.errors import OptionError
@@ -123,7 +125,7 @@ def resolve(problem: Any, method: str | None, tol: Any = None,
         found = None
     if problem.kind not in spec.kinds:
         check_kind(spec, problem.kind)
-    if problem.sparse:
+    if type(problem.M) is not np.ndarray and problem.sparse:  # a dense M: one type test
         check_dense_ok(problem, spec)
         check_sparse_work(problem.n, spec)
     elif problem.n > DENSE_N_FLOOR:
