@@ -54,7 +54,7 @@ def covering_vector(n: int, covering: np.ndarray | None) -> np.ndarray | None:
 
 def default_max_iter(n: int) -> int:
     """Pivot limit when none is given: generous, but finite (Murty's family needs 2^n)."""
-    return 100 * n if n > 10 else 1000  # max(1000, 100 n), without a call (small-solve path)
+    return max(1000, 100 * n)
 
 
 def batch_params(n: int, options: Mapping[str, Any]) -> dict[str, Any]:

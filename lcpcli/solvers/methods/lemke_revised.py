@@ -56,7 +56,7 @@ def _refactor_every(value: Any) -> int:
 
 def default_refactor_every(n: int) -> int:
     """Pivots between two refactorisations when not given: ``max(50, n)``."""
-    return n if n > 50 else 50  # max(50, n), without a call (small-solve path)
+    return max(50, n)
 
 
 def run(problem: Any, *, tol: float, covering: np.ndarray | None = None,
