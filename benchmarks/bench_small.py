@@ -31,7 +31,7 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 import lcpcli  # noqa: E402
-from lcpcli.analysis.scaling import equilibrate, is_balanced  # noqa: E402
+from lcpcli.analysis.scaling import BALANCE, equilibrate, is_balanced  # noqa: E402
 from lcpcli.api import certify_outcome  # noqa: E402
 from lcpcli.core.certificate import certify  # noqa: E402
 from lcpcli.core.problem import Problem  # noqa: E402
@@ -89,7 +89,7 @@ def main(argv: list[str] | None = None) -> int:
     prob = make_problem(args.n)
     sic_before = siconos(prob, 2000)
     req = resolve(prob, "lemke")
-    spec, opts = req.spec, req.options
+    spec, opts = req.spec, req.given  # what the dispatcher passes to run
     M = np.ascontiguousarray(prob.M)
     out = run_method(spec, prob, 1e-8, opts)
     M_arr, q_arr = prob.dense_M().copy(), prob.q.copy()
@@ -98,10 +98,10 @@ def main(argv: list[str] | None = None) -> int:
         "  request.resolve (method, checks, options, tol)": lambda: resolve(prob, "lemke"),
         "  dispatcher run_method (-> certified Outcome)": lambda: run_method(spec, prob, 1e-8,
                                                                              opts),
-        "    balance test (is_balanced, one C call)": lambda: is_balanced(prob),
-        "    method run (kernel call + Outcome)": lambda: spec.run(prob, tol=1e-8, **opts),
-        "      one C call: kernel, polish, certificate": lambda:
-            lemke_solve_certified(M, prob.q, None, 1000, PIVOT_TOL, TIE_TOL, 50),
+        "    method run (one compiled call + Outcome)": lambda: spec.run(
+            prob, tol=1e-8, balance=BALANCE, **opts),
+        "      one C call: balance test, kernel, polish, certificate": lambda:
+            lemke_solve_certified(M, prob.q, None, 1000, PIVOT_TOL, TIE_TOL, 50, BALANCE),
         "  certify_outcome (Result)": lambda: certify_outcome(prob, out, "lemke-revised", 0.0,
                                                               1e-8),
         "for comparison:": None,
@@ -109,7 +109,8 @@ def main(argv: list[str] | None = None) -> int:
         "  lcpcli.solve(M, q, method='lemke') (arrays)": lambda: lcpcli.solve(
             M_arr, q_arr, method="lemke"),
         "  certify (w and certificate, from Python)": lambda: certify(prob, out.z, 1e-8),
-        "  equilibrate (decides: no scaling)": lambda: equilibrate(prob, True),
+        "  equilibrate (Ruiz, symmetric)": lambda: equilibrate(prob, True),
+        "  balance test alone (is_balanced, one C call)": lambda: is_balanced(prob),
     }
     times = {k: per_call(f, args.calls) for k, f in parts.items() if f is not None}
     sic_after = siconos(prob, 2000)

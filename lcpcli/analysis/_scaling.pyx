@@ -114,41 +114,62 @@ cdef inline bint _first_maxima(Py_ssize_t n, const double* M, Py_ssize_t ldm,
     return 1
 
 
+cdef inline bint _round_balanced(Py_ssize_t n, const double* M, Py_ssize_t ldm,
+                                 const double* data, const Py_ssize_t* indices,
+                                 const Py_ssize_t* indptr, const long long* r,
+                                 const long long* c, long long* rmax, long long* cmax,
+                                 int balanced, int rnd) noexcept nogil:
+    """One round's test of :c:func:`_ruiz`: the row and column maxima of the exponents of
+    ``D_r M D_c`` (zero rows and columns count as 1) are within ``2^balanced`` of each other
+    and the largest row maximum within ``2^balanced`` of 1.  Fills rmax, cmax."""
+    cdef Py_ssize_t i
+    cdef long long lo = 1 << 40, hi = -(1 << 40), clo = 1 << 40, chi = -(1 << 40)
+    if rnd == 0 and M != NULL and _first_maxima(n, M, ldm, rmax, cmax):
+        pass  # the exponent maxima of the unscaled matrix, read from the bits
+    else:
+        _maxima(n, M, ldm, data, indices, indptr, r, c, rmax, cmax)
+    for i in range(n):
+        if rmax[i] == FLOOR:
+            rmax[i] = 1
+        if cmax[i] == FLOOR:
+            cmax[i] = 1
+        if rmax[i] < lo:
+            lo = rmax[i]
+        if rmax[i] > hi:
+            hi = rmax[i]
+        if cmax[i] < clo:
+            clo = cmax[i]
+        if cmax[i] > chi:
+            chi = cmax[i]
+    return hi - lo <= balanced and chi - clo <= balanced and -balanced <= hi - 1 <= balanced
+
+
+cdef inline long long _q_shift(Py_ssize_t n, const double* q, const long long* r) noexcept nogil:
+    """The exponent ``k`` of the common factor that brings the largest entry of ``D_r q`` to
+    ``[1/2, 1)`` (0 when q = 0)."""
+    cdef Py_ssize_t i
+    cdef long long e, qexp = FLOOR
+    for i in range(n):
+        if q[i] != 0.0:
+            e = _exp(q[i]) + r[i]
+            if e > qexp:
+                qexp = e
+    return 0 if qexp == FLOOR else -qexp + 1
+
+
 cdef int _ruiz(Py_ssize_t n, const double* M, Py_ssize_t ldm, const double* data,
                const Py_ssize_t* indices, const Py_ssize_t* indptr, const double* q,
                bint symmetric, int balanced, int q_balanced, int max_rounds,
                long long* r, long long* c, long long* rmax, long long* cmax) noexcept nogil:
     """Fill r, c; return 1 when a scaling is needed, 0 when the problem is balanced."""
     cdef Py_ssize_t i, j, k
-    cdef long long e, lo, hi, clo, chi, d, qexp
-    cdef bint dense = M != NULL
+    cdef long long d
     cdef int rnd, needed
     for i in range(n):
         r[i] = 0
         c[i] = 0
     for rnd in range(max_rounds):
-        if rnd == 0 and dense and _first_maxima(n, M, ldm, rmax, cmax):
-            pass  # the exponent maxima of the unscaled matrix, read from the bits
-        else:
-            _maxima(n, M, ldm, data, indices, indptr, r, c, rmax, cmax)
-        lo = 1 << 40
-        hi = -(1 << 40)
-        clo = 1 << 40
-        chi = -(1 << 40)
-        for i in range(n):
-            if rmax[i] == FLOOR:
-                rmax[i] = 1
-            if cmax[i] == FLOOR:
-                cmax[i] = 1
-            if rmax[i] < lo:
-                lo = rmax[i]
-            if rmax[i] > hi:
-                hi = rmax[i]
-            if cmax[i] < clo:
-                clo = cmax[i]
-            if cmax[i] > chi:
-                chi = cmax[i]
-        if hi - lo <= balanced and chi - clo <= balanced and -balanced <= hi - 1 <= balanced:
+        if _round_balanced(n, M, ldm, data, indices, indptr, r, c, rmax, cmax, balanced, rnd):
             break
         if symmetric:
             for i in range(n):
@@ -166,13 +187,7 @@ cdef int _ruiz(Py_ssize_t n, const double* M, Py_ssize_t ldm, const double* data
                     cmax[j] = 1
                 c[j] -= _floordiv2(cmax[j] - 1)
     # a common factor normalising q (M unchanged: rows x 2^k, columns x 2^-k)
-    qexp = FLOOR
-    for i in range(n):
-        if q[i] != 0.0:
-            e = _exp(q[i]) + r[i]
-            if e > qexp:
-                qexp = e
-    k = 0 if qexp == FLOOR else -qexp + 1
+    k = _q_shift(n, q, r)
     needed = 0
     for i in range(n):
         if r[i] != 0 or c[i] != 0:
@@ -291,8 +306,18 @@ cdef bint _balanced(Py_ssize_t n, const double* M, Py_ssize_t ldm, const double*
     """The equilibration's balance test, the one definition (one pass of :c:func:`_ruiz`):
     True when :func:`lcpcli.analysis.scaling.equilibrate` leaves the dense problem alone.
     ``work``: 4 n long longs."""
-    return not _ruiz(n, M, ldm, NULL, NULL, NULL, q, False, balanced, q_balanced, 1, work,
-                     work + n, work + 2 * n, work + 3 * n)
+    # _ruiz's first round with r = c = 0: a failed test always ends in a scaling (the row or
+    # column step it leads to changes an exponent), a passed one leaves q's common factor
+    # to decide; tests/solvers/test_scaling.py checks this against _ruiz itself
+    cdef Py_ssize_t i
+    cdef long long k
+    for i in range(2 * n):
+        work[i] = 0
+    if not _round_balanced(n, M, ldm, NULL, NULL, NULL, work, work + n, work + 2 * n,
+                           work + 3 * n, balanced, 0):
+        return False
+    k = _q_shift(n, q, work)
+    return -q_balanced <= k <= q_balanced
 
 
 def balanced_dense(M, q, int balanced, int q_balanced):

@@ -20,6 +20,7 @@ property and undoes arbitrary row and column scalings.  PATH equilibrates in the
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Any
 
 import numpy as np
@@ -49,8 +50,12 @@ class Scaling:
     def apply(self, problem: Problem) -> Problem:
         """The scaled problem ``(D_r M D_c, D_r q)`` with bounds ``D_c^-1 [l, u]``."""
         M = problem.M
-        if np.all(self.row == -self.col[0]) and np.all(self.col == self.col[0]):
+        (rlo, rhi), (clo, chi) = self.ranges
+        uniform = rlo == rhi and clo == chi  # every entry of M times 2^(rlo + clo)
+        if uniform and rlo + clo == 0:
             Ms: Any = M  # rows x 2^k and columns x 2^-k: M itself is unchanged
+        elif uniform and not problem.sparse:
+            Ms = np.ldexp(M, rlo + clo)  # the same values, without an exponent matrix
         elif problem.sparse:
             Mc = M.tocoo()
             data = np.ldexp(Mc.data, (self.row[Mc.row] + self.col[Mc.col]).astype(np.int32))
@@ -86,13 +91,20 @@ class Scaling:
         (``M~^T y~ = D_c M^T D_r y~`` and ``q~^T y~ = q^T D_r y~``, so the signs carry over)."""
         return np.ldexp(np.asarray(yt, dtype=np.float64), self.row.astype(np.int32))
 
+    @cached_property
+    def ranges(self) -> tuple[tuple[int, int], tuple[int, int]]:
+        """``((min, max) of the row exponents, (min, max) of the column exponents)``, computed
+        once (messages and ``info`` both show them)."""
+        r, c = self.row.tolist(), self.col.tolist()
+        return (min(r), max(r)), (min(c), max(c))
+
     def describe(self) -> str:
         """One phrase for messages: the ranges of the factors."""
-        def span(e: np.ndarray) -> str:
-            lo, hi = int(e.min()), int(e.max())
+        def span(lo: int, hi: int) -> str:
             return f"2^{lo}" if lo == hi else f"2^{lo}..2^{hi}"
 
-        return f"equilibrated ({self.kind}: rows x {span(self.row)}, columns x {span(self.col)})"
+        rows, cols = self.ranges
+        return f"equilibrated ({self.kind}: rows x {span(*rows)}, columns x {span(*cols)})"
 
 
 def equilibrate(problem: Problem, symmetric: bool) -> Scaling | None:

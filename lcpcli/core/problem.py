@@ -177,7 +177,7 @@ class Problem:
     @property
     def n(self) -> int:
         """Number of variables (and of rows)."""
-        return int(self.q.shape[0])
+        return len(self.q)  # q is a 1-D float64 array (__post_init__): len is its length
 
     @property
     def kind(self) -> str:
@@ -203,7 +203,8 @@ class Problem:
 
     def dense_M(self) -> np.ndarray:
         """M as a dense array (a copy-free view when it is already dense)."""
-        return self.M.toarray() if self.sparse else self.M
+        M = self.M
+        return M if type(M) is np.ndarray else M.toarray()  # else: sparse (__post_init__)
 
     def label(self) -> str:
         """A short name for messages."""

@@ -99,8 +99,8 @@ class Outcome:
                   checked: tuple[Certificate, np.ndarray] | None = None) -> Outcome:
         """A run that says it converged (no claim of infeasibility, no trace); the small-solve
         paths build it here, positionally, without binding keywords."""
-        return cls(z, iterations, Termination.CONVERGED, message, False, None,
-                   {} if info is None else info, checked)
+        return cls(z, iterations, CONVERGED, message, False, None, {} if info is None else info,
+                   checked)
 
 
 @dataclass(slots=True)

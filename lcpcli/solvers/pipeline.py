@@ -28,8 +28,8 @@ attempts alike, and certifies the answer (see "Dispatcher" below).  Conventions:
 
 Dispatcher: :func:`run_method` is entered once per method run and is the only place that
 certifies an answer or reuses a certificate (:func:`certified`); a method whose kernel
-certifies its own answer (``lemke-revised``: balance test aside, kernel, polish and certificate
-in one compiled call) hands it over in ``Outcome.checked``.
+certifies its own answer (``lemke-revised``: balance test, kernel, polish and certificate in
+one compiled call, ``Method.balance_test``) hands it over in ``Outcome.checked``.
 """
 
 from __future__ import annotations
@@ -40,6 +40,7 @@ import numpy as np
 
 from lcpcli.analysis.classify import is_symmetric
 from lcpcli.analysis.scaling import (
+    BALANCE,
     GEOMETRIC_SPREAD,
     Scaling,
     equilibrate,
@@ -66,19 +67,24 @@ def run_method(spec: Any, problem: Problem, tol: float, options: dict[str, Any])
     ``run`` calls this for every method it tries).  A planner runs as it is; any other method
     goes through the steps of the module docstring.  The returned Outcome's ``checked`` is
     always the certificate of its ``z`` at ``tol`` (:func:`certified`)."""
-    if spec.planner and getattr(spec, "scaling", "none") == "none":
+    if spec.planner and spec.scaling == "none":
         out = spec.run(problem, tol=tol, **options)
         certified(problem, out, tol)
         return out
-    requested = "none" if options.get("trace") else getattr(spec, "scaling", "none")
-    if requested == "none" or is_balanced(problem):  # nothing to equilibrate (one compiled
-        out = spec.run(problem, tol=tol, **options)   # pass; no symmetry test needed)
+    requested = "none" if options and options.get("trace") else spec.scaling
+    if requested == "none":
+        out = spec.run(problem, tol=tol, **options)
+    elif spec.balance_test and type(problem.M) is np.ndarray:  # the test inside run's own
+        out = spec.run(problem, tol=tol, balance=BALANCE, **options)  # compiled call
+    else:  # one compiled pass; no symmetry test needed
+        out = spec.run(problem, tol=tol, **options) if is_balanced(problem) else None
+    if out is None:  # not balanced: nothing was solved
+        out = _equilibrated(spec, problem, tol, options, requested)
+    else:
         if _polish(problem, out, tol):
             return out  # certified: the small problems' path ends here
         if requested != "none":
             out = _geometric(spec, problem, tol, options, out, requested, None)
-    else:
-        out = _equilibrated(spec, problem, tol, options, requested)
     certified(problem, out, tol)
     return out
 
@@ -166,9 +172,9 @@ def _run_scaled(spec: Any, problem: Problem, tol: float, options: dict[str, Any]
     if y is not None:
         out.info["farkas_y"] = scaling.farkas_back(y).tolist()
     out.message += f" [{scaling.describe()}]"
-    out.info["scaling"] = {"kind": scaling.kind, "row_exponents": [int(scaling.row.min()),
-                                                                   int(scaling.row.max())],
-                           "column_exponents": [int(scaling.col.min()), int(scaling.col.max())]}
+    rows, cols = scaling.ranges
+    out.info["scaling"] = {"kind": scaling.kind, "row_exponents": list(rows),
+                           "column_exponents": list(cols)}
     return out
 
 

@@ -166,6 +166,11 @@ class Method:
     #: How :mod:`lcpcli.solvers.pipeline` equilibrates the problem first: ``"auto"`` (``D M D``
     #: for a symmetric M, two-sided otherwise), ``"symmetric"`` (always ``D M D``) or ``"none"``.
     scaling: str = "none"
+    #: True when ``run`` takes ``balance=`` (the thresholds :data:`lcpcli.analysis.scaling.BALANCE`)
+    #: on a dense M: it then makes the equilibration's balance test inside its own compiled call
+    #: and returns None, without solving, when the problem is not balanced (the dispatcher then
+    #: equilibrates); otherwise the dispatcher calls :func:`~lcpcli.analysis.scaling.is_balanced`.
+    balance_test: bool = False
     #: The batched kernel for stacks of problems (:class:`BatchSpec`),
     #: or None: :func:`lcpcli.solve_many` then solves the stack one problem at a time.
     batch: BatchSpec | None = None
@@ -222,6 +227,14 @@ class Method:
             except (TypeError, ValueError) as exc:
                 raise OptionError(f"option '{key}' of method '{self.name}': {exc}") from None
         return out
+
+    def given_options(self, parsed: Mapping[str, Any]) -> dict[str, Any]:
+        """The options of ``parsed`` (:meth:`parse_options`' result) that are not their
+        defaults: what the dispatcher passes to ``run``, whose keyword defaults are the options'
+        defaults (``tests/solvers/test_memo.py`` checks it), so that a small solve binds no
+        keyword it does not need."""
+        options = self.options
+        return {k: v for k, v in parsed.items() if v is not options[k].default}
 
 
 _REGISTRY: dict[str, Method] | None = None

@@ -20,6 +20,8 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+
 from lcpcli.core import limits
 from lcpcli.core.certificate import validate_tol
 from lcpcli.core.errors import OptionError
@@ -123,16 +125,14 @@ def resolve(problem: Any, method: str | None, tol: Any = None,
         found = None
     if problem.kind not in spec.kinds:
         check_kind(spec, problem.kind)
-    if problem.sparse:
+    if type(problem.M) is not np.ndarray and problem.sparse:  # a dense M: one type test
         check_dense_ok(problem, spec)
         check_sparse_work(problem.n, spec)
     elif problem.n > DENSE_N_FLOOR:
         check_dense_work(problem.n, spec)
     if found is None:
         opts = spec.parse_options(options)
-        defaults = spec.options
-        found = spec, resolve_tol(spec, tol), opts, {
-            k: v for k, v in opts.items() if v is not defaults[k].default}
+        found = spec, resolve_tol(spec, tol), opts, spec.given_options(opts)
         spec.prepare_once()
         if key is not None:
             REQUESTS.put(key, found)

@@ -116,7 +116,9 @@ def test_attempt_hit_equals_fresh(max_iter):
         cap = max_iter if max_iter is not None else fresh.auto_max_iter
         expected = fresh.parse_options({"max_iter": cap} if "max_iter" in fresh.options
                                        and cap is not None else {})
-        assert hit[1] == expected
+        # the attempt hands the dispatcher the options that differ from their defaults
+        assert hit[1] == fresh.given_options(expected)
+        assert {**fresh.option_defaults(), **hit[1]} == expected
     assert memo.ATTEMPTS.misses == 3 and len(memo.ATTEMPTS) == 3
     # a warm start is never memoised
     z0 = np.ones(3)

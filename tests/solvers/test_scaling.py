@@ -174,3 +174,69 @@ def test_enumeration_of_scaled_seed004(s):
     assert np.allclose(e.solutions[0].z, [4 / 3, 7 / 3], rtol=1e-12)
     assert e.solutions[0].certificate.passed
     assert [c.rank for c in e.cones] == [2, 2, 2, 2]
+
+
+@pytest.mark.parametrize("rows,cols", [((-3, -3), (-3, -3)), ((2, 2), (-2, -2)), ((-1, 4), (0, 3)),
+                                       ((5, 5), (-1, 2)), ((0, 0), (0, 0))])
+@pytest.mark.parametrize("sparse", [False, True])
+def test_scaling_apply_and_ranges_are_the_exponent_formula(rows, cols, sparse):
+    """:meth:`Scaling.apply` is ``D_r M D_c`` entry by entry, bit for bit, whether the factors
+    are one power of two for all of M (applied as one factor) or not; ``ranges`` and the
+    message and ``info`` built from it are the exponents' minima and maxima."""
+    import scipy.sparse as sp
+
+    from lcpcli.analysis.scaling import Scaling
+
+    rng = np.random.default_rng(7)
+    n = 9
+    M = rng.standard_normal((n, n)) * 2.0 ** rng.integers(-20, 20, (n, n))
+    M[rng.random((n, n)) < 0.3] = 0.0
+    r = np.sort(rng.integers(rows[0], rows[1] + 1, n))
+    c = rng.integers(cols[0], cols[1] + 1, n)
+    r[0], r[-1], c[0], c[-1] = rows[0], rows[1], cols[0], cols[1]
+    s = Scaling(row=r, col=c, kind="two-sided")
+    p = Problem.create(sp.csr_matrix(M) if sparse else M, rng.standard_normal(n))
+    got = s.apply(p)
+    expected = np.ldexp(M, (r[:, None] + c[None, :]).astype(np.int32))
+    np.testing.assert_array_equal(got.dense_M(), expected)
+    np.testing.assert_array_equal(got.q, np.ldexp(p.q, r.astype(np.int32)))
+    assert s.ranges == ((int(r.min()), int(r.max())), (int(c.min()), int(c.max())))
+    assert f"rows x 2^{rows[0]}" in s.describe() and f"columns x 2^{cols[0]}" in s.describe()
+
+
+def _balance_case(n: int, seed: int, spread: int, magnitude: int, q_magnitude: int,
+                  zeros: float) -> Problem:
+    rng = np.random.default_rng(seed)
+    M = rng.standard_normal((n, n)) * 2.0 ** rng.integers(-spread, spread + 1, (n, n))
+    M[rng.random((n, n)) < zeros] = 0.0
+    q = rng.standard_normal(n) * 2.0 ** q_magnitude
+    return Problem.create(M * 2.0 ** magnitude, q)
+
+
+@pytest.mark.parametrize("n", [1, 2, 7, 50, 130])
+@pytest.mark.parametrize("spread", [0, 2, 3, 6])
+@pytest.mark.parametrize("magnitude", [-8, -4, 0, 3, 5, 9])
+def test_the_balance_test_is_the_first_ruiz_round(n, spread, magnitude):
+    """The one balance test (``_scaling._balanced``, behind :func:`is_balanced` and inside
+    compiled calls) says balanced exactly when one round of Ruiz's iteration
+    (``ruiz_exponents(..., max_rounds=1)``) finds nothing to scale, dense and sparse alike."""
+    import scipy.sparse as sp
+
+    from lcpcli.analysis._scaling import ruiz_exponents
+    from lcpcli.analysis.scaling import BALANCED, Q_BALANCED, is_balanced
+
+    seen = set()
+    for seed in range(6):
+        for q_mag in (-10, 0, 10):
+            for zeros in (0.0, 0.6):
+                p = _balance_case(n, seed, spread, magnitude, q_mag, zeros)
+                one_round = ruiz_exponents(p.M, p.q, False, BALANCED, Q_BALANCED, 1) is None
+                assert is_balanced(p) == one_round
+                sparse = Problem.create(sp.csr_matrix(p.M), p.q)
+                assert is_balanced(sparse) == one_round
+                if zeros == 0.0:  # (a zero matrix is balanced at any magnitude)
+                    seen.add(one_round)
+    if magnitude == 0 and spread == 0:
+        assert True in seen  # the family reaches both answers across the grid
+    if magnitude == 9 and n >= 7:  # an entry of 2^6 or more: never balanced
+        assert seen == {False}

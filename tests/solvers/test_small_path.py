@@ -24,7 +24,8 @@ def _without_kernel_certificate(spec):
     """``spec`` whose runs hand back no certificate (the dispatcher then checks z itself)."""
     def run(problem, **kw):
         out = spec.run(problem, **kw)
-        out.checked = None
+        if out is not None:  # None: the balance test in the call refused (Method.balance_test)
+            out.checked = None
         return out
     return dataclasses.replace(spec, run=run)
 
@@ -131,3 +132,29 @@ def test_small_path_never_changes_a_result(n, seed, psd, scale):
     assert (a.termination, a.iterations, a.message) == (b.termination, b.iterations, b.message)
     assert a.info == b.info
     assert a.checked[0] == b.checked[0]
+
+
+@settings(max_examples=80, deadline=None)
+@given(n=st.integers(1, 70), seed=st.integers(0, 2**32 - 1),
+       row_scale=st.sampled_from([1.0, 4.0, 64.0, 1e6]), q_scale=st.sampled_from([1.0, 1e-4, 1e4]),
+       m_scale=st.sampled_from([1.0, 40.0, 1e-3]))
+def test_the_balance_test_in_the_compiled_call_is_is_balanced(n, seed, row_scale, q_scale,
+                                                              m_scale):
+    """``lemke-revised`` makes the equilibration's balance test inside its compiled call
+    (``Method.balance_test``): it solves exactly when :func:`is_balanced` says the problem is
+    balanced, and then gives what the call without the test gives."""
+    from lcpcli.analysis.scaling import BALANCE
+
+    p = _spd(n, seed, row_scale)
+    p = Problem.create(p.M * m_scale, p.q * q_scale)
+    spec = registry.get_method("lemke")
+    assert spec.balance_test
+    got = spec.run(p, tol=1e-8, balance=BALANCE)
+    assert (got is not None) == is_balanced(p)
+    if got is not None:
+        plain = spec.run(p, tol=1e-8)
+        np.testing.assert_array_equal(got.z, plain.z)
+        assert got.message == plain.message
+        assert (got.checked is None) == (plain.checked is None)  # None: z = 0 (q >= 0)
+        if got.checked is not None:
+            assert got.checked[0] == plain.checked[0]

@@ -32,6 +32,7 @@ from libc.stdint cimport int64_t
 from libc.stdlib cimport free, malloc
 from libc.string cimport memcpy
 
+from lcpcli.analysis._scaling cimport _balanced
 from lcpcli.core._certificate cimport CertOut, certify_dense
 from lcpcli.solvers.kernels.dense cimport invert
 from lcpcli.solvers.kernels.lemke cimport (
@@ -608,12 +609,16 @@ cdef LemkeRun _run(int status, object z, object w, int64_t pivots, list basis, o
 
 
 def lemke_solve_certified(M, q, d, int64_t max_iter, double piv_tol, double tie_tol,
-                          int64_t refactor_every):
+                          int64_t refactor_every, balance=None):
     """Kernel, final polish and the certificate in one compiled call (a :class:`LemkeRun`).
 
     ``d`` None means the covering vector of all ones.  The certificate is
     :c:func:`lcpcli.core._certificate.certify_dense`'s (the project's one definition, for an
-    LCP) of the returned ``z``.
+    LCP) of the returned ``z``.  ``balance``: None, or the thresholds ``(balanced,
+    q_balanced)`` of :data:`lcpcli.analysis.scaling.BALANCE`: the call then first makes the
+    equilibration's balance test (:c:func:`lcpcli.analysis._scaling._balanced`, the one
+    definition, as :func:`lcpcli.analysis.scaling.is_balanced`) and returns None, without
+    solving, when the problem is not balanced.
     """
     cdef Py_ssize_t n = len(q)
     cdef cnp.ndarray qa = f64(q, n, -1)
@@ -643,6 +648,13 @@ def lemke_solve_certified(M, q, d, int64_t max_iter, double piv_tol, double tie_
     cdef double* rp = raw + 6 * n
     cdef int64_t* bp = <int64_t*>(raw + 8 * n)
     cdef Py_ssize_t* iwork = <Py_ssize_t*>(raw + 9 * n)
+    cdef int balanced, q_balanced
+    if balance is not None:
+        balanced, q_balanced = balance
+        # the test's workspace (4 n long longs) is the block's first 4 n words
+        if not _balanced(n, Mp, n, qp, balanced, q_balanced, <long long*> raw):
+            free(raw)
+            return None
     with nogil:
         if dp == NULL:
             for i in range(n):

@@ -89,7 +89,9 @@ def attempt_key(name: str, max_iter: int | None) -> tuple[Any, ...]:
 
 def _attempt(name: str, max_iter: int | None, z0: np.ndarray | None
              ) -> tuple[Method, dict[str, Any]]:
-    """The method called ``name`` and its parsed options for an attempt (prepared once)."""
+    """The method called ``name`` and the options of an attempt that differ from their
+    defaults (parsed and checked; :meth:`Method.given_options`: what the dispatcher passes to
+    ``run``), the method prepared once."""
     key = None
     if z0 is None:
         key = attempt_key(name, max_iter)
@@ -105,7 +107,7 @@ def _attempt(name: str, max_iter: int | None, z0: np.ndarray | None
     if z0 is not None and "z0" in spec.options:
         opts["z0"] = z0
     spec.prepare_once()
-    found = spec, spec.parse_options(opts)
+    found = spec, spec.given_options(spec.parse_options(opts))
     return found if key is None else ATTEMPTS.put(key, found)
 
 

@@ -61,11 +61,14 @@ def default_refactor_every(n: int) -> int:
 
 def run(problem: Any, *, tol: float, covering: np.ndarray | None = None,
         max_iter: int | None = None, refactor_every: int | None = None,
-        trace: bool = False) -> Outcome:
+        trace: bool = False, balance: tuple[int, int] | None = None) -> Outcome | None:
     """Solve ``problem`` (an LCP) by the revised Lemke method; see the module docstring.
 
     ``trace=True`` records the pivots with the tableau method's step-by-step replica: the
-    same pivot rule, hence the same pivots on non-degenerate problems.
+    same pivot rule, hence the same pivots on non-degenerate problems.  ``balance`` (not an
+    option: the dispatcher's, ``Method.balance_test``): the thresholds of
+    :data:`lcpcli.analysis.scaling.BALANCE`; the compiled call first makes the balance test
+    and None is returned, nothing solved, when the problem is not balanced.
     """
     if trace:
         out = run_tableau(problem, tol=tol, covering=covering, max_iter=max_iter, trace=True)
@@ -78,14 +81,18 @@ def run(problem: Any, *, tol: float, covering: np.ndarray | None = None,
     limit = max_iter or default_max_iter(n)
     # kernel, final polish and the certificate in one compiled call
     got = lemke_solve_certified(M, q, d, limit, PIVOT_TOL, TIE_TOL,
-                                refactor_every or default_refactor_every(n))
-    status, z, pivots, refactors = got.status, got.z, got.pivots, got.refactors
-    if status == TRIVIAL:
-        return Outcome(np.zeros(n), 0, CONVERGED, "q >= 0: z = 0 solves the problem")
+                                refactor_every or default_refactor_every(n), balance)
+    if got is None:
+        return None
+    status = got.status
     if status == OK:
         # the certificate of this z for this problem, as check() computes it (out of range:
         # status 2, left to check(), which rescales)
-        return _converged(got, from_kernel(got.cert, tol) if got.cert[0] != 2 else None)
+        cert = got.cert
+        return _converged(got, from_kernel(cert, tol) if cert[0] != 2 else None)
+    if status == TRIVIAL:
+        return Outcome(np.zeros(n), 0, CONVERGED, "q >= 0: z = 0 solves the problem")
+    z, pivots, refactors = got.z, got.pivots, got.refactors
     info = {"refactorisations": refactors}
     if status == MAX_ITER:
         return Outcome(np.maximum(z, 0.0), pivots, ITERATION_LIMIT,
@@ -114,11 +121,11 @@ def run(problem: Any, *, tol: float, covering: np.ndarray | None = None,
 def _converged(got: Any, cert: Any) -> Outcome:
     """The Outcome of a kernel run (:class:`LemkeRun`) whose artificial variable left the
     basis, with the kernel's certificate ``cert`` (None: left to the caller)."""
-    return Outcome.converged(got.z, got.pivots,
+    pivots, refactors = got.pivots, got.refactors
+    return Outcome.converged(got.z, pivots,
                              f"artificial variable left the basis after "
-                             f"{plural(got.pivots, 'pivot')} ({got.refactors} "
-                             f"refactorisations)",
-                             {"refactorisations": got.refactors, "basis": got.basis},
+                             f"{plural(pivots, 'pivot')} ({refactors} refactorisations)",
+                             {"refactorisations": refactors, "basis": got.basis},
                              None if cert is None else (cert, got.w))
 
 
@@ -144,6 +151,7 @@ METHODS = [
         # the faster of the two on benchmarks/bench_lemke.py (CPU time, n = 10..1000)
         aliases=("lemke",),
         scaling="auto",
+        balance_test=True,
         # numpy's OpenBLAS for refactorisations from 64 basic variables: bound before timing,
         # never scipy.linalg (kernels/dense.pyx)
         prepare=bind_numpy_lapack,
