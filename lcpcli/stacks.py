@@ -14,6 +14,7 @@ import numpy as np
 
 from lcpcli.analysis.classify import Classifier
 from lcpcli.api import check_dense_work, solve
+from lcpcli.core import _certificate
 from lcpcli.core.certificate import check
 from lcpcli.core.errors import LcpError, OptionError, ProblemError
 from lcpcli.core.numeric import check_dtype
@@ -257,6 +258,37 @@ def _warm_rows(warm: Any, K: int, n: int) -> np.ndarray | None:
     if rows.shape != (K, n):
         raise OptionError(f"warm start of a stack must have shape ({K}, {n}), got {rows.shape}")
     return rows
+
+
+def final_bases(res: StackResult, M: np.ndarray, q: np.ndarray, *, lower: Any = None,
+                upper: Any = None, n_eq: int = 0) -> np.ndarray:
+    """(K, n) int8: the final basis of every problem of ``res`` (the codes of
+    :attr:`Result.basis`: 0 ``L``, 1 ``U``, 2 ``F``; -1 where ``z`` is not finite, e.g. an
+    ``error`` problem).  ``res.basis`` where the stack recorded it (a warm stack), else each
+    problem's Result's, else the certificate's pair states of ``z`` on ``M``, ``q`` (and the
+    bounds), the one definition of :attr:`Result.basis`."""
+    z = np.asarray(res.z)
+    K, n = z.shape
+    finite = np.isfinite(z).all(axis=1)
+    if res.basis is not None:
+        out = np.array(res.basis, dtype=np.int8)
+    else:
+        out = np.full((K, n), -1, np.int8)
+        w = np.empty(n)
+        for k in np.flatnonzero(finite).tolist():
+            r = res.results.get(k)
+            if r is not None and r.basis is not None:
+                out[k] = r.basis
+                continue
+            if lower is None and upper is None and _certificate.certify_arrays(
+                    M[k], q[k], z[k], n_eq, None, None, w, out[k])[0] != 2:
+                continue
+            # bounds, or an overflow that the rescaled certificate handles: through Problem
+            p = Problem.create(M[k], q[k], n_eq=n_eq, lower=None if lower is None else lower[k],
+                               upper=None if upper is None else upper[k])
+            check(p, z[k], res.tol, state=out[k])
+    out[~finite] = -1
+    return out
 
 
 #: Problems of one size a list needs before :func:`solve_each` stacks them.
