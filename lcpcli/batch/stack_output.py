@@ -244,8 +244,10 @@ class Hdf5StackWriter:
             raise ProblemError(f"holds results of {info.path} for K = {int(g.attrs['K'])}, "
                                f"n = {int(g.attrs['n'])}, but the input now has K = {info.K}, "
                                f"n = {info.n}; {_RERUN}", str(path))
-        if "chunk_digest" not in g or "chunk" not in g.attrs or "solve_options" not in g.attrs \
-                or "basis" not in g:
+        if "basis" not in g:
+            raise ProblemError(f"holds results of {info.path} without their basis (written "
+                               f"by an older lcpcli); {_RERUN}", str(path))
+        if "chunk_digest" not in g or "chunk" not in g.attrs or "solve_options" not in g.attrs:
             raise ProblemError(f"holds results of {info.path} without the fingerprint of "
                                f"their input (written by an older lcpcli), so they cannot be "
                                f"checked against it; {_RERUN}", str(path))
@@ -360,7 +362,10 @@ class NpzStackWriter:
                 if str(data["source"]) != info.path:
                     raise ProblemError(f"holds results of {data['source']}, not {info.path}; "
                                        f"{_RERUN}", str(path))
-                if not {"chunk_digest", "chunk", "solve_options", "basis"} <= set(data.files):
+                if "basis" not in data.files:
+                    raise ProblemError(f"holds results of {info.path} without their basis "
+                                       f"(written by an older lcpcli); {_RERUN}", str(path))
+                if not {"chunk_digest", "chunk", "solve_options"} <= set(data.files):
                     raise ProblemError(f"holds results of {info.path} without the fingerprint "
                                        f"of their input (written by an older lcpcli), so they "
                                        f"cannot be checked against it; {_RERUN}", str(path))

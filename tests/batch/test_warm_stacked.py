@@ -185,3 +185,20 @@ def test_bad_warm_files_are_one_line_errors(cli, tmp_path):
     one_line_error(cli("solve", str(single), str(single), "--z0", str(good), "-o",
                        str(tmp_path / "r.jsonl")), "stacked")
     one_line_error(cli("solve", str(path), "--z0", str(good), "-o", str(good)))
+
+
+@pytest.mark.parametrize("ext", ["h5", "npz"])
+def test_resume_of_a_result_file_without_basis_is_refused(cli, tmp_path, ext):
+    """A stacked result file of an older lcpcli (no ``basis``) is not resumed: one line."""
+    M, q = pd_stack(20, 3, seed=8)
+    path, out = tmp_path / "s.h5", tmp_path / f"r.{ext}"
+    write_stack(path, M, q)
+    cli("solve", str(path), "-o", str(out))
+    if ext == "npz":
+        with np.load(out) as d:
+            kept = {k: d[k] for k in d.files if k != "basis"}
+        np.savez(out, **kept)
+    else:
+        with h5py.File(out, "r+") as f:
+            del f["s"]["basis"]
+    one_line_error(cli("solve", str(path), "-o", str(out), "--resume"), "without their basis")
