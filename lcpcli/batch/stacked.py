@@ -234,7 +234,7 @@ def solve_read(part: Any, info: Any, todo: np.ndarray, opts: SolveOptions, plan:
     :func:`read_part`: the chunk's names (of ``todo``), the result, the plan (made here when
     None) and the seconds: the solving half of :func:`solve_part`.  ``prev``: the same chunk
     of a previous stacked result file (``--z0``), which warm-starts every problem."""
-    from lcpcli.stacks import final_bases, plan_stack, solve_many
+    from lcpcli.stacks import plan_stack, solve_many
 
     t1 = time.perf_counter()
     start, stop = part.start, part.start + part.q.shape[0]
@@ -251,8 +251,8 @@ def solve_read(part: Any, info: Any, todo: np.ndarray, opts: SolveOptions, plan:
         plan = plan_stack(M, q, opts.method, lower=lo, upper=up, n_eq=info.n_eq, **options)
     warm = None if prev is None else warm_result(prev, todo)
     res = solve_many(M, q, opts.method, tol=opts.tol, lower=lo, upper=up, n_eq=info.n_eq,
-                     threads=threads, on_error="mark", plan=plan, warm=warm, **options)
-    res.basis = final_bases(res, M, q, lower=lo, upper=up, n_eq=info.n_eq)  # for the output
+                     threads=threads, on_error="mark", plan=plan, warm=warm,
+                     record_basis=True, **options)  # the output's basis
     return names, res, plan, time.perf_counter() - t1
 
 
