@@ -270,8 +270,13 @@ def _reads(path: str, info: Any, done: np.ndarray, chunk: int, digest: bool,
             stop = min(info.K, start + chunk)
             todo = np.flatnonzero(~done[start:stop])
             if todo.size:
-                yield (todo, *read_part(reader, start, stop, digest=digest),
-                       None if warm is None else warm.read(start, stop))
+                part, fingerprint, read_s = read_part(reader, start, stop, digest=digest)
+                prev = None
+                if warm is not None:  # its read counts as reading
+                    t0 = time.perf_counter()
+                    prev = warm.read(start, stop)
+                    read_s += time.perf_counter() - t0
+                yield todo, part, fingerprint, read_s, prev
 
 
 def _prefetched(items: Callable[[threading.Event], Iterator[Any]], depth: int) -> Iterator[Any]:
