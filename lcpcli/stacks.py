@@ -14,6 +14,7 @@ import numpy as np
 
 from lcpcli.analysis.classify import Classifier
 from lcpcli.api import check_dense_work, solve
+from lcpcli.core import _certificate
 from lcpcli.core.certificate import check
 from lcpcli.core.errors import LcpError, OptionError, ProblemError
 from lcpcli.core.numeric import check_dtype
@@ -89,7 +90,7 @@ def _check_stack(M: Any, q: Any, method: str | None, lower: Any, upper: Any, n_e
 def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None = None,
                lower: Any = None, upper: Any = None, n_eq: int = 0, threads: int | None = None,
                backend: str | None = None, on_error: str = "raise",
-               plan: StackPlan | None = None, warm: Any = None,
+               plan: StackPlan | None = None, warm: Any = None, record_basis: bool = False,
                **options: Any) -> StackResult:
     """Solve a stack of K problems of one size n and certify every answer.
 
@@ -126,6 +127,12 @@ def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None =
     warm=row k)`` (see :func:`solve`).  A row with NaN (e.g. of an ``error`` problem), or of a
     problem the previous stack did not solve, is solved cold.  The result's ``basis`` holds
     each answer's basis for the next step.
+
+    ``record_basis``: the result's ``basis`` holds every problem's final basis
+    (:func:`final_bases`) also for a cold stack: from Lemke's batched kernel on the ``"cpu"``
+    backend at no extra cost (the certificate's pair states, filled in the same call: the warm
+    kernel with no basis given runs cold Lemke, the same code as the cold kernel), otherwise by
+    one certificate pass per problem afterwards.
 
     ``on_error``: ``"raise"`` (a problem with NaN or Inf data raises :class:`ProblemError`
     naming its index; problems before it are solved first) or ``"mark"`` (its status is
@@ -182,6 +189,11 @@ def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None =
             bases = stack_bases(warm, K, n)
         else:
             run_spec, kernel_options = None, {}
+    elif record_basis and run_spec is not None:
+        from lcpcli.solvers.warm_stack import uses_warm_kernel
+
+        if uses_warm_kernel(run_spec, lower, K, n, choose_backend(backend, K, n)):
+            bases = np.full((K, n), -1, np.int8)  # no basis: every problem runs cold Lemke
     name = spec.name
     if run_spec is not None:
         kernel = get_backend(choose_backend(backend, K, n)).kernel(run_spec.batch.kernel)
@@ -241,12 +253,15 @@ def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None =
         results[k] = r
     retried = np.zeros(K, bool)
     retried[retry] = run_spec is not None
-    return StackResult(z=z, w=w, status=status, iterations=iterations, error=error,
-                       residual=residual, method=name, tol=tol,
-                       seconds=time.perf_counter() - start, retried=retried,
-                       messages=messages, methods=methods_of, batched=run_spec is not None,
-                       results=results, basis=bases,
-                       warmed=None if warmed is None else warmed.astype(bool))
+    out_res = StackResult(z=z, w=w, status=status, iterations=iterations, error=error,
+                          residual=residual, method=name, tol=tol, retried=retried,
+                          messages=messages, methods=methods_of, batched=run_spec is not None,
+                          results=results, basis=bases,
+                          warmed=None if warmed is None or rows is None else warmed.astype(bool))
+    if record_basis:
+        out_res.basis = final_bases(out_res, M, q, lower=lower, upper=upper, n_eq=n_eq)
+    out_res.seconds = time.perf_counter() - start
+    return out_res
 
 
 def _warm_rows(warm: Any, K: int, n: int) -> np.ndarray | None:
@@ -257,6 +272,37 @@ def _warm_rows(warm: Any, K: int, n: int) -> np.ndarray | None:
     if rows.shape != (K, n):
         raise OptionError(f"warm start of a stack must have shape ({K}, {n}), got {rows.shape}")
     return rows
+
+
+def final_bases(res: StackResult, M: np.ndarray, q: np.ndarray, *, lower: Any = None,
+                upper: Any = None, n_eq: int = 0) -> np.ndarray:
+    """(K, n) int8: the final basis of every problem of ``res`` (the codes of
+    :attr:`Result.basis`: 0 ``L``, 1 ``U``, 2 ``F``; -1 where ``z`` is not finite, e.g. an
+    ``error`` problem).  ``res.basis`` where the stack recorded it (a warm stack), else each
+    problem's Result's, else the certificate's pair states of ``z`` on ``M``, ``q`` (and the
+    bounds), the one definition of :attr:`Result.basis`."""
+    z = np.asarray(res.z)
+    K, n = z.shape
+    finite = np.isfinite(z).all(axis=1)
+    if res.basis is not None:
+        out = np.array(res.basis, dtype=np.int8)
+    else:
+        out = np.full((K, n), -1, np.int8)
+        w = np.empty(n)
+        for k in np.flatnonzero(finite).tolist():
+            r = res.results.get(k)
+            if r is not None and r.basis is not None:
+                out[k] = r.basis
+                continue
+            if lower is None and upper is None and _certificate.certify_arrays(
+                    M[k], q[k], z[k], n_eq, None, None, w, out[k])[0] != 2:
+                continue
+            # bounds, or an overflow that the rescaled certificate handles: through Problem
+            p = Problem.create(M[k], q[k], n_eq=n_eq, lower=None if lower is None else lower[k],
+                               upper=None if upper is None else upper[k])
+            check(p, z[k], res.tol, state=out[k])
+    out[~finite] = -1
+    return out
 
 
 #: Problems of one size a list needs before :func:`solve_each` stacks them.

@@ -38,6 +38,8 @@ class SolveOptions:
     method: str = DEFAULT_METHOD
     tol: float | None = None
     options: dict[str, Any] = field(default_factory=dict)
+    #: A previous stacked result file that warm-starts a batch of one stack (``--z0``).
+    warm: str | None = None
 
 
 def key(row: dict[str, Any]) -> tuple[str, str]:

@@ -91,14 +91,18 @@ def run_batch(inputs: Iterable[str], opts: SolveOptions, *, recursive: bool = Fa
     spec = method_of(opts.method)  # unknown method or bad tol: OptionError before any work
     canonical = spec.name
     resolve_tol(spec, opts.tol)
-    opts = SolveOptions(canonical, opts.tol, dict(opts.options))
+    opts = SolveOptions(canonical, opts.tol, dict(opts.options), opts.warm)
     inputs = [str(i) for i in inputs]
     stacked = _stacked_inputs(inputs, timeout=timeout)
+    if opts.warm is not None and not stacked:
+        raise OptionError(f"--z0 {opts.warm}: a stacked result file warm-starts a stacked "
+                          f"input; give a vector (or a --json result) for other problems")
     if output is not None:
         from lcpcli.batch import output as batch_output
 
         batch_output.output_kind(output)
-        check_output(output, inputs=inputs)  # a link, a device, a directory or an input: refused
+        # a link, a device, a directory or an input (the --z0 file included): refused
+        check_output(output, inputs=inputs if opts.warm is None else [*inputs, opts.warm])
     if stacked:
         return _run_stacked(inputs, opts, output=output, resume=resume, threads=jobs,
                             start=start, on_start=on_start, on_row=on_row,

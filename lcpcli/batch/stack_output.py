@@ -7,7 +7,10 @@ attributes ``source`` (the input as given), ``n``, ``K``, ``method``, ``tol`` an
 ``status_codes`` (JSON: status -> code), and datasets, indexed by the 0-based problem index:
 ``z``, ``w`` (K, n) float64, ``status`` (K,) int8 (:data:`lcpcli.core.result.STATUS_CODES`;
 -1: not solved yet), ``iterations`` (K,) int64, ``error`` and ``residual`` (K,) float64 (NaN
-where none), ``names`` (K,) when the input has names, and the input's fingerprint (below).
+where none), ``basis`` (K, n) int8 (each problem's final basis, the codes of
+:attr:`lcpcli.core.result.Result.basis`: 0 ``L``, 1 ``U``, 2 ``F``; -1 where none: not solved
+yet, or an ``error`` problem; what ``solve STACK --z0 THIS_FILE`` starts from), ``names`` (K,)
+when the input has names, and the input's fingerprint (below).
 Each chunk's data are written and flushed, then its digest and ``status``, and flushed again,
 before the next chunk's results are written (the next chunk is read meanwhile, by the reader
 thread of :mod:`lcpcli.batch.stacked`); Ctrl-C / SIGTERM close the file cleanly, so ``--resume``
@@ -51,6 +54,8 @@ from lcpcli.batch.output import DIGEST_BYTES, INPUT_HASH, checked_output, hdf5_t
 from lcpcli.batch.records import options_difference
 from lcpcli.core.errors import OptionError, ProblemError
 from lcpcli.core.result import NOT_DONE, STATUS_CODES, status_counts
+from lcpcli.io import stack as io_stack
+from lcpcli.io.stack.results import RESULTS_MARK
 from lcpcli.io.writing import (
     Hdf5Handle,
     atomic_file,
@@ -63,8 +68,10 @@ from lcpcli.io.writing import (
 )
 
 #: Root attribute marking an HDF5 file as stacked results.
-MARK = "lcpcli_stacked_results"
-_ARRAYS = ("z", "w", "status", "iterations", "error", "residual")
+MARK = RESULTS_MARK
+_ARRAYS = ("z", "w", "status", "iterations", "error", "residual", "basis")
+#: The fill of ``basis`` where a problem has none (not solved yet, or an ``error`` problem).
+NO_BASIS = -1
 #: What a write failure leaves in a stacked result file (the message says it).
 KEPT = "the finished problems are kept (status -1 marks the others): free space, then run " \
        "again with --resume"
@@ -86,10 +93,13 @@ def chunk_digest(part: Any) -> bytes:
     return h.digest()[:DIGEST_BYTES]
 
 
-def options_fingerprint(opts: Any) -> str:
-    """The solve options a result was computed with (JSON: method, tol, options)."""
-    return json.dumps({"method": opts.method, "tol": opts.tol, "options": opts.options},
-                      sort_keys=True, default=repr)
+def options_fingerprint(opts: Any, warm_digest: str | None = None) -> str:
+    """The solve options a result was computed with (JSON: method, tol, options, and with a
+    warm start (``--z0 PREVIOUS``) ``warm``: the SHA-256 digest of that file's bytes)."""
+    record = {"method": opts.method, "tol": opts.tol, "options": opts.options}
+    if warm_digest is not None:
+        record["warm"] = warm_digest
+    return json.dumps(record, sort_keys=True, default=repr)
 
 
 def _text(text: Any) -> str:
@@ -121,13 +131,16 @@ def _recorded(status: np.ndarray, digests: np.ndarray, chunk: int) -> dict[int, 
 def _empty_arrays(K: int, n: int) -> dict[str, np.ndarray]:
     return {"z": np.full((K, n), np.nan), "w": np.full((K, n), np.nan),
             "status": np.full(K, NOT_DONE, np.int8), "iterations": np.zeros(K, np.int64),
-            "error": np.full(K, np.nan), "residual": np.full(K, np.nan)}
+            "error": np.full(K, np.nan), "residual": np.full(K, np.nan),
+            "basis": np.full((K, n), NO_BASIS, np.int8)}
 
 
 def _chunk_arrays(res: Any) -> dict[str, np.ndarray]:
     return {"z": res.z, "w": res.w, "status": res.status, "iterations": res.iterations,
             "error": np.where(np.isfinite(res.error), res.error, np.nan),
-            "residual": res.residual}
+            "residual": res.residual,
+            "basis": np.full(res.z.shape, NO_BASIS, np.int8) if res.basis is None
+            else res.basis}
 
 
 #: Largest M (bytes) of one chunk of a stacked batch that :func:`batch_chunk` grows for its
@@ -144,9 +157,7 @@ def batch_chunk(n: int, threads: int) -> int:
     thread gets :data:`PER_THREAD` problems while M stays within :data:`MAX_CHUNK_BYTES`.
     A result file records its chunk (``--resume`` reads it from there, whatever ``--jobs``);
     row outputs, which do not, use :func:`chunk_size` alone."""
-    from lcpcli.io.stack import chunk_size
-
-    base = chunk_size(n)
+    base = io_stack.chunk_size(n)  # looked up at call time: a test may replace it
     return max(base, min(PER_THREAD * threads, MAX_CHUNK_BYTES // max(8, 8 * n * n)))
 
 
@@ -233,6 +244,9 @@ class Hdf5StackWriter:
             raise ProblemError(f"holds results of {info.path} for K = {int(g.attrs['K'])}, "
                                f"n = {int(g.attrs['n'])}, but the input now has K = {info.K}, "
                                f"n = {info.n}; {_RERUN}", str(path))
+        if "basis" not in g:
+            raise ProblemError(f"holds results of {info.path} without their basis (written "
+                               f"by an older lcpcli); {_RERUN}", str(path))
         if "chunk_digest" not in g or "chunk" not in g.attrs or "solve_options" not in g.attrs:
             raise ProblemError(f"holds results of {info.path} without the fingerprint of "
                                f"their input (written by an older lcpcli), so they cannot be "
@@ -268,8 +282,8 @@ class Hdf5StackWriter:
             chunks = (rows, n) if value.ndim == 2 and n else (min(K, 1 << 16),)
             if key == "chunk_digest":
                 chunks = (min(size, 1 << 12), DIGEST_BYTES)
-            fill = NOT_DONE if key == "status" else (0 if key in ("iterations", "chunk_digest")
-                                                     else np.nan)
+            fill = NOT_DONE if key == "status" else NO_BASIS if key == "basis" else \
+                (0 if key in ("iterations", "chunk_digest") else np.nan)
             # every chunk allocated (and filled) now: later writes change data, never the
             # file's metadata, so a kill -9 between or during them leaves a readable file
             dcpl = h5py.h5p.create(h5py.h5p.DATASET_CREATE)
@@ -306,7 +320,7 @@ class Hdf5StackWriter:
         where: Any = slice(first, last + 1) if last - first + 1 == positions.size else positions
         arrays = _chunk_arrays(res)
         with writing(self.path, KEPT):
-            for key in ("z", "w", "iterations", "error", "residual"):
+            for key in ("z", "w", "iterations", "error", "residual", "basis"):
                 g[key][where] = arrays[key]
             if names is not None and "names" in g:
                 g["names"][where] = [_text(s) for s in names]
@@ -348,6 +362,9 @@ class NpzStackWriter:
                 if str(data["source"]) != info.path:
                     raise ProblemError(f"holds results of {data['source']}, not {info.path}; "
                                        f"{_RERUN}", str(path))
+                if "basis" not in data.files:
+                    raise ProblemError(f"holds results of {info.path} without their basis "
+                                       f"(written by an older lcpcli); {_RERUN}", str(path))
                 if not {"chunk_digest", "chunk", "solve_options"} <= set(data.files):
                     raise ProblemError(f"holds results of {info.path} without the fingerprint "
                                        f"of their input (written by an older lcpcli), so they "
@@ -432,9 +449,7 @@ class RowStackWriter:
         self.writer = output.open_writer(path, resume=resume)
 
     def chunk(self, info: Any) -> int:
-        from lcpcli.io.stack import chunk_size
-
-        return chunk_size(info.n)
+        return io_stack.chunk_size(info.n)
 
     def _rows(self, info: Any) -> list[dict[str, Any]]:
         return [r for r in self.finished.get(info.path, [])

@@ -26,8 +26,8 @@ import numpy as np
 
 from lcpcli.batch.records import SolveOptions, error_row
 from lcpcli.batch.report import BatchReport, BatchStats, Tally
-from lcpcli.core.errors import ProblemError
-from lcpcli.core.result import STATUS_CODES, STATUS_OF_CODE, Status
+from lcpcli.core.errors import OptionError, ProblemError
+from lcpcli.core.result import STATUS_CODES, STATUS_OF_CODE, StackResult, Status, basis_text
 
 
 def _problem_name(stem: str, k: int, names: list[str] | None, i: int) -> str:
@@ -57,8 +57,16 @@ def result_rows(source: str, stem: str, positions: np.ndarray, names: list[str] 
             "residual": resid if np.isfinite(resid) else None,
             "error": err if np.isfinite(err) else None,
             "message": res.message(i), "problem": _problem_name(stem, k, names, i),
-            "index": k, "source": source})
+            "index": k, "source": source, "basis": _basis_text(res.basis, i)})
     return rows
+
+
+def _basis_text(basis: np.ndarray | None, i: int) -> str | None:
+    """Row i's basis as ``--json`` writes it (:func:`lcpcli.core.result.basis_text`); None
+    without one (an ``error`` problem)."""
+    if basis is None or (basis[i] < 0).any():
+        return None
+    return basis_text(basis[i])
 
 
 def run_stacks(inputs: list[str], opts: SolveOptions, report: BatchReport, *,
@@ -93,19 +101,22 @@ def run_stacks(inputs: list[str], opts: SolveOptions, report: BatchReport, *,
             if on_row:
                 on_row(row)
     report.total = sum(i.K for i in infos if i is not None) + infos.count(None)
+    warm, warm_digest = _open_warm(opts, infos, scheduler)
     writer = None
-    if output is not None:
-        writer = stack_output.open_stack_writer(output, [i for i in infos if i is not None],
-                                                resume=resume,
-                                                options=stack_output.options_fingerprint(opts),
-                                                threads=threads)
     try:
+        if output is not None:
+            writer = stack_output.open_stack_writer(
+                output, [i for i in infos if i is not None], resume=resume,
+                options=stack_output.options_fingerprint(opts, warm_digest), threads=threads)
         if writer is not None and resume:
             for info in infos:
                 if info is not None:
                     _check_identity(info, writer, output)
     except BaseException:
-        writer.close()
+        if writer is not None:
+            writer.close()
+        if warm is not None:
+            warm.close()
         raise
     done_masks = {}
     for path, info in zip(inputs, infos, strict=True):
@@ -127,10 +138,50 @@ def run_stacks(inputs: list[str], opts: SolveOptions, report: BatchReport, *,
                      chunk=writer.chunk(info) if writer is not None else
                      stack_output.batch_chunk(info.n, threads),
                      on_progress=on_progress, on_row=on_row, write=write,
-                     scheduler=scheduler)
+                     scheduler=scheduler, warm=warm)
     finally:
+        if warm is not None:
+            warm.close()
         if writer is not None:
             write(writer.close)
+
+
+def _open_warm(opts: SolveOptions, infos: list[Any], scheduler: Any) -> tuple[Any, str | None]:
+    """The previous stacked result file of ``--z0`` (``opts.warm``), opened and checked
+    against the one input stack (:class:`lcpcli.io.stack.results.StackResultFile`), and the
+    digest of its bytes, which the run's solve options record (``--resume`` then refuses
+    another warm file); ``(None, None)`` without one."""
+    if opts.warm is None:
+        return None, None
+    from lcpcli.io.stack.results import StackResultFile, file_digest
+
+    stacks = [i for i in infos if i is not None]
+    if len(infos) != 1 or not stacks:
+        raise OptionError(f"--z0 {opts.warm}: a stacked result file warm-starts one stacked "
+                          f"input (got {len(infos)})")
+    if scheduler is not None:
+        raise OptionError("--z0 with stacked inputs is solved in this process; it does not "
+                          "apply to --scheduler")
+    info = stacks[0]
+    warm = StackResultFile(opts.warm, info.K, info.n)
+    try:
+        return warm, file_digest(opts.warm)
+    except BaseException:
+        warm.close()
+        raise
+
+
+def warm_result(prev: Any, todo: np.ndarray) -> StackResult:
+    """Problems ``todo`` of a chunk of a previous stacked result file
+    (:class:`lcpcli.io.stack.results.ResultChunk`) as the :class:`StackResult` that
+    ``solve_many(..., warm=)`` starts from: each problem from its basis (from its ``z`` where
+    the file has none), cold where it was not solved."""
+    z = np.ascontiguousarray(prev.z[todo])
+    k = int(todo.size)
+    return StackResult(z=z, w=np.full_like(z, np.nan), status=prev.status[todo],
+                       iterations=np.zeros(k, np.int64), error=np.full(k, np.nan),
+                       residual=np.full(k, np.nan), method="", tol=float("nan"),
+                       basis=None if prev.basis is None else prev.basis[todo])
 
 
 def _check_identity(info: Any, writer: Any, output: Any) -> None:
@@ -178,10 +229,11 @@ def read_part(reader: Any, start: int, stop: int, *, digest: bool) -> tuple[Any,
 
 
 def solve_read(part: Any, info: Any, todo: np.ndarray, opts: SolveOptions, plan: Any, *,
-               threads: int) -> tuple[list[str] | None, Any, Any, float]:
+               threads: int, prev: Any = None) -> tuple[list[str] | None, Any, Any, float]:
     """Solve problems ``todo`` (0-based in the chunk) of the chunk ``part`` read by
     :func:`read_part`: the chunk's names (of ``todo``), the result, the plan (made here when
-    None) and the seconds: the solving half of :func:`solve_part`."""
+    None) and the seconds: the solving half of :func:`solve_part`.  ``prev``: the same chunk
+    of a previous stacked result file (``--z0``), which warm-starts every problem."""
     from lcpcli.stacks import plan_stack, solve_many
 
     t1 = time.perf_counter()
@@ -197,14 +249,18 @@ def solve_read(part: Any, info: Any, todo: np.ndarray, opts: SolveOptions, plan:
     options = dict(opts.options)
     if plan is None:
         plan = plan_stack(M, q, opts.method, lower=lo, upper=up, n_eq=info.n_eq, **options)
+    warm = None if prev is None else warm_result(prev, todo)
     res = solve_many(M, q, opts.method, tol=opts.tol, lower=lo, upper=up, n_eq=info.n_eq,
-                     threads=threads, on_error="mark", plan=plan, **options)
+                     threads=threads, on_error="mark", plan=plan, warm=warm,
+                     record_basis=True, **options)  # the output's basis
     return names, res, plan, time.perf_counter() - t1
 
 
 def _reads(path: str, info: Any, done: np.ndarray, chunk: int, digest: bool,
-           stop_event: threading.Event | None = None) -> Iterator[tuple[Any, ...]]:
-    """``(todo, part, digest, read_s)`` of each chunk with work, in order (the reader's side)."""
+           stop_event: threading.Event | None = None, warm: Any = None
+           ) -> Iterator[tuple[Any, ...]]:
+    """``(todo, part, digest, read_s, prev)`` of each chunk with work, in order (the reader's
+    side); ``prev``: the chunk of the ``--z0`` result file ``warm`` (None without one)."""
     from lcpcli.io.stack import open_stack
 
     with open_stack(path) as reader:
@@ -214,7 +270,13 @@ def _reads(path: str, info: Any, done: np.ndarray, chunk: int, digest: bool,
             stop = min(info.K, start + chunk)
             todo = np.flatnonzero(~done[start:stop])
             if todo.size:
-                yield (todo, *read_part(reader, start, stop, digest=digest))
+                part, fingerprint, read_s = read_part(reader, start, stop, digest=digest)
+                prev = None
+                if warm is not None:  # its read counts as reading
+                    t0 = time.perf_counter()
+                    prev = warm.read(start, stop)
+                    read_s += time.perf_counter() - t0
+                yield todo, part, fingerprint, read_s, prev
 
 
 def _prefetched(items: Callable[[threading.Event], Iterator[Any]], depth: int) -> Iterator[Any]:
@@ -269,18 +331,19 @@ READ_AHEAD = 1
 
 
 def _local_parts(path: str, info: Any, opts: SolveOptions, done: np.ndarray, *, threads: int,
-                 chunk: int, digest: bool) -> Any:
+                 chunk: int, digest: bool, warm: Any = None) -> Any:
     """``(start, todo, names, digest, res, read_s, solve_s)`` of each chunk with work, in
     order, solved in this process (the plan is made on the first chunk solved).  Reading (and
     the chunk's digest) overlaps solving: a reader thread reads the next chunk while the
     compiled kernel's threads solve this one (:func:`_prefetched`, :data:`READ_AHEAD`); the
     caller writes each result in this thread, in order, as before."""
     plan = None
-    parts = _prefetched(lambda stop: _reads(path, info, done, chunk, digest, stop), READ_AHEAD)
+    parts = _prefetched(lambda stop: _reads(path, info, done, chunk, digest, stop, warm),
+                        READ_AHEAD)
     try:
-        for todo, part, fingerprint, read_s in parts:
+        for todo, part, fingerprint, read_s, prev in parts:
             names, res, plan, solve_s = solve_read(part, info, todo, opts, plan,
-                                                   threads=threads)
+                                                   threads=threads, prev=prev)
             yield part.start, todo, names, fingerprint, res, read_s, solve_s
     finally:
         parts.close()
@@ -288,12 +351,14 @@ def _local_parts(path: str, info: Any, opts: SolveOptions, done: np.ndarray, *, 
 
 def _run_one(path: str, info: Any, opts: SolveOptions, report: BatchReport, tally: Tally,
              stats: BatchStats, writer: Any, done: np.ndarray, *, threads: int, chunk: int,
-             on_progress: Any, on_row: Any, write: Any, scheduler: Any = None) -> None:
-    """One stacked input, chunk by chunk: solved here, or as Dask tasks when ``scheduler``."""
+             on_progress: Any, on_row: Any, write: Any, scheduler: Any = None,
+             warm: Any = None) -> None:
+    """One stacked input, chunk by chunk: solved here, or as Dask tasks when ``scheduler``;
+    ``warm``: the ``--z0`` result file (local runs only)."""
     stem = Path(path).stem
     if scheduler is None:
         parts = _local_parts(path, info, opts, done, threads=threads, chunk=chunk,
-                             digest=writer is not None)
+                             digest=writer is not None, warm=warm)
     else:
         from lcpcli.batch.cluster import iter_stack_dask
 

@@ -103,7 +103,8 @@ def _on_sigterm(signum: int, frame: Any) -> None:
 def run_batch_command(files: list[str], *, method: str, tol: float | None,
                       opts: dict[str, Any], problem: str | None, as_json: bool,
                       output: Any, recursive: bool, jobs: int | None, resume: bool,
-                      timeout: float | None, quiet: bool, scheduler: str | None) -> int:
+                      timeout: float | None, quiet: bool, scheduler: str | None,
+                      warm: str | None = None) -> int:
     """Run the batch, show progress and the summary; return the exit code (0/1/2, 130, 143)."""
     from lcpcli.batch.records import SolveOptions
     from lcpcli.batch.run import run_batch
@@ -179,7 +180,8 @@ def run_batch_command(files: list[str], *, method: str, tol: float | None,
     try:
         if progress is not None:
             progress.start()
-        report = run_batch(files, SolveOptions(method=method, tol=tol, options=dict(opts)),
+        report = run_batch(files, SolveOptions(method=method, tol=tol, options=dict(opts),
+                                               warm=warm),
                            recursive=recursive, jobs=jobs, timeout=timeout, output=output,
                            resume=resume, scheduler=scheduler, on_start=on_start,
                            on_row=row_sink, on_progress=on_progress)

@@ -42,7 +42,8 @@ def solve(
                                  "previous --json: its basis), or an NPZ/NPY array. auto, bpp "
                                  "and the pivoting methods first pivot (BPP) from its basis, "
                                  "then solve cold if needed; pgs, psor, newton, newton-min start "
-                                 "from z."),
+                                 "from z. Stacked inputs: a previous stacked result file "
+                                 "(.h5/.npz), each problem from its basis."),
     option: list[str] = typer.Option(None, "--option", "-O", metavar="KEY=VALUE",
                                      help="Other method option (repeatable)."),
     problem: str = typer.Option(None, "--problem", "-p",
@@ -134,7 +135,11 @@ def solve(
     trace = (trace or layout is not None or pivot_step is not None or step or fmt != "text"
              or bool(exact))
     if wants_batch(files, output, problem=problem, **batch):
-        if z0 is not None:  # one warm start for problems of any size: the vector limit only
+        from lcpcli.io.stack.results import is_stack_results
+
+        if z0 is not None and is_stack_results(z0):  # a previous stack's results: per problem
+            batch["warm"] = str(z0)
+        elif z0 is not None:  # one warm start for problems of any size: the vector limit only
             from lcpcli.io.warmstart import load_z0
 
             opts["z0"] = load_z0(z0)

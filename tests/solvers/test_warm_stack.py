@@ -110,3 +110,30 @@ def test_stack_bases_forms_and_errors() -> None:
     assert np.all(stack_bases(pts, 3, 4)[0] == -1)
     with pytest.raises(OptionError):
         lcpcli.solve_many(M, q, "lemke", warm=prev.z[:2])
+
+
+@settings(max_examples=15, deadline=None)
+@given(K=st.integers(1, 30), n=st.integers(1, 12), seed=st.integers(0, 2**32 - 1),
+       method=st.sampled_from(["lemke", "pgs", "auto"]), box=st.booleans())
+def test_record_basis_changes_no_answer_and_gives_each_results_basis(
+        K: int, n: int, seed: int, method: str, box: bool) -> None:
+    """``record_basis=True`` (stacked result files): every array equals a plain solve_many's,
+    and ``basis`` is each problem's Result.basis (the certificate's pair states of its z),
+    whether the Lemke kernel filled it or a certificate pass afterwards."""
+    from lcpcli.core.certificate import check
+    from lcpcli.core.problem import Problem
+
+    M, q = _stack(K, n, seed)
+    q[0] = -1.0
+    M[0] = 0.0  # no solution (Farkas): a basis of its z all the same
+    box = box and method != "lemke"  # Lemke takes LCPs only
+    bounds = {"lower": -np.ones(n), "upper": np.ones(n)} if box else {}
+    plain = lcpcli.solve_many(M, q, method, **bounds)
+    got = lcpcli.solve_many(M, q, method, record_basis=True, **bounds)
+    for key in ("z", "w", "status", "iterations", "error", "residual"):
+        np.testing.assert_array_equal(getattr(got, key), getattr(plain, key))
+    assert got.basis.shape == (K, n) and got.basis.dtype == np.int8 and got.warmed is None
+    for k in range(K):
+        want = np.empty(n, np.int8)
+        check(Problem.create(M[k], q[k], **bounds), got.z[k], got.tol, state=want)
+        np.testing.assert_array_equal(got.basis[k], want)
