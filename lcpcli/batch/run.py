@@ -12,7 +12,7 @@ from typing import Any
 
 from lcpcli.batch.cluster import iter_dask
 from lcpcli.batch.inputs import expand_inputs
-from lcpcli.batch.pool import iter_local
+from lcpcli.batch.pool import iter_local_groups
 from lcpcli.batch.records import SolveOptions, key, options_difference
 from lcpcli.batch.report import BatchReport, BatchStats, Tally
 from lcpcli.batch.worker import prepare_method
@@ -210,6 +210,17 @@ def _identity(path: str | os.PathLike[str]) -> tuple[int, int] | None:
     return (st.st_dev, st.st_ino)
 
 
+def _one_by_one(rows: Iterator[dict[str, Any]]
+                ) -> Iterator[list[tuple[dict[str, Any], dict[str, Any]]]]:
+    """Rows as groups of one ``(row, timings)`` pair (timings already counted), the source
+    closed with this generator."""
+    try:
+        for row in rows:
+            yield [(row, {})]
+    finally:
+        rows.close()  # type: ignore[attr-defined]
+
+
 def _run(tasks: list[Any], bad_inputs: list[dict[str, Any]], opts: SolveOptions,
          report: BatchReport, *, output: Any, resume: bool, scheduler: Any, jobs: int,
          timeout: float | None, start: float,
@@ -250,32 +261,38 @@ def _run(tasks: list[Any], bad_inputs: list[dict[str, Any]], opts: SolveOptions,
     if on_start:
         on_start(report.total, report.skipped)
 
-    def emit(row: dict[str, Any]) -> None:
+    def emit(pairs: list[tuple[dict[str, Any], dict[str, Any]]]) -> None:
+        """Write rows that arrived together in one write; ``input_hash`` as the worker hashed
+        the bytes it parsed, else from the file."""
+        for _row, timing in pairs:
+            stats.add(timing)
         if writer is not None:
             t0 = time.perf_counter()
-            stamped = {**row, batch_output.INPUT_HASH: fingerprint(str(row.get("source", ""))),
-                       batch_output.SOLVE_OPTIONS: options}
+            stamped = [{**row, batch_output.INPUT_HASH: timing.get("digest")
+                        or fingerprint(str(row.get("source", ""))),
+                        batch_output.SOLVE_OPTIONS: options} for row, timing in pairs]
             with signals_deferred():
-                writer.write([stamped])
+                writer.write(stamped)
             stats.write_seconds += time.perf_counter() - t0
-        tally.add(row)
-        report.new += 1
-        if on_row:
-            on_row(row)
+        for row, _timing in pairs:
+            tally.add(row)
+            report.new += 1
+            if on_row:
+                on_row(row)
 
     complete = False
     try:
-        for row in bad_inputs:
-            emit(row)
+        if bad_inputs:
+            emit([(row, {}) for row in bad_inputs])
         if scheduler is not None:
-            rows = iter_dask(tasks, opts, scheduler, on_timing=stats.add)
+            groups: Any = _one_by_one(iter_dask(tasks, opts, scheduler, on_timing=stats.add))
         else:
-            rows = iter_local(tasks, opts, jobs=jobs, timeout=timeout, on_timing=stats.add)
+            groups = iter_local_groups(tasks, opts, jobs=jobs, timeout=timeout)
         try:
-            for row in rows:
-                emit(row)
+            for pairs in groups:
+                emit(pairs)
         finally:
-            rows.close()
+            groups.close()
         complete = True
     except KeyboardInterrupt:
         report.interrupted = True

@@ -96,14 +96,17 @@ def _module(fmt: str) -> Any:
 
 
 def load(path: str | os.PathLike[str], problem: str | None = None, *,
-         fmt: str | None = None, check_dense: Callable[[int], None] | None = None) -> Problem:
+         fmt: str | None = None, check_dense: Callable[[int], None] | None = None,
+         content: list[bytes] | None = None) -> Problem:
     """Read one problem from ``path`` (``-`` = JSON on stdin); ``problem`` picks an HDF5 group.
 
     Only regular files are read (see :mod:`lcpcli.io.files`); sizes, shapes and data types are
     checked from headers before the data is read.  ``check_dense(n)`` (a caller's work budget,
     :mod:`lcpcli.core.limits`) is called with the size of a dense M before it is read, from
     the header in HDF5 and NPZ files (a lazily allocated 15,000 x 15,000 M costs nothing), after
-    parsing in the text formats; a sparse M is not checked.
+    parsing in the text formats; a sparse M is not checked.  ``content``: a list that receives
+    the bytes a JSON file was parsed from (a batch fingerprints them instead of reading the
+    file a second time).
     """
     source = str(path)
     try:
@@ -116,7 +119,7 @@ def load(path: str | os.PathLike[str], problem: str | None = None, *,
             text = decode_text(read_stdin_bytes(MAX_TEXT_BYTES), "UTF-8 JSON text")
             prob = json_format.read_text(text, default_name="stdin")
         else:
-            prob = _read_file(path, kind, problem, check_dense)
+            prob = _read_file(path, kind, problem, check_dense, content)
         if check_dense is not None and not prob.sparse:
             check_dense(prob.n)  # text formats and stacks: after reading (HDF5/NPZ: done)
         return prob
@@ -131,7 +134,8 @@ def load(path: str | os.PathLike[str], problem: str | None = None, *,
 
 
 def _read_file(path: str | os.PathLike[str], kind: str, problem: str | None,
-               check_dense: Callable[[int], None] | None) -> Problem:
+               check_dense: Callable[[int], None] | None,
+               content: list[bytes] | None = None) -> Problem:
     """:func:`load` of a file of format ``kind`` (a stack handed to :mod:`lcpcli.io.stack`)."""
     if kind == "hdf5":  # the other readers open it with io.files.open_input, which checks
         check_input_file(path)
@@ -147,6 +151,8 @@ def _read_file(path: str | os.PathLike[str], kind: str, problem: str | None,
             return _module(kind).read(p, problem, check_dense)
         if kind == "npz":
             return _module(kind).read(p, check_dense)
+        if kind == "json" and content is not None:
+            return _module(kind).read(p, content)
         return _module(kind).read(p)
     except StackedFile:  # the format reader found a stack: the stack reader takes over
         return _read_stacked(p, problem)
