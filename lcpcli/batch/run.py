@@ -110,10 +110,11 @@ def run_batch(inputs: Iterable[str], opts: SolveOptions, *, recursive: bool = Fa
             raise OptionError(f"--output {output}: an .npz result file is written for stacked "
                               f"inputs only (see docs/batch.md); use .jsonl, .csv or .h5")
     prepare_method(canonical)
-    tasks, bad_inputs = expand_inputs(inputs, recursive=recursive)
+    identities: dict[str, tuple[int, int]] = {}
+    tasks, bad_inputs = expand_inputs(inputs, recursive=recursive, identities=identities)
     if output is not None:  # never read our own result file back as an input
         own = _identity(output)
-        if any(_identity(t.source) == own for t in tasks):
+        if own is not None and any(identities.get(t.source) == own for t in tasks):
 
             raise ProblemError("holds problems of this batch (it was found among the inputs): "
                                "choose another output file", str(output))

@@ -63,3 +63,30 @@ def test_content_fingerprint_is_the_file_fingerprint(tmp_path_factory, data):
     path = tmp_path_factory.mktemp("fp") / "x.json"
     path.write_bytes(data)
     assert content_fingerprint(data) == input_fingerprint(path)
+
+
+def test_folder_listing_matches_pathlib(tmp_path):
+    """The one-scandir folder listing finds what ``Path.glob``/``rglob`` found: problem files by
+    extension (any case, hidden ones too), links to files followed, links to folders not
+    descended into, a broken link skipped; the sub-folder hint as before."""
+    from pathlib import Path
+
+    from lcpcli.batch.inputs import _folder_files
+    from lcpcli.io import PROBLEM_EXTENSIONS
+
+    root = tmp_path / "tree"
+    (root / "sub" / "deep").mkdir(parents=True)
+    (root / "other").mkdir()
+    for name in ("a.json", "B.JSON", ".hidden.json", "c.txt", "sub/d.npz", "sub/deep/e.h5",
+                 "other/f.dat", "sub/g.json5"):
+        (root / name).write_text("{}")
+    (root / "link.json").symlink_to(root / "a.json")
+    (root / "broken.json").symlink_to(root / "missing.json")
+    (root / "sub" / "up").symlink_to(root / "other", target_is_directory=True)
+    for recursive in (False, True):
+        walker = root.rglob("*") if recursive else root.glob("*")
+        want = sorted(str(f) for f in walker
+                      if f.is_file() and f.suffix.lower() in PROBLEM_EXTENSIONS)
+        found, subfolders = _folder_files(str(root), recursive)
+        assert found == want and subfolders == any(c.is_dir() for c in Path(root).iterdir())
+        assert len(found) == (4 if not recursive else 7)
