@@ -201,8 +201,27 @@ def iter_local(tasks: list[Task], opts: SolveOptions, *, jobs: int = 1,
         groups.close()
 
 
+@contextlib.contextmanager
+def early_workers(opts: SolveOptions, jobs: int, timeout: float | None,
+                  ) -> Iterator[list[_Worker]]:
+    """``jobs`` worker processes started now, before the batch lists its inputs (their
+    start-up, a few tenths of a second, then overlaps the listing); none when the batch runs
+    in this process.  :func:`iter_local_groups` (``started=``) takes them from the list; the
+    block's end stops those it did not take."""
+    started: list[_Worker] = []
+    if jobs > 1 or timeout:
+        ctx = _mp_context()
+        started = [_Worker(ctx, opts) for _ in range(jobs)]
+    try:
+        yield started
+    finally:
+        while started:
+            w = started.pop()
+            w.stop(kill=not w.ready)
+
+
 def iter_local_groups(tasks: list[Task], opts: SolveOptions, *, jobs: int = 1,
-                      timeout: float | None = None,
+                      timeout: float | None = None, started: list[_Worker] | None = None,
                       ) -> Iterator[list[tuple[dict[str, Any], dict[str, Any]]]]:
     """:func:`iter_local` as the groups of ``(row, timings)`` pairs that arrive together
     (timings as :func:`lcpcli.batch.worker.solve_tasks` gives them): a caller writes each
@@ -212,6 +231,7 @@ def iter_local_groups(tasks: list[Task], opts: SolveOptions, *, jobs: int = 1,
     with more than one row of its chunk unsent, which problem killed it is not known, so the
     rest of the chunk goes to a fresh worker that sends row by row (the problems solved but
     not sent are solved again): the problem that kills that one is recorded as before.
+    ``started``: workers of :func:`early_workers`, used first (the others are stopped).
     """
     if not tasks:
         return
@@ -228,7 +248,15 @@ def iter_local_groups(tasks: list[Task], opts: SolveOptions, *, jobs: int = 1,
         (cid, chunk, group) for cid, chunk in enumerate(make_chunks(tasks, jobs)))
     next_id = len(pending)
     n_workers = max(1, min(jobs, len(pending)))
-    workers = [_Worker(ctx, opts) for _ in range(n_workers)]
+    workers: list[_Worker] = []
+    try:
+        while started and len(workers) < n_workers:
+            workers.append(started.pop())
+        while started:  # more than this batch has chunks for
+            extra = started.pop()
+            extra.stop(kill=not extra.ready)
+    finally:
+        workers += [_Worker(ctx, opts) for _ in range(n_workers - len(workers))]
     failed_starts = 0
     try:
         while pending or any(w.busy for w in workers):

@@ -12,7 +12,7 @@ from typing import Any
 
 from lcpcli.batch.cluster import iter_dask
 from lcpcli.batch.inputs import expand_inputs
-from lcpcli.batch.pool import iter_local_groups
+from lcpcli.batch.pool import early_workers, iter_local_groups
 from lcpcli.batch.records import SolveOptions, key, options_difference
 from lcpcli.batch.report import BatchReport, BatchStats, Tally
 from lcpcli.batch.worker import prepare_method
@@ -110,25 +110,28 @@ def run_batch(inputs: Iterable[str], opts: SolveOptions, *, recursive: bool = Fa
             raise OptionError(f"--output {output}: an .npz result file is written for stacked "
                               f"inputs only (see docs/batch.md); use .jsonl, .csv or .h5")
     prepare_method(canonical)
-    identities: dict[str, tuple[int, int]] = {}
-    tasks, bad_inputs = expand_inputs(inputs, recursive=recursive, identities=identities)
-    if output is not None:  # never read our own result file back as an input
-        own = _identity(output)
-        if own is not None and any(identities.get(t.source) == own for t in tasks):
-
-            raise ProblemError("holds problems of this batch (it was found among the inputs): "
-                               "choose another output file", str(output))
-        bad_inputs = [r for r in bad_inputs if _identity(r["source"]) != own or own is None]
-    tally, stats = Tally(), BatchStats()
-    report = BatchReport(tally=tally, stats=stats, total=len(tasks) + len(bad_inputs),
-                         output=None if output is None else str(output))
     with contextlib.ExitStack() as held:
+        # local workers start while the inputs are listed (a few tenths of a second)
+        started = [] if scheduler is not None else \
+            held.enter_context(early_workers(opts, jobs, timeout))
+        identities: dict[str, tuple[int, int]] = {}
+        tasks, bad_inputs = expand_inputs(inputs, recursive=recursive, identities=identities)
+        if output is not None:  # never read our own result file back as an input
+            own = _identity(output)
+            if own is not None and any(identities.get(t.source) == own for t in tasks):
+
+                raise ProblemError("holds problems of this batch (it was found among the "
+                                   "inputs): choose another output file", str(output))
+            bad_inputs = [r for r in bad_inputs if _identity(r["source"]) != own or own is None]
+        tally, stats = Tally(), BatchStats()
+        report = BatchReport(tally=tally, stats=stats, total=len(tasks) + len(bad_inputs),
+                             output=None if output is None else str(output))
         if output is not None:
 
             held.enter_context(output_lock(output))  # a second writer is refused here
         return _run(tasks, bad_inputs, opts, report, output=output, resume=resume,
                     scheduler=scheduler, jobs=jobs, timeout=timeout, start=start,
-                    on_start=on_start, on_row=on_row)
+                    on_start=on_start, on_row=on_row, started=started)
 
 
 def _stacked_inputs(inputs: list[str], *, timeout: float | None) -> bool:
@@ -226,8 +229,10 @@ def _run(tasks: list[Any], bad_inputs: list[dict[str, Any]], opts: SolveOptions,
          report: BatchReport, *, output: Any, resume: bool, scheduler: Any, jobs: int,
          timeout: float | None, start: float,
          on_start: Callable[[int, int], None] | None,
-         on_row: Callable[[dict[str, Any]], None] | None) -> BatchReport:
-    """The batch once the output (if any) is locked: resume, solve, write rows."""
+         on_row: Callable[[dict[str, Any]], None] | None,
+         started: list[Any] | None = None) -> BatchReport:
+    """The batch once the output (if any) is locked: resume, solve, write rows (``started``:
+    local workers already started, :func:`lcpcli.batch.pool.early_workers`)."""
     tally, stats = report.tally, report.stats
     writer = None
     fingerprints: dict[str, str | None] = {}
@@ -288,7 +293,8 @@ def _run(tasks: list[Any], bad_inputs: list[dict[str, Any]], opts: SolveOptions,
         if scheduler is not None:
             groups: Any = _one_by_one(iter_dask(tasks, opts, scheduler, on_timing=stats.add))
         else:
-            groups = iter_local_groups(tasks, opts, jobs=jobs, timeout=timeout)
+            groups = iter_local_groups(tasks, opts, jobs=jobs, timeout=timeout,
+                                       started=started)
         try:
             for pairs in groups:
                 emit(pairs)

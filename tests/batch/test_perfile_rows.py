@@ -90,3 +90,26 @@ def test_folder_listing_matches_pathlib(tmp_path):
         found, subfolders = _folder_files(str(root), recursive)
         assert found == want and subfolders == any(c.is_dir() for c in Path(root).iterdir())
         assert len(found) == (4 if not recursive else 7)
+
+
+def test_workers_started_early_are_stopped_when_the_batch_is_refused(tmp_path):
+    """Workers start before the inputs are listed; a batch refused after that (its output is a
+    hard link to one of the files found in its folder), or with fewer chunks than workers,
+    leaves no worker process behind."""
+    import multiprocessing as mp
+    import os
+
+    import pytest
+
+    from lcpcli.core.errors import ProblemError
+
+    folder = tmp_path / "in"
+    folder.mkdir()
+    files = _files(folder, 3)
+    out = tmp_path / "same.jsonl"
+    os.link(files[0], out)
+    with pytest.raises(ProblemError, match="holds problems of this batch"):
+        run_batch([str(folder)], SolveOptions("lemke"), jobs=2, output=out)
+    assert not mp.active_children()
+    report = run_batch(files[:1], SolveOptions("lemke"), jobs=2, output=tmp_path / "one.jsonl")
+    assert report.new == 1 and not mp.active_children()
