@@ -83,6 +83,12 @@ class _Sender:
                         return
 
 
+#: Row fields holding str enums (Status, Termination): a worker sends them as their text,
+#: which they equal and are written as, because unpickling an enum member costs the client
+#: 10x a string (a lookup by value per row and field).
+_ENUM_FIELDS = ("status", "termination")
+
+
 def _worker_main(conn: Any, opts: SolveOptions) -> None:
     """Worker process: receive chunks ``(id, tasks, group)``, send their ``(row, timings)``
     pairs in groups of at most ``group`` (:class:`_Sender`)."""
@@ -100,8 +106,11 @@ def _worker_main(conn: Any, opts: SolveOptions) -> None:
             if msg is None:
                 return
             chunk_id, tasks, group = msg
-            for pair in worker.solve_tasks(tasks, opts):
-                sender.add(chunk_id, pair, group)
+            for row, timing in worker.solve_tasks(tasks, opts):
+                for name in _ENUM_FIELDS:  # plain text in the pickle (see _ENUM_FIELDS)
+                    if name in row:
+                        row[name] = str(row[name])
+                sender.add(chunk_id, (row, timing), group)
             sender.finish(chunk_id)
     except (EOFError, OSError):  # the parent is gone (kill -9): leave quietly, no traceback
         return
