@@ -378,3 +378,14 @@ def test_read_input_bytes_a_file_that_grows_after_the_size_check(tmp_path, monke
     assert files.read_input_bytes(path, limit=1000) == b"x" * 100
     with pytest.raises(ProblemError, match="too large|larger|exceeds|limit"):
         files.read_input_bytes(path, limit=50)
+
+
+@settings(max_examples=300, deadline=None)
+@given(path=st.text(alphabet="ab./-J", max_size=12))
+def test_suffix_is_pathlibs(path):
+    """The format detection's suffix, computed without a Path, is pathlib's for any path."""
+    from pathlib import Path
+
+    from lcpcli.io import suffix
+
+    assert suffix(path) == Path(path).suffix
