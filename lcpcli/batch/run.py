@@ -6,10 +6,12 @@ import contextlib
 import math
 import os
 import signal
+import threading
 import time
 from collections.abc import Callable, Iterable, Iterator
 from typing import Any
 
+from lcpcli.batch import output as batch_output
 from lcpcli.batch.cluster import iter_dask
 from lcpcli.batch.inputs import expand_inputs
 from lcpcli.batch.pool import early_workers, iter_local_groups
@@ -30,8 +32,6 @@ def signals_deferred() -> Iterator[None]:
     the signals in the main thread is not enough, because the kernel then delivers them to
     another thread (BLAS, OpenMP) and Python still runs the handler in the main thread.
     """
-    import threading
-
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -95,20 +95,15 @@ def run_batch(inputs: Iterable[str], opts: SolveOptions, *, recursive: bool = Fa
     inputs = [str(i) for i in inputs]
     stacked = _stacked_inputs(inputs, timeout=timeout)
     if output is not None:
-        from lcpcli.batch import output as batch_output
-
         batch_output.output_kind(output)
         check_output(output, inputs=inputs)  # a link, a device, a directory or an input: refused
     if stacked:
         return _run_stacked(inputs, opts, output=output, resume=resume, threads=jobs,
                             start=start, on_start=on_start, on_row=on_row,
                             on_progress=on_progress, scheduler=scheduler)
-    if output is not None:
-        from lcpcli.batch import output as batch_output
-
-        if batch_output.output_kind(output) == "npz":
-            raise OptionError(f"--output {output}: an .npz result file is written for stacked "
-                              f"inputs only (see docs/batch.md); use .jsonl, .csv or .h5")
+    if output is not None and batch_output.output_kind(output) == "npz":
+        raise OptionError(f"--output {output}: an .npz result file is written for stacked "
+                          f"inputs only (see docs/batch.md); use .jsonl, .csv or .h5")
     prepare_method(canonical)
     with contextlib.ExitStack() as held:
         # local workers start while the inputs are listed (a few tenths of a second)
@@ -188,8 +183,7 @@ def _check_fingerprint(row: dict[str, Any], now: str | None, options: str, outpu
     """Refuse to resume from a row computed from other content than its source has now or
     with other solve options (``options``: this run's fingerprint of them), or from a row
     without these fingerprints (written by an older lcpcli)."""
-    from lcpcli.batch.output import INPUT_HASH, SOLVE_OPTIONS
-
+    INPUT_HASH, SOLVE_OPTIONS = batch_output.INPUT_HASH, batch_output.SOLVE_OPTIONS
     if INPUT_HASH not in row or SOLVE_OPTIONS not in row:
         raise ProblemError("holds results without the fingerprint of their inputs and solve "
                            "options (written by an older lcpcli), so they cannot be checked "
@@ -243,7 +237,6 @@ def _run(tasks: list[Any], bad_inputs: list[dict[str, Any]], opts: SolveOptions,
             fingerprints[source] = batch_output.input_fingerprint(source)
         return fingerprints[source]
 
-    from lcpcli.batch import output as batch_output
     from lcpcli.batch.stack_output import options_fingerprint
 
     options = options_fingerprint(opts)

@@ -14,14 +14,14 @@ from typing import Any
 from lcpcli.batch.output import content_fingerprint
 from lcpcli.batch.records import SolveOptions, Task, error_row
 from lcpcli.core.errors import LcpError, ProblemError
+from lcpcli.core.numeric import load_fast_json
+from lcpcli.io import load
 
 
 def _load_runs(tasks: list[Task]) -> Iterator[tuple[Task, Any, float, str | None]]:
     """Yield ``(task, Problem or ProblemError, read seconds, input_hash)``; HDF5 files opened
     once per run; the input_hash (:func:`lcpcli.batch.output.content_fingerprint`) of the bytes
     a JSON file was parsed from, None for other files (the client hashes those)."""
-    from lcpcli.io import load
-
     i = 0
     while i < len(tasks):
         task = tasks[i]
@@ -98,7 +98,6 @@ def solve_tasks(tasks: list[Task], opts: SolveOptions,
 def prepare_method(method: str) -> None:
     """Load the method's compiled kernel and the optional fast JSON codec (outside any timing,
     once per worker: a batch reads and writes JSON for every problem); unknown methods raise."""
-    from lcpcli.core.numeric import load_fast_json
     from lcpcli.solvers.request import method_of
 
     load_fast_json()
