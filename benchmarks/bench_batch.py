@@ -15,12 +15,14 @@ seconds for n = 50 and n = 100.
 
     python benchmarks/bench_batch.py            # 10,000 problems of n = 12
     python benchmarks/bench_batch.py --quick    # 1,000 problems
+    python benchmarks/bench_batch.py --vs OLD_CHECKOUT . --count 20000 --rounds 3
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import subprocess
 import sys
@@ -44,8 +46,12 @@ def random_problem(rng: np.random.Generator, n: int, name: str) -> Problem:
     return Problem.create(A @ A.T / n + np.eye(n), rng.standard_normal(n), name=name)
 
 
-def run_cli(args: list[str], cwd: Path) -> tuple[dict, float]:
-    env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+def run_cli(args: list[str], cwd: Path, root: Path = ROOT,
+            extra_path: str = "") -> tuple[dict, float]:
+    """The command with ``root``'s lcpcli (``extra_path`` first on PYTHONPATH: e.g. a folder
+    whose ``orjson.py`` raises ImportError, to measure the standard-library fallback)."""
+    paths = [p for p in (extra_path, str(root), os.environ.get("PYTHONPATH", "")) if p]
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(paths))
     t0 = time.perf_counter()
     r = subprocess.run([sys.executable, "-m", "lcpcli", *args], cwd=cwd, env=env,
                        capture_output=True, text=True)
@@ -114,13 +120,52 @@ def overhead_case(n: int, count: int, tmp: Path) -> dict:
             "overhead_ratio_vs_solve": (wall - t["solve_seconds"]) / t["solve_seconds"]}
 
 
+def versus(roots: list[str], count: int, rounds: int, jobs: int) -> None:
+    """``--vs OLD NEW``: the JSON batch of ``count`` files of n = 12 with each checkout's lcpcli,
+    with orjson and with it made unimportable, interleaved round by round; best of ``rounds``."""
+    rng = np.random.default_rng(12)
+    best: dict[str, float] = {}
+    with tempfile.TemporaryDirectory() as tmpdir:
+        tmp = Path(tmpdir)
+        folder = tmp / "json"
+        folder.mkdir()
+        for i in range(count):
+            save(random_problem(rng, 12, f"p{i:05d}"), folder / f"p{i:05d}.json")
+        blocker = tmp / "no_orjson"
+        blocker.mkdir()
+        (blocker / "orjson.py").write_text("raise ImportError('measuring without orjson')\n")
+        for r in range(rounds):
+            for codec, extra in (("orjson", ""), ("stdlib", str(blocker))):
+                for k, root in enumerate(roots):
+                    label = f"{root} {codec}"
+                    summary, _ = run_cli(["solve", str(folder), "-j", str(jobs), "-o",
+                                          str(tmp / f"out{k}.jsonl"), "--json"], tmp,
+                                         Path(root), extra)
+                    assert summary["summary"]["counts"].get("solved") == count
+                    wall = summary["wall_seconds"]
+                    best[label] = min(best.get(label, math.inf), wall)
+                    print(f"round {r + 1} {label}: {wall:.3f} s, {count / wall:,.0f} problems/s "
+                          f"(set-up {summary['setup_seconds']:.3f} s), load "
+                          f"{os.getloadavg()[0]:.1f}", flush=True)
+    for label, wall in best.items():
+        print(f"best {label}: {wall:.3f} s, {count / wall:,.0f} problems/s")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="1,000 problems instead of 10,000")
     ap.add_argument("--count", type=int, default=None)
     ap.add_argument("--out", default=str(ROOT / "benchmarks" / "results" / "batch.json"))
+    ap.add_argument("--vs", nargs="+", metavar="ROOT",
+                    help="checkouts to compare on the JSON batch only (interleaved, best of "
+                         "--rounds, with and without orjson)")
+    ap.add_argument("--rounds", type=int, default=3)
+    ap.add_argument("--jobs", type=int, default=2)
     args = ap.parse_args()
     count = args.count or (1000 if args.quick else 10000)
+    if args.vs:
+        versus(args.vs, count, args.rounds, args.jobs)
+        return
     rng = np.random.default_rng(12)
     problems = [random_problem(rng, 12, f"p{i:05d}") for i in range(count)]
     results: dict = {"count": count, "n": 12, "cpus": os.cpu_count(),

@@ -18,12 +18,16 @@ GLOB_CHARS = set("*?[")
 
 
 def expand_inputs(inputs: Iterable[str], *, recursive: bool = False,
+                  identities: dict[str, tuple[int, int]] | None = None,
                   ) -> tuple[list[Task], list[dict[str, Any]]]:
     """Files, folders and globs -> tasks (in a stable order) and error rows for bad inputs.
 
     A folder contributes its problem files (by extension; sub-folders with ``recursive``); a
     glob is expanded (``**`` crosses folders with ``recursive``); an HDF5 file contributes one
     task per problem group.  Duplicates (the same file reached twice) are dropped.
+
+    ``identities``: a dict that receives ``(device, inode)`` of every task's file, from the one
+    ``stat`` that checked it (a batch compares them with its output file's).
 
     Error rows (the batch then exits 2): a path that is not a regular file (FIFO, device,
     missing), a directory named like a problem file (``x.json/``), a folder holding no problem
@@ -41,12 +45,14 @@ def expand_inputs(inputs: Iterable[str], *, recursive: bool = False,
         seen.add(path)
         try:
             fmt = detect_format(path)
-            check_input_file(path)
+            st = check_input_file(path)
         except ProblemError as exc:
             errors.append(error_row(path, Path(path).stem, str(exc.with_source(path))))
             return
+        if identities is not None:
+            identities[path] = (st.st_dev, st.st_ino)
         if fmt != "hdf5":
-            tasks.append(Task(path, Path(path).stem))
+            tasks.append(Task(path, _stem(path)))
             return
         try:
             names = _hdf5_problem_names(path)
@@ -69,10 +75,7 @@ def expand_inputs(inputs: Iterable[str], *, recursive: bool = False,
             errors.append(error_row(item, p.stem, f"{item}: is a directory, not a problem file"))
         elif p.is_dir():
             try:
-                walker = p.rglob("*") if recursive else p.glob("*")
-                found = sorted(str(f) for f in walker
-                               if f.is_file() and f.suffix.lower() in PROBLEM_EXTENSIONS)
-                subfolders = not recursive and any(c.is_dir() for c in p.iterdir())
+                found, subfolders = _folder_files(item, recursive)
             except OSError as exc:
                 errors.append(error_row(item, "", f"{item}: cannot list the folder "
                                                   f"({exc.strerror or type(exc).__name__})"))
@@ -93,6 +96,43 @@ def expand_inputs(inputs: Iterable[str], *, recursive: bool = False,
         else:
             add_file(item)
     return tasks, errors
+
+
+def _stem(path: str) -> str:
+    """``Path(path).stem`` (pathlib's rule, without building a Path for each of 10^5 files)."""
+    name = os.path.basename(path)
+    i = name.rfind(".")
+    return name[:i] if 0 < i < len(name) - 1 else name
+
+
+def _folder_files(folder: str, recursive: bool) -> tuple[list[str], bool]:
+    """The problem files of a folder (by extension; with ``recursive`` those of its sub-folders
+    too), sorted, and whether it has sub-folders (not followed without ``recursive``).
+
+    One ``scandir`` per folder: an entry's type comes with it, so a file costs no ``stat``
+    here (the batch checks each one later).  As ``Path.rglob``: links to files are followed,
+    links to folders are not descended into, a sub-folder that cannot be listed is skipped
+    (the folder itself raises OSError).
+    """
+    found: list[str] = []
+    subfolders = False
+    stack = [folder]
+    while stack:
+        top = stack.pop()
+        try:
+            with os.scandir(top) as entries:
+                for entry in entries:
+                    if entry.is_dir():
+                        subfolders = True
+                        if recursive and not entry.is_symlink():
+                            stack.append(entry.path)
+                    elif os.path.splitext(entry.name)[1].lower() in PROBLEM_EXTENSIONS \
+                            and entry.is_file():
+                        found.append(entry.path)
+        except OSError:
+            if top is folder:
+                raise
+    return sorted(found), subfolders
 
 
 def _hdf5_problem_names(path: str) -> list[str] | None:

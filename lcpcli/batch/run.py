@@ -6,13 +6,15 @@ import contextlib
 import math
 import os
 import signal
+import threading
 import time
 from collections.abc import Callable, Iterable, Iterator
 from typing import Any
 
+from lcpcli.batch import output as batch_output
 from lcpcli.batch.cluster import iter_dask
 from lcpcli.batch.inputs import expand_inputs
-from lcpcli.batch.pool import iter_local
+from lcpcli.batch.pool import early_workers, iter_local_groups
 from lcpcli.batch.records import SolveOptions, key, options_difference
 from lcpcli.batch.report import BatchReport, BatchStats, Tally
 from lcpcli.batch.worker import prepare_method
@@ -30,8 +32,6 @@ def signals_deferred() -> Iterator[None]:
     the signals in the main thread is not enough, because the kernel then delivers them to
     another thread (BLAS, OpenMP) and Python still runs the handler in the main thread.
     """
-    import threading
-
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -98,8 +98,6 @@ def run_batch(inputs: Iterable[str], opts: SolveOptions, *, recursive: bool = Fa
         raise OptionError(f"--z0 {opts.warm}: a stacked result file warm-starts a stacked "
                           f"input; give a vector (or a --json result) for other problems")
     if output is not None:
-        from lcpcli.batch import output as batch_output
-
         batch_output.output_kind(output)
         # a link, a device, a directory or an input (the --z0 file included): refused
         check_output(output, inputs=inputs if opts.warm is None else [*inputs, opts.warm])
@@ -107,31 +105,32 @@ def run_batch(inputs: Iterable[str], opts: SolveOptions, *, recursive: bool = Fa
         return _run_stacked(inputs, opts, output=output, resume=resume, threads=jobs,
                             start=start, on_start=on_start, on_row=on_row,
                             on_progress=on_progress, scheduler=scheduler)
-    if output is not None:
-        from lcpcli.batch import output as batch_output
-
-        if batch_output.output_kind(output) == "npz":
-            raise OptionError(f"--output {output}: an .npz result file is written for stacked "
-                              f"inputs only (see docs/batch.md); use .jsonl, .csv or .h5")
+    if output is not None and batch_output.output_kind(output) == "npz":
+        raise OptionError(f"--output {output}: an .npz result file is written for stacked "
+                          f"inputs only (see docs/batch.md); use .jsonl, .csv or .h5")
     prepare_method(canonical)
-    tasks, bad_inputs = expand_inputs(inputs, recursive=recursive)
-    if output is not None:  # never read our own result file back as an input
-        own = _identity(output)
-        if any(_identity(t.source) == own for t in tasks):
-
-            raise ProblemError("holds problems of this batch (it was found among the inputs): "
-                               "choose another output file", str(output))
-        bad_inputs = [r for r in bad_inputs if _identity(r["source"]) != own or own is None]
-    tally, stats = Tally(), BatchStats()
-    report = BatchReport(tally=tally, stats=stats, total=len(tasks) + len(bad_inputs),
-                         output=None if output is None else str(output))
     with contextlib.ExitStack() as held:
+        # local workers start while the inputs are listed (a few tenths of a second)
+        started = [] if scheduler is not None else \
+            held.enter_context(early_workers(opts, jobs, timeout))
+        identities: dict[str, tuple[int, int]] = {}
+        tasks, bad_inputs = expand_inputs(inputs, recursive=recursive, identities=identities)
+        if output is not None:  # never read our own result file back as an input
+            own = _identity(output)
+            if own is not None and any(identities.get(t.source) == own for t in tasks):
+
+                raise ProblemError("holds problems of this batch (it was found among the "
+                                   "inputs): choose another output file", str(output))
+            bad_inputs = [r for r in bad_inputs if _identity(r["source"]) != own or own is None]
+        tally, stats = Tally(), BatchStats()
+        report = BatchReport(tally=tally, stats=stats, total=len(tasks) + len(bad_inputs),
+                             output=None if output is None else str(output))
         if output is not None:
 
             held.enter_context(output_lock(output))  # a second writer is refused here
         return _run(tasks, bad_inputs, opts, report, output=output, resume=resume,
                     scheduler=scheduler, jobs=jobs, timeout=timeout, start=start,
-                    on_start=on_start, on_row=on_row)
+                    on_start=on_start, on_row=on_row, started=started)
 
 
 def _stacked_inputs(inputs: list[str], *, timeout: float | None) -> bool:
@@ -188,8 +187,7 @@ def _check_fingerprint(row: dict[str, Any], now: str | None, options: str, outpu
     """Refuse to resume from a row computed from other content than its source has now or
     with other solve options (``options``: this run's fingerprint of them), or from a row
     without these fingerprints (written by an older lcpcli)."""
-    from lcpcli.batch.output import INPUT_HASH, SOLVE_OPTIONS
-
+    INPUT_HASH, SOLVE_OPTIONS = batch_output.INPUT_HASH, batch_output.SOLVE_OPTIONS
     if INPUT_HASH not in row or SOLVE_OPTIONS not in row:
         raise ProblemError("holds results without the fingerprint of their inputs and solve "
                            "options (written by an older lcpcli), so they cannot be checked "
@@ -214,12 +212,25 @@ def _identity(path: str | os.PathLike[str]) -> tuple[int, int] | None:
     return (st.st_dev, st.st_ino)
 
 
+def _one_by_one(rows: Iterator[dict[str, Any]]
+                ) -> Iterator[list[tuple[dict[str, Any], dict[str, Any]]]]:
+    """Rows as groups of one ``(row, timings)`` pair (timings already counted), the source
+    closed with this generator."""
+    try:
+        for row in rows:
+            yield [(row, {})]
+    finally:
+        rows.close()  # type: ignore[attr-defined]
+
+
 def _run(tasks: list[Any], bad_inputs: list[dict[str, Any]], opts: SolveOptions,
          report: BatchReport, *, output: Any, resume: bool, scheduler: Any, jobs: int,
          timeout: float | None, start: float,
          on_start: Callable[[int, int], None] | None,
-         on_row: Callable[[dict[str, Any]], None] | None) -> BatchReport:
-    """The batch once the output (if any) is locked: resume, solve, write rows."""
+         on_row: Callable[[dict[str, Any]], None] | None,
+         started: list[Any] | None = None) -> BatchReport:
+    """The batch once the output (if any) is locked: resume, solve, write rows (``started``:
+    local workers already started, :func:`lcpcli.batch.pool.early_workers`)."""
     tally, stats = report.tally, report.stats
     writer = None
     fingerprints: dict[str, str | None] = {}
@@ -230,7 +241,6 @@ def _run(tasks: list[Any], bad_inputs: list[dict[str, Any]], opts: SolveOptions,
             fingerprints[source] = batch_output.input_fingerprint(source)
         return fingerprints[source]
 
-    from lcpcli.batch import output as batch_output
     from lcpcli.batch.stack_output import options_fingerprint
 
     options = options_fingerprint(opts)
@@ -254,32 +264,39 @@ def _run(tasks: list[Any], bad_inputs: list[dict[str, Any]], opts: SolveOptions,
     if on_start:
         on_start(report.total, report.skipped)
 
-    def emit(row: dict[str, Any]) -> None:
+    def emit(pairs: list[tuple[dict[str, Any], dict[str, Any]]]) -> None:
+        """Write rows that arrived together in one write; ``input_hash`` as the worker hashed
+        the bytes it parsed, else from the file."""
+        for _row, timing in pairs:
+            stats.add(timing)
         if writer is not None:
             t0 = time.perf_counter()
-            stamped = {**row, batch_output.INPUT_HASH: fingerprint(str(row.get("source", ""))),
-                       batch_output.SOLVE_OPTIONS: options}
+            stamped = [{**row, batch_output.INPUT_HASH: timing.get("digest")
+                        or fingerprint(str(row.get("source", ""))),
+                        batch_output.SOLVE_OPTIONS: options} for row, timing in pairs]
             with signals_deferred():
-                writer.write([stamped])
+                writer.write(stamped)
             stats.write_seconds += time.perf_counter() - t0
-        tally.add(row)
-        report.new += 1
-        if on_row:
-            on_row(row)
+        for row, _timing in pairs:
+            tally.add(row)
+            report.new += 1
+            if on_row:
+                on_row(row)
 
     complete = False
     try:
-        for row in bad_inputs:
-            emit(row)
+        if bad_inputs:
+            emit([(row, {}) for row in bad_inputs])
         if scheduler is not None:
-            rows = iter_dask(tasks, opts, scheduler, on_timing=stats.add)
+            groups: Any = _one_by_one(iter_dask(tasks, opts, scheduler, on_timing=stats.add))
         else:
-            rows = iter_local(tasks, opts, jobs=jobs, timeout=timeout, on_timing=stats.add)
+            groups = iter_local_groups(tasks, opts, jobs=jobs, timeout=timeout,
+                                       started=started)
         try:
-            for row in rows:
-                emit(row)
+            for pairs in groups:
+                emit(pairs)
         finally:
-            rows.close()
+            groups.close()
         complete = True
     except KeyboardInterrupt:
         report.interrupted = True

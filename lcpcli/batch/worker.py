@@ -11,14 +11,17 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
+from lcpcli.batch.output import content_fingerprint
 from lcpcli.batch.records import SolveOptions, Task, error_row
 from lcpcli.core.errors import LcpError, ProblemError
+from lcpcli.core.numeric import load_fast_json
+from lcpcli.io import load
 
 
-def _load_runs(tasks: list[Task]) -> Iterator[tuple[Task, Any, float]]:
-    """Yield ``(task, Problem or ProblemError, read seconds)``; HDF5 files opened once per run."""
-    from lcpcli.io import load
-
+def _load_runs(tasks: list[Task]) -> Iterator[tuple[Task, Any, float, str | None]]:
+    """Yield ``(task, Problem or ProblemError, read seconds, input_hash)``; HDF5 files opened
+    once per run; the input_hash (:func:`lcpcli.batch.output.content_fingerprint`) of the bytes
+    a JSON file was parsed from, None for other files (the client hashes those)."""
     i = 0
     while i < len(tasks):
         task = tasks[i]
@@ -41,19 +44,21 @@ def _load_runs(tasks: list[Task]) -> Iterator[tuple[Task, Any, float]]:
                 if isinstance(item, ProblemError):
                     item = item.with_source(t.source)
                 now = time.perf_counter()
-                yield t, item, now - start
+                yield t, item, now - start, None
                 start = time.perf_counter()
             gen.close()
             i = j
         else:
             start = time.perf_counter()
+            content: list[bytes] = []  # a JSON file's bytes as parsed: its input_hash
             try:
-                item: Any = load(task.source)
+                item: Any = load(task.source, content=content)
             except ProblemError as exc:
                 item = exc
             except Exception as exc:  # noqa: BLE001
                 item = ProblemError(f"unreadable ({type(exc).__name__}: {exc})", task.source)
-            yield task, item, time.perf_counter() - start
+            yield task, item, time.perf_counter() - start, \
+                content_fingerprint(content[0]) if content else None
             i += 1
 
 
@@ -61,12 +66,15 @@ def solve_tasks(tasks: list[Task], opts: SolveOptions,
                 ) -> Iterator[tuple[dict[str, Any], dict[str, float]]]:
     """Read and solve ``tasks`` here; yield ``(row, timings)`` per task, never raising for data.
 
-    ``timings`` has ``read``, ``solve`` (lcpcli.solve plus the row) and ``method`` seconds.
+    ``timings`` has ``read``, ``solve`` (lcpcli.solve plus the row) and ``method`` seconds,
+    and ``digest``: the row's ``input_hash`` where this process read the file whole (JSON).
     """
     from lcpcli.api import solve
 
-    for task, item, t_read in _load_runs(tasks):
-        timing = {"read": t_read, "solve": 0.0, "method": 0.0, "problems": 1}
+    for task, item, t_read, digest in _load_runs(tasks):
+        timing: dict[str, Any] = {"read": t_read, "solve": 0.0, "method": 0.0, "problems": 1}
+        if digest is not None:
+            timing["digest"] = digest
         if isinstance(item, ProblemError):
             yield error_row(task.source, task.problem, str(item), opts.method), timing
             continue
@@ -90,7 +98,6 @@ def solve_tasks(tasks: list[Task], opts: SolveOptions,
 def prepare_method(method: str) -> None:
     """Load the method's compiled kernel and the optional fast JSON codec (outside any timing,
     once per worker: a batch reads and writes JSON for every problem); unknown methods raise."""
-    from lcpcli.core.numeric import load_fast_json
     from lcpcli.solvers.request import method_of
 
     load_fast_json()

@@ -65,6 +65,14 @@ FORMATS = {
 PROBLEM_EXTENSIONS = tuple(FORMATS)
 
 
+def suffix(path: str | os.PathLike[str]) -> str:
+    """``Path(path).suffix`` (pathlib's rule on the last component: from its last dot, unless
+    that dot starts or ends it), without building a Path (a batch asks for 10^4+ files)."""
+    name = os.path.basename(os.path.normpath(os.fspath(path)))
+    i = name.rfind(".")
+    return name[i:] if 0 < i < len(name) - 1 else ""
+
+
 def detect_format(path: str | os.PathLike[str], fmt: str | None = None) -> str:
     """The format name for ``path`` (``fmt`` overrides the extension)."""
     if fmt:
@@ -76,7 +84,7 @@ def detect_format(path: str | os.PathLike[str], fmt: str | None = None) -> str:
         return fmt
     if str(path) == "-":
         return "json"
-    ext = Path(path).suffix.lower()
+    ext = suffix(path).lower()
     if ext not in FORMATS:
         shown = ext or "(none)"
         raise ProblemError(f"unknown file type {shown} (expected .json, .npz, .h5/.hdf5, .dat)")
@@ -96,14 +104,17 @@ def _module(fmt: str) -> Any:
 
 
 def load(path: str | os.PathLike[str], problem: str | None = None, *,
-         fmt: str | None = None, check_dense: Callable[[int], None] | None = None) -> Problem:
+         fmt: str | None = None, check_dense: Callable[[int], None] | None = None,
+         content: list[bytes] | None = None) -> Problem:
     """Read one problem from ``path`` (``-`` = JSON on stdin); ``problem`` picks an HDF5 group.
 
     Only regular files are read (see :mod:`lcpcli.io.files`); sizes, shapes and data types are
     checked from headers before the data is read.  ``check_dense(n)`` (a caller's work budget,
     :mod:`lcpcli.core.limits`) is called with the size of a dense M before it is read, from
     the header in HDF5 and NPZ files (a lazily allocated 15,000 x 15,000 M costs nothing), after
-    parsing in the text formats; a sparse M is not checked.
+    parsing in the text formats; a sparse M is not checked.  ``content``: a list that receives
+    the bytes a JSON file was parsed from (a batch fingerprints them instead of reading the
+    file a second time).
     """
     source = str(path)
     try:
@@ -116,7 +127,7 @@ def load(path: str | os.PathLike[str], problem: str | None = None, *,
             text = decode_text(read_stdin_bytes(MAX_TEXT_BYTES), "UTF-8 JSON text")
             prob = json_format.read_text(text, default_name="stdin")
         else:
-            prob = _read_file(path, kind, problem, check_dense)
+            prob = _read_file(path, kind, problem, check_dense, content)
         if check_dense is not None and not prob.sparse:
             check_dense(prob.n)  # text formats and stacks: after reading (HDF5/NPZ: done)
         return prob
@@ -131,7 +142,8 @@ def load(path: str | os.PathLike[str], problem: str | None = None, *,
 
 
 def _read_file(path: str | os.PathLike[str], kind: str, problem: str | None,
-               check_dense: Callable[[int], None] | None) -> Problem:
+               check_dense: Callable[[int], None] | None,
+               content: list[bytes] | None = None) -> Problem:
     """:func:`load` of a file of format ``kind`` (a stack handed to :mod:`lcpcli.io.stack`)."""
     if kind == "hdf5":  # the other readers open it with io.files.open_input, which checks
         check_input_file(path)
@@ -147,6 +159,8 @@ def _read_file(path: str | os.PathLike[str], kind: str, problem: str | None,
             return _module(kind).read(p, problem, check_dense)
         if kind == "npz":
             return _module(kind).read(p, check_dense)
+        if kind == "json" and content is not None:
+            return _module(kind).read(p, content)
         return _module(kind).read(p)
     except StackedFile:  # the format reader found a stack: the stack reader takes over
         return _read_stacked(p, problem)

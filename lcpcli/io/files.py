@@ -89,14 +89,18 @@ def check_input_file(path: str | os.PathLike[str], what: str = "a problem file"
     return st
 
 
+#: How an input is opened: read-only, non-blocking (a FIFO swapped in cannot hang the open),
+#: never as a controlling terminal, closed on exec.
+_INPUT_FLAGS = os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_NOCTTY", 0) \
+    | getattr(os, "O_CLOEXEC", 0)
+
+
 @contextmanager
 def open_input(path: str | os.PathLike[str], what: str = "a problem file") -> Iterator[IO[bytes]]:
     """Open a regular file for reading (non-blocking open, then ``fstat``: no FIFO can hang)."""
     check_input_file(path, what)
-    flags = os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_NOCTTY", 0) \
-        | getattr(os, "O_CLOEXEC", 0)
     try:
-        fd = os.open(path, flags)
+        fd = os.open(path, _INPUT_FLAGS)
     except OSError as exc:
         raise _stat_error(exc) from None
     try:
@@ -121,16 +125,38 @@ def too_big(size: int, limit: int, what: str) -> ProblemError:
 
 def read_input_bytes(path: str | os.PathLike[str], limit: int = MAX_TEXT_BYTES,
                      what: str = "a text file") -> bytes:
-    """The content of a regular file of at most ``limit`` bytes (checked before reading)."""
-    with open_input(path) as fh:
-        size = os.fstat(fh.fileno()).st_size
+    """The content of a regular file of at most ``limit`` bytes (checked before reading).
+
+    :func:`open_input`'s checks (``stat``, non-blocking open, ``fstat``) on the bare file
+    descriptor: the ``fstat`` also gives the size, and no file object is built (a batch reads
+    10^4+ small files this way).
+    """
+    check_input_file(path)
+    try:
+        fd = os.open(path, _INPUT_FLAGS)
+    except OSError as exc:
+        raise _stat_error(exc) from None
+    try:
+        st = os.fstat(fd)
+        if not stat.S_ISREG(st.st_mode):  # replaced between the stat and the open
+            raise ProblemError(f"is {file_kind(st.st_mode)}, not a regular file")
+        size = st.st_size
         if size > limit:
             raise too_big(size, limit, what)
-        # size + 1 bytes, not limit + 1: a buffered read(n) allocates n bytes first (25 us
-        # per small file for a 256 MiB limit)
-        data = fh.read(size + 1)
-        if len(data) > size:  # the file grew since the fstat: the rest, up to the limit
-            data += fh.read(limit + 1 - len(data))
+        # size + 1 bytes, not limit + 1 (an allocation of the limit for each small file); a
+        # file that grew since the fstat is read on, in blocks, up to the limit
+        parts, total, want = [], 0, size + 1
+        while total < want:
+            block = os.read(fd, min(want - total, max(size + 1, 1 << 20)))
+            if not block:
+                break
+            parts.append(block)
+            total += len(block)
+            if total > size:
+                want = limit + 1
+    finally:
+        os.close(fd)
+    data = parts[0] if len(parts) == 1 else b"".join(parts)
     if len(data) > limit:  # the file grew while we read it
         raise too_big(len(data), limit, what)
     return data

@@ -29,8 +29,11 @@ INF_WORDS = {"inf": math.inf, "+inf": math.inf, "infinity": math.inf, "+infinity
              "-inf": -math.inf, "-infinity": -math.inf}
 
 
-def read(path: Path) -> Problem:
+def read(path: Path, content: list[bytes] | None = None) -> Problem:
+    """The problem of a JSON file (``content``: a list that receives the bytes read)."""
     data = read_input_bytes(path, MAX_TEXT_BYTES, "a JSON problem file")
+    if content is not None:
+        content.append(data)
     return read_text(decode_text(data, "a UTF-8 text file (is it really JSON?)"),
                      default_name=path.stem)
 

@@ -8,6 +8,8 @@ import h5py
 import numpy as np
 import pytest
 import scipy.sparse as sp
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import lcpcli
 from lcpcli.core.errors import ProblemError
@@ -340,6 +342,23 @@ def test_read_many_fast_path_refuses_data_outside_the_file(tmp_path):
     assert isinstance(got["missing"], ProblemError) and "missing" in str(got["missing"])
 
 
+@settings(max_examples=40, deadline=None)
+@given(size=st.integers(0, 5000), limit=st.integers(0, 5000))
+def test_read_input_bytes_is_the_file_up_to_the_limit(tmp_path_factory, size, limit):
+    """The bare-descriptor read returns the file's bytes exactly when it fits the limit, and
+    refuses it (never cuts it) when it does not."""
+    from lcpcli.io import files
+
+    path = tmp_path_factory.mktemp("rb") / "f.json"
+    data = bytes(range(256)) * (size // 256) + bytes(range(size % 256))
+    path.write_bytes(data)
+    if size <= limit:
+        assert files.read_input_bytes(path, limit=limit) == data
+    else:
+        with pytest.raises(ProblemError, match="over the limit"):
+            files.read_input_bytes(path, limit=limit)
+
+
 def test_read_input_bytes_a_file_that_grows_after_the_size_check(tmp_path, monkeypatch):
     """The size is read once (fstat); a file longer by the time it is read is read on to the
     limit, and refused beyond it, never cut."""
@@ -359,3 +378,14 @@ def test_read_input_bytes_a_file_that_grows_after_the_size_check(tmp_path, monke
     assert files.read_input_bytes(path, limit=1000) == b"x" * 100
     with pytest.raises(ProblemError, match="too large|larger|exceeds|limit"):
         files.read_input_bytes(path, limit=50)
+
+
+@settings(max_examples=300, deadline=None)
+@given(path=st.text(alphabet="ab./-J", max_size=12))
+def test_suffix_is_pathlibs(path):
+    """The format detection's suffix, computed without a Path, is pathlib's for any path."""
+    from pathlib import Path
+
+    from lcpcli.io import suffix
+
+    assert suffix(path) == Path(path).suffix
