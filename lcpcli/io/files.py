@@ -98,6 +98,20 @@ _INPUT_FLAGS = os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_NOCTT
 @contextmanager
 def open_input(path: str | os.PathLike[str], what: str = "a problem file") -> Iterator[IO[bytes]]:
     """Open a regular file for reading (non-blocking open, then ``fstat``: no FIFO can hang)."""
+    fd, _ = _open_regular(path, what)
+    try:
+        fh = os.fdopen(fd, "rb")
+    except BaseException:
+        os.close(fd)
+        raise
+    with fh:
+        yield fh
+
+
+def _open_regular(path: str | os.PathLike[str], what: str) -> tuple[int, os.stat_result]:
+    """``(fd, fstat)`` of a regular file opened for reading: :func:`check_input_file`, a
+    non-blocking open (no FIFO can hang), then ``fstat`` (a file replaced between the stat and
+    the open is refused).  The caller closes ``fd``."""
     check_input_file(path, what)
     try:
         fd = os.open(path, _INPUT_FLAGS)
@@ -107,12 +121,10 @@ def open_input(path: str | os.PathLike[str], what: str = "a problem file") -> It
         st = os.fstat(fd)
         if not stat.S_ISREG(st.st_mode):  # replaced between the stat and the open
             raise ProblemError(f"is {file_kind(st.st_mode)}, not a regular file")
-        fh = os.fdopen(fd, "rb")
     except BaseException:
         os.close(fd)
         raise
-    with fh:
-        yield fh
+    return fd, st
 
 
 def _mib(n: int) -> str:
@@ -131,15 +143,8 @@ def read_input_bytes(path: str | os.PathLike[str], limit: int = MAX_TEXT_BYTES,
     descriptor: the ``fstat`` also gives the size, and no file object is built (a batch reads
     10^4+ small files this way).
     """
-    check_input_file(path)
+    fd, st = _open_regular(path, "a problem file")
     try:
-        fd = os.open(path, _INPUT_FLAGS)
-    except OSError as exc:
-        raise _stat_error(exc) from None
-    try:
-        st = os.fstat(fd)
-        if not stat.S_ISREG(st.st_mode):  # replaced between the stat and the open
-            raise ProblemError(f"is {file_kind(st.st_mode)}, not a regular file")
         size = st.st_size
         if size > limit:
             raise too_big(size, limit, what)
