@@ -664,6 +664,25 @@ cdef cnp.ndarray _stack(object a, Py_ssize_t ndim):
                                cnp.NPY_ARRAY_C_CONTIGUOUS | cnp.NPY_ARRAY_ALIGNED)
 
 
+cdef const int* _balance_args(object balance, int* eqv) except? NULL:
+    """``eqv`` filled from ``balance`` ((balanced, q_balanced, max_rounds)) and returned, or
+    NULL when ``balance`` is None (no equilibration)."""
+    if balance is None:
+        return NULL
+    eqv[0], eqv[1], eqv[2] = balance
+    return eqv
+
+
+cdef cnp.ndarray _covering(object d, Py_ssize_t n, str label):
+    """The covering vector as a float64 array of length ``n`` (None: ones, not stored)."""
+    if d is None:
+        return None
+    cdef cnp.ndarray da = _stack(d, 1)
+    if cnp.PyArray_DIM(da, 0) != n:
+        raise ValueError(f"{label}: the covering vector must have length n")
+    return da
+
+
 def lemke_stack(M, q, d, int64_t max_iter, double piv_tol, double tie_tol, double tol,
                 z, w, code, iters, err, residual, int threads, balance=None,
                 double polished=0.0):
@@ -679,19 +698,11 @@ def lemke_stack(M, q, d, int64_t max_iter, double piv_tol, double tie_tol, doubl
     (:data:`lcpcli.core.tolerances.POLISHED`; 0: always).
     """
     cdef int eqv[3]
-    cdef const int* eq = NULL
-    if balance is not None:
-        eqv[0], eqv[1], eqv[2] = balance
-        eq = eqv
+    cdef const int* eq = _balance_args(balance, eqv)
     cdef _Stack a = _checked(M, q, z, w, code, iters, err, residual, "lemke_stack")
     cdef Py_ssize_t K = a.K, n = a.n, nn = a.n * a.n, k
-    cdef cnp.ndarray da
-    cdef double* dp = NULL
-    if d is not None:
-        da = _stack(d, 1)
-        if cnp.PyArray_DIM(da, 0) != n:
-            raise ValueError("lemke_stack: the covering vector must have length n")
-        dp = f64_ptr(da)
+    cdef cnp.ndarray da = _covering(d, n, "lemke_stack")
+    cdef double* dp = NULL if da is None else f64_ptr(da)
     if _empty(a):
         return
     for k in prange(K, nogil=True, schedule="dynamic", chunksize=16,
@@ -715,25 +726,17 @@ def lemke_warm_stack(M, q, d, basis, int64_t max_iter, int64_t warm_iter,
     certified answer's basis (the certificate's pair states) for the next step.
     """
     cdef int eqv[3]
-    cdef const int* eq = NULL
-    if balance is not None:
-        eqv[0], eqv[1], eqv[2] = balance
-        eq = eqv
+    cdef const int* eq = _balance_args(balance, eqv)
     cdef _Stack a = _checked(M, q, z, w, code, iters, err, residual, "lemke_warm_stack")
     cdef Py_ssize_t K = a.K, n = a.n, nn = a.n * a.n, k
-    cdef cnp.ndarray da
-    cdef double* dp = NULL
+    cdef cnp.ndarray da = _covering(d, n, "lemke_warm_stack")
+    cdef double* dp = NULL if da is None else f64_ptr(da)
     cdef cnp.ndarray ba = inout(basis, cnp.NPY_INT8, K, n)
     cdef cnp.ndarray sa = inout(state, cnp.NPY_INT8, K, n)
     cdef cnp.ndarray wa = inout(warm, cnp.NPY_INT8, K, -1)
     cdef signed char* bp = <signed char*>cnp.PyArray_DATA(ba)
     cdef signed char* sp = <signed char*>cnp.PyArray_DATA(sa)
     cdef signed char* wp = <signed char*>cnp.PyArray_DATA(wa)
-    if d is not None:
-        da = _stack(d, 1)
-        if cnp.PyArray_DIM(da, 0) != n:
-            raise ValueError("lemke_warm_stack: the covering vector must have length n")
-        dp = f64_ptr(da)
     if _empty(a):
         return
     for k in prange(K, nogil=True, schedule="dynamic", chunksize=64,
