@@ -75,16 +75,23 @@ cdef void _dgetrf_ilp64(int* m, int* n, double* a, int* lda, int* ipiv,
     info[0] = <int>inf
 
 
+cdef int64_t* _pivots64(const int* ipiv, int64_t n) noexcept nogil:
+    """A malloc'ed 64-bit copy of LAPACK's ``n`` pivot indices (NULL: out of memory)."""
+    cdef int64_t* piv = <int64_t*>malloc((n + 1) * sizeof(int64_t))
+    cdef Py_ssize_t k
+    if piv != NULL:
+        for k in range(n):
+            piv[k] = ipiv[k]
+    return piv
+
+
 cdef void _dgetrs_ilp64(char* trans, int* n, int* nrhs, double* a, int* lda, int* ipiv,
                         double* b, int* ldb, int* info) noexcept nogil:
     cdef int64_t nn = n[0], nr = nrhs[0], la = lda[0], lb = ldb[0], inf = 0
-    cdef Py_ssize_t k
-    cdef int64_t* piv = <int64_t*>malloc((nn + 1) * sizeof(int64_t))
+    cdef int64_t* piv = _pivots64(ipiv, nn)
     if piv == NULL:
         info[0] = -1000
         return
-    for k in range(nn):
-        piv[k] = ipiv[k]
     _dgetrs64(trans, &nn, &nr, a, &la, piv, b, &lb, &inf)
     free(piv)
     info[0] = <int>inf
@@ -93,13 +100,10 @@ cdef void _dgetrs_ilp64(char* trans, int* n, int* nrhs, double* a, int* lda, int
 cdef void _dgetri_ilp64(int* n, double* a, int* lda, int* ipiv, double* work, int* lwork,
                         int* info) noexcept nogil:
     cdef int64_t nn = n[0], la = lda[0], lw = lwork[0], inf = 0
-    cdef Py_ssize_t k
-    cdef int64_t* piv = <int64_t*>malloc((nn + 1) * sizeof(int64_t))
+    cdef int64_t* piv = _pivots64(ipiv, nn)
     if piv == NULL:
         info[0] = -1000
         return
-    for k in range(nn):
-        piv[k] = ipiv[k]
     _dgetri64(&nn, a, &la, piv, work, &lw, &inf)
     free(piv)
     info[0] = <int>inf
