@@ -58,7 +58,8 @@ def solve(problem: Problem | Any, q: Any = None, method: str | None = None, *,
     if not isinstance(problem, Problem):  # solve(M, q, method=...): arrays, not a Problem
         if q is None or isinstance(q, str):
             raise TypeError("lcpcli.solve(M, q, method=...) needs q after M (or pass a Problem)")
-        data = {k: options.pop(k) for k in ("n_eq", "lower", "upper") if k in options}
+        data = {k: options.pop(k) for k in ("n_eq", "lower", "upper") if k in options} \
+            if options else {}
         if type(problem) is not np.ndarray and is_sparse(problem):
             check_dtype(problem.dtype, "M")
         else:

@@ -36,7 +36,7 @@ from typing import Any
 import numpy as np
 
 from lcpcli.bench.suites import INFEASIBLE, SOLVABLE, Case
-from lcpcli.core.certificate import certify
+from lcpcli.core.certificate import certify, validate_tol
 from lcpcli.core.errors import OptionError, ProblemError
 from lcpcli.core.result import Status
 from lcpcli.solvers.kernels import process_context
@@ -350,9 +350,9 @@ def run_bench(cases: list[Case], methods: list[str], tols: Iterable[float] = DEF
     """
     from lcpcli.solvers.registry import get_method
 
-    tols = [float(t) for t in tols]
-    if not tols or any(not (math.isfinite(t) and t > 0) for t in tols):
-        raise OptionError("tolerances must be positive and finite")
+    tols = [validate_tol(t) for t in tols]  # the one rule on a tolerance, as for a solve
+    if not tols:
+        raise OptionError("give at least one tolerance")
     if repeat < 0:
         raise OptionError("--repeat must be >= 0")
     report = BenchReport(records=[], methods=list(methods), tols=tols,

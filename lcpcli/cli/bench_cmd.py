@@ -20,6 +20,7 @@ from lcpcli.cli.common import (
     stdout_console,
     write_json_line,
 )
+from lcpcli.core.certificate import validate_tol
 from lcpcli.core.errors import (
     EXIT_INTERNAL,
     EXIT_INTERRUPTED,
@@ -96,9 +97,7 @@ def bench(
     """
     from lcpcli.bench import runner as B
 
-    tols = _floats(tol, "--tol")
-    if any(not (math.isfinite(t) and t > 0) for t in tols):
-        raise OptionError("--tol values must be positive and finite")
+    tols = [validate_tol(t) for t in _floats(tol, "--tol")]  # the one rule, as for a solve
     if not 0 <= repeat <= MAX_REPEAT:
         raise OptionError(f"--repeat must be between 0 and {MAX_REPEAT:,}, got {repeat}")
     if not (math.isfinite(budget) and budget > 0):

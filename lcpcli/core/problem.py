@@ -149,6 +149,17 @@ class Problem:
                name: str = "", description: str = "",
                meta: dict[str, Any] | None = None) -> Problem:
         """Validate and normalise the data; raise :class:`ProblemError` with a one-line reason."""
+        if (type(M) is np.ndarray and type(q) is np.ndarray and M.dtype is _F64
+                and q.dtype is _F64 and M.ndim == 2 and q.ndim == 1 and lower is None
+                and upper is None and type(n_eq) is int and n_eq == 0
+                and M.shape[0] == M.shape[1] == q.shape[0] <= MAX_N
+                and M.size <= MAX_DENSE_ENTRIES and M.flags.c_contiguous):
+            # the usual call (a dense LCP in native float64 arrays): the checks below reduce
+            # to these and the two finiteness tests (tests/core/test_problem_fast.py)
+            _check_finite(M, "M")
+            _check_finite(q, "q")
+            return cls._trusted(M, q.copy(), 0, None, None, str(name or ""),
+                                str(description or ""), dict(meta or {}))
         M = _as_matrix(M)
         n_rows, n_cols = M.shape
         if n_rows != n_cols:
@@ -170,8 +181,22 @@ class Problem:
                 if vec.shape[0] != n:
                     raise ProblemError(f"{label} has length {vec.shape[0]} but M is {n} x {n}")
             check_bounds(lower, upper)
-        return cls(M=M, q=q, n_eq=n_eq, lower=lower, upper=upper, name=str(name or ""),
-                   description=str(description or ""), meta=dict(meta or {}))
+        return cls._trusted(_c_float(M) if type(M) is np.ndarray else M, _c_float(q), n_eq,
+                            None if lower is None else _c_float(lower),
+                            None if upper is None else _c_float(upper), str(name or ""),
+                            str(description or ""), dict(meta or {}))
+
+    @classmethod
+    def _trusted(cls, M: Any, q: np.ndarray, n_eq: int, lower: np.ndarray | None,
+                 upper: np.ndarray | None, name: str, description: str,
+                 meta: dict[str, Any]) -> Problem:
+        """The record of data that :meth:`create` has validated and normalised (C-contiguous
+        float64 arrays, canonical CSR), every field by name, without ``__post_init__``'s
+        second pass over them."""
+        obj = object.__new__(cls)
+        obj.__dict__ = {"M": M, "q": q, "n_eq": n_eq, "lower": lower, "upper": upper,
+                        "name": name, "description": description, "meta": meta}
+        return obj
 
     # ------------------------------------------------------------------ properties
     @property
@@ -268,9 +293,12 @@ def _bound_value(x: Any, inf: float) -> Any:
     return x
 
 
+_F64 = np.dtype(np.float64)
+
+
 def _c_float(a: Any) -> np.ndarray:
     """``a`` as a C-contiguous float64 array (no copy when it is one already)."""
-    if type(a) is np.ndarray and a.dtype == np.float64 and a.flags.c_contiguous:
+    if type(a) is np.ndarray and a.dtype is _F64 and a.flags.c_contiguous:
         return a
     return np.ascontiguousarray(a, dtype=np.float64)
 

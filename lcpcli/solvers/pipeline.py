@@ -75,7 +75,9 @@ def run_method(spec: Any, problem: Problem, tol: float, options: dict[str, Any])
     if requested == "none":
         out = spec.run(problem, tol=tol, **options)
     elif spec.balance_test and type(problem.M) is np.ndarray:  # the test inside run's own
-        out = spec.run(problem, tol=tol, balance=BALANCE, **options)  # compiled call
+        # compiled call (no `**options` when there are none: 0.1 us of a 4 us call)
+        out = spec.run(problem, tol=tol, balance=BALANCE, **options) if options else \
+            spec.run(problem, tol=tol, balance=BALANCE)
     else:  # one compiled pass; no symmetry test needed
         out = spec.run(problem, tol=tol, **options) if is_balanced(problem) else None
     if out is None:  # not balanced: nothing was solved

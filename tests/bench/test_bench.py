@@ -342,7 +342,7 @@ def test_cli_table_files_folder_hdf5(cli, tmp_path) -> None:
     ([], "give problem files"),
     (["--suite", "nosuch"], "unknown suite"),
     (["--suite", "hard", "--tol", "abc"], "--tol"),
-    (["--suite", "hard", "--tol", "-1"], "positive"),
+    (["--suite", "hard", "--tol", "-1"], "tolerance must lie in"),
     (["/nonexistent/file.json"], "no such file"),
 ])
 def test_cli_bad_input(cli, args, needle) -> None:
@@ -428,3 +428,22 @@ def test_methods_above_their_size_limit_are_skipped_not_errors() -> None:
         rep = bench.run_bench([case], ["enum", "lemke-tableau"], repeat=1, timeout=timeout)
         assert [r.method for r in rep.records] == ["lemke-tableau"]
         assert rep.skipped and "max_n" in rep.skipped[0][2]
+
+
+@pytest.mark.parametrize("tols", [[0.5], [0.0], [float("nan")], [1e-20], []])
+def test_bench_tolerances_follow_the_solve_rule(tols):
+    """A tolerance a solve would refuse (core.certificate.validate_tol) is refused up front,
+    not once per (problem, method) inside the runs."""
+    from lcpcli.core.errors import OptionError
+
+    case = suites.murty_lemke(3)
+    with pytest.raises(OptionError, match="tolerance"):
+        bench.run_bench([case], ["lemke-tableau"], tols, repeat=0)
+
+
+def test_bench_cli_refuses_a_tolerance_a_solve_refuses(tmp_path, cli):
+    problem = tmp_path / "p.json"
+    problem.write_text(json.dumps({"M": [[2.0]], "q": [-1.0]}))
+    got = cli("bench", str(problem), "--tol", "0.5")
+    assert got.returncode == 2 and got.stdout == ""
+    assert got.stderr.count("\n") == 1 and "tolerance must lie in" in got.stderr
