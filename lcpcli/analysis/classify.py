@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 
 from lcpcli.analysis._scaling import dense_minima, is_symmetric_dense
-from lcpcli.core.problem import is_sparse, problem_kind
+from lcpcli.core.problem import is_sparse
 from lcpcli.core.tolerances import P_TEST_PIVOT_TOL
 
 #: Relative tolerance of the symmetry test: ``|m_ij - m_ji| <= SYM_TOL (max(|m_ij|, |m_ji|)
@@ -749,9 +749,7 @@ class Classifier:
 
     def __init__(self, problem: Any) -> None:
         self.problem = problem
-        M, n_eq = problem.M, problem.n_eq  # Problem.kind and .sparse, without their frames
-        self.report = ClassReport(problem_kind(n_eq, problem.lower is not None), len(problem.q),
-                                  n_eq, type(M) is not np.ndarray and _is_sparse(M))
+        self.report = ClassReport(problem.kind, problem.n, problem.n_eq, problem.sparse)
         self._done: set[str] = set()
         self._minima: tuple[float, float] | None = None
 
