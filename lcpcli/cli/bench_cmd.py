@@ -20,7 +20,6 @@ from lcpcli.cli.common import (
     stdout_console,
     write_json_line,
 )
-from lcpcli.core.certificate import validate_tol
 from lcpcli.core.errors import (
     EXIT_INTERNAL,
     EXIT_INTERRUPTED,
@@ -96,6 +95,7 @@ def bench(
     process died (an internal error; the rows say which).
     """
     from lcpcli.bench import runner as B
+    from lcpcli.core.certificate import validate_tol
 
     tols = [validate_tol(t) for t in _floats(tol, "--tol")]  # the one rule, as for a solve
     if not 0 <= repeat <= MAX_REPEAT:
