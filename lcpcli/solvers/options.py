@@ -62,3 +62,16 @@ def omega_option(value: Any) -> float:
         raise ValueError(f"omega must satisfy 0 < omega < 2, got {value}")
     return v
 
+
+def basis_option(value: Any) -> np.ndarray:
+    """A basis: booleans or 0/1 (True: z_i basic), as a sequence or as text (``"1,0,1"``, or
+    the letters of ``--json``'s ``basis``, ``"FLF"``: F basic)."""
+    if isinstance(value, str):
+        text = value.strip()
+        value = [c == "F" for c in text] if set(text) <= set("LF") and text else \
+            [int(x) if x.strip() in ("0", "1") else -1 for x in text.split(",")]
+    arr = np.asarray(value)
+    if arr.ndim != 1 or arr.dtype.kind not in "bi" or not np.isin(arr, (0, 1)).all():
+        raise ValueError("a basis is a list of booleans or 0/1 (True: z_i basic), '1,0,1', or "
+                         "letters 'FLF' (F: z_i basic)")
+    return arr.astype(bool)
