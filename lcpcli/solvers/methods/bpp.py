@@ -56,7 +56,7 @@ def default_max_iter(n: int) -> int:
     return max(100, 10 * n)
 
 
-def _factor(A: np.ndarray, symmetric: bool) -> Any:
+def factor_block(A: np.ndarray, symmetric: bool) -> Any:
     """A solver ``x = solve(b)`` (b a vector or a matrix of columns) for the square ``A``
     (destroyed), or None when ``A`` is singular to :data:`SINGULAR_TOL`: Cholesky when
     ``symmetric`` and ``A`` is positive definite (half the work of LU), LU otherwise."""
@@ -129,7 +129,7 @@ class Blocks:
         self.F0, self.factorisations = F.copy(), self.factorisations + 1
         self.idx0 = idx
         self._columns, self._schur = {}, None
-        self.solve0 = _factor(self.M[np.ix_(idx, idx)], self.symmetric) if idx.size else \
+        self.solve0 = factor_block(self.M[np.ix_(idx, idx)], self.symmetric) if idx.size else \
             (lambda b: b)
         if self.solve0 is None:  # singular: nothing factored (the next basis refactors)
             self.F0 = None
