@@ -1,9 +1,20 @@
 """Murty's least-index principal pivoting method (Bard-type) for the LCP.
 
-Problem: LCP(q, M), ``w = M z + q``.  Start from the complementary basis ``w`` (z = 0), or from
-``{i : z0_i > 0}`` with a warm start; at every step take the *least* index ``i`` whose basic
-variable (``w_i`` or ``z_i``) is negative and exchange ``w_i`` and ``z_i`` (a single principal
-pivot), until every basic variable is nonnegative.
+Problem: LCP(q, M), ``w = M z + q``.  Start from the complementary basis ``w`` (z = 0); at
+every step take the *least* index ``i`` whose basic variable (``w_i`` or ``z_i``) is negative
+and exchange ``w_i`` and ``z_i`` (a single principal pivot), until every basic variable is
+nonnegative.
+
+Warm start from an index set: ``basis=`` (the set ``F`` of basic z's: a previous Result, its
+``basis`` codes or letters, booleans; :func:`lcpcli.solvers.options.basis_option`), or ``z0``
+(``F = {i : z0_i > 0}``, which loses a degenerate pair whose ``z_i`` is basic at 0).  The
+pairs of ``F`` are pivoted in first (the principal pivot transform on ``M_FF``, not counted as
+pivots), so a basis that still solves the problem ends in 0 pivots.  When ``M_FF`` is singular
+the dependent pairs leave ``F`` (:func:`lcpcli.solvers.methods.lemke_warm.repair`, as warm
+Lemke does); when the block still cannot be pivoted in, the method starts from z = 0.  The
+least-index rule is finite from any complementary basis on a P-matrix (a principal pivot
+transform of a P-matrix is a P-matrix; Cottle-Pang-Stone, section 4.1), so the guarantee is
+the same warm or cold.
 
 Matrix classes: **P-matrices** (all principal minors positive: e.g. symmetric or non-symmetric
 positive definite, H-matrices with positive diagonal), for which the method is finite (Murty 1974)
@@ -25,13 +36,15 @@ from typing import Any
 import numpy as np
 
 from lcpcli.analysis.classify import exact_p_matrix, not_p_witness
+from lcpcli.core.errors import OptionError
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, SINGULAR, Outcome
 from lcpcli.core.text import plural
 from lcpcli.core.tolerances import PIVOT_TOL
 from lcpcli.solvers.kernels.lemke import polish_kernel
 from lcpcli.solvers.kernels.murty import BAD_PIVOT, OK, murty_kernel
 from lcpcli.solvers.methods.lemke import default_max_iter
-from lcpcli.solvers.options import bool_option, positive_int, vector_option
+from lcpcli.solvers.methods.lemke_warm import repair
+from lcpcli.solvers.options import basis_option, bool_option, positive_int, vector_option
 from lcpcli.solvers.registry import Cost, Guarantee, Method, Option, when
 from lcpcli.solvers.support import start_point
 
@@ -40,44 +53,41 @@ NEG_TOL = 1e-13
 
 
 def run(problem: Any, *, tol: float, max_iter: int | None = None,
-        z0: np.ndarray | None = None, trace: bool = False) -> Outcome:
+        z0: np.ndarray | None = None, basis: np.ndarray | None = None,
+        trace: bool = False) -> Outcome:
     """Solve ``problem`` (an LCP) by Murty's least-index method; see the module docstring.
 
-    ``trace=True`` runs the numpy replica :mod:`lcpcli.solvers.trace.murty` instead of the
-    kernel (same pivots) and records each principal pivot in ``Outcome.trace``.
+    ``basis`` (booleans, True: ``z_i`` basic) starts from that index set; it takes precedence
+    over ``z0``.  ``trace=True`` runs the numpy replica :mod:`lcpcli.solvers.trace.murty`
+    instead of the kernel (same pivots) and records each principal pivot in ``Outcome.trace``.
     """
     if trace:
         from lcpcli.solvers.trace import Recorder
         from lcpcli.solvers.trace.murty import murty_traced
 
         recorder = Recorder(murty_traced)
-        out = _run(problem, tol=tol, max_iter=max_iter, z0=z0, kernel=recorder)
+        out = _run(problem, tol=tol, max_iter=max_iter, z0=z0, basis=basis, kernel=recorder)
         out.trace = recorder.trace or []  # q >= 0: no pivot, nothing recorded
         return out
-    return _run(problem, tol=tol, max_iter=max_iter, z0=z0)
+    return _run(problem, tol=tol, max_iter=max_iter, z0=z0, basis=basis)
 
 
 def _run(problem: Any, *, tol: float, max_iter: int | None, z0: np.ndarray | None,
-         kernel: Any = None) -> Outcome:
+         basis: np.ndarray | None = None, kernel: Any = None) -> Outcome:
     kernel = kernel or murty_kernel
 
     n = problem.n
     M = np.ascontiguousarray(problem.dense_M(), dtype=np.float64)
     q = np.ascontiguousarray(problem.q, dtype=np.float64)
     limit = max_iter or default_max_iter(n)
+    start = _start_set(problem, z0, basis)
     if n and np.min(q) >= 0:
         return Outcome(np.zeros(n), 0, CONVERGED, "q >= 0: z = 0 solves the problem")
     basic = np.arange(n, dtype=np.int64)
     warm = ""
-    if z0 is not None:
-        start = start_point(problem, z0)
-        basic = np.where(start > 0, basic + n, basic).astype(np.int64)
-        warm = f" from the warm-start basis ({int(np.sum(start > 0))} z basic)"
-    status, z, pivots, bad = kernel(M, q, limit, PIVOT_TOL, NEG_TOL, basic)
-    if status == BAD_PIVOT and pivots == 0 and z0 is not None:
-        # the warm-start basis could not be pivoted in: restart from z = 0
-        basic = np.arange(n, dtype=np.int64)
-        warm = " (warm-start basis singular; restarted from z = 0)"
+    if start is not None and start[0].any():
+        status, z, pivots, bad, basic, warm = _from_set(kernel, M, q, limit, *start)
+    else:
         status, z, pivots, bad = kernel(M, q, limit, PIVOT_TOL, NEG_TOL, basic)
     if status == OK:
         z = polish_kernel(M, q, z, basic)  # a singular basic block keeps the kernel's z
@@ -93,6 +103,46 @@ def _run(problem: Any, *, tol: float, max_iter: int | None, z0: np.ndarray | Non
                    f"Murty: pivot limit {limit} reached{warm} (M may not be a P-matrix; "
                    f"raise --max-iter if it is)")
 
+
+def _start_set(problem: Any, z0: np.ndarray | None,
+               basis: np.ndarray | None) -> tuple[np.ndarray, str] | None:
+    """The warm start's index set (booleans, True: ``z_i`` basic) and its name, or None."""
+    if basis is not None:
+        F = np.asarray(basis, dtype=bool).ravel()
+        if F.shape[0] != problem.n:
+            raise OptionError(f"basis has length {F.shape[0]}, the problem has n = "
+                              f"{problem.n}")
+        return F, "the given basis"
+    if z0 is not None:
+        return start_point(problem, z0) > 0, "the warm-start basis"
+    return None
+
+
+def _from_set(kernel: Any, M: np.ndarray, q: np.ndarray, limit: int, F: np.ndarray,
+              what: str) -> tuple[int, np.ndarray, int, int, np.ndarray, str]:
+    """The kernel run from the index set ``F``: its pairs pivoted in first; a block that
+    cannot be (a zero pivot at once) is repaired (its dependent pairs leave, as in warm Lemke),
+    and failing that the run starts from z = 0.  Returns the kernel's tuple, the final
+    ``basic`` codes and the words for the message."""
+    n = q.shape[0]
+    idx = np.arange(n, dtype=np.int64)
+    basic = np.where(F, idx + n, idx)
+    warm = f" from {what} ({int(F.sum())} z basic)"
+    status, z, pivots, bad = kernel(M, q, limit, PIVOT_TOL, NEG_TOL, basic)
+    if status == BAD_PIVOT and pivots == 0:
+        kept = repair(M, F)
+        if kept.any() and not np.array_equal(kept, F):
+            basic = np.where(kept, idx + n, idx)
+            warm = (f" from {what} ({int(F.sum())} z basic, "
+                    f"{plural(int(F.sum() - kept.sum()), 'dependent pair')} dropped from its "
+                    f"singular block)")
+            status, z, pivots, bad = kernel(M, q, limit, PIVOT_TOL, NEG_TOL, basic)
+    if status == BAD_PIVOT and pivots == 0:
+        # the block could not be pivoted in: restart from z = 0
+        basic = idx.copy()
+        warm = f" ({what}'s block could not be pivoted in; restarted from z = 0)"
+        status, z, pivots, bad = kernel(M, q, limit, PIVOT_TOL, NEG_TOL, basic)
+    return status, z, pivots, bad, basic, warm
 
 
 def _class_words(M: np.ndarray, basic: np.ndarray, bad: int) -> str:
@@ -129,6 +179,9 @@ METHODS = [
         options={
             "max_iter": Option(positive_int, None, "pivot limit (default max(1000, 100 n))"),
             "z0": Option(vector_option, None, "warm start: start from the basis {i: z0_i > 0}"),
+            "basis": Option(basis_option, None, "warm start: start from this index set (a "
+                                                "previous result, its basis letters 'FLF' "
+                                                "or booleans; True/F: z_i basic)"),
             "trace": Option(bool_option, False, "record every principal pivot (numpy replica "
                                                  "of the kernel, same pivots)"),
         },
