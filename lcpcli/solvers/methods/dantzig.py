@@ -122,12 +122,22 @@ def _run_from(problem: Any, F: np.ndarray, max_iter: int | None) -> Outcome:
     q = np.ascontiguousarray(problem.q, dtype=np.float64)
     limit = max_iter or max(1000, 50 * n)
     given = int(F.sum())
-    transform = principal_pivot_transform(M, q, F)
-    if transform is None:  # the block stays singular after the repair: start cold
+    start = basic_solution(M, q, F)
+    if start is None:  # the block stays singular after the repair: start cold
         out = _run(problem, max_iter=max_iter)
         out.message += " (the given basis's block M_FF is singular; started from z = 0)"
         return out
-    Mp, qp, kept = transform
+    kept, solve, z = start
+    dropped = given - int(kept.sum())
+    how = (f" from the given basis ({given} z basic"
+           + (f", {plural(dropped, 'dependent pair')} dropped from its singular block"
+              if dropped else ""))
+    if feasible(M, q, kept, z):  # q' >= 0: the transform's run would end at once
+        state = np.where(kept, CLAMPED, AT_LOWER)
+        return _outcome(problem, OK, z, 0, state, limit,
+                        f"{how}; its basic solution is feasible: one factorisation)")
+    how += "; principal pivot transform on its block)"
+    Mp, qp = principal_pivot_transform(M, q, kept, solve)
     zero, inf = np.zeros(n), np.full(n, np.inf)
     status, zp, pivots, state = dantzig_kernel(Mp, qp, zero, inf, np.arange(n, dtype=np.int64),
                                                limit)
@@ -136,25 +146,16 @@ def _run_from(problem: Any, F: np.ndarray, max_iter: int | None) -> Outcome:
     # the pairs of F: clamped in the transform means w_i basic here, and the other way round
     state = np.where(kept, np.where(state == AT_LOWER, CLAMPED, np.where(
         state == CLAMPED, AT_LOWER, state)), state)
-    dropped = given - int(kept.sum())
-    how = (f" from the given basis ({given} z basic"
-           + (f", {plural(dropped, 'dependent pair')} dropped from its singular block"
-              if dropped else "")
-           + "; principal pivot transform on its block)")
     return _outcome(problem, status, np.maximum(z, 0.0), int(pivots), state, limit, how)
 
 
-def principal_pivot_transform(M: np.ndarray, q: np.ndarray, F: np.ndarray
-                              ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
-    """``(M', q', F')``: LCP(q, M) pivoted on the block ``M_{F'F'}`` (Cottle-Pang-Stone,
-    section 4.1), whose variables are ``z' = (w_F', z_G)``, ``w' = (z_F', w_G)`` (G the other
-    pairs, index positions kept)::
-
-        M'_FF = A^-1,  M'_FG = -A^-1 M_FG,  M'_GF = M_GF A^-1,  M'_GG = M_GG - M_GF A^-1 M_FG,
-        q'_F = -A^-1 q_F,  q'_G = q_G - M_GF A^-1 q_F,        A = M_{F'F'}.
-
-    ``F'`` is ``F`` (booleans), less the pairs :func:`lemke_warm.repair` drops when ``M_FF``
-    is singular; None when the repaired block is still singular.  O(n^2 |F|)."""
+def basic_solution(M: np.ndarray, q: np.ndarray, F: np.ndarray
+                   ) -> tuple[np.ndarray, Any, np.ndarray] | None:
+    """``(F', solve, z)``: the basis ``F`` (booleans, True: ``z_i`` basic) made nonsingular,
+    its block's solver and its basic solution (``M_F'F' z_F' = -q_F'``, 0 elsewhere).
+    ``F'`` is ``F`` less the pairs :func:`lemke_warm.repair` drops when ``M_FF`` is singular;
+    None when the repaired block is still singular (one factorisation of ``M_F'F'``,
+    :func:`lcpcli.solvers.methods.bpp.factor_block`: Cholesky for a symmetric M)."""
     symmetric = is_symmetric_dense(M)
     a = np.flatnonzero(F)
     solve = factor_block(M[np.ix_(a, a)], symmetric)
@@ -164,10 +165,34 @@ def principal_pivot_transform(M: np.ndarray, q: np.ndarray, F: np.ndarray
         solve = factor_block(M[np.ix_(a, a)], symmetric) if a.size else None
         if solve is None:
             return None
-    b = np.flatnonzero(~F)
-    inv = solve(np.eye(a.size))
-    if not np.all(np.isfinite(inv)):
+    z = np.zeros(q.shape[0])
+    z[a] = solve(-q[a])
+    if not np.all(np.isfinite(z)):
         return None
+    return F.copy(), solve, z
+
+
+def feasible(M: np.ndarray, q: np.ndarray, F: np.ndarray, z: np.ndarray) -> bool:
+    """Is the basic solution ``z`` of ``F`` feasible: ``z_F >= 0`` and ``w_G >= 0``?  (Then
+    every basic variable is nonnegative and the basis solves the LCP.)"""
+    if np.any(z[F] < 0.0):
+        return False
+    G = ~F
+    return bool(np.all(q[G] + M[G] @ z >= 0.0))
+
+
+def principal_pivot_transform(M: np.ndarray, q: np.ndarray, F: np.ndarray, solve: Any
+                              ) -> tuple[np.ndarray, np.ndarray]:
+    """``(M', q')``: LCP(q, M) pivoted on the nonsingular block ``A = M_FF`` (``solve``: its
+    solver, :func:`basic_solution`; Cottle-Pang-Stone, section 4.1), whose variables are
+    ``z' = (w_F, z_G)``, ``w' = (z_F, w_G)`` (G the other pairs, index positions kept)::
+
+        M'_FF = A^-1,  M'_FG = -A^-1 M_FG,  M'_GF = M_GF A^-1,  M'_GG = M_GG - M_GF A^-1 M_FG,
+        q'_F = -A^-1 q_F,  q'_G = q_G - M_GF A^-1 q_F.
+
+    O(n^2 |F|)."""
+    a, b = np.flatnonzero(F), np.flatnonzero(~F)
+    inv = solve(np.eye(a.size))
     M_ab, M_ba = M[np.ix_(a, b)], M[np.ix_(b, a)]
     X, Y = inv @ M_ab, M_ba @ inv
     Mp = np.empty_like(M)
@@ -179,7 +204,7 @@ def principal_pivot_transform(M: np.ndarray, q: np.ndarray, F: np.ndarray
     qp = q.copy()
     qp[a] = -qa
     qp[b] = q[b] - M_ba @ qa
-    return Mp, qp, F.copy()
+    return Mp, qp
 
 
 def _outcome(problem: Any, status: int, z: np.ndarray, pivots: int, state: np.ndarray,

@@ -129,20 +129,32 @@ def _from_set(kernel: Any, M: np.ndarray, q: np.ndarray, limit: int, F: np.ndarr
     basic = np.where(F, idx + n, idx)
     warm = f" from {what} ({int(F.sum())} z basic)"
     status, z, pivots, bad = kernel(M, q, limit, PIVOT_TOL, NEG_TOL, basic)
-    if status == BAD_PIVOT and pivots == 0:
+    start = F
+    if _not_pivoted_in(status, pivots, bad, basic, start):
         kept = repair(M, F)
         if kept.any() and not np.array_equal(kept, F):
-            basic = np.where(kept, idx + n, idx)
+            basic, start = np.where(kept, idx + n, idx), kept
             warm = (f" from {what} ({int(F.sum())} z basic, "
                     f"{plural(int(F.sum() - kept.sum()), 'dependent pair')} dropped from its "
                     f"singular block)")
             status, z, pivots, bad = kernel(M, q, limit, PIVOT_TOL, NEG_TOL, basic)
-    if status == BAD_PIVOT and pivots == 0:
-        # the block could not be pivoted in: restart from z = 0
+    if status == BAD_PIVOT and pivots == 0:  # restart from z = 0 (as a cold run)
+        why = ("its block could not be pivoted in"
+               if _not_pivoted_in(status, pivots, bad, basic, start)
+               else "the first pivot from it was not positive")
         basic = idx.copy()
-        warm = f" ({what}'s block could not be pivoted in; restarted from z = 0)"
+        warm = f" ({what}, {int(F.sum())} z basic: {why}; restarted from z = 0)"
         status, z, pivots, bad = kernel(M, q, limit, PIVOT_TOL, NEG_TOL, basic)
     return status, z, pivots, bad, basic, warm
+
+
+def _not_pivoted_in(status: int, pivots: int, bad: int, basic: np.ndarray,
+                    start: np.ndarray) -> bool:
+    """Did the kernel stop while pivoting the starting set ``start`` in?  It then leaves
+    ``w`` basic in the failing row, a pair of the set (a failure of the first pivot leaves
+    the set whole)."""
+    return (status == BAD_PIVOT and pivots == 0 and bool(start[bad])
+            and bool(basic[bad] < start.shape[0]))
 
 
 def _class_words(M: np.ndarray, basic: np.ndarray, bad: int) -> str:
