@@ -158,11 +158,11 @@ def basic_solution(M: np.ndarray, q: np.ndarray, F: np.ndarray
     :func:`lcpcli.solvers.methods.bpp.factor_block`: Cholesky for a symmetric M)."""
     symmetric = is_symmetric_dense(M)
     a = np.flatnonzero(F)
-    solve = factor_block(M[np.ix_(a, a)], symmetric)
+    solve = factor_block(M[np.ix_(a, a)], symmetric) if a.size else _empty
     if solve is None:
         F = repair(M, F)
         a = np.flatnonzero(F)
-        solve = factor_block(M[np.ix_(a, a)], symmetric) if a.size else None
+        solve = factor_block(M[np.ix_(a, a)], symmetric) if a.size else _empty
         if solve is None:
             return None
     z = np.zeros(q.shape[0])
@@ -170,6 +170,11 @@ def basic_solution(M: np.ndarray, q: np.ndarray, F: np.ndarray
     if not np.all(np.isfinite(z)):
         return None
     return F.copy(), solve, z
+
+
+def _empty(b: np.ndarray) -> np.ndarray:
+    """The solver of an empty block."""
+    return b
 
 
 def feasible(M: np.ndarray, q: np.ndarray, F: np.ndarray, z: np.ndarray) -> bool:
