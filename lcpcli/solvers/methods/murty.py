@@ -8,10 +8,15 @@ nonnegative.
 Warm start from an index set: ``basis=`` (the set ``F`` of basic z's: a previous Result, its
 ``basis`` codes or letters, booleans; :func:`lcpcli.solvers.options.basis_option`), or ``z0``
 (``F = {i : z0_i > 0}``, which loses a degenerate pair whose ``z_i`` is basic at 0).  The
-pairs of ``F`` are pivoted in first (the principal pivot transform on ``M_FF``, not counted as
-pivots), so a basis that still solves the problem ends in 0 pivots.  When ``M_FF`` is singular
-the dependent pairs leave ``F`` (:func:`lcpcli.solvers.methods.lemke_warm.repair`, as warm
-Lemke does); when the block still cannot be pivoted in, the method starts from z = 0.  The
+problem is first replaced by its principal pivot transform on ``M_FF`` (one factorisation,
+:func:`lcpcli.solvers.methods.dantzig.principal_pivot_transform`; not counted as pivots), whose
+all-w basis is ``F``; the kernel's least-index pivots on it are the method's from ``F``, and
+the answer is mapped back.  A basis that still solves the problem ends in 0 pivots (its basic
+solution is feasible: the transform is not even formed).  When ``M_FF`` is singular the
+dependent pairs leave ``F`` (:func:`lcpcli.solvers.methods.lemke_warm.repair`, as warm Lemke
+does); when the run from the set fails at once, the method starts from z = 0.  A traced run
+pivots ``F`` in on the kernel's tableau instead (O(|F| n^2)), so that the trace shows the
+problem given.  The
 least-index rule is finite from any complementary basis on a P-matrix (a principal pivot
 transform of a P-matrix is a P-matrix; Cottle-Pang-Stone, section 4.1), so the guarantee is
 the same warm or cold.
@@ -42,6 +47,7 @@ from lcpcli.core.text import plural
 from lcpcli.core.tolerances import PIVOT_TOL
 from lcpcli.solvers.kernels.lemke import polish_kernel
 from lcpcli.solvers.kernels.murty import BAD_PIVOT, OK, murty_kernel
+from lcpcli.solvers.methods.dantzig import basic_solution, feasible, principal_pivot_transform
 from lcpcli.solvers.methods.lemke import default_max_iter
 from lcpcli.solvers.methods.lemke_warm import repair
 from lcpcli.solvers.options import basis_option, bool_option, positive_int, vector_option
@@ -86,7 +92,8 @@ def _run(problem: Any, *, tol: float, max_iter: int | None, z0: np.ndarray | Non
     basic = np.arange(n, dtype=np.int64)
     warm = ""
     if start is not None and start[0].any():
-        status, z, pivots, bad, basic, warm = _from_set(kernel, M, q, limit, *start)
+        status, z, pivots, bad, basic, warm = _from_set(kernel, M, q, limit, *start,
+                                                        traced=kernel is not murty_kernel)
     else:
         status, z, pivots, bad = kernel(M, q, limit, PIVOT_TOL, NEG_TOL, basic)
     if status == OK:
@@ -119,33 +126,74 @@ def _start_set(problem: Any, z0: np.ndarray | None,
 
 
 def _from_set(kernel: Any, M: np.ndarray, q: np.ndarray, limit: int, F: np.ndarray,
-              what: str) -> tuple[int, np.ndarray, int, int, np.ndarray, str]:
-    """The kernel run from the index set ``F``: its pairs pivoted in first; a block that
-    cannot be (a zero pivot at once) is repaired (its dependent pairs leave, as in warm Lemke),
-    and failing that the run starts from z = 0.  Returns the kernel's tuple, the final
-    ``basic`` codes and the words for the message."""
+              what: str, traced: bool) -> tuple[int, np.ndarray, int, int, np.ndarray, str]:
+    """The kernel run from the index set ``F`` (see the module docstring); when that fails at
+    once (a singular block, a first pivot that is not positive) the run starts from z = 0.
+    Returns the kernel's tuple with ``z`` and the final ``basic`` codes of the problem given,
+    and the words for the message."""
+    n = q.shape[0]
+    run = _pivoted_in if traced else _transformed
+    status, z, pivots, bad, basic, warm, why = run(kernel, M, q, limit, F, what)
+    if status == BAD_PIVOT and pivots == 0:  # restart from z = 0 (as a cold run)
+        basic = np.arange(n, dtype=np.int64)
+        warm = f" ({what}, {int(F.sum())} z basic: {why}; restarted from z = 0)"
+        status, z, pivots, bad = kernel(M, q, limit, PIVOT_TOL, NEG_TOL, basic)
+    return status, z, pivots, bad, basic, warm
+
+
+def _words(F: np.ndarray, kept: np.ndarray, what: str) -> str:
+    """" from the given basis (k z basic[, j dependent pairs dropped ...])"."""
+    dropped = int(F.sum() - kept.sum())
+    return (f" from {what} ({int(F.sum())} z basic" +
+            (f", {plural(dropped, 'dependent pair')} dropped from its singular block)"
+             if dropped else ")"))
+
+
+def _transformed(kernel: Any, M: np.ndarray, q: np.ndarray, limit: int, F: np.ndarray,
+                 what: str) -> tuple[int, np.ndarray, int, int, np.ndarray, str, str]:
+    """The run from ``F`` on the principal pivot transform of ``M_FF`` (one factorisation,
+    :func:`lcpcli.solvers.methods.dantzig.basic_solution`; nothing more when the basic
+    solution is feasible), mapped back: the kernel starts from the transform's all-w basis,
+    which is ``F`` here, and its least-index pivots are the ones the method takes from ``F``."""
+    n = q.shape[0]
+    idx = np.arange(n, dtype=np.int64)
+    start = basic_solution(M, q, F)
+    if start is None:
+        return BAD_PIVOT, np.zeros(n), 0, -1, idx, "", "its block is singular"
+    kept, solve, z = start
+    warm = _words(F, kept, what)
+    if feasible(M, q, kept, z):  # no basic variable is negative: 0 pivots
+        return OK, z, 0, -1, np.where(kept, idx + n, idx), warm, ""
+    Mp, qp = principal_pivot_transform(M, q, kept, solve)
+    tb = idx.copy()
+    status, zp, pivots, bad = kernel(Mp, qp, limit, PIVOT_TOL, NEG_TOL, tb)
+    basic = np.where(kept, np.where(tb < n, tb + n, tb - n), tb)  # w'_F is z_F
+    z = zp.copy()
+    z[kept] = Mp[kept] @ zp + qp[kept]
+    return (status, np.maximum(z, 0.0), pivots, bad, basic, warm,
+            "the first pivot from it was not positive")
+
+
+def _pivoted_in(kernel: Any, M: np.ndarray, q: np.ndarray, limit: int, F: np.ndarray,
+                what: str) -> tuple[int, np.ndarray, int, int, np.ndarray, str, str]:
+    """The run from ``F`` with the pairs of ``F`` pivoted in by the kernel itself (a traced
+    run: the replica's tableaux then show the problem given); a block that cannot be pivoted in
+    is repaired once (its dependent pairs leave, as in warm Lemke)."""
     n = q.shape[0]
     idx = np.arange(n, dtype=np.int64)
     basic = np.where(F, idx + n, idx)
-    warm = f" from {what} ({int(F.sum())} z basic)"
     status, z, pivots, bad = kernel(M, q, limit, PIVOT_TOL, NEG_TOL, basic)
-    start = F
+    start, warm = F, _words(F, F, what)
     if _not_pivoted_in(status, pivots, bad, basic, start):
         kept = repair(M, F)
         if kept.any() and not np.array_equal(kept, F):
             basic, start = np.where(kept, idx + n, idx), kept
-            warm = (f" from {what} ({int(F.sum())} z basic, "
-                    f"{plural(int(F.sum() - kept.sum()), 'dependent pair')} dropped from its "
-                    f"singular block)")
+            warm = _words(F, kept, what)
             status, z, pivots, bad = kernel(M, q, limit, PIVOT_TOL, NEG_TOL, basic)
-    if status == BAD_PIVOT and pivots == 0:  # restart from z = 0 (as a cold run)
-        why = ("its block could not be pivoted in"
-               if _not_pivoted_in(status, pivots, bad, basic, start)
-               else "the first pivot from it was not positive")
-        basic = idx.copy()
-        warm = f" ({what}, {int(F.sum())} z basic: {why}; restarted from z = 0)"
-        status, z, pivots, bad = kernel(M, q, limit, PIVOT_TOL, NEG_TOL, basic)
-    return status, z, pivots, bad, basic, warm
+    why = ("its block could not be pivoted in"
+           if _not_pivoted_in(status, pivots, bad, basic, start)
+           else "the first pivot from it was not positive")
+    return status, z, pivots, bad, basic, warm, why
 
 
 def _not_pivoted_in(status: int, pivots: int, bad: int, basic: np.ndarray,
