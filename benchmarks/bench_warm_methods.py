@@ -12,8 +12,9 @@ interleaved (so that load on a shared machine hits all alike), for ``murty`` and
   from the previous basis itself (Murty pivots the index set in; Dantzig runs on the principal
   pivot transform of its block; :mod:`lcpcli.solvers.warm`, ``takes_basis``).
 
-Reported: mean pivots (``Result.iterations``) and mean time per step, ``wall`` (the whole
-call, certificate included) and ``seconds`` (``Result.seconds``), warm / cold in the same run.
+Reported: mean pivots per step (``Result.iterations``) and the median time per step, ``wall``
+(the whole call, certificate included) and ``seconds`` (``Result.seconds``), warm / cold in the
+same run (the mean wall time too: on a loaded machine the median is the steadier figure).
 Every answer is certified; warm z's are compared with the cold z (a P-matrix: one solution).
 One BLAS thread.  Writes ``benchmarks/results/warm_methods.json``.
 """
@@ -72,13 +73,15 @@ def bench(n: int, steps: int, seed: int = 0) -> dict[str, object]:
             prev[m] = out["warm"]
     row: dict[str, object] = {"n": n, "steps": steps, "max_z_difference": diff}
     for m in METHODS:
-        mean = {k: {"wall": statistics.fmean(walls[m, k]),
-                    "seconds": statistics.fmean(secs[m, k]),
-                    "pivots": statistics.fmean(pivots[m, k])} for k in KINDS}
-        row[m] = {**mean,
-                  "ratio_wall": mean["warm"]["wall"] / mean["cold"]["wall"],
-                  "ratio_seconds": mean["warm"]["seconds"] / mean["cold"]["seconds"],
-                  "ratio_pivots": mean["warm"]["pivots"] / max(mean["cold"]["pivots"], 1e-300),
+        per = {k: {"wall": statistics.median(walls[m, k]),
+                   "seconds": statistics.median(secs[m, k]),
+                   "wall_mean": statistics.fmean(walls[m, k]),
+                   "pivots": statistics.fmean(pivots[m, k])} for k in KINDS}
+        row[m] = {**per,
+                  "ratio_wall": per["warm"]["wall"] / per["cold"]["wall"],
+                  "ratio_wall_mean": per["warm"]["wall_mean"] / per["cold"]["wall_mean"],
+                  "ratio_seconds": per["warm"]["seconds"] / per["cold"]["seconds"],
+                  "ratio_pivots": per["warm"]["pivots"] / max(per["cold"]["pivots"], 1e-300),
                   "warm_from_basis_steps": took_basis[m]}
     return row
 
@@ -92,7 +95,7 @@ def main() -> None:
     args = ap.parse_args()
     rows = []
     print(f"{'n':>5} {'method':>8} {'cold pivots':>12} {'warm pivots':>12} {'cold ms':>9} "
-          f"{'warm ms':>9} {'warm/cold wall':>15} {'(seconds)':>10}")
+          f"{'warm ms':>9} {'warm/cold wall':>15} {'(seconds)':>10} {'(mean wall)':>11}")
     for n in args.n:
         row = bench(n, args.steps)
         rows.append(row)
@@ -100,7 +103,8 @@ def main() -> None:
             r = row[m]
             print(f"{n:>5} {m:>8} {r['cold']['pivots']:>12.1f} {r['warm']['pivots']:>12.1f} "
                   f"{r['cold']['wall'] * 1e3:>9.3f} {r['warm']['wall'] * 1e3:>9.3f} "
-                  f"{r['ratio_wall']:>14.3f}x {r['ratio_seconds']:>9.3f}x"
+                  f"{r['ratio_wall']:>14.3f}x {r['ratio_seconds']:>9.3f}x "
+                  f"{r['ratio_wall_mean']:>10.3f}x"
                   f"  ({r['warm_from_basis_steps']}/{args.steps} steps from the basis)")
         print(f"      max |z_warm - z_cold| {row['max_z_difference']:.1e}")
     meta = {"date": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),

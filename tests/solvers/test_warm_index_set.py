@@ -276,3 +276,40 @@ def test_cli_z0_previous_result_starts_the_method(cli, tmp_path, method: str) ->
     assert w["iterations"] < c["iterations"]
     assert _close(np.array(w["z"]), np.array(c["z"]))
     _assert_solves(M, q2, np.array(w["z"]))
+
+
+@pytest.mark.parametrize("kind", ["pd", "p"])
+def test_murty_transform_and_pivoting_in_take_the_same_pivots(monkeypatch, kind: str) -> None:
+    """Murty from F on the principal pivot transform (n >= TRANSFORM_MIN_N) and with F pivoted
+    in on the tableau (below it) are one method: the same least-index pivots, the same z."""
+    from lcpcli.solvers.methods import murty
+
+    runs = {}
+    for path, threshold in (("transform", 0), ("pivot-in", 10**9)):
+        monkeypatch.setattr(murty, "TRANSFORM_MIN_N", threshold)
+        out = []
+        for seed in range(12):
+            n = 20
+            M = _matrix(kind, n, seed)
+            rng = np.random.default_rng(seed)
+            q = rng.standard_normal(n) * n
+            F = rng.random(n) < 0.5
+            out.append(lcpcli.solve(M, q, "murty", basis=F))
+        runs[path] = out
+    for a, b in zip(runs["transform"], runs["pivot-in"], strict=True):
+        assert a.solved and b.solved and a.iterations == b.iterations
+        assert _close(a.z, b.z)
+
+
+def test_murty_transform_repairs_a_singular_block(monkeypatch) -> None:
+    from lcpcli.solvers.methods import murty
+
+    monkeypatch.setattr(murty, "TRANSFORM_MIN_N", 0)
+    M = np.array([[1.0, 1.0, 0.0], [1.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
+    q = np.array([-1.0, -1.0, -1.0])
+    r = lcpcli.solve(M, q, "murty", basis=[True, True, True])
+    assert r.solved and "1 dependent pair dropped" in r.message
+    _assert_solves(M, q, r.z)
+    # -I from the all-z basis: the first pivot is not positive; restarted from z = 0
+    r = lcpcli.solve(-np.eye(3), -np.ones(3), "murty", basis=[True, True, True])
+    assert not r.solved and "restarted from z = 0" in r.message
