@@ -135,7 +135,8 @@ def _run_from(problem: Any, F: np.ndarray, max_iter: int | None) -> Outcome:
     if feasible(M, q, kept, z):  # q' >= 0: the transform's run would end at once
         state = np.where(kept, CLAMPED, AT_LOWER)
         return _outcome(problem, OK, z, 0, state, limit,
-                        f"{how}; its basic solution is feasible: one factorisation)")
+                        f"{how}; its basic solution is feasible: one factorisation)",
+                        solved=True)
     how += "; principal pivot transform on its block)"
     Mp, qp = principal_pivot_transform(M, q, kept, solve)
     zero, inf = np.zeros(n), np.full(n, np.inf)
@@ -152,21 +153,24 @@ def _run_from(problem: Any, F: np.ndarray, max_iter: int | None) -> Outcome:
 def basic_solution(M: np.ndarray, q: np.ndarray, F: np.ndarray
                    ) -> tuple[np.ndarray, Any, np.ndarray] | None:
     """``(F', solve, z)``: the basis ``F`` (booleans, True: ``z_i`` basic) made nonsingular,
-    its block's solver and its basic solution (``M_F'F' z_F' = -q_F'``, 0 elsewhere).
+    its block's solver and its basic solution (``M_F'F' z_F' = -q_F'``, 0 elsewhere; one step
+    of iterative refinement).
     ``F'`` is ``F`` less the pairs :func:`lemke_warm.repair` drops when ``M_FF`` is singular;
     None when the repaired block is still singular (one factorisation of ``M_F'F'``,
     :func:`lcpcli.solvers.methods.bpp.factor_block`: Cholesky for a symmetric M)."""
     symmetric = is_symmetric_dense(M)
     a = np.flatnonzero(F)
-    solve = factor_block(M[np.ix_(a, a)], symmetric) if a.size else _empty
+    solve = factor_block(M.take(a, 0).take(a, 1), symmetric) if a.size else _empty
     if solve is None:
         F = repair(M, F)
         a = np.flatnonzero(F)
-        solve = factor_block(M[np.ix_(a, a)], symmetric) if a.size else _empty
+        solve = factor_block(M.take(a, 0).take(a, 1), symmetric) if a.size else _empty
         if solve is None:
             return None
     z = np.zeros(q.shape[0])
     z[a] = solve(-q[a])
+    if a.size:
+        z[a] -= solve(M.take(a, 0) @ z + q[a])
     if not np.all(np.isfinite(z)):
         return None
     return F.copy(), solve, z
@@ -197,30 +201,37 @@ def principal_pivot_transform(M: np.ndarray, q: np.ndarray, F: np.ndarray, solve
 
     O(n^2 |F|)."""
     a, b = np.flatnonzero(F), np.flatnonzero(~F)
-    inv = solve(np.eye(a.size))
-    M_ab, M_ba = M[np.ix_(a, b)], M[np.ix_(b, a)]
-    X, Y = inv @ M_ab, M_ba @ inv
-    Mp = np.empty_like(M)
-    Mp[np.ix_(a, a)] = inv
-    Mp[np.ix_(a, b)] = -X
-    Mp[np.ix_(b, a)] = Y
-    Mp[np.ix_(b, b)] = M[np.ix_(b, b)] - M_ba @ X
+    k = a.size
+    perm = np.concatenate([a, b])  # blocks in the order (F, G): slices, not scatters
+    back = np.empty_like(perm)
+    back[perm] = np.arange(perm.size)
+    P = M.take(perm, 0).take(perm, 1)
+    inv = solve(np.eye(k))
+    B = np.empty_like(P)
+    B[:k, :k] = inv
+    np.matmul(inv, P[:k, k:], out=B[:k, k:])  # A^-1 M_FG, negated below
+    np.matmul(P[k:, :k], inv, out=B[k:, :k])
+    B[k:, k:] = P[k:, k:]
+    B[k:, k:] -= P[k:, :k] @ B[:k, k:]
+    np.negative(B[:k, k:], out=B[:k, k:])
     qa = inv @ q[a]
     qp = q.copy()
     qp[a] = -qa
-    qp[b] = q[b] - M_ba @ qa
-    return Mp, qp
+    qp[b] = q[b] - P[k:, :k] @ qa
+    return B.take(back, 0).take(back, 1), qp
 
 
 def _outcome(problem: Any, status: int, z: np.ndarray, pivots: int, state: np.ndarray,
-             limit: int, how: str) -> Outcome:
-    """The Outcome of a kernel run (``how``: the warm start's words, or empty)."""
+             limit: int, how: str, solved: bool = False) -> Outcome:
+    """The Outcome of a kernel run (``how``: the warm start's words, or empty); ``solved``:
+    ``z`` is a basic solution solved and refined already (:func:`basic_solution`), not
+    polished again."""
     n = problem.n
     clamped = int(np.sum(state == CLAMPED))
     info = {"clamped": clamped, "at_lower": int(np.sum(state == AT_LOWER)),
             "at_upper": int(np.sum(state == AT_UPPER))}
     if status == OK:
-        return Outcome(polish(problem, z), pivots, CONVERGED,
+        return Outcome(z if solved else polish(problem, z), pivots, CONVERGED,
                        f"all {n} indices processed in {plural(pivots, 'pivot')} "
                        f"({clamped} clamped){how}",
                        info=info)

@@ -97,14 +97,15 @@ def _run(problem: Any, *, tol: float, max_iter: int | None, z0: np.ndarray | Non
     if n and np.min(q) >= 0:
         return Outcome(np.zeros(n), 0, CONVERGED, "q >= 0: z = 0 solves the problem")
     basic = np.arange(n, dtype=np.int64)
-    warm = ""
+    warm, solved = "", False
     if start is not None and start[0].any():
-        status, z, pivots, bad, basic, warm = _from_set(kernel, M, q, limit, *start,
+        status, z, pivots, bad, basic, warm, solved = _from_set(kernel, M, q, limit, *start,
                                                         traced=kernel is not murty_kernel)
     else:
         status, z, pivots, bad = kernel(M, q, limit, PIVOT_TOL, NEG_TOL, basic)
-    if status == OK:
+    if status == OK and not solved:
         z = polish_kernel(M, q, z, basic)  # a singular basic block keeps the kernel's z
+    if status == OK:
         return Outcome(z, int(pivots), CONVERGED,
                        f"Murty: all basic variables nonnegative after "
                        f"{plural(pivots, 'pivot')}{warm}")
@@ -133,11 +134,13 @@ def _start_set(problem: Any, z0: np.ndarray | None,
 
 
 def _from_set(kernel: Any, M: np.ndarray, q: np.ndarray, limit: int, F: np.ndarray,
-              what: str, traced: bool) -> tuple[int, np.ndarray, int, int, np.ndarray, str]:
+              what: str, traced: bool
+              ) -> tuple[int, np.ndarray, int, int, np.ndarray, str, bool]:
     """The kernel run from the index set ``F`` (see the module docstring); when that fails at
     once (a singular block, a first pivot that is not positive) the run starts from z = 0.
     Returns the kernel's tuple with ``z`` and the final ``basic`` codes of the problem given,
-    and the words for the message."""
+    the words for the message, and whether ``z`` is the start's basic solution, solved and
+    refined already (no pivot, no kernel)."""
     n = q.shape[0]
     run = _pivoted_in if traced or n < TRANSFORM_MIN_N else _transformed
     status, z, pivots, bad, basic, warm, why = run(kernel, M, q, limit, F, what)
@@ -145,7 +148,11 @@ def _from_set(kernel: Any, M: np.ndarray, q: np.ndarray, limit: int, F: np.ndarr
         basic = np.arange(n, dtype=np.int64)
         warm = f" ({what}, {int(F.sum())} z basic: {why}; restarted from z = 0)"
         status, z, pivots, bad = kernel(M, q, limit, PIVOT_TOL, NEG_TOL, basic)
-    return status, z, pivots, bad, basic, warm
+    return status, z, pivots, bad, basic, warm, why == _SOLVED
+
+
+#: The message's words when the start's basic solution is feasible (solved, not pivoted).
+_SOLVED = "; its basic solution is feasible: one factorisation"
 
 
 def _words(F: np.ndarray, kept: np.ndarray, what: str) -> str:
@@ -170,7 +177,7 @@ def _transformed(kernel: Any, M: np.ndarray, q: np.ndarray, limit: int, F: np.nd
     kept, solve, z = start
     warm = _words(F, kept, what)
     if feasible(M, q, kept, z):  # no basic variable is negative: 0 pivots
-        return OK, z, 0, -1, np.where(kept, idx + n, idx), warm, ""
+        return OK, z, 0, -1, np.where(kept, idx + n, idx), warm + _SOLVED, _SOLVED
     Mp, qp = principal_pivot_transform(M, q, kept, solve)
     tb = idx.copy()
     status, zp, pivots, bad = kernel(Mp, qp, limit, PIVOT_TOL, NEG_TOL, tb)
