@@ -86,9 +86,10 @@ def solve(problem: Problem | Any, q: Any = None, method: str | None = None, *,
         check_warm(problem, warm)
         note = ""
         own = takes_basis(spec, problem, opts)
-        if own:  # the method's own pivots from the basis (Murty, Dantzig)
-            tried = run_method(spec, problem, tol,
-                               spec.parse_options({**options, "basis": warm_basis(problem, warm)}))
+        if own:  # the method's own pivots from the basis (Murty, Dantzig); basis= wins
+            start_opts = opts if opts.get("basis") is not None else \
+                spec.parse_options({**options, "basis": warm_basis(problem, warm)})
+            tried = run_method(spec, problem, tol, start_opts)
             res = certify_outcome(problem, tried, spec.name, perf_counter() - start, tol,
                                   basis=True)
             if res.solved:  # only solved is kept: the cold run gives any proof

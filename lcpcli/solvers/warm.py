@@ -54,11 +54,11 @@ def takes_basis(spec: Method, problem: Any, options: Mapping[str, Any]) -> bool:
     declares a ``basis`` option gets the basis, as its ``basis`` (``murty``, ``dantzig``: their
     own pivots from that index set), on an LCP (an index set of basic z's is an LCP's basis; a
     box LCP's has three states); ``bpp``, which declares one too, gets it through
-    :func:`warm_start` (its factors kept for the next step).  Not when ``options`` already hold
-    a ``basis``, nor for a traced run (the trace shows the run from ``z0`` or z = 0, as
-    before)."""
+    :func:`warm_start` (its factors kept for the next step).  Not for a traced run (the trace
+    shows the run from ``z0`` or z = 0, as before); a ``basis`` in ``options`` is the one the
+    method starts from."""
     return (spec.name != "bpp" and "basis" in spec.options and problem.kind == "lcp"
-            and options.get("basis") is None and not options.get("trace"))
+            and not options.get("trace"))
 
 
 def uses_warm_basis(spec: Method, problem: Any, options: Mapping[str, Any]) -> bool:

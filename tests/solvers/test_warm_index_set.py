@@ -110,6 +110,9 @@ def test_from_the_solution_basis_takes_no_pivot(method: str, kind: str) -> None:
     # through warm=: the method keeps its own name and pivots (not BPP's)
     warm = lcpcli.solve(M, q, method, warm=cold)
     assert warm.method == method and warm.iterations == 0 and warm.solved
+    # basis= given beside warm= is the one the method starts from
+    both = lcpcli.solve(M, q, method, basis=cold, warm=np.zeros(n, bool))
+    assert both.solved and both.iterations == 0
 
 
 @pytest.mark.parametrize("method", METHODS)
