@@ -23,17 +23,20 @@ previous Result, its ``basis`` codes or letters, booleans; see
 :func:`lcpcli.solvers.options.basis_option`).  The LCP is first replaced by its principal pivot
 transform on ``M_FF`` (:func:`principal_pivot_transform`: ``w_F`` and ``z_F`` exchange roles),
 then the method runs on the transform from its start and the answer is mapped back, so a basis
-that still solves the problem ends in 0 pivots (one factorisation of ``M_FF``).  A singular
+that still solves the problem ends in 0 pivots (one factorisation of ``M_FF``: its basic
+solution is feasible, and the transform is not even formed).  A singular
 ``M_FF`` is repaired first by dropping its dependent pairs
 (:func:`lcpcli.solvers.methods.lemke_warm.repair`, as warm Lemke does).  Which guarantees
-survive: a principal pivot transform of a P-matrix is a P-matrix, and of a positive
-semidefinite matrix (``x^T M x >= 0``) is positive semidefinite, and of a column sufficient
-one column sufficient (Cottle-Pang-Stone, *The Linear Complementarity Problem*, sections 3.5
-and 4.1); it is not symmetric in general.  So the warm start keeps the guarantee for
-P-matrices, positive definite ones included (their transform is positive definite, non-symmetric);
-on a singular symmetric PSD M the transform leaves the method's stated class, and a warm run
-that ends without an answer is followed by the cold run (:mod:`lcpcli.solvers.warm`).  A box
-LCP's basis has three states and its transform is no box LCP: ``basis=`` is refused there.
+survive: a principal pivot transform of a P-matrix is a P-matrix and one of a positive
+semidefinite matrix (``x^T M x >= 0``) is positive semidefinite (Cottle-Pang-Stone, *The
+Linear Complementarity Problem*, section 4.1, the invariance theorems); so is one of a column
+sufficient matrix (Cottle, Pang and Venkateswaran, "Sufficient matrices and the linear
+complementarity problem", 1989).  It is not symmetric in general.  So the warm start keeps the
+guarantee for P-matrices, positive definite ones included (their transform is positive
+definite, non-symmetric); on a singular symmetric PSD M the transform leaves the method's
+stated class (symmetric PSD), and a warm run that ends without an answer is followed by the
+cold run (:mod:`lcpcli.solvers.warm`).  A box LCP's basis has three states and its transform
+is no box LCP: ``basis=`` is refused there.
 """
 
 from __future__ import annotations
