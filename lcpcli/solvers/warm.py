@@ -49,7 +49,7 @@ WARM_MIN_N = 200
 WARM_MAX_ITER = 20
 
 
-def takes_basis(spec: Method, problem: Any, options: Mapping[str, Any]) -> bool:
+def takes_basis(spec: Method, problem: Any, options: Mapping[str, Any] | None = None) -> bool:
     """Does ``spec`` start from the warm start's basis itself?  The one rule: a method that
     declares a ``basis`` option gets the basis, as its ``basis`` (``murty``, ``dantzig``: their
     own pivots from that index set), on an LCP (an index set of basic z's is an LCP's basis; a
@@ -58,10 +58,11 @@ def takes_basis(spec: Method, problem: Any, options: Mapping[str, Any]) -> bool:
     shows the run from ``z0`` or z = 0, as before); a ``basis`` in ``options`` is the one the
     method starts from."""
     return (spec.name != "bpp" and "basis" in spec.options and problem.kind == "lcp"
-            and not options.get("trace"))
+            and not (options or {}).get("trace"))
 
 
-def uses_warm_basis(spec: Method, problem: Any, options: Mapping[str, Any]) -> bool:
+def uses_warm_basis(spec: Method, problem: Any,
+                    options: Mapping[str, Any] | None = None) -> bool:
     """Does a warm start try BPP (or warm Lemke) from the basis before running ``spec`` cold?
     For ``bpp``, and for ``auto`` and the pivoting methods that do not start from the basis
     themselves (:func:`takes_basis`) from n = :data:`WARM_MIN_N` on; iterative methods take the
