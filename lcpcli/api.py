@@ -50,10 +50,12 @@ def solve(problem: Problem | Any, q: Any = None, method: str | None = None, *,
     validation, kernel loading (imports), file reading or the Result record.
 
     ``warm``: a previous :class:`Result`, a basis (booleans, True: ``z_i`` basic) or a point
-    ``z0``.  With ``auto``, BPP or a pivoting method, block principal pivoting first runs from
-    that basis (:mod:`lcpcli.solvers.warm`; one factorisation when the basis is still right);
-    if that does not end certified, ``method`` runs cold (with ``z0`` from ``warm`` when it
-    takes one), so the verdict is never worse than cold.  Other methods get ``z0`` only.
+    ``z0``.  A method that declares a ``basis`` option (``murty``, ``dantzig``) starts from that
+    basis itself on an LCP; with ``auto``, BPP or another pivoting method, block principal
+    pivoting (or warm Lemke) first runs from it (:mod:`lcpcli.solvers.warm`; one factorisation
+    when the basis is still right).  If that does not end ``solved``, ``method`` runs cold
+    (with ``z0`` from ``warm`` when it takes one and did not take the basis), so the verdict is
+    never worse than cold.  Other methods get ``z0`` only.
     """
     if not isinstance(problem, Problem):  # solve(M, q, method=...): arrays, not a Problem
         if q is None or isinstance(q, str):
@@ -73,11 +75,29 @@ def solve(problem: Problem | Any, q: Any = None, method: str | None = None, *,
     spec, tol, opts = request.spec, request.tol, request.given
     start = perf_counter()
     if warm is not None:
-        from lcpcli.solvers.warm import check_warm, uses_warm_basis, warm_point, warm_start
+        from lcpcli.solvers.warm import (
+            check_warm,
+            takes_basis,
+            uses_warm_basis,
+            warm_basis,
+            warm_point,
+            warm_start,
+        )
 
         check_warm(problem, warm)
         note = ""
-        if uses_warm_basis(spec, problem):
+        own = takes_basis(spec, problem, opts)
+        if own:  # the method's own pivots from the basis (Murty, Dantzig); basis= wins
+            start_opts = opts if opts.get("basis") is not None else \
+                spec.parse_options({**options, "basis": warm_basis(problem, warm)})
+            tried = run_method(spec, problem, tol, start_opts)
+            res = certify_outcome(problem, tried, spec.name, perf_counter() - start, tol,
+                                  basis=True)
+            if res.solved:  # only solved is kept: the cold run gives any proof
+                return res
+            note = (f"its answer failed the certificate (error {res.error:.2g})"
+                    if tried.termination == CONVERGED else f"it ended {tried.termination}")
+        elif uses_warm_basis(spec, problem, opts):
             tried, note = warm_start(problem, warm, tol, spec.name)
             if tried is not None:
                 factors = tried.info.pop("blocks", None)
@@ -87,7 +107,7 @@ def solve(problem: Problem | Any, q: Any = None, method: str | None = None, *,
                     res.factors = factors  # the next warm start on the same M reuses them
                     return res
                 note = f"its answer failed the certificate (error {res.error:.2g})"
-        if "z0" in spec.options and opts.get("z0") is None:  # the cold run starts from z0
+        if "z0" in spec.options and opts.get("z0") is None and not own:  # cold from z0
             z0 = warm_point(problem, warm)
             if z0 is not None:
                 opts = spec.parse_options({**options, "z0": z0})

@@ -11,7 +11,9 @@ from typing import Any
 
 import numpy as np
 
+from lcpcli.core.certificate import AT_LOWER, AT_UPPER, BETWEEN
 from lcpcli.core.limits import MAX_ITER
+from lcpcli.core.result import BASIS_LETTERS, Result
 
 
 def vector_option(value: Any) -> np.ndarray | None:
@@ -62,3 +64,33 @@ def omega_option(value: Any) -> float:
         raise ValueError(f"omega must satisfy 0 < omega < 2, got {value}")
     return v
 
+
+def basis_option(value: Any) -> np.ndarray:
+    """A complementary basis (an index set) as booleans, True: ``z_i`` basic (``w_i = 0``).
+
+    Accepted: a previous :class:`~lcpcli.core.result.Result` (its :attr:`z_basic`); booleans or
+    0/1, as a sequence or as text ``"1,0,1"``; the letters of ``--json``'s ``basis``
+    (:data:`~lcpcli.core.result.BASIS_LETTERS`: ``"FLUF"``, F basic, L/U ``z_i`` at a bound);
+    an ``int8`` array of pair-state codes (``Result.basis``, :mod:`lcpcli.core.certificate`:
+    ``BETWEEN`` basic).  The set is invariant under diagonal scalings of the problem."""
+    if isinstance(value, Result):
+        if value.z_basic is None:
+            raise ValueError("the result carries no basis")
+        return value.z_basic.copy()
+    if isinstance(value, np.ndarray) and value.dtype == np.int8:
+        if value.ndim != 1 or (value.size and not AT_LOWER <= value.min() <= value.max()
+                               <= BETWEEN):
+            raise ValueError(f"an int8 basis holds the pair-state codes {AT_LOWER}, "
+                             f"{AT_UPPER}, {BETWEEN} (Result.basis)")
+        return value == BETWEEN
+    if isinstance(value, str):
+        text = value.strip()
+        value = [c == "F" for c in text] if set(text) <= set(BASIS_LETTERS) and text else \
+            [int(x) if x.strip() in ("0", "1") else -1 for x in text.split(",")]
+    arr = np.asarray(value)
+    if arr.ndim == 1 and arr.dtype.kind == "b":
+        return arr.copy()
+    if arr.ndim != 1 or arr.dtype.kind not in "bi" or not np.isin(arr, (0, 1)).all():
+        raise ValueError("a basis is a list of booleans or 0/1 (True: z_i basic), '1,0,1', "
+                         "letters 'FLUF' (F: z_i basic), or a Result or its basis")
+    return arr.astype(bool)

@@ -15,7 +15,9 @@ LCP or MLCP with a dense M it runs block principal pivoting (:mod:`lcpcli.solver
 from that basis: when the basis is still right, its basic solution is the answer after one
 factorisation; when a few pairs changed, block pivots fix them in a few more.  For a box LCP
 or a sparse M (never densified here) the basic solution of the basis (``z`` at the bounds of
-the ``L``/``U`` pairs, the ``F`` rows solved, sparse LU for a sparse M) is tried.  An answer
+the ``L``/``U`` pairs, the ``F`` rows solved, sparse LU for a sparse M) is tried.  A method
+that declares a ``basis`` option (Murty's least-index method, Dantzig's principal pivoting)
+runs from the basis itself instead, on an LCP (:func:`takes_basis`).  An answer
 counts only when it passes the certificate; otherwise (a wrong basis on a matrix outside BPP's
 class, a singular block) the caller solves the problem cold, so a warm start never gives a
 worse verdict than a cold one, and never ``no_solution``.
@@ -23,6 +25,7 @@ worse verdict than a cold one, and never ``no_solution``.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -46,12 +49,28 @@ WARM_MIN_N = 200
 WARM_MAX_ITER = 20
 
 
-def uses_warm_basis(spec: Method, problem: Any) -> bool:
-    """Does a warm start try pivoting from the basis before running ``spec`` cold?  For
-    ``bpp``, and for ``auto`` and the pivoting methods from n = :data:`WARM_MIN_N` on;
-    iterative methods take the warm ``z0`` instead."""
+def takes_basis(spec: Method, problem: Any, options: Mapping[str, Any] | None = None) -> bool:
+    """Does ``spec`` start from the warm start's basis itself?  The one rule: a method that
+    declares a ``basis`` option gets the basis, as its ``basis`` (``murty``, ``dantzig``: their
+    own pivots from that index set), on an LCP (an index set of basic z's is an LCP's basis; a
+    box LCP's has three states); ``bpp``, which declares one too, gets it through
+    :func:`warm_start` (its factors kept for the next step).  Not for a traced run (the trace
+    shows the run from ``z0`` or z = 0, as before); a ``basis`` in ``options`` is the one the
+    method starts from."""
+    return (spec.name != "bpp" and "basis" in spec.options and problem.kind == "lcp"
+            and not (options or {}).get("trace"))
+
+
+def uses_warm_basis(spec: Method, problem: Any,
+                    options: Mapping[str, Any] | None = None) -> bool:
+    """Does a warm start try BPP (or warm Lemke) from the basis before running ``spec`` cold?
+    For ``bpp``, and for ``auto`` and the pivoting methods that do not start from the basis
+    themselves (:func:`takes_basis`) from n = :data:`WARM_MIN_N` on; iterative methods take the
+    warm ``z0`` instead."""
     if spec.name == "bpp":
         return True
+    if takes_basis(spec, problem, options):
+        return False
     return (spec.planner or spec.cost == Cost.PIVOTING) and problem.n >= WARM_MIN_N
 
 

@@ -38,7 +38,7 @@ from lcpcli.analysis.classify import is_symmetric
 from lcpcli.core.errors import OptionError
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, SINGULAR, Outcome
 from lcpcli.core.text import plural
-from lcpcli.solvers.options import positive_int, vector_option
+from lcpcli.solvers.options import basis_option, positive_int, vector_option
 from lcpcli.solvers.registry import Cost, Guarantee, Method, Option, when
 from lcpcli.solvers.support import start_point
 
@@ -56,7 +56,7 @@ def default_max_iter(n: int) -> int:
     return max(100, 10 * n)
 
 
-def _factor(A: np.ndarray, symmetric: bool) -> Any:
+def factor_block(A: np.ndarray, symmetric: bool) -> Any:
     """A solver ``x = solve(b)`` (b a vector or a matrix of columns) for the square ``A``
     (destroyed), or None when ``A`` is singular to :data:`SINGULAR_TOL`: Cholesky when
     ``symmetric`` and ``A`` is positive definite (half the work of LU), LU otherwise."""
@@ -129,7 +129,7 @@ class Blocks:
         self.F0, self.factorisations = F.copy(), self.factorisations + 1
         self.idx0 = idx
         self._columns, self._schur = {}, None
-        self.solve0 = _factor(self.M[np.ix_(idx, idx)], self.symmetric) if idx.size else \
+        self.solve0 = factor_block(self.M[np.ix_(idx, idx)], self.symmetric) if idx.size else \
             (lambda b: b)
         if self.solve0 is None:  # singular: nothing factored (the next basis refactors)
             self.F0 = None
@@ -361,20 +361,6 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None,
                                             f"{start} (M may not be a P-matrix)", info=info)
 
 
-def _basis_option(value: Any) -> np.ndarray:
-    """A basis: booleans or 0/1 (True: z_i basic), as a sequence or as text (``"1,0,1"``, or
-    the letters of ``--json``'s ``basis``, ``"FLF"``: F basic)."""
-    if isinstance(value, str):
-        text = value.strip()
-        value = [c == "F" for c in text] if set(text) <= set("LF") and text else \
-            [int(x) if x.strip() in ("0", "1") else -1 for x in text.split(",")]
-    arr = np.asarray(value)
-    if arr.ndim != 1 or arr.dtype.kind not in "bi" or not np.isin(arr, (0, 1)).all():
-        raise ValueError("a basis is a list of booleans or 0/1 (True: z_i basic), '1,0,1', or "
-                         "letters 'FLF' (F: z_i basic)")
-    return arr.astype(bool)
-
-
 METHODS = [
     Method(
         name="bpp",
@@ -391,7 +377,7 @@ METHODS = [
                                                    "max(100, 10 n))"),
             "z0": Option(vector_option, None, "warm start: start from the basis "
                                               "{i: z0_i > 0}"),
-            "basis": Option(_basis_option, None, "start from this basis (booleans, True: z_i "
+            "basis": Option(basis_option, None, "start from this basis (booleans, True: z_i "
                                                  "basic)"),
             "block_tries": Option(positive_int, BLOCK_TRIES, "block pivots without progress "
                                                              "before the single-pivot rule"),

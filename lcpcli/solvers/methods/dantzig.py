@@ -17,6 +17,26 @@ Matrix classes: symmetric positive semidefinite (incl. PD) and P-matrices (all p
 pivots positive), with box bounds, infinite sides and free variables (those need ``M`` of the
 free block invertible).  Other matrices may hit a singular block or an unbounded direction:
 ``unsolved``, never a false ``solved`` (every answer is certified).
+
+Warm start from an index set (LCP only): ``basis=`` names the set ``F`` of basic z's (a
+previous Result, its ``basis`` codes or letters, booleans; see
+:func:`lcpcli.solvers.options.basis_option`).  The LCP is first replaced by its principal pivot
+transform on ``M_FF`` (:func:`principal_pivot_transform`: ``w_F`` and ``z_F`` exchange roles),
+then the method runs on the transform from its start and the answer is mapped back, so a basis
+that still solves the problem ends in 0 pivots (one factorisation of ``M_FF``: its basic
+solution is feasible, and the transform is not even formed).  A singular
+``M_FF`` is repaired first by dropping its dependent pairs
+(:func:`lcpcli.solvers.methods.lemke_warm.repair`, as warm Lemke does).  Which guarantees
+survive: a principal pivot transform of a P-matrix is a P-matrix and one of a positive
+semidefinite matrix (``x^T M x >= 0``) is positive semidefinite (Cottle-Pang-Stone, *The
+Linear Complementarity Problem*, section 4.1, the invariance theorems); so is one of a column
+sufficient matrix (Cottle, Pang and Venkateswaran, "Sufficient matrices and the linear
+complementarity problem", 1989).  It is not symmetric in general.  So the warm start keeps the
+guarantee for P-matrices, positive definite ones included (their transform is positive
+definite, non-symmetric); on a singular symmetric PSD M the transform leaves the method's
+stated class (symmetric PSD), and a warm run that ends without an answer is followed by the
+cold run (:mod:`lcpcli.solvers.warm`).  A box LCP's basis has three states and its transform
+is no box LCP: ``basis=`` is refused there.
 """
 
 from __future__ import annotations
@@ -25,11 +45,23 @@ from typing import Any
 
 import numpy as np
 
+from lcpcli.analysis._scaling import is_symmetric_dense
 from lcpcli.analysis.mlcp import polish
+from lcpcli.core.errors import OptionError
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, NUMERICAL, RAY, Outcome
 from lcpcli.core.text import plural
-from lcpcli.solvers.kernels.dantzig import MAX_ITER, OK, SINGULAR, dantzig_kernel
-from lcpcli.solvers.options import bool_option, positive_int
+from lcpcli.solvers.kernels.dantzig import (
+    AT_LOWER,
+    AT_UPPER,
+    CLAMPED,
+    MAX_ITER,
+    OK,
+    SINGULAR,
+    dantzig_kernel,
+)
+from lcpcli.solvers.methods.bpp import factor_block
+from lcpcli.solvers.methods.lemke_warm import repair
+from lcpcli.solvers.options import basis_option, bool_option, positive_int
 from lcpcli.solvers.registry import Cost, Guarantee, Method, Option, when
 
 
@@ -40,12 +72,26 @@ def processing_order(lo: np.ndarray, up: np.ndarray) -> np.ndarray:
 
 
 def run(problem: Any, *, tol: float, max_iter: int | None = None,
-        trace: bool = False) -> Outcome:
+        basis: np.ndarray | None = None, trace: bool = False) -> Outcome:
     """Solve an LCP or box LCP by principal pivoting; see the module docstring.
 
+    ``basis`` (booleans, True: ``z_i`` basic; LCP only) starts from that index set.
     ``trace=True`` runs the numpy replica :mod:`lcpcli.solvers.trace.dantzig` instead of the
-    kernel (same pivots) and records each pivot in ``Outcome.trace``.
+    kernel (same pivots) and records each pivot in ``Outcome.trace`` (a cold run only).
     """
+    if basis is not None:
+        F = np.asarray(basis, dtype=bool).ravel()
+        if problem.kind != "lcp":
+            raise OptionError("basis= starts dantzig from an LCP's index set; a box LCP's "
+                              "basis has three states (its principal pivot transform is no "
+                              "box LCP)")
+        if trace:
+            raise OptionError("dantzig's trace shows a cold run; it does not start from basis=")
+        if F.shape[0] != problem.n:
+            raise OptionError(f"basis has length {F.shape[0]}, the problem has n = "
+                              f"{problem.n}")
+        if F.any():
+            return _run_from(problem, F, max_iter)
     if trace:
         from lcpcli.solvers.trace import Recorder
         from lcpcli.solvers.trace.dantzig import dantzig_traced
@@ -68,23 +114,139 @@ def _run(problem: Any, *, max_iter: int | None, kernel: Any = None) -> Outcome:
     up = np.ascontiguousarray(up, dtype=np.float64)
     limit = max_iter or max(1000, 50 * n)
     status, z, pivots, state = kernel(M, problem.q, lo, up, processing_order(lo, up), limit)
-    clamped = int(np.sum(state == 1))
-    info = {"clamped": clamped, "at_lower": int(np.sum(state == 2)),
-            "at_upper": int(np.sum(state == 3))}
+    return _outcome(problem, status, z, int(pivots), state, limit, "")
+
+
+def _run_from(problem: Any, F: np.ndarray, max_iter: int | None) -> Outcome:
+    """The method from the index set ``F`` (an LCP): on the principal pivot transform of
+    ``M_FF``, the answer mapped back (``z_F = w'_F``); see the module docstring."""
+    n = problem.n
+    M = np.ascontiguousarray(problem.dense_M(), dtype=np.float64)
+    q = np.ascontiguousarray(problem.q, dtype=np.float64)
+    limit = max_iter or max(1000, 50 * n)
+    given = int(F.sum())
+    start = basic_solution(M, q, F)
+    if start is None:  # the block stays singular after the repair: start cold
+        out = _run(problem, max_iter=max_iter)
+        out.message += " (the given basis's block M_FF is singular; started from z = 0)"
+        return out
+    kept, solve, z = start
+    dropped = given - int(kept.sum())
+    how = (f" from the given basis ({given} z basic"
+           + (f", {plural(dropped, 'dependent pair')} dropped from its singular block"
+              if dropped else ""))
+    if feasible(M, q, kept, z):  # q' >= 0: the transform's run would end at once
+        state = np.where(kept, CLAMPED, AT_LOWER)
+        return _outcome(problem, OK, z, 0, state, limit,
+                        f"{how}; its basic solution is feasible: one factorisation)",
+                        solved=True)
+    how += "; principal pivot transform on its block)"
+    Mp, qp = principal_pivot_transform(M, q, kept, solve)
+    zero, inf = np.zeros(n), np.full(n, np.inf)
+    status, zp, pivots, state = dantzig_kernel(Mp, qp, zero, inf, np.arange(n, dtype=np.int64),
+                                               limit)
+    z = zp.copy()
+    z[kept] = (Mp[kept] @ zp + qp[kept])  # z_F = w'_F: the transform's w of the pairs of F
+    # the pairs of F: clamped in the transform means w_i basic here, and the other way round
+    state = np.where(kept, np.where(state == AT_LOWER, CLAMPED, np.where(
+        state == CLAMPED, AT_LOWER, state)), state)
+    return _outcome(problem, status, np.maximum(z, 0.0), int(pivots), state, limit, how)
+
+
+def basic_solution(M: np.ndarray, q: np.ndarray, F: np.ndarray
+                   ) -> tuple[np.ndarray, Any, np.ndarray] | None:
+    """``(F', solve, z)``: the basis ``F`` (booleans, True: ``z_i`` basic) made nonsingular,
+    its block's solver and its basic solution (``M_F'F' z_F' = -q_F'``, 0 elsewhere; one step
+    of iterative refinement).
+    ``F'`` is ``F`` less the pairs :func:`lemke_warm.repair` drops when ``M_FF`` is singular;
+    None when the repaired block is still singular (one factorisation of ``M_F'F'``,
+    :func:`lcpcli.solvers.methods.bpp.factor_block`: Cholesky for a symmetric M)."""
+    symmetric = is_symmetric_dense(M)
+    a = np.flatnonzero(F)
+    solve = factor_block(M.take(a, 0).take(a, 1), symmetric) if a.size else _empty
+    if solve is None:
+        F = repair(M, F)
+        a = np.flatnonzero(F)
+        solve = factor_block(M.take(a, 0).take(a, 1), symmetric) if a.size else _empty
+        if solve is None:
+            return None
+    z = np.zeros(q.shape[0])
+    z[a] = solve(-q[a])
+    if a.size:
+        z[a] -= solve(M.take(a, 0) @ z + q[a])
+    if not np.all(np.isfinite(z)):
+        return None
+    return F.copy(), solve, z
+
+
+def _empty(b: np.ndarray) -> np.ndarray:
+    """The solver of an empty block."""
+    return b
+
+
+def feasible(M: np.ndarray, q: np.ndarray, F: np.ndarray, z: np.ndarray) -> bool:
+    """Is the basic solution ``z`` of ``F`` feasible: ``z_F >= 0`` and ``w_G >= 0``?  (Then
+    every basic variable is nonnegative and the basis solves the LCP.)"""
+    if np.any(z[F] < 0.0):
+        return False
+    G = ~F
+    return bool(np.all(q[G] + M[G] @ z >= 0.0))
+
+
+def principal_pivot_transform(M: np.ndarray, q: np.ndarray, F: np.ndarray, solve: Any
+                              ) -> tuple[np.ndarray, np.ndarray]:
+    """``(M', q')``: LCP(q, M) pivoted on the nonsingular block ``A = M_FF`` (``solve``: its
+    solver, :func:`basic_solution`; Cottle-Pang-Stone, section 4.1), whose variables are
+    ``z' = (w_F, z_G)``, ``w' = (z_F, w_G)`` (G the other pairs, index positions kept)::
+
+        M'_FF = A^-1,  M'_FG = -A^-1 M_FG,  M'_GF = M_GF A^-1,  M'_GG = M_GG - M_GF A^-1 M_FG,
+        q'_F = -A^-1 q_F,  q'_G = q_G - M_GF A^-1 q_F.
+
+    O(n^2 |F|)."""
+    a, b = np.flatnonzero(F), np.flatnonzero(~F)
+    k = a.size
+    perm = np.concatenate([a, b])  # blocks in the order (F, G): slices, not scatters
+    back = np.empty_like(perm)
+    back[perm] = np.arange(perm.size)
+    P = M.take(perm, 0).take(perm, 1)
+    inv = solve(np.eye(k))
+    B = np.empty_like(P)
+    B[:k, :k] = inv
+    np.matmul(inv, P[:k, k:], out=B[:k, k:])  # A^-1 M_FG, negated below
+    np.matmul(P[k:, :k], inv, out=B[k:, :k])
+    B[k:, k:] = P[k:, k:]
+    B[k:, k:] -= P[k:, :k] @ B[:k, k:]
+    np.negative(B[:k, k:], out=B[:k, k:])
+    qa = inv @ q[a]
+    qp = q.copy()
+    qp[a] = -qa
+    qp[b] = q[b] - P[k:, :k] @ qa
+    return B.take(back, 0).take(back, 1), qp
+
+
+def _outcome(problem: Any, status: int, z: np.ndarray, pivots: int, state: np.ndarray,
+             limit: int, how: str, solved: bool = False) -> Outcome:
+    """The Outcome of a kernel run (``how``: the warm start's words, or empty); ``solved``:
+    ``z`` is a basic solution solved and refined already (:func:`basic_solution`), not
+    polished again."""
+    n = problem.n
+    clamped = int(np.sum(state == CLAMPED))
+    info = {"clamped": clamped, "at_lower": int(np.sum(state == AT_LOWER)),
+            "at_upper": int(np.sum(state == AT_UPPER))}
     if status == OK:
-        return Outcome(polish(problem, z), int(pivots), CONVERGED,
+        return Outcome(z if solved else polish(problem, z), pivots, CONVERGED,
                        f"all {n} indices processed in {plural(pivots, 'pivot')} "
-                       f"({clamped} clamped)",
+                       f"({clamped} clamped){how}",
                        info=info)
     if status == MAX_ITER:
-        return Outcome(z, int(pivots), ITERATION_LIMIT,
-                       f"pivot limit {limit} reached (raise it with --max-iter)", info=info)
+        return Outcome(z, pivots, ITERATION_LIMIT,
+                       f"pivot limit {limit} reached{how} (raise it with --max-iter)", info=info)
     if status == SINGULAR:
-        return Outcome(z, int(pivots), NUMERICAL,
-                       f"singular principal block after {plural(pivots, 'pivot')}: M is not in the "
-                       f"method's class (symmetric PSD or P)", info=info)
-    return Outcome(z, int(pivots), RAY,
-                   f"unbounded driving direction after {plural(pivots, 'pivot')}: "
+        return Outcome(z, pivots, NUMERICAL,
+                       f"singular principal block after {plural(pivots, 'pivot')}{how}: M is "
+                       f"not in the method's class (symmetric PSD or P)", info=info)
+    return Outcome(z, pivots, RAY,
+                   f"unbounded driving direction after {plural(pivots, 'pivot')}{how}: "
                    f"no blocking event "
                    f"(for a PSD M this indicates that no solution exists; not proven here)",
                    info=info)
@@ -105,6 +267,10 @@ METHODS = [
         preference=30,
         kinds=("lcp", "box"),
         options={"max_iter": Option(positive_int, None, "pivot limit (default max(1000, 50 n))"),
+                 "basis": Option(basis_option, None, "warm start (LCP): start from this index "
+                                                     "set (a previous result, its basis letters "
+                                                     "'FLF' or booleans; True/F: z_i basic) by "
+                                                     "a principal pivot transform"),
                  "trace": Option(bool_option, False, "record every pivot (numpy replica of "
                                                       "the kernel, same pivots)")},
         scaling="auto",
