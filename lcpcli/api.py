@@ -27,6 +27,7 @@ from lcpcli.solvers.request import (  # noqa: F401  (re-exported)
     dense_check,
     resolve,
 )
+from lcpcli.solvers.support import preload_linalg
 
 
 def solve(problem: Problem | Any, q: Any = None, method: str | None = None, *,
@@ -72,54 +73,68 @@ def solve(problem: Problem | Any, q: Any = None, method: str | None = None, *,
             raise TypeError("lcpcli.solve(problem, method, tol=...) takes a method name second")
         method = q
     request = resolve(problem, method, tol, options)
-    spec, tol, opts = request.spec, request.tol, request.given
-    start = perf_counter()
     if warm is not None:
-        from lcpcli.solvers.warm import (
-            check_warm,
-            takes_basis,
-            uses_warm_basis,
-            warm_basis,
-            warm_point,
-            warm_start,
-        )
-
-        check_warm(problem, warm)
-        note = ""
-        own = takes_basis(spec, problem, opts)
-        if own:  # the method's own pivots from the basis (Murty, Dantzig); basis= wins
-            start_opts = opts if opts.get("basis") is not None else \
-                spec.parse_options({**options, "basis": warm_basis(problem, warm)})
-            tried = run_method(spec, problem, tol, start_opts)
-            res = certify_outcome(problem, tried, spec.name, perf_counter() - start, tol,
-                                  basis=True)
-            if res.solved:  # only solved is kept: the cold run gives any proof
-                return res
-            note = (f"its answer failed the certificate (error {res.error:.2g})"
-                    if tried.termination == CONVERGED else f"it ended {tried.termination}")
-        elif uses_warm_basis(spec, problem, opts):
-            tried, note = warm_start(problem, warm, tol, spec.name)
-            if tried is not None:
-                factors = tried.info.pop("blocks", None)
-                res = certify_outcome(problem, tried, tried.info.pop("method", "bpp"),
-                                      perf_counter() - start, tol, basis=True)
-                if res.solved:  # never no_solution: the warm start proves nothing
-                    res.factors = factors  # the next warm start on the same M reuses them
-                    return res
-                note = f"its answer failed the certificate (error {res.error:.2g})"
-        if "z0" in spec.options and opts.get("z0") is None and not own:  # cold from z0
-            z0 = warm_point(problem, warm)
-            if z0 is not None:
-                opts = spec.parse_options({**options, "z0": z0})
-        if note:
-            outcome = run_method(spec, problem, tol, opts)
-            outcome.message += f" (warm start from the given basis did not end certified: " \
-                               f"{note}; solved cold)"
-            return certify_outcome(problem, outcome, spec.name, perf_counter() - start,
-                                   tol)
-    outcome: Outcome = run_method(spec, problem, tol, opts)
+        return _solve_warm(request, warm, options)
+    start = perf_counter()
+    outcome: Outcome = run_method(request.spec, problem, request.tol, request.given)
     seconds = perf_counter() - start
-    return certify_outcome(problem, outcome, spec.name, seconds, tol)
+    return certify_outcome(problem, outcome, request.spec.name, seconds, request.tol)
+
+
+def _solve_warm(request: Any, warm: Any, options: dict[str, Any]) -> Result:
+    """:func:`solve` with ``warm`` (see its docstring).  Everything but the runs (the warm
+    start's checks, its basis or point as options, their imports) is done before the clock
+    starts."""
+    from lcpcli.solvers.warm import (
+        check_warm,
+        takes_basis,
+        uses_warm_basis,
+        warm_basis,
+        warm_point,
+        warm_start,
+    )
+
+    problem, spec, tol, opts = request.problem, request.spec, request.tol, request.given
+    check_warm(problem, warm)
+    own = takes_basis(spec, problem, opts)
+    start_opts = None
+    if own:  # the method's own pivots from the basis (Murty, Dantzig); basis= wins
+        start_opts = opts if opts.get("basis") is not None else \
+            spec.parse_options({**options, "basis": warm_basis(problem, warm)})
+        if spec.preload is not None:
+            spec.preload(problem, start_opts)
+    elif "z0" in spec.options and opts.get("z0") is None:  # a cold run starts from z0
+        z0 = warm_point(problem, warm)
+        if z0 is not None:
+            opts = spec.parse_options({**options, "z0": z0})
+    bpp_first = not own and uses_warm_basis(spec, problem, opts)
+    if bpp_first:
+        preload_linalg(problem)  # BPP factorises the basic block
+    start = perf_counter()
+    note = ""
+    if own:
+        tried = run_method(spec, problem, tol, start_opts)
+        res = certify_outcome(problem, tried, spec.name, perf_counter() - start, tol,
+                              basis=True)
+        if res.solved:  # only solved is kept: the cold run gives any proof
+            return res
+        note = (f"its answer failed the certificate (error {res.error:.2g})"
+                if tried.termination == CONVERGED else f"it ended {tried.termination}")
+    elif bpp_first:
+        tried, note = warm_start(problem, warm, tol, spec.name)
+        if tried is not None:
+            factors = tried.info.pop("blocks", None)
+            res = certify_outcome(problem, tried, tried.info.pop("method", "bpp"),
+                                  perf_counter() - start, tol, basis=True)
+            if res.solved:  # never no_solution: the warm start proves nothing
+                res.factors = factors  # the next warm start on the same M reuses them
+                return res
+            note = f"its answer failed the certificate (error {res.error:.2g})"
+    outcome = run_method(spec, problem, tol, opts)
+    if note:
+        outcome.message += (f" (warm start from the given basis did not end certified: "
+                            f"{note}; solved cold)")
+    return certify_outcome(problem, outcome, spec.name, perf_counter() - start, tol)
 
 
 def certify_outcome(problem: Problem, outcome: Outcome, method: str, seconds: float,

@@ -148,6 +148,11 @@ class Method:
     options: Mapping[str, Option] = field(default_factory=dict)
     default_tol: float = 1e-8
     prepare: Callable[[], None] | None = None
+    #: ``preload(problem, options)``: the modules ``run`` imports for this problem and these
+    #: parsed options (scipy.linalg for a dense factorisation, ...), imported by
+    #: :func:`lcpcli.solvers.request.resolve` before the solve is timed, so that
+    #: ``Result.seconds`` never counts an import; None: ``run`` imports nothing.
+    preload: Callable[[Any, Mapping[str, Any]], None] | None = None
     aliases: tuple[str, ...] = ()
     #: True when the method works on a scipy.sparse M without densifying it.
     sparse: bool = False

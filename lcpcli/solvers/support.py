@@ -17,6 +17,22 @@ from lcpcli.core.errors import OptionError
 from lcpcli.core.tolerances import POLISHED
 
 
+def preload_linalg(problem: Any, options: Any = None) -> None:
+    """``Method.preload`` of a method that factorises: scipy.linalg for a dense M,
+    scipy.sparse.linalg for a sparse one (imported before the solve is timed)."""
+    if problem.sparse:
+        import scipy.sparse.linalg  # noqa: F401
+    else:
+        import scipy.linalg  # noqa: F401
+
+
+def preload_for_basis(problem: Any, options: Any) -> None:
+    """``Method.preload`` of a method whose start from a ``basis`` factorises the basic block
+    (:func:`lcpcli.solvers.methods.bpp.factor_block`); nothing for a cold start."""
+    if options.get("basis") is not None:
+        import scipy.linalg  # noqa: F401
+
+
 def start_point(problem: Any, z0: np.ndarray | None, default: float = 0.0) -> np.ndarray:
     """The warm start ``z0`` checked against ``problem`` (OptionError on a length mismatch)."""
     n = problem.n

@@ -40,7 +40,7 @@ from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, SINGULAR, Outcome
 from lcpcli.core.text import plural
 from lcpcli.solvers.options import basis_option, positive_int, vector_option
 from lcpcli.solvers.registry import Cost, Guarantee, Method, Option, when
-from lcpcli.solvers.support import start_point
+from lcpcli.solvers.support import preload_linalg, start_point
 
 #: Block pivots allowed without a new lowest count of infeasible pairs (Júdice & Pires' p).
 BLOCK_TRIES = 3
@@ -364,6 +364,7 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None,
 METHODS = [
     Method(
         name="bpp",
+        preload=preload_linalg,
         run=run,
         summary="block principal pivoting (Kostreva; Júdice-Pires), Murty's least-index "
                 "fallback against cycling; warm-startable from a basis",

@@ -63,6 +63,7 @@ from lcpcli.solvers.methods.bpp import factor_block
 from lcpcli.solvers.methods.lemke_warm import repair
 from lcpcli.solvers.options import basis_option, bool_option, positive_int
 from lcpcli.solvers.registry import Cost, Guarantee, Method, Option, when
+from lcpcli.solvers.support import preload_for_basis
 
 
 def processing_order(lo: np.ndarray, up: np.ndarray) -> np.ndarray:
@@ -255,6 +256,7 @@ def _outcome(problem: Any, status: int, z: np.ndarray, pivots: int, state: np.nd
 METHODS = [
     Method(
         name="dantzig",
+        preload=preload_for_basis,
         run=run,
         summary="Cottle-Dantzig principal pivoting (ODE's dLCP): one index at a time, "
                 "clamped block inverse updated in O(k^2)",

@@ -37,7 +37,7 @@ from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, NUMERICAL, STALLED, O
 from lcpcli.core.text import plural
 from lcpcli.solvers.options import positive_int
 from lcpcli.solvers.registry import Cost, Guarantee, Method, Option, when
-from lcpcli.solvers.support import StallWatch, certified_error, refine
+from lcpcli.solvers.support import StallWatch, certified_error, preload_linalg, refine
 
 DEFAULT_MAX_ITER = 100
 #: Fraction of the step to the boundary that is taken.
@@ -181,6 +181,7 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None) -> Outcome:
 METHODS = [
     Method(
         name="ip",
+        preload=preload_linalg,
         run=run,
         summary="primal-dual interior point, Mehrotra predictor-corrector, with active-set "
                 "rounding (dense or sparse)",

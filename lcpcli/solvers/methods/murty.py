@@ -52,7 +52,7 @@ from lcpcli.solvers.methods.lemke import default_max_iter
 from lcpcli.solvers.methods.lemke_warm import repair
 from lcpcli.solvers.options import basis_option, bool_option, positive_int, vector_option
 from lcpcli.solvers.registry import Cost, Guarantee, Method, Option, when
-from lcpcli.solvers.support import start_point
+from lcpcli.solvers.support import preload_for_basis, start_point
 
 #: A basic value counts as negative below ``-NEG_TOL * ||q||_inf``.
 NEG_TOL = 1e-13
@@ -242,6 +242,7 @@ def _class_words(M: np.ndarray, basic: np.ndarray, bad: int) -> str:
 METHODS = [
     Method(
         name="murty",
+        preload=preload_for_basis,
         run=run,
         summary="Murty's least-index principal pivoting (Bard-type), dense tableau",
         guarantees=(Guarantee(when("p_matrix"), "finite (up to 2^n pivots): the unique "

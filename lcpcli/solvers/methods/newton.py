@@ -47,7 +47,7 @@ from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, NUMERICAL, STALLED, O
 from lcpcli.core.text import plural
 from lcpcli.solvers.options import positive_int, vector_option
 from lcpcli.solvers.registry import Cost, Guarantee, Method, Option, when
-from lcpcli.solvers.support import StallWatch, certified_error, refine, start_point
+from lcpcli.solvers.support import StallWatch, certified_error, preload_linalg, refine, start_point
 
 DEFAULT_MAX_ITER = 200
 #: Stagnation: stop (termination ``stalled``) when the best merit fell by less than
@@ -354,6 +354,7 @@ _OPTIONS = {
 METHODS = [
     Method(
         name="newton",
+        preload=preload_linalg,
         run=run_fb,
         summary="semismooth Newton on the Fischer-Burmeister function, Armijo line search "
                 "(dense LU or sparse LU)",
@@ -374,6 +375,7 @@ METHODS = [
     ),
     Method(
         name="newton-min",
+        preload=preload_linalg,
         run=run_min,
         summary="semismooth Newton on the min / mid map (natural residual), Armijo line search",
         notes="locally fast near a solution; not globally convergent: may stall on "
