@@ -175,9 +175,15 @@ def new_chunk(output: str | Any | None, n: int, threads: int) -> int:
     (:func:`batch_chunk`; row files :func:`lcpcli.io.stack.chunk_size`, which they do not
     record).  A batch that resumes nothing starts reading in these chunks before the file
     exists."""
-    if output is not None and output_kind(output) not in ("hdf5", "npz"):
+    if output is not None and wants_rows(output):
         return io_stack.chunk_size(n)
     return batch_chunk(n, threads)
+
+
+def wants_rows(output: str | Any) -> bool:
+    """Whether the writer of ``output`` (by extension) takes rows (``.jsonl``, ``.csv``)
+    rather than stacked arrays (``.h5``, ``.npz``): :attr:`RowStackWriter.wants_rows`."""
+    return output_kind(output) not in ("hdf5", "npz")
 
 
 def _chunks(K: int, chunk: int) -> int:

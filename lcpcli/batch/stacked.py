@@ -115,16 +115,20 @@ def run_stacks(inputs: list[str], opts: SolveOptions, report: BatchReport, *,
                                                 chunk=chunk, digest=output is not None,
                                                 warm=warm))
         if output is not None:
-            writer = stack_output.open_stack_writer(
-                output, [i for i in infos if i is not None], resume=resume,
-                options=stack_output.options_fingerprint(opts, warm_digest), threads=threads)
+            def make() -> Any:
+                return stack_output.open_stack_writer(
+                    output, [i for i in infos if i is not None], resume=resume,
+                    options=stack_output.options_fingerprint(opts, warm_digest),
+                    threads=threads)
+
+            # resuming nothing, the file is made in a thread while the first chunks are read
+            # and solved (making it is mostly waiting for the disk: fsync, rename)
+            writer = make() if early is None else _OpeningWriter(
+                make, stack_output.wants_rows(output), early[0], early[1])
         if writer is not None and resume:
             for info in infos:
                 if info is not None:
                     _check_identity(info, writer, output)
-        if early is not None and writer is not None and writer.chunk(early[0]) != early[1]:
-            early[2].close()  # not expected: a new file records new_chunk's chunks
-            early = None
     except BaseException:
         if early is not None:
             early[2].close()
@@ -148,12 +152,14 @@ def run_stacks(inputs: list[str], opts: SolveOptions, report: BatchReport, *,
         for path, info in zip(inputs, infos, strict=True):
             if info is None:
                 continue
-            parts = None
+            parts, chunk = None, None
             if early is not None and info is early[0]:
-                parts, early = early[2], None
+                parts, chunk, early = early[2], early[1], None
+            elif writer is not None:
+                chunk = writer.chunk(info)
             _run_one(path, info, opts, report, tally, stats, writer, done_masks[path],
                      threads=threads,
-                     chunk=writer.chunk(info) if writer is not None else
+                     chunk=chunk if chunk is not None else
                      stack_output.batch_chunk(info.n, threads),
                      on_progress=on_progress, on_row=on_row, write=write,
                      scheduler=scheduler, warm=warm, parts=parts)
@@ -164,6 +170,59 @@ def run_stacks(inputs: list[str], opts: SolveOptions, report: BatchReport, *,
             warm.close()
         if writer is not None:
             write(writer.close)
+
+
+class _OpeningWriter:
+    """The output writer of a batch that resumes nothing, made by ``make()`` in a thread of
+    its own while the first chunks are read and solved; each use waits for it (also when
+    Ctrl-C arrives meanwhile) and raises what making it raised (an unwritable output, a full
+    disk).  ``wants_rows``: the writer's, known from the output's kind; ``first``, ``chunk``:
+    the first stack and the chunk it is read in, which a new file must record (checked)."""
+
+    def __init__(self, make: Callable[[], Any], wants_rows: bool, first: Any,
+                 chunk: int) -> None:
+        self.wants_rows, self.first, self.want_chunk = wants_rows, first, chunk
+        self.writer: Any = None
+        self.error: BaseException | None = None
+        self.thread = threading.Thread(target=self._run, args=(make,),
+                                       name="lcpcli-stack-opener", daemon=True)
+        self.thread.start()
+
+    def _run(self, make: Callable[[], Any]) -> None:
+        try:
+            self.writer = make()
+        except BaseException as exc:  # noqa: BLE001 - raised where the writer is used
+            self.error = exc
+
+    def get(self) -> Any:
+        """The writer, once made."""
+        interrupted: BaseException | None = None
+        while self.thread.is_alive():
+            try:
+                self.thread.join()
+            except KeyboardInterrupt as exc:  # wait on: the file is renamed into place
+                interrupted = exc
+        if self.error is not None:
+            raise self.error
+        if self.writer.chunk(self.first) != self.want_chunk:
+            self.writer.close()
+            self.error = RuntimeError(f"a new result file records chunks of "
+                                      f"{self.writer.chunk(self.first)} problems, not "
+                                      f"{self.want_chunk}")
+            raise self.error
+        if interrupted is not None:
+            raise interrupted
+        return self.writer
+
+    def chunk(self, info: Any) -> int:
+        return self.get().chunk(info)
+
+    def write(self, *args: Any) -> None:
+        self.get().write(*args)
+
+    def close(self) -> None:
+        if self.thread.is_alive() or self.error is None:
+            self.get().close()
 
 
 def _open_warm(opts: SolveOptions, infos: list[Any], scheduler: Any) -> tuple[Any, str | None]:

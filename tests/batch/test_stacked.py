@@ -433,3 +433,48 @@ def test_output_that_cannot_be_made_stops_the_early_reader(tmp_path, monkeypatch
         run_batch([str(path)], SolveOptions(method="lemke"), output=tmp_path / "r.h5", jobs=2)
     assert "lcpcli-stack-reader" in running  # it was reading while the file was being made
     assert not [t for t in threading.enumerate() if t.name.startswith("lcpcli-stack")]
+
+
+def test_output_file_is_made_while_the_first_chunk_is_solved(tmp_path, monkeypatch):
+    """Resuming nothing, the result file is made in a thread: the first chunk is solved
+    before a slow making of the file ends, and the file ends equal to solve_many's results
+    with a digest per chunk."""
+    import threading
+    import time
+
+    import lcpcli.batch.stack_output as stack_output
+    import lcpcli.batch.stacked as stacked
+    import lcpcli.io.stack as stack_mod
+    from lcpcli.batch.records import SolveOptions
+    from lcpcli.batch.run import run_batch
+
+    M, q = pd_stack(400, 5, seed=6)
+    path, out = tmp_path / "s.h5", tmp_path / "r.h5"
+    write_stack(path, M, q)
+    monkeypatch.setattr(stack_mod, "chunk_size", lambda n, **kw: 100)
+    events: list[str] = []
+    made = threading.Event()
+    real_open, real_solve = stack_output.open_stack_writer, stacked.solve_read
+
+    def slow_open(*args, **kwargs):
+        time.sleep(0.5)
+        writer = real_open(*args, **kwargs)
+        events.append("made")
+        made.set()
+        return writer
+
+    def solve(*args, **kwargs):
+        if not made.is_set():
+            events.append("solved before the file was made")
+        return real_solve(*args, **kwargs)
+
+    monkeypatch.setattr(stack_output, "open_stack_writer", slow_open)
+    monkeypatch.setattr(stacked, "solve_read", solve)
+    report = run_batch([str(path)], SolveOptions(method="lemke"), output=out, jobs=2)
+    assert report.new == 400 and events[0] == "solved before the file was made"
+    ref = solve_many(M, q, "lemke")
+    with h5py.File(out, "r") as f:
+        g = f["s"]
+        np.testing.assert_array_equal(g["z"][...], ref.z)
+        np.testing.assert_array_equal(g["status"][...], ref.status)
+        assert int(g.attrs["chunk"]) == 100 and g["chunk_digest"][...].any(axis=1).all()
