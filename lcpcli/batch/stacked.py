@@ -341,9 +341,11 @@ def _reads(path: str, info: Any, done: np.ndarray, chunk: int, digest: bool,
            stop_event: threading.Event | None = None, warm: Any = None,
            buffers: _Buffers | None = None) -> Iterator[tuple[Any, ...]]:
     """``(todo, part, digest, read_s, prev, held)`` of each chunk with work, in order (the
-    reader's side); ``prev``: the chunk of the ``--z0`` result file ``warm`` (None without
-    one); ``held``: the buffers of ``buffers`` that ``part`` was read into (None without
-    them), which the consumer gives back once it is done with the chunk's data."""
+    reader's side); ``digest``: the chunk's :class:`_Digest` (``digest``; else ``b""``),
+    computed here once the chunk is handed over, so that the solver starts on it meanwhile;
+    ``prev``: the chunk of the ``--z0`` result file ``warm`` (None without one); ``held``:
+    the buffers of ``buffers`` that ``part`` was read into (None without them), which the
+    consumer gives back once it is done with the chunk's data."""
     from lcpcli.io.stack import open_stack
 
     with open_stack(path) as reader:
@@ -356,14 +358,56 @@ def _reads(path: str, info: Any, done: np.ndarray, chunk: int, digest: bool,
                 held = None if buffers is None else buffers.take(stop_event)
                 if buffers is not None and held is None:  # told to stop while waiting
                     return
-                part, fingerprint, read_s = read_part(reader, start, stop, digest=digest,
-                                                      out=held)
+                part, _, read_s = read_part(reader, start, stop, digest=False, out=held)
                 prev = None
                 if warm is not None:  # its read counts as reading
                     t0 = time.perf_counter()
                     prev = warm.read(start, stop)
                     read_s += time.perf_counter() - t0
-                yield todo, part, fingerprint, read_s, prev, held
+                fingerprint = _Digest() if digest else None
+                yield todo, part, fingerprint or b"", read_s, prev, held
+                if fingerprint is not None:  # beside the solver, before the next read
+                    fingerprint.compute(part)
+
+
+class _Digest:
+    """The digest of a chunk (:func:`lcpcli.batch.stack_output.chunk_digest`) that the reader
+    thread computes after it handed the chunk over; :meth:`result` (the chunk's write) waits
+    for it.  ``seconds``: what computing it took (counted as reading)."""
+
+    def __init__(self) -> None:
+        self.done = threading.Event()
+        self.value, self.seconds = b"", 0.0
+        self.error: BaseException | None = None
+
+    def compute(self, part: Any) -> None:
+        from lcpcli.batch.stack_output import chunk_digest
+
+        t0 = time.perf_counter()
+        try:
+            self.value = chunk_digest(part)
+        except BaseException as exc:  # noqa: BLE001 - raised by result(), in the writer
+            self.error = exc
+            raise
+        finally:
+            self.seconds = time.perf_counter() - t0
+            self.done.set()
+
+    def result(self) -> bytes:
+        self.done.wait()
+        if self.error is not None:
+            raise self.error
+        return self.value
+
+
+def _digest_bytes(digest: bytes | _Digest, stats: BatchStats) -> bytes:
+    """A chunk's digest as bytes (waiting for a :class:`_Digest`, whose seconds count as
+    reading)."""
+    if isinstance(digest, _Digest):
+        value = digest.result()
+        stats.read_seconds += digest.seconds
+        return value
+    return digest
 
 
 class _Buffers:
@@ -619,7 +663,8 @@ def _consume(path: str, stem: str, info: Any, parts: Any, report: BatchReport, t
             if writes is not None:
                 writes.submit(lambda positions=positions, names=names, res=res, rows=rows,
                               chunk_no=start // chunk, digest=digest:
-                              writer.write(info, positions, names, res, rows, chunk_no, digest))
+                              writer.write(info, positions, names, res, rows, chunk_no,
+                                           _digest_bytes(digest, stats)))
             add_to_tally(tally, path, stem, positions, names, res)
             report.new += len(res)
             if rows is not None and on_row is not None:
