@@ -17,6 +17,7 @@ output recorded (:func:`lcpcli.batch.stack_output.chunk_digest`), and the solve 
 
 from __future__ import annotations
 
+import heapq
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -680,9 +681,6 @@ def _consume(path: str, stem: str, info: Any, parts: Any, report: BatchReport, t
 def add_to_tally(tally: Tally, source: str, stem: str, positions: np.ndarray,
                  names: list[str] | None, res: Any) -> None:
     """Counts, the worst errors and the first error messages of a chunk, without rows."""
-    import heapq
-
-
     tally.add_counts(res.counts())
     ok = res.status != STATUS_CODES[Status.ERROR]
     err = np.where(np.isfinite(res.error), res.error, np.inf)
