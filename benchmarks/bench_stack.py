@@ -138,6 +138,7 @@ def vs_solve_many(cases: list[tuple[int, int]], jobs: int, rounds: int, roots: l
             np.save(q_npy, q)
             del M, q
             best: dict[str, float] = {}
+            loads = [os.getloadavg()[0]]
             for _ in range(rounds):
                 for root in roots:
                     env = dict(os.environ, PYTHONPATH=str(root))
@@ -156,13 +157,15 @@ def vs_solve_many(cases: list[tuple[int, int]], jobs: int, rounds: int, roots: l
                 if int(solved) != K:
                     raise SystemExit(f"solve_many certified {solved} of {K}")
                 best["solve_many"] = min(best.get("solve_many", np.inf), float(seconds))
-            row = {"n": n, "K": K, "seconds": best,
+                loads.append(os.getloadavg()[0])
+            row = {"n": n, "K": K, "seconds": best, "load_average": [min(loads), max(loads)],
                    "per_second": {k: K / v for k, v in best.items()},
                    "ratio_to_solve_many": {k: best["solve_many"] / v for k, v in best.items()}}
             results["cases"].append(row)
             print(f"n = {n}, K = {K:,}, --jobs {jobs}, best of {rounds}: " + "; ".join(
                 f"{k} {v:.3f} s ({K / v:,.0f}/s, {best['solve_many'] / v:.2f}x solve_many)"
-                for k, v in best.items()), flush=True)
+                for k, v in best.items()) + f"; load average {min(loads):.1f}-{max(loads):.1f}",
+                flush=True)
             stack.unlink()
     Path(out).parent.mkdir(parents=True, exist_ok=True)
     Path(out).write_text(json.dumps(results, indent=2) + "\n")

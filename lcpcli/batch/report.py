@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import heapq
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -43,24 +44,20 @@ class Tally:
     errors: list[tuple[str, str, str]] = field(default_factory=list)
 
     def add(self, row: dict[str, Any]) -> None:
-        import heapq
-
         status = str(row.get("status", ERROR))
         self.counts[status] = self.counts.get(status, 0) + 1
         src, prob = key(row)
+        if status == ERROR:
+            if len(self.errors) < self.top:
+                self.errors.append((src, prob, str(row.get("message", ""))))
+            return
         seconds = row.get("seconds")
-        if status != ERROR and isinstance(seconds, (int, float)):
-            heapq.heappush(self.slowest, (float(seconds), src, prob))
-            if len(self.slowest) > self.top:
-                heapq.heappop(self.slowest)
-        err = row.get("error")
-        if status != ERROR and row.get("n") is not None:
-            value = float("inf") if err is None else float(err)
-            heapq.heappush(self.worst, (value, src, prob))
-            if len(self.worst) > self.top:
-                heapq.heappop(self.worst)
-        if status == ERROR and len(self.errors) < self.top:
-            self.errors.append((src, prob, str(row.get("message", ""))))
+        if isinstance(seconds, (int, float)):
+            _keep(self.slowest, (float(seconds), src, prob), self.top)
+        if row.get("n") is not None:
+            err = row.get("error")
+            _keep(self.worst, (float("inf") if err is None else float(err), src, prob),
+                  self.top)
 
     def add_counts(self, counts: dict[str, int]) -> None:
         """Add status counts of rows not passed one by one (a stacked chunk)."""
@@ -88,6 +85,15 @@ class Tally:
                           for e, s, p in sorted(self.worst, reverse=True)],
                 "errors": [{"source": s, "problem": p, "message": m}
                            for s, p, m in self.errors]}
+
+
+def _keep(heap: list[Any], item: Any, top: int) -> None:
+    """Keep the ``top`` largest items in the min-heap ``heap``: an item no larger than the
+    smallest kept is dropped without touching the heap (most rows of a batch)."""
+    if len(heap) < top:
+        heapq.heappush(heap, item)
+    elif heap and item > heap[0]:
+        heapq.heapreplace(heap, item)
 
 
 @dataclass

@@ -12,16 +12,17 @@ where none), ``basis`` (K, n) int8 (each problem's final basis, the codes of
 yet, or an ``error`` problem; what ``solve STACK --z0 THIS_FILE`` starts from), ``names`` (K,)
 when the input has names, and the input's fingerprint (below).
 Each chunk's data are written and flushed, then its digest and ``status``, and flushed again,
-before the next chunk's results are written (the next chunk is read meanwhile, by the reader
-thread of :mod:`lcpcli.batch.stacked`); Ctrl-C / SIGTERM close the file cleanly, so ``--resume``
-finds every finished chunk. The file is created complete (every group and dataset) in a
-temporary file renamed over the output, so a full disk at the start leaves the previous file as
-it was; a full disk later leaves a resumable file (``status`` -1 marks what is not done) and one
-line ``PATH: no space left on device (...)``, exit 2. The datasets are allocated in full when
-the file is created (``ALLOC_TIME_EARLY``), so writing a chunk changes data only, never HDF5's
-metadata: a ``kill -9`` leaves a readable file whose ``status`` says which problems finished (a
-chunk cut in the middle has ``status`` -1 and is solved again). A file that is still unreadable
-is refused by ``--resume`` with a message (run again without it).
+before the next chunk's results are written (one writer thread writes the chunks in order while
+the next chunk is solved and the one after it read: :mod:`lcpcli.batch.stacked`); Ctrl-C /
+SIGTERM close the file cleanly, so ``--resume`` finds every finished chunk. The file is created
+complete (every group and dataset) in a temporary file renamed over the output, so a full disk
+at the start leaves the previous file as it was; a full disk later leaves a resumable file
+(``status`` -1 marks what is not done) and one line ``PATH: no space left on device (...)``,
+exit 2. The datasets are allocated in full when the file is created (``ALLOC_TIME_EARLY``), so
+writing a chunk changes data only, never HDF5's metadata: a ``kill -9`` leaves a readable file
+whose ``status`` says which problems finished (a chunk cut in the middle has ``status`` -1 and
+is solved again). A file that is still unreadable is refused by ``--resume`` with a message (run
+again without it).
 
 **Fingerprint** (``--resume`` never keeps results of other data): each group records
 ``chunk`` (problems per chunk), ``chunk_digest`` (chunks, 16) uint8, the SHA-256 digest of each
@@ -50,7 +51,14 @@ from typing import Any
 import numpy as np
 
 from lcpcli.batch import output
-from lcpcli.batch.output import DIGEST_BYTES, INPUT_HASH, checked_output, hdf5_text, new_digest
+from lcpcli.batch.output import (
+    DIGEST_BYTES,
+    INPUT_HASH,
+    checked_output,
+    hdf5_text,
+    new_digest,
+    output_kind,
+)
 from lcpcli.batch.records import options_difference
 from lcpcli.core.errors import OptionError, ProblemError
 from lcpcli.core.result import NOT_DONE, STATUS_CODES, status_counts
@@ -159,6 +167,23 @@ def batch_chunk(n: int, threads: int) -> int:
     row outputs, which do not, use :func:`chunk_size` alone."""
     base = io_stack.chunk_size(n)  # looked up at call time: a test may replace it
     return max(base, min(PER_THREAD * threads, MAX_CHUNK_BYTES // max(8, 8 * n * n)))
+
+
+def new_chunk(output: str | Any | None, n: int, threads: int) -> int:
+    """The chunk of a new result file of kind ``output`` (by extension; None: no file) for
+    stacks of size n on ``threads`` threads: what :func:`open_stack_writer` records
+    (:func:`batch_chunk`; row files :func:`lcpcli.io.stack.chunk_size`, which they do not
+    record).  A batch that resumes nothing starts reading in these chunks before the file
+    exists."""
+    if output is not None and wants_rows(output):
+        return io_stack.chunk_size(n)
+    return batch_chunk(n, threads)
+
+
+def wants_rows(output: str | Any) -> bool:
+    """Whether the writer of ``output`` (by extension) takes rows (``.jsonl``, ``.csv``)
+    rather than stacked arrays (``.h5``, ``.npz``): :attr:`RowStackWriter.wants_rows`."""
+    return output_kind(output) not in ("hdf5", "npz")
 
 
 def _chunks(K: int, chunk: int) -> int:

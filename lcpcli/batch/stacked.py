@@ -3,7 +3,8 @@
 Each input is a stack (:mod:`lcpcli.io.stack`: ``M`` (K, n, n), ``q`` (K, n), ...).  Chunks of
 :func:`lcpcli.batch.stack_output.batch_chunk` problems (from n and the thread count; row outputs:
 :func:`lcpcli.io.stack.chunk_size`) are read in order, by a reader thread one chunk ahead of
-the solver, and solved by
+the solver (into reused buffers; from before the output file is made when nothing is
+resumed), written in order by a writer thread one chunk behind it, and solved by
 :func:`lcpcli.stacks.solve_many` (the batched kernel in threads, the certificate inside the same
 call, the full one-problem pipeline for what it could not certify; the method is planned once
 per stack by :func:`lcpcli.stacks.plan_stack`).  Results go to the output as stacked datasets
@@ -16,6 +17,7 @@ output recorded (:func:`lcpcli.batch.stack_output.chunk_digest`), and the solve 
 
 from __future__ import annotations
 
+import heapq
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -103,16 +105,34 @@ def run_stacks(inputs: list[str], opts: SolveOptions, report: BatchReport, *,
     report.total = sum(i.K for i in infos if i is not None) + infos.count(None)
     warm, warm_digest = _open_warm(opts, infos, scheduler)
     writer = None
+    early: tuple[Any, int, _LocalParts] | None = None  # the first stack, read from now on
     try:
+        first = next((i for i in infos if i is not None), None)
+        if first is not None and scheduler is None and not resume:
+            # nothing is resumed: the first chunks are read while the output file is made
+            chunk = stack_output.new_chunk(output, first.n, threads)
+            early = (first, chunk, _local_parts(first.path, first, opts,
+                                                np.zeros(first.K, bool), threads=threads,
+                                                chunk=chunk, digest=output is not None,
+                                                warm=warm))
         if output is not None:
-            writer = stack_output.open_stack_writer(
-                output, [i for i in infos if i is not None], resume=resume,
-                options=stack_output.options_fingerprint(opts, warm_digest), threads=threads)
+            def make() -> Any:
+                return stack_output.open_stack_writer(
+                    output, [i for i in infos if i is not None], resume=resume,
+                    options=stack_output.options_fingerprint(opts, warm_digest),
+                    threads=threads)
+
+            # resuming nothing, the file is made in a thread while the first chunks are read
+            # and solved (making it is mostly waiting for the disk: fsync, rename)
+            writer = make() if early is None else _OpeningWriter(
+                make, stack_output.wants_rows(output), early[0], early[1])
         if writer is not None and resume:
             for info in infos:
                 if info is not None:
                     _check_identity(info, writer, output)
     except BaseException:
+        if early is not None:
+            early[2].close()
         if writer is not None:
             writer.close()
         if warm is not None:
@@ -127,23 +147,83 @@ def run_stacks(inputs: list[str], opts: SolveOptions, report: BatchReport, *,
             if resume and done.any():
                 report.skipped += int(done.sum())
                 writer.tally_done(info, tally)
-    if on_start:
-        on_start(report.total, report.skipped + infos.count(None))
     try:
+        if on_start:
+            on_start(report.total, report.skipped + infos.count(None))
         for path, info in zip(inputs, infos, strict=True):
             if info is None:
                 continue
+            parts, chunk = None, None
+            if early is not None and info is early[0]:
+                parts, chunk, early = early[2], early[1], None
+            elif writer is not None:
+                chunk = writer.chunk(info)
             _run_one(path, info, opts, report, tally, stats, writer, done_masks[path],
                      threads=threads,
-                     chunk=writer.chunk(info) if writer is not None else
+                     chunk=chunk if chunk is not None else
                      stack_output.batch_chunk(info.n, threads),
                      on_progress=on_progress, on_row=on_row, write=write,
-                     scheduler=scheduler, warm=warm)
+                     scheduler=scheduler, warm=warm, parts=parts)
     finally:
+        if early is not None:
+            early[2].close()
         if warm is not None:
             warm.close()
         if writer is not None:
             write(writer.close)
+
+
+class _OpeningWriter:
+    """The output writer of a batch that resumes nothing, made by ``make()`` in a thread of
+    its own while the first chunks are read and solved; each use waits for it (also when
+    Ctrl-C arrives meanwhile) and raises what making it raised (an unwritable output, a full
+    disk).  ``wants_rows``: the writer's, known from the output's kind; ``first``, ``chunk``:
+    the first stack and the chunk it is read in, which a new file must record (checked)."""
+
+    def __init__(self, make: Callable[[], Any], wants_rows: bool, first: Any,
+                 chunk: int) -> None:
+        self.wants_rows, self.first, self.want_chunk = wants_rows, first, chunk
+        self.writer: Any = None
+        self.error: BaseException | None = None
+        self.thread = threading.Thread(target=self._run, args=(make,),
+                                       name="lcpcli-stack-opener", daemon=True)
+        self.thread.start()
+
+    def _run(self, make: Callable[[], Any]) -> None:
+        try:
+            self.writer = make()
+        except BaseException as exc:  # noqa: BLE001 - raised where the writer is used
+            self.error = exc
+
+    def get(self) -> Any:
+        """The writer, once made."""
+        interrupted: BaseException | None = None
+        while self.thread.is_alive():
+            try:
+                self.thread.join()
+            except KeyboardInterrupt as exc:  # wait on: the file is renamed into place
+                interrupted = exc
+        if self.error is not None:
+            raise self.error
+        if self.writer.chunk(self.first) != self.want_chunk:
+            self.writer.close()
+            self.error = RuntimeError(f"a new result file records chunks of "
+                                      f"{self.writer.chunk(self.first)} problems, not "
+                                      f"{self.want_chunk}")
+            raise self.error
+        if interrupted is not None:
+            raise interrupted
+        return self.writer
+
+    def chunk(self, info: Any) -> int:
+        return self.get().chunk(info)
+
+    def write(self, *args: Any) -> None:
+        self.get().write(*args)
+
+    def close(self) -> None:
+        if self.thread.is_alive() or self.error is None:
+            self.get().close()
 
 
 def _open_warm(opts: SolveOptions, infos: list[Any], scheduler: Any) -> tuple[Any, str | None]:
@@ -216,14 +296,16 @@ def solve_part(reader: Any, info: Any, start: int, stop: int, todo: np.ndarray,
     return names, fingerprint, res, plan, read_s, solve_s
 
 
-def read_part(reader: Any, start: int, stop: int, *, digest: bool) -> tuple[Any, bytes, float]:
+def read_part(reader: Any, start: int, stop: int, *, digest: bool,
+              out: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[Any, bytes, float]:
     """Problems ``start .. stop-1`` of the open stack ``reader``, the digest of that chunk
     (``digest``: else ``b""``) and the seconds both took: the reading half of
-    :func:`solve_part`."""
+    :func:`solve_part`.  ``out``: the buffers ``(M, q)`` to read into
+    (:meth:`lcpcli.io.stack.StackReader.read`)."""
     from lcpcli.batch.stack_output import chunk_digest
 
     t0 = time.perf_counter()
-    part = reader.read(start, stop)
+    part = reader.read(start, stop, out)
     fingerprint = chunk_digest(part) if digest else b""
     return part, fingerprint, time.perf_counter() - t0
 
@@ -257,10 +339,14 @@ def solve_read(part: Any, info: Any, todo: np.ndarray, opts: SolveOptions, plan:
 
 
 def _reads(path: str, info: Any, done: np.ndarray, chunk: int, digest: bool,
-           stop_event: threading.Event | None = None, warm: Any = None
-           ) -> Iterator[tuple[Any, ...]]:
-    """``(todo, part, digest, read_s, prev)`` of each chunk with work, in order (the reader's
-    side); ``prev``: the chunk of the ``--z0`` result file ``warm`` (None without one)."""
+           stop_event: threading.Event | None = None, warm: Any = None,
+           buffers: _Buffers | None = None) -> Iterator[tuple[Any, ...]]:
+    """``(todo, part, digest, read_s, prev, held)`` of each chunk with work, in order (the
+    reader's side); ``digest``: the chunk's :class:`_Digest` (``digest``; else ``b""``),
+    computed here once the chunk is handed over, so that the solver starts on it meanwhile;
+    ``prev``: the chunk of the ``--z0`` result file ``warm`` (None without one); ``held``:
+    the buffers of ``buffers`` that ``part`` was read into (None without them), which the
+    consumer gives back once it is done with the chunk's data."""
     from lcpcli.io.stack import open_stack
 
     with open_stack(path) as reader:
@@ -270,96 +356,215 @@ def _reads(path: str, info: Any, done: np.ndarray, chunk: int, digest: bool,
             stop = min(info.K, start + chunk)
             todo = np.flatnonzero(~done[start:stop])
             if todo.size:
-                part, fingerprint, read_s = read_part(reader, start, stop, digest=digest)
+                held = None if buffers is None else buffers.take(stop_event)
+                if buffers is not None and held is None:  # told to stop while waiting
+                    return
+                part, _, read_s = read_part(reader, start, stop, digest=False, out=held)
                 prev = None
                 if warm is not None:  # its read counts as reading
                     t0 = time.perf_counter()
                     prev = warm.read(start, stop)
                     read_s += time.perf_counter() - t0
-                yield todo, part, fingerprint, read_s, prev
+                fingerprint = _Digest() if digest else None
+                yield todo, part, fingerprint or b"", read_s, prev, held
+                if fingerprint is not None:  # beside the solver, before the next read
+                    fingerprint.compute(part)
 
 
-def _prefetched(items: Callable[[threading.Event], Iterator[Any]], depth: int) -> Iterator[Any]:
-    """The items of ``items(stop_event)`` made in a reader thread, at most ``depth`` ahead of
-    the consumer (memory: ``depth + 2`` chunks); its exceptions are raised here, in order.
-    When the consumer stops early (an error, Ctrl-C), the thread is told to stop and joined
-    before this generator closes, so no read outlives the batch."""
-    import queue
+class _Digest:
+    """The digest of a chunk (:func:`lcpcli.batch.stack_output.chunk_digest`) that the reader
+    thread computes after it handed the chunk over; :meth:`result` (the chunk's write) waits
+    for it.  ``seconds``: what computing it took (counted as reading)."""
 
-    q: queue.Queue[tuple[str, Any]] = queue.Queue(maxsize=depth)
-    stop = threading.Event()
+    def __init__(self) -> None:
+        self.done = threading.Event()
+        self.value, self.seconds = b"", 0.0
+        self.error: BaseException | None = None
 
-    def put(item: tuple[str, Any]) -> bool:
-        while not stop.is_set():
+    def compute(self, part: Any) -> None:
+        from lcpcli.batch.stack_output import chunk_digest
+
+        t0 = time.perf_counter()
+        try:
+            self.value = chunk_digest(part)
+        except BaseException as exc:  # noqa: BLE001 - raised by result(), in the writer
+            self.error = exc
+            raise
+        finally:
+            self.seconds = time.perf_counter() - t0
+            self.done.set()
+
+    def result(self) -> bytes:
+        self.done.wait()
+        if self.error is not None:
+            raise self.error
+        return self.value
+
+
+def _digest_bytes(digest: bytes | _Digest, stats: BatchStats) -> bytes:
+    """A chunk's digest as bytes (waiting for a :class:`_Digest`, whose seconds count as
+    reading)."""
+    if isinstance(digest, _Digest):
+        value = digest.result()
+        stats.read_seconds += digest.seconds
+        return value
+    return digest
+
+
+class _Buffers:
+    """At most ``count`` pairs of chunk buffers ``(M (chunk, n, n), q (chunk, n))``, made
+    when first needed and then reused, chunk after chunk: reading into memory already
+    faulted in costs a copy, a new allocation of 32 MiB also the kernel's page faults (the
+    arrays ``solve_many`` is measured on were faulted in before it runs).  ``count`` is
+    :data:`READ_AHEAD` + 2: one being read, those queued, one being solved."""
+
+    def __init__(self, count: int, chunk: int, n: int) -> None:
+        import queue
+
+        self.free: queue.Queue[tuple[np.ndarray, np.ndarray]] = queue.Queue()
+        self.count, self.made, self.shape = count, 0, (chunk, n)
+
+    def take(self, stop: threading.Event | None) -> tuple[np.ndarray, np.ndarray] | None:
+        """A free pair (waits for one given back); None once ``stop`` is set."""
+        import queue
+
+        while True:
             try:
-                q.put(item, timeout=0.1)
+                return self.free.get_nowait()
+            except queue.Empty:
+                pass
+            if self.made < self.count:
+                self.made += 1
+                c, n = self.shape
+                return np.empty((c, n, n)), np.empty((c, n))
+            try:
+                return self.free.get(timeout=0.1)
+            except queue.Empty:
+                if stop is not None and stop.is_set():
+                    return None
+
+    def give(self, pair: tuple[np.ndarray, np.ndarray] | None) -> None:
+        if pair is not None:
+            self.free.put(pair)
+
+
+class _Prefetch:
+    """The items of ``items(stop_event)`` made in a reader thread, started at once, at most
+    ``depth`` ahead of the consumer (memory: ``depth + 2`` chunks); its exceptions are raised
+    by :meth:`__next__`, in order.  :meth:`close` (also when the consumer stops early: an
+    error, Ctrl-C) tells the thread to stop and joins it, so no read outlives the batch."""
+
+    def __init__(self, items: Callable[[threading.Event], Iterator[Any]], depth: int) -> None:
+        import queue
+
+        self.q: queue.Queue[tuple[str, Any]] = queue.Queue(maxsize=depth)
+        self.stop = threading.Event()
+        self.ended = False
+        self.thread = threading.Thread(target=self._run, args=(items,),
+                                       name="lcpcli-stack-reader", daemon=True)
+        self.thread.start()
+
+    def _put(self, item: tuple[str, Any]) -> bool:
+        import queue
+
+        while not self.stop.is_set():
+            try:
+                self.q.put(item, timeout=0.1)
                 return True
             except queue.Full:
                 continue
         return False
 
-    def run() -> None:
-        made = items(stop)
+    def _run(self, items: Callable[[threading.Event], Iterator[Any]]) -> None:
+        made = items(self.stop)
         try:
             for item in made:
-                if not put(("item", item)):
+                if not self._put(("item", item)):
                     return
         except BaseException as exc:  # noqa: BLE001 - handed to the consumer
-            put(("error", exc))
+            self._put(("error", exc))
             return
         finally:
             made.close()  # the input file is closed in this thread, before it ends
-        put(("end", None))
+        self._put(("end", None))
 
-    thread = threading.Thread(target=run, name="lcpcli-stack-reader", daemon=True)
-    thread.start()
-    try:
-        while True:
-            kind, value = q.get()
-            if kind == "end":
-                return
-            if kind == "error":
-                raise value
-            yield value
-    finally:
-        stop.set()
-        thread.join()
+    def __iter__(self) -> _Prefetch:
+        return self
+
+    def __next__(self) -> Any:
+        if self.ended:
+            raise StopIteration
+        kind, value = self.q.get()
+        if kind == "item":
+            return value
+        self.close()
+        if kind == "error":
+            raise value
+        raise StopIteration
+
+    def close(self) -> None:
+        self.ended = True
+        self.stop.set()
+        self.thread.join()
 
 
-#: Chunks the reader thread of :func:`_local_parts` reads ahead of the solver.
+def _prefetched(items: Callable[[threading.Event], Iterator[Any]], depth: int) -> _Prefetch:
+    """:class:`_Prefetch` of ``items`` (the reader thread starts now)."""
+    return _Prefetch(items, depth)
+
+
+#: Chunks the reader thread of :class:`_LocalParts` reads ahead of the solver.
 READ_AHEAD = 1
 
 
-def _local_parts(path: str, info: Any, opts: SolveOptions, done: np.ndarray, *, threads: int,
-                 chunk: int, digest: bool, warm: Any = None) -> Any:
+class _LocalParts:
     """``(start, todo, names, digest, res, read_s, solve_s)`` of each chunk with work, in
     order, solved in this process (the plan is made on the first chunk solved).  Reading (and
-    the chunk's digest) overlaps solving: a reader thread reads the next chunk while the
-    compiled kernel's threads solve this one (:func:`_prefetched`, :data:`READ_AHEAD`); the
-    caller writes each result in this thread, in order, as before."""
-    plan = None
-    parts = _prefetched(lambda stop: _reads(path, info, done, chunk, digest, stop, warm),
-                        READ_AHEAD)
-    try:
-        for todo, part, fingerprint, read_s, prev in parts:
-            names, res, plan, solve_s = solve_read(part, info, todo, opts, plan,
-                                                   threads=threads, prev=prev)
+    the chunk's digest) overlaps solving: a reader thread, started when this is made (it may
+    read while the output file is created), reads the next chunk into reused buffers
+    (:class:`_Buffers`) while the compiled kernel's threads solve this one
+    (:class:`_Prefetch`, :data:`READ_AHEAD`); the caller writes each result in order.
+    :meth:`close` stops and joins the reader."""
+
+    def __init__(self, path: str, info: Any, opts: SolveOptions, done: np.ndarray, *,
+                 threads: int, chunk: int, digest: bool, warm: Any = None) -> None:
+        self.info, self.opts, self.threads = info, opts, threads
+        self.buffers = _Buffers(READ_AHEAD + 2, min(chunk, info.K), info.n)
+        self.reads = _prefetched(lambda stop: _reads(path, info, done, chunk, digest, stop,
+                                                     warm, self.buffers), READ_AHEAD)
+
+    def __iter__(self) -> Iterator[tuple[Any, ...]]:
+        plan = None
+        for todo, part, fingerprint, read_s, prev, held in self.reads:
+            names, res, plan, solve_s = solve_read(part, self.info, todo, self.opts, plan,
+                                                   threads=self.threads, prev=prev)
             yield part.start, todo, names, fingerprint, res, read_s, solve_s
-    finally:
-        parts.close()
+            # the consumer is done with this chunk (its results hold no view of M or q)
+            self.buffers.give(held)
+
+    def close(self) -> None:
+        self.reads.close()
+
+
+def _local_parts(path: str, info: Any, opts: SolveOptions, done: np.ndarray, *, threads: int,
+                 chunk: int, digest: bool, warm: Any = None) -> _LocalParts:
+    """:class:`_LocalParts` (its reader thread starts now)."""
+    return _LocalParts(path, info, opts, done, threads=threads, chunk=chunk, digest=digest,
+                       warm=warm)
 
 
 def _run_one(path: str, info: Any, opts: SolveOptions, report: BatchReport, tally: Tally,
              stats: BatchStats, writer: Any, done: np.ndarray, *, threads: int, chunk: int,
              on_progress: Any, on_row: Any, write: Any, scheduler: Any = None,
-             warm: Any = None) -> None:
+             warm: Any = None, parts: Any = None) -> None:
     """One stacked input, chunk by chunk: solved here, or as Dask tasks when ``scheduler``;
-    ``warm``: the ``--z0`` result file (local runs only)."""
+    ``warm``: the ``--z0`` result file (local runs only); ``parts``: its
+    :class:`_LocalParts` when already started (closed here)."""
     stem = Path(path).stem
-    if scheduler is None:
+    if parts is None and scheduler is None:
         parts = _local_parts(path, info, opts, done, threads=threads, chunk=chunk,
                              digest=writer is not None, warm=warm)
-    else:
+    elif parts is None:
         from lcpcli.batch.cluster import iter_stack_dask
 
         parts = iter_stack_dask(path, info, opts, done, scheduler, chunk=chunk,
@@ -375,36 +580,107 @@ def _run_one(path: str, info: Any, opts: SolveOptions, report: BatchReport, tall
             close()
 
 
+class _WriteBehind:
+    """The output writes of a stacked batch in one thread of their own, in order, at most
+    :data:`WRITE_BEHIND` chunks behind the solver: chunk k is written while chunk k + 1 is
+    solved (HDF5 releases the GIL while it writes; the compiled solver never needs it).
+
+    ``write(fn)`` runs one write (the caller times it; it holds no signal here: Python runs
+    signal handlers in the main thread only, so a write in this thread is never cut by
+    Ctrl-C).  The first error of a write (a full disk) is raised in the main thread by the
+    next :meth:`submit` or by :meth:`close`, and no later write runs.  :meth:`close` lets
+    the writes already handed over finish, then joins the thread, also when Ctrl-C arrives
+    while it waits, so the output is never closed under a running write."""
+
+    def __init__(self, write: Callable[[Callable[[], None]], None]) -> None:
+        import queue
+
+        self.write = write
+        self.pending: queue.Queue[Callable[[], None] | None] = queue.Queue(maxsize=WRITE_BEHIND)
+        self.error: BaseException | None = None  # the first failed write's; none runs after
+        self.reported = False
+        self.thread = threading.Thread(target=self._run, name="lcpcli-stack-writer",
+                                       daemon=True)
+        self.thread.start()
+
+    def _run(self) -> None:
+        while True:
+            fn = self.pending.get()
+            if fn is None:
+                return
+            if self.error is None:
+                try:
+                    self.write(fn)
+                except BaseException as exc:  # noqa: BLE001 - raised in the main thread
+                    self.error = exc
+
+    def _raise(self) -> None:
+        if self.error is not None and not self.reported:
+            self.reported = True
+            raise self.error
+
+    def submit(self, fn: Callable[[], None]) -> None:
+        """Hand one write over (waits while :data:`WRITE_BEHIND` are pending)."""
+        self._raise()
+        self.pending.put(fn)
+
+    def close(self) -> None:
+        """Finish the writes handed over and stop the thread; raise the first write error
+        (unless :meth:`submit` raised it already)."""
+        interrupted: BaseException | None = None
+        stopped = False
+        while self.thread.is_alive():
+            try:
+                if not stopped:
+                    self.pending.put(None)
+                    stopped = True
+                self.thread.join()
+            except KeyboardInterrupt as exc:  # wait on: the output closes after the write
+                interrupted = exc
+        self._raise()
+        if interrupted is not None:
+            raise interrupted
+
+
+#: Chunk writes handed to the writer thread of :class:`_WriteBehind` and not yet finished.
+WRITE_BEHIND = 1
+
+
 def _consume(path: str, stem: str, info: Any, parts: Any, report: BatchReport, tally: Tally,
              stats: BatchStats, writer: Any, *, chunk: int, on_progress: Any, on_row: Any,
              write: Any) -> None:
-    """Write, tally and report each solved chunk of ``parts`` in order."""
-    for start, todo, names, digest, res, read_s, solve_s in parts:
-        stats.read_seconds += read_s
-        stats.solve_seconds += solve_s
-        stats.method_seconds += res.seconds
-        stats.problems += len(res)
-        positions = todo + start
-        rows = result_rows(path, stem, positions, names, res) \
-            if (on_row is not None or (writer is not None and writer.wants_rows)) else None
-        if writer is not None:
-            write(lambda: writer.write(info, positions, names, res, rows,  # noqa: B023
-                                       start // chunk, digest))  # noqa: B023
-        add_to_tally(tally, path, stem, positions, names, res)
-        report.new += len(res)
-        if rows is not None and on_row is not None:
-            for row in rows:
-                on_row(row)
-        if on_progress:
-            on_progress(len(res), dict(tally.counts))
+    """Write, tally and report each solved chunk of ``parts`` in order (the writes in the
+    thread of :class:`_WriteBehind`, one chunk behind)."""
+    writes = _WriteBehind(write) if writer is not None else None
+    try:
+        for start, todo, names, digest, res, read_s, solve_s in parts:
+            stats.read_seconds += read_s
+            stats.solve_seconds += solve_s
+            stats.method_seconds += res.seconds
+            stats.problems += len(res)
+            positions = todo + start
+            rows = result_rows(path, stem, positions, names, res) \
+                if (on_row is not None or (writer is not None and writer.wants_rows)) else None
+            if writes is not None:
+                writes.submit(lambda positions=positions, names=names, res=res, rows=rows,
+                              chunk_no=start // chunk, digest=digest:
+                              writer.write(info, positions, names, res, rows, chunk_no,
+                                           _digest_bytes(digest, stats)))
+            add_to_tally(tally, path, stem, positions, names, res)
+            report.new += len(res)
+            if rows is not None and on_row is not None:
+                for row in rows:
+                    on_row(row)
+            if on_progress:
+                on_progress(len(res), dict(tally.counts))
+    finally:
+        if writes is not None:
+            writes.close()
 
 
 def add_to_tally(tally: Tally, source: str, stem: str, positions: np.ndarray,
                  names: list[str] | None, res: Any) -> None:
     """Counts, the worst errors and the first error messages of a chunk, without rows."""
-    import heapq
-
-
     tally.add_counts(res.counts())
     ok = res.status != STATUS_CODES[Status.ERROR]
     err = np.where(np.isfinite(res.error), res.error, np.inf)

@@ -65,12 +65,35 @@ FORMATS = {
 PROBLEM_EXTENSIONS = tuple(FORMATS)
 
 
+def _name(path: str | os.PathLike[str]) -> str:
+    """``Path(path).name``: the last component that is not empty or ``.`` (pathlib drops
+    those; it keeps ``..``), ``""`` when there is none."""
+    text = os.fspath(path)
+    if os.altsep:
+        text = text.replace(os.altsep, os.sep)
+    i = len(text)
+    while i > 0:
+        j = text.rfind(os.sep, 0, i)
+        part = text[j + 1:i]
+        if part and part != ".":
+            return part
+        i = j if j >= 0 else 0
+    return ""
+
+
 def suffix(path: str | os.PathLike[str]) -> str:
     """``Path(path).suffix`` (pathlib's rule on the last component: from its last dot, unless
     that dot starts or ends it), without building a Path (a batch asks for 10^4+ files)."""
-    name = os.path.basename(os.path.normpath(os.fspath(path)))
+    name = _name(path)
     i = name.rfind(".")
     return name[i:] if 0 < i < len(name) - 1 else ""
+
+
+def stem(path: str | os.PathLike[str]) -> str:
+    """``Path(path).stem``: the last component without its :func:`suffix`."""
+    name = _name(path)
+    i = name.rfind(".")
+    return name[:i] if 0 < i < len(name) - 1 else name
 
 
 def detect_format(path: str | os.PathLike[str], fmt: str | None = None) -> str:
@@ -145,6 +168,8 @@ def _read_file(path: str | os.PathLike[str], kind: str, problem: str | None,
                check_dense: Callable[[int], None] | None,
                content: list[bytes] | None = None) -> Problem:
     """:func:`load` of a file of format ``kind`` (a stack handed to :mod:`lcpcli.io.stack`)."""
+    if kind == "json":  # no Path built: a batch reads 10^4+ small JSON files
+        return _module(kind).read(path, content, default_name=stem(path))
     if kind == "hdf5":  # the other readers open it with io.files.open_input, which checks
         check_input_file(path)
     p = path if isinstance(path, Path) else Path(path)
@@ -159,8 +184,6 @@ def _read_file(path: str | os.PathLike[str], kind: str, problem: str | None,
             return _module(kind).read(p, problem, check_dense)
         if kind == "npz":
             return _module(kind).read(p, check_dense)
-        if kind == "json" and content is not None:
-            return _module(kind).read(p, content)
         return _module(kind).read(p)
     except StackedFile:  # the format reader found a stack: the stack reader takes over
         return _read_stacked(p, problem)

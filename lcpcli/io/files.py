@@ -208,15 +208,21 @@ def _unique_keys(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
 #: digits (``.``, ``e``, ``E``) to ``.``, everything else to a space.
 _DIGIT_MAP = bytes(ord("0") if chr(b).isdigit() and b < 128 else ord(".") if chr(b) in ".eE"
                    else ord(" ") for b in range(256))
-_LONG_RUN = b" " + b"0" * 19
+_DIGITS = b"0" * 19
+_LONG_RUN = b" " + _DIGITS
 
 
 def _long_integer(text: str | bytes) -> bool:
     """True when ``text`` may hold an integer literal of 19 or more digits (19 digits after a
-    non-digit other than ``.``/``e``; fraction digits may run longer), which orjson turns into
-    a float beyond 64 bits where the stdlib keeps an int.  One C-speed pass (``translate``)."""
+    non-digit other than ``.``/``e``, or at the start; fraction digits may run longer), which
+    orjson turns into a float beyond 64 bits where the stdlib keeps an int.  C-speed passes:
+    one ``translate``, then a search for 19 digits in a row (rare: floats have at most 17
+    significant digits), and only where there are such for what precedes them."""
     data = text.encode("utf-8", "surrogatepass") if isinstance(text, str) else bytes(text)
-    return (b" " + data).translate(_DIGIT_MAP).find(_LONG_RUN) != -1
+    mapped = data.translate(_DIGIT_MAP)
+    if mapped.find(_DIGITS) == -1:
+        return False
+    return mapped.startswith(_DIGITS) or mapped.find(_LONG_RUN) != -1
 
 
 def _key_count(obj: Any, braces: int) -> int:
@@ -251,6 +257,14 @@ def _depth(obj: Any) -> int:
             children = item.values() if isinstance(item, dict) else item
             stack.extend((c, depth + 1) for c in children if isinstance(c, (list, dict)))
     return deepest
+
+
+def fast_parse(text: str | bytes) -> tuple[bool, Any]:
+    """:func:`_fast_parse`: ``(True, value)`` when orjson decodes ``text`` (also the UTF-8
+    bytes of a file, undecoded: orjson refuses invalid UTF-8, a BOM and lone surrogates, which
+    the caller then decodes and parses as before) to exactly what :func:`parse_json` gives,
+    else ``(False, None)``."""
+    return _fast_parse(text)
 
 
 def _fast_parse(text: str | bytes) -> tuple[bool, Any]:

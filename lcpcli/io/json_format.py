@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 from pathlib import Path
 from typing import Any
 
@@ -20,7 +21,14 @@ import numpy as np
 from lcpcli.core.errors import ProblemError
 from lcpcli.core.numeric import real_array, scan_nested
 from lcpcli.core.problem import Problem, check_size
-from lcpcli.io.files import MAX_TEXT_BYTES, check_depth, decode_text, parse_json, read_input_bytes
+from lcpcli.io.files import (
+    MAX_TEXT_BYTES,
+    check_depth,
+    decode_text,
+    fast_parse,
+    parse_json,
+    read_input_bytes,
+)
 from lcpcli.io.sparse import sparse_from_parts, sparse_parts
 
 KNOWN_KEYS = {"M", "q", "name", "description", "n_eq", "lower", "upper", "meta"}
@@ -29,19 +37,40 @@ INF_WORDS = {"inf": math.inf, "+inf": math.inf, "infinity": math.inf, "+infinity
              "-inf": -math.inf, "-infinity": -math.inf}
 
 
-def read(path: Path, content: list[bytes] | None = None) -> Problem:
-    """The problem of a JSON file (``content``: a list that receives the bytes read)."""
+def read(path: str | os.PathLike[str], content: list[bytes] | None = None,
+         default_name: str | None = None) -> Problem:
+    """The problem of a JSON file (``content``: a list that receives the bytes read;
+    ``default_name``: the name of a problem without one, by default the file's stem).
+
+    The bytes go to orjson as read (:func:`lcpcli.io.files.fast_parse`: no decoding); what it
+    does not decode exactly as the standard library would (a BOM, text that is not UTF-8,
+    duplicate keys, long integers, ...) is decoded and parsed by :func:`read_text`, which words
+    the refusals: the problem, or the error, is the same either way."""
     data = read_input_bytes(path, MAX_TEXT_BYTES, "a JSON problem file")
     if content is not None:
         content.append(data)
+    if default_name is None:
+        default_name = Path(path).stem
+    ok, value = fast_parse(data)
+    if ok:
+        return from_dict(value, default_name, scan=may_hold_booleans(data))
     return read_text(decode_text(data, "a UTF-8 text file (is it really JSON?)"),
-                     default_name=path.stem)
+                     default_name=default_name)
+
+
+def may_hold_booleans(text: str | bytes) -> bool:
+    """Whether JSON ``text`` holds ``true`` or ``false`` (anywhere, strings included): only
+    then can booleans hide in float arrays, which :func:`from_dict` then scans element by
+    element.  A ``t`` / ``f`` is looked for first (one ``memchr``; most problem files have
+    neither outside their numbers' exponents)."""
+    if isinstance(text, str):
+        return ("t" in text and "true" in text) or ("f" in text and "false" in text)
+    return (b"t" in text and b"true" in text) or (b"f" in text and b"false" in text)
 
 
 def read_text(text: str, default_name: str = "") -> Problem:
     # booleans hide in float arrays: scan element by element only when the text has any
-    scan = "true" in text or "false" in text
-    return from_dict(parse_json(text), default_name, scan=scan)
+    return from_dict(parse_json(text), default_name, scan=may_hold_booleans(text))
 
 
 def from_dict(data: Any, default_name: str = "", *, scan: bool = True) -> Problem:
@@ -84,6 +113,18 @@ def _text(value: Any, label: str) -> str:
 
 
 def _matrix(M: Any, scan: bool) -> Any:
+    if not scan and type(M) is list and M:
+        # the usual case in one step: rows of numbers (no boolean in the text: ``scan``
+        # False) make a 2-D float or integer array; anything else takes the checks below,
+        # which word the refusal
+        try:
+            arr = np.asarray(M)
+        except (ValueError, TypeError, OverflowError):  # ragged: the checks below say so
+            arr = None
+        if arr is not None and arr.ndim == 2 and arr.dtype.kind in "fiu" \
+                and arr.shape[0] == len(M):
+            check_size(*arr.shape)
+            return real_array(arr, "M", scan=False)
     if isinstance(M, dict):
         return sparse_from_parts(M, "M")
     if not isinstance(M, list):

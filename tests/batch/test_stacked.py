@@ -334,3 +334,185 @@ def test_resume_with_other_jobs_uses_the_recorded_chunk(tmp_path, monkeypatch):
         assert int(f["s"].attrs["chunk"]) == 16
         for key in ("z", "status", "chunk_digest"):
             np.testing.assert_array_equal(f["s"][key][...], g["s"][key][...])
+
+
+def test_writer_thread_writes_in_order_and_hands_errors_to_the_main_thread():
+    """The writes of a stacked batch run in a thread of their own (batch.stacked._WriteBehind):
+    in the order handed over, each finished before close() returns; the first failing write
+    is raised in the main thread (by the next submit or by close) and no later write runs."""
+    import threading
+    import time
+
+    from lcpcli.batch.stacked import _WriteBehind
+    from lcpcli.core.errors import OutputError
+
+    done: list[int] = []
+    threads: set[str] = set()
+
+    def write(fn):
+        threads.add(threading.current_thread().name)
+        fn()
+
+    def slow(i):
+        def fn():
+            time.sleep(0.002 * (i % 3))
+            done.append(i)
+        return fn
+
+    writes = _WriteBehind(write)
+    for i in range(20):
+        writes.submit(slow(i))
+    writes.close()
+    assert done == list(range(20))
+    assert threads == {"lcpcli-stack-writer"} and not writes.thread.is_alive()
+
+    done.clear()
+    writes = _WriteBehind(write)
+
+    def full_disk():
+        raise OutputError("r.h5", "no space left on device")
+
+    writes.submit(slow(0))
+    writes.submit(full_disk)
+    with pytest.raises(OutputError, match="no space left"):
+        try:
+            for i in range(1, 50):
+                writes.submit(slow(i))
+                time.sleep(0.001)
+        finally:
+            writes.close()  # as the batch does: the error is raised once, by submit here
+    assert done == [0] and not writes.thread.is_alive()
+
+
+def test_reading_into_given_buffers_equals_a_fresh_read(tmp_path):
+    """StackReader.read(start, stop, out=(M, q)) fills the leading rows of the buffers a batch
+    reuses from chunk to chunk: the chunk equals a read into new arrays, for every range and
+    both formats; buffers that cannot hold the chunk as C-contiguous float64 are refused."""
+    from lcpcli.io.stack import open_stack
+
+    M, q = pd_stack(37, 4, seed=9)
+    for ext in ("h5", "npz"):
+        path = tmp_path / f"s.{ext}"
+        write_stack(path, M, q)
+        bufs = (np.full((10, 4, 4), np.nan), np.full((10, 4), np.nan))
+        with open_stack(path) as reader:
+            for start in range(0, 37, 10):
+                stop = min(37, start + 10)
+                got, fresh = reader.read(start, stop, bufs), reader.read(start, stop)
+                np.testing.assert_array_equal(got.M, fresh.M)
+                np.testing.assert_array_equal(got.q, fresh.q)
+                assert got.M.base is bufs[0] or got.M is bufs[0]
+            with pytest.raises(ValueError, match="do not hold"):
+                reader.read(0, 11, bufs)
+            with pytest.raises(ValueError, match="do not hold"):
+                reader.read(0, 5, (np.empty((10, 4, 4), np.float32), bufs[1]))
+
+
+def test_output_that_cannot_be_made_stops_the_early_reader(tmp_path, monkeypatch):
+    """A batch that resumes nothing starts reading before its output file exists; when making
+    that file fails, the error is the batch's and no reader thread is left running."""
+    import threading
+
+    import lcpcli.batch.stack_output as stack_output
+    from lcpcli.batch.records import SolveOptions
+    from lcpcli.batch.run import run_batch
+    from lcpcli.core.errors import OutputError
+
+    M, q = pd_stack(500, 5, seed=2)
+    path = tmp_path / "s.h5"
+    write_stack(path, M, q)
+
+    running: list[str] = []
+
+    def fail(*args, **kwargs):
+        running.extend(t.name for t in threading.enumerate())
+        raise OutputError("r.h5", "no space left on device")
+
+    monkeypatch.setattr(stack_output, "open_stack_writer", fail)
+    with pytest.raises(OutputError, match="no space left"):
+        run_batch([str(path)], SolveOptions(method="lemke"), output=tmp_path / "r.h5", jobs=2)
+    assert "lcpcli-stack-reader" in running  # it was reading while the file was being made
+    assert not [t for t in threading.enumerate() if t.name.startswith("lcpcli-stack")]
+
+
+def test_output_file_is_made_while_the_first_chunk_is_solved(tmp_path, monkeypatch):
+    """Resuming nothing, the result file is made in a thread: the first chunk is solved
+    before a slow making of the file ends, and the file ends equal to solve_many's results
+    with a digest per chunk."""
+    import threading
+    import time
+
+    import lcpcli.batch.stack_output as stack_output
+    import lcpcli.batch.stacked as stacked
+    import lcpcli.io.stack as stack_mod
+    from lcpcli.batch.records import SolveOptions
+    from lcpcli.batch.run import run_batch
+
+    M, q = pd_stack(400, 5, seed=6)
+    path, out = tmp_path / "s.h5", tmp_path / "r.h5"
+    write_stack(path, M, q)
+    monkeypatch.setattr(stack_mod, "chunk_size", lambda n, **kw: 100)
+    events: list[str] = []
+    made = threading.Event()
+    real_open, real_solve = stack_output.open_stack_writer, stacked.solve_read
+
+    def slow_open(*args, **kwargs):
+        time.sleep(0.5)
+        writer = real_open(*args, **kwargs)
+        events.append("made")
+        made.set()
+        return writer
+
+    def solve(*args, **kwargs):
+        if not made.is_set():
+            events.append("solved before the file was made")
+        return real_solve(*args, **kwargs)
+
+    monkeypatch.setattr(stack_output, "open_stack_writer", slow_open)
+    monkeypatch.setattr(stacked, "solve_read", solve)
+    report = run_batch([str(path)], SolveOptions(method="lemke"), output=out, jobs=2)
+    assert report.new == 400 and events[0] == "solved before the file was made"
+    ref = solve_many(M, q, "lemke")
+    with h5py.File(out, "r") as f:
+        g = f["s"]
+        np.testing.assert_array_equal(g["z"][...], ref.z)
+        np.testing.assert_array_equal(g["status"][...], ref.status)
+        assert int(g.attrs["chunk"]) == 100 and g["chunk_digest"][...].any(axis=1).all()
+
+
+@pytest.mark.parametrize("ext", ["h5", "jsonl"])
+def test_interrupted_stacked_batch_keeps_its_finished_chunks_and_resumes(tmp_path, monkeypatch,
+                                                                         ext):
+    """Ctrl-C in the middle of a stacked batch (raised in the main thread after the third
+    chunk was solved, its write possibly still running in the writer thread): every chunk
+    handed to the writer is written whole before the file closes, and --resume ends with
+    the results of a run in one go."""
+    import lcpcli.io.stack as stack_mod
+    from lcpcli.batch.records import SolveOptions
+    from lcpcli.batch.run import run_batch
+
+    monkeypatch.setattr(stack_mod, "chunk_size", lambda n, **kw: 50)
+    M, q = pd_stack(500, 4, seed=8)
+    path, out, ref = tmp_path / "s.h5", tmp_path / f"r.{ext}", tmp_path / f"ref.{ext}"
+    write_stack(path, M, q)
+    opts = SolveOptions(method="lemke")
+    run_batch([str(path)], opts, output=ref, jobs=2)
+    seen = []
+
+    def stop_after_three(count, counts):
+        seen.append(count)
+        if len(seen) == 3:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        run_batch([str(path)], opts, output=out, jobs=2, on_progress=stop_after_three)
+    report = run_batch([str(path)], opts, output=out, jobs=2, resume=True)
+    assert report.skipped >= 150 and report.skipped + report.new == 500
+    if ext == "h5":
+        with h5py.File(out, "r") as f, h5py.File(ref, "r") as g:
+            for key in ("z", "status", "chunk_digest", "basis"):
+                np.testing.assert_array_equal(f["s"][key][...], g["s"][key][...])
+    else:
+        def by_index(p):
+            return {r["index"]: (r["z"], r["status"], r["input_hash"]) for r in read_rows(p)}
+        assert by_index(out) == by_index(ref)

@@ -70,6 +70,14 @@ def test_result_rows_map_non_finite_numbers_to_null():
     assert _floats(np.array([1.5, np.inf, -np.inf, np.nan, 0.0])) == [1.5, None, None, None, 0.0]
     assert _floats(np.arange(3)) == [0.0, 1.0, 2.0]
     assert all(type(x) is float for x in _floats(np.ones(4, dtype=np.float32)))
+    big = np.array([1e308, 1e308, -0.0, 5e-324])  # the sum overflows: still all finite
+    assert _floats(big) == [1e308, 1e308, -0.0, 5e-324]
+    assert _floats(np.array([np.inf, -np.inf, 1.0])) == [None, None, 1.0]  # inf - inf = nan
+    rng = np.random.default_rng(3)
+    for _ in range(200):
+        v = rng.choice([0.0, -0.0, 1.5, -2e308 / 2, 1e308, np.inf, -np.inf, np.nan],
+                       size=rng.integers(0, 6))
+        assert _floats(v) == [float(x) if np.isfinite(x) else None for x in v]
     c = Certificate(1e-17, 1e-17, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1, 1e-8, True)
     assert c.as_dict() == dataclasses.asdict(c)
     assert list(c.as_dict()) == [f.name for f in dataclasses.fields(c)]

@@ -383,9 +383,11 @@ def test_read_input_bytes_a_file_that_grows_after_the_size_check(tmp_path, monke
 @settings(max_examples=300, deadline=None)
 @given(path=st.text(alphabet="ab./-J", max_size=12))
 def test_suffix_is_pathlibs(path):
-    """The format detection's suffix, computed without a Path, is pathlib's for any path."""
+    """The format detection's suffix and the default problem name's stem, computed without a
+    Path, are pathlib's for any path."""
     from pathlib import Path
 
-    from lcpcli.io import suffix
+    from lcpcli.io import stem, suffix
 
     assert suffix(path) == Path(path).suffix
+    assert stem(path) == Path(path).stem

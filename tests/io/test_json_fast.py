@@ -197,3 +197,83 @@ def test_a_one_liner_loads_orjson_only_for_a_large_text(monkeypatch: pytest.Monk
     monkeypatch.setattr(numeric, "_orjson", None)
     prepare_method("lemke")
     assert numeric._orjson is orjson
+
+
+def _load_both(tmp_path: Path, text: str | bytes) -> tuple[Any, Any]:
+    """``load`` of a JSON file with orjson (its bytes parsed undecoded) and with the stdlib:
+    each a Problem, or the message of the ProblemError it raised."""
+    path = tmp_path / "p.json"
+    path.write_bytes(text.encode("utf-8", "surrogatepass") if isinstance(text, str) else text)
+    out = []
+    for codec in (orjson, None):
+        with pytest.MonkeyPatch.context() as m:
+            m.setattr(numeric, "_orjson", codec)
+            try:
+                out.append(load(path))
+            except ProblemError as exc:
+                out.append(str(exc))
+    return out[0], out[1]
+
+
+def _same_problem(a: Any, b: Any) -> bool:
+    if isinstance(a, str) or isinstance(b, str):
+        return a == b
+    dense = [(x.toarray() if hasattr(x, "toarray") else np.asarray(x)) for x in (a.M, b.M)]
+    bounds = [(a.lower, b.lower), (a.upper, b.upper)]
+    return (a.name == b.name and a.description == b.description and a.n_eq == b.n_eq
+            and _same(a.meta, b.meta) and dense[0].dtype == dense[1].dtype
+            and np.array_equal(dense[0], dense[1]) and np.array_equal(a.q, b.q)
+            and all((x is None and y is None) or np.array_equal(x, y) for x, y in bounds))
+
+
+@pytest.mark.parametrize("text", [
+    '{"M": [[1]], "q": [1], "q": [2]}',                        # duplicate keys
+    '{"M": [[1]], "q": [1], "meta": {"a": 1, "a": 2}}',
+    '{"M": [[' + "1" * 401 + ']], "q": [1]}',                 # beyond the digit limit
+    '{"M": [[1' + "0" * 350 + ']], "q": [1]}',                # beyond float64
+    '{"M": [[' + "9" * 19 + ']], "q": [1]}',
+    '{"M": [[1]], "q": [1], "meta": {"k": ' + "7" * 25 + '}}',  # an int kept exactly
+    '{"M": [[1]], "q": [1], "n_eq": ' + "1" * 30 + '}',
+    '{"M": [[NaN]], "q": [1]}', '{"M": [[1]], "q": [Infinity]}',
+    '{"M": [[true]], "q": [1]}', '{"M": [[1.5, false], [1, 2]], "q": [1, 2]}',
+    '{"M": [[1, 2], [3, 4]], "q": [true, 1]}',
+    '{"M": [["1.5"]], "q": [1]}', '{"M": [[1]], "q": ["1"]}', '{"M": [[null]], "q": [1]}',
+    '{"M": [[1, 2], [3]], "q": [1, 2]}', '{"M": [1, 2], "q": [1, 2]}',
+    '{"M": [[[1]]], "q": [1]}', '{"M": [[1], "ab"], "q": [1, 2]}', '{"M": [], "q": []}',
+    '{"M": [[2, 1], [1, 2]], "q": [-1, -1]}', '{"M": [[2, 1.5], [1, 2]], "q": [-1, -1]}',
+    '{"name": "true story", "M": [[1e-300, 2E+5]], "q": [1]}',
+    '{"M": [[1]], "q": [1], "lower": [null], "upper": ["inf"]}',
+    '{"M": {"format": "csr", "shape": [1, 1], "data": [1], "indices": [0], "indptr": [0, 1]},'
+    ' "q": [1]}',
+    '\ufeff{"M": [[1]], "q": [1]}', '{"name": "\\ud800", "M": [[1]], "q": [1]}',
+    '{"M": [[1]], "q": [1]', '[1, 2]', '1' * 500])
+def test_a_file_loads_as_with_the_stdlib(text: str, tmp_path: Path) -> None:
+    """A JSON problem file read through orjson (its bytes undecoded, the matrix converted in
+    one step) gives the problem the stdlib gives, or refuses it with the same one line:
+    duplicate keys, long integers, NaN, booleans, strings, null, ragged rows, a BOM."""
+    fast, slow = _load_both(tmp_path, text)
+    assert _same_problem(fast, slow), (fast, slow)
+
+
+def test_a_file_that_is_not_utf8_is_refused_as_before(tmp_path: Path) -> None:
+    fast, slow = _load_both(tmp_path, b'{"name": "\xff", "M": [[1]], "q": [1]}')
+    assert fast == slow and "UTF-8" in fast
+
+
+cells = st.one_of(numbers, st.booleans(), st.none(), st.sampled_from(["1.5", "x", "true"]),
+                  st.lists(numbers, max_size=2))
+
+
+@settings(max_examples=300, deadline=None)
+@given(M=st.lists(st.one_of(st.lists(cells, min_size=1, max_size=3), cells), min_size=1,
+                  max_size=3),
+       q=st.lists(cells, min_size=1, max_size=3), name=keys)
+def test_any_matrix_loads_as_with_the_stdlib(M: Any, q: Any, name: str) -> None:
+    """Matrices of any cells (numbers of every size, booleans, null, strings, nested lists,
+    ragged rows): the file gives what the stdlib path gives, problem or message."""
+    import tempfile
+
+    text = json.dumps({"name": name, "M": M, "q": q})
+    with tempfile.TemporaryDirectory() as tmp:
+        fast, slow = _load_both(Path(tmp), text)
+    assert _same_problem(fast, slow), (text, fast, slow)

@@ -356,13 +356,24 @@ class StackReader:
         self._check_range(start, stop)
         return self._src.names(start, stop) if self.info.has_names else None
 
-    def read(self, start: int, stop: int) -> StackChunk:
-        """Problems ``start .. stop-1``: float64 C-contiguous arrays (values not checked)."""
+    def read(self, start: int, stop: int,
+             out: tuple[np.ndarray, np.ndarray] | None = None) -> StackChunk:
+        """Problems ``start .. stop-1``: float64 C-contiguous arrays (values not checked).
+        ``out``: float64 C-contiguous buffers ``(M, q)`` of at least ``stop - start`` rows that
+        the chunk's ``M`` and ``q`` are read into (their leading rows; a batch reuses them from
+        chunk to chunk instead of allocating, and faulting in, new memory for each)."""
         self._check_range(start, stop)
         c, n = stop - start, self.info.n
-        M = np.empty((c, n, n))
+        if out is None:
+            M, q = np.empty((c, n, n)), np.empty((c, n))
+        else:
+            M, q = out[0][:c], out[1][:c]
+            if M.shape != (c, n, n) or q.shape != (c, n) or M.dtype != np.float64 \
+                    or q.dtype != np.float64 or not (M.flags.c_contiguous
+                                                     and q.flags.c_contiguous):
+                raise ValueError(f"read buffers {out[0].shape}, {out[1].shape} do not hold "
+                                 f"{c} problems of n = {n} as C-contiguous float64")
         self._src.rows("M", start, stop, M)
-        q = np.empty((c, n))
         self._src.rows("q", start, stop, q)
         bounds: list[np.ndarray | None] = [None, None]
         if self.info.bounds is not None:
