@@ -73,4 +73,88 @@ LCPCLI_ROW_CLONES static void lcpcli_col_max(double *restrict kappa, const doubl
     }
 }
 
+/* The pairs of an LCP (l_i = 0, u_i = inf) scored as _certificate.pyx's _finish scores any pair
+ * (the same operations on the same values, so the same bits), without a branch on the data:
+ * the costs of the states L (z_i = 0) and F (w_i = 0), the cheaper one (ties to the state that
+ * needs no move of z_i), written to eps (over kappa), state (may be NULL) and anchor (1: F);
+ * acc = {omega, residual, bound violation, w violation, complementarity}, maxima updated */
+static void lcpcli_lcp_pairs(ptrdiff_t n, const double *restrict z, const double *restrict w,
+                             const double *restrict s, double *restrict kappa,
+                             signed char *restrict state, ptrdiff_t *restrict anchor,
+                             double *restrict acc)
+{
+    double omega = acc[0], resid = acc[1], bviol = acc[2], wviol = acc[3], comp = acc[4];
+    for (ptrdiff_t i = 0; i < n; i++) {
+        double zi = z[i], wi = w[i], k = kappa[i], aw = fabs(wi), az = fabs(zi);
+        double rel = aw == 0.0 ? 0.0 : aw / s[i];   /* _rel(|w_i|, s_i): v / 0 = inf */
+        double x = zi < 0.0 ? 0.0 - zi : 0.0;       /* back into the box */
+        double t = x == 0.0 ? 0.0 : x * k;          /* _move: a zero move costs 0 */
+        double cF = t > rel ? t : rel;
+        double cL = wi < 0.0 ? rel : 0.0;           /* _rel(-w_i, s_i) when w_i < 0 */
+        t = az == 0.0 ? 0.0 : az * k;               /* the move to z_i = 0 */
+        cL = t > cL ? t : cL;
+        int pickF = zi == 0.0 ? cF < cL : !(cL < cF);
+        double best = pickF ? cF : cL;
+        if (state)
+            state[i] = pickF ? 2 : 0;
+        anchor[i] = pickF;
+        kappa[i] = best;
+        omega = best > omega ? best : omega;
+        t = wi < zi ? wi : zi;                      /* mid(z - l, z - u, w) = min(z, w) */
+        t = fabs(t);
+        resid = t > resid ? t : resid;
+        t = 0.0 - zi;
+        bviol = t > bviol ? t : bviol;
+        t = -wi;
+        wviol = t > wviol ? t : wviol;
+        t = fabs(zi * wi);
+        comp = t > comp ? t : comp;
+    }
+    acc[0] = omega;
+    acc[1] = resid;
+    acc[2] = bviol;
+    acc[3] = wviol;
+    acc[4] = comp;
+}
+
+/* Steps (b) and (c) of _certificate.pyx's _finish, without a branch on the data: each block's
+ * growth G (the smallest g_i = a_i / (|q_i| + |w_i|) among its equations with data: anchor_i,
+ * a_i > 0, q_i != 0; inf when none), then error = max_i eps_i max(1, G_i), where a row with
+ * a_i > 0 in a block without such an equation takes its own g_i when q_i != 0 (else 1), and a row
+ * with a_i = 0 takes 1.  root[i] < n: the smallest row of row i's block; compmin, ratio: n
+ * scratch doubles.  res = {error, growth}; worst: the first row that decides the error. */
+static void lcpcli_block_error(ptrdiff_t n, const double *restrict q, const double *restrict w,
+                               const double *restrict a, const double *restrict eps,
+                               const ptrdiff_t *restrict anchor, const ptrdiff_t *restrict root,
+                               double *restrict compmin, double *restrict ratio,
+                               double *restrict res, ptrdiff_t *worst)
+{
+    double err = 0.0, growth = 1.0;
+    ptrdiff_t wi = -1;
+    for (ptrdiff_t i = 0; i < n; i++) {
+        compmin[i] = INFINITY;
+        /* q_i != 0: |q_i| + |w_i| > 0 (else the entry is never read) */
+        ratio[i] = q[i] != 0.0 ? a[i] / (fabs(q[i]) + fabs(w[i])) : 1.0;
+    }
+    for (ptrdiff_t i = 0; i < n; i++) {
+        double g = (a[i] > 0.0) & (anchor[i] != 0) & (q[i] != 0.0) ? ratio[i] : INFINITY;
+        double *c = compmin + root[i];
+        *c = g < *c ? g : *c;
+    }
+    for (ptrdiff_t i = 0; i < n; i++) {
+        double gi = compmin[root[i]];
+        gi = gi == INFINITY ? ratio[i] : gi;
+        gi = gi < 1.0 ? 1.0 : gi;
+        gi = a[i] > 0.0 ? gi : 1.0;
+        double e = eps[i] == 0.0 ? 0.0 : eps[i] * gi;
+        int take = (e > err) | (wi < 0);
+        err = take ? e : err;
+        growth = take ? gi : growth;
+        wi = take ? i : wi;
+    }
+    res[0] = err;
+    res[1] = growth;
+    *worst = wi;
+}
+
 #endif
