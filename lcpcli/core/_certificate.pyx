@@ -23,10 +23,11 @@ from lcpcli.core.arrays cimport _as, f64, f64_ptr, inout
 cnp.import_array()
 
 cdef extern from "rowpass.h" nogil:
-    void _row_dot "lcpcli_row_dot"(const double* row, const double* z, Py_ssize_t n,
-                                   double* dot, double* absdot) noexcept
-    void _col_max "lcpcli_col_max"(double* kappa, const double* row, double inv,
-                                   Py_ssize_t n) noexcept
+    void _rows_pass "lcpcli_rows_pass"(const double* M, Py_ssize_t ldm, const double* z,
+                                       const double* q, Py_ssize_t n, double* w, double* a,
+                                       double* s) noexcept
+    void _col_maxes "lcpcli_col_maxes"(const double* M, Py_ssize_t ldm, const double* s,
+                                       Py_ssize_t n, double* kappa) noexcept
     void _block_error "lcpcli_block_error"(Py_ssize_t n, const double* q, const double* w,
                                            const double* a, const double* eps,
                                            const Py_ssize_t* anchor, const Py_ssize_t* root,
@@ -302,41 +303,32 @@ cdef int certify_dense(Py_ssize_t n, const double* M, Py_ssize_t ldm, const doub
         if z[j] != 0.0 and not (SMALL <= fabs(z[j]) <= BIG):
             return _fail(out, 2)
     # pass 1: w, |M||z|, s
+    _rows_pass(M, ldm, z, q, n, w, a, s)
     for i in range(n):
-        row = M + i * ldm
-        _row_dot(row, z, n, &wi, &ai)
-        wi = wi + q[i]
-        w[i] = wi
-        a[i] = ai
-        s[i] = ai + fabs(q[i])
+        wi = w[i]
+        ai = a[i]
         if not (isfinite(wi) and isfinite(ai)) or s[i] > BIG or 0.0 < s[i] < SMALL:
             return _fail(out, 2)
         if s[i] == 0.0:  # every term underflowed to zero (2.8e-250 x 1e-137), or none exists
+            row = M + i * ldm
             for j in range(n):
                 if row[j] != 0.0 and z[j] != 0.0:
                     return _fail(out, 2)
     # pass 2: kappa for the columns that may move, blocks through significant terms.  kappa_j
     # of a column that may not move (z_j = 0 and no state asks it to move) is never used: it
     # only ever multiplies a move of 0, and links nothing
-    for j in range(n):
-        if _needs_move(z[j], j, n_eq, lo, up) or z[j] != 0.0:
-            cols[nc] = j
-            nc += 1
-        kappa[j] = 0.0
+    for j in range(n):  # the columns that may move (no branch on the data)
+        cols[nc] = j
+        nc += (z[j] != 0.0) | _needs_move(z[j], j, n_eq, lo, up)
     if nc == 0:
         for i in range(n):
             parent[i] = i
         return _finish(n, q, z, n_eq, lo, up, w, work, iwork, state, out)
     if 2 * nc >= n:  # most columns: a contiguous max over the whole row
-        for i in range(n):
-            row = M + i * ldm
-            if s[i] == 0.0:
-                for j in range(n):
-                    if row[j] != 0.0:
-                        kappa[j] = INFINITY
-                continue
-            _col_max(kappa, row, 1.0 / s[i], n)
+        _col_maxes(M, ldm, s, n, kappa)
     else:
+        for j in range(n):
+            kappa[j] = 0.0
         for i in range(n):
             row = M + i * ldm
             inv = INFINITY if s[i] == 0.0 else 1.0 / s[i]

@@ -25,9 +25,14 @@ typedef unsigned long long lcpcli_v4u __attribute__((vector_size(32)));
  * j = k mod 4, the tail goes to lane 0), combined as (s0 + s1) + (s2 + s3); with GCC or clang
  * the four lanes are one vector (the compiler's own vectorisation of this loop interleaved the
  * lanes badly: 3x slower), in the same order, so both give the same bits */
-LCPCLI_ROW_CLONES static void lcpcli_row_dot(const double *restrict row,
-                                             const double *restrict z, ptrdiff_t n,
-                                             double *dot, double *absdot)
+#if defined(__GNUC__)
+#define LCPCLI_INLINE static inline __attribute__((always_inline))
+#else
+#define LCPCLI_INLINE static inline
+#endif
+
+LCPCLI_INLINE void lcpcli_row_dot(const double *restrict row, const double *restrict z,
+                                  ptrdiff_t n, double *dot, double *absdot)
 {
     double s[4] = {0.0, 0.0, 0.0, 0.0}, a[4] = {0.0, 0.0, 0.0, 0.0};
     ptrdiff_t j = 0;
@@ -63,13 +68,43 @@ LCPCLI_ROW_CLONES static void lcpcli_row_dot(const double *restrict row,
     *absdot = (a[0] + a[1]) + (a[2] + a[3]);
 }
 
-/* kappa_j = max(kappa_j, |row_j| inv) for every j (inv finite) */
-LCPCLI_ROW_CLONES static void lcpcli_col_max(double *restrict kappa, const double *restrict row,
-                                             double inv, ptrdiff_t n)
+/* Pass 1 of the certificate over the n rows of M (row stride ldm), in one call:
+ * w_i = (sum_j M_ij z_j) + q_i, a_i = sum_j |M_ij z_j|, s_i = a_i + |q_i| */
+LCPCLI_ROW_CLONES static void lcpcli_rows_pass(const double *restrict M, ptrdiff_t ldm,
+                                               const double *restrict z,
+                                               const double *restrict q, ptrdiff_t n,
+                                               double *restrict w, double *restrict a,
+                                               double *restrict s)
 {
-    for (ptrdiff_t j = 0; j < n; j++) {
-        double t = fabs(row[j]) * inv;
-        kappa[j] = t > kappa[j] ? t : kappa[j];
+    for (ptrdiff_t i = 0; i < n; i++) {
+        double dot, absdot;
+        lcpcli_row_dot(M + i * ldm, z, n, &dot, &absdot);
+        w[i] = dot + q[i];
+        a[i] = absdot;
+        s[i] = absdot + fabs(q[i]);
+    }
+}
+
+/* kappa_j = max_i |M_ij| inv_i with inv_i = 1 / s_i, over the n rows (kappa_j = inf where a row
+ * with s_i = 0 has M_ij != 0), in one call */
+LCPCLI_ROW_CLONES static void lcpcli_col_maxes(const double *restrict M, ptrdiff_t ldm,
+                                               const double *restrict s, ptrdiff_t n,
+                                               double *restrict kappa)
+{
+    for (ptrdiff_t j = 0; j < n; j++)
+        kappa[j] = 0.0;
+    for (ptrdiff_t i = 0; i < n; i++) {
+        const double *row = M + i * ldm;
+        if (s[i] == 0.0) {
+            for (ptrdiff_t j = 0; j < n; j++)
+                kappa[j] = row[j] != 0.0 ? INFINITY : kappa[j];
+            continue;
+        }
+        double inv = 1.0 / s[i];
+        for (ptrdiff_t j = 0; j < n; j++) {
+            double t = fabs(row[j]) * inv;
+            kappa[j] = t > kappa[j] ? t : kappa[j];
+        }
     }
 }
 
