@@ -157,6 +157,11 @@ cdef void _lemke_one(const double* M, const double* q, const double* d, Py_ssize
     free(rc_exp)
 
 
+cdef enum:
+    # problems up to this size take the warm start's scratch on the C stack (no malloc)
+    STACK_N = 16
+
+
 #: Block pivots without a new lowest count of infeasible pairs before the warm start's
 #: least-index single pivots (Júdice & Pires' p; lcpcli.solvers.methods.bpp.BLOCK_TRIES).
 cdef int W_BLOCK_TRIES = 3
@@ -178,19 +183,17 @@ cdef int _basic_solution(const double* M, const double* q, Py_ssize_t n,
     ``r``: n."""
     cdef Py_ssize_t i, j, k, m = 0, p, t_i
     cdef double big = 0.0, t, a
-    for i in range(n):
+    for i in range(n):  # (no branch on the basis: which pairs are basic is data)
         z[i] = 0.0
-        if F[i]:
-            idx[m] = i
-            m += 1
+        idx[m] = i
+        m += F[i] != 0
     if m == 0:
         return 0
     for i in range(m):
         for j in range(m):
             a = M[idx[i] * n + idx[j]]
             A[i * m + j] = a
-            if fabs(a) > big:
-                big = fabs(a)
+            big = fabs(a) if fabs(a) > big else big
     for k in range(m):
         piv[k] = k
     k = 0
@@ -280,9 +283,14 @@ cdef int _bpp_one(const double* M, const double* q, Py_ssize_t n, const signed c
     its infeasible pairs are read from the certificate's ``w`` and row scales.  Returns 1 when
     an answer passed (z, w, state, iters, err, res filled), 0 otherwise (singular block,
     iteration limit, an answer that stays uncertified: the caller solves cold)."""
-    cdef double* work = <double*>malloc((n * n + 8 * n + 1) * sizeof(double))
-    cdef Py_ssize_t* iwork = <Py_ssize_t*>malloc((5 * n + 1) * sizeof(Py_ssize_t))
-    cdef signed char* F = <signed char*>malloc(n + 1)
+    cdef double swork[STACK_N * STACK_N + 8 * STACK_N + 1]
+    cdef Py_ssize_t siwork[5 * STACK_N + 1]
+    cdef signed char sF[STACK_N + 1]
+    cdef bint heap = n > STACK_N  # small problems: scratch on the C stack, no malloc
+    cdef double* work = <double*>malloc((n * n + 8 * n + 1) * sizeof(double)) if heap else swork
+    cdef Py_ssize_t* iwork = (<Py_ssize_t*>malloc((5 * n + 1) * sizeof(Py_ssize_t)) if heap
+                              else siwork)
+    cdef signed char* F = <signed char*>malloc(n + 1) if heap else sF
     cdef double* A
     cdef double* r
     cdef double* cwork
@@ -296,9 +304,10 @@ cdef int _bpp_one(const double* M, const double* q, Py_ssize_t n, const signed c
     cdef bint nonneg, have_w
     cdef CertOut cert
     if work == NULL or iwork == NULL or F == NULL:
-        free(work)
-        free(iwork)
-        free(F)
+        if heap:
+            free(work)
+            free(iwork)
+            free(F)
         return 0
     A = work
     r = work + n * n
@@ -368,9 +377,10 @@ cdef int _bpp_one(const double* M, const double* q, Py_ssize_t n, const signed c
         for i in range(n):
             if r[i] != 0.0:
                 F[i] = 1 - F[i]
-    free(work)
-    free(iwork)
-    free(F)
+    if heap:
+        free(work)
+        free(iwork)
+        free(F)
     return ok
 
 
