@@ -324,7 +324,8 @@ cdef int certify_dense(Py_ssize_t n, const double* M, Py_ssize_t ldm, const doub
         for i in range(n):
             parent[i] = i
         return _finish(n, q, z, n_eq, lo, up, w, work, iwork, state, out)
-    if 2 * nc >= n:  # most columns: a contiguous max over the whole row
+    # most columns, or a small problem: a contiguous max over whole rows (vectorised)
+    if 2 * nc >= n or n <= 64:
         _col_maxes(M, ldm, s, n, kappa)
     else:
         for j in range(n):
