@@ -31,7 +31,7 @@ cdef extern from "rowpass.h" nogil:
     void _block_error "lcpcli_block_error"(Py_ssize_t n, const double* q, const double* w,
                                            const double* a, const double* eps,
                                            const Py_ssize_t* anchor, const Py_ssize_t* root,
-                                           double* compmin, double* ratio, double* res,
+                                           double* g, double* gi, double* e, double* res,
                                            Py_ssize_t* worst) noexcept
     void _lcp_pairs "lcpcli_lcp_pairs"(Py_ssize_t n, const double* z, const double* w,
                                        const double* s, double* kappa, signed char* state,
@@ -209,7 +209,8 @@ cdef int _finish(Py_ssize_t n, const double* q, const double* z, Py_ssize_t n_eq
     # (c) the certified error.  Both in lcpcli_block_error (rowpass.h), on each row's root
     for i in range(n):
         parent[i] = _find(parent, i)
-    _block_error(n, q, w, a, kappa, anchor, parent, work + 3 * n, work + 4 * n, acc, &worst)
+    # scratch: the last 2 n entries of work and the row scales s (not needed any more)
+    _block_error(n, q, w, a, kappa, anchor, parent, work + 3 * n, work + 4 * n, s, acc, &worst)
     err, growth = acc[0], acc[1]
     out.error = err
     out.backward_error = omega

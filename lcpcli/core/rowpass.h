@@ -113,10 +113,12 @@ LCPCLI_ROW_CLONES static void lcpcli_col_maxes(const double *restrict M, ptrdiff
  * the costs of the states L (z_i = 0) and F (w_i = 0), the cheaper one (ties to the state that
  * needs no move of z_i), written to eps (over kappa), state (may be NULL) and anchor (1: F);
  * acc = {omega, residual, bound violation, w violation, complementarity}, maxima updated */
-static void lcpcli_lcp_pairs(ptrdiff_t n, const double *restrict z, const double *restrict w,
-                             const double *restrict s, double *restrict kappa,
-                             signed char *restrict state, ptrdiff_t *restrict anchor,
-                             double *restrict acc)
+LCPCLI_ROW_CLONES static void lcpcli_lcp_pairs(ptrdiff_t n, const double *restrict z,
+                                               const double *restrict w,
+                                               const double *restrict s,
+                                               double *restrict kappa,
+                                               signed char *restrict state,
+                                               ptrdiff_t *restrict anchor, double *restrict acc)
 {
     double omega = acc[0], resid = acc[1], bviol = acc[2], wviol = acc[3], comp = acc[4];
     for (ptrdiff_t i = 0; i < n; i++) {
@@ -156,40 +158,55 @@ static void lcpcli_lcp_pairs(ptrdiff_t n, const double *restrict z, const double
  * growth G (the smallest g_i = a_i / (|q_i| + |w_i|) among its equations with data: anchor_i,
  * a_i > 0, q_i != 0; inf when none), then error = max_i eps_i max(1, G_i), where a row with
  * a_i > 0 in a block without such an equation takes its own g_i when q_i != 0 (else 1), and a row
- * with a_i = 0 takes 1.  root[i] < n: the smallest row of row i's block; compmin, ratio: n
- * scratch doubles.  res = {error, growth}; worst: the first row that decides the error. */
-static void lcpcli_block_error(ptrdiff_t n, const double *restrict q, const double *restrict w,
-                               const double *restrict a, const double *restrict eps,
-                               const ptrdiff_t *restrict anchor, const ptrdiff_t *restrict root,
-                               double *restrict compmin, double *restrict ratio,
-                               double *restrict res, ptrdiff_t *worst)
+ * with a_i = 0 takes 1.  root[i] < n: the smallest row of row i's block.  Scratch: g, gi, e (n
+ * doubles each; e first holds the blocks' minima by root when there are several blocks).
+ * res = {error, growth}; worst: the first row that decides the error (where it is largest). */
+LCPCLI_ROW_CLONES static void lcpcli_block_error(ptrdiff_t n, const double *restrict q,
+                                                 const double *restrict w,
+                                                 const double *restrict a,
+                                                 const double *restrict eps,
+                                                 const ptrdiff_t *restrict anchor,
+                                                 const ptrdiff_t *restrict root,
+                                                 double *restrict g, double *restrict gi,
+                                                 double *restrict e, double *restrict res,
+                                                 ptrdiff_t *worst)
 {
-    double err = 0.0, growth = 1.0;
-    ptrdiff_t wi = -1;
-    for (ptrdiff_t i = 0; i < n; i++) {
-        compmin[i] = INFINITY;
-        /* q_i != 0: |q_i| + |w_i| > 0 (else the entry is never read) */
-        ratio[i] = q[i] != 0.0 ? a[i] / (fabs(q[i]) + fabs(w[i])) : 1.0;
+    ptrdiff_t several = 0, i;
+    double G = INFINITY, err = 0.0;
+    for (i = 0; i < n; i++) {
+        double r = a[i] / (fabs(q[i]) + fabs(w[i]));   /* read only where q_i != 0 */
+        gi[i] = q[i] != 0.0 ? r : 1.0;                  /* the row's own growth */
+        g[i] = (a[i] > 0.0) & (anchor[i] != 0) & (q[i] != 0.0) ? r : INFINITY;
+        several |= root[i] ^ root[0];
     }
-    for (ptrdiff_t i = 0; i < n; i++) {
-        double g = (a[i] > 0.0) & (anchor[i] != 0) & (q[i] != 0.0) ? ratio[i] : INFINITY;
-        double *c = compmin + root[i];
-        *c = g < *c ? g : *c;
+    if (several) {
+        double *blk = e;
+        for (i = 0; i < n; i++)
+            blk[i] = INFINITY;
+        for (i = 0; i < n; i++)
+            blk[root[i]] = g[i] < blk[root[i]] ? g[i] : blk[root[i]];
+        for (i = 0; i < n; i++)
+            g[i] = blk[root[i]];
+    } else {
+        for (i = 0; i < n; i++)
+            G = g[i] < G ? g[i] : G;
+        for (i = 0; i < n; i++)
+            g[i] = G;
     }
-    for (ptrdiff_t i = 0; i < n; i++) {
-        double gi = compmin[root[i]];
-        gi = gi == INFINITY ? ratio[i] : gi;
-        gi = gi < 1.0 ? 1.0 : gi;
-        gi = a[i] > 0.0 ? gi : 1.0;
-        double e = eps[i] == 0.0 ? 0.0 : eps[i] * gi;
-        int take = (e > err) | (wi < 0);
-        err = take ? e : err;
-        growth = take ? gi : growth;
-        wi = take ? i : wi;
+    for (i = 0; i < n; i++) {
+        double t = g[i] == INFINITY ? gi[i] : g[i];
+        t = t < 1.0 ? 1.0 : t;
+        t = a[i] > 0.0 ? t : 1.0;
+        gi[i] = t;
+        e[i] = eps[i] == 0.0 ? 0.0 : eps[i] * t;
     }
+    for (i = 0; i < n; i++)
+        err = e[i] > err ? e[i] : err;
+    for (i = 0; i < n && e[i] != err; i++)
+        ;
     res[0] = err;
-    res[1] = growth;
-    *worst = wi;
+    res[1] = i < n ? gi[i] : 1.0;
+    *worst = i < n ? i : -1;
 }
 
 #endif
