@@ -19,6 +19,14 @@
 #if defined(__GNUC__)
 typedef double lcpcli_v4d __attribute__((vector_size(32)));
 typedef unsigned long long lcpcli_v4u __attribute__((vector_size(32)));
+typedef long long lcpcli_v4l __attribute__((vector_size(32)));
+/* the lanes of x where m (a comparison's result: all ones or zero), else those of y */
+#define LCPCLI_SEL(m, x, y) ((lcpcli_v4d)(((lcpcli_v4l)(m) & (lcpcli_v4l)(x)) \
+                                          | (~(lcpcli_v4l)(m) & (lcpcli_v4l)(y))))
+#define LCPCLI_VMAX(t, acc) LCPCLI_SEL((t) > (acc), (t), (acc))
+#define LCPCLI_VABS(x) ((lcpcli_v4d)((lcpcli_v4l)(x) & (lcpcli_v4l)lcpcli_v4_nosign))
+static const lcpcli_v4u lcpcli_v4_nosign = {0x7fffffffffffffffULL, 0x7fffffffffffffffULL,
+                                            0x7fffffffffffffffULL, 0x7fffffffffffffffULL};
 #endif
 
 /* dot = sum_j row_j z_j and absdot = sum_j |row_j z_j|, four partial sums each (lane k takes
@@ -121,7 +129,56 @@ LCPCLI_ROW_CLONES static void lcpcli_lcp_pairs(ptrdiff_t n, const double *restri
                                                ptrdiff_t *restrict anchor, double *restrict acc)
 {
     double omega = acc[0], resid = acc[1], bviol = acc[2], wviol = acc[3], comp = acc[4];
-    for (ptrdiff_t i = 0; i < n; i++) {
+    ptrdiff_t i = 0;
+#if defined(__GNUC__)
+    /* four pairs at a time, each lane as the scalar loop below (selects for its branches);
+     * the lanes' maxima are combined exactly at the end */
+    const lcpcli_v4d zero = {0.0, 0.0, 0.0, 0.0};
+    lcpcli_v4d vom = zero, vre = zero, vbv = zero, vwv = zero, vco = zero;
+    for (; i + 4 <= n; i += 4) {
+        lcpcli_v4d zi, wi, si, k, aw, az, rel, t, cF, cL, best;
+        lcpcli_v4l pickF;
+        __builtin_memcpy(&zi, z + i, sizeof zi);
+        __builtin_memcpy(&wi, w + i, sizeof wi);
+        __builtin_memcpy(&si, s + i, sizeof si);
+        __builtin_memcpy(&k, kappa + i, sizeof k);
+        aw = LCPCLI_VABS(wi);
+        az = LCPCLI_VABS(zi);
+        rel = LCPCLI_SEL(aw == zero, zero, aw / si);
+        t = LCPCLI_SEL(zi < zero, zero - zi, zero);
+        t = LCPCLI_SEL(t == zero, zero, t * k);
+        cF = LCPCLI_VMAX(t, rel);
+        cL = LCPCLI_SEL(wi < zero, rel, zero);
+        t = LCPCLI_SEL(az == zero, zero, az * k);
+        cL = LCPCLI_VMAX(t, cL);
+        pickF = (lcpcli_v4l)LCPCLI_SEL(zi == zero, (lcpcli_v4d)(cF < cL),
+                                       (lcpcli_v4d)(~(cL < cF)));
+        best = LCPCLI_SEL(pickF, cF, cL);
+        __builtin_memcpy(kappa + i, &best, sizeof best);
+        for (int l = 0; l < 4; l++) {
+            if (state)
+                state[i + l] = (signed char)(pickF[l] & 2);
+            anchor[i + l] = pickF[l] & 1;
+        }
+        vom = LCPCLI_VMAX(best, vom);
+        t = LCPCLI_VABS(LCPCLI_SEL(wi < zi, wi, zi));
+        vre = LCPCLI_VMAX(t, vre);
+        t = zero - zi;
+        vbv = LCPCLI_VMAX(t, vbv);
+        t = -wi;
+        vwv = LCPCLI_VMAX(t, vwv);
+        t = LCPCLI_VABS(zi * wi);
+        vco = LCPCLI_VMAX(t, vco);
+    }
+    for (int l = 0; l < 4; l++) {
+        omega = vom[l] > omega ? vom[l] : omega;
+        resid = vre[l] > resid ? vre[l] : resid;
+        bviol = vbv[l] > bviol ? vbv[l] : bviol;
+        wviol = vwv[l] > wviol ? vwv[l] : wviol;
+        comp = vco[l] > comp ? vco[l] : comp;
+    }
+#endif
+    for (; i < n; i++) {
         double zi = z[i], wi = w[i], k = kappa[i], aw = fabs(wi), az = fabs(zi);
         double rel = aw == 0.0 ? 0.0 : aw / s[i];   /* _rel(|w_i|, s_i): v / 0 = inf */
         double x = zi < 0.0 ? 0.0 - zi : 0.0;       /* back into the box */
@@ -171,14 +228,33 @@ LCPCLI_ROW_CLONES static void lcpcli_block_error(ptrdiff_t n, const double *rest
                                                  double *restrict e, double *restrict res,
                                                  ptrdiff_t *worst)
 {
-    ptrdiff_t several = 0, i;
+    ptrdiff_t several = 0, i = 0;
     double G = INFINITY, err = 0.0;
-    for (i = 0; i < n; i++) {
+#if defined(__GNUC__)
+    const lcpcli_v4d zero = {0.0, 0.0, 0.0, 0.0}, one = {1.0, 1.0, 1.0, 1.0},
+                     inf = {INFINITY, INFINITY, INFINITY, INFINITY};
+    const lcpcli_v4l none = {0, 0, 0, 0};
+    for (; i + 4 <= n; i += 4) {  /* four rows at a time, as the scalar loop below */
+        lcpcli_v4d qi, wi, ai, r;
+        lcpcli_v4l an;
+        __builtin_memcpy(&qi, q + i, sizeof qi);
+        __builtin_memcpy(&wi, w + i, sizeof wi);
+        __builtin_memcpy(&ai, a + i, sizeof ai);
+        __builtin_memcpy(&an, anchor + i, sizeof an);
+        r = ai / (LCPCLI_VABS(qi) + LCPCLI_VABS(wi));
+        r = LCPCLI_SEL(qi != zero, r, one);
+        __builtin_memcpy(gi + i, &r, sizeof r);
+        r = LCPCLI_SEL((ai > zero) & (an != none) & (qi != zero), r, inf);
+        __builtin_memcpy(g + i, &r, sizeof r);
+    }
+#endif
+    for (; i < n; i++) {
         double r = a[i] / (fabs(q[i]) + fabs(w[i]));   /* read only where q_i != 0 */
         gi[i] = q[i] != 0.0 ? r : 1.0;                  /* the row's own growth */
         g[i] = (a[i] > 0.0) & (anchor[i] != 0) & (q[i] != 0.0) ? r : INFINITY;
-        several |= root[i] ^ root[0];
     }
+    for (i = 0; i < n; i++)
+        several |= root[i] ^ root[0];
     if (several) {
         double *blk = e;
         for (i = 0; i < n; i++)
@@ -193,7 +269,23 @@ LCPCLI_ROW_CLONES static void lcpcli_block_error(ptrdiff_t n, const double *rest
         for (i = 0; i < n; i++)
             g[i] = G;
     }
-    for (i = 0; i < n; i++) {
+    i = 0;
+#if defined(__GNUC__)
+    for (; i + 4 <= n; i += 4) {
+        lcpcli_v4d gb, own, ai, ep, t;
+        __builtin_memcpy(&gb, g + i, sizeof gb);
+        __builtin_memcpy(&own, gi + i, sizeof own);
+        __builtin_memcpy(&ai, a + i, sizeof ai);
+        __builtin_memcpy(&ep, eps + i, sizeof ep);
+        t = LCPCLI_SEL(gb == inf, own, gb);
+        t = LCPCLI_SEL(t < one, one, t);
+        t = LCPCLI_SEL(ai > zero, t, one);
+        __builtin_memcpy(gi + i, &t, sizeof t);
+        t = LCPCLI_SEL(ep == zero, zero, ep * t);
+        __builtin_memcpy(e + i, &t, sizeof t);
+    }
+#endif
+    for (; i < n; i++) {
         double t = g[i] == INFINITY ? gi[i] : g[i];
         t = t < 1.0 ? 1.0 : t;
         t = a[i] > 0.0 ? t : 1.0;
