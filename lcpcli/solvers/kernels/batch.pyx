@@ -182,27 +182,35 @@ cdef int _basic_solution(const double* M, const double* q, Py_ssize_t n,
     this).  Returns the size of the solved block.  ``A``: n*n, ``idx``, ``piv``: n,
     ``r``: n."""
     cdef Py_ssize_t i, j, k, m = 0, p, t_i
-    cdef double big = 0.0, t, a
+    cdef double big = 0.0, t, a, d
+    cdef bint better
     for i in range(n):  # (no branch on the basis: which pairs are basic is data)
         z[i] = 0.0
         idx[m] = i
         m += F[i] != 0
     if m == 0:
         return 0
+    for j in range(m):  # the largest |entry| of each column of the block (r: m entries), then
+        r[j] = 0.0      # of the block: the same maximum, without one chain through m^2 entries
     for i in range(m):
         for j in range(m):
             a = M[idx[i] * n + idx[j]]
             A[i * m + j] = a
-            big = fabs(a) if fabs(a) > big else big
+            r[j] = fabs(a) if fabs(a) > r[j] else r[j]
+    for j in range(m):
+        big = r[j] if r[j] > big else big
     for k in range(m):
         piv[k] = k
     k = 0
     while k < m:
-        p = k
+        p = k  # the first largest remaining diagonal entry (selects: no branch on the data)
+        d = fabs(A[k * m + k])
         for i in range(k + 1, m):
-            if fabs(A[i * m + i]) > fabs(A[p * m + p]):
-                p = i
-        if not (fabs(A[p * m + p]) > 1e-13 * big):
+            t = fabs(A[i * m + i])
+            better = t > d
+            p = p + ((i - p) & -(<Py_ssize_t>better))
+            d = t if better else d
+        if not (d > 1e-13 * big):
             for i in range(k, m):  # repair: the pairs left unpivoted leave the basis
                 F[idx[i]] = 0
             break
