@@ -298,11 +298,16 @@ cdef int certify_dense(Py_ssize_t n, const double* M, Py_ssize_t ldm, const doub
     cdef Py_ssize_t i, j, k, nc = 0
     cdef const double* row
     cdef double wi, ai, t, m, inv
-    for j in range(n):
-        if not isfinite(z[j]):
-            return _fail(out, 1)
-        if z[j] != 0.0 and not (SMALL <= fabs(z[j]) <= BIG):
-            return _fail(out, 2)
+    cdef bint nonfinite = False, outside = False
+    for j in range(n):  # (one test per problem: whether z_j = 0 is data, not a branch)
+        nonfinite |= not isfinite(z[j])
+        outside |= (z[j] != 0.0) & ((fabs(z[j]) < SMALL) | (fabs(z[j]) > BIG))
+    if nonfinite or outside:  # the first such z_j says which
+        for j in range(n):
+            if not isfinite(z[j]):
+                return _fail(out, 1)
+            if z[j] != 0.0 and not (SMALL <= fabs(z[j]) <= BIG):
+                return _fail(out, 2)
     # pass 1: w, |M||z|, s
     _rows_pass(M, ldm, z, q, n, w, a, s)
     for i in range(n):
