@@ -26,7 +26,7 @@ cdef extern from "rowpass.h" nogil:
     void _rows_pass "lcpcli_rows_pass"(const double* M, Py_ssize_t ldm, const double* z,
                                        const double* q, Py_ssize_t n, double* w, double* a,
                                        double* s) noexcept
-    void _col_maxes "lcpcli_col_maxes"(const double* M, Py_ssize_t ldm, const double* s,
+    void _col_maxes "lcpcli_col_maxes"(const double* M, Py_ssize_t ldm, const double* inv,
                                        Py_ssize_t n, double* kappa) noexcept
     void _block_error "lcpcli_block_error"(Py_ssize_t n, const double* q, const double* w,
                                            const double* a, const double* eps,
@@ -250,8 +250,8 @@ cdef int _fail(CertOut* out, int status) noexcept nogil:
 
 
 cdef void _link(Py_ssize_t n, const double* M, Py_ssize_t ldm, const double* z,
-                const double* s, const double* kappa, const Py_ssize_t* cols, Py_ssize_t nc,
-                Py_ssize_t* parent) noexcept nogil:
+                const double* rinv, const double* kappa, const Py_ssize_t* cols,
+                Py_ssize_t nc, Py_ssize_t* parent) noexcept nogil:
     """Union rows i (nodes 0..n-1) and columns j (nodes n + j) wherever z_j != 0 counts in row
     i: ``|M_ij| / s_i >= 2^-10 kappa_j`` (invariant under scaling).  Once every column with
     z_j != 0 is in one set, a row joins it through its first such term and the rest of the row
@@ -266,7 +266,7 @@ cdef void _link(Py_ssize_t n, const double* M, Py_ssize_t ldm, const double* z,
     colsets = nz  # sets holding a column with z_j != 0 (each starts alone)
     for i in range(n):
         row = M + i * ldm
-        inv = INFINITY if s[i] == 0.0 else 1.0 / s[i]
+        inv = rinv[i]  # 1 / s_i, inf when s_i = 0
         joined = False  # row i's set holds a column (rows before i never change again)
         for k in range(nc):
             j = cols[k]
@@ -293,6 +293,7 @@ cdef int certify_dense(Py_ssize_t n, const double* M, Py_ssize_t ldm, const doub
     cdef double* a = work
     cdef double* s = work + n
     cdef double* kappa = work + 2 * n
+    cdef double* rinv = work + 3 * n  # 1 / s_i (the last 2 n entries are free until _finish)
     cdef Py_ssize_t* parent = iwork
     cdef Py_ssize_t* cols = iwork + 2 * n
     cdef Py_ssize_t i, j, k, nc = 0
@@ -330,15 +331,17 @@ cdef int certify_dense(Py_ssize_t n, const double* M, Py_ssize_t ldm, const doub
         for i in range(n):
             parent[i] = i
         return _finish(n, q, z, n_eq, lo, up, w, work, iwork, state, out)
+    for i in range(n):  # 1 / s_i (inf when s_i = 0), for kappa and the links
+        rinv[i] = 1.0 / s[i]
     # most columns, or a small problem: a contiguous max over whole rows (vectorised)
     if 2 * nc >= n or n <= 64:
-        _col_maxes(M, ldm, s, n, kappa)
+        _col_maxes(M, ldm, rinv, n, kappa)
     else:
         for j in range(n):
             kappa[j] = 0.0
         for i in range(n):
             row = M + i * ldm
-            inv = INFINITY if s[i] == 0.0 else 1.0 / s[i]
+            inv = rinv[i]
             for k in range(nc):
                 j = cols[k]
                 m = fabs(row[j])
@@ -348,7 +351,7 @@ cdef int certify_dense(Py_ssize_t n, const double* M, Py_ssize_t ldm, const doub
                         kappa[j] = t
     for i in range(2 * n):
         parent[i] = i
-    _link(n, M, ldm, z, s, kappa, cols, nc, parent)
+    _link(n, M, ldm, z, rinv, kappa, cols, nc, parent)
     for k in range(nc):
         j = cols[k]
         if kappa[j] == 0.0:      # a zero column: moving z_j is never negligible

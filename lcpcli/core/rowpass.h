@@ -93,26 +93,34 @@ LCPCLI_ROW_CLONES static void lcpcli_rows_pass(const double *restrict M, ptrdiff
     }
 }
 
-/* kappa_j = max_i |M_ij| inv_i with inv_i = 1 / s_i, over the n rows (kappa_j = inf where a row
- * with s_i = 0 has M_ij != 0), in one call */
+/* kappa_j = max_i |M_ij| inv_i over the n rows (inv_i = 1 / s_i: inf when s_i = 0, so that
+ * kappa_j = inf where such a row has M_ij != 0, and 0 x inf = NaN never wins a comparison), in
+ * one call; four columns at a time, their maxima kept in registers down the rows (a maximum does
+ * not depend on the order) */
 LCPCLI_ROW_CLONES static void lcpcli_col_maxes(const double *restrict M, ptrdiff_t ldm,
-                                               const double *restrict s, ptrdiff_t n,
+                                               const double *restrict inv, ptrdiff_t n,
                                                double *restrict kappa)
 {
-    for (ptrdiff_t j = 0; j < n; j++)
-        kappa[j] = 0.0;
-    for (ptrdiff_t i = 0; i < n; i++) {
-        const double *row = M + i * ldm;
-        if (s[i] == 0.0) {
-            for (ptrdiff_t j = 0; j < n; j++)
-                kappa[j] = row[j] != 0.0 ? INFINITY : kappa[j];
-            continue;
+    ptrdiff_t j = 0;
+#if defined(__GNUC__)
+    const lcpcli_v4d zero = {0.0, 0.0, 0.0, 0.0};
+    for (; j + 4 <= n; j += 4) {
+        lcpcli_v4d acc = zero, x;
+        for (ptrdiff_t i = 0; i < n; i++) {
+            __builtin_memcpy(&x, M + i * ldm + j, sizeof x);
+            x = LCPCLI_VABS(x) * inv[i];
+            acc = LCPCLI_VMAX(x, acc);
         }
-        double inv = 1.0 / s[i];
-        for (ptrdiff_t j = 0; j < n; j++) {
-            double t = fabs(row[j]) * inv;
-            kappa[j] = t > kappa[j] ? t : kappa[j];
+        __builtin_memcpy(kappa + j, &acc, sizeof acc);
+    }
+#endif
+    for (; j < n; j++) {
+        double acc = 0.0;
+        for (ptrdiff_t i = 0; i < n; i++) {
+            double t = fabs(M[i * ldm + j]) * inv[i];
+            acc = t > acc ? t : acc;
         }
+        kappa[j] = acc;
     }
 }
 
