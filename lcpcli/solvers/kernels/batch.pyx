@@ -38,6 +38,22 @@ from lcpcli.solvers.kernels.simd cimport axpy
 
 cnp.import_array()
 
+cdef extern from *:
+    """
+    /* ask for the next problem's M (n x n doubles) while this one is solved */
+    static inline void lcpcli_prefetch_block(const double *p, Py_ssize_t count)
+    {
+    #if defined(__GNUC__)
+        for (Py_ssize_t i = 0; i < count; i += 8)
+            __builtin_prefetch(p + i, 0, 3);
+    #else
+        (void)p;
+        (void)count;
+    #endif
+    }
+    """
+    void _prefetch "lcpcli_prefetch_block"(const double* p, Py_ssize_t count) noexcept nogil
+
 cdef enum:
     B_SOLVED = 0
     B_RETRY = 1
@@ -760,6 +776,8 @@ def lemke_warm_stack(M, q, d, basis, int64_t max_iter, int64_t warm_iter,
     for k in prange(K, nogil=True, schedule="dynamic", chunksize=64,
                     num_threads=threads if threads > 0 else 1):
         wp[k] = 0
+        if k + 1 < K:
+            _prefetch(a.M + (k + 1) * nn, nn)
         if bp[k * n] >= 0 and (
                 _bpp_one(a.M + k * nn, a.q + k * n, n, bp + k * n, warm_iter, tol,
                          a.z + k * n, a.w + k * n, sp + k * n, a.iters + k, a.err + k,
