@@ -256,7 +256,7 @@ cdef void _link(Py_ssize_t n, const double* M, Py_ssize_t ldm, const double* z,
     i: ``|M_ij| / s_i >= 2^-10 kappa_j`` (invariant under scaling).  Once every column with
     z_j != 0 is in one set, a row joins it through its first such term and the rest of the row
     changes nothing (the partition is the same as linking every term)."""
-    cdef Py_ssize_t i, j, k, ri, rj, nz = 0, colsets
+    cdef Py_ssize_t i, j, k, ri, rj, nz = 0, colsets, one = -1
     cdef bint joined
     cdef const double* row
     cdef double m, inv
@@ -272,6 +272,9 @@ cdef void _link(Py_ssize_t n, const double* M, Py_ssize_t ldm, const double* z,
             j = cols[k]
             m = fabs(row[j])
             if m != 0.0 and z[j] != 0.0 and m * inv >= THETA * kappa[j]:
+                if one >= 0:  # every such column is in the set rooted at `one` (a row before
+                    parent[i] = one  # i): row i, alone so far, joins it as the union would
+                    break
                 ri = _find(parent, i)
                 rj = _find(parent, n + j)
                 if ri != rj:
@@ -283,6 +286,7 @@ cdef void _link(Py_ssize_t n, const double* M, Py_ssize_t ldm, const double* z,
                     else:
                         parent[ri] = rj
                 if colsets == 1:
+                    one = _find(parent, i)
                     break
 
 
