@@ -51,8 +51,61 @@ cdef extern from *:
         (void)count;
     #endif
     }
+
+    /* _basic_solution's elimination: LU with diagonal pivoting of the m x m row-major block A
+     * (the first largest remaining diagonal entry pivots, rows and columns swapped with idx),
+     * stopping when no remaining diagonal entry exceeds 1e-13 big; returns the pivots taken.
+     * Scalar loops (the rows are short: vectorising them cost more in checks than it saved) */
+    #if defined(__GNUC__) && !defined(__clang__)
+    __attribute__((optimize("no-tree-vectorize")))
+    #endif
+    static Py_ssize_t lcpcli_diag_lu(double *A, Py_ssize_t m, double big, Py_ssize_t *idx)
+    {
+        Py_ssize_t i, j, k;
+        for (k = 0; k < m; k++) {
+            Py_ssize_t p = k;
+            double d = fabs(A[k * m + k]);
+            for (i = k + 1; i < m; i++) {
+                double t = fabs(A[i * m + i]);
+                int better = t > d;
+                p = better ? i : p;
+                d = better ? t : d;
+            }
+            if (!(d > 1e-13 * big))
+                break;
+            if (p != k) {
+                double *rk = A + k * m, *rp = A + p * m, t;
+                Py_ssize_t ti;
+                for (j = 0; j < m; j++) {
+                    t = rk[j];
+                    rk[j] = rp[j];
+                    rp[j] = t;
+                }
+                for (i = 0; i < m; i++) {
+                    t = A[i * m + k];
+                    A[i * m + k] = A[i * m + p];
+                    A[i * m + p] = t;
+                }
+                ti = idx[k];
+                idx[k] = idx[p];
+                idx[p] = ti;
+            }
+            const double *rk = A + k * m;
+            double pivot = rk[k];
+            for (i = k + 1; i < m; i++) {
+                double *ri = A + i * m;
+                double l = ri[k] / pivot;
+                ri[k] = l;
+                for (j = k + 1; j < m; j++)
+                    ri[j] = ri[j] - l * rk[j];
+            }
+        }
+        return k;
+    }
     """
     void _prefetch "lcpcli_prefetch_block"(const double* p, Py_ssize_t count) noexcept nogil
+    Py_ssize_t _diag_lu "lcpcli_diag_lu"(double* A, Py_ssize_t m, double big,
+                                         Py_ssize_t* idx) noexcept nogil
 
 cdef enum:
     B_SOLVED = 0
@@ -197,9 +250,8 @@ cdef int _basic_solution(const double* M, const double* q, Py_ssize_t n,
     principal block found so far (contact LCPs, whose redundant contacts make M singular, need
     this).  Returns the size of the solved block.  ``A``: n*n, ``idx``, ``piv``: n,
     ``r``: n."""
-    cdef Py_ssize_t i, j, k, m = 0, p, t_i
-    cdef double big = 0.0, t, a, d
-    cdef bint better
+    cdef Py_ssize_t i, j, k, m = 0
+    cdef double big = 0.0, a
     for i in range(n):  # (no branch on the basis: which pairs are basic is data)
         z[i] = 0.0
         idx[m] = i
@@ -217,37 +269,9 @@ cdef int _basic_solution(const double* M, const double* q, Py_ssize_t n,
         big = r[j] if r[j] > big else big
     for k in range(m):
         piv[k] = k
-    k = 0
-    while k < m:
-        p = k  # the first largest remaining diagonal entry (selects: no branch on the data)
-        d = fabs(A[k * m + k])
-        for i in range(k + 1, m):
-            t = fabs(A[i * m + i])
-            better = t > d
-            p = p + ((i - p) & -(<Py_ssize_t>better))
-            d = t if better else d
-        if not (d > 1e-13 * big):
-            for i in range(k, m):  # repair: the pairs left unpivoted leave the basis
-                F[idx[i]] = 0
-            break
-        if p != k:  # symmetric swap of rows and columns k and p
-            for j in range(m):
-                t = A[k * m + j]
-                A[k * m + j] = A[p * m + j]
-                A[p * m + j] = t
-            for i in range(m):
-                t = A[i * m + k]
-                A[i * m + k] = A[i * m + p]
-                A[i * m + p] = t
-            t_i = idx[k]
-            idx[k] = idx[p]
-            idx[p] = t_i
-        for i in range(k + 1, m):
-            A[i * m + k] = A[i * m + k] / A[k * m + k]
-            t = A[i * m + k]
-            for j in range(k + 1, m):
-                A[i * m + j] = A[i * m + j] - t * A[k * m + j]
-        k += 1
+    k = _diag_lu(A, m, big, idx)
+    for i in range(k, m):  # repair: the pairs left unpivoted leave the basis
+        F[idx[i]] = 0
     if k < m:  # the repaired block: the leading k x k factors (stride m) compacted
         for i in range(k):
             for j in range(k):
