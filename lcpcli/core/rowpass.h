@@ -302,11 +302,12 @@ LCPCLI_ROW_CLONES static void lcpcli_block_error(ptrdiff_t n, const double *rest
     }
     for (i = 0; i < n; i++)
         err = e[i] > err ? e[i] : err;
-    for (i = 0; i < n && e[i] != err; i++)
-        ;
+    ptrdiff_t first = n;  /* the first row where the error is largest (selects, no exit test) */
+    for (i = n - 1; i >= 0; i--)
+        first = e[i] == err ? i : first;
     res[0] = err;
-    res[1] = i < n ? gi[i] : 1.0;
-    *worst = i < n ? i : -1;
+    res[1] = first < n ? gi[first] : 1.0;
+    *worst = first < n ? first : -1;
 }
 
 #endif
