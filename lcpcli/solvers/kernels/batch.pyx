@@ -102,8 +102,31 @@ cdef extern from *:
         }
         return k;
     }
+
+    /* b <- U^-1 L^-1 b for the factors of lcpcli_diag_lu (unit lower L, then U), the sums in
+     * order j = 0, 1, ... as the elimination would form them; scalar loops */
+    #if defined(__GNUC__) && !defined(__clang__)
+    __attribute__((optimize("no-tree-vectorize")))
+    #endif
+    static void lcpcli_lu_solve(const double *A, Py_ssize_t m, double *b)
+    {
+        Py_ssize_t i, j;
+        for (i = 0; i < m; i++) {
+            double t = b[i];
+            for (j = 0; j < i; j++)
+                t = t - A[i * m + j] * b[j];
+            b[i] = t;
+        }
+        for (i = m - 1; i >= 0; i--) {
+            double t = b[i];
+            for (j = i + 1; j < m; j++)
+                t = t - A[i * m + j] * b[j];
+            b[i] = t / A[i * m + i];
+        }
+    }
     """
     void _prefetch "lcpcli_prefetch_block"(const double* p, Py_ssize_t count) noexcept nogil
+    void _lu_solve_c "lcpcli_lu_solve"(const double* A, Py_ssize_t m, double* b) noexcept nogil
     Py_ssize_t _diag_lu "lcpcli_diag_lu"(double* A, Py_ssize_t m, double big,
                                          Py_ssize_t* idx) noexcept nogil
 
@@ -303,21 +326,15 @@ cdef void _refine(const double* M, const double* q, Py_ssize_t n, const double* 
 
 cdef void _lu_solve(const double* A, const Py_ssize_t* piv, Py_ssize_t m,
                     double* b) noexcept nogil:
-    """``b <- (LU)^-1 P b`` for the factors of :func:`_basic_solution`."""
-    cdef Py_ssize_t i, j
+    """``b <- (LU)^-1 P b`` for the factors of :func:`_basic_solution` (lcpcli_lu_solve)."""
+    cdef Py_ssize_t i
     cdef double t
     for i in range(m):
         if piv[i] != i:
             t = b[i]
             b[i] = b[piv[i]]
             b[piv[i]] = t
-    for i in range(m):
-        for j in range(i):
-            b[i] = b[i] - A[i * m + j] * b[j]
-    for i in range(m - 1, -1, -1):
-        for j in range(i + 1, m):
-            b[i] = b[i] - A[i * m + j] * b[j]
-        b[i] = b[i] / A[i * m + i]
+    _lu_solve_c(A, m, b)
 
 
 cdef int _bpp_one(const double* M, const double* q, Py_ssize_t n, const signed char* F0,
