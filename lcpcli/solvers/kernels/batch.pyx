@@ -124,8 +124,29 @@ cdef extern from *:
             b[i] = t / A[i * m + i];
         }
     }
+
+    /* max_i |x_i| (0 when count = 0), four running maxima (a maximum does not depend on the
+     * order; one running maximum was a chain through every entry) */
+    static double lcpcli_absmax(const double *x, Py_ssize_t count)
+    {
+        double b[4] = {0.0, 0.0, 0.0, 0.0}, t;
+        Py_ssize_t i = 0;
+        for (; i + 4 <= count; i += 4)
+            for (int l = 0; l < 4; l++) {
+                t = fabs(x[i + l]);
+                b[l] = t > b[l] ? t : b[l];
+            }
+        for (; i < count; i++) {
+            t = fabs(x[i]);
+            b[0] = t > b[0] ? t : b[0];
+        }
+        b[0] = b[1] > b[0] ? b[1] : b[0];
+        b[2] = b[3] > b[2] ? b[3] : b[2];
+        return b[2] > b[0] ? b[2] : b[0];
+    }
     """
     void _prefetch "lcpcli_prefetch_block"(const double* p, Py_ssize_t count) noexcept nogil
+    double _absmax "lcpcli_absmax"(const double* x, Py_ssize_t count) noexcept nogil
     void _lu_solve_c "lcpcli_lu_solve"(const double* A, Py_ssize_t m, double* b) noexcept nogil
     Py_ssize_t _diag_lu "lcpcli_diag_lu"(double* A, Py_ssize_t m, double big,
                                          Py_ssize_t* idx) noexcept nogil
@@ -274,22 +295,19 @@ cdef int _basic_solution(const double* M, const double* q, Py_ssize_t n,
     this).  Returns the size of the solved block.  ``A``: n*n, ``idx``, ``piv``: n,
     ``r``: n."""
     cdef Py_ssize_t i, j, k, m = 0
-    cdef double big = 0.0, a
+    cdef double big
+    cdef const double* row
     for i in range(n):  # (no branch on the basis: which pairs are basic is data)
         z[i] = 0.0
         idx[m] = i
         m += F[i] != 0
     if m == 0:
         return 0
-    for j in range(m):  # the largest |entry| of each column of the block (r: m entries), then
-        r[j] = 0.0      # of the block: the same maximum, without one chain through m^2 entries
     for i in range(m):
+        row = M + idx[i] * n
         for j in range(m):
-            a = M[idx[i] * n + idx[j]]
-            A[i * m + j] = a
-            r[j] = fabs(a) if fabs(a) > r[j] else r[j]
-    for j in range(m):
-        big = r[j] if r[j] > big else big
+            A[i * m + j] = row[idx[j]]
+    big = _absmax(A, m * m)  # the block's largest |entry|
     for k in range(m):
         piv[k] = k
     k = _diag_lu(A, m, big, idx)
