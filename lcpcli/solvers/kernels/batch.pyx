@@ -406,15 +406,14 @@ cdef int _bpp_one(const double* M, const double* q, Py_ssize_t n, const signed c
         m = _basic_solution(M, q, n, F, A, idx, piv, r, z)
         if m < 0:
             break
-        zmax = 1.0
+        zmax = 1.0  # (selects and flags: which z_i are basic, or large, is data)
         for i in range(n):
-            if fabs(z[i]) > zmax:
-                zmax = fabs(z[i])
+            t = fabs(z[i])
+            zmax = t if t > zmax else zmax
+        t = -W_NEG_TOL * zmax
         nonneg = True
         for i in range(n):
-            if F[i] and z[i] < -W_NEG_TOL * zmax:
-                nonneg = False
-                break
+            nonneg &= not (F[i] != 0) & (z[i] < t)
         have_w = False
         if nonneg:
             if _certify_basic(M, q, n, m, A, idx, piv, r, tol, z, w, cwork, iwork, state,
