@@ -184,10 +184,51 @@ cdef extern from *:
         b[2] = b[3] > b[2] ? b[3] : b[2];
         return b[2] > b[0] ? b[2] : b[0];
     }
+
+    /* lcpcli_lu_solve of two independent systems, row by row in turn (the processor overlaps
+     * the two chains of dependent divisions and sums; the same operations on each) */
+    #if defined(__GNUC__) && !defined(__clang__)
+    __attribute__((optimize("no-tree-vectorize")))
+    #endif
+    static void lcpcli_lu_solve2(const double *A0, Py_ssize_t m0, double *b0,
+                                 const double *A1, Py_ssize_t m1, double *b1)
+    {
+        Py_ssize_t i, j, mm = m0 > m1 ? m0 : m1;
+        for (i = 0; i < mm; i++) {
+            if (i < m0) {
+                double t = b0[i];
+                for (j = 0; j < i; j++)
+                    t = t - A0[i * m0 + j] * b0[j];
+                b0[i] = t;
+            }
+            if (i < m1) {
+                double t = b1[i];
+                for (j = 0; j < i; j++)
+                    t = t - A1[i * m1 + j] * b1[j];
+                b1[i] = t;
+            }
+        }
+        for (i = mm - 1; i >= 0; i--) {
+            if (i < m0) {
+                double t = b0[i];
+                for (j = i + 1; j < m0; j++)
+                    t = t - A0[i * m0 + j] * b0[j];
+                b0[i] = t / A0[i * m0 + i];
+            }
+            if (i < m1) {
+                double t = b1[i];
+                for (j = i + 1; j < m1; j++)
+                    t = t - A1[i * m1 + j] * b1[j];
+                b1[i] = t / A1[i * m1 + i];
+            }
+        }
+    }
     """
     void _prefetch "lcpcli_prefetch_block"(const double* p, Py_ssize_t count) noexcept nogil
     double _absmax "lcpcli_absmax"(const double* x, Py_ssize_t count) noexcept nogil
     void _lu_solve_c "lcpcli_lu_solve"(const double* A, Py_ssize_t m, double* b) noexcept nogil
+    void _lu_solve2 "lcpcli_lu_solve2"(const double* A0, Py_ssize_t m0, double* b0,
+                                       const double* A1, Py_ssize_t m1, double* b1) noexcept nogil
     Py_ssize_t _diag_lu "lcpcli_diag_lu"(double* A, Py_ssize_t m, double big,
                                          Py_ssize_t* idx) noexcept nogil
     void _diag_lu2 "lcpcli_diag_lu2"(double* A0, Py_ssize_t m0, double big0, Py_ssize_t* idx0,
@@ -349,16 +390,22 @@ cdef int _basic_solution2(const double* M0, const double* q0, signed char* F0, d
                           const double* M1, const double* q1, signed char* F1, double* A1,
                           Py_ssize_t* idx1, Py_ssize_t* piv1, double* r1, double* z1,
                           Py_ssize_t n, Py_ssize_t* m) noexcept nogil:
-    """:func:`_basic_solution` of two problems of size ``n``, their eliminations in turn
-    (lcpcli_diag_lu2: the processor overlaps the two chains of dependent operations); the
-    sizes of the solved blocks in ``m[0]``, ``m[1]``."""
+    """:func:`_basic_solution` of two problems of size ``n``, their eliminations and their
+    solves in turn (lcpcli_diag_lu2, lcpcli_lu_solve2: the processor overlaps the two chains of
+    dependent operations); the sizes of the solved blocks in ``m[0]``, ``m[1]``."""
     cdef double big0, big1
     cdef Py_ssize_t k[2]
     cdef Py_ssize_t m0 = _basic_gather(M0, n, F0, A0, idx0, piv0, z0, &big0)
     cdef Py_ssize_t m1 = _basic_gather(M1, n, F1, A1, idx1, piv1, z1, &big1)
+    cdef Py_ssize_t i
     _diag_lu2(A0, m0, big0, idx0, A1, m1, big1, idx1, k)
-    m[0] = _basic_finish(q0, n, F0, A0, idx0, piv0, r0, z0, m0, k[0]) if m0 else 0
-    m[1] = _basic_finish(q1, n, F1, A1, idx1, piv1, r1, z1, m1, k[1]) if m1 else 0
+    m[0] = _basic_rhs(q0, F0, A0, idx0, r0, m0, k[0])
+    m[1] = _basic_rhs(q1, F1, A1, idx1, r1, m1, k[1])
+    _lu_solve2(A0, m[0], r0, A1, m[1], r1)  # (piv is the identity: no interchanges)
+    for i in range(m[0]):
+        z0[idx0[i]] = r0[i]
+    for i in range(m[1]):
+        z1[idx1[i]] = r1[i]
     return 0
 
 
@@ -386,9 +433,21 @@ cdef Py_ssize_t _basic_gather(const double* M, Py_ssize_t n, const signed char* 
 cdef Py_ssize_t _basic_finish(const double* q, Py_ssize_t n, signed char* F, double* A,
                               const Py_ssize_t* idx, const Py_ssize_t* piv, double* r,
                               double* z, Py_ssize_t m, Py_ssize_t k) noexcept nogil:
-    """:func:`_basic_solution`'s last part, after ``k`` pivots of the elimination: the repair
-    (the pairs left unpivoted leave F), the factors of the solved block compacted, the
-    solve; returns the size of the solved block."""
+    """:func:`_basic_solution`'s last part, after ``k`` pivots of the elimination
+    (:func:`_basic_rhs`, then the solve); returns the size of the solved block."""
+    cdef Py_ssize_t i
+    m = _basic_rhs(q, F, A, idx, r, m, k)
+    _lu_solve(A, piv, m, r)
+    for i in range(m):
+        z[idx[i]] = r[i]
+    return m
+
+
+cdef Py_ssize_t _basic_rhs(const double* q, signed char* F, double* A, const Py_ssize_t* idx,
+                           double* r, Py_ssize_t m, Py_ssize_t k) noexcept nogil:
+    """After ``k`` pivots of the elimination of the m x m block: the repair (the pairs left
+    unpivoted leave F), the factors of the solved block compacted, ``r = -q_F``; returns the
+    size of the solved block."""
     cdef Py_ssize_t i, j
     for i in range(k, m):  # repair: the pairs left unpivoted leave the basis
         F[idx[i]] = 0
@@ -399,9 +458,6 @@ cdef Py_ssize_t _basic_finish(const double* q, Py_ssize_t n, signed char* F, dou
         m = k
     for i in range(m):
         r[i] = -q[idx[i]]
-    _lu_solve(A, piv, m, r)
-    for i in range(m):
-        z[idx[i]] = r[i]
     return m
 
 
