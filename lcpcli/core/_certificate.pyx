@@ -303,40 +303,45 @@ cdef int certify_dense(Py_ssize_t n, const double* M, Py_ssize_t ldm, const doub
     cdef Py_ssize_t i, j, k, nc = 0
     cdef const double* row
     cdef double wi, ai, t, m, inv
-    cdef bint nonfinite = False, outside = False
-    for j in range(n):  # (one test per problem: whether z_j = 0 is data, not a branch)
+    cdef bint nonfinite = False, outside = False, bad = False, zero = False
+    # the range of z, and (pass 2) the columns that may move: one test per problem at the
+    # end, not a branch per entry (whether z_j = 0 is data)
+    for j in range(n):
         nonfinite |= not isfinite(z[j])
         outside |= (z[j] != 0.0) & ((fabs(z[j]) < SMALL) | (fabs(z[j]) > BIG))
+        cols[nc] = j
+        nc += (z[j] != 0.0) | _needs_move(z[j], j, n_eq, lo, up)
     if nonfinite or outside:  # the first such z_j says which
         for j in range(n):
             if not isfinite(z[j]):
                 return _fail(out, 1)
             if z[j] != 0.0 and not (SMALL <= fabs(z[j]) <= BIG):
                 return _fail(out, 2)
-    # pass 1: w, |M||z|, s
+    # pass 1: w, |M||z|, s; 1 / s_i (inf when s_i = 0) for kappa and the links
     _rows_pass(M, ldm, z, q, n, w, a, s)
     for i in range(n):
         wi = w[i]
         ai = a[i]
-        if not (isfinite(wi) and isfinite(ai)) or s[i] > BIG or 0.0 < s[i] < SMALL:
-            return _fail(out, 2)
-        if s[i] == 0.0:  # every term underflowed to zero (2.8e-250 x 1e-137), or none exists
-            row = M + i * ldm
-            for j in range(n):
-                if row[j] != 0.0 and z[j] != 0.0:
-                    return _fail(out, 2)
+        bad |= ((not isfinite(wi)) | (not isfinite(ai)) | (s[i] > BIG)
+                | ((0.0 < s[i]) & (s[i] < SMALL)))
+        zero |= s[i] == 0.0
+        rinv[i] = 1.0 / s[i]
+    if bad or zero:  # the rows in order, as the tests read
+        for i in range(n):
+            if not (isfinite(w[i]) and isfinite(a[i])) or s[i] > BIG or 0.0 < s[i] < SMALL:
+                return _fail(out, 2)
+            if s[i] == 0.0:  # every term underflowed to zero (2.8e-250 x 1e-137), or none
+                row = M + i * ldm
+                for j in range(n):
+                    if row[j] != 0.0 and z[j] != 0.0:
+                        return _fail(out, 2)
     # pass 2: kappa for the columns that may move, blocks through significant terms.  kappa_j
     # of a column that may not move (z_j = 0 and no state asks it to move) is never used: it
     # only ever multiplies a move of 0, and links nothing
-    for j in range(n):  # the columns that may move (no branch on the data)
-        cols[nc] = j
-        nc += (z[j] != 0.0) | _needs_move(z[j], j, n_eq, lo, up)
     if nc == 0:
         for i in range(n):
             parent[i] = i
         return _finish(n, q, z, n_eq, lo, up, w, work, iwork, state, out)
-    for i in range(n):  # 1 / s_i (inf when s_i = 0), for kappa and the links
-        rinv[i] = 1.0 / s[i]
     # most columns, or a small problem: a contiguous max over whole rows (vectorised)
     if 2 * nc >= n or n <= 64:
         _col_maxes(M, ldm, rinv, n, kappa)
