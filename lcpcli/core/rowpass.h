@@ -237,11 +237,12 @@ LCPCLI_ROW_CLONES static void lcpcli_block_error(ptrdiff_t n, const double *rest
                                                  ptrdiff_t *worst)
 {
     ptrdiff_t several = 0, i = 0;
-    double G = INFINITY, err = 0.0;
+    double G = INFINITY, err = 0.0;   /* G: the smallest g_i, the growth of a single block */
 #if defined(__GNUC__)
     const lcpcli_v4d zero = {0.0, 0.0, 0.0, 0.0}, one = {1.0, 1.0, 1.0, 1.0},
                      inf = {INFINITY, INFINITY, INFINITY, INFINITY};
     const lcpcli_v4l none = {0, 0, 0, 0};
+    lcpcli_v4d vG = inf, verr = zero;
     for (; i + 4 <= n; i += 4) {  /* four rows at a time, as the scalar loop below */
         lcpcli_v4d qi, wi, ai, r;
         lcpcli_v4l an;
@@ -254,16 +255,20 @@ LCPCLI_ROW_CLONES static void lcpcli_block_error(ptrdiff_t n, const double *rest
         __builtin_memcpy(gi + i, &r, sizeof r);
         r = LCPCLI_SEL((ai > zero) & (an != none) & (qi != zero), r, inf);
         __builtin_memcpy(g + i, &r, sizeof r);
+        vG = LCPCLI_SEL(r < vG, r, vG);
     }
+    for (int l = 0; l < 4; l++)  /* (a minimum does not depend on the order) */
+        G = vG[l] < G ? vG[l] : G;
 #endif
     for (; i < n; i++) {
         double r = a[i] / (fabs(q[i]) + fabs(w[i]));   /* read only where q_i != 0 */
         gi[i] = q[i] != 0.0 ? r : 1.0;                  /* the row's own growth */
         g[i] = (a[i] > 0.0) & (anchor[i] != 0) & (q[i] != 0.0) ? r : INFINITY;
+        G = g[i] < G ? g[i] : G;
     }
     for (i = 0; i < n; i++)
         several |= root[i] ^ root[0];
-    if (several) {
+    if (several) {  /* each block's smallest g_i, by its root, for each of its rows */
         double *blk = e;
         for (i = 0; i < n; i++)
             blk[i] = INFINITY;
@@ -271,17 +276,16 @@ LCPCLI_ROW_CLONES static void lcpcli_block_error(ptrdiff_t n, const double *rest
             blk[root[i]] = g[i] < blk[root[i]] ? g[i] : blk[root[i]];
         for (i = 0; i < n; i++)
             g[i] = blk[root[i]];
-    } else {
-        for (i = 0; i < n; i++)
-            G = g[i] < G ? g[i] : G;
-        for (i = 0; i < n; i++)
-            g[i] = G;
     }
     i = 0;
 #if defined(__GNUC__)
+    const lcpcli_v4d vone_block = {G, G, G, G};
+    const lcpcli_v4l all = {-1, -1, -1, -1};
+    const lcpcli_v4l by_block = several ? all : none;
     for (; i + 4 <= n; i += 4) {
         lcpcli_v4d gb, own, ai, ep, t;
         __builtin_memcpy(&gb, g + i, sizeof gb);
+        gb = LCPCLI_SEL(by_block, gb, vone_block);
         __builtin_memcpy(&own, gi + i, sizeof own);
         __builtin_memcpy(&ai, a + i, sizeof ai);
         __builtin_memcpy(&ep, eps + i, sizeof ep);
@@ -291,17 +295,20 @@ LCPCLI_ROW_CLONES static void lcpcli_block_error(ptrdiff_t n, const double *rest
         __builtin_memcpy(gi + i, &t, sizeof t);
         t = LCPCLI_SEL(ep == zero, zero, ep * t);
         __builtin_memcpy(e + i, &t, sizeof t);
+        verr = LCPCLI_VMAX(t, verr);
     }
+    for (int l = 0; l < 4; l++)  /* (nor does a maximum) */
+        err = verr[l] > err ? verr[l] : err;
 #endif
     for (; i < n; i++) {
-        double t = g[i] == INFINITY ? gi[i] : g[i];
+        double t = several ? g[i] : G;
+        t = t == INFINITY ? gi[i] : t;
         t = t < 1.0 ? 1.0 : t;
         t = a[i] > 0.0 ? t : 1.0;
         gi[i] = t;
         e[i] = eps[i] == 0.0 ? 0.0 : eps[i] * t;
-    }
-    for (i = 0; i < n; i++)
         err = e[i] > err ? e[i] : err;
+    }
     ptrdiff_t first = n;  /* the first row where the error is largest (selects, no exit test) */
     for (i = n - 1; i >= 0; i--)
         first = e[i] == err ? i : first;
