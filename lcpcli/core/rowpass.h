@@ -20,6 +20,7 @@
 typedef double lcpcli_v4d __attribute__((vector_size(32)));
 typedef unsigned long long lcpcli_v4u __attribute__((vector_size(32)));
 typedef long long lcpcli_v4l __attribute__((vector_size(32)));
+typedef signed char lcpcli_v4c __attribute__((vector_size(4)));
 /* the lanes of x where m (a comparison's result: all ones or zero), else those of y */
 #define LCPCLI_SEL(m, x, y) ((lcpcli_v4d)(((lcpcli_v4l)(m) & (lcpcli_v4l)(x)) \
                                           | (~(lcpcli_v4l)(m) & (lcpcli_v4l)(y))))
@@ -163,11 +164,12 @@ LCPCLI_ROW_CLONES static void lcpcli_lcp_pairs(ptrdiff_t n, const double *restri
                                        (lcpcli_v4d)(~(cL < cF)));
         best = LCPCLI_SEL(pickF, cF, cL);
         __builtin_memcpy(kappa + i, &best, sizeof best);
-        for (int l = 0; l < 4; l++) {
-            if (state)
-                state[i + l] = (signed char)(pickF[l] & 2);
-            anchor[i + l] = pickF[l] & 1;
+        if (state) {
+            lcpcli_v4c st = __builtin_convertvector(pickF & 2, lcpcli_v4c);
+            __builtin_memcpy(state + i, &st, sizeof st);
         }
+        pickF &= 1;
+        __builtin_memcpy(anchor + i, &pickF, sizeof pickF);
         vom = LCPCLI_VMAX(best, vom);
         t = LCPCLI_VABS(LCPCLI_SEL(wi < zi, wi, zi));
         vre = LCPCLI_VMAX(t, vre);
