@@ -85,7 +85,63 @@ LCPCLI_ROW_CLONES static void lcpcli_rows_pass(const double *restrict M, ptrdiff
                                                double *restrict w, double *restrict a,
                                                double *restrict s)
 {
-    for (ptrdiff_t i = 0; i < n; i++) {
+    ptrdiff_t i = 0;
+#if defined(__GNUC__) && !defined(__clang__)
+    /* four rows at a time: each row's four lanes as lcpcli_row_dot forms them, then the four
+     * rows' lanes transposed so that (s0 + s1) + (s2 + s3) is one vector sum for the four */
+    const lcpcli_v4u nosign = {0x7fffffffffffffffULL, 0x7fffffffffffffffULL,
+                               0x7fffffffffffffffULL, 0x7fffffffffffffffULL};
+    const lcpcli_v4l lo = {0, 4, 2, 6}, hi = {1, 5, 3, 7}, first = {0, 1, 4, 5},
+                     second = {2, 3, 6, 7};
+    for (; i + 4 <= n; i += 4) {
+        lcpcli_v4d vs[4], va[4], x, y, t, q4, c0, c1, c2, c3, d0, d1, d2, d3, dot, absdot;
+        ptrdiff_t j = 0;
+        for (int r = 0; r < 4; r++) {
+            vs[r] = (lcpcli_v4d){0.0, 0.0, 0.0, 0.0};
+            va[r] = vs[r];
+        }
+        for (; j + 4 <= n; j += 4) {
+            __builtin_memcpy(&y, z + j, sizeof y);
+            for (int r = 0; r < 4; r++) {
+                __builtin_memcpy(&x, M + (i + r) * ldm + j, sizeof x);
+                t = x * y;
+                vs[r] += t;
+                va[r] += (lcpcli_v4d)((lcpcli_v4u)t & nosign);
+            }
+        }
+        for (; j < n; j++)  /* the tail to lane 0, in order */
+            for (int r = 0; r < 4; r++) {
+                double tt = M[(i + r) * ldm + j] * z[j];
+                vs[r][0] += tt;
+                va[r][0] += fabs(tt);
+            }
+        c0 = __builtin_shuffle(vs[0], vs[1], lo);    /* (s0 of row 0, of row 1, s2, s2) */
+        c1 = __builtin_shuffle(vs[0], vs[1], hi);
+        c2 = __builtin_shuffle(vs[2], vs[3], lo);
+        c3 = __builtin_shuffle(vs[2], vs[3], hi);
+        d0 = __builtin_shuffle(c0, c2, first);       /* lane 0 of the four rows */
+        d2 = __builtin_shuffle(c0, c2, second);      /* lane 2 */
+        d1 = __builtin_shuffle(c1, c3, first);
+        d3 = __builtin_shuffle(c1, c3, second);
+        dot = (d0 + d1) + (d2 + d3);
+        c0 = __builtin_shuffle(va[0], va[1], lo);
+        c1 = __builtin_shuffle(va[0], va[1], hi);
+        c2 = __builtin_shuffle(va[2], va[3], lo);
+        c3 = __builtin_shuffle(va[2], va[3], hi);
+        d0 = __builtin_shuffle(c0, c2, first);
+        d2 = __builtin_shuffle(c0, c2, second);
+        d1 = __builtin_shuffle(c1, c3, first);
+        d3 = __builtin_shuffle(c1, c3, second);
+        absdot = (d0 + d1) + (d2 + d3);
+        __builtin_memcpy(&q4, q + i, sizeof q4);
+        t = dot + q4;
+        __builtin_memcpy(w + i, &t, sizeof t);
+        __builtin_memcpy(a + i, &absdot, sizeof absdot);
+        t = absdot + (lcpcli_v4d)((lcpcli_v4u)q4 & nosign);
+        __builtin_memcpy(s + i, &t, sizeof t);
+    }
+#endif
+    for (; i < n; i++) {
         double dot, absdot;
         lcpcli_row_dot(M + i * ldm, z, n, &dot, &absdot);
         w[i] = dot + q[i];
