@@ -25,7 +25,7 @@ cnp.import_array()
 cdef extern from "rowpass.h" nogil:
     void _rows_pass "lcpcli_rows_pass"(const double* M, Py_ssize_t ldm, const double* z,
                                        const double* q, Py_ssize_t n, double* w, double* a,
-                                       double* s) noexcept
+                                       double* s, double* rinv) noexcept
     void _col_maxes "lcpcli_col_maxes"(const double* M, Py_ssize_t ldm, const double* inv,
                                        Py_ssize_t n, double* kappa) noexcept
     void _block_error "lcpcli_block_error"(Py_ssize_t n, const double* q, const double* w,
@@ -318,14 +318,13 @@ cdef int certify_dense(Py_ssize_t n, const double* M, Py_ssize_t ldm, const doub
             if z[j] != 0.0 and not (SMALL <= fabs(z[j]) <= BIG):
                 return _fail(out, 2)
     # pass 1: w, |M||z|, s; 1 / s_i (inf when s_i = 0) for kappa and the links
-    _rows_pass(M, ldm, z, q, n, w, a, s)
+    _rows_pass(M, ldm, z, q, n, w, a, s, rinv)
     for i in range(n):
         wi = w[i]
         ai = a[i]
         bad |= ((not isfinite(wi)) | (not isfinite(ai)) | (s[i] > BIG)
                 | ((0.0 < s[i]) & (s[i] < SMALL)))
         zero |= s[i] == 0.0
-        rinv[i] = 1.0 / s[i]
     if bad or zero:  # the rows in order, as the tests read
         for i in range(n):
             if not (isfinite(w[i]) and isfinite(a[i])) or s[i] > BIG or 0.0 < s[i] < SMALL:

@@ -78,12 +78,13 @@ LCPCLI_INLINE void lcpcli_row_dot(const double *restrict row, const double *rest
 }
 
 /* Pass 1 of the certificate over the n rows of M (row stride ldm), in one call:
- * w_i = (sum_j M_ij z_j) + q_i, a_i = sum_j |M_ij z_j|, s_i = a_i + |q_i| */
+ * w_i = (sum_j M_ij z_j) + q_i, a_i = sum_j |M_ij z_j|, s_i = a_i + |q_i|, rinv_i = 1 / s_i
+ * (inf when s_i = 0) */
 LCPCLI_ROW_CLONES static void lcpcli_rows_pass(const double *restrict M, ptrdiff_t ldm,
                                                const double *restrict z,
                                                const double *restrict q, ptrdiff_t n,
                                                double *restrict w, double *restrict a,
-                                               double *restrict s)
+                                               double *restrict s, double *restrict rinv)
 {
     ptrdiff_t i = 0;
 #if defined(__GNUC__) && !defined(__clang__)
@@ -139,6 +140,8 @@ LCPCLI_ROW_CLONES static void lcpcli_rows_pass(const double *restrict M, ptrdiff
         __builtin_memcpy(a + i, &absdot, sizeof absdot);
         t = absdot + (lcpcli_v4d)((lcpcli_v4u)q4 & nosign);
         __builtin_memcpy(s + i, &t, sizeof t);
+        t = 1.0 / t;
+        __builtin_memcpy(rinv + i, &t, sizeof t);
     }
 #endif
     for (; i < n; i++) {
@@ -147,6 +150,7 @@ LCPCLI_ROW_CLONES static void lcpcli_rows_pass(const double *restrict M, ptrdiff
         w[i] = dot + q[i];
         a[i] = absdot;
         s[i] = absdot + fabs(q[i]);
+        rinv[i] = 1.0 / s[i];
     }
 }
 
