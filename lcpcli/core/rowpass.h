@@ -1,7 +1,10 @@
-/* The certificate's two sweeps over a dense row, compiled twice where the toolchain allows (GCC on
- * x86-64 glibc: AVX2 and the baseline SSE2, picked at load time by the CPU), as in
- * lcpcli/solvers/kernels/simd.h.  No FMA in either clone and a fixed summation order, so the
- * certificate's numbers do not depend on the CPU. */
+/* The certificate's loops over dense rows (pass 1, the column maxima) and over the pairs and
+ * blocks (an LCP's pair scores, the blocks' growth and the error), compiled twice where the
+ * toolchain allows (GCC on x86-64 glibc: AVX2 and the baseline SSE2, picked at load time by the
+ * CPU), as in lcpcli/solvers/kernels/simd.h.  No FMA in either clone, a fixed summation order,
+ * and selects in place of the branches of _certificate.pyx's scalar loops (the same operations
+ * on the same values; only maxima and minima, exact in any order, are combined across lanes),
+ * so the certificate's numbers do not depend on the CPU or on which loop scored them. */
 #ifndef LCPCLI_ROWPASS_H
 #define LCPCLI_ROWPASS_H
 

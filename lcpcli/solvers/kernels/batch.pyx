@@ -986,7 +986,10 @@ def lemke_warm_stack(M, q, d, basis, int64_t max_iter, int64_t warm_iter,
     ``warm_pivots`` pivots (:func:`_ppt_lemke_one`); an answer that passes the certificate is
     kept (``warm[k]`` = 1), any other ending runs Lemke cold on it in the same call
     (:func:`lemke_stack`'s arguments and outputs).  ``state`` ((K, n) int8) receives each
-    certified answer's basis (the certificate's pair states) for the next step.
+    certified answer's basis (the certificate's pair states) for the next step.  Problems go
+    in pairs: two problems of n <= STACK_N that both have a basis start together
+    (:func:`_bpp_pair`: their first basic solutions factored and solved in turn, the same
+    numbers as one by one).
     """
     cdef int eqv[3]
     cdef const int* eq = _balance_args(balance, eqv)
