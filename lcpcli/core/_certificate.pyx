@@ -22,6 +22,22 @@ from lcpcli.core.arrays cimport _as, f64, f64_ptr, inout
 
 cnp.import_array()
 
+cdef extern from "rowpass.h" nogil:
+    void _rows_pass "lcpcli_rows_pass"(const double* M, Py_ssize_t ldm, const double* z,
+                                       const double* q, Py_ssize_t n, double* w, double* a,
+                                       double* s, double* rinv) noexcept
+    void _col_maxes "lcpcli_col_maxes"(const double* M, Py_ssize_t ldm, const double* inv,
+                                       Py_ssize_t n, double* kappa) noexcept
+    void _block_error "lcpcli_block_error"(Py_ssize_t n, const double* q, const double* w,
+                                           const double* a, const double* eps,
+                                           const Py_ssize_t* anchor, const Py_ssize_t* root,
+                                           double* g, double* gi, double* e, double* res,
+                                           Py_ssize_t* worst) noexcept
+    void _lcp_pairs "lcpcli_lcp_pairs"(Py_ssize_t n, const double* z, const double* w,
+                                       const double* s, double* kappa, signed char* state,
+                                       Py_ssize_t* anchor, double* acc) noexcept
+
+
 cdef double THETA = 0.0009765625           # 2^-10: links rows through z_j where its share counts
 cdef double BIG = ldexp(1.0, 960)
 cdef double SMALL = ldexp(1.0, -960)
@@ -78,22 +94,23 @@ cdef int _finish(Py_ssize_t n, const double* q, const double* z, Py_ssize_t n_eq
                  Py_ssize_t* iwork, signed char* state, CertOut* out) noexcept nogil:
     """Pass 3: score the pairs, then the blocks (a, s, kappa filled; parent built).
 
-    ``work`` holds a, s, kappa, then 2 n entries reused: the pair errors (first n) while the
-    blocks' smallest anchor growth is gathered (one entry per union-find root, 2 n)."""
+    ``work`` holds a, s, kappa (then each pair's error over kappa), then 2 n scratch entries
+    (each block's smallest anchor growth, by the block's root row; each row's own growth)."""
     cdef double* a = work
     cdef double* s = work + n
     cdef double* kappa = work + 2 * n
-    cdef double* compmin = work + 3 * n          # 2 n entries: one per union-find root
     cdef Py_ssize_t* parent = iwork
     cdef Py_ssize_t* anchor = iwork + 2 * n      # n entries: 1 when pair i is an equation
-    cdef Py_ssize_t i, r, worst = -1
-    cdef double l, u, zi, wi, si, best, x, g, den, e, err = 0.0, omega = 0.0
-    cdef double growth = 1.0, gi
+    cdef Py_ssize_t i, worst = -1
+    cdef double l, u, zi, wi, si, best, x, err = 0.0, omega = 0.0
+    cdef double growth = 1.0
     cdef signed char st
     cdef double cF, cL, cU
     cdef double resid = 0.0, bviol = 0.0, wviol = 0.0, comp = 0.0, eqres = 0.0, t
-    # (a) every pair's backward error and state; the diagnostics in the units of the data
-    for i in range(n):
+    cdef double acc[5]
+    # (a) every pair's backward error and state; the diagnostics in the units of the data (the
+    # pairs of the LCP part, l_i = 0 and u_i = inf, after this loop, without branches)
+    for i in range(n if lo != NULL else n_eq):
         _bounds(i, n_eq, lo, up, &l, &u)
         zi = z[i]
         wi = w[i]
@@ -179,37 +196,22 @@ cdef int _finish(Py_ssize_t n, const double* q, const double* z, Py_ssize_t n_eq
             t = t * fabs(wi)
             if t > comp:
                 comp = t
+    if lo == NULL and n_eq < n:
+        acc[0], acc[1], acc[2], acc[3], acc[4] = omega, resid, bviol, wviol, comp
+        _lcp_pairs(n - n_eq, z + n_eq, w + n_eq, s + n_eq, kappa + n_eq,
+                   state + n_eq if state != NULL else NULL, anchor + n_eq, acc)
+        omega, resid, bviol, wviol, comp = acc[0], acc[1], acc[2], acc[3], acc[4]
     # (b) each block's growth: the smallest growth among its equations with data (pairs scored
     # 'between' whose q_i != 0); an equation with q_i = 0 fixes no size (its g_i would be
     # a_i / |w_i|, rounding noise over rounding noise, so the verdict would depend on the order
-    # in which w_i was summed)
-    for i in range(2 * n):
-        compmin[i] = INFINITY
+    # in which w_i was summed); in a block that no such equation anchors, a data row is judged
+    # by its own growth (its violation against its own data), a homogeneous row by none.
+    # (c) the certified error.  Both in lcpcli_block_error (rowpass.h), on each row's root
     for i in range(n):
-        if a[i] > 0.0 and anchor[i] and q[i] != 0.0:
-            den = fabs(q[i]) + fabs(w[i])
-            g = INFINITY if den == 0.0 else a[i] / den
-            r = _find(parent, i)
-            if g < compmin[r]:
-                compmin[r] = g
-    # (c) the certified error
-    for i in range(n):
-        best = kappa[i]
-        gi = 1.0
-        if a[i] > 0.0:
-            gi = compmin[_find(parent, i)]
-            if gi == INFINITY:
-                # no equation with data anchors this block: a data row is judged by its own
-                # growth (its violation against its own data), a homogeneous row by none
-                den = fabs(q[i]) + fabs(w[i])
-                gi = a[i] / den if q[i] != 0.0 else 1.0
-            if gi < 1.0:
-                gi = 1.0
-        e = 0.0 if best == 0.0 else best * gi
-        if e > err or worst < 0:
-            err = e
-            worst = i
-            growth = gi
+        parent[i] = _find(parent, i)
+    # scratch: the last 2 n entries of work and the row scales s (not needed any more)
+    _block_error(n, q, w, a, kappa, anchor, parent, work + 3 * n, work + 4 * n, s, acc, &worst)
+    err, growth = acc[0], acc[1]
     out.error = err
     out.backward_error = omega
     out.growth = growth
@@ -221,13 +223,6 @@ cdef int _finish(Py_ssize_t n, const double* q, const double* z, Py_ssize_t n_eq
     out.worst = worst
     out.status = 0
     return 0
-
-
-cdef extern from "rowpass.h" nogil:
-    void _row_dot "lcpcli_row_dot"(const double* row, const double* z, Py_ssize_t n,
-                                   double* dot, double* absdot) noexcept
-    void _col_max "lcpcli_col_max"(double* kappa, const double* row, double inv,
-                                   Py_ssize_t n) noexcept
 
 
 cdef inline int _needs_move(double zj, Py_ssize_t j, Py_ssize_t n_eq, const double* lo,
@@ -255,13 +250,13 @@ cdef int _fail(CertOut* out, int status) noexcept nogil:
 
 
 cdef void _link(Py_ssize_t n, const double* M, Py_ssize_t ldm, const double* z,
-                const double* s, const double* kappa, const Py_ssize_t* cols, Py_ssize_t nc,
-                Py_ssize_t* parent) noexcept nogil:
+                const double* rinv, const double* kappa, const Py_ssize_t* cols,
+                Py_ssize_t nc, Py_ssize_t* parent) noexcept nogil:
     """Union rows i (nodes 0..n-1) and columns j (nodes n + j) wherever z_j != 0 counts in row
     i: ``|M_ij| / s_i >= 2^-10 kappa_j`` (invariant under scaling).  Once every column with
     z_j != 0 is in one set, a row joins it through its first such term and the rest of the row
     changes nothing (the partition is the same as linking every term)."""
-    cdef Py_ssize_t i, j, k, ri, rj, nz = 0, colsets
+    cdef Py_ssize_t i, j, k, ri, rj, nz = 0, colsets, one = -1
     cdef bint joined
     cdef const double* row
     cdef double m, inv
@@ -271,12 +266,15 @@ cdef void _link(Py_ssize_t n, const double* M, Py_ssize_t ldm, const double* z,
     colsets = nz  # sets holding a column with z_j != 0 (each starts alone)
     for i in range(n):
         row = M + i * ldm
-        inv = INFINITY if s[i] == 0.0 else 1.0 / s[i]
+        inv = rinv[i]  # 1 / s_i, inf when s_i = 0
         joined = False  # row i's set holds a column (rows before i never change again)
         for k in range(nc):
             j = cols[k]
             m = fabs(row[j])
             if m != 0.0 and z[j] != 0.0 and m * inv >= THETA * kappa[j]:
+                if one >= 0:  # every such column is in the set rooted at `one` (a row before
+                    parent[i] = one  # i): row i, alone so far, joins it as the union would
+                    break
                 ri = _find(parent, i)
                 rj = _find(parent, n + j)
                 if ri != rj:
@@ -288,6 +286,7 @@ cdef void _link(Py_ssize_t n, const double* M, Py_ssize_t ldm, const double* z,
                     else:
                         parent[ri] = rj
                 if colsets == 1:
+                    one = _find(parent, i)
                     break
 
 
@@ -298,67 +297,69 @@ cdef int certify_dense(Py_ssize_t n, const double* M, Py_ssize_t ldm, const doub
     cdef double* a = work
     cdef double* s = work + n
     cdef double* kappa = work + 2 * n
+    cdef double* rinv = work + 3 * n  # 1 / s_i (the last 2 n entries are free until _finish)
     cdef Py_ssize_t* parent = iwork
     cdef Py_ssize_t* cols = iwork + 2 * n
     cdef Py_ssize_t i, j, k, nc = 0
     cdef const double* row
     cdef double wi, ai, t, m, inv
+    cdef bint nonfinite = False, outside = False, bad = False, zero = False
+    # the range of z, and (pass 2) the columns that may move: one test per problem at the
+    # end, not a branch per entry (whether z_j = 0 is data)
     for j in range(n):
-        if not isfinite(z[j]):
-            return _fail(out, 1)
-        if z[j] != 0.0 and not (SMALL <= fabs(z[j]) <= BIG):
-            return _fail(out, 2)
-    # pass 1: w, |M||z|, s
+        nonfinite |= not isfinite(z[j])
+        outside |= (z[j] != 0.0) & ((fabs(z[j]) < SMALL) | (fabs(z[j]) > BIG))
+        cols[nc] = j
+        nc += (z[j] != 0.0) | _needs_move(z[j], j, n_eq, lo, up)
+    if nonfinite or outside:  # the first such z_j says which
+        for j in range(n):
+            if not isfinite(z[j]):
+                return _fail(out, 1)
+            if z[j] != 0.0 and not (SMALL <= fabs(z[j]) <= BIG):
+                return _fail(out, 2)
+    # pass 1: w, |M||z|, s; 1 / s_i (inf when s_i = 0) for kappa and the links
+    _rows_pass(M, ldm, z, q, n, w, a, s, rinv)
     for i in range(n):
-        row = M + i * ldm
-        _row_dot(row, z, n, &wi, &ai)
-        wi = wi + q[i]
-        w[i] = wi
-        a[i] = ai
-        s[i] = ai + fabs(q[i])
-        if not (isfinite(wi) and isfinite(ai)) or s[i] > BIG or 0.0 < s[i] < SMALL:
-            return _fail(out, 2)
-        if s[i] == 0.0:  # every term underflowed to zero (2.8e-250 x 1e-137), or none exists
-            for j in range(n):
-                if row[j] != 0.0 and z[j] != 0.0:
-                    return _fail(out, 2)
-    # pass 2: kappa for the columns that may move, blocks through significant terms
-    for j in range(n):
-        if _needs_move(z[j], j, n_eq, lo, up) or z[j] != 0.0:
-            cols[nc] = j
-            nc += 1
-        kappa[j] = 0.0
+        wi = w[i]
+        ai = a[i]
+        bad |= ((not isfinite(wi)) | (not isfinite(ai)) | (s[i] > BIG)
+                | ((0.0 < s[i]) & (s[i] < SMALL)))
+        zero |= s[i] == 0.0
+    if bad or zero:  # the rows in order, as the tests read
+        for i in range(n):
+            if not (isfinite(w[i]) and isfinite(a[i])) or s[i] > BIG or 0.0 < s[i] < SMALL:
+                return _fail(out, 2)
+            if s[i] == 0.0:  # every term underflowed to zero (2.8e-250 x 1e-137), or none
+                row = M + i * ldm
+                for j in range(n):
+                    if row[j] != 0.0 and z[j] != 0.0:
+                        return _fail(out, 2)
+    # pass 2: kappa for the columns that may move, blocks through significant terms.  kappa_j
+    # of a column that may not move (z_j = 0 and no state asks it to move) is never used: it
+    # only ever multiplies a move of 0, and links nothing
+    if nc == 0:
+        for i in range(n):
+            parent[i] = i
+        return _finish(n, q, z, n_eq, lo, up, w, work, iwork, state, out)
+    # most columns, or a small problem: a contiguous max over whole rows (vectorised)
+    if 2 * nc >= n or n <= 64:
+        _col_maxes(M, ldm, rinv, n, kappa)
+    else:
+        for j in range(n):
+            kappa[j] = 0.0
+        for i in range(n):
+            row = M + i * ldm
+            inv = rinv[i]
+            for k in range(nc):
+                j = cols[k]
+                m = fabs(row[j])
+                if m != 0.0:
+                    t = m * inv
+                    if t > kappa[j]:
+                        kappa[j] = t
     for i in range(2 * n):
         parent[i] = i
-    if nc > 0:
-        if 2 * nc >= n:  # most columns: a contiguous max over the whole row (vectorised)
-            for i in range(n):
-                row = M + i * ldm
-                if s[i] == 0.0:
-                    for j in range(n):
-                        if row[j] != 0.0:
-                            kappa[j] = INFINITY
-                    continue
-                _col_max(kappa, row, 1.0 / s[i], n)
-            # kappa stays 0 off the columns that may move (as the gathered loop leaves it)
-            k = 0
-            for j in range(n):
-                if k < nc and cols[k] == j:
-                    k += 1
-                else:
-                    kappa[j] = 0.0
-        else:
-            for i in range(n):
-                row = M + i * ldm
-                inv = INFINITY if s[i] == 0.0 else 1.0 / s[i]
-                for k in range(nc):
-                    j = cols[k]
-                    m = fabs(row[j])
-                    if m != 0.0:
-                        t = m * inv
-                        if t > kappa[j]:
-                            kappa[j] = t
-        _link(n, M, ldm, z, s, kappa, cols, nc, parent)
+    _link(n, M, ldm, z, rinv, kappa, cols, nc, parent)
     for k in range(nc):
         j = cols[k]
         if kappa[j] == 0.0:      # a zero column: moving z_j is never negligible

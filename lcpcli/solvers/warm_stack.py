@@ -48,17 +48,17 @@ def stack_bases(warm: Any, K: int, n: int) -> np.ndarray:
     """The (K, n) int8 warm bases of ``warm`` (1: ``z_i`` basic; a row of -1: none, e.g. a
     problem that was not solved or whose warm row has NaN).  OptionError on a wrong shape."""
     if isinstance(warm, StackResult):
-        if warm.basis is not None:
-            bases = (np.asarray(warm.basis) == BETWEEN).astype(np.int8)
-            rows = np.asarray(warm.z)
+        if warm.basis is not None:  # a solved problem's z is finite (it passed the certificate)
+            bases = np.equal(warm.basis, BETWEEN).view(np.int8)
         else:
             rows = np.asarray(warm.z)
-            bases = (rows > 0).astype(np.int8)
+            bases = (rows > 0).view(np.int8)
+            if bases.shape == (K, n):
+                bases[~np.isfinite(rows).all(axis=1)] = -1
         if bases.shape != (K, n):
             raise OptionError(f"warm start of a stack must have shape ({K}, {n}), got "
                               f"{bases.shape}")
         bases[~warm.solved] = -1
-        bases[~np.isfinite(rows).all(axis=1)] = -1
         return np.ascontiguousarray(bases)
     rows = np.asarray(warm)
     if rows.shape != (K, n):

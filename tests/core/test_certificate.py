@@ -14,6 +14,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from references import componentwise_error
 
+from lcpcli.core import _certificate
 from lcpcli.core.certificate import MAX_TOL, MIN_TOL, certify, check, validate_tol
 from lcpcli.core.errors import OptionError
 from lcpcli.core.problem import Problem
@@ -267,6 +268,35 @@ def test_kernel_agrees_with_the_independent_reference(seed, n, form, sparse, zer
         assert np.isinf(c.error)
     else:
         assert c.error == pytest.approx(ref, rel=1e-9, abs=1e-300)
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(1, 70),
+       zero_frac=st.sampled_from([0.0, 0.5, 0.95]), z_zero=st.sampled_from([0.1, 0.5, 0.95]))
+def test_lcp_pairs_score_as_the_general_box_does(seed, n, zero_frac, z_zero):
+    """The compiled certificate scores an LCP's pairs (l = 0, u = inf) in a vectorised loop
+    without branches and a box LCP's in the general loop: the same LCP given as the box
+    [0, inf) gets the same numbers bit for bit (w, the pair states, every diagnostic), also at
+    sizes where the column maxima of the LCP's few movable columns are gathered (n > 64), and
+    its error is the independent reference's."""
+    rng = np.random.default_rng(seed)
+    M = rng.standard_normal((n, n)) * (rng.random((n, n)) >= zero_frac)
+    q = rng.standard_normal(n) * (rng.random(n) >= 0.2)
+    z = np.where(rng.random(n) < z_zero, 0.0, rng.uniform(-0.2, 3.0, n))
+    w_lcp, w_box = np.empty(n), np.empty(n)
+    s_lcp, s_box = np.zeros(n, np.int8), np.zeros(n, np.int8)
+    lcp = _certificate.certify_arrays(M, q, z, 0, None, None, w_lcp, s_lcp)
+    box = _certificate.certify_arrays(M, q, z, 0, np.zeros(n), np.full(n, np.inf), w_box, s_box)
+    assert np.array_equal(np.array(lcp[1:-1]).view(np.uint64),
+                          np.array(box[1:-1]).view(np.uint64)), (lcp, box)
+    assert lcp[0] == box[0] and lcp[-1] == box[-1]
+    assert np.array_equal(w_lcp.view(np.uint64), w_box.view(np.uint64))
+    assert np.array_equal(s_lcp, s_box)
+    ref = componentwise_error(M, q, z)
+    if np.isinf(ref):
+        assert np.isinf(lcp[1])
+    else:
+        assert lcp[1] == pytest.approx(ref, rel=1e-9, abs=1e-300)
 
 
 def test_sparse_and_dense_agree_on_siconos_sized_problem():

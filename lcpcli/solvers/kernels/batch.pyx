@@ -38,6 +38,203 @@ from lcpcli.solvers.kernels.simd cimport axpy
 
 cnp.import_array()
 
+cdef extern from *:
+    """
+    /* ask for the next problem's M (n x n doubles) while this one is solved */
+    static inline void lcpcli_prefetch_block(const double *p, Py_ssize_t count)
+    {
+    #if defined(__GNUC__)
+        for (Py_ssize_t i = 0; i < count; i += 8)
+            __builtin_prefetch(p + i, 0, 3);
+    #else
+        (void)p;
+        (void)count;
+    #endif
+    }
+
+    /* _basic_solution's elimination: LU with diagonal pivoting of the m x m row-major block A
+     * (the first largest remaining diagonal entry pivots, rows and columns swapped with idx),
+     * stopping when no remaining diagonal entry exceeds 1e-13 big.  Scalar loops (the rows are
+     * short: vectorising them cost more in checks than it saved).  lcpcli_lu_step: step k;
+     * returns 0 (nothing done) when the rest of the block is singular, else 1 */
+    #if defined(__GNUC__) && !defined(__clang__)
+    #define LCPCLI_LU_ATTR __attribute__((optimize("no-tree-vectorize"), always_inline))
+    #else
+    #define LCPCLI_LU_ATTR
+    #endif
+    static inline LCPCLI_LU_ATTR int lcpcli_lu_step(double *A, Py_ssize_t m, double big,
+                                                    Py_ssize_t *idx, Py_ssize_t k)
+    {
+        Py_ssize_t i, j, p = k;
+        double d = fabs(A[k * m + k]);
+        for (i = k + 1; i < m; i++) {
+            double t = fabs(A[i * m + i]);
+            int better = t > d;
+            p = better ? i : p;
+            d = better ? t : d;
+        }
+        if (!(d > 1e-13 * big))
+            return 0;
+        if (p != k) {
+            double *rk = A + k * m, *rp = A + p * m, t;
+            Py_ssize_t ti;
+            for (j = 0; j < m; j++) {
+                t = rk[j];
+                rk[j] = rp[j];
+                rp[j] = t;
+            }
+            for (i = 0; i < m; i++) {
+                t = A[i * m + k];
+                A[i * m + k] = A[i * m + p];
+                A[i * m + p] = t;
+            }
+            ti = idx[k];
+            idx[k] = idx[p];
+            idx[p] = ti;
+        }
+        const double *rk = A + k * m;
+        double pivot = rk[k];
+        for (i = k + 1; i < m; i++) {
+            double *ri = A + i * m;
+            double l = ri[k] / pivot;
+            ri[k] = l;
+            for (j = k + 1; j < m; j++)
+                ri[j] = ri[j] - l * rk[j];
+        }
+        return 1;
+    }
+
+    /* the elimination of one block: returns the pivots taken */
+    #if defined(__GNUC__) && !defined(__clang__)
+    __attribute__((optimize("no-tree-vectorize")))
+    #endif
+    static Py_ssize_t lcpcli_diag_lu(double *A, Py_ssize_t m, double big, Py_ssize_t *idx)
+    {
+        Py_ssize_t k = 0;
+        while (k < m && lcpcli_lu_step(A, m, big, idx, k))
+            k++;
+        return k;
+    }
+
+    /* the eliminations of two independent blocks, step by step in turn: each is a chain of
+     * dependent divisions and updates, and the processor overlaps the two chains (the same
+     * operations on each block as lcpcli_diag_lu); the pivots taken in k[0], k[1] */
+    #if defined(__GNUC__) && !defined(__clang__)
+    __attribute__((optimize("no-tree-vectorize")))
+    #endif
+    static void lcpcli_diag_lu2(double *A0, Py_ssize_t m0, double big0, Py_ssize_t *idx0,
+                                double *A1, Py_ssize_t m1, double big1, Py_ssize_t *idx1,
+                                Py_ssize_t *k)
+    {
+        int live0 = m0 > 0, live1 = m1 > 0;
+        k[0] = 0;
+        k[1] = 0;
+        while (live0 | live1) {
+            if (live0) {
+                live0 = lcpcli_lu_step(A0, m0, big0, idx0, k[0]);
+                k[0] += live0;
+                live0 &= k[0] < m0;
+            }
+            if (live1) {
+                live1 = lcpcli_lu_step(A1, m1, big1, idx1, k[1]);
+                k[1] += live1;
+                live1 &= k[1] < m1;
+            }
+        }
+    }
+
+    /* b <- U^-1 L^-1 b for the factors of lcpcli_diag_lu (unit lower L, then U), the sums in
+     * order j = 0, 1, ... as the elimination would form them; scalar loops */
+    #if defined(__GNUC__) && !defined(__clang__)
+    __attribute__((optimize("no-tree-vectorize")))
+    #endif
+    static void lcpcli_lu_solve(const double *A, Py_ssize_t m, double *b)
+    {
+        Py_ssize_t i, j;
+        for (i = 0; i < m; i++) {
+            double t = b[i];
+            for (j = 0; j < i; j++)
+                t = t - A[i * m + j] * b[j];
+            b[i] = t;
+        }
+        for (i = m - 1; i >= 0; i--) {
+            double t = b[i];
+            for (j = i + 1; j < m; j++)
+                t = t - A[i * m + j] * b[j];
+            b[i] = t / A[i * m + i];
+        }
+    }
+
+    /* max_i |x_i| (0 when count = 0), four running maxima (a maximum does not depend on the
+     * order; one running maximum was a chain through every entry) */
+    static double lcpcli_absmax(const double *x, Py_ssize_t count)
+    {
+        double b[4] = {0.0, 0.0, 0.0, 0.0}, t;
+        Py_ssize_t i = 0;
+        for (; i + 4 <= count; i += 4)
+            for (int l = 0; l < 4; l++) {
+                t = fabs(x[i + l]);
+                b[l] = t > b[l] ? t : b[l];
+            }
+        for (; i < count; i++) {
+            t = fabs(x[i]);
+            b[0] = t > b[0] ? t : b[0];
+        }
+        b[0] = b[1] > b[0] ? b[1] : b[0];
+        b[2] = b[3] > b[2] ? b[3] : b[2];
+        return b[2] > b[0] ? b[2] : b[0];
+    }
+
+    /* lcpcli_lu_solve of two independent systems, row by row in turn (the processor overlaps
+     * the two chains of dependent divisions and sums; the same operations on each) */
+    #if defined(__GNUC__) && !defined(__clang__)
+    __attribute__((optimize("no-tree-vectorize")))
+    #endif
+    static void lcpcli_lu_solve2(const double *A0, Py_ssize_t m0, double *b0,
+                                 const double *A1, Py_ssize_t m1, double *b1)
+    {
+        Py_ssize_t i, j, mm = m0 > m1 ? m0 : m1;
+        for (i = 0; i < mm; i++) {
+            if (i < m0) {
+                double t = b0[i];
+                for (j = 0; j < i; j++)
+                    t = t - A0[i * m0 + j] * b0[j];
+                b0[i] = t;
+            }
+            if (i < m1) {
+                double t = b1[i];
+                for (j = 0; j < i; j++)
+                    t = t - A1[i * m1 + j] * b1[j];
+                b1[i] = t;
+            }
+        }
+        for (i = mm - 1; i >= 0; i--) {
+            if (i < m0) {
+                double t = b0[i];
+                for (j = i + 1; j < m0; j++)
+                    t = t - A0[i * m0 + j] * b0[j];
+                b0[i] = t / A0[i * m0 + i];
+            }
+            if (i < m1) {
+                double t = b1[i];
+                for (j = i + 1; j < m1; j++)
+                    t = t - A1[i * m1 + j] * b1[j];
+                b1[i] = t / A1[i * m1 + i];
+            }
+        }
+    }
+    """
+    void _prefetch "lcpcli_prefetch_block"(const double* p, Py_ssize_t count) noexcept nogil
+    double _absmax "lcpcli_absmax"(const double* x, Py_ssize_t count) noexcept nogil
+    void _lu_solve_c "lcpcli_lu_solve"(const double* A, Py_ssize_t m, double* b) noexcept nogil
+    void _lu_solve2 "lcpcli_lu_solve2"(const double* A0, Py_ssize_t m0, double* b0,
+                                       const double* A1, Py_ssize_t m1, double* b1) noexcept nogil
+    Py_ssize_t _diag_lu "lcpcli_diag_lu"(double* A, Py_ssize_t m, double big,
+                                         Py_ssize_t* idx) noexcept nogil
+    void _diag_lu2 "lcpcli_diag_lu2"(double* A0, Py_ssize_t m0, double big0, Py_ssize_t* idx0,
+                                     double* A1, Py_ssize_t m1, double big1, Py_ssize_t* idx1,
+                                     Py_ssize_t* k) noexcept nogil
+
 cdef enum:
     B_SOLVED = 0
     B_RETRY = 1
@@ -157,6 +354,11 @@ cdef void _lemke_one(const double* M, const double* q, const double* d, Py_ssize
     free(rc_exp)
 
 
+cdef enum:
+    # problems up to this size take the warm start's scratch on the C stack (no malloc)
+    STACK_N = 16
+
+
 #: Block pivots without a new lowest count of infeasible pairs before the warm start's
 #: least-index single pivots (Júdice & Pires' p; lcpcli.solvers.methods.bpp.BLOCK_TRIES).
 cdef int W_BLOCK_TRIES = 3
@@ -176,51 +378,79 @@ cdef int _basic_solution(const double* M, const double* q, Py_ssize_t n,
     principal block found so far (contact LCPs, whose redundant contacts make M singular, need
     this).  Returns the size of the solved block.  ``A``: n*n, ``idx``, ``piv``: n,
     ``r``: n."""
-    cdef Py_ssize_t i, j, k, m = 0, p, t_i
-    cdef double big = 0.0, t, a
-    for i in range(n):
-        z[i] = 0.0
-        if F[i]:
-            idx[m] = i
-            m += 1
+    cdef double big
+    cdef Py_ssize_t m = _basic_gather(M, n, F, A, idx, piv, z, &big)
     if m == 0:
         return 0
+    return _basic_finish(q, n, F, A, idx, piv, r, z, m, _diag_lu(A, m, big, idx))
+
+
+cdef int _basic_solution2(const double* M0, const double* q0, signed char* F0, double* A0,
+                          Py_ssize_t* idx0, Py_ssize_t* piv0, double* r0, double* z0,
+                          const double* M1, const double* q1, signed char* F1, double* A1,
+                          Py_ssize_t* idx1, Py_ssize_t* piv1, double* r1, double* z1,
+                          Py_ssize_t n, Py_ssize_t* m) noexcept nogil:
+    """:func:`_basic_solution` of two problems of size ``n``, their eliminations and their
+    solves in turn (lcpcli_diag_lu2, lcpcli_lu_solve2: the processor overlaps the two chains of
+    dependent operations); the sizes of the solved blocks in ``m[0]``, ``m[1]``."""
+    cdef double big0, big1
+    cdef Py_ssize_t k[2]
+    cdef Py_ssize_t m0 = _basic_gather(M0, n, F0, A0, idx0, piv0, z0, &big0)
+    cdef Py_ssize_t m1 = _basic_gather(M1, n, F1, A1, idx1, piv1, z1, &big1)
+    cdef Py_ssize_t i
+    _diag_lu2(A0, m0, big0, idx0, A1, m1, big1, idx1, k)
+    m[0] = _basic_rhs(q0, F0, A0, idx0, r0, m0, k[0])
+    m[1] = _basic_rhs(q1, F1, A1, idx1, r1, m1, k[1])
+    _lu_solve2(A0, m[0], r0, A1, m[1], r1)  # (piv is the identity: no interchanges)
+    for i in range(m[0]):
+        z0[idx0[i]] = r0[i]
+    for i in range(m[1]):
+        z1[idx1[i]] = r1[i]
+    return 0
+
+
+cdef Py_ssize_t _basic_gather(const double* M, Py_ssize_t n, const signed char* F, double* A,
+                              Py_ssize_t* idx, Py_ssize_t* piv, double* z,
+                              double* big) noexcept nogil:
+    """:func:`_basic_solution`'s first part: z = 0, the basic pairs in ``idx``, the block
+    ``M_FF`` in ``A`` (stride m) and its largest |entry| in ``big``; returns m."""
+    cdef Py_ssize_t i, j, m = 0
+    cdef const double* row
+    for i in range(n):  # (no branch on the basis: which pairs are basic is data)
+        z[i] = 0.0
+        idx[m] = i
+        m += F[i] != 0
     for i in range(m):
+        row = M + idx[i] * n
         for j in range(m):
-            a = M[idx[i] * n + idx[j]]
-            A[i * m + j] = a
-            if fabs(a) > big:
-                big = fabs(a)
-    for k in range(m):
-        piv[k] = k
-    k = 0
-    while k < m:
-        p = k
-        for i in range(k + 1, m):
-            if fabs(A[i * m + i]) > fabs(A[p * m + p]):
-                p = i
-        if not (fabs(A[p * m + p]) > 1e-13 * big):
-            for i in range(k, m):  # repair: the pairs left unpivoted leave the basis
-                F[idx[i]] = 0
-            break
-        if p != k:  # symmetric swap of rows and columns k and p
-            for j in range(m):
-                t = A[k * m + j]
-                A[k * m + j] = A[p * m + j]
-                A[p * m + j] = t
-            for i in range(m):
-                t = A[i * m + k]
-                A[i * m + k] = A[i * m + p]
-                A[i * m + p] = t
-            t_i = idx[k]
-            idx[k] = idx[p]
-            idx[p] = t_i
-        for i in range(k + 1, m):
-            A[i * m + k] = A[i * m + k] / A[k * m + k]
-            t = A[i * m + k]
-            for j in range(k + 1, m):
-                A[i * m + j] = A[i * m + j] - t * A[k * m + j]
-        k += 1
+            A[i * m + j] = row[idx[j]]
+    big[0] = _absmax(A, m * m)
+    for i in range(m):
+        piv[i] = i
+    return m
+
+
+cdef Py_ssize_t _basic_finish(const double* q, Py_ssize_t n, signed char* F, double* A,
+                              const Py_ssize_t* idx, const Py_ssize_t* piv, double* r,
+                              double* z, Py_ssize_t m, Py_ssize_t k) noexcept nogil:
+    """:func:`_basic_solution`'s last part, after ``k`` pivots of the elimination
+    (:func:`_basic_rhs`, then the solve); returns the size of the solved block."""
+    cdef Py_ssize_t i
+    m = _basic_rhs(q, F, A, idx, r, m, k)
+    _lu_solve(A, piv, m, r)
+    for i in range(m):
+        z[idx[i]] = r[i]
+    return m
+
+
+cdef Py_ssize_t _basic_rhs(const double* q, signed char* F, double* A, const Py_ssize_t* idx,
+                           double* r, Py_ssize_t m, Py_ssize_t k) noexcept nogil:
+    """After ``k`` pivots of the elimination of the m x m block: the repair (the pairs left
+    unpivoted leave F), the factors of the solved block compacted, ``r = -q_F``; returns the
+    size of the solved block."""
+    cdef Py_ssize_t i, j
+    for i in range(k, m):  # repair: the pairs left unpivoted leave the basis
+        F[idx[i]] = 0
     if k < m:  # the repaired block: the leading k x k factors (stride m) compacted
         for i in range(k):
             for j in range(k):
@@ -228,9 +458,6 @@ cdef int _basic_solution(const double* M, const double* q, Py_ssize_t n,
         m = k
     for i in range(m):
         r[i] = -q[idx[i]]
-    _lu_solve(A, piv, m, r)
-    for i in range(m):
-        z[idx[i]] = r[i]
     return m
 
 
@@ -252,21 +479,15 @@ cdef void _refine(const double* M, const double* q, Py_ssize_t n, const double* 
 
 cdef void _lu_solve(const double* A, const Py_ssize_t* piv, Py_ssize_t m,
                     double* b) noexcept nogil:
-    """``b <- (LU)^-1 P b`` for the factors of :func:`_basic_solution`."""
-    cdef Py_ssize_t i, j
+    """``b <- (LU)^-1 P b`` for the factors of :func:`_basic_solution` (lcpcli_lu_solve)."""
+    cdef Py_ssize_t i
     cdef double t
     for i in range(m):
         if piv[i] != i:
             t = b[i]
             b[i] = b[piv[i]]
             b[piv[i]] = t
-    for i in range(m):
-        for j in range(i):
-            b[i] = b[i] - A[i * m + j] * b[j]
-    for i in range(m - 1, -1, -1):
-        for j in range(i + 1, m):
-            b[i] = b[i] - A[i * m + j] * b[j]
-        b[i] = b[i] / A[i * m + i]
+    _lu_solve_c(A, m, b)
 
 
 cdef int _bpp_one(const double* M, const double* q, Py_ssize_t n, const signed char* F0,
@@ -274,55 +495,100 @@ cdef int _bpp_one(const double* M, const double* q, Py_ssize_t n, const signed c
                   int64_t* iters, double* err, double* res) noexcept nogil:
     """Block principal pivoting from the basis ``F0`` (as lcpcli.solvers.methods.bpp: block
     pivots while the count of infeasible pairs falls, Murty's least-index single pivot after
-    W_BLOCK_TRIES without progress), judged by the certificate.  A basic solution with
-    ``z_F >= 0`` goes to the certificate first (a basis that is still right ends there, with
-    no pass of its own over M); one that fails it is refined once and certified again, and
-    its infeasible pairs are read from the certificate's ``w`` and row scales.  Returns 1 when
-    an answer passed (z, w, state, iters, err, res filled), 0 otherwise (singular block,
+    W_BLOCK_TRIES without progress), judged by the certificate (:func:`_bpp_run`).  Returns 1
+    when an answer passed (z, w, state, iters, err, res filled), 0 otherwise (singular block,
     iteration limit, an answer that stays uncertified: the caller solves cold)."""
-    cdef double* work = <double*>malloc((n * n + 8 * n + 1) * sizeof(double))
-    cdef Py_ssize_t* iwork = <Py_ssize_t*>malloc((5 * n + 1) * sizeof(Py_ssize_t))
-    cdef signed char* F = <signed char*>malloc(n + 1)
-    cdef double* A
-    cdef double* r
-    cdef double* cwork
-    cdef double* scale
+    cdef double swork[STACK_N * STACK_N + 8 * STACK_N + 1]
+    cdef Py_ssize_t siwork[5 * STACK_N + 1]
+    cdef signed char sF[STACK_N + 1]
+    cdef bint heap = n > STACK_N  # small problems: scratch on the C stack, no malloc
+    cdef double* work = <double*>malloc((n * n + 8 * n + 1) * sizeof(double)) if heap else swork
+    cdef Py_ssize_t* iwork = (<Py_ssize_t*>malloc((5 * n + 1) * sizeof(Py_ssize_t)) if heap
+                              else siwork)
+    cdef signed char* F = <signed char*>malloc(n + 1) if heap else sF
+    cdef Py_ssize_t i
+    cdef int ok = 0
+    if work != NULL and iwork != NULL and F != NULL:
+        for i in range(n):
+            F[i] = 1 if F0[i] else 0
+        ok = _bpp_run(M, q, n, max_iter, tol, z, w, state, iters, err, res, work, iwork, F,
+                      -1)
+    if heap:
+        free(work)
+        free(iwork)
+        free(F)
+    return ok
+
+
+cdef int _bpp_pair(const double* M0, const double* q0, const signed char* B0, double* z0,
+                   double* w0, signed char* st0, int64_t* it0, double* err0, double* res0,
+                   const double* M1, const double* q1, const signed char* B1, double* z1,
+                   double* w1, signed char* st1, int64_t* it1, double* err1, double* res1,
+                   Py_ssize_t n, int64_t max_iter, double tol) noexcept nogil:
+    """:func:`_bpp_one` on two problems of size ``n <= STACK_N``, their first basic solutions
+    computed together (:func:`_basic_solution2`); returns bit 0 / bit 1 set when problem 0 / 1
+    passed."""
+    cdef double work0[STACK_N * STACK_N + 8 * STACK_N + 1]
+    cdef double work1[STACK_N * STACK_N + 8 * STACK_N + 1]
+    cdef Py_ssize_t iwork0[5 * STACK_N + 1]
+    cdef Py_ssize_t iwork1[5 * STACK_N + 1]
+    cdef signed char F0[STACK_N + 1]
+    cdef signed char F1[STACK_N + 1]
+    cdef Py_ssize_t m[2]
+    cdef Py_ssize_t i
+    for i in range(n):
+        F0[i] = 1 if B0[i] else 0
+        F1[i] = 1 if B1[i] else 0
+    _basic_solution2(M0, q0, F0, work0, iwork0 + 3 * n, iwork0 + 4 * n, work0 + n * n, z0,
+                     M1, q1, F1, work1, iwork1 + 3 * n, iwork1 + 4 * n, work1 + n * n, z1,
+                     n, m)
+    return (_bpp_run(M0, q0, n, max_iter, tol, z0, w0, st0, it0, err0, res0, work0, iwork0,
+                     F0, m[0])
+            | (_bpp_run(M1, q1, n, max_iter, tol, z1, w1, st1, it1, err1, res1, work1, iwork1,
+                        F1, m[1]) << 1))
+
+
+cdef int _bpp_run(const double* M, const double* q, Py_ssize_t n, int64_t max_iter,
+                  double tol, double* z, double* w, signed char* state, int64_t* iters,
+                  double* err, double* res, double* work, Py_ssize_t* iwork, signed char* F,
+                  Py_ssize_t first_m) noexcept nogil:
+    """The iterations of :func:`_bpp_one` from the basis ``F`` (modified), in the scratch
+    ``work`` (n*n + 8 n doubles: the block's factors, then r, then the certificate's 5 n) and
+    ``iwork`` (5 n: the certificate's 3 n, idx, piv).  ``first_m >= 0``: the first basic
+    solution is in place already (:func:`_basic_solution`'s outputs, its size ``first_m``).
+    A basic solution with ``z_F >= 0`` goes to the certificate first (a basis that is still
+    right ends there, with no pass of its own over M); one that fails it is refined once and
+    certified again, and its infeasible pairs are read from the certificate's ``w`` and row
+    scales."""
+    cdef double* A = work
+    cdef double* r = work + n * n
+    cdef double* cwork = work + n * n + n  # 5 n for the certificate: a, then the row scales s
+    cdef double* scale = cwork + n
+    cdef Py_ssize_t* idx = iwork + 3 * n
+    cdef Py_ssize_t* piv = iwork + 4 * n
     cdef Py_ssize_t i, j, m, count, best = n + 1, first
-    cdef Py_ssize_t* idx
-    cdef Py_ssize_t* piv
     cdef int tries = W_BLOCK_TRIES, ok = 0
     cdef int64_t it
     cdef double zmax, t, sc
     cdef bint nonneg, have_w
     cdef CertOut cert
-    if work == NULL or iwork == NULL or F == NULL:
-        free(work)
-        free(iwork)
-        free(F)
-        return 0
-    A = work
-    r = work + n * n
-    cwork = work + n * n + n  # 5 n for the certificate: a, then the row scales s
-    scale = cwork + n
-    idx = iwork + 3 * n
-    piv = iwork + 4 * n
-    for i in range(n):
-        F[i] = 1 if F0[i] else 0
     it = 0
     while it < max_iter:
         it += 1
-        m = _basic_solution(M, q, n, F, A, idx, piv, r, z)
+        if it == 1 and first_m >= 0:
+            m = first_m
+        else:
+            m = _basic_solution(M, q, n, F, A, idx, piv, r, z)
         if m < 0:
             break
-        zmax = 1.0
+        zmax = 1.0  # (selects and flags: which z_i are basic, or large, is data)
         for i in range(n):
-            if fabs(z[i]) > zmax:
-                zmax = fabs(z[i])
+            t = fabs(z[i])
+            zmax = t if t > zmax else zmax
+        t = -W_NEG_TOL * zmax
         nonneg = True
         for i in range(n):
-            if F[i] and z[i] < -W_NEG_TOL * zmax:
-                nonneg = False
-                break
+            nonneg &= not (F[i] != 0) & (z[i] < t)
         have_w = False
         if nonneg:
             if _certify_basic(M, q, n, m, A, idx, piv, r, tol, z, w, cwork, iwork, state,
@@ -368,9 +634,6 @@ cdef int _bpp_one(const double* M, const double* q, Py_ssize_t n, const signed c
         for i in range(n):
             if r[i] != 0.0:
                 F[i] = 1 - F[i]
-    free(work)
-    free(iwork)
-    free(F)
     return ok
 
 
@@ -723,7 +986,10 @@ def lemke_warm_stack(M, q, d, basis, int64_t max_iter, int64_t warm_iter,
     ``warm_pivots`` pivots (:func:`_ppt_lemke_one`); an answer that passes the certificate is
     kept (``warm[k]`` = 1), any other ending runs Lemke cold on it in the same call
     (:func:`lemke_stack`'s arguments and outputs).  ``state`` ((K, n) int8) receives each
-    certified answer's basis (the certificate's pair states) for the next step.
+    certified answer's basis (the certificate's pair states) for the next step.  Problems go
+    in pairs: two problems of n <= STACK_N that both have a basis start together
+    (:func:`_bpp_pair`: their first basic solutions factored and solved in turn, the same
+    numbers as one by one).
     """
     cdef int eqv[3]
     cdef const int* eq = _balance_args(balance, eqv)
@@ -737,24 +1003,58 @@ def lemke_warm_stack(M, q, d, basis, int64_t max_iter, int64_t warm_iter,
     cdef signed char* bp = <signed char*>cnp.PyArray_DATA(ba)
     cdef signed char* sp = <signed char*>cnp.PyArray_DATA(sa)
     cdef signed char* wp = <signed char*>cnp.PyArray_DATA(wa)
+    cdef Py_ssize_t kk
+    cdef int ok
     if _empty(a):
         return
-    for k in prange(K, nogil=True, schedule="dynamic", chunksize=64,
-                    num_threads=threads if threads > 0 else 1):
-        wp[k] = 0
-        if bp[k * n] >= 0 and (
-                _bpp_one(a.M + k * nn, a.q + k * n, n, bp + k * n, warm_iter, tol,
-                         a.z + k * n, a.w + k * n, sp + k * n, a.iters + k, a.err + k,
-                         a.residual + k)
-                or _ppt_lemke_one(a.M + k * nn, a.q + k * n, n, bp + k * n, warm_pivots,
-                                  piv_tol, tie_tol, tol, a.z + k * n, a.w + k * n,
-                                  sp + k * n, a.iters + k, a.err + k, a.residual + k)):
-            wp[k] = 1
-            a.code[k] = B_SOLVED
+    for kk in prange((K + 1) // 2, nogil=True, schedule="dynamic", chunksize=32,
+                     num_threads=threads if threads > 0 else 1):
+        # problems in pairs: two small problems that both have a basis start together
+        k = 2 * kk
+        if k + 2 < K:
+            _prefetch(a.M + (k + 2) * nn, 2 * nn if k + 3 < K else nn)
+        ok = 0
+        if k + 1 < K and n <= STACK_N and bp[k * n] >= 0 and bp[(k + 1) * n] >= 0:
+            ok = _bpp_pair(a.M + k * nn, a.q + k * n, bp + k * n, a.z + k * n, a.w + k * n,
+                           sp + k * n, a.iters + k, a.err + k, a.residual + k,
+                           a.M + (k + 1) * nn, a.q + (k + 1) * n, bp + (k + 1) * n,
+                           a.z + (k + 1) * n, a.w + (k + 1) * n, sp + (k + 1) * n,
+                           a.iters + k + 1, a.err + k + 1, a.residual + k + 1, n, warm_iter,
+                           tol)
         else:
-            _lemke_one(a.M + k * nn, a.q + k * n, dp, n, max_iter, piv_tol, tie_tol, tol,
-                       polished, eq, a.z + k * n, a.w + k * n, a.code + k, a.iters + k,
-                       a.err + k, a.residual + k, sp + k * n)
+            if bp[k * n] >= 0:
+                ok = _bpp_one(a.M + k * nn, a.q + k * n, n, bp + k * n, warm_iter, tol,
+                              a.z + k * n, a.w + k * n, sp + k * n, a.iters + k, a.err + k,
+                              a.residual + k)
+            if k + 1 < K and bp[(k + 1) * n] >= 0:
+                ok = ok | (_bpp_one(a.M + (k + 1) * nn, a.q + (k + 1) * n, n,
+                                    bp + (k + 1) * n, warm_iter, tol, a.z + (k + 1) * n,
+                                    a.w + (k + 1) * n, sp + (k + 1) * n, a.iters + k + 1,
+                                    a.err + k + 1, a.residual + k + 1) << 1)
+        _warm_rest(a, k, ok & 1, n, nn, bp, sp, wp, dp, eq, max_iter, warm_pivots, piv_tol,
+                   tie_tol, tol, polished)
+        if k + 1 < K:
+            _warm_rest(a, k + 1, ok >> 1, n, nn, bp, sp, wp, dp, eq, max_iter, warm_pivots,
+                       piv_tol, tie_tol, tol, polished)
+
+
+cdef inline void _warm_rest(_Stack a, Py_ssize_t k, int bpp_ok, Py_ssize_t n, Py_ssize_t nn,
+                            const signed char* bp, signed char* sp, signed char* wp,
+                            const double* dp, const int* eq, int64_t max_iter,
+                            int64_t warm_pivots, double piv_tol, double tie_tol, double tol,
+                            double polished) noexcept nogil:
+    """Problem k of :func:`lemke_warm_stack` after its block principal pivoting (``bpp_ok``:
+    passed): else Lemke from its basis, else cold Lemke."""
+    wp[k] = 0
+    if bpp_ok or (bp[k * n] >= 0 and _ppt_lemke_one(
+            a.M + k * nn, a.q + k * n, n, bp + k * n, warm_pivots, piv_tol, tie_tol, tol,
+            a.z + k * n, a.w + k * n, sp + k * n, a.iters + k, a.err + k, a.residual + k)):
+        wp[k] = 1
+        a.code[k] = B_SOLVED
+    else:
+        _lemke_one(a.M + k * nn, a.q + k * n, dp, n, max_iter, piv_tol, tie_tol, tol,
+                   polished, eq, a.z + k * n, a.w + k * n, a.code + k, a.iters + k,
+                   a.err + k, a.residual + k, sp + k * n)
 
 
 def sor_stack(M, q, lo, up, double omega, int64_t max_iter, double tol, z, w, code, iters,
