@@ -74,9 +74,9 @@ def run(problem: Any, *, tol: float, covering: np.ndarray | None = None,
         out = run_tableau(problem, tol=tol, covering=covering, max_iter=max_iter, trace=True)
         out.info["trace_engine"] = "tableau replica (same pivot rule)"
         return out
-    n = problem.n
-    M = problem.dense_M()  # the kernel takes it as it is when float64 C-contiguous
     q = problem.q
+    n = len(q)
+    M = problem.dense_M()  # the kernel takes it as it is when float64 C-contiguous
     d = None if covering is None else covering_vector(n, covering)  # None: all ones
     limit = max_iter or default_max_iter(n)
     # kernel, final polish and the certificate in one compiled call
@@ -85,11 +85,16 @@ def run(problem: Any, *, tol: float, covering: np.ndarray | None = None,
     if got is None:
         return None
     status = got.status
-    if status == OK:
+    if status == OK:  # the artificial variable left the basis
         # the certificate of this z for this problem, as check() computes it (out of range:
         # status 2, left to check(), which rescales)
         cert = got.cert
-        return _converged(got, from_kernel(cert, tol) if cert[0] != 2 else None)
+        pivots, refactors = got.pivots, got.refactors
+        return Outcome.converged(got.z, pivots,
+                                 f"artificial variable left the basis after "
+                                 f"{plural(pivots, 'pivot')} ({refactors} refactorisations)",
+                                 {"refactorisations": refactors, "basis": got.basis},
+                                 (from_kernel(cert, tol), got.w) if cert[0] != 2 else None)
     if status == TRIVIAL:
         return Outcome(np.zeros(n), 0, CONVERGED, "q >= 0: z = 0 solves the problem")
     z, pivots, refactors = got.z, got.pivots, got.refactors
@@ -116,17 +121,6 @@ def run(problem: Any, *, tol: float, covering: np.ndarray | None = None,
         again.info.update(info)
         return again
     return out
-
-
-def _converged(got: Any, cert: Any) -> Outcome:
-    """The Outcome of a kernel run (:class:`LemkeRun`) whose artificial variable left the
-    basis, with the kernel's certificate ``cert`` (None: left to the caller)."""
-    pivots, refactors = got.pivots, got.refactors
-    return Outcome.converged(got.z, pivots,
-                             f"artificial variable left the basis after "
-                             f"{plural(pivots, 'pivot')} ({refactors} refactorisations)",
-                             {"refactorisations": refactors, "basis": got.basis},
-                             None if cert is None else (cert, got.w))
 
 
 METHODS = [
