@@ -195,21 +195,26 @@ class _OpeningWriter:
         except BaseException as exc:  # noqa: BLE001 - raised where the writer is used
             self.error = exc
 
-    def get(self) -> Any:
-        """The writer, once made."""
+    def _wait(self) -> BaseException | None:
+        """Join the thread (on through Ctrl-C: the file is renamed into place); the
+        interrupt that arrived meanwhile, if any."""
         interrupted: BaseException | None = None
         while self.thread.is_alive():
             try:
                 self.thread.join()
-            except KeyboardInterrupt as exc:  # wait on: the file is renamed into place
+            except KeyboardInterrupt as exc:
                 interrupted = exc
-        if self.error is not None:
-            raise self.error
-        if self.writer.chunk(self.first) != self.want_chunk:
+        if self.error is None and self.writer.chunk(self.first) != self.want_chunk:
             self.writer.close()
             self.error = RuntimeError(f"a new result file records chunks of "
                                       f"{self.writer.chunk(self.first)} problems, not "
                                       f"{self.want_chunk}")
+        return interrupted
+
+    def get(self) -> Any:
+        """The writer, once made."""
+        interrupted = self._wait()
+        if self.error is not None:
             raise self.error
         if interrupted is not None:
             raise interrupted
@@ -222,8 +227,13 @@ class _OpeningWriter:
         self.get().write(*args)
 
     def close(self) -> None:
-        if self.thread.is_alive() or self.error is None:
-            self.get().close()
+        """Close the writer once made (nothing when making it failed: that error was
+        raised where the writer was used)."""
+        interrupted = self._wait()
+        if self.error is None:
+            self.writer.close()
+        if interrupted is not None:
+            raise interrupted
 
 
 def _open_warm(opts: SolveOptions, infos: list[Any], scheduler: Any) -> tuple[Any, str | None]:

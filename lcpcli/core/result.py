@@ -239,8 +239,19 @@ class Result:
 BASIS_LETTERS = "LUF"
 
 
+#: Byte -> letter of the codes 0, 1, 2 of a one-byte basis array; "?" for every other byte.
+_BASIS_BYTES = bytes(ord(BASIS_LETTERS[b]) if b < len(BASIS_LETTERS) else ord("?")
+                     for b in range(256))
+
+
 def basis_text(codes: np.ndarray) -> str:
-    """A basis as one letter per pair (:data:`BASIS_LETTERS`), e.g. ``"FLLF"``."""
+    """A basis as one letter per pair (:data:`BASIS_LETTERS`), e.g. ``"FLLF"``.  A one-byte
+    array of valid codes (the usual int8 basis) goes through ``bytes.translate`` (a third of
+    the time of numpy's indexing on a row)."""
+    if type(codes) is np.ndarray and codes.dtype.itemsize == 1 and codes.dtype.kind in "iu":
+        text = codes.tobytes().translate(_BASIS_BYTES)
+        if b"?" not in text:
+            return text.decode("ascii")
     return np.frombuffer(BASIS_LETTERS.encode(), dtype=np.uint8)[np.asarray(codes, dtype=np.intp)] \
         .tobytes().decode("ascii")
 

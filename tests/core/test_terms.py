@@ -73,7 +73,19 @@ def test_result_rows_map_non_finite_numbers_to_null():
     big = np.array([1e308, 1e308, -0.0, 5e-324])  # the sum overflows: still all finite
     assert _floats(big) == [1e308, 1e308, -0.0, 5e-324]
     assert _floats(np.array([np.inf, -np.inf, 1.0])) == [None, None, 1.0]  # inf - inf = nan
+    from lcpcli.core.result import BASIS_LETTERS, basis_text
+
     rng = np.random.default_rng(3)
+    for dtype in (np.int8, np.uint8, np.int16, np.int64):
+        for shape in ((0,), (7,), (3, 4)):
+            codes = rng.integers(0, 3, shape).astype(dtype)
+            want = "".join(BASIS_LETTERS[c] for c in codes.ravel().tolist())
+            assert basis_text(codes) == want
+            assert basis_text(codes[..., ::2]) == "".join(
+                BASIS_LETTERS[c] for c in codes[..., ::2].ravel().tolist())
+    assert basis_text(np.array([0, -1, 2], np.int8)) == "LFF"  # numpy's index wraps, as before
+    with pytest.raises(IndexError):
+        basis_text(np.array([0, 3], np.int8))
     for _ in range(200):
         v = rng.choice([0.0, -0.0, 1.5, -2e308 / 2, 1e308, np.inf, -np.inf, np.nan],
                        size=rng.integers(0, 6))
