@@ -27,13 +27,12 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ[_var] = os.environ.get("BENCH_THREADS", "1")
 
 import argparse  # noqa: E402
-import json  # noqa: E402
-import platform  # noqa: E402
 import statistics  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
+from _results import write_results  # noqa: E402
 
 import lcpcli  # noqa: E402
 
@@ -107,11 +106,7 @@ def main() -> None:
                   f"{r['ratio_wall_mean']:>10.3f}x"
                   f"  ({r['warm_from_basis_steps']}/{args.steps} steps from the basis)")
         print(f"      max |z_warm - z_cold| {row['max_z_difference']:.1e}")
-    meta = {"date": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
-            "python": platform.python_version(), "numpy": np.__version__,
-            "load": os.getloadavg(), "nproc": os.cpu_count()}
-    Path(args.out).write_text(json.dumps({"meta": meta, "rows": rows}, indent=1) + "\n")
-    print(f"written {args.out}; load average {meta['load']}")
+    write_results(args.out, rows)
 
 
 if __name__ == "__main__":

@@ -18,14 +18,12 @@ stack's.  Threads: ``--threads`` (default: the cores this process may use).  Wri
 from __future__ import annotations
 
 import argparse
-import json
-import os
-import platform
 import statistics
 import time
 from pathlib import Path
 
 import numpy as np
+from _results import write_results
 
 import lcpcli
 
@@ -87,11 +85,7 @@ def main() -> None:
               f"{row['speedup_best']:.2f}x); mean pivots/iterations cold "
               f"{row['mean_iterations']['cold']:.2f}, warm {row['mean_iterations']['warm']:.3f}; "
               f"max |z_warm - z_cold| {row['max_z_difference']:.1e}")
-    meta = {"date": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
-            "python": platform.python_version(), "numpy": np.__version__,
-            "load": os.getloadavg(), "nproc": os.cpu_count()}
-    Path(args.out).write_text(json.dumps({"meta": meta, "rows": rows}, indent=1) + "\n")
-    print(f"written {args.out}; load average {meta['load']}")
+    write_results(args.out, rows)
 
 
 if __name__ == "__main__":
