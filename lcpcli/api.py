@@ -143,6 +143,9 @@ def certify_outcome(problem: Problem, outcome: Outcome, method: str, seconds: fl
 
     ``basis``: record the final basis (:attr:`Result.basis`) in the same certificate pass
     (warm starts, whose next step needs it); otherwise it is computed on first use."""
+    if outcome.import_seconds:  # imports are never timed (Outcome.import_seconds)
+        seconds = max(0.0, seconds - outcome.import_seconds)
+        outcome.info["import_seconds"] = outcome.import_seconds
     states = np.empty(problem.n, dtype=np.int8) if basis else None
     cert, w = certified(problem, outcome, tol, states)  # reused when the dispatcher made it
     z = outcome.z

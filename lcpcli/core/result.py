@@ -93,15 +93,20 @@ class Outcome:
     trace: list[dict[str, Any]] | None = None
     info: dict[str, Any] = field(default_factory=dict)
     checked: tuple[Certificate, np.ndarray] | None = None
+    #: Seconds the run spent importing modules it could not know it needed before it started
+    #: (a planner's fallback: ``auto`` loads scipy.linalg only when its first attempt fails);
+    #: :func:`lcpcli.api.certify_outcome` leaves them out of ``Result.seconds``.
+    import_seconds: float = 0.0
 
     @classmethod
     def converged(cls, z: np.ndarray, iterations: int, message: str,
                   info: dict[str, Any] | None = None,
-                  checked: tuple[Certificate, np.ndarray] | None = None) -> Outcome:
+                  checked: tuple[Certificate, np.ndarray] | None = None,
+                  import_seconds: float = 0.0) -> Outcome:
         """A run that says it converged (no claim of infeasibility, no trace); the small-solve
         paths build it here, positionally, without binding keywords."""
         return cls(z, iterations, CONVERGED, message, False, None, {} if info is None else info,
-                   checked)
+                   checked, import_seconds)
 
 
 @dataclass(slots=True)

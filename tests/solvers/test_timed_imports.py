@@ -29,10 +29,22 @@ def watched():  # every clock read of lcpcli.solve: the timed region lies betwee
     return clock()
 api.perf_counter = watched
 
+from lcpcli.solvers.methods import auto
+window = set()
+preload = auto.preload_linalg
+def watched_preload(problem):  # auto's fallback loads what its next steps need, timed apart
+    before = set(sys.modules)
+    preload(problem)
+    window.update(set(sys.modules) - before)
+auto.preload_linalg = watched_preload
+
 method, warm, sparse, n = sys.argv[1], sys.argv[2] == "warm", sys.argv[3] == "sparse", 80
 rng = np.random.default_rng(7)
 A = rng.standard_normal((n, n))
 M, q = A @ A.T + n * np.eye(n), rng.standard_normal(n)
+if sys.argv[3] == "indefinite":  # Lemke fails: auto falls back to methods that factorise
+    M = np.random.default_rng(1).standard_normal((n, n))
+    q = np.random.default_rng(1).standard_normal((n, n))[0]
 if sparse:
     import scipy.sparse as sp
     M = sp.csr_matrix(np.where(np.abs(M) > 2.0, M, 0.0) + n * np.eye(n))
@@ -43,8 +55,10 @@ if warm:
     res = lcpcli.solve(lcpcli.Problem.create(M, q * 1.01), method, warm=prev)
 else:
     res = lcpcli.solve(p, method)
-new = sorted(set().union(*snapshots) - snapshots[0]) if snapshots else ["no clock read"]
-print(json.dumps({"status": str(res.status), "method": res.method, "new": new}))
+new = sorted(set().union(*snapshots) - snapshots[0] - window) if snapshots else ["clock?"]
+print(json.dumps({"status": str(res.status), "method": res.method, "new": new,
+                  "window": len(window), "import_seconds": res.info.get("import_seconds", 0.0),
+                  "attempts": len(res.info.get("attempts", []))}))
 """
 
 
@@ -64,3 +78,18 @@ def test_no_import_while_a_solve_is_timed(method, warm, storage):
     got = json.loads(out.stdout.strip().splitlines()[-1])
     assert got["status"] == "solved"
     assert got["new"] == [], f"{method} ({warm}, {storage}) imported {got['new']} while timed"
+    assert got["window"] == 0  # only auto's fallback loads anything inside its run
+
+
+def test_auto_fallback_imports_are_left_out_of_seconds():
+    """Lemke fails on this indefinite M: auto's next steps factorise, and what they import
+    loads inside auto's preload window, whose time is reported as info["import_seconds"] and
+    left out of seconds; nothing else is imported between the clock reads."""
+    env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    out = subprocess.run([sys.executable, "-c", SCRIPT, "auto", "cold", "indefinite"],
+                         capture_output=True, text=True, env=env, cwd=ROOT, timeout=120)
+    assert out.returncode == 0, out.stderr
+    got = json.loads(out.stdout.strip().splitlines()[-1])
+    assert got["attempts"] > 1, "the case must make auto fall back"
+    assert got["new"] == [], f"auto imported {got['new']} outside its preload window"
+    assert got["window"] > 0 and got["import_seconds"] > 0
