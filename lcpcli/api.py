@@ -21,6 +21,7 @@ from lcpcli.core.result import (
 from lcpcli.solvers.pipeline import certified, run_method
 from lcpcli.solvers.request import (  # noqa: F401  (re-exported)
     DEFAULT_METHOD,
+    Request,
     check_dense_ok,
     check_dense_work,
     check_sparse_work,
@@ -81,7 +82,7 @@ def solve(problem: Problem | Any, q: Any = None, method: str | None = None, *,
     return certify_outcome(problem, outcome, request.spec.name, seconds, request.tol)
 
 
-def _solve_warm(request: Any, warm: Any, options: dict[str, Any]) -> Result:
+def _solve_warm(request: Request, warm: Any, options: dict[str, Any]) -> Result:
     """:func:`solve` with ``warm`` (see its docstring).  Everything but the runs (the warm
     start's checks, its basis or point as options, their imports) is done before the clock
     starts."""
