@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 
 from lcpcli.core.certificate import AT_LOWER, AT_UPPER, BETWEEN
+from lcpcli.core.errors import OptionError
 from lcpcli.core.limits import MAX_ITER
 from lcpcli.core.result import BASIS_LETTERS, Result
 
@@ -94,3 +95,12 @@ def basis_option(value: Any) -> np.ndarray:
         raise ValueError("a basis is a list of booleans or 0/1 (True: z_i basic), '1,0,1', "
                          "letters 'FLUF' (F: z_i basic), or a Result or its basis")
     return arr.astype(bool)
+
+
+def index_set(basis: Any, n: int) -> np.ndarray:
+    """A method's parsed ``basis`` option (:func:`basis_option`) as the booleans of an index set
+    of ``n`` pairs (True: ``z_i`` basic); OptionError when its length is not ``n``."""
+    F = np.asarray(basis, dtype=bool).ravel()
+    if F.shape[0] != n:
+        raise OptionError(f"basis has length {F.shape[0]}, the problem has n = {n}")
+    return F

@@ -35,10 +35,9 @@ from typing import Any
 import numpy as np
 
 from lcpcli.analysis.classify import is_symmetric
-from lcpcli.core.errors import OptionError
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, SINGULAR, Outcome
 from lcpcli.core.text import plural
-from lcpcli.solvers.options import basis_option, positive_int, vector_option
+from lcpcli.solvers.options import basis_option, index_set, positive_int, vector_option
 from lcpcli.solvers.registry import Cost, Guarantee, Method, Option, when
 from lcpcli.solvers.support import preload_linalg, start_point
 
@@ -332,10 +331,7 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None,
     F = np.zeros(n, dtype=bool)
     start = ""
     if basis is not None:
-        F = np.asarray(basis, dtype=bool).ravel()
-        if F.shape[0] != n:
-
-            raise OptionError(f"basis has length {F.shape[0]}, the problem has n = {n}")
+        F = index_set(basis, n)
         start = f" from the given basis ({int(F.sum())} z basic)"
     elif z0 is not None:
         F = start_point(problem, z0) > 0

@@ -61,7 +61,7 @@ from lcpcli.solvers.kernels.dantzig import (
 )
 from lcpcli.solvers.methods.bpp import factor_block
 from lcpcli.solvers.methods.lemke_warm import repair
-from lcpcli.solvers.options import basis_option, bool_option, positive_int
+from lcpcli.solvers.options import basis_option, bool_option, index_set, positive_int
 from lcpcli.solvers.registry import Cost, Guarantee, Method, Option, when
 from lcpcli.solvers.support import preload_for_basis
 
@@ -81,16 +81,13 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None,
     kernel (same pivots) and records each pivot in ``Outcome.trace`` (a cold run only).
     """
     if basis is not None:
-        F = np.asarray(basis, dtype=bool).ravel()
         if problem.kind != "lcp":
             raise OptionError("basis= starts dantzig from an LCP's index set; a box LCP's "
                               "basis has three states (its principal pivot transform is no "
                               "box LCP)")
         if trace:
             raise OptionError("dantzig's trace shows a cold run; it does not start from basis=")
-        if F.shape[0] != problem.n:
-            raise OptionError(f"basis has length {F.shape[0]}, the problem has n = "
-                              f"{problem.n}")
+        F = index_set(basis, problem.n)
         if F.any():
             return _run_from(problem, F, max_iter)
     if trace:

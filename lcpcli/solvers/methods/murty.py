@@ -41,7 +41,6 @@ from typing import Any
 import numpy as np
 
 from lcpcli.analysis.classify import exact_p_matrix, not_p_witness
-from lcpcli.core.errors import OptionError
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, SINGULAR, Outcome
 from lcpcli.core.text import plural
 from lcpcli.core.tolerances import PIVOT_TOL
@@ -50,7 +49,7 @@ from lcpcli.solvers.kernels.murty import BAD_PIVOT, OK, murty_kernel
 from lcpcli.solvers.methods.dantzig import basic_solution, feasible, principal_pivot_transform
 from lcpcli.solvers.methods.lemke import default_max_iter
 from lcpcli.solvers.methods.lemke_warm import repair
-from lcpcli.solvers.options import basis_option, bool_option, positive_int, vector_option
+from lcpcli.solvers.options import basis_option, bool_option, index_set, positive_int, vector_option
 from lcpcli.solvers.registry import Cost, Guarantee, Method, Option, when
 from lcpcli.solvers.support import preload_for_basis, start_point
 
@@ -123,11 +122,7 @@ def _start_set(problem: Any, z0: np.ndarray | None,
                basis: np.ndarray | None) -> tuple[np.ndarray, str] | None:
     """The warm start's index set (booleans, True: ``z_i`` basic) and its name, or None."""
     if basis is not None:
-        F = np.asarray(basis, dtype=bool).ravel()
-        if F.shape[0] != problem.n:
-            raise OptionError(f"basis has length {F.shape[0]}, the problem has n = "
-                              f"{problem.n}")
-        return F, "the given basis"
+        return index_set(basis, problem.n), "the given basis"
     if z0 is not None:
         return start_point(problem, z0) > 0, "the warm-start basis"
     return None
