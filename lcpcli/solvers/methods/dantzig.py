@@ -101,6 +101,11 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None,
     return _run(problem, max_iter=max_iter)
 
 
+
+def default_max_iter(n: int) -> int:
+    """Pivot limit when none is given: ``max(1000, 50 n)``."""
+    return max(1000, 50 * n)
+
 def _run(problem: Any, *, max_iter: int | None, kernel: Any = None) -> Outcome:
 
     kernel = kernel or dantzig_kernel
@@ -110,7 +115,7 @@ def _run(problem: Any, *, max_iter: int | None, kernel: Any = None) -> Outcome:
     lo, up = problem.bounds()
     lo = np.ascontiguousarray(lo, dtype=np.float64)
     up = np.ascontiguousarray(up, dtype=np.float64)
-    limit = max_iter or max(1000, 50 * n)
+    limit = max_iter or default_max_iter(n)
     status, z, pivots, state = kernel(M, problem.q, lo, up, processing_order(lo, up), limit)
     return _outcome(problem, status, z, int(pivots), state, limit, "")
 
@@ -121,7 +126,7 @@ def _run_from(problem: Any, F: np.ndarray, max_iter: int | None) -> Outcome:
     n = problem.n
     M = np.ascontiguousarray(problem.dense_M(), dtype=np.float64)
     q = np.ascontiguousarray(problem.q, dtype=np.float64)
-    limit = max_iter or max(1000, 50 * n)
+    limit = max_iter or default_max_iter(n)
     given = int(F.sum())
     start = basic_solution(M, q, F)
     if start is None:  # the block stays singular after the repair: start cold
