@@ -181,10 +181,10 @@ class Problem:
                 if vec.shape[0] != n:
                     raise ProblemError(f"{label} has length {vec.shape[0]} but M is {n} x {n}")
             check_bounds(lower, upper)
-        return cls._trusted(_c_float(M) if type(M) is np.ndarray else M, _c_float(q), n_eq,
-                            None if lower is None else _c_float(lower),
-                            None if upper is None else _c_float(upper), str(name or ""),
-                            str(description or ""), dict(meta or {}))
+        # normalised already: _as_matrix and _as_vector return C-contiguous float64 (or
+        # canonical CSR), default_bound too
+        return cls._trusted(M, q, n_eq, lower, upper, str(name or ""), str(description or ""),
+                            dict(meta or {}))
 
     @classmethod
     def _trusted(cls, M: Any, q: np.ndarray, n_eq: int, lower: np.ndarray | None,
