@@ -31,6 +31,16 @@ def pd_stack(K: int, n: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
     return A @ A.transpose(0, 2, 1) / n + np.eye(n), rng.standard_normal((K, n))
 
 
+def problem_files(tmp_path, M: np.ndarray, q: np.ndarray) -> list[str]:
+    """One JSON problem file per problem of the stack, ``p0.json``, ``p1.json``, ..."""
+    files = []
+    for k in range(M.shape[0]):
+        f = tmp_path / f"p{k}.json"
+        f.write_text(json.dumps({"M": M[k].tolist(), "q": q[k].tolist()}))
+        files.append(str(f))
+    return files
+
+
 def one_line(res, reason: str) -> None:
     assert res.returncode == 2, (res.returncode, res.stderr[-1500:])
     lines = res.stderr.splitlines()
@@ -105,11 +115,7 @@ def test_results_without_fingerprint_are_refused(cli, tmp_path):
 def test_per_file_batch_resume_checks_each_input(cli, tmp_path):
     """A problem file changed since its row was written: refused; unchanged: skipped."""
     M, q = pd_stack(3, 4)
-    files = []
-    for k in range(3):
-        f = tmp_path / f"p{k}.json"
-        f.write_text(json.dumps({"M": M[k].tolist(), "q": q[k].tolist()}))
-        files.append(str(f))
+    files = problem_files(tmp_path, M, q)
     for ext in ("jsonl", "csv", "h5"):
         out = tmp_path / f"r.{ext}"
         assert cli("solve", *files[:2], "-o", str(out)).returncode == 0
@@ -130,11 +136,7 @@ def test_per_file_batch_resume_checks_the_settings(cli, tmp_path, ext):
     setting, the result file unchanged (the settings were not recorded: results of another
     method were kept); the same settings: the finished rows are skipped."""
     M, q = pd_stack(3, 4)
-    files = []
-    for k in range(3):
-        f = tmp_path / f"p{k}.json"
-        f.write_text(json.dumps({"M": M[k].tolist(), "q": q[k].tolist()}))
-        files.append(str(f))
+    files = problem_files(tmp_path, M, q)
     out = tmp_path / f"r.{ext}"
     # one job: rows in file order, so the refusal names p0 (two workers finish in any order)
     assert cli("solve", *files[:2], "-o", str(out), "-m", "lemke", "--max-iter", "50",
