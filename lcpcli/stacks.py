@@ -15,7 +15,7 @@ import numpy as np
 from lcpcli.analysis.classify import Classifier
 from lcpcli.api import check_dense_work, solve
 from lcpcli.core import _certificate
-from lcpcli.core.certificate import check
+from lcpcli.core.certificate import check, from_row
 from lcpcli.core.errors import LcpError, OptionError, ProblemError
 from lcpcli.core.numeric import check_dtype
 from lcpcli.core.problem import (
@@ -91,7 +91,7 @@ def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None =
                lower: Any = None, upper: Any = None, n_eq: int = 0, threads: int | None = None,
                backend: str | None = None, on_error: str = "raise",
                plan: StackPlan | None = None, warm: Any = None, record_basis: bool = False,
-               **options: Any) -> StackResult:
+               certificates: bool = False, **options: Any) -> StackResult:
     """Solve a stack of K problems of one size n and certify every answer.
 
     ``M`` has shape (K, n, n) and ``q`` (K, n): problem ``k`` (0-based) is ``w = M[k] z +
@@ -133,6 +133,10 @@ def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None =
     backend at no extra cost (the certificate's pair states, filled in the same call: the warm
     kernel with no basis given runs cold Lemke, the same code as the cold kernel), otherwise by
     one certificate pass per problem afterwards.
+
+    ``certificates``: the result's ``certificates`` holds the whole certificate of every answer
+    the kernel certified (Lemke's and PGS/PSOR's kernels on the ``"cpu"`` backend; computed in
+    the same call, the numbers :func:`lcpcli.core.certificate.check` gives for that ``z``).
 
     ``on_error``: ``"raise"`` (a problem with NaN or Inf data raises :class:`ProblemError`
     naming its index; problems before it are solved first) or ``"mark"`` (its status is
@@ -201,7 +205,7 @@ def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None =
             raise OptionError(f"batch backend '{backend}' has no '{run_spec.batch.kernel}' "
                               f"kernel (method '{run_spec.name}')")
         name = run_spec.batch.runs_as or run_spec.name
-        out = StackOut.empty(K, n)  # the kernel writes the final arrays
+        out = StackOut.empty(K, n, certificates)  # the kernel writes the final arrays
         run_spec.prepare_once()
         if bases is not None:
             from lcpcli.solvers.warm_stack import lemke_warm
@@ -257,7 +261,8 @@ def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None =
                           residual=residual, method=name, tol=tol, retried=retried,
                           messages=messages, methods=methods_of, batched=run_spec is not None,
                           results=results, basis=bases,
-                          warmed=None if warmed is None or rows is None else warmed.astype(bool))
+                          warmed=None if warmed is None or rows is None else warmed.astype(bool),
+                          certificates=None if run_spec is None else out.cert)
     if record_basis:
         out_res.basis = final_bases(out_res, M, q, lower=lower, upper=upper, n_eq=n_eq)
     out_res.seconds = time.perf_counter() - start
@@ -316,8 +321,9 @@ def solve_each(problems: list[Problem], method: str | None = None, *, tol: float
 
     Dense LCPs of one size, at least :data:`STACK_MIN` of them, are stacked and solved by
     :func:`solve_many` (one compiled call in ``threads`` threads); each answer's certificate is
-    recomputed for its :class:`Result` (the same definition the kernel checked), and the
-    problems the kernel handed back come with the Result of their own :func:`solve`.  Other
+    taken from the kernel's own (``solve_many(certificates=True)``; recomputed where a backend
+    does not record it), and the problems the kernel handed back come with the Result of
+    their own :func:`solve`.  Other
     problems are solved one by one.  ``seconds`` of a stacked problem is its share of the
     stack's time; ``info["batched"]`` marks them.  ``warms``: one warm start per problem (a
     basis, booleans, or None: cold), as ``solve_many(warm=)`` and ``solve(warm=)`` take them;
@@ -339,8 +345,9 @@ def solve_each(problems: list[Problem], method: str | None = None, *, tol: float
                              for i in idx])
         res = solve_many(np.stack([problems[i].M for i in idx]),
                          np.stack([problems[i].q for i in idx]), method, tol=tol,
-                         threads=threads, warm=warm, **options)
+                         threads=threads, warm=warm, certificates=True, **options)
         share = res.seconds / len(idx)
+        rows = res.certificates
         for j, i in enumerate(idx):
             p = problems[i]
             if j in res.results:  # solved on its own (the kernel handed it back)
@@ -348,14 +355,23 @@ def solve_each(problems: list[Problem], method: str | None = None, *, tol: float
                 out[i].problem_name = p.name
                 continue
             z = res.z[j].copy()
-            basis = np.empty(p.n, dtype=np.int8)
-            cert, w = check(p, z, res.tol, state=basis)
+            source = None
+            if rows is not None and rows[j, 0] == rows[j, 0]:
+                # certified in the kernel: its certificate and w (and pair states, when the
+                # kernel recorded them; else computed on first use), as check gives them
+                cert, w = from_row(rows[j], res.tol), res.w[j].copy()
+                basis = None if res.basis is None else res.basis[j].copy()
+                source = p if basis is None else None
+            else:
+                basis = np.empty(p.n, dtype=np.int8)
+                cert, w = check(p, z, res.tol, state=basis)
             status = SOLVED if cert.passed else UNSOLVED
             out[i] = Result(status=status, method=res.method_of(j), z=z, w=w,
                             iterations=int(res.iterations[j]), seconds=share,
                             certificate=cert, message=res.message(j),
                             termination=CONVERGED if cert.passed else Termination.NUMERICAL,
-                            problem_name=p.name, info={"batched": True}, known_basis=basis)
+                            problem_name=p.name, info={"batched": True}, known_basis=basis,
+                            basis_source=source)
             if res.warmed is not None:
                 out[i].info["warm"] = bool(res.warmed[j])
     for i, p in enumerate(problems):

@@ -200,6 +200,16 @@ def from_kernel(out: tuple, tol: float) -> Certificate:
                        float(tol), out[0] == 0 and error <= tol and error < math.inf)
 
 
+def from_row(row: Any, tol: float) -> Certificate:
+    """The :class:`Certificate` of a row of a stacked kernel's ``cert`` output
+    (:data:`lcpcli.solvers.kernels.batch.CERT_FIELDS` numbers: the first nine fields of
+    :class:`Certificate` in order, ``worst`` as a float), written only for an answer the
+    kernel certified (its status 0: z and w finite and in range)."""
+    error, back, growth, res, bound, wv, comp, eq, worst = row.tolist()
+    return Certificate(error, back, growth, res, bound, wv, comp, eq, int(worst), float(tol),
+                       error <= tol and error < math.inf)
+
+
 def _pow2_exponent(x: float) -> int:
     """``e`` with ``2^e`` the power of two in ``[x, 2x)`` (``x > 0``; ``e`` may be 1024, one past
     the largest finite power of two, so it is applied with ``ldexp``, never formed)."""

@@ -314,6 +314,11 @@ class StackResult:
     #: (K,) bool: the problems a warm start answered (:mod:`lcpcli.solvers.warm_stack`, by
     #: block principal pivoting from the previous basis); None without a warm start.
     warmed: np.ndarray | None = None
+    #: (K, 9) float64: each kernel-certified answer's whole certificate, one row each
+    #: (:func:`lcpcli.core.certificate.from_row`; NaN rows: not certified by the kernel, e.g.
+    #: the ``results`` solved on their own), when ``solve_many(certificates=True)`` ran a
+    #: CPU kernel that records them; None otherwise.
+    certificates: np.ndarray | None = None
 
     def method_of(self, k: int) -> str:
         """The method that produced problem k's answer."""

@@ -53,11 +53,19 @@ class StackOut:
     iterations: np.ndarray  # (K,) int64: pivots or sweeps
     error: np.ndarray       # (K,) float64: the certified error (inf: not computed)
     residual: np.ndarray    # (K,) float64: the certificate's residual (NaN: not computed)
+    #: (K, batch.CERT_FIELDS) float64: each certified answer's whole certificate (NaN rows:
+    #: none; lcpcli.core.certificate.from_row reads a row), or None: not asked for
+    cert: np.ndarray | None = None
 
     @classmethod
-    def empty(cls, K: int, n: int) -> StackOut:
+    def empty(cls, K: int, n: int, certificates: bool = False) -> StackOut:
+        cert = None
+        if certificates:
+            from lcpcli.solvers.kernels.batch import CERT_FIELDS
+
+            cert = np.full((K, CERT_FIELDS), np.nan)
         return cls(np.zeros((K, n)), np.zeros((K, n)), np.full(K, KERNEL_RETRY, np.int8),
-                   np.zeros(K, np.int64), np.full(K, np.inf), np.full(K, np.nan))
+                   np.zeros(K, np.int64), np.full(K, np.inf), np.full(K, np.nan), cert)
 
 
 #: A stacked kernel: ``kernel(M, q, lower, upper, *, tol, options, out, threads, scaling)``
@@ -96,7 +104,8 @@ def _cpu_lemke(M: Any, q: Any, lower: Any, upper: Any, *, tol: float,
     p = kernel_params("lemke", M.shape[1], options)
     balance = None if scaling == "none" else (BALANCED, Q_BALANCED, MAX_ROUNDS)
     batch.lemke_stack(M, q, p["covering"], p["max_iter"], PIVOT_TOL, TIE_TOL, tol, out.z, out.w,
-                      out.code, out.iterations, out.error, out.residual, threads, balance, POLISHED)
+                      out.code, out.iterations, out.error, out.residual, threads, balance, POLISHED,
+                      out.cert)
 
 
 def _cpu_sor(M: Any, q: Any, lower: Any, upper: Any, *, tol: float,
@@ -110,7 +119,7 @@ def _cpu_sor(M: Any, q: Any, lower: Any, upper: Any, *, tol: float,
     else:
         np.clip(0.0, lower, upper, out=out.z)  # the start point, projected onto the box
     batch.sor_stack(M, q, lower, upper, p["omega"], p["max_iter"], tol, out.z, out.w, out.code,
-                    out.iterations, out.error, out.residual, threads)
+                    out.iterations, out.error, out.residual, threads, out.cert)
 
 
 @dataclass

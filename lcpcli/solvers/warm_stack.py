@@ -92,5 +92,5 @@ def lemke_warm(M: np.ndarray, q: np.ndarray, bases: np.ndarray, *, tol: float,
     batch.lemke_warm_stack(M, q, d, bases, limit, WARM_ITER, WARM_MAX_PIVOTS, PIVOT_TOL,
                            TIE_TOL, tol, out.z,
                            out.w, out.code, out.iterations, out.error, out.residual, state,
-                           warm, threads, balance, POLISHED)
+                           warm, threads, balance, POLISHED, out.cert)
     return state, warm

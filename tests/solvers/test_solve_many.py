@@ -258,3 +258,75 @@ def test_batched_kernels_take_their_parameters_from_the_method_records() -> None
         for node in ast.walk(ast.parse(path.read_text())):
             if isinstance(node, ast.ImportFrom):
                 assert not (node.module or "").startswith("lcpcli.solvers.methods"), path
+
+
+def _fresh(M, q, z, tol, lower=None, upper=None):
+    """The certificate, w and pair states of ``z`` computed afresh (lcpcli.core.certificate)."""
+    from lcpcli.core.certificate import check
+    from lcpcli.core.problem import Problem
+
+    p = Problem.create(M, q, lower=lower, upper=upper)
+    states = np.empty(len(q), np.int8)
+    cert, w = check(p, z, tol, state=states)
+    return cert, w, states
+
+
+@pytest.mark.parametrize("case", ["lemke", "lemke-warm", "pgs", "psor-box"])
+def test_kernel_certificate_rows_equal_the_certificate_computed_afresh(case) -> None:
+    """solve_many(certificates=True): each kernel-certified answer's row is the certificate
+    check() gives for that z (every field, bit for bit); NaN rows exactly where the kernel
+    handed the problem back (those come with their own Result)."""
+    from lcpcli.core.certificate import from_row
+
+    M, q = pd_stack(40, 6, seed=21)
+    q[3] = 0.0  # z = 0 is the answer
+    lower = upper = None
+    method, warm = case.split("-")[0], None
+    if case == "lemke-warm":
+        warm = solve_many(M, q * 1.01, "lemke")
+    if case == "psor-box":
+        lower, upper = -np.ones(6), np.full(6, 0.5)
+    res = solve_many(M, q, method, certificates=True, warm=warm, lower=lower, upper=upper)
+    assert res.certificates is not None and res.certificates.shape == (40, 9)
+    kernel_rows = ~np.isnan(res.certificates[:, 0])
+    assert kernel_rows.sum() >= 20 and not kernel_rows[sorted(res.results)].any()
+    for k in np.flatnonzero(kernel_rows):
+        cert, w, states = _fresh(M[k], q[k], res.z[k], res.tol, lower, upper)
+        assert from_row(res.certificates[k], res.tol) == cert, k
+        assert np.array_equal(res.w[k], w), k
+        if res.basis is not None:
+            assert np.array_equal(res.basis[k], states), k
+    assert solve_many(M, q, method, lower=lower, upper=upper).certificates is None
+
+
+@pytest.mark.parametrize("warm", [False, True])
+def test_solve_each_takes_the_kernel_certificate_and_it_equals_a_fresh_one(warm,
+                                                                           monkeypatch) -> None:
+    """solve_each's stacked Results carry the kernel's certificate, w and basis (no second
+    certificate pass); each equals what check() computes for that z."""
+    import lcpcli.stacks as stacks
+    from lcpcli.api import solve_each
+    from lcpcli.core.problem import Problem
+
+    M, q = pd_stack(30, 7, seed=22)
+    problems = [Problem.create(M[k], q[k]) for k in range(len(q))]
+    warms = None
+    if warm:
+        warms = [r.z_basic for r in solve_each(problems, "lemke")]
+        problems = [Problem.create(M[k], q[k] * 1.01) for k in range(len(q))]
+    calls = []
+    original = stacks.check
+
+    def counted(*args, **kwargs):
+        calls.append(1)
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(stacks, "check", counted)
+    results = solve_each(problems, "lemke", warms=warms)
+    monkeypatch.undo()
+    assert all(r.info.get("batched") for r in results)
+    assert not calls  # every answer came certified from the kernel
+    for p, r in zip(problems, results, strict=True):
+        cert, w, states = _fresh(p.M, p.q, r.z, r.certificate.tol)
+        assert r.certificate == cert and np.array_equal(r.w, w)
+        assert np.array_equal(r.basis, states)

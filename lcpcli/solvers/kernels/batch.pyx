@@ -249,6 +249,37 @@ cdef inline bint _passed(const CertOut* c, double tol) noexcept nogil:
     return c.status == 0 and c.error <= tol
 
 
+cdef enum:
+    C_FIELDS = 9
+
+#: Numbers in a row of a stack's ``cert`` output: a certificate's fields in the order of
+#: :class:`lcpcli.core.certificate.Certificate` (``worst`` as a float), read back by
+#: :func:`lcpcli.core.certificate.from_row`.
+CERT_FIELDS = C_FIELDS
+
+
+cdef inline double* _row(double* cert, Py_ssize_t k) noexcept nogil:
+    """Problem k's row of a stack's ``cert`` output (NULL when none was asked for)."""
+    return NULL if cert == NULL else cert + k * C_FIELDS
+
+
+cdef inline void _keep(const CertOut* c, double* err, double* res, double* row) noexcept nogil:
+    """A certified answer's numbers: its error and residual, and (``row`` not NULL) the whole
+    certificate as a row of ``cert`` (:data:`CERT_FIELDS`)."""
+    err[0] = c.error
+    res[0] = c.residual
+    if row != NULL:
+        row[0] = c.error
+        row[1] = c.backward_error
+        row[2] = c.growth
+        row[3] = c.residual
+        row[4] = c.bound_violation
+        row[5] = c.w_violation
+        row[6] = c.complementarity
+        row[7] = c.equality_residual
+        row[8] = <double>c.worst
+
+
 cdef int _balance(const double* M, const double* q, const double* d, Py_ssize_t n,
                   const int* eq, double* Ms, double* qs, double* ds,
                   long long* r, long long* c) noexcept nogil:
@@ -277,9 +308,10 @@ cdef void _lemke_one(const double* M, const double* q, const double* d, Py_ssize
                      int64_t max_iter, double piv_tol, double tie_tol, double tol,
                      double polished, const int* eq, double* z, double* w, signed char* code,
                      int64_t* iters, double* err, double* res,
-                     signed char* state=NULL) noexcept nogil:
+                     signed char* state=NULL, double* crow=NULL) noexcept nogil:
     """Lemke (tableau) and the certificate of one problem (``state``, when not NULL, receives
-    each pair's state as the certificate scores the answer).  The problem is equilibrated first
+    each pair's state as the certificate scores the answer; ``crow``, when not NULL, the
+    certificate of a certified answer: :func:`_keep`).  The problem is equilibrated first
     when it is not balanced (as the one-problem pipeline does; the answer is mapped back
     exactly and certified on the problem as given); the end basis is re-solved (polish) only
     when the tableau's answer is not certified at rounding level (``polished``: most answers
@@ -348,6 +380,7 @@ cdef void _lemke_one(const double* M, const double* q, const double* d, Py_ssize
             res[0] = cert.residual
             if (out.status == LEMKE_OK or out.status == LEMKE_TRIVIAL) and _passed(&cert, tol):
                 code[0] = B_SOLVED
+                _keep(&cert, err, res, crow)
     free(work)
     free(basic)
     free(iwork)
@@ -492,7 +525,8 @@ cdef void _lu_solve(const double* A, const Py_ssize_t* piv, Py_ssize_t m,
 
 cdef int _bpp_one(const double* M, const double* q, Py_ssize_t n, const signed char* F0,
                   int64_t max_iter, double tol, double* z, double* w, signed char* state,
-                  int64_t* iters, double* err, double* res) noexcept nogil:
+                  int64_t* iters, double* err, double* res,
+                  double* crow=NULL) noexcept nogil:
     """Block principal pivoting from the basis ``F0`` (as lcpcli.solvers.methods.bpp: block
     pivots while the count of infeasible pairs falls, Murty's least-index single pivot after
     W_BLOCK_TRIES without progress), judged by the certificate (:func:`_bpp_run`).  Returns 1
@@ -512,7 +546,7 @@ cdef int _bpp_one(const double* M, const double* q, Py_ssize_t n, const signed c
         for i in range(n):
             F[i] = 1 if F0[i] else 0
         ok = _bpp_run(M, q, n, max_iter, tol, z, w, state, iters, err, res, work, iwork, F,
-                      -1)
+                      -1, crow)
     if heap:
         free(work)
         free(iwork)
@@ -524,7 +558,8 @@ cdef int _bpp_pair(const double* M0, const double* q0, const signed char* B0, do
                    double* w0, signed char* st0, int64_t* it0, double* err0, double* res0,
                    const double* M1, const double* q1, const signed char* B1, double* z1,
                    double* w1, signed char* st1, int64_t* it1, double* err1, double* res1,
-                   Py_ssize_t n, int64_t max_iter, double tol) noexcept nogil:
+                   Py_ssize_t n, int64_t max_iter, double tol, double* crow0=NULL,
+                   double* crow1=NULL) noexcept nogil:
     """:func:`_bpp_one` on two problems of size ``n <= STACK_N``, their first basic solutions
     computed together (:func:`_basic_solution2`); returns bit 0 / bit 1 set when problem 0 / 1
     passed."""
@@ -543,15 +578,15 @@ cdef int _bpp_pair(const double* M0, const double* q0, const signed char* B0, do
                      M1, q1, F1, work1, iwork1 + 3 * n, iwork1 + 4 * n, work1 + n * n, z1,
                      n, m)
     return (_bpp_run(M0, q0, n, max_iter, tol, z0, w0, st0, it0, err0, res0, work0, iwork0,
-                     F0, m[0])
+                     F0, m[0], crow0)
             | (_bpp_run(M1, q1, n, max_iter, tol, z1, w1, st1, it1, err1, res1, work1, iwork1,
-                        F1, m[1]) << 1))
+                        F1, m[1], crow1) << 1))
 
 
 cdef int _bpp_run(const double* M, const double* q, Py_ssize_t n, int64_t max_iter,
                   double tol, double* z, double* w, signed char* state, int64_t* iters,
                   double* err, double* res, double* work, Py_ssize_t* iwork, signed char* F,
-                  Py_ssize_t first_m) noexcept nogil:
+                  Py_ssize_t first_m, double* crow=NULL) noexcept nogil:
     """The iterations of :func:`_bpp_one` from the basis ``F`` (modified), in the scratch
     ``work`` (n*n + 8 n doubles: the block's factors, then r, then the certificate's 5 n) and
     ``iwork`` (5 n: the certificate's 3 n, idx, piv).  ``first_m >= 0``: the first basic
@@ -595,8 +630,7 @@ cdef int _bpp_run(const double* M, const double* q, Py_ssize_t n, int64_t max_it
                               &cert):
                 ok = 1
                 iters[0] = it
-                err[0] = cert.error
-                res[0] = cert.residual
+                _keep(&cert, err, res, crow)
                 break
             have_w = cert.status == 0  # w and the row scales of this z are in place
         count = 0
@@ -642,25 +676,32 @@ cdef int _certify_basic(const double* M, const double* q, Py_ssize_t n, Py_ssize
                         double* r, double tol, double* z, double* w, double* cwork,
                         Py_ssize_t* iwork, signed char* state, CertOut* cert) noexcept nogil:
     """Certify the basic solution ``z`` of :func:`_basic_solution` (its factors in ``A``): as
-    solved, then refined once, then with its entries at rounding level (<= 1e-14 ||z||)
-    set to exactly 0 (degenerate basic z's, which Lemke's tableau leaves nonbasic; a row
-    made only of such terms would read w_i / s_i ~ 1).  Returns 1 when one passed."""
+    solved; then with its entries at rounding level (<= 1e-14 ||z||) set to exactly 0
+    (degenerate basic z's, which Lemke's tableau leaves nonbasic; a row made only of such terms
+    would read w_i / s_i ~ 1); then refined once; then refined and with those entries set to 0.
+    A step that leaves ``z`` as it was (no entry at rounding level) is not certified again.
+    Returns 1 when one passed."""
     cdef int step
     cdef Py_ssize_t i
     cdef double t
-    for step in range(3):
-        if step == 1:
-            if m == 0:
-                return 0
-            _refine(M, q, n, A, idx, piv, m, r, z)
-        elif step == 2:
+    cdef bint tiny
+    for step in range(4):
+        if step == 1 or step == 3:
             t = 0.0
             for i in range(n):
                 if fabs(z[i]) > t:
                     t = fabs(z[i])
+            tiny = False
             for i in range(n):
-                if fabs(z[i]) <= 1e-14 * t:
+                if z[i] != 0.0 and fabs(z[i]) <= 1e-14 * t:
                     z[i] = 0.0
+                    tiny = True
+            if not tiny:
+                continue
+        elif step == 2:
+            if m == 0:
+                return 0
+            _refine(M, q, n, A, idx, piv, m, r, z)
         certify_dense(n, M, n, q, z, 0, NULL, NULL, w, cwork, iwork, state, cert)
         if _passed(cert, tol):
             return 1
@@ -670,7 +711,8 @@ cdef int _certify_basic(const double* M, const double* q, Py_ssize_t n, Py_ssize
 cdef int _ppt_lemke_one(const double* M, const double* q, Py_ssize_t n,
                         const signed char* F0, int64_t max_iter, double piv_tol,
                         double tie_tol, double tol, double* z, double* w, signed char* state,
-                        int64_t* iters, double* err, double* res) noexcept nogil:
+                        int64_t* iters, double* err, double* res,
+                        double* crow=NULL) noexcept nogil:
     """Lemke with the covering ray started from the basis ``F0`` (lcpcli.solvers.methods.
     lemke_warm's method, compiled): the principal pivot transform of (q, M) on F
     (Cottle-Pang-Stone section 2.3: ``M'_FF = M_FF^-1``, ``M'_FG = -M_FF^-1 M_FG``,
@@ -789,8 +831,7 @@ cdef int _ppt_lemke_one(const double* M, const double* q, Py_ssize_t n,
         if _certify_basic(M, q, n, m, A, idx, piv, r, tol, z, w, cwork, iwork, state, &cert):
             ok = 1
             iters[0] = out.pivots + 1
-            err[0] = cert.error
-            res[0] = cert.residual
+            _keep(&cert, err, res, crow)
     free(work)
     free(iwork)
     free(basic)
@@ -801,7 +842,7 @@ cdef int _ppt_lemke_one(const double* M, const double* q, Py_ssize_t n,
 cdef void _sor_one(const double* M, const double* q, const double* lo_in, const double* up_in,
                    Py_ssize_t n, double omega, int64_t max_iter, double tol, double* z,
                    double* w, signed char* code, int64_t* iters, double* err,
-                   double* res) noexcept nogil:
+                   double* res, double* crow=NULL) noexcept nogil:
     """Projected SOR from ``z`` (already inside the bounds), sweeping until the certificate
     passes (the sweep's own stopping test is normwise: the target is tightened tenfold until
     the componentwise certificate is met, as :mod:`lcpcli.solvers.methods.pgs` does)."""
@@ -861,6 +902,7 @@ cdef void _sor_one(const double* M, const double* q, const double* lo_in, const 
             res[0] = cert.residual
         if _passed(&cert, tol):
             code[0] = B_SOLVED
+            _keep(&cert, err, res, crow)
             break
         if status != PGS_CONVERGED or sweeps >= max_iter or target < 1e-15:
             break
@@ -886,7 +928,7 @@ cdef bint _empty(_Stack a):
 
 cdef class _Stack:
     """A stack's checked arrays (kept alive here) and their data pointers."""
-    cdef cnp.ndarray Ma, qa, zo, wo, co, io, eo, ro
+    cdef cnp.ndarray Ma, qa, zo, wo, co, io, eo, ro, cto
     cdef Py_ssize_t K, n
     cdef const double* M
     cdef const double* q
@@ -896,11 +938,14 @@ cdef class _Stack:
     cdef int64_t* iters
     cdef double* err
     cdef double* residual
+    cdef double* cert  # NULL: no certificate rows asked for
 
 
-cdef _Stack _checked(M, q, z, w, code, iters, err, residual, str name):
+cdef _Stack _checked(M, q, z, w, code, iters, err, residual, str name, cert=None):
     """``M`` (K, n, n) and ``q`` (K, n) as float64 (views when they are), and the preallocated
-    outputs (``inout``: no silent copies); ValueError on a wrong shape."""
+    outputs (``inout``: no silent copies; ``cert``: None or (K, :data:`CERT_FIELDS`) float64,
+    each certified answer's certificate, the rest left as they are); ValueError on a wrong
+    shape."""
     cdef _Stack a = _Stack()
     a.Ma = _stack(M, 3)
     a.qa = _stack(q, 2)
@@ -918,6 +963,10 @@ cdef _Stack _checked(M, q, z, w, code, iters, err, residual, str name):
     a.z, a.w, a.err, a.residual = f64_ptr(a.zo), f64_ptr(a.wo), f64_ptr(a.eo), f64_ptr(a.ro)
     a.code = <signed char*>cnp.PyArray_DATA(a.co)
     a.iters = <int64_t*>cnp.PyArray_DATA(a.io)
+    a.cert = NULL
+    if cert is not None:
+        a.cto = inout(cert, cnp.NPY_FLOAT64, a.K, C_FIELDS)
+        a.cert = f64_ptr(a.cto)
     return a
 
 
@@ -948,7 +997,7 @@ cdef cnp.ndarray _covering(object d, Py_ssize_t n, str label):
 
 def lemke_stack(M, q, d, int64_t max_iter, double piv_tol, double tie_tol, double tol,
                 z, w, code, iters, err, residual, int threads, balance=None,
-                double polished=0.0):
+                double polished=0.0, cert=None):
     """Lemke (tableau) on every problem of the stack ``M`` (K, n, n), ``q`` (K, n).
 
     ``d``: the covering vector (n,), or None for all ones.  Outputs (preallocated,
@@ -958,11 +1007,12 @@ def lemke_stack(M, q, d, int64_t max_iter, double piv_tol, double tie_tol, doubl
     ``balance``: None (no equilibration) or ``(balanced, q_balanced, max_rounds)`` of
     :mod:`lcpcli.analysis.scaling`: each problem that is not balanced is equilibrated first.
     ``polished``: the end basis is re-solved unless the certified error is at most this
-    (:data:`lcpcli.core.tolerances.POLISHED`; 0: always).
+    (:data:`lcpcli.core.tolerances.POLISHED`; 0: always).  ``cert``: None, or (K,
+    :data:`CERT_FIELDS`) float64 receiving each certified answer's certificate (:func:`_keep`).
     """
     cdef int eqv[3]
     cdef const int* eq = _balance_args(balance, eqv)
-    cdef _Stack a = _checked(M, q, z, w, code, iters, err, residual, "lemke_stack")
+    cdef _Stack a = _checked(M, q, z, w, code, iters, err, residual, "lemke_stack", cert)
     cdef Py_ssize_t K = a.K, n = a.n, nn = a.n * a.n, k
     cdef cnp.ndarray da = _covering(d, n, "lemke_stack")
     cdef double* dp = NULL if da is None else f64_ptr(da)
@@ -972,13 +1022,13 @@ def lemke_stack(M, q, d, int64_t max_iter, double piv_tol, double tie_tol, doubl
                     num_threads=threads if threads > 0 else 1):
         _lemke_one(a.M + k * nn, a.q + k * n, dp, n, max_iter, piv_tol, tie_tol, tol, polished,
                    eq, a.z + k * n, a.w + k * n, a.code + k, a.iters + k, a.err + k,
-                   a.residual + k)
+                   a.residual + k, NULL, _row(a.cert, k))
 
 
 def lemke_warm_stack(M, q, d, basis, int64_t max_iter, int64_t warm_iter,
                      int64_t warm_pivots, double piv_tol, double tie_tol, double tol, z, w,
                      code, iters, err, residual, state, warm, int threads, balance=None,
-                     double polished=0.0):
+                     double polished=0.0, cert=None):
     """Warm-started stack: problem k starts from its basis ``basis[k]`` ((K, n) int8, 1: z_i
     basic; a row whose first entry is negative has none): block principal pivoting for at most
     ``warm_iter`` iterations (:func:`_bpp_one`: one factorisation of ``M_FF`` when the basis is
@@ -989,11 +1039,12 @@ def lemke_warm_stack(M, q, d, basis, int64_t max_iter, int64_t warm_iter,
     certified answer's basis (the certificate's pair states) for the next step.  Problems go
     in pairs: two problems of n <= STACK_N that both have a basis start together
     (:func:`_bpp_pair`: their first basic solutions factored and solved in turn, the same
-    numbers as one by one).
+    numbers as one by one).  ``cert``: as :func:`lemke_stack`'s.
     """
     cdef int eqv[3]
     cdef const int* eq = _balance_args(balance, eqv)
-    cdef _Stack a = _checked(M, q, z, w, code, iters, err, residual, "lemke_warm_stack")
+    cdef _Stack a = _checked(M, q, z, w, code, iters, err, residual, "lemke_warm_stack",
+                             cert)
     cdef Py_ssize_t K = a.K, n = a.n, nn = a.n * a.n, k
     cdef cnp.ndarray da = _covering(d, n, "lemke_warm_stack")
     cdef double* dp = NULL if da is None else f64_ptr(da)
@@ -1020,17 +1071,17 @@ def lemke_warm_stack(M, q, d, basis, int64_t max_iter, int64_t warm_iter,
                            a.M + (k + 1) * nn, a.q + (k + 1) * n, bp + (k + 1) * n,
                            a.z + (k + 1) * n, a.w + (k + 1) * n, sp + (k + 1) * n,
                            a.iters + k + 1, a.err + k + 1, a.residual + k + 1, n, warm_iter,
-                           tol)
+                           tol, _row(a.cert, k), _row(a.cert, k + 1))
         else:
             if bp[k * n] >= 0:
                 ok = _bpp_one(a.M + k * nn, a.q + k * n, n, bp + k * n, warm_iter, tol,
                               a.z + k * n, a.w + k * n, sp + k * n, a.iters + k, a.err + k,
-                              a.residual + k)
+                              a.residual + k, _row(a.cert, k))
             if k + 1 < K and bp[(k + 1) * n] >= 0:
                 ok = ok | (_bpp_one(a.M + (k + 1) * nn, a.q + (k + 1) * n, n,
                                     bp + (k + 1) * n, warm_iter, tol, a.z + (k + 1) * n,
                                     a.w + (k + 1) * n, sp + (k + 1) * n, a.iters + k + 1,
-                                    a.err + k + 1, a.residual + k + 1) << 1)
+                                    a.err + k + 1, a.residual + k + 1, _row(a.cert, k + 1)) << 1)
         _warm_rest(a, k, ok & 1, n, nn, bp, sp, wp, dp, eq, max_iter, warm_pivots, piv_tol,
                    tie_tol, tol, polished)
         if k + 1 < K:
@@ -1048,24 +1099,25 @@ cdef inline void _warm_rest(_Stack a, Py_ssize_t k, int bpp_ok, Py_ssize_t n, Py
     wp[k] = 0
     if bpp_ok or (bp[k * n] >= 0 and _ppt_lemke_one(
             a.M + k * nn, a.q + k * n, n, bp + k * n, warm_pivots, piv_tol, tie_tol, tol,
-            a.z + k * n, a.w + k * n, sp + k * n, a.iters + k, a.err + k, a.residual + k)):
+            a.z + k * n, a.w + k * n, sp + k * n, a.iters + k, a.err + k, a.residual + k,
+            _row(a.cert, k))):
         wp[k] = 1
         a.code[k] = B_SOLVED
     else:
         _lemke_one(a.M + k * nn, a.q + k * n, dp, n, max_iter, piv_tol, tie_tol, tol,
                    polished, eq, a.z + k * n, a.w + k * n, a.code + k, a.iters + k,
-                   a.err + k, a.residual + k, sp + k * n)
+                   a.err + k, a.residual + k, sp + k * n, _row(a.cert, k))
 
 
 def sor_stack(M, q, lo, up, double omega, int64_t max_iter, double tol, z, w, code, iters,
-              err, residual, int threads):
+              err, residual, int threads, cert=None):
     """Projected SOR (``omega = 1``: Gauss-Seidel) on every problem of the stack.
 
     ``lo``/``up``: None (LCP: ``z >= 0``) or bounds of shape (K, n) (box LCP).  ``z`` (K, n)
     holds the start points (inside the bounds) and receives the answers; the other outputs
-    as :func:`lemke_stack`.
+    (and ``cert``) as :func:`lemke_stack`.
     """
-    cdef _Stack a = _checked(M, q, z, w, code, iters, err, residual, "sor_stack")
+    cdef _Stack a = _checked(M, q, z, w, code, iters, err, residual, "sor_stack", cert)
     cdef Py_ssize_t K = a.K, n = a.n, nn = a.n * a.n, k
     cdef cnp.ndarray la, ua
     cdef const double* lp = NULL
@@ -1086,5 +1138,5 @@ def sor_stack(M, q, lo, up, double omega, int64_t max_iter, double tol, z, w, co
                     num_threads=threads if threads > 0 else 1):
         _sor_one(a.M + k * nn, a.q + k * n, lp + k * n if lp != NULL else NULL,
                  up_ + k * n if up_ != NULL else NULL, n, omega, max_iter, tol, a.z + k * n,
-                 a.w + k * n, a.code + k, a.iters + k, a.err + k, a.residual + k)
+                 a.w + k * n, a.code + k, a.iters + k, a.err + k, a.residual + k, _row(a.cert, k))
 
