@@ -343,7 +343,7 @@ def solve_each(problems: list[Problem], method: str | None = None, *, tol: float
             warm = np.stack([np.asarray(warms[i], dtype=bool).astype(np.float64)
                              if warms[i] is not None else np.full(problems[i].n, np.nan)
                              for i in idx])
-        res = solve_many(np.stack([problems[i].M for i in idx]),
+        res = solve_many(_stacked([problems[i].M for i in idx]),
                          np.stack([problems[i].q for i in idx]), method, tol=tol,
                          threads=threads, warm=warm, certificates=True, **options)
         share = res.seconds / len(idx)
@@ -381,6 +381,22 @@ def solve_each(problems: list[Problem], method: str | None = None, *, tol: float
             if warm is not None:
                 out[i].info["warm"] = bool(out[i].info.get("warm", False))
     return out  # type: ignore[return-value]
+
+
+def _stacked(blocks: list[np.ndarray]) -> np.ndarray:
+    """``np.stack(blocks)``: a view, without the copy, when the blocks are the consecutive
+    C-contiguous pieces of one buffer in order (contact islands are built so:
+    :func:`lcpcli.contact.islands.island_problems`); a copy otherwise."""
+    first = blocks[0]
+    base, size = first.base, first.nbytes
+    if base is not None and base.ndim == 1 and base.dtype == first.dtype:
+        start = first.__array_interface__["data"][0]
+        if all(b.base is base and b.flags.c_contiguous and b.shape == first.shape
+               and b.__array_interface__["data"][0] == start + j * size
+               for j, b in enumerate(blocks)):
+            offset = start - base.__array_interface__["data"][0]
+            return np.ndarray((len(blocks), *first.shape), first.dtype, base, offset)
+    return np.stack(blocks)
 
 
 def _on_device(a: Any) -> bool:

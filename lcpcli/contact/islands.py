@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from lcpcli.contact._blocks import scatter_blocks
 from lcpcli.contact.assembly import choose_storage
 from lcpcli.contact.scene import Scene
 from lcpcli.core.problem import Problem, is_sparse
@@ -135,6 +136,10 @@ def island_problems(problem: Problem, lay: IslandLayout, storage: str = "auto",
         return out
     import scipy.sparse as sp
 
+    blocks = _dense_blocks(M, lay, storage)
+    if blocks is not None:
+        return [Problem(M=block, q=qp[int(lay.offsets[k]): int(lay.offsets[k + 1])].copy(),
+                        name=f"{name}#{k + 1}") for k, block in enumerate(blocks)]
     P = M.tocsr()[lay.perm][:, lay.perm].tocsr()
     P.sum_duplicates()
     # block diagonal: rows s..e-1 hold entries in columns s..e-1 only, so each block is a slice
@@ -153,6 +158,41 @@ def island_problems(problem: Problem, lay: IslandLayout, storage: str = "auto",
                                   shape=(n, n))
         out.append(Problem(M=block, q=qp[s:e].copy(), name=f"{name}#{k + 1}"))
     return out
+
+
+def _dense_blocks(M: Any, lay: IslandLayout, storage: str) -> list[np.ndarray] | None:
+    """The islands' blocks of the CSR matrix ``M`` as dense arrays, when every island is stored
+    dense (:func:`choose_storage`), written by one compiled pass over ``M``'s entries
+    (:func:`lcpcli.contact._blocks.scatter_blocks`) into one buffer: the blocks of one size
+    back to back in island order, so that a stack of them (:func:`lcpcli.stacks.solve_each`)
+    is a view of it.  None when an island is stored sparse or ``M`` is not block diagonal in
+    the islands (the caller slices instead)."""
+    N = M.shape[0]
+    sizes = np.diff(lay.offsets).astype(np.int64)
+    if lay.perm.size != N or lay.count == 0 or not np.all(sizes > 0):
+        return None
+    M = M.tocsr()
+    nnz = np.add.reduceat(np.diff(M.indptr)[lay.perm], lay.offsets[:-1])
+    if any(choose_storage(storage, int(n), int(e)) != "dense"
+           for n, e in zip(sizes.tolist(), nnz.tolist(), strict=True)):
+        return None
+    order = np.argsort(sizes, kind="stable")  # one size after another, islands in order
+    length = sizes * sizes
+    start = np.empty(lay.count, np.int64)
+    start[order] = np.concatenate(([0], np.cumsum(length[order])[:-1]))
+    island = np.empty(N, np.int64)
+    island[lay.perm] = np.repeat(np.arange(lay.count), sizes)
+    local = np.empty(N, np.int64)
+    local[lay.perm] = np.arange(N) - np.repeat(lay.offsets[:-1].astype(np.int64), sizes)
+    row_start = start[island] + local * sizes[island]
+    buf = np.zeros(int(length.sum()))
+    indices, indptr = M.indices, M.indptr
+    if indices.dtype != indptr.dtype:
+        indices, indptr = indices.astype(np.int64), indptr.astype(np.int64)
+    if not scatter_blocks(M.data, indices, indptr, row_start, local, island, buf):
+        return None
+    return [buf[a: a + m].reshape(n, n)
+            for a, m, n in zip(start.tolist(), length.tolist(), sizes.tolist(), strict=True)]
 
 
 def solve_problems(problems: list[Problem], method: str = DEFAULT_METHOD, tol: float | None = None,

@@ -1,0 +1,96 @@
+"""The islands' dense blocks: one compiled pass over the scene's CSR matrix gives exactly the
+principal blocks that slicing the permuted matrix gives, and a stack of equal-size islands is a
+view of one buffer (no copy in lcpcli.solve_each)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from lcpcli.contact import build, islands
+from lcpcli.contact.examples import box_stacks
+from lcpcli.core.problem import Problem
+from lcpcli.stacks import _stacked
+
+
+def _sliced(M: sp.csr_matrix, lay: islands.IslandLayout) -> list[np.ndarray]:
+    """The reference: each island's block of the dense matrix, by fancy indexing."""
+    D = M.toarray()
+    return [D[np.ix_(lay.unknowns(k), lay.unknowns(k))] for k in range(lay.count)]
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.lists(st.integers(1, 6), min_size=1, max_size=7), st.integers(0, 2**32 - 1),
+       st.booleans(), st.booleans())
+def test_dense_blocks_equal_the_sliced_blocks(sizes, seed, duplicates, wide) -> None:
+    """Random block-diagonal matrices in a shuffled unknown order (islands of mixed sizes,
+    duplicate CSR entries that add up, int32 or int64 indices)."""
+    rng = np.random.default_rng(seed)
+    N = sum(sizes)
+    perm = rng.permutation(N)
+    offsets = np.concatenate(([0], np.cumsum(sizes)))
+    rows, cols, vals = [], [], []
+    for k in range(len(sizes)):
+        u = perm[offsets[k]: offsets[k + 1]]
+        mask = rng.random((u.size, u.size)) < 0.7
+        r, c = np.nonzero(mask)
+        rows += u[r].tolist()
+        cols += u[c].tolist()
+        vals += rng.normal(size=r.size).tolist()
+    if duplicates and rows:
+        rows, cols, vals = rows + rows[:3], cols + cols[:3], vals + vals[:3]
+    M = sp.csr_matrix((vals, (rows, cols)), shape=(N, N))  # sums duplicates...
+    if duplicates and rows:  # ...so keep them as separate stored entries
+        coo = sp.coo_matrix((vals, (rows, cols)), shape=(N, N))
+        M = sp.csr_matrix((coo.data, (coo.row, coo.col)), shape=(N, N))
+        M.has_canonical_format = False
+    if wide:
+        M.indices = M.indices.astype(np.int64)
+        M.indptr = M.indptr.astype(np.int64)
+    lay = islands.IslandLayout(perm=perm, offsets=offsets)
+    blocks = islands._dense_blocks(M, lay, "auto")
+    assert blocks is not None
+    for got, want in zip(blocks, _sliced(M, lay), strict=True):
+        np.testing.assert_allclose(got, want, rtol=1e-15, atol=0)
+        assert got.flags.c_contiguous
+
+
+def test_an_entry_across_islands_is_refused() -> None:
+    """A matrix that is not block diagonal in the islands: None (the caller slices)."""
+    M = sp.csr_matrix(np.array([[1.0, 2.0], [0.0, 1.0]]))
+    lay = islands.IslandLayout(perm=np.array([0, 1]), offsets=np.array([0, 1, 2]))
+    assert islands._dense_blocks(M, lay, "auto") is None
+    assert islands._dense_blocks(M, lay, "sparse") is None  # sparse islands: sliced
+
+
+def test_scene_islands_are_views_of_one_buffer_and_equal_the_sliced_ones() -> None:
+    clcp = build(box_stacks(12, 3, seed=2), friction=4)
+    problems = islands.island_problems(clcp.problem, clcp.layout, clcp.storage, "s")
+    assert len(problems) == 12
+    for p, want in zip(problems, _sliced(clcp.problem.M.tocsr(), clcp.layout), strict=True):
+        np.testing.assert_array_equal(p.M, want)
+    stack = _stacked([p.M for p in problems])
+    assert np.shares_memory(stack, problems[0].M)  # no copy
+    np.testing.assert_array_equal(stack, np.stack([p.M for p in problems]))
+
+
+@pytest.mark.parametrize("order", ["reversed", "copies", "mixed"])
+def test_stacked_copies_whatever_is_not_one_buffer_in_order(order) -> None:
+    buf = np.arange(4 * 9, dtype=np.float64)
+    views = [buf[9 * k: 9 * k + 9].reshape(3, 3) for k in range(4)]
+    blocks = {"reversed": views[::-1], "copies": [v.copy() for v in views],
+              "mixed": [views[0], views[1].copy(), views[2]]}[order]
+    got = _stacked(blocks)
+    np.testing.assert_array_equal(got, np.stack(blocks))
+    assert not np.shares_memory(got, buf)
+
+
+def test_island_problem_names_and_q() -> None:
+    clcp = build(box_stacks(3, 2, seed=3), friction=4)
+    problems = islands.island_problems(clcp.problem, clcp.layout, clcp.storage, "x")
+    for k, p in enumerate(problems):
+        assert isinstance(p, Problem) and p.name == f"x#{k + 1}"
+        np.testing.assert_array_equal(p.q, clcp.problem.q[clcp.layout.unknowns(k)])
