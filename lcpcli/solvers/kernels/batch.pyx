@@ -625,7 +625,7 @@ cdef int _bpp_run(const double* M, const double* q, Py_ssize_t n, int64_t max_it
         for i in range(n):
             nonneg &= not (F[i] != 0) & (z[i] < t)
         have_w = False
-        if nonneg:
+        if nonneg and (n <= STACK_N or not _plainly_infeasible(M, q, n, F, m, idx, z, tol)):
             if _certify_basic(M, q, n, m, A, idx, piv, r, tol, z, w, cwork, iwork, state,
                               &cert):
                 ok = 1
@@ -669,6 +669,40 @@ cdef int _bpp_run(const double* M, const double* q, Py_ssize_t n, int64_t max_it
             if r[i] != 0.0:
                 F[i] = 1 - F[i]
     return ok
+
+
+cdef bint _plainly_infeasible(const double* M, const double* q, Py_ssize_t n,
+                             const signed char* F, Py_ssize_t m, const Py_ssize_t* idx,
+                             const double* z, double tol) noexcept nogil:
+    """Is a nonbasic pair of the basic solution ``z`` (``z_i = 0``, ``i`` not in ``F``)
+    infeasible by more than twice ``tol`` of its row's scale, its ``w_i`` and scale summed
+    over the basic ``z_j`` above rounding level (``> 1e-14 ||z||``, the ones
+    :func:`_certify_basic` keeps)?  Such a pair scores ``eps_i = |w_i| / s_i > tol``
+    (docs/certificate.md: ``z_i = 0`` needs ``w_i >= 0``), so the certificate is not
+    computed: O((n - m) m) here against a certificate's passes over all of M, on the many
+    warm bases that are wrong (a choice of speed only: the pivoting goes on, and only a
+    certified answer counts).  Asked above n = STACK_N only: on small problems the
+    certificate costs about as much and most warm bases are right."""
+    cdef Py_ssize_t i, a, j
+    cdef double zmax = 0.0, t, sc, term, small
+    for a in range(m):
+        t = fabs(z[idx[a]])
+        zmax = t if t > zmax else zmax
+    small = 1e-14 * zmax
+    for i in range(n):
+        if F[i] != 0:
+            continue
+        t = q[i]
+        sc = fabs(q[i])
+        for a in range(m):
+            j = idx[a]
+            if fabs(z[j]) > small:
+                term = M[i * n + j] * z[j]
+                t = t + term
+                sc = sc + fabs(term)
+        if t < -2.0 * tol * sc:
+            return True
+    return False
 
 
 cdef int _certify_basic(const double* M, const double* q, Py_ssize_t n, Py_ssize_t m,
