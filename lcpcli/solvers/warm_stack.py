@@ -6,7 +6,8 @@ the same shape, a (K, n) array of bases, booleans with True: ``z_i`` basic, or o
 ``"cpu"`` backend (LCPs below n = 200: :func:`uses_warm_kernel`), every problem runs, in the
 same compiled call (:func:`lcpcli.solvers.kernels.batch.lemke_warm_stack`), block principal
 pivoting from its basis (one factorisation of ``M_FF`` when the basis is still right, at most
-:data:`WARM_ITER` iterations: Júdice & Pires' block pivots, Murty's least-index fallback), then
+:data:`WARM_ITER` iterations: Júdice & Pires' block pivots, Murty's least-index fallback; only
+the first on a matrix with a diagonal entry that is not positive, which is no P-matrix), then
 Lemke with the covering ray from that basis (the compiled form of
 :mod:`lcpcli.solvers.methods.lemke_warm`: cold Lemke on the principal pivot transform on the
 basis, at most ``lemke_warm.WARM_MAX_PIVOTS`` pivots).  A singular basis block is repaired

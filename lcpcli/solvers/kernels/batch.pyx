@@ -558,8 +558,8 @@ cdef int _bpp_pair(const double* M0, const double* q0, const signed char* B0, do
                    double* w0, signed char* st0, int64_t* it0, double* err0, double* res0,
                    const double* M1, const double* q1, const signed char* B1, double* z1,
                    double* w1, signed char* st1, int64_t* it1, double* err1, double* res1,
-                   Py_ssize_t n, int64_t max_iter, double tol, double* crow0=NULL,
-                   double* crow1=NULL) noexcept nogil:
+                   Py_ssize_t n, int64_t max_iter0, int64_t max_iter1, double tol,
+                   double* crow0=NULL, double* crow1=NULL) noexcept nogil:
     """:func:`_bpp_one` on two problems of size ``n <= STACK_N``, their first basic solutions
     computed together (:func:`_basic_solution2`); returns bit 0 / bit 1 set when problem 0 / 1
     passed."""
@@ -577,10 +577,22 @@ cdef int _bpp_pair(const double* M0, const double* q0, const signed char* B0, do
     _basic_solution2(M0, q0, F0, work0, iwork0 + 3 * n, iwork0 + 4 * n, work0 + n * n, z0,
                      M1, q1, F1, work1, iwork1 + 3 * n, iwork1 + 4 * n, work1 + n * n, z1,
                      n, m)
-    return (_bpp_run(M0, q0, n, max_iter, tol, z0, w0, st0, it0, err0, res0, work0, iwork0,
+    return (_bpp_run(M0, q0, n, max_iter0, tol, z0, w0, st0, it0, err0, res0, work0, iwork0,
                      F0, m[0], crow0)
-            | (_bpp_run(M1, q1, n, max_iter, tol, z1, w1, st1, it1, err1, res1, work1, iwork1,
+            | (_bpp_run(M1, q1, n, max_iter1, tol, z1, w1, st1, it1, err1, res1, work1, iwork1,
                         F1, m[1], crow1) << 1))
+
+
+cdef inline int64_t _bpp_iters(const double* M, Py_ssize_t n, int64_t warm_iter) noexcept nogil:
+    """The block principal pivoting iterations a warm start may take on ``M``: ``warm_iter``,
+    or only the given basis's own basic solution (at most 1) when a diagonal entry is not
+    positive: M is then no P-matrix (contact LCPs: the friction slack rows) and Júdice-Pires'
+    block pivots carry no guarantee; Lemke from the basis takes over at once."""
+    cdef Py_ssize_t i
+    for i in range(n):
+        if not (M[i * n + i] > 0.0):
+            return warm_iter if warm_iter < 1 else 1
+    return warm_iter
 
 
 cdef int _bpp_run(const double* M, const double* q, Py_ssize_t n, int64_t max_iter,
@@ -1066,7 +1078,8 @@ def lemke_warm_stack(M, q, d, basis, int64_t max_iter, int64_t warm_iter,
     """Warm-started stack: problem k starts from its basis ``basis[k]`` ((K, n) int8, 1: z_i
     basic; a row whose first entry is negative has none): block principal pivoting for at most
     ``warm_iter`` iterations (:func:`_bpp_one`: one factorisation of ``M_FF`` when the basis is
-    still right), then Lemke with the covering ray from that basis for at most
+    still right; 1 on a matrix with a diagonal entry that is not positive, :func:`_bpp_iters`),
+    then Lemke with the covering ray from that basis for at most
     ``warm_pivots`` pivots (:func:`_ppt_lemke_one`); an answer that passes the certificate is
     kept (``warm[k]`` = 1), any other ending runs Lemke cold on it in the same call
     (:func:`lemke_stack`'s arguments and outputs).  ``state`` ((K, n) int8) receives each
@@ -1104,16 +1117,21 @@ def lemke_warm_stack(M, q, d, basis, int64_t max_iter, int64_t warm_iter,
                            sp + k * n, a.iters + k, a.err + k, a.residual + k,
                            a.M + (k + 1) * nn, a.q + (k + 1) * n, bp + (k + 1) * n,
                            a.z + (k + 1) * n, a.w + (k + 1) * n, sp + (k + 1) * n,
-                           a.iters + k + 1, a.err + k + 1, a.residual + k + 1, n, warm_iter,
-                           tol, _row(a.cert, k), _row(a.cert, k + 1))
+                           a.iters + k + 1, a.err + k + 1, a.residual + k + 1, n,
+                           _bpp_iters(a.M + k * nn, n, warm_iter),
+                           _bpp_iters(a.M + (k + 1) * nn, n, warm_iter), tol, _row(a.cert, k),
+                           _row(a.cert, k + 1))
         else:
             if bp[k * n] >= 0:
-                ok = _bpp_one(a.M + k * nn, a.q + k * n, n, bp + k * n, warm_iter, tol,
+                ok = _bpp_one(a.M + k * nn, a.q + k * n, n, bp + k * n,
+                              _bpp_iters(a.M + k * nn, n, warm_iter), tol,
                               a.z + k * n, a.w + k * n, sp + k * n, a.iters + k, a.err + k,
                               a.residual + k, _row(a.cert, k))
             if k + 1 < K and bp[(k + 1) * n] >= 0:
                 ok = ok | (_bpp_one(a.M + (k + 1) * nn, a.q + (k + 1) * n, n,
-                                    bp + (k + 1) * n, warm_iter, tol, a.z + (k + 1) * n,
+                                    bp + (k + 1) * n,
+                                    _bpp_iters(a.M + (k + 1) * nn, n, warm_iter), tol,
+                                    a.z + (k + 1) * n,
                                     a.w + (k + 1) * n, sp + (k + 1) * n, a.iters + k + 1,
                                     a.err + k + 1, a.residual + k + 1, _row(a.cert, k + 1)) << 1)
         _warm_rest(a, k, ok & 1, n, nn, bp, sp, wp, dp, eq, max_iter, warm_pivots, piv_tol,
