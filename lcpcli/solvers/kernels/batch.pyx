@@ -36,6 +36,8 @@ from lcpcli.solvers.kernels.lemke cimport (
 from lcpcli.solvers.kernels.pgs cimport PGS_CONVERGED, pgs_sweeps
 from lcpcli.solvers.kernels.simd cimport axpy
 
+from lcpcli.core.tolerances import TINY_Z as _TINY_Z
+
 cnp.import_array()
 
 cdef extern from *:
@@ -304,6 +306,27 @@ cdef int _balance(const double* M, const double* q, const double* d, Py_ssize_t 
     return 1
 
 
+# entries of z at rounding level (:func:`_zero_tiny`): lcpcli.core.tolerances.TINY_Z
+cdef double TINY_Z = _TINY_Z
+
+
+cdef bint _zero_tiny(double* z, Py_ssize_t n) noexcept nogil:
+    """Set the entries of ``z`` at rounding level (``0 < |z_i| <= TINY_Z ||z||_inf``: degenerate
+    basic z's, which a tableau leaves exactly 0; a row made only of such terms would read
+    ``w_i / s_i ~ 1``) to exactly 0; returns whether there were any."""
+    cdef Py_ssize_t i
+    cdef double t = 0.0
+    cdef bint tiny = False
+    for i in range(n):
+        if fabs(z[i]) > t:
+            t = fabs(z[i])
+    for i in range(n):
+        if z[i] != 0.0 and fabs(z[i]) <= TINY_Z * t:
+            z[i] = 0.0
+            tiny = True
+    return tiny
+
+
 cdef void _lemke_one(const double* M, const double* q, const double* d, Py_ssize_t n,
                      int64_t max_iter, double piv_tol, double tie_tol, double tol,
                      double polished, const int* eq, double* z, double* w, signed char* code,
@@ -315,7 +338,8 @@ cdef void _lemke_one(const double* M, const double* q, const double* d, Py_ssize
     when it is not balanced (as the one-problem pipeline does; the answer is mapped back
     exactly and certified on the problem as given); the end basis is re-solved (polish) only
     when the tableau's answer is not certified at rounding level (``polished``: most answers
-    are, and polishing them costs a fifth of the time)."""
+    are, and polishing them costs a fifth of the time); an answer still not certified is tried
+    once more with its entries at rounding level set to 0 (:func:`_zero_tiny`)."""
     cdef double* work = <double*>malloc((10 * n + n * n + 1) * sizeof(double))
     cdef int64_t* basic = <int64_t*>malloc((n + 1) * sizeof(int64_t))
     cdef Py_ssize_t* iwork = <Py_ssize_t*>malloc((3 * n + 1) * sizeof(Py_ssize_t))
@@ -374,6 +398,10 @@ cdef void _lemke_one(const double* M, const double* q, const double* d, Py_ssize
             rc = polish(M, q, n, raw, basic, z)
             if rc == 0:
                 certify_dense(n, M, n, q, z, 0, NULL, NULL, w, cwork, iwork, state, &cert)
+        if rc == 0 and out.status == LEMKE_OK and not _passed(&cert, tol) and _zero_tiny(z, n):
+            # degenerate basic z's left at rounding level (contact LCPs): as the warm start
+            # does (:func:`_certify_basic`), with them set to 0
+            certify_dense(n, M, n, q, z, 0, NULL, NULL, w, cwork, iwork, state, &cert)
         if rc == 0:
             if cert.status == 0:
                 err[0] = cert.error
@@ -700,7 +728,7 @@ cdef bint _plainly_infeasible(const double* M, const double* q, Py_ssize_t n,
     for a in range(m):
         t = fabs(z[idx[a]])
         zmax = t if t > zmax else zmax
-    small = 1e-14 * zmax
+    small = TINY_Z * zmax
     for i in range(n):
         if F[i] != 0:
             continue
@@ -722,27 +750,13 @@ cdef int _certify_basic(const double* M, const double* q, Py_ssize_t n, Py_ssize
                         double* r, double tol, double* z, double* w, double* cwork,
                         Py_ssize_t* iwork, signed char* state, CertOut* cert) noexcept nogil:
     """Certify the basic solution ``z`` of :func:`_basic_solution` (its factors in ``A``): as
-    solved; then with its entries at rounding level (<= 1e-14 ||z||) set to exactly 0
-    (degenerate basic z's, which Lemke's tableau leaves nonbasic; a row made only of such terms
-    would read w_i / s_i ~ 1); then refined once; then refined and with those entries set to 0.
-    A step that leaves ``z`` as it was (no entry at rounding level) is not certified again.
-    Returns 1 when one passed."""
+    solved; then with its entries at rounding level set to exactly 0 (:func:`_zero_tiny`); then
+    refined once; then refined and with those entries set to 0.  A step that leaves ``z`` as it
+    was (no entry at rounding level) is not certified again.  Returns 1 when one passed."""
     cdef int step
-    cdef Py_ssize_t i
-    cdef double t
-    cdef bint tiny
     for step in range(4):
         if step == 1 or step == 3:
-            t = 0.0
-            for i in range(n):
-                if fabs(z[i]) > t:
-                    t = fabs(z[i])
-            tiny = False
-            for i in range(n):
-                if z[i] != 0.0 and fabs(z[i]) <= 1e-14 * t:
-                    z[i] = 0.0
-                    tiny = True
-            if not tiny:
+            if not _zero_tiny(z, n):
                 continue
         elif step == 2:
             if m == 0:

@@ -37,7 +37,7 @@ import numpy as np
 from lcpcli.analysis._scaling import is_symmetric_dense
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, RAY, SINGULAR, Outcome
 from lcpcli.core.text import plural
-from lcpcli.core.tolerances import PIVOT_TOL
+from lcpcli.core.tolerances import PIVOT_TOL, TINY_Z
 from lcpcli.solvers.methods.bpp import NEG_TOL, Blocks
 from lcpcli.solvers.support import better
 
@@ -205,7 +205,7 @@ def run(M: np.ndarray, q: np.ndarray, F: np.ndarray, *, blocks: Blocks | None = 
 def _final(M: np.ndarray, q: np.ndarray, F: np.ndarray, blocks: Blocks, pivots: int, done: int,
            info: dict[str, Any], how: str, problem: Any = None) -> Outcome:
     """The basic solution of the complementary basis ``F``, solved afresh and refined once;
-    with ``problem`` given and entries at rounding level (``<= 1e-14 ||z||``: degenerate
+    with ``problem`` given and entries at rounding level (``<= TINY_Z ||z||``: degenerate
     basic z's, which a tableau leaves exactly 0), the candidate with them set to 0 too, the
     one the certificate scores better kept."""
     n = q.shape[0]
@@ -214,7 +214,7 @@ def _final(M: np.ndarray, q: np.ndarray, F: np.ndarray, blocks: Blocks, pivots: 
         return Outcome(np.zeros(n), pivots, SINGULAR,
                        "warm Lemke: the final basis's block is singular", info=info)
     z = np.maximum(blocks.refine(F, z, M @ z + q), 0.0)
-    tiny = (z != 0.0) & (z <= 1e-14 * float(np.max(z, initial=0.0)))
+    tiny = (z != 0.0) & (z <= TINY_Z * float(np.max(z, initial=0.0)))
     if problem is not None and tiny.any():
         z = better(problem, [z, np.where(tiny, 0.0, z)])[0]
     info["basis"] = np.flatnonzero(F).tolist()
