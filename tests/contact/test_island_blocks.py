@@ -94,3 +94,20 @@ def test_island_problem_names_and_q() -> None:
     for k, p in enumerate(problems):
         assert isinstance(p, Problem) and p.name == f"x#{k + 1}"
         np.testing.assert_array_equal(p.q, clcp.problem.q[clcp.layout.unknowns(k)])
+
+
+def test_cold_stacked_islands_are_certified_in_the_kernel() -> None:
+    """Frictional box stacks have degenerate pairs whose basic z the tableau leaves at rounding
+    level: the batched Lemke kernel certifies them with those set to 0 (TINY_Z) instead of
+    handing the islands to the one-problem pipeline; same verdicts as one by one."""
+    import lcpcli
+
+    clcp = build(box_stacks(40, 3, seed=1), friction=4)
+    problems = islands.island_problems(clcp.problem, clcp.layout, clcp.storage)
+    M = np.stack([p.M for p in problems])
+    q = np.stack([p.q for p in problems])
+    res = lcpcli.solve_many(M, q, "lemke", threads=1)
+    assert res.solved.all()
+    assert not res.results  # none handed back
+    for k in (0, 17, 39):
+        assert lcpcli.solve(problems[k], "lemke").solved
