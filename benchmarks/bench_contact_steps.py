@@ -12,7 +12,8 @@
   steps solved, and the median time of the steps both runs solved.
 * ``next``: ``--next-stacks`` stacks (834: 10,008 contacts, 60,048 unknowns), the "next step"
   of benchmarks/bench_contact.py (every velocity changed by about 1 %) solved cold and from
-  the first step's impulses, interleaved, ``--repeat`` times (medians).
+  the first step's impulses and basis (``Impact.basic``), interleaved, ``--repeat`` times
+  (medians).
 
 Writes ``benchmarks/results/contact_steps.json``.
 """
@@ -73,7 +74,9 @@ def next_step(stacks: int, repeat: int) -> dict[str, object]:
     for _ in range(repeat):
         for kind in ("cold", "warm"):
             t = time.perf_counter()
-            res[kind] = solve(nxt, z0=first.result.z if kind == "warm" else None)
+            warm = kind == "warm"
+            res[kind] = solve(nxt, z0=first.result.z if warm else None,
+                              basis0=first.basic if warm else None)
             times[kind].append(time.perf_counter() - t)
     med = {k: statistics.median(v) for k, v in times.items()}
     return {"case": f"next step, {stacks} stacks", "unknowns": nxt.problem.n,

@@ -91,7 +91,8 @@ def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None =
                lower: Any = None, upper: Any = None, n_eq: int = 0, threads: int | None = None,
                backend: str | None = None, on_error: str = "raise",
                plan: StackPlan | None = None, warm: Any = None, record_basis: bool = False,
-               certificates: bool = False, **options: Any) -> StackResult:
+               certificates: bool = False, pivot_basis: bool = False,
+               **options: Any) -> StackResult:
     """Solve a stack of K problems of one size n and certify every answer.
 
     ``M`` has shape (K, n, n) and ``q`` (K, n): problem ``k`` (0-based) is ``w = M[k] z +
@@ -101,7 +102,8 @@ def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None =
 
     A method with a batched kernel (``lcpcli methods``: Lemke, PGS, PSOR) solves the whole
     stack in one compiled call, in ``threads`` threads (default: the cores this process may
-    use) of ``backend`` (None: this process's default, ``"cpu"`` unless ``--backend`` or
+    use, one per 2 ms of estimated work at most: :func:`lcpcli.solvers.batched.useful_threads`)
+    of ``backend`` (None: this process's default, ``"cpu"`` unless ``--backend`` or
     :func:`lcpcli.solvers.batched.set_default_backend` chose another; ``"c"``, ``"cuda"``:
     the single-source kernels on the CPU / a CUDA device; ``"auto"``: ``"cuda"`` for large
     stacks when a device is present; see :mod:`lcpcli.solvers.batched`); the certificate is
@@ -137,6 +139,8 @@ def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None =
     ``certificates``: the result's ``certificates`` holds the whole certificate of every answer
     the kernel certified (Lemke's and PGS/PSOR's kernels on the ``"cpu"`` backend; computed in
     the same call, the numbers :func:`lcpcli.core.certificate.check` gives for that ``z``).
+    ``pivot_basis``: the result's ``pivot_basis`` holds each answer's complementary basis as
+    Lemke's CPU kernel ended on it (see :attr:`StackResult.pivot_basis`).
 
     ``on_error``: ``"raise"`` (a problem with NaN or Inf data raises :class:`ProblemError`
     naming its index; problems before it are solved first) or ``"mark"`` (its status is
@@ -149,6 +153,7 @@ def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None =
         default_backend,
         default_threads,
         get_backend,
+        useful_threads,
     )
 
     start = time.perf_counter()
@@ -171,7 +176,7 @@ def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None =
         raise OptionError(f"plan= was made for method '{plan.method}', not '{spec.name}'")
     tol = resolve_tol(spec, tol)
     if threads is None:
-        threads = default_threads()
+        threads = useful_threads(default_threads(), K, n)
     elif not (isinstance(threads, int) and threads >= 1):
         raise OptionError(f"threads must be a positive integer, got {threads!r}")
     codes = STATUS_CODES
@@ -205,7 +210,7 @@ def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None =
             raise OptionError(f"batch backend '{backend}' has no '{run_spec.batch.kernel}' "
                               f"kernel (method '{run_spec.name}')")
         name = run_spec.batch.runs_as or run_spec.name
-        out = StackOut.empty(K, n, certificates)  # the kernel writes the final arrays
+        out = StackOut.empty(K, n, certificates, pivot_basis)  # the kernel's final arrays
         run_spec.prepare_once()
         if bases is not None:
             from lcpcli.solvers.warm_stack import lemke_warm
@@ -262,7 +267,8 @@ def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None =
                           messages=messages, methods=methods_of, batched=run_spec is not None,
                           results=results, basis=bases,
                           warmed=None if warmed is None or rows is None else warmed.astype(bool),
-                          certificates=None if run_spec is None else out.cert)
+                          certificates=None if run_spec is None else out.cert,
+                          pivot_basis=None if run_spec is None else out.pivot_basis)
     if record_basis:
         out_res.basis = final_bases(out_res, M, q, lower=lower, upper=upper, n_eq=n_eq)
     out_res.seconds = time.perf_counter() - start
@@ -345,7 +351,8 @@ def solve_each(problems: list[Problem], method: str | None = None, *, tol: float
                              for i in idx])
         res = solve_many(_stacked([problems[i].M for i in idx]),
                          np.stack([problems[i].q for i in idx]), method, tol=tol,
-                         threads=threads, warm=warm, certificates=True, **options)
+                         threads=threads, warm=warm, certificates=True, pivot_basis=True,
+                         **options)
         share = res.seconds / len(idx)
         rows = res.certificates
         for j, i in enumerate(idx):
@@ -372,6 +379,9 @@ def solve_each(problems: list[Problem], method: str | None = None, *, tol: float
                             termination=CONVERGED if cert.passed else Termination.NUMERICAL,
                             problem_name=p.name, info={"batched": True}, known_basis=basis,
                             basis_source=source)
+            if res.pivot_basis is not None and res.pivot_basis[j, 0] >= 0:
+                # the basic z's of the pivoting's final basis (as lcpcli.solve's Lemke reports)
+                out[i].info["basis"] = np.flatnonzero(res.pivot_basis[j]).tolist()
             if res.warmed is not None:
                 out[i].info["warm"] = bool(res.warmed[j])
     for i, p in enumerate(problems):

@@ -197,14 +197,16 @@ def _dense_blocks(M: Any, lay: IslandLayout, storage: str) -> list[np.ndarray] |
 
 def solve_problems(problems: list[Problem], method: str = DEFAULT_METHOD, tol: float | None = None,
                    z0s: list[np.ndarray] | None = None, jobs: int = 1,
-                   **options: Any) -> list[Any]:
+                   bases0: list[np.ndarray] | None = None, **options: Any) -> list[Any]:
     """Solve the island LCPs; one certified :class:`Result` per problem, in order.
 
     ``z0s``: warm starts, one per problem (:func:`warm_attempt`); the problems they do not solve
     start pivoting from the basis of their ``z0`` (``{i: z0_i > 0}`` as the certificate reads
     ``z0`` and ``w0 = M z0 + q``): islands of one size stacked in the batched kernel
     (:mod:`lcpcli.solvers.warm_stack`), others by ``lcpcli.solve(warm=basis)``, each solved
-    cold where that does not end certified.  Problems without ``z0`` go to :func:`solve_cold`
+    cold where that does not end certified; ``bases0`` (with ``z0s``): the bases the pivoting
+    starts from instead (booleans, True: z_i basic).  Problems without ``z0`` go to
+    :func:`solve_cold`
     (``jobs > 1``: in a process pool when the work is large enough,
     :data:`PARALLEL_MIN_UNKNOWNS`; warm-started problems stay in this process).
     ``Result.info["warm"]`` says whether the warm start gave the answer.
@@ -216,14 +218,15 @@ def solve_problems(problems: list[Problem], method: str = DEFAULT_METHOD, tol: f
         todo, warms = [], []
         stacked = _stacked_warm(problems)
         for i, (p, z0) in enumerate(zip(problems, z0s, strict=True)):
+            given = None if bases0 is None else np.asarray(bases0[i], dtype=bool)
             if stacked[i]:  # the batched kernel tries z0's basis first: no pass here
                 todo.append(i)
-                warms.append(np.asarray(z0) > 0)
+                warms.append(np.asarray(z0) > 0 if given is None else given)
                 continue
             res, basis = warm_attempt(p, method, tol, z0)
             if res is None:
                 todo.append(i)
-                warms.append(basis)
+                warms.append(basis if given is None else given)
             else:
                 results[i] = res
     cold = [problems[i] for i in todo]
@@ -268,9 +271,11 @@ def solve_cold(problems: list[Problem], method: str, tol: float | None,
 
 
 def solve_one(problem: Problem, method: str, tol: float | None, z0: np.ndarray | None,
-              options: dict[str, Any]) -> Any:
-    """One LCP (an island or the whole scene): :func:`warm_attempt`, else :func:`solve_cold`."""
-    return solve_problems([problem], method, tol, None if z0 is None else [z0], 1, **options)[0]
+              options: dict[str, Any], basis0: np.ndarray | None = None) -> Any:
+    """One LCP (an island or the whole scene): :func:`warm_attempt`, else :func:`solve_cold`
+    (from ``basis0`` when given, else from ``z0``'s basis)."""
+    return solve_problems([problem], method, tol, None if z0 is None else [z0], 1,
+                          bases0=None if basis0 is None else [basis0], **options)[0]
 
 
 def warm_attempt(problem: Problem, method: str, tol: float | None,

@@ -99,6 +99,10 @@ class Impact:
     energy_after: float
     approaching: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))  # (nc,)
     islands: list[dict[str, Any]] | None = None  # per island report (None: whole scene solve)
+    #: (n,) bool: z_i basic in the basis the answer was pivoted to (each island's, as
+    #: Lemke's batched kernel ended on it, else ``z_i > 0``): the next step's warm basis
+    #: (``solve(..., z0=impact.result.z, basis0=impact.basic)``).  None without a result.
+    basic: np.ndarray | None = None
 
     @property
     def energy_increase(self) -> bool:
@@ -273,6 +277,16 @@ def check_method(clcp: ContactLCP, method: str, islands: bool = True) -> None:
         check_sparse_work(biggest.n, spec)
 
 
+def check_basis0(clcp: ContactLCP, basis0: Any) -> np.ndarray:
+    """The warm basis as booleans of the LCP's length (True: z_i basic; OptionError
+    otherwise)."""
+    b = np.asarray(basis0).ravel()
+    if b.shape[0] != clcp.problem.n or b.dtype.kind not in "biu":
+        raise OptionError(f"the warm basis must be {clcp.problem.n} booleans (True: z_i basic), "
+                          f"got {b.shape[0]} of type {b.dtype}")
+    return b.astype(bool)
+
+
 def check_z0(clcp: ContactLCP, z0: Any) -> np.ndarray:
     """The warm start as a vector of the LCP's length (OptionError otherwise)."""
     z = np.asarray(z0, dtype=np.float64).ravel()
@@ -286,7 +300,8 @@ def check_z0(clcp: ContactLCP, z0: Any) -> np.ndarray:
 
 
 def solve(clcp: ContactLCP, method: str = DEFAULT_METHOD, tol: float | None = None, *,
-          islands: bool = True, z0: Any = None, jobs: int = 1, **options: Any) -> Impact:
+          islands: bool = True, z0: Any = None, basis0: Any = None, jobs: int = 1,
+          **options: Any) -> Impact:
     """Solve the contact LCP and map the impulses back onto the scene.
 
     ``islands`` (default): each island's LCP is solved with :func:`lcpcli.solve` (``method``,
@@ -294,20 +309,39 @@ def solve(clcp: ContactLCP, method: str = DEFAULT_METHOD, tol: float | None = No
     are merged in the scene's unknown order and certified on the whole-scene LCP (the verdict);
     an island whose LCP is proven to have no solution proves the scene's has none.  Otherwise the
     whole-scene LCP is solved at once.  ``z0``: warm start (a vector of the LCP's length),
-    see :func:`lcpcli.contact.islands.solve_one`.  ``jobs``: processes for the islands.
+    see :func:`lcpcli.contact.islands.solve_one`; ``basis0`` (with ``z0``): the basis the
+    pivoting starts from (booleans, True: z_i basic; a previous step's :attr:`Impact.basic`,
+    matched by unknown name) instead of ``z0``'s support ``{i: z0_i > 0}``, which on the
+    degenerate LCPs of redundant contacts is a poor start.  ``jobs``: processes for the islands.
     """
     check_method(clcp, method, islands)
     if jobs < 1:
         raise OptionError(f"--jobs must be >= 1, got {jobs}")
     z0 = None if z0 is None else check_z0(clcp, z0)
+    if basis0 is not None:
+        if z0 is None:
+            raise OptionError("a warm basis (basis0) needs its warm start z0")
+        basis0 = check_basis0(clcp, basis0)
     if not islands or clcp.layout.count == 0:
-        result = solve_one(clcp.problem, method, tol, z0, dict(options))
-        return impact_from(clcp, result.z, result)
-    return impact_from(clcp, *_solve_islands(clcp, method, tol, z0, jobs, options))
+        result = solve_one(clcp.problem, method, tol, z0, dict(options), basis0)
+        return impact_from(clcp, result.z, result, basic=_basic_of(result))
+    return impact_from(clcp, *_solve_islands(clcp, method, tol, z0, jobs, options, basis0))
+
+
+def _basic_of(result: Any) -> np.ndarray:
+    """z_i basic in ``result``'s pivoting basis (``info["basis"]``, the basic z's that Lemke
+    reports), else in its answer's support (``z_i > 0``)."""
+    basic = result.z > 0
+    listed = result.info.get("basis")
+    if listed is not None and result.solved:
+        basic = np.zeros(result.z.shape[0], dtype=bool)
+        basic[np.asarray(listed, dtype=np.int64)] = True
+    return basic
 
 
 def _solve_islands(clcp: ContactLCP, method: str, tol: float | None, z0: np.ndarray | None,
-                   jobs: int, options: dict[str, Any]) -> tuple[np.ndarray, Any, list[Any]]:
+                   jobs: int, options: dict[str, Any], basis0: np.ndarray | None = None
+                   ) -> tuple[np.ndarray, Any, list[Any], np.ndarray]:
     from lcpcli.api import certify_outcome
     from lcpcli.solvers.request import method_of, resolve_tol
 
@@ -315,14 +349,17 @@ def _solve_islands(clcp: ContactLCP, method: str, tol: float | None, z0: np.ndar
     t0 = time.perf_counter()
     problems = island_problems(clcp.problem, lay, clcp.storage, clcp.scene.name or "contact")
     z0s = None if z0 is None else [z0[lay.unknowns(k)] for k in range(lay.count)]
-    results = solve_problems(problems, method, tol, z0s, jobs, **options)
+    bases = None if basis0 is None else [basis0[lay.unknowns(k)] for k in range(lay.count)]
+    results = solve_problems(problems, method, tol, z0s, jobs, bases0=bases, **options)
     seconds = time.perf_counter() - t0
     z = np.zeros(clcp.problem.n)
+    basic = np.zeros(clcp.problem.n, dtype=bool)
     sizes, bodies = isl.sizes(), isl.body_counts()
     reports = []
     used: dict[str, int] = {}
     for k, res in enumerate(results):
         z[lay.unknowns(k)] = res.z
+        basic[lay.unknowns(k)] = _basic_of(res)
         chosen = res.info.get("chosen") or res.method
         used[chosen] = used.get(chosen, 0) + 1
         reports.append({"index": k + 1, "contacts": int(sizes[k]), "bodies": int(bodies[k]),
@@ -359,7 +396,7 @@ def _solve_islands(clcp: ContactLCP, method: str, tol: float | None, z0: np.ndar
                       info=info)
     tol_used = resolve_tol(method_of(method), tol)
     result = certify_outcome(clcp.problem, outcome, method, seconds, tol_used)
-    return z, result, reports
+    return z, result, reports, basic
 
 
 def scene_farkas(n: int, layout: IslandLayout,
@@ -385,7 +422,8 @@ def scene_farkas(n: int, layout: IslandLayout,
 
 
 def impact_from(clcp: ContactLCP, z: np.ndarray, result: Any = None,
-                islands: list[dict[str, Any]] | None = None) -> Impact:
+                islands: list[dict[str, Any]] | None = None,
+                basic: np.ndarray | None = None) -> Impact:
     """Post-impact state for the LCP unknowns ``z`` (see :mod:`lcpcli.contact.impact`)."""
     scene = clcp.scene
     nc, nf, k = scene.n_contacts, clcp.friction_contacts.size, clcp.friction
@@ -399,7 +437,8 @@ def impact_from(clcp: ContactLCP, z: np.ndarray, result: Any = None,
                   normal_velocity=vn,
                   energy_before=kinetic_energy(scene, scene.velocity, scene.omega),
                   energy_after=kinetic_energy(scene, v, w),
-                  approaching=approaching(vn, clcp.assembly.v_rel), islands=islands)
+                  approaching=approaching(vn, clcp.assembly.v_rel), islands=islands,
+                  basic=basic)
 
 
 # ---------------------------------------------------------------------- JSON

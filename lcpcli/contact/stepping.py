@@ -6,9 +6,10 @@ ODE, Bullet, whose solvers keep the last step's impulses): at every step of leng
 1. gravity changes the dynamic bodies' velocities: ``v <- v + g dt``;
 2. the contact LCP of the scene with these velocities (:func:`lcpcli.contact.build`) is solved
    (:func:`lcpcli.contact.solve`); with ``warm`` its warm start is the previous step's
-   impulses, matched by unknown name (:func:`lcpcli.contact.warmstart.match_by_name`, as
-   ``contact-matrix --z0`` matches them), so each island starts pivoting from its previous
-   basis (:func:`lcpcli.contact.islands.solve_problems`);
+   impulses and the basis its pivoting ended on (:attr:`lcpcli.contact.Impact.basic`), matched
+   by unknown name (:func:`lcpcli.contact.warmstart.match_by_name`, as ``contact-matrix --z0``
+   matches them), so each island starts pivoting from its previous basis
+   (:func:`lcpcli.contact.islands.solve_problems`);
 3. the post-impact velocities integrate the positions: ``x <- x + v^+ dt``, and every contact
    point moves with the body on its A side (the contact set and the normals are kept: a
    resting stack's contacts; a separating contact gets no impulse from the LCP).
@@ -74,19 +75,22 @@ def simulate(scene: Scene, steps: int, dt: float = 0.01, *, warm: bool = True,
     vel = scene.velocity.copy()
     vel[~scene.static, scene.dimension - 1] -= GRAVITY * dt
     scene = dataclasses.replace(scene, velocity=vel)
-    prev: tuple[np.ndarray, list[str]] | None = None
+    prev: tuple[np.ndarray, np.ndarray, list[str]] | None = None
     for _ in range(steps):
         clcp = build(scene, friction=friction, softness=softness)
-        z0 = None
+        z0 = basis0 = None
         if warm and prev is not None:
-            z0 = match_by_name(*prev, clcp.unknowns)[0]
+            z0 = match_by_name(prev[0], prev[2], clcp.unknowns)[0]
+            # the previous basis by name too (a new contact's unknowns start nonbasic)
+            basis0 = match_by_name(prev[1], prev[2], clcp.unknowns)[0] > 0.5
         t = time.perf_counter()
-        impact = solve(clcp, method, z0=z0, **options)
+        impact = solve(clcp, method, z0=z0, basis0=basis0, **options)
         seconds = time.perf_counter() - t
         reports = impact.islands or []
         out.append(Step(seconds, int(sum(r["iterations"] for r in reports)),
                         int(sum(bool(r["warm"]) for r in reports)), len(reports),
                         impact.result.status, impact.result.z))
-        prev = (impact.result.z, clcp.unknowns)
+        basic = impact.result.z > 0 if impact.basic is None else impact.basic
+        prev = (impact.result.z, basic.astype(np.float64), clcp.unknowns)
         scene = advance(scene, impact.velocity, impact.omega, dt)
     return out

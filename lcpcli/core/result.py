@@ -319,6 +319,12 @@ class StackResult:
     #: the ``results`` solved on their own), when ``solve_many(certificates=True)`` ran a
     #: CPU kernel that records them; None otherwise.
     certificates: np.ndarray | None = None
+    #: (K, n) int8: each kernel-certified answer's complementary basis from the pivoting (1: z_i
+    #: basic, 0: w_i basic; -1 rows: none recorded), when ``solve_many(pivot_basis=True)`` ran
+    #: Lemke's CPU kernel; None otherwise.  It differs from :attr:`basis` (the certificate's
+    #: pair states) on degenerate pairs (``z_i = w_i = 0``), where it says which of the two the
+    #: pivoting kept basic: the better start for the next step (contact LCPs).
+    pivot_basis: np.ndarray | None = None
 
     def method_of(self, k: int) -> str:
         """The method that produced problem k's answer."""

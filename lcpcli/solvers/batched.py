@@ -56,16 +56,21 @@ class StackOut:
     #: (K, batch.CERT_FIELDS) float64: each certified answer's whole certificate (NaN rows:
     #: none; lcpcli.core.certificate.from_row reads a row), or None: not asked for
     cert: np.ndarray | None = None
+    #: (K, n) int8: each certified answer's complementary basis from the pivoting (1: z_i
+    #: basic, 0: w_i basic; -1 rows: none), or None: not asked for
+    pivot_basis: np.ndarray | None = None
 
     @classmethod
-    def empty(cls, K: int, n: int, certificates: bool = False) -> StackOut:
+    def empty(cls, K: int, n: int, certificates: bool = False,
+              pivot_basis: bool = False) -> StackOut:
         cert = None
         if certificates:
             from lcpcli.solvers.kernels.batch import CERT_FIELDS
 
             cert = np.full((K, CERT_FIELDS), np.nan)
         return cls(np.zeros((K, n)), np.zeros((K, n)), np.full(K, KERNEL_RETRY, np.int8),
-                   np.zeros(K, np.int64), np.full(K, np.inf), np.full(K, np.nan), cert)
+                   np.zeros(K, np.int64), np.full(K, np.inf), np.full(K, np.nan), cert,
+                   np.full((K, n), -1, np.int8) if pivot_basis else None)
 
 
 #: A stacked kernel: ``kernel(M, q, lower, upper, *, tol, options, out, threads, scaling)``
@@ -80,6 +85,21 @@ def default_threads() -> int:
         return max(1, len(os.sched_getaffinity(0)))
     except (AttributeError, OSError):
         return os.cpu_count() or 1
+
+
+#: The work (estimated seconds of one core) a default stack gives each thread at least: a
+#: thread costs little to start, but on a busy machine the call waits for the last one to be
+#: scheduled again (a scheduler time slice, milliseconds: 20 contact islands of n = 72, 1 ms
+#: of work, took a median 16 ms on 2 threads against 1 ms on one at load 4.5).
+MIN_THREAD_SECONDS = 0.002
+
+
+def useful_threads(threads: int, K: int, n: int) -> int:
+    """At most ``threads``, and one per :data:`MIN_THREAD_SECONDS` of the stack's estimated
+    work (about ``0.2 us + 0.15 ns n^3`` a problem for Lemke's kernels, measured at n = 12
+    and 72), at least 1."""
+    work = K * (2e-7 + 1.5e-10 * float(n) ** 3)
+    return max(1, min(threads, int(work / MIN_THREAD_SECONDS)))
 
 
 def kernel_params(kernel: str, n: int, options: Mapping[str, Any]) -> dict[str, Any]:
@@ -105,7 +125,7 @@ def _cpu_lemke(M: Any, q: Any, lower: Any, upper: Any, *, tol: float,
     balance = None if scaling == "none" else (BALANCED, Q_BALANCED, MAX_ROUNDS)
     batch.lemke_stack(M, q, p["covering"], p["max_iter"], PIVOT_TOL, TIE_TOL, tol, out.z, out.w,
                       out.code, out.iterations, out.error, out.residual, threads, balance, POLISHED,
-                      out.cert)
+                      out.cert, out.pivot_basis)
 
 
 def _cpu_sor(M: Any, q: Any, lower: Any, upper: Any, *, tol: float,

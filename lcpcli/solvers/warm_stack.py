@@ -49,7 +49,14 @@ def stack_bases(warm: Any, K: int, n: int) -> np.ndarray:
     """The (K, n) int8 warm bases of ``warm`` (1: ``z_i`` basic; a row of -1: none, e.g. a
     problem that was not solved or whose warm row has NaN).  OptionError on a wrong shape."""
     if isinstance(warm, StackResult):
-        if warm.basis is not None:  # a solved problem's z is finite (it passed the certificate)
+        if warm.pivot_basis is not None and np.shape(warm.pivot_basis) == (K, n):
+            # the pivoting's bases (degenerate pairs included); rows it did not record: the
+            # certificate's
+            bases = np.array(warm.pivot_basis, dtype=np.int8)
+            if warm.basis is not None and n:
+                none = bases[:, 0] < 0
+                bases[none] = np.equal(warm.basis[none], BETWEEN)
+        elif warm.basis is not None:  # a solved problem's z is finite (it passed the certificate)
             bases = np.equal(warm.basis, BETWEEN).view(np.int8)
         else:
             rows = np.asarray(warm.z)
@@ -93,5 +100,5 @@ def lemke_warm(M: np.ndarray, q: np.ndarray, bases: np.ndarray, *, tol: float,
     batch.lemke_warm_stack(M, q, d, bases, limit, WARM_ITER, WARM_MAX_PIVOTS, PIVOT_TOL,
                            TIE_TOL, tol, out.z,
                            out.w, out.code, out.iterations, out.error, out.residual, state,
-                           warm, threads, balance, POLISHED, out.cert)
+                           warm, threads, balance, POLISHED, out.cert, out.pivot_basis)
     return state, warm

@@ -111,3 +111,68 @@ def test_cold_stacked_islands_are_certified_in_the_kernel() -> None:
     assert not res.results  # none handed back
     for k in (0, 17, 39):
         assert lcpcli.solve(problems[k], "lemke").solved
+
+
+def _next_step(stacks: int):
+    import dataclasses
+
+    from lcpcli.contact import solve
+
+    scene = box_stacks(stacks, 3, seed=1)
+    first = solve(build(scene, friction=4))
+    rng = np.random.default_rng(0)
+    nxt = build(dataclasses.replace(
+        scene, velocity=scene.velocity * (1 + 0.01 * rng.normal(size=scene.velocity.shape)),
+        omega=scene.omega * (1 + 0.01 * rng.normal(size=scene.omega.shape))), friction=4)
+    return first, nxt
+
+
+def test_the_pivoting_basis_starts_the_next_step_better_than_the_support() -> None:
+    """Impact.basic (each island's basis as Lemke's kernel ended on it, degenerate pairs
+    included) as the next step's basis0: same verdicts as cold and far fewer pivots than
+    starting from z0's support, which the redundant contacts of a box stack make singular."""
+    from lcpcli.contact import solve
+
+    first, nxt = _next_step(30)
+    assert first.basic is not None and first.basic.shape == (nxt.problem.n,)
+    assert (first.basic >= (first.result.z > 0)).all()  # the support is basic, and more
+    assert first.basic.sum() > (first.result.z > 0).sum()
+    cold = solve(nxt)
+    support = solve(nxt, z0=first.result.z)
+    basis = solve(nxt, z0=first.result.z, basis0=first.basic)
+    for impact in (cold, support, basis):
+        assert impact.result.solved
+    pivots = {k: sum(r["iterations"] for r in v.islands)
+              for k, v in (("support", support), ("basis", basis))}
+    assert pivots["basis"] < pivots["support"] / 2, pivots
+
+
+def test_basis0_is_checked() -> None:
+    from lcpcli.contact import solve
+    from lcpcli.core.errors import OptionError
+
+    first, nxt = _next_step(2)
+    with pytest.raises(OptionError, match="needs its warm start"):
+        solve(nxt, basis0=first.basic)
+    with pytest.raises(OptionError, match="booleans"):
+        solve(nxt, z0=first.result.z, basis0=first.basic[:-1])
+    with pytest.raises(OptionError, match="booleans"):
+        solve(nxt, z0=first.result.z, basis0=first.result.z)
+
+
+def test_stack_pivot_basis_is_the_certificate_basis_where_nothing_is_degenerate() -> None:
+    """pivot_basis (Lemke's final complementary basis) and basis (the certificate's pair
+    states) agree on nondegenerate answers; a warm stack from a StackResult starts from it."""
+    import lcpcli
+    from lcpcli.core.certificate import BETWEEN
+
+    rng = np.random.default_rng(5)
+    A = rng.normal(size=(40, 8, 8))
+    M = A @ A.transpose(0, 2, 1) / 8 + np.eye(8)
+    q = rng.normal(size=(40, 8))
+    cold = lcpcli.solve_many(M, q, "lemke", pivot_basis=True, record_basis=True)
+    assert (cold.pivot_basis >= 0).all()
+    np.testing.assert_array_equal(cold.pivot_basis == 1, cold.basis == BETWEEN)
+    warm = lcpcli.solve_many(M, q * 1.001, "lemke", warm=cold, pivot_basis=True)
+    assert warm.solved.all() and warm.warmed.all()
+    assert lcpcli.solve_many(M, q, "lemke").pivot_basis is None

@@ -330,3 +330,27 @@ def test_solve_each_takes_the_kernel_certificate_and_it_equals_a_fresh_one(warm,
         cert, w, states = _fresh(p.M, p.q, r.z, r.certificate.tol)
         assert r.certificate == cert and np.array_equal(r.w, w)
         assert np.array_equal(r.basis, states)
+
+
+def test_default_threads_follow_the_work(monkeypatch) -> None:
+    """A default stack gets one thread per MIN_THREAD_SECONDS of estimated work (a small stack
+    runs on one: on a busy machine a second thread's join costs a time slice); an explicit
+    ``threads`` is taken as given."""
+    from lcpcli.solvers.batched import MIN_THREAD_SECONDS, default_threads, useful_threads
+
+    assert useful_threads(8, 20, 72) == 1 and useful_threads(8, 0, 12) == 1
+    assert useful_threads(2, 834, 72) == 2 and useful_threads(16, 10**6, 12) == 16
+    for K in (1, 10, 100, 10**3, 10**4, 10**5):
+        t = [useful_threads(th, K, 30) for th in (1, 2, 4, 64)]
+        assert t == sorted(t) and t[0] >= 1
+        assert all(a <= b for a, b in zip(t, (1, 2, 4, 64), strict=True))
+        assert useful_threads(64, K, 30) <= max(1, K * (2e-7 + 1.5e-10 * 30**3)
+                                                 / MIN_THREAD_SECONDS)
+    seen = []
+    monkeypatch.setattr(batched, "useful_threads",
+                        lambda threads, K, n: seen.append((threads, K, n)) or 1)
+    M, q = pd_stack(12, 4, seed=3)
+    assert solve_many(M, q, "lemke").solved.all()
+    assert seen == [(default_threads(), 12, 4)]
+    solve_many(M, q, "lemke", threads=2)
+    assert len(seen) == 1

@@ -265,6 +265,21 @@ cdef inline double* _row(double* cert, Py_ssize_t k) noexcept nogil:
     return NULL if cert == NULL else cert + k * C_FIELDS
 
 
+cdef inline signed char* _prow(signed char* pivots, Py_ssize_t k,
+                               Py_ssize_t n) noexcept nogil:
+    """Problem k's row of a stack's ``pivot_basis`` output (NULL when none was asked for)."""
+    return NULL if pivots == NULL else pivots + k * n
+
+
+cdef inline void _keep_basis(const signed char* F, Py_ssize_t n, signed char* prow) noexcept nogil:
+    """A certified answer's pivoting basis (``F``: 1 where z_i is basic) into its row of
+    ``pivot_basis`` (``prow`` not NULL)."""
+    cdef Py_ssize_t i
+    if prow != NULL:
+        for i in range(n):
+            prow[i] = 1 if F[i] != 0 else 0
+
+
 cdef inline void _keep(const CertOut* c, double* err, double* res, double* row) noexcept nogil:
     """A certified answer's numbers: its error and residual, and (``row`` not NULL) the whole
     certificate as a row of ``cert`` (:data:`CERT_FIELDS`)."""
@@ -331,10 +346,12 @@ cdef void _lemke_one(const double* M, const double* q, const double* d, Py_ssize
                      int64_t max_iter, double piv_tol, double tie_tol, double tol,
                      double polished, const int* eq, double* z, double* w, signed char* code,
                      int64_t* iters, double* err, double* res,
-                     signed char* state=NULL, double* crow=NULL) noexcept nogil:
+                     signed char* state=NULL, double* crow=NULL,
+                     signed char* prow=NULL) noexcept nogil:
     """Lemke (tableau) and the certificate of one problem (``state``, when not NULL, receives
     each pair's state as the certificate scores the answer; ``crow``, when not NULL, the
-    certificate of a certified answer: :func:`_keep`).  The problem is equilibrated first
+    certificate of a certified answer: :func:`_keep`; ``prow``, its complementary basis: 1 where
+    z_i is basic in the tableau's final basis).  The problem is equilibrated first
     when it is not balanced (as the one-problem pipeline does; the answer is mapped back
     exactly and certified on the problem as given); the end basis is re-solved (polish) only
     when the tableau's answer is not certified at rounding level (``polished``: most answers
@@ -409,6 +426,13 @@ cdef void _lemke_one(const double* M, const double* q, const double* d, Py_ssize
             if (out.status == LEMKE_OK or out.status == LEMKE_TRIVIAL) and _passed(&cert, tol):
                 code[0] = B_SOLVED
                 _keep(&cert, err, res, crow)
+                if prow != NULL:  # z_i basic: code n + i in the tableau's basis (q >= 0: none)
+                    for i in range(n):
+                        prow[i] = 0
+                    if out.status == LEMKE_OK:
+                        for i in range(n):
+                            if n <= basic[i] < 2 * n:
+                                prow[basic[i] - n] = 1
     free(work)
     free(basic)
     free(iwork)
@@ -554,7 +578,7 @@ cdef void _lu_solve(const double* A, const Py_ssize_t* piv, Py_ssize_t m,
 cdef int _bpp_one(const double* M, const double* q, Py_ssize_t n, const signed char* F0,
                   int64_t max_iter, double tol, double* z, double* w, signed char* state,
                   int64_t* iters, double* err, double* res,
-                  double* crow=NULL) noexcept nogil:
+                  double* crow=NULL, signed char* prow=NULL) noexcept nogil:
     """Block principal pivoting from the basis ``F0`` (as lcpcli.solvers.methods.bpp: block
     pivots while the count of infeasible pairs falls, Murty's least-index single pivot after
     W_BLOCK_TRIES without progress), judged by the certificate (:func:`_bpp_run`).  Returns 1
@@ -574,7 +598,7 @@ cdef int _bpp_one(const double* M, const double* q, Py_ssize_t n, const signed c
         for i in range(n):
             F[i] = 1 if F0[i] else 0
         ok = _bpp_run(M, q, n, max_iter, tol, z, w, state, iters, err, res, work, iwork, F,
-                      -1, crow)
+                      -1, crow, prow)
     if heap:
         free(work)
         free(iwork)
@@ -587,7 +611,8 @@ cdef int _bpp_pair(const double* M0, const double* q0, const signed char* B0, do
                    const double* M1, const double* q1, const signed char* B1, double* z1,
                    double* w1, signed char* st1, int64_t* it1, double* err1, double* res1,
                    Py_ssize_t n, int64_t max_iter0, int64_t max_iter1, double tol,
-                   double* crow0=NULL, double* crow1=NULL) noexcept nogil:
+                   double* crow0=NULL, double* crow1=NULL, signed char* prow0=NULL,
+                   signed char* prow1=NULL) noexcept nogil:
     """:func:`_bpp_one` on two problems of size ``n <= STACK_N``, their first basic solutions
     computed together (:func:`_basic_solution2`); returns bit 0 / bit 1 set when problem 0 / 1
     passed."""
@@ -606,9 +631,9 @@ cdef int _bpp_pair(const double* M0, const double* q0, const signed char* B0, do
                      M1, q1, F1, work1, iwork1 + 3 * n, iwork1 + 4 * n, work1 + n * n, z1,
                      n, m)
     return (_bpp_run(M0, q0, n, max_iter0, tol, z0, w0, st0, it0, err0, res0, work0, iwork0,
-                     F0, m[0], crow0)
+                     F0, m[0], crow0, prow0)
             | (_bpp_run(M1, q1, n, max_iter1, tol, z1, w1, st1, it1, err1, res1, work1, iwork1,
-                        F1, m[1], crow1) << 1))
+                        F1, m[1], crow1, prow1) << 1))
 
 
 cdef inline int64_t _bpp_iters(const double* M, Py_ssize_t n, int64_t warm_iter) noexcept nogil:
@@ -626,7 +651,8 @@ cdef inline int64_t _bpp_iters(const double* M, Py_ssize_t n, int64_t warm_iter)
 cdef int _bpp_run(const double* M, const double* q, Py_ssize_t n, int64_t max_iter,
                   double tol, double* z, double* w, signed char* state, int64_t* iters,
                   double* err, double* res, double* work, Py_ssize_t* iwork, signed char* F,
-                  Py_ssize_t first_m, double* crow=NULL) noexcept nogil:
+                  Py_ssize_t first_m, double* crow=NULL,
+                  signed char* prow=NULL) noexcept nogil:
     """The iterations of :func:`_bpp_one` from the basis ``F`` (modified), in the scratch
     ``work`` (n*n + 8 n doubles: the block's factors, then r, then the certificate's 5 n) and
     ``iwork`` (5 n: the certificate's 3 n, idx, piv).  ``first_m >= 0``: the first basic
@@ -671,6 +697,7 @@ cdef int _bpp_run(const double* M, const double* q, Py_ssize_t n, int64_t max_it
                 ok = 1
                 iters[0] = it
                 _keep(&cert, err, res, crow)
+                _keep_basis(F, n, prow)
                 break
             have_w = cert.status == 0  # w and the row scales of this z are in place
         count = 0
@@ -772,7 +799,7 @@ cdef int _ppt_lemke_one(const double* M, const double* q, Py_ssize_t n,
                         const signed char* F0, int64_t max_iter, double piv_tol,
                         double tie_tol, double tol, double* z, double* w, signed char* state,
                         int64_t* iters, double* err, double* res,
-                        double* crow=NULL) noexcept nogil:
+                        double* crow=NULL, signed char* prow=NULL) noexcept nogil:
     """Lemke with the covering ray started from the basis ``F0`` (lcpcli.solvers.methods.
     lemke_warm's method, compiled): the principal pivot transform of (q, M) on F
     (Cottle-Pang-Stone section 2.3: ``M'_FF = M_FF^-1``, ``M'_FG = -M_FF^-1 M_FG``,
@@ -892,6 +919,7 @@ cdef int _ppt_lemke_one(const double* M, const double* q, Py_ssize_t n,
             ok = 1
             iters[0] = out.pivots + 1
             _keep(&cert, err, res, crow)
+            _keep_basis(F, n, prow)
     free(work)
     free(iwork)
     free(basic)
@@ -988,7 +1016,7 @@ cdef bint _empty(_Stack a):
 
 cdef class _Stack:
     """A stack's checked arrays (kept alive here) and their data pointers."""
-    cdef cnp.ndarray Ma, qa, zo, wo, co, io, eo, ro, cto
+    cdef cnp.ndarray Ma, qa, zo, wo, co, io, eo, ro, cto, pvo
     cdef Py_ssize_t K, n
     cdef const double* M
     cdef const double* q
@@ -999,13 +1027,16 @@ cdef class _Stack:
     cdef double* err
     cdef double* residual
     cdef double* cert  # NULL: no certificate rows asked for
+    cdef signed char* pv  # NULL: no pivoting bases asked for
 
 
-cdef _Stack _checked(M, q, z, w, code, iters, err, residual, str name, cert=None):
+cdef _Stack _checked(M, q, z, w, code, iters, err, residual, str name, cert=None,
+                     pivot_basis=None):
     """``M`` (K, n, n) and ``q`` (K, n) as float64 (views when they are), and the preallocated
     outputs (``inout``: no silent copies; ``cert``: None or (K, :data:`CERT_FIELDS`) float64,
-    each certified answer's certificate, the rest left as they are); ValueError on a wrong
-    shape."""
+    each certified answer's certificate, the rest left as they are; ``pivot_basis``: None or
+    (K, n) int8, each certified answer's complementary basis, 1 where z_i is basic); ValueError
+    on a wrong shape."""
     cdef _Stack a = _Stack()
     a.Ma = _stack(M, 3)
     a.qa = _stack(q, 2)
@@ -1027,6 +1058,10 @@ cdef _Stack _checked(M, q, z, w, code, iters, err, residual, str name, cert=None
     if cert is not None:
         a.cto = inout(cert, cnp.NPY_FLOAT64, a.K, C_FIELDS)
         a.cert = f64_ptr(a.cto)
+    a.pv = NULL
+    if pivot_basis is not None:
+        a.pvo = inout(pivot_basis, cnp.NPY_INT8, a.K, a.n)
+        a.pv = <signed char*>cnp.PyArray_DATA(a.pvo)
     return a
 
 
@@ -1057,7 +1092,7 @@ cdef cnp.ndarray _covering(object d, Py_ssize_t n, str label):
 
 def lemke_stack(M, q, d, int64_t max_iter, double piv_tol, double tie_tol, double tol,
                 z, w, code, iters, err, residual, int threads, balance=None,
-                double polished=0.0, cert=None):
+                double polished=0.0, cert=None, pivot_basis=None):
     """Lemke (tableau) on every problem of the stack ``M`` (K, n, n), ``q`` (K, n).
 
     ``d``: the covering vector (n,), or None for all ones.  Outputs (preallocated,
@@ -1068,11 +1103,14 @@ def lemke_stack(M, q, d, int64_t max_iter, double piv_tol, double tie_tol, doubl
     :mod:`lcpcli.analysis.scaling`: each problem that is not balanced is equilibrated first.
     ``polished``: the end basis is re-solved unless the certified error is at most this
     (:data:`lcpcli.core.tolerances.POLISHED`; 0: always).  ``cert``: None, or (K,
-    :data:`CERT_FIELDS`) float64 receiving each certified answer's certificate (:func:`_keep`).
+    :data:`CERT_FIELDS`) float64 receiving each certified answer's certificate (:func:`_keep`);
+    ``pivot_basis``: None, or (K, n) int8 receiving each certified answer's complementary basis
+    (1: z_i basic, 0: w_i basic; rows of the others left as they are).
     """
     cdef int eqv[3]
     cdef const int* eq = _balance_args(balance, eqv)
-    cdef _Stack a = _checked(M, q, z, w, code, iters, err, residual, "lemke_stack", cert)
+    cdef _Stack a = _checked(M, q, z, w, code, iters, err, residual, "lemke_stack", cert,
+                             pivot_basis)
     cdef Py_ssize_t K = a.K, n = a.n, nn = a.n * a.n, k
     cdef cnp.ndarray da = _covering(d, n, "lemke_stack")
     cdef double* dp = NULL if da is None else f64_ptr(da)
@@ -1082,13 +1120,13 @@ def lemke_stack(M, q, d, int64_t max_iter, double piv_tol, double tie_tol, doubl
                     num_threads=threads if threads > 0 else 1):
         _lemke_one(a.M + k * nn, a.q + k * n, dp, n, max_iter, piv_tol, tie_tol, tol, polished,
                    eq, a.z + k * n, a.w + k * n, a.code + k, a.iters + k, a.err + k,
-                   a.residual + k, NULL, _row(a.cert, k))
+                   a.residual + k, NULL, _row(a.cert, k), _prow(a.pv, k, n))
 
 
 def lemke_warm_stack(M, q, d, basis, int64_t max_iter, int64_t warm_iter,
                      int64_t warm_pivots, double piv_tol, double tie_tol, double tol, z, w,
                      code, iters, err, residual, state, warm, int threads, balance=None,
-                     double polished=0.0, cert=None):
+                     double polished=0.0, cert=None, pivot_basis=None):
     """Warm-started stack: problem k starts from its basis ``basis[k]`` ((K, n) int8, 1: z_i
     basic; a row whose first entry is negative has none): block principal pivoting for at most
     ``warm_iter`` iterations (:func:`_bpp_one`: one factorisation of ``M_FF`` when the basis is
@@ -1100,12 +1138,12 @@ def lemke_warm_stack(M, q, d, basis, int64_t max_iter, int64_t warm_iter,
     certified answer's basis (the certificate's pair states) for the next step.  Problems go
     in pairs: two problems of n <= STACK_N that both have a basis start together
     (:func:`_bpp_pair`: their first basic solutions factored and solved in turn, the same
-    numbers as one by one).  ``cert``: as :func:`lemke_stack`'s.
+    numbers as one by one).  ``cert``, ``pivot_basis``: as :func:`lemke_stack`'s.
     """
     cdef int eqv[3]
     cdef const int* eq = _balance_args(balance, eqv)
     cdef _Stack a = _checked(M, q, z, w, code, iters, err, residual, "lemke_warm_stack",
-                             cert)
+                             cert, pivot_basis)
     cdef Py_ssize_t K = a.K, n = a.n, nn = a.n * a.n, k
     cdef cnp.ndarray da = _covering(d, n, "lemke_warm_stack")
     cdef double* dp = NULL if da is None else f64_ptr(da)
@@ -1134,20 +1172,21 @@ def lemke_warm_stack(M, q, d, basis, int64_t max_iter, int64_t warm_iter,
                            a.iters + k + 1, a.err + k + 1, a.residual + k + 1, n,
                            _bpp_iters(a.M + k * nn, n, warm_iter),
                            _bpp_iters(a.M + (k + 1) * nn, n, warm_iter), tol, _row(a.cert, k),
-                           _row(a.cert, k + 1))
+                           _row(a.cert, k + 1), _prow(a.pv, k, n), _prow(a.pv, k + 1, n))
         else:
             if bp[k * n] >= 0:
                 ok = _bpp_one(a.M + k * nn, a.q + k * n, n, bp + k * n,
                               _bpp_iters(a.M + k * nn, n, warm_iter), tol,
                               a.z + k * n, a.w + k * n, sp + k * n, a.iters + k, a.err + k,
-                              a.residual + k, _row(a.cert, k))
+                              a.residual + k, _row(a.cert, k), _prow(a.pv, k, n))
             if k + 1 < K and bp[(k + 1) * n] >= 0:
                 ok = ok | (_bpp_one(a.M + (k + 1) * nn, a.q + (k + 1) * n, n,
                                     bp + (k + 1) * n,
                                     _bpp_iters(a.M + (k + 1) * nn, n, warm_iter), tol,
                                     a.z + (k + 1) * n,
                                     a.w + (k + 1) * n, sp + (k + 1) * n, a.iters + k + 1,
-                                    a.err + k + 1, a.residual + k + 1, _row(a.cert, k + 1)) << 1)
+                                    a.err + k + 1, a.residual + k + 1, _row(a.cert, k + 1),
+                                    _prow(a.pv, k + 1, n)) << 1)
         _warm_rest(a, k, ok & 1, n, nn, bp, sp, wp, dp, eq, max_iter, warm_pivots, piv_tol,
                    tie_tol, tol, polished)
         if k + 1 < K:
@@ -1166,13 +1205,13 @@ cdef inline void _warm_rest(_Stack a, Py_ssize_t k, int bpp_ok, Py_ssize_t n, Py
     if bpp_ok or (bp[k * n] >= 0 and _ppt_lemke_one(
             a.M + k * nn, a.q + k * n, n, bp + k * n, warm_pivots, piv_tol, tie_tol, tol,
             a.z + k * n, a.w + k * n, sp + k * n, a.iters + k, a.err + k, a.residual + k,
-            _row(a.cert, k))):
+            _row(a.cert, k), _prow(a.pv, k, n))):
         wp[k] = 1
         a.code[k] = B_SOLVED
     else:
         _lemke_one(a.M + k * nn, a.q + k * n, dp, n, max_iter, piv_tol, tie_tol, tol,
                    polished, eq, a.z + k * n, a.w + k * n, a.code + k, a.iters + k,
-                   a.err + k, a.residual + k, sp + k * n, _row(a.cert, k))
+                   a.err + k, a.residual + k, sp + k * n, _row(a.cert, k), _prow(a.pv, k, n))
 
 
 def sor_stack(M, q, lo, up, double omega, int64_t max_iter, double tol, z, w, code, iters,
