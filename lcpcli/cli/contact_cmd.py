@@ -105,11 +105,11 @@ def contact_matrix(
         raise exc.with_source(scene_file) from None
     for note in clcp.notes:
         sys.stderr.write(f"lcpcli: note: {note}\n")
-    start = None
+    start = basis = None
     if do_solve:
         check_method(clcp, method, not no_islands)  # before anything is written
         if z0 is not None:
-            start, how = warm_start(z0, clcp.unknowns)
+            start, basis, how = warm_start(z0, clcp.unknowns)
             sys.stderr.write(f"lcpcli: note: {how}\n")
     if output is not None:
         from lcpcli.io import save
@@ -117,10 +117,11 @@ def contact_matrix(
         save(clcp.problem, output)
     impact = None
     if do_solve:
-        impact = solve(clcp, method, tol=tol, islands=not no_islands, z0=start, jobs=jobs)
+        impact = solve(clcp, method, tol=tol, islands=not no_islands, z0=start, basis0=basis,
+                       jobs=jobs)
         if impulses is not None:
             write_impulses(impulses, clcp.unknowns, impact.result.z, scene.name,
-                           impact.result.status)
+                           impact.result.status, impact.basic)
     if as_json:
         write_json_line(to_json(clcp, impact))
     else:

@@ -528,6 +528,8 @@ def to_json(clcp: ContactLCP, impact: Impact | None = None) -> dict[str, Any]:
             "energy_increase": impact.energy_increase,
             "status": res.status if res is not None else None,
         })
+        if impact.basic is not None:
+            out["basic"] = [bool(x) for x in impact.basic]
         if res is not None:
             out.update({"method": res.method, "message": res.message,
                         "iterations": int(res.iterations), "seconds": res.seconds,

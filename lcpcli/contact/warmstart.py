@@ -4,8 +4,14 @@ An impulses file written by ``contact-matrix --solve --impulses FILE`` holds the
 and the names of its unknowns (``n[c]``, ``t<k>[c]``, ``lambda[c]``):
 
 * ``.json``: ``{"format": "lcpcli-contact-impulses", "version": 1, "scene", "status",
-  "unknowns": [...], "z": [...]}`` (``lcpcli solve --z0`` reads it too: it has ``"z"``);
-* ``.npz``: arrays ``z`` and ``unknowns``.
+  "unknowns": [...], "z": [...], "basic": [...]}`` (``lcpcli solve --z0`` reads it too: it
+  has ``"z"``);
+* ``.npz``: arrays ``z``, ``unknowns`` and ``basic``.
+
+``basic`` (booleans, one per unknown; absent from files of earlier versions): z_i basic in the
+basis the solve's pivoting ended on (:attr:`lcpcli.contact.Impact.basic`).  ``--z0`` starts
+the next step's pivoting from it, matched by name like the impulses (a new contact's unknowns
+start nonbasic); a file without it starts from the impulses' support ``{z0_i > 0}``.
 
 ``--z0 FILE`` accepts that file, the ``contact-matrix --json`` output (``impulses`` and
 ``unknowns``), and whatever else :func:`lcpcli.io.warmstart.read_warm_start` reads
@@ -25,35 +31,29 @@ import numpy as np
 from lcpcli.core.errors import ProblemError
 from lcpcli.core.numeric import json_text
 from lcpcli.io import atomic_path
+from lcpcli.io.warmstart import read_warm_basis
 
 FORMAT = "lcpcli-contact-impulses"
 
 
-def read_named(path: str | Path, n: int | None = None) -> tuple[np.ndarray, list[str] | None]:
-    """Values and, when the file gives them, the names of the unknowns (ProblemError if bad).
-
-    One reader for every warm start (:func:`lcpcli.io.warmstart.read_warm_start`): the same
-    reading rules as problem files (docs/files.md, "Reading"); ``n``, the LCP's unknowns,
-    bounds the values declared (matched by name: a few more) before any is decompressed.
-    """
-    from lcpcli.io.warmstart import read_warm_start
-
-    return read_warm_start(path, n=n, by_name=True)
-
-
-def warm_start(path: str | Path, unknowns: list[str]) -> tuple[np.ndarray, str]:
-    """``z0`` for an LCP with these unknowns, and a one-line note on how it was matched."""
-    values, names = read_named(path, len(unknowns))
+def warm_start(path: str | Path,
+               unknowns: list[str]) -> tuple[np.ndarray, np.ndarray | None, str]:
+    """``z0`` for an LCP with these unknowns, its basis when the file gives one (booleans,
+    matched by name; else None), and a one-line note on how it was matched."""
+    values, names, basic = read_warm_basis(path, n=len(unknowns), by_name=True)
     if names is None:
         if values.shape[0] != len(unknowns):
             raise ProblemError(f"has {values.shape[0]} values but the contact LCP has "
                                f"{len(unknowns)} unknowns (a file that names its unknowns, "
                                f"e.g. written by --impulses, is matched by name)",
                                f"--z0 {path}")
-        return values, f"warm start: {values.shape[0]} values by position"
+        return values, None, f"warm start: {values.shape[0]} values by position"
     z0, hits = match_by_name(values, names, unknowns)
-    return z0, (f"warm start: {hits} of {len(unknowns)} unknowns matched by name "
-                f"({len(names) - hits} in the file unused)")
+    basis0 = None if basic is None else match_by_name(basic.astype(np.float64), names,
+                                                       unknowns)[0] > 0.5
+    with_basis = " with its basis" if basis0 is not None else ""
+    return z0, basis0, (f"warm start{with_basis}: {hits} of {len(unknowns)} unknowns matched "
+                        f"by name ({len(names) - hits} in the file unused)")
 
 
 def match_by_name(values: np.ndarray, names: list[str],
@@ -76,18 +76,24 @@ def check_impulses_path(path: str | Path) -> None:
 
 
 def write_impulses(path: str | Path, unknowns: list[str], z: np.ndarray, scene: str = "",
-                   status: str = "") -> None:
-    """Write an impulses file (``.json`` or ``.npz``, see the module docstring) atomically."""
+                   status: str = "", basic: np.ndarray | None = None) -> None:
+    """Write an impulses file (``.json`` or ``.npz``, see the module docstring) atomically;
+    ``basic``: the basis the solve ended on (:attr:`lcpcli.contact.Impact.basic`), if any."""
 
     p = Path(path)
     check_impulses_path(p)
     suffix = p.suffix.lower()
     with atomic_path(p) as tmp:
         if suffix == ".json":
-            tmp.write_text(json_text({"format": FORMAT, "version": 1, "scene": scene,
-                                      "status": status, "unknowns": list(unknowns),
-                                      "z": [float(x) for x in z]}) + "\n")
+            record = {"format": FORMAT, "version": 1, "scene": scene, "status": status,
+                      "unknowns": list(unknowns), "z": [float(x) for x in z]}
+            if basic is not None:
+                record["basic"] = [bool(x) for x in basic]
+            tmp.write_text(json_text(record) + "\n")
         else:
+            arrays = {"z": np.asarray(z, dtype=np.float64),
+                      "unknowns": np.array(list(unknowns), dtype=str)}
+            if basic is not None:
+                arrays["basic"] = np.asarray(basic, dtype=bool)
             with open(tmp, "wb") as fh:
-                np.savez(fh, z=np.asarray(z, dtype=np.float64),
-                         unknowns=np.array(list(unknowns), dtype=str))
+                np.savez(fh, **arrays)

@@ -4,7 +4,10 @@ Accepted: a JSON list of numbers; a JSON object with a ``"z"`` list (e.g. the ou
 ``lcpcli solve --json``; ``null`` entries are refused), or with ``"unknowns"`` (names) and
 ``"z"`` or ``"impulses"`` (what ``contact-matrix --impulses`` and ``--json`` write); an ``.npz``
 file with an array ``z`` (or a single array; with ``unknowns`` beside ``z``: the names); an
-``.npy`` array.  The reading rules of every input apply (docs/files.md, "Reading"): regular
+``.npy`` array.  A file that names its unknowns may also give the basis its solve ended on:
+``"basic"`` (JSON: booleans, one per value) or an array ``basic`` (NPZ: bool, beside ``z``),
+True where ``z_i`` is basic (read by :func:`read_warm_basis`).  The reading rules of every
+input apply (docs/files.md, "Reading"): regular
 files only, JSON bounded by :func:`lcpcli.io.files.parse_json` (size, duplicate keys, integer
 length, nesting), the zip directory and ``.npy`` headers checked (types, shapes, declared
 sizes) before any data is decompressed, and the data rule of :mod:`lcpcli.core.numeric` (real
@@ -33,6 +36,8 @@ from lcpcli.io.npz_format import MAX_MEMBERS, ZIP_ERRORS, Member, read_npy_heade
 
 #: The type of a warm start read with the names of its unknowns (None: matched by position).
 Named = tuple[np.ndarray, list[str] | None]
+#: ... and its basis (booleans, True: z_i basic; None: the file gives none).
+Based = tuple[np.ndarray, list[str] | None, np.ndarray | None]
 
 
 def load_z0(path: str | Path, n: int | None = None) -> np.ndarray:
@@ -50,6 +55,14 @@ def read_warm_start(path: str | Path, source: str | None = None, *, n: int | Non
     bounds the declared length before any data is read (:class:`Bound`); ``by_name``: the
     caller matches a file that names its unknowns by name, so it may hold more values.
     """
+    values, names, _ = read_warm_basis(path, source, n=n, by_name=by_name)
+    return values, names
+
+
+def read_warm_basis(path: str | Path, source: str | None = None, *, n: int | None = None,
+                    by_name: bool = False) -> Based:
+    """:func:`read_warm_start`'s values and names, and the basis the file gives (booleans
+    aligned with the values; None when it gives none)."""
     p = Path(path)
     src = source or f"--z0 {p}"
     bound = Bound(n, by_name)
@@ -57,11 +70,12 @@ def read_warm_start(path: str | Path, source: str | None = None, *, n: int | Non
         check_input_file(p, "a vector file")
         suffix = p.suffix.lower()
         if suffix == ".npz":
-            values, names = _from_npz(p, bound)
+            values, names, basic = _from_npz(p, bound)
         elif suffix == ".npy":
-            values, names = _from_npy(p, bound), None
+            values, names, basic = _from_npy(p, bound), None, None
         else:
-            values, names = _from_json(p)  # read already: its length is the caller's to check
+            # read already: its length is the caller's to check
+            values, names, basic = _from_json(p)
     except ProblemError as exc:
         raise exc.with_source(src) from None
     except (*ZIP_ERRORS, ValueError) as exc:  # the archive errors of the problem readers
@@ -69,7 +83,7 @@ def read_warm_start(path: str | Path, source: str | None = None, *, n: int | Non
         raise ProblemError(f"cannot read a vector ({first})", src) from None
     if not np.all(np.isfinite(values)):
         raise ProblemError("contains NaN or Inf", src)
-    return values, names
+    return values, names, basic
 
 
 class Bound:
@@ -106,9 +120,9 @@ def _names(names: Any, n: int) -> list[str]:
     return names
 
 
-def _from_json(p: Path) -> Named:
+def _from_json(p: Path) -> Based:
     obj = read_json_file(p, "a JSON vector file")
-    names = None
+    names = basic = None
     if isinstance(obj, dict):
         if "unknowns" in obj and ("impulses" in obj or "z" in obj):
             key = "impulses" if "impulses" in obj else "z"
@@ -122,12 +136,22 @@ def _from_json(p: Path) -> Named:
             if not isinstance(values, list):
                 raise ProblemError(f"{label} must be a list of numbers")
             names = _names(obj["unknowns"], len(values))
+            if "basic" in obj:
+                basic = _basic(obj["basic"], len(values))
         obj = values
     if not isinstance(obj, list) or any(isinstance(x, list) for x in obj):
         raise ProblemError("expected a list of numbers")
     if any(x is None for x in obj):
         raise ProblemError("the list holds null entries (a result with NaN/Inf is no warm start)")
-    return real_array(obj, "z0"), names
+    return real_array(obj, "z0"), names, basic
+
+
+def _basic(flags: Any, n: int) -> np.ndarray:
+    """A JSON basis: exactly ``n`` booleans (True: z_i basic)."""
+    if not isinstance(flags, list) or len(flags) != n or \
+            not all(isinstance(x, bool) for x in flags):
+        raise ProblemError(f"'basic' must be a list of {n} booleans")
+    return np.array(flags, dtype=bool)
 
 
 def _from_npy(p: Path, bound: Bound) -> np.ndarray:
@@ -143,9 +167,10 @@ def _from_npy(p: Path, bound: Bound) -> np.ndarray:
     return np.asarray(arr, dtype=np.float64).reshape(-1)
 
 
-def _from_npz(p: Path, bound: Bound) -> Named:
-    """``z`` (or the one array) and ``unknowns``, every member checked from the zip directory
-    and its ``.npy`` header (declared sizes included) before anything is decompressed."""
+def _from_npz(p: Path, bound: Bound) -> Based:
+    """``z`` (or the one array), ``unknowns`` and ``basic``, every member checked from the zip
+    directory and its ``.npy`` header (declared sizes included) before anything is
+    decompressed."""
 
     with open_input(p, "a vector file") as fh, zipfile.ZipFile(fh) as zf:
         infos = zf.infolist()
@@ -172,8 +197,15 @@ def _from_npz(p: Path, bound: Bound) -> Named:
             declared = names_member.size * names_member.dtype.itemsize
             if declared > MAX_TEXT_BYTES:
                 raise too_big(declared, MAX_TEXT_BYTES, "array 'unknowns'")
+        basic_member = None
+        if names_member is not None and "basic" in entries:
+            basic_member = Member(zf, entries["basic"], "basic")
+            if basic_member.dtype.kind != "b" or basic_member.shape != (member.size,):
+                raise ProblemError(f"'basic' must be {member.size:,} booleans, got "
+                                   f"{basic_member.dtype} of shape {basic_member.shape}")
         values = np.asarray(member.read(), dtype=np.float64).reshape(-1)
         names = None if names_member is None else [
             x.decode("utf-8", errors="replace") if isinstance(x, bytes) else str(x)
             for x in names_member.read()]
-    return values, names
+        basic = None if basic_member is None else np.asarray(basic_member.read(), dtype=bool)
+    return values, names, basic

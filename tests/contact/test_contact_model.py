@@ -531,8 +531,9 @@ def test_warm_start_by_name_when_the_scene_changes(tmp_path) -> None:
 
     f = tmp_path / "imp.json"
     write_impulses(f, ["n[a]", "n[b]", "n[gone]"], np.array([1.0, 2.0, 3.0]))
-    z0, note = warm_start(f, ["n[b]", "n[new]", "n[a]"])
+    z0, basis0, note = warm_start(f, ["n[b]", "n[new]", "n[a]"])
     assert z0.tolist() == [2.0, 0.0, 1.0] and "2 of 3 unknowns matched" in note
+    assert basis0 is None  # a file without a basis: the caller starts from z0's support
     plain = tmp_path / "z.json"
     plain.write_text(json.dumps({"z": [1.0, 2.0]}))  # lcpcli solve --json: by position
     assert warm_start(plain, ["n[a]", "n[b]"])[0].tolist() == [1.0, 2.0]

@@ -176,3 +176,75 @@ def test_stack_pivot_basis_is_the_certificate_basis_where_nothing_is_degenerate(
     warm = lcpcli.solve_many(M, q * 1.001, "lemke", warm=cold, pivot_basis=True)
     assert warm.solved.all() and warm.warmed.all()
     assert lcpcli.solve_many(M, q, "lemke").pivot_basis is None
+
+
+@pytest.mark.parametrize("suffix", [".json", ".npz"])
+def test_impulses_files_carry_the_basis_matched_by_name(tmp_path, suffix) -> None:
+    from lcpcli.contact.warmstart import warm_start, write_impulses
+
+    f = tmp_path / f"imp{suffix}"
+    write_impulses(f, ["n[a]", "n[b]", "n[gone]"], np.array([1.0, 0.0, 3.0]),
+                   basic=np.array([True, True, False]))
+    z0, basis0, note = warm_start(f, ["n[b]", "n[new]", "n[a]"])
+    assert z0.tolist() == [0.0, 0.0, 1.0] and "with its basis" in note
+    assert basis0.tolist() == [True, False, True]  # degenerate n[b] stays basic; new: not
+
+
+@pytest.mark.parametrize("bad", [[1, 0], [True], "yes", [True, None]])
+def test_a_bad_basis_in_a_json_impulses_file_is_one_line(tmp_path, bad) -> None:
+    import json
+
+    from lcpcli.contact.warmstart import warm_start
+    from lcpcli.core.errors import ProblemError
+
+    f = tmp_path / "imp.json"
+    f.write_text(json.dumps({"unknowns": ["a", "b"], "z": [1.0, 0.0], "basic": bad}))
+    with pytest.raises(ProblemError, match="'basic' must be a list of 2 booleans"):
+        warm_start(f, ["a", "b"])
+
+
+def test_a_bad_basis_in_an_npz_impulses_file_is_refused(tmp_path) -> None:
+    from lcpcli.contact.warmstart import warm_start
+    from lcpcli.core.errors import ProblemError
+
+    f = tmp_path / "imp.npz"
+    np.savez(f, z=np.array([1.0, 0.0]), unknowns=np.array(["a", "b"]),
+             basic=np.array([1.0, 0.0]))
+    with pytest.raises(ProblemError, match="'basic' must be 2 booleans"):
+        warm_start(f, ["a", "b"])
+
+
+def test_cli_steps_from_the_impulses_file_with_its_basis(tmp_path) -> None:
+    """contact-matrix --solve --impulses writes the basis; --z0 of that file starts from it
+    (fewer pivots than from the same impulses without their basis)."""
+    import json
+
+    from typer.testing import CliRunner
+
+    from lcpcli.cli import app
+    from lcpcli.contact.scene import write_scene_hdf5
+    from lcpcli.contact.warmstart import write_impulses
+
+    first, nxt = _next_step(12)
+    scene_file = tmp_path / "next.h5"
+    write_scene_hdf5(nxt.scene, scene_file)
+    imp = tmp_path / "imp.json"
+
+    write_impulses(imp, nxt.unknowns, first.result.z, basic=first.basic)
+    bare = tmp_path / "bare.json"
+    write_impulses(bare, nxt.unknowns, first.result.z)
+    runner = CliRunner()
+    pivots = {}
+    for name, f in (("basis", imp), ("support", bare)):
+        out = runner.invoke(app, ["contact-matrix", str(scene_file), "--friction", "4",
+                                  "--solve", "--z0", str(f), "--json"])
+        assert out.exit_code == 0, out.output
+        data = json.loads(out.stdout)
+        assert data["status"] == "solved"
+        pivots[name] = sum(r["iterations"] for r in data["islands"]["per_island"])
+    assert pivots["basis"] < pivots["support"], pivots
+    again = tmp_path / "again.npz"
+    out = runner.invoke(app, ["contact-matrix", str(scene_file), "--friction", "4", "--solve",
+                              "--z0", str(imp), "--impulses", str(again)])
+    assert out.exit_code == 0, out.output
+    assert np.load(again)["basic"].dtype == bool
