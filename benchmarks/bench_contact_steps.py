@@ -11,9 +11,9 @@
   the mean pivots per step (summed over the islands), the islands the warm start answered, the
   steps solved, and the median time of the steps both runs solved.
 * ``next``: ``--next-stacks`` stacks (834: 10,008 contacts, 60,048 unknowns), the "next step"
-  of benchmarks/bench_contact.py (every velocity changed by about 1 %) solved cold and from
-  the first step's impulses and basis (``Impact.basic``), interleaved, ``--repeat`` times
-  (medians).
+  of benchmarks/bench_contact.py (every velocity changed by about 1 %) solved cold, from the
+  first step's impulses and basis (``Impact.basic``: ``warm``) and from the impulses alone
+  (their support as the basis: ``warm_support``), interleaved, ``--repeat`` times (medians).
 
 Writes ``benchmarks/results/contact_steps.json``.
 """
@@ -69,21 +69,23 @@ def next_step(stacks: int, repeat: int) -> dict[str, object]:
     nxt = build(dataclasses.replace(
         scene, velocity=scene.velocity * (1 + 0.01 * rng.normal(size=scene.velocity.shape)),
         omega=scene.omega * (1 + 0.01 * rng.normal(size=scene.omega.shape))), friction=4)
-    times: dict[str, list[float]] = {"cold": [], "warm": []}
+    kinds = {"cold": {}, "warm": {"z0": first.result.z, "basis0": first.basic},
+             "warm_support": {"z0": first.result.z}}
+    times: dict[str, list[float]] = {k: [] for k in kinds}
     res = {}
     for _ in range(repeat):
-        for kind in ("cold", "warm"):
+        for kind, start in kinds.items():
             t = time.perf_counter()
-            warm = kind == "warm"
-            res[kind] = solve(nxt, z0=first.result.z if warm else None,
-                              basis0=first.basic if warm else None)
+            res[kind] = solve(nxt, **start)
             times[kind].append(time.perf_counter() - t)
     med = {k: statistics.median(v) for k, v in times.items()}
     return {"case": f"next step, {stacks} stacks", "unknowns": nxt.problem.n,
             "cold_s": med["cold"], "warm_s": med["warm"], "ratio": med["warm"] / med["cold"],
-            "cold_status": str(res["cold"].result.status),
-            "warm_status": str(res["warm"].result.status),
-            "warm_islands": sum(r["warm"] for r in res["warm"].islands),
+            "warm_support_s": med["warm_support"],
+            "ratio_support": med["warm_support"] / med["cold"],
+            "status": {k: str(r.result.status) for k, r in res.items()},
+            "warm_islands": {k: sum(r["warm"] for r in res[k].islands)
+                             for k in ("warm", "warm_support")},
             "islands": len(res["warm"].islands),
             "mean_iterations": {k: statistics.mean(r["iterations"] for r in res[k].islands)
                                 for k in res}}
