@@ -608,6 +608,39 @@ cdef LemkeRun _run(int status, object z, object w, int64_t pivots, list basis, o
     return r
 
 
+#: Problems up to this size are solved without releasing the GIL (the whole call takes a few
+#: microseconds; releasing and taking back the GIL is a noticeable part of it).
+cdef enum:
+    GIL_FREE_N = 32
+
+
+cdef int _solve_certified(const double* Mp, const double* qp, const double* dp, Py_ssize_t n,
+                          int64_t max_iter, double piv_tol, double tie_tol,
+                          int64_t refactor_every, double* raw, int64_t* bp, double* rp,
+                          Py_ssize_t* iwork, double* zp, double* wp, LemkeOut* out,
+                          CertOut* cert) noexcept nogil:
+    """The compiled part of :func:`lemke_solve_certified` (workspace as laid out there; ``dp``
+    NULL: the covering vector of ones, written at ``rp + n``): kernel, final polish of an
+    answer, ``max(z, 0)`` of any other end, and the certificate.  0, or -1 (no memory)."""
+    cdef int rc
+    cdef Py_ssize_t i
+    if dp == NULL:
+        for i in range(n):
+            rp[n + i] = 1.0
+        dp = rp + n
+    rc = lemke_revised(Mp, qp, dp, n, max_iter, piv_tol, tie_tol, NULL, 0, refactor_every, raw,
+                       bp, rp, out)
+    if rc == 0:
+        if out.status == LEMKE_OK:
+            rc = polish(Mp, qp, n, raw, bp, zp)
+        else:
+            for i in range(n):
+                zp[i] = raw[i] if raw[i] > 0.0 else 0.0
+    if rc == 0 and out.status != LEMKE_TRIVIAL:
+        certify_dense(n, Mp, n, qp, zp, 0, NULL, NULL, wp, raw + n, iwork, NULL, cert)
+    return rc
+
+
 def lemke_solve_certified(M, q, d, int64_t max_iter, double piv_tol, double tie_tol,
                           int64_t refactor_every, balance=None):
     """Kernel, final polish and the certificate in one compiled call (a :class:`LemkeRun`).
@@ -639,7 +672,6 @@ def lemke_solve_certified(M, q, d, int64_t max_iter, double piv_tol, double tie_
     cdef LemkeOut out
     cdef CertOut cert
     cdef int rc = 0
-    cdef Py_ssize_t i
     # one block of 8-byte words: raw z (6 n doubles, the kernel's workspace), the ray (n), the
     # covering vector of ones (n), the basis (n int64) and the certificate's 3 n indices
     cdef double* raw = <double*>malloc(12 * n * sizeof(double))
@@ -655,22 +687,14 @@ def lemke_solve_certified(M, q, d, int64_t max_iter, double piv_tol, double tie_
         if not _balanced(n, Mp, n, qp, balanced, q_balanced, <long long*> raw):
             free(raw)
             return None
-    with nogil:
-        if dp == NULL:
-            for i in range(n):
-                rp[n + i] = 1.0
-            dp = rp + n
-        rc = lemke_revised(Mp, qp, dp, n, max_iter, piv_tol, tie_tol, NULL, 0,
-                           refactor_every, raw, bp, rp, &out)
-        if rc == 0:
-            if out.status == LEMKE_OK:
-                rc = polish(Mp, qp, n, raw, bp, zp)
-            else:
-                for i in range(n):
-                    zp[i] = raw[i] if raw[i] > 0.0 else 0.0
-        if rc == 0 and out.status != LEMKE_TRIVIAL:
-            certify_dense(n, Mp, n, qp, zp, 0, NULL, NULL, f64_ptr(w), raw + n, iwork, NULL,
-                          &cert)
+    cdef double* wp = f64_ptr(w)
+    if n > GIL_FREE_N:
+        with nogil:
+            rc = _solve_certified(Mp, qp, dp, n, max_iter, piv_tol, tie_tol, refactor_every,
+                                  raw, bp, rp, iwork, zp, wp, &out, &cert)
+    else:  # a call of a microsecond or two: releasing the GIL would cost more than it frees
+        rc = _solve_certified(Mp, qp, dp, n, max_iter, piv_tol, tie_tol, refactor_every, raw,
+                              bp, rp, iwork, zp, wp, &out, &cert)
     if rc:
         free(raw)
         raise MemoryError()

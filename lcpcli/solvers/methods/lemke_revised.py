@@ -76,7 +76,9 @@ def run(problem: Any, *, tol: float, covering: np.ndarray | None = None,
         return out
     q = problem.q
     n = len(q)
-    M = problem.dense_M()  # the kernel takes it as it is when float64 C-contiguous
+    M = problem.M  # the kernel takes it as it is when float64 C-contiguous
+    if type(M) is not np.ndarray:
+        M = problem.dense_M()
     d = None if covering is None else covering_vector(n, covering)  # None: all ones
     limit = max_iter or default_max_iter(n)
     # kernel, final polish and the certificate in one compiled call
