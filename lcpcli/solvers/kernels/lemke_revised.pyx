@@ -90,6 +90,13 @@ DRIFT_TOL = _DRIFT_TOL
 CHECK_EVERY = _CHECK_EVERY
 RESID_TOL = _RESID_TOL
 
+cdef enum:
+    # Problems up to this size are solved without releasing the GIL (the whole call takes a
+    # few microseconds; releasing and taking back the GIL is a noticeable part of it) ...
+    GIL_FREE_N = 32
+    # ... and up to this size with their work space on the stack (about 15 KiB).
+    SMALL_N = 16
+
 
 cdef struct State:
     # sizes
@@ -282,12 +289,24 @@ cdef int lemke_revised(const double* M, const double* q, const double* d, Py_ssi
     cdef int status
     cdef double colmax, unit, key, piv, qr, inv, bu, f, y0, x0, bsp
     cdef State S
-    cdef double* work = <double*>big_alloc(((n + 1) * n + 2 * n * n + 8 * n + 1) * sizeof(double))
-    cdef int64_t* iwork = <int64_t*>malloc((2 * n + 1 + 4 * n + 1 + n) * sizeof(int64_t))
-    if work == NULL or iwork == NULL:
-        free(work)
-        free(iwork)
-        return -1
+    # up to SMALL_N the work space lives on the stack (the refactorisation's too): a solve of
+    # a microsecond or two would otherwise spend a tenth of it in malloc and free
+    cdef double small_work[(SMALL_N + 1) * SMALL_N + 2 * SMALL_N * SMALL_N + 8 * SMALL_N + 1]
+    cdef int64_t small_iwork[7 * SMALL_N + 2]
+    cdef double small_factor[3 * SMALL_N * SMALL_N + 2 * SMALL_N]
+    cdef int small_piv[SMALL_N]
+    cdef bint small = n <= SMALL_N
+    cdef double* work
+    cdef int64_t* iwork
+    if small:
+        work, iwork = small_work, small_iwork
+    else:
+        work = <double*>big_alloc(((n + 1) * n + 2 * n * n + 8 * n + 1) * sizeof(double))
+        iwork = <int64_t*>malloc((2 * n + 1 + 4 * n + 1 + n) * sizeof(int64_t))
+        if work == NULL or iwork == NULL:
+            free(work)
+            free(iwork)
+            return -1
     cdef double* MT = work
     S.B = MT + (n + 1) * n
     S.Ct = S.B + n * n
@@ -309,9 +328,11 @@ cdef int lemke_revised(const double* M, const double* q, const double* d, Py_ssi
     S.MT = MT
     S.q = q
     S.basic = basic
-    S.fA = NULL
+    S.fA = NULL  # allocated on first use (_refactor), on the stack when small
     S.fwork = NULL
     S.fpiv = NULL
+    if small:
+        S.fA, S.fwork, S.fpiv = small_factor, small_factor + 2 * n * n + n, small_piv
     # MT = [M, d]^T, so that a column of [M, d] is a contiguous row (blocked transpose)
     i0 = 0
     while i0 < n:
@@ -344,8 +365,9 @@ cdef int lemke_revised(const double* M, const double* q, const double* d, Py_ssi
     r = initial_row(q, d, n, tie_tol)
     if r < 0:
         out.status = LEMKE_TRIVIAL
-        free(work)
-        free(iwork)
+        if not small:
+            free(work)
+            free(iwork)
         return 0
     # initial pivot: z0 enters, w_r leaves: A = [d_r]
     S.m = 1
@@ -520,11 +542,12 @@ cdef int lemke_revised(const double* M, const double* q, const double* d, Py_ssi
     out.status = status
     out.pivots = pivots
     out.refactors = refactors
-    free(S.fA)
-    free(S.fwork)
-    free(S.fpiv)
-    free(work)
-    free(iwork)
+    if not small:
+        free(S.fA)
+        free(S.fwork)
+        free(S.fpiv)
+        free(work)
+        free(iwork)
     return 0
 
 
@@ -608,10 +631,6 @@ cdef LemkeRun _run(int status, object z, object w, int64_t pivots, list basis, o
     return r
 
 
-#: Problems up to this size are solved without releasing the GIL (the whole call takes a few
-#: microseconds; releasing and taking back the GIL is a noticeable part of it).
-cdef enum:
-    GIL_FREE_N = 32
 
 
 cdef int _solve_certified(const double* Mp, const double* qp, const double* dp, Py_ssize_t n,
