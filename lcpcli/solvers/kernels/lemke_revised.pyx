@@ -692,10 +692,14 @@ def lemke_solve_certified(M, q, d, int64_t max_iter, double piv_tol, double tie_
     cdef CertOut cert
     cdef int rc = 0
     # one block of 8-byte words: raw z (6 n doubles, the kernel's workspace), the ray (n), the
-    # covering vector of ones (n), the basis (n int64) and the certificate's 3 n indices
-    cdef double* raw = <double*>malloc(12 * n * sizeof(double))
-    if raw == NULL:
-        raise MemoryError()
+    # covering vector of ones (n), the basis (n int64) and the certificate's 3 n indices; on
+    # the stack up to SMALL_N
+    cdef double small_raw[12 * SMALL_N]
+    cdef double* raw = &small_raw[0]
+    if n > SMALL_N:
+        raw = <double*>malloc(12 * n * sizeof(double))
+        if raw == NULL:
+            raise MemoryError()
     cdef double* rp = raw + 6 * n
     cdef int64_t* bp = <int64_t*>(raw + 8 * n)
     cdef Py_ssize_t* iwork = <Py_ssize_t*>(raw + 9 * n)
@@ -704,7 +708,8 @@ def lemke_solve_certified(M, q, d, int64_t max_iter, double piv_tol, double tie_
         balanced, q_balanced = balance
         # the test's workspace (4 n long longs) is the block's first 4 n words
         if not _balanced(n, Mp, n, qp, balanced, q_balanced, <long long*> raw):
-            free(raw)
+            if n > SMALL_N:
+                free(raw)
             return None
     cdef double* wp = f64_ptr(w)
     if n > GIL_FREE_N:
@@ -715,7 +720,8 @@ def lemke_solve_certified(M, q, d, int64_t max_iter, double piv_tol, double tie_
         rc = _solve_certified(Mp, qp, dp, n, max_iter, piv_tol, tie_tol, refactor_every, raw,
                               bp, rp, iwork, zp, wp, &out, &cert)
     if rc:
-        free(raw)
+        if n > SMALL_N:
+            free(raw)
         raise MemoryError()
     cdef cnp.ndarray ray = None
     cdef list basis = []
@@ -726,7 +732,8 @@ def lemke_solve_certified(M, q, d, int64_t max_iter, double piv_tol, double tie_
         if out.status != LEMKE_TRIVIAL:
             basis = basis_list(bp, n)
     finally:
-        free(raw)
+        if n > SMALL_N:
+            free(raw)
     if out.status == LEMKE_TRIVIAL:  # z = 0: the caller certifies it the ordinary way
         return _run(out.status, z, w, 0, basis, ray, 0.0, 0, None)
     return _run(out.status, z, w, out.pivots, basis, ray, out.z0, out.refactors,
