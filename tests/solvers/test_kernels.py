@@ -197,7 +197,7 @@ def test_fused_call_certifies_like_the_certificate_module():
     """Kernel + polish + certificate in one C call: the same pivots and z as the kernel followed
     by its polish, the same certificate as lcpcli.core.certificate.check (the one
     definition)."""
-    from lcpcli.core.certificate import check
+    from lcpcli.core.certificate import check, from_kernel
     from lcpcli.solvers.kernels.lemke import polish_kernel
     from lcpcli.solvers.kernels.lemke_revised import OK, lemke_solve_certified
 
@@ -216,9 +216,14 @@ def test_fused_call_certifies_like_the_certificate_module():
             np.testing.assert_array_equal(got.z, polish_kernel(M, q, ref[1], ref[3]))
         cert = got.cert
         if cert is None:  # trivial: z = 0
+            assert got.certificate(1e-8) is None
             continue
         c, w_ref = check(Problem.create(M, q), got.z, 1e-8)
         np.testing.assert_array_equal(got.w, w_ref)
         assert cert[0] == 0
         assert cert[1:] == (c.error, c.backward_error, c.growth, c.residual, c.bound_violation,
                             c.w_violation, c.complementarity, c.equality_residual, c.worst)
+        # the record's Certificate (no tuple in between) is the tuple's, by the one rule
+        for tol in (1e-8, 1e-14, c.error):
+            assert got.certificate(tol) == from_kernel(cert, tol) == check(
+                Problem.create(M, q), got.z, tol)[0]

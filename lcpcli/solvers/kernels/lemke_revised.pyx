@@ -56,6 +56,8 @@ from lcpcli.solvers.kernels.simd cimport axpy, big_alloc, dot4
 
 import numpy as np
 
+from lcpcli.core.certificate import certificate_of
+
 cimport numpy as cnp
 
 from lcpcli.core.arrays cimport (
@@ -604,9 +606,11 @@ cdef class LemkeRun:
     SINGULAR, TRIVIAL), ``z`` (polished on OK, else ``max(z, 0)`` of the kernel's), ``w = M z
     + q``, ``pivots``, ``basis`` (sorted 0-based indices of the basic z's, a list), ``ray``
     (the secondary ray's direction, None unless RAY), ``z0`` (the artificial variable's last
-    value), ``refactors`` and ``cert``: the tuple of
+    value), ``refactors``, ``cert``: the tuple of
     :func:`lcpcli.core._certificate.certify_arrays` (first entry 2: out of range, certify again
-    with :func:`lcpcli.core.certificate.check`, which rescales), None when TRIVIAL."""
+    with :func:`lcpcli.core.certificate.check`, which rescales), None when TRIVIAL, and
+    :meth:`certificate`: the same numbers as a :class:`~lcpcli.core.certificate.Certificate`
+    at a tolerance."""
 
     cdef readonly int status
     cdef readonly object z
@@ -616,7 +620,28 @@ cdef class LemkeRun:
     cdef readonly object ray
     cdef readonly double z0
     cdef readonly int64_t refactors
-    cdef readonly object cert
+    cdef CertOut _cert
+    cdef bint _certified  # _cert holds the certificate of z (not TRIVIAL)
+
+    @property
+    def cert(self):
+        if not self._certified:
+            return None
+        cdef CertOut c = self._cert
+        return (c.status, c.error, c.backward_error, c.growth, c.residual, c.bound_violation,
+                c.w_violation, c.complementarity, c.equality_residual, c.worst)
+
+    def certificate(self, tol):
+        """The :class:`~lcpcli.core.certificate.Certificate` of ``z`` at ``tol``
+        (:func:`~lcpcli.core.certificate.certificate_of`, the one rule for ``passed``; no tuple
+        in between, this is on the small-solve path); None when TRIVIAL or out of range
+        (``cert[0] == 2``: :func:`~lcpcli.core.certificate.check` rescales)."""
+        if not self._certified or self._cert.status == 2:
+            return None
+        cdef CertOut c = self._cert
+        return certificate_of(c.status, c.error, c.backward_error, c.growth, c.residual,
+                              c.bound_violation, c.w_violation, c.complementarity,
+                              c.equality_residual, c.worst, tol)
 
     def __repr__(self):
         return (f"LemkeRun(status={self.status}, pivots={self.pivots}, "
@@ -624,10 +649,14 @@ cdef class LemkeRun:
 
 
 cdef LemkeRun _run(int status, object z, object w, int64_t pivots, list basis, object ray,
-                   double z0, int64_t refactors, object cert):
+                   double z0, int64_t refactors, const CertOut* cert):
+    """The record (``cert`` NULL: no certificate, TRIVIAL)."""
     cdef LemkeRun r = LemkeRun.__new__(LemkeRun)
     r.status, r.z, r.w, r.pivots, r.basis = status, z, w, pivots, basis
-    r.ray, r.z0, r.refactors, r.cert = ray, z0, refactors, cert
+    r.ray, r.z0, r.refactors = ray, z0, refactors
+    r._certified = cert != NULL
+    if cert != NULL:
+        r._cert = cert[0]
     return r
 
 
@@ -682,14 +711,17 @@ def lemke_solve_certified(M, q, d, int64_t max_iter, double piv_tol, double tie_
         dp = f64_ptr(da)
     cdef cnp.ndarray z = empty_f64(n)
     cdef cnp.ndarray w = empty_f64(n)
-    if n == 0:
-        return _run(TRIVIAL, z, w, 0, [], None, 0.0, 0,
-                    (0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1))
+    cdef CertOut cert
+    if n == 0:  # the certificate of the empty problem
+        cert.status, cert.error, cert.backward_error, cert.growth = 0, 0.0, 0.0, 1.0
+        cert.residual = cert.bound_violation = cert.w_violation = 0.0
+        cert.complementarity = cert.equality_residual = 0.0
+        cert.worst = -1
+        return _run(TRIVIAL, z, w, 0, [], None, 0.0, 0, &cert)
     cdef const double* Mp = f64_ptr(Ma)
     cdef const double* qp = f64_ptr(qa)
     cdef double* zp = f64_ptr(z)
     cdef LemkeOut out
-    cdef CertOut cert
     cdef int rc = 0
     # one block of 8-byte words: raw z (6 n doubles, the kernel's workspace), the ray (n), the
     # covering vector of ones (n), the basis (n int64) and the certificate's 3 n indices; on
@@ -735,8 +767,5 @@ def lemke_solve_certified(M, q, d, int64_t max_iter, double piv_tol, double tie_
         if n > SMALL_N:
             free(raw)
     if out.status == LEMKE_TRIVIAL:  # z = 0: the caller certifies it the ordinary way
-        return _run(out.status, z, w, 0, basis, ray, 0.0, 0, None)
-    return _run(out.status, z, w, out.pivots, basis, ray, out.z0, out.refactors,
-                (cert.status, cert.error, cert.backward_error, cert.growth, cert.residual,
-                 cert.bound_violation, cert.w_violation, cert.complementarity,
-                 cert.equality_residual, cert.worst))
+        return _run(out.status, z, w, 0, basis, ray, 0.0, 0, NULL)
+    return _run(out.status, z, w, out.pivots, basis, ray, out.z0, out.refactors, &cert)

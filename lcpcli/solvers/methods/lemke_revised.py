@@ -22,7 +22,6 @@ from typing import Any
 
 import numpy as np
 
-from lcpcli.core.certificate import from_kernel
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, NUMERICAL, Outcome
 from lcpcli.core.text import plural
 from lcpcli.solvers.kernels.dense import bind_numpy_lapack
@@ -88,15 +87,15 @@ def run(problem: Any, *, tol: float, covering: np.ndarray | None = None,
         return None
     status = got.status
     if status == OK:  # the artificial variable left the basis
-        # the certificate of this z for this problem, as check() computes it (out of range:
-        # status 2, left to check(), which rescales)
-        cert = got.cert
+        # the certificate of this z for this problem, as check() computes it (None: out of
+        # range, left to check(), which rescales)
+        cert = got.certificate(tol)
         pivots, refactors = got.pivots, got.refactors
         return Outcome.converged(got.z, pivots,
                                  f"artificial variable left the basis after "
                                  f"{plural(pivots, 'pivot')} ({refactors} refactorisations)",
                                  {"refactorisations": refactors, "basis": got.basis},
-                                 (from_kernel(cert, tol), got.w) if cert[0] != 2 else None)
+                                 None if cert is None else (cert, got.w))
     if status == TRIVIAL:
         return Outcome(np.zeros(n), 0, CONVERGED, "q >= 0: z = 0 solves the problem")
     z, pivots, refactors = got.z, got.pivots, got.refactors
