@@ -58,6 +58,19 @@ cdef double _LEX_RTOL = 1e-10
 cdef enum:
     # the largest n whose polish works on the stack (:c:func:`polish`)
     _POLISH_SMALL_N = 16
+
+
+cdef int64_t default_pivot_limit(int64_t n) noexcept nogil:
+    """Lemke's pivot limit when none is given, ``max(1000, 100 n)``: generous, but finite
+    (Murty's family needs 2^n).  The one definition: :func:`default_max_iter` reads it, and
+    the kernels that take a limit of 0 for "the default" apply it."""
+    return 100 * n if 100 * n > 1000 else 1000
+
+
+def default_max_iter(int64_t n):
+    """Pivot limit when none is given: generous, but finite (Murty's family needs 2^n):
+    ``max(1000, 100 n)`` (:c:func:`default_pivot_limit`)."""
+    return default_pivot_limit(n)
 DEGENERATE_RTOL = _DEGENERATE_RTOL
 LEX_RTOL = _LEX_RTOL
 

@@ -45,6 +45,7 @@ from lcpcli.solvers.kernels.lemke cimport (
     _ones,
     basic_solution,
     basis_list,
+    default_pivot_limit,
     initial_row,
     keep_lex_min,
     lex_unit,
@@ -98,6 +99,17 @@ cdef enum:
     GIL_FREE_N = 32
     # ... and up to this size with their work space on the stack (about 15 KiB).
     SMALL_N = 16
+
+
+cdef int64_t default_refactor(int64_t n) noexcept nogil:
+    """Pivots between two refactorisations when not given: ``max(50, n)`` (the one definition:
+    :func:`default_refactor_every` reads it; :func:`lemke_solve_certified` applies it to 0)."""
+    return n if n > 50 else 50
+
+
+def default_refactor_every(int64_t n):
+    """Pivots between two refactorisations when not given: ``max(50, n)``."""
+    return default_refactor(n)
 
 
 cdef struct State:
@@ -699,9 +711,15 @@ def lemke_solve_certified(M, q, d, int64_t max_iter, double piv_tol, double tie_
     q_balanced)`` of :data:`lcpcli.analysis.scaling.BALANCE`: the call then first makes the
     equilibration's balance test (:c:func:`lcpcli.analysis._scaling._balanced`, the one
     definition, as :func:`lcpcli.analysis.scaling.is_balanced`) and returns None, without
-    solving, when the problem is not balanced.
+    solving, when the problem is not balanced.  ``max_iter`` or ``refactor_every`` 0 (or
+    less): the defaults, :func:`lcpcli.solvers.kernels.lemke.default_max_iter` and
+    :func:`default_refactor_every` (no Python call for them on the small path).
     """
     cdef Py_ssize_t n = len(q)
+    if max_iter <= 0:
+        max_iter = default_pivot_limit(n)
+    if refactor_every <= 0:
+        refactor_every = default_refactor(n)
     cdef cnp.ndarray qa = f64(q, n, -1)
     cdef cnp.ndarray Ma = f64(M, n, n)
     cdef cnp.ndarray da

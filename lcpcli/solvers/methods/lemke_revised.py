@@ -53,11 +53,6 @@ def _refactor_every(value: Any) -> int:
     return v
 
 
-def default_refactor_every(n: int) -> int:
-    """Pivots between two refactorisations when not given: ``max(50, n)``."""
-    return max(50, n)
-
-
 def run(problem: Any, *, tol: float, covering: np.ndarray | None = None,
         max_iter: int | None = None, refactor_every: int | None = None,
         trace: bool = False, balance: tuple[int, int] | None = None) -> Outcome | None:
@@ -79,10 +74,10 @@ def run(problem: Any, *, tol: float, covering: np.ndarray | None = None,
     if type(M) is not np.ndarray:
         M = problem.dense_M()
     d = None if covering is None else covering_vector(n, covering)  # None: all ones
-    limit = max_iter or default_max_iter(n)
-    # kernel, final polish and the certificate in one compiled call
-    got = lemke_solve_certified(M, q, d, limit, PIVOT_TOL, TIE_TOL,
-                                refactor_every or default_refactor_every(n), balance)
+    # kernel, final polish and the certificate in one compiled call (a limit of 0: the
+    # kernels' defaults, default_max_iter and default_refactor_every)
+    got = lemke_solve_certified(M, q, d, max_iter or 0, PIVOT_TOL, TIE_TOL, refactor_every or 0,
+                                balance)
     if got is None:
         return None
     status = got.status
@@ -102,7 +97,8 @@ def run(problem: Any, *, tol: float, covering: np.ndarray | None = None,
     info = {"refactorisations": refactors}
     if status == MAX_ITER:
         return Outcome(np.maximum(z, 0.0), pivots, ITERATION_LIMIT,
-                       f"pivot limit {limit} reached (raise it with --max-iter)", info=info)
+                       f"pivot limit {max_iter or default_max_iter(n)} reached (raise it with "
+                       f"--max-iter)", info=info)
     if status == SINGULAR:
         out = Outcome(np.maximum(z, 0.0), pivots, NUMERICAL,
                       f"basis block M^(alpha beta) became singular at a refactorisation "
