@@ -146,11 +146,16 @@ def _first(problem: Any, c: Classifier, max_iter: int | None, z0: np.ndarray | N
     if step is None:
         return regime, None, None, {}, ""
     spec, opts = _attempt(step.method, max_iter, z0)
-    found = (regime, step, spec, opts,
-             f"auto ({c.report.describe()}): solved by {step.method} ({step.reason})")
+    found = (regime, step, spec, opts, _solved_by(c.report, step.method, step.reason))
     if key is not None and c.tests_run == before:  # planned on the diagonal test alone
         FIRSTS.put(key, found)
     return found
+
+
+def _solved_by(report: Any, name: str, why: str) -> str:
+    """The head of auto's message when ``name`` solved the problem (``report``: what is known
+    of M, :meth:`ClassReport.describe`)."""
+    return f"auto ({report.describe()}): solved by {name} ({why})"
 
 
 def run(problem: Any, *, tol: float, max_iter: int | None = None,
@@ -212,25 +217,21 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None,
         total_it += iterations
         z = out.z
         cert, w = out.checked  # type: ignore[misc]
-        if cert.passed:
-            attempts.append({"method": name, "reason": why, "status": SOLVED,
-                             "termination": out.termination, "iterations": iterations,
-                             "error": cert.error, "seconds": t2 - t1, "message": out.message})
+        proof = None if cert.passed else confirm(problem, out)
+        status = SOLVED if cert.passed else NO_SOLUTION if proof is not None else UNSOLVED
+        attempts.append({"method": name, "reason": why, "status": status,
+                         "termination": out.termination, "iterations": iterations,
+                         "error": cert.error, "seconds": t2 - t1, "message": out.message})
+        if status is SOLVED:
             if len(attempts) == 1 and head:  # the first attempt: no test ran since the plan
                 message = head
             else:
-                failed = "".join(f"; {a['method']} failed first ({a['message']})"
-                                 for a in attempts[:-1])
-                message = f"auto ({report.describe()}): solved by {name} ({why}){failed}"
+                message = _solved_by(report, name, why) + "".join(
+                    f"; {a['method']} failed first ({a['message']})" for a in attempts[:-1])
             return Outcome.converged(z, total_it, message,
                                      _info(name, attempts, report, regime,
                                            t2 - t_start - t_methods - imported),
                                      (cert, w), imported)
-        proof = confirm(problem, out)
-        status = NO_SOLUTION if proof is not None else UNSOLVED
-        attempts.append({"method": name, "reason": why, "status": status,
-                         "termination": out.termination, "iterations": iterations,
-                         "error": cert.error, "seconds": t2 - t1, "message": out.message})
         if status is NO_SOLUTION:
             return Outcome(z, total_it, out.termination,
                            f"auto ({report.describe()}): {name} proved that no solution "
