@@ -194,10 +194,20 @@ def from_kernel(out: tuple, tol: float) -> Certificate:
     """The :class:`Certificate` of a compiled certify call's tuple (``certify_arrays``, or a
     kernel that certifies inside its own call with ``certify_dense``): its numbers are Python
     floats and an int already, taken as they are (this is on the small-solve path)."""
-    error = out[1]
-    # error < inf also refuses NaN; status 0 means z and w finite and in range
-    return Certificate(error, out[2], out[3], out[4], out[5], out[6], out[7], out[8], out[9],
-                       float(tol), out[0] == 0 and error <= tol and error < math.inf)
+    return certificate_of(*out, tol)
+
+
+def certificate_of(status: int, error: float, backward_error: float, growth: float,
+                   residual: float, bound_violation: float, w_violation: float,
+                   complementarity: float, equality_residual: float, worst: int,
+                   tol: float) -> Certificate:
+    """The :class:`Certificate` of a compiled certify call's numbers, in the order of its
+    tuple (:func:`from_kernel`), and ``tol``: the one rule for ``passed``.  ``status`` 0
+    means ``z`` and ``w`` finite and in range."""
+    # error < inf also refuses NaN
+    return Certificate(error, backward_error, growth, residual, bound_violation, w_violation,
+                       complementarity, equality_residual, worst, float(tol),
+                       status == 0 and error <= tol and error < math.inf)
 
 
 def from_row(row: Any, tol: float) -> Certificate:

@@ -20,7 +20,11 @@ new fact that changes the value cannot be left out of the key without changing t
   :func:`lcpcli.solvers.policy.table_key`: kind, regime and registry version or content);
 * :data:`OPENINGS`: a dense problem's regime and first step when only the O(n) diagonal test
   decided them (key: :func:`lcpcli.solvers.policy.opening_key`, built from
-  :func:`lcpcli.analysis.classify.diagonal_facts`: every property that test decides).
+  :func:`lcpcli.analysis.classify.diagonal_facts`: every property that test decides);
+* :data:`FIRSTS`: ``auto``'s first attempt on such a problem without a warm start or
+  ``order=``: the opening, the attempt's method and options and the head of its message (key:
+  :func:`lcpcli.solvers.methods.auto.first_key`: the opening's key, the ``max_iter`` given and
+  the number of zero diagonal entries, the one other fact the message's class phrase reads).
 
 Rule: a value stored under a key equals what a fresh computation with the same facts returns
 (``tests/solvers/test_memo.py`` checks every memo is hit and that a hit equals a fresh
@@ -72,9 +76,10 @@ OPTION_DEFAULTS = Memo("option defaults", 4096)
 ATTEMPTS = Memo("auto attempts", 1024)
 ORDERS = Memo("policy orders", 1024)
 OPENINGS = Memo("auto openings", 4096)
+FIRSTS = Memo("auto first attempts", 4096)
 
 #: Every memo of the solve path.
-MEMOS = (REQUESTS, OPTION_DEFAULTS, ATTEMPTS, ORDERS, OPENINGS)
+MEMOS = (REQUESTS, OPTION_DEFAULTS, ATTEMPTS, ORDERS, OPENINGS, FIRSTS)
 
 
 def clear() -> None:

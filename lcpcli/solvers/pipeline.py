@@ -68,7 +68,7 @@ def run_method(spec: Any, problem: Problem, tol: float, options: dict[str, Any])
     goes through the steps of the module docstring.  The returned Outcome's ``checked`` is
     always the certificate of its ``z`` at ``tol`` (:func:`certified`)."""
     if spec.planner and spec.scaling == "none":
-        out = spec.run(problem, tol=tol, **options)
+        out = spec.run(problem, tol=tol, **options) if options else spec.run(problem, tol=tol)
         certified(problem, out, tol)
         return out
     requested = "none" if options and options.get("trace") else spec.scaling

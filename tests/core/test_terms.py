@@ -118,8 +118,12 @@ def test_every_tolerance_of_core_tolerances_is_defined_there_only():
 @pytest.mark.parametrize("pattern, home", [
     (r"^def diagonal\(", "lcpcli/analysis/classify.py"),
     (r"^def is_symmetric\(", "lcpcli/analysis/classify.py"),
-    (r"^def default_max_iter\(n: int\) -> int:\n.*\n\s+return max\(1000, 100 \* n\)",
-     "lcpcli/solvers/methods/lemke.py"),
+    # Lemke's default pivot limit: in the kernel module, which applies it to a limit of 0
+    # (lcpcli.solvers.methods.lemke re-exports its Python face, default_max_iter)
+    (r"^cdef int64_t default_pivot_limit\(int64_t n\) noexcept nogil:\n(.*\n)*?"
+     r"\s+return 100 \* n if 100 \* n > 1000 else 1000", "lcpcli/solvers/kernels/lemke.pyx"),
+    (r"max\(1000, 100 \* n\)|100 \* n if 100 \* n > 1000", "lcpcli/solvers/kernels/lemke.pyx"),
+    (r"return max\(50, n\)|n if n > 50 else 50", "lcpcli/solvers/kernels/lemke_revised.pyx"),
     (r"^DEFAULT_METHOD\s*=", "lcpcli/solvers/__init__.py"),
     (r"^def option_name\(", "lcpcli/core/text.py"),
     (r"^MAX_ITER\s*=\s*2\s*\*\*", "lcpcli/core/limits.py"),

@@ -98,6 +98,27 @@ def test_kernels_run_in_threads_with_the_same_results():
             np.testing.assert_array_equal(u, v)
 
 
+@pytest.mark.parametrize("refactor_every", [1, 3, 50])
+def test_revised_kernel_pivots_as_the_tableau_on_both_sides_of_its_stack_work_space(
+        refactor_every):
+    """Up to n = 16 the revised kernel's work space, its refactorisation's included, is on the
+    stack, above it on the heap: on both sides, refactorising at every pivot or rarely, it
+    takes the tableau kernel's pivots (the same rule) and ends at the same z."""
+    rng = np.random.default_rng(11)
+    for n in range(12, 22):
+        for _ in range(3):
+            M, q = spd(rng, n)
+            ones = np.ones(n)
+            rec_t, rec_r = (np.zeros((4 * n, 3), dtype=np.int64) for _ in range(2))
+            t = lemke_kernel(M, q, ones, 10_000, PIVOT_TOL, TIE_TOL, rec_t)
+            r = lemke_revised_kernel(M, q, ones, 10_000, PIVOT_TOL, TIE_TOL, rec_r,
+                                     refactor_every)
+            assert r[0] == t[0] and r[2] == t[2] > 0
+            assert refactor_every > 1 or r[7] >= r[2] - 2  # it did refactorise
+            np.testing.assert_array_equal(rec_r[:r[2]], rec_t[:t[2]])
+            np.testing.assert_allclose(r[1], t[1], rtol=1e-9, atol=1e-12)
+
+
 def test_enum_fast_and_direct_paths_agree_in_parallel():
     """The OpenMP fast path (depth-first pivoting) and the direct LU path classify alike."""
     from lcpcli.analysis.enumeration import enumerate_cones
@@ -176,7 +197,7 @@ def test_fused_call_certifies_like_the_certificate_module():
     """Kernel + polish + certificate in one C call: the same pivots and z as the kernel followed
     by its polish, the same certificate as lcpcli.core.certificate.check (the one
     definition)."""
-    from lcpcli.core.certificate import check
+    from lcpcli.core.certificate import check, from_kernel
     from lcpcli.solvers.kernels.lemke import polish_kernel
     from lcpcli.solvers.kernels.lemke_revised import OK, lemke_solve_certified
 
@@ -195,9 +216,14 @@ def test_fused_call_certifies_like_the_certificate_module():
             np.testing.assert_array_equal(got.z, polish_kernel(M, q, ref[1], ref[3]))
         cert = got.cert
         if cert is None:  # trivial: z = 0
+            assert got.certificate(1e-8) is None
             continue
         c, w_ref = check(Problem.create(M, q), got.z, 1e-8)
         np.testing.assert_array_equal(got.w, w_ref)
         assert cert[0] == 0
         assert cert[1:] == (c.error, c.backward_error, c.growth, c.residual, c.bound_violation,
                             c.w_violation, c.complementarity, c.equality_residual, c.worst)
+        # the record's Certificate (no tuple in between) is the tuple's, by the one rule
+        for tol in (1e-8, 1e-14, c.error):
+            assert got.certificate(tol) == from_kernel(cert, tol) == check(
+                Problem.create(M, q), got.z, tol)[0]

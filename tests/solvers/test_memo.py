@@ -22,18 +22,24 @@ from lcpcli.solvers.methods import auto
 from lcpcli.solvers.registry import get_method, methods
 
 
-@pytest.fixture(autouse=True)
-def fresh_memos(monkeypatch):
-    """Every memo empty with zero counts for the test (module state restored after)."""
-    for name in ("REQUESTS", "OPTION_DEFAULTS", "ATTEMPTS", "ORDERS", "OPENINGS"):
+def _replace_memos(monkeypatch, limit: int | None = None) -> None:
+    """Every memo replaced by an empty one with zero counts, of its own limit (or ``limit``:
+    0 makes a memo that never stores, so every value is computed afresh)."""
+    for name in ("REQUESTS", "OPTION_DEFAULTS", "ATTEMPTS", "ORDERS", "OPENINGS", "FIRSTS"):
         old = getattr(memo, name)
-        new = memo.Memo(old.name, old.limit)
+        new = memo.Memo(old.name, old.limit if limit is None else limit)
         monkeypatch.setattr(memo, name, new)
         for module in ("lcpcli.solvers.registry", "lcpcli.solvers.policy",
                        "lcpcli.solvers.methods.auto", "lcpcli.solvers.request"):
             mod = __import__(module, fromlist=[name])
             if hasattr(mod, name):
                 monkeypatch.setattr(mod, name, new)
+
+
+@pytest.fixture(autouse=True)
+def fresh_memos(monkeypatch):
+    """Every memo empty with zero counts for the test (module state restored after)."""
+    _replace_memos(monkeypatch)
 
 
 def _pd(n: int, seed: int) -> Problem:
@@ -45,9 +51,9 @@ def _pd(n: int, seed: int) -> Problem:
 def test_a_repeated_auto_solve_hits_every_memo_and_gives_the_same_result():
     p = _pd(10, 1)
     first = lcpcli.solve(p)
-    misses = {m.name: m.misses for m in (memo.REQUESTS, memo.ATTEMPTS, memo.OPENINGS)}
+    misses = {m.name: m.misses for m in (memo.REQUESTS, memo.FIRSTS)}
     second = lcpcli.solve(p)
-    for m in (memo.REQUESTS, memo.ATTEMPTS, memo.OPENINGS):
+    for m in (memo.REQUESTS, memo.FIRSTS):
         assert len(m) >= 1 and m.misses == misses[m.name], m.name  # served, not recomputed
     assert first.status == second.status == "solved"
     np.testing.assert_array_equal(first.z, second.z)
@@ -169,3 +175,63 @@ def test_the_opening_key_lists_every_fact_the_diagonal_test_sets(diag):
                                                          property)}
     assert derived <= {"pd", "psd"}
     assert policy.opening_key(c)[-1] == tuple(getattr(c.report, f) for f in DIAGONAL_FACTS)
+
+
+def _diagonal_problem(n: int, diag: float, seed: int) -> Problem:
+    """Random off-diagonal entries, ``diag * n`` on the diagonal, q < 0."""
+    rng = np.random.default_rng(seed)
+    A = rng.standard_normal((n, n))
+    return Problem.create(A - np.diag(np.diag(A)) + diag * n * np.eye(n), -rng.random(n))
+
+
+def _first_attempt(problem: Problem, max_iter):
+    """``auto._first`` as ``auto.run`` calls it (after the q >= 0 test, which runs the
+    diagonal test)."""
+    c = Classifier(problem)
+    c.minima()
+    return auto._first(problem, c, max_iter, None, None), c
+
+
+@pytest.mark.parametrize("max_iter", [None, 7])
+@pytest.mark.parametrize("diag", [1.0, 0.0, -1.0])
+@pytest.mark.parametrize("n", [1, 3, 12])
+def test_first_attempt_hit_equals_fresh(n, diag, max_iter, monkeypatch):
+    """auto's first attempt (regime, step, method, options, message head) is stored exactly
+    when the diagonal test alone planned it; a second problem with the same facts is then
+    served from the memo, and what it is served is what planning afresh (no memo at all)
+    gives."""
+    first, c = _first_attempt(_diagonal_problem(n, diag, 1), max_iter)
+    stored = c.tests_run == {"_diagonal"}
+    assert stored == (diag > 0 or (diag == 0 and n == 1))
+    assert len(memo.FIRSTS) == memo.FIRSTS.misses == int(stored)
+    other = _diagonal_problem(n, diag, 2)  # other data, the same diagonal facts
+    hit, _ = _first_attempt(other, max_iter)
+    assert memo.FIRSTS.misses == len(memo.FIRSTS) == int(stored)  # stored: served
+    _replace_memos(monkeypatch, limit=0)
+    fresh, _ = _first_attempt(other, max_iter)
+    assert len(memo.FIRSTS) == len(memo.ATTEMPTS) == len(memo.OPENINGS) == 0
+    assert hit == fresh and (not stored or first == fresh)
+    regime, step, spec, opts, head = fresh
+    assert spec.name == step.method and head.endswith(f"solved by {step.method} ({step.reason})")
+    r = lcpcli.solve(other, max_iter=max_iter)  # the message a solve shows
+    if r.solved and len(r.info["attempts"]) == 1:
+        assert r.message == head
+
+
+def test_the_first_attempt_key_lists_every_fact_the_message_reads():
+    """Structural: the class phrase of auto's message (``ClassReport.describe``) read after the
+    diagonal test alone changes only with the facts of :func:`auto.first_key` (the opening's
+    facts and ``zero_diagonal``), not with the other fields that test sets."""
+    words = set(DIAGONAL_WORDS) - {"zero_diagonal"}
+    for diag in ([2.0, 1.0, 3.0], [0.0, 1.0, 3.0], [-1.0, 0.0, 3.0]):
+        M = np.array([[diag[0], 1.0, 0.0], [1.0, diag[1], 0.5], [0.0, 0.5, diag[2]]])
+        c = Classifier(Problem.create(M, -np.ones(3)))
+        c.minima()
+        phrase = c.report.describe()
+        key = auto.first_key(c, None)
+        for field in words:
+            setattr(c.report, field, "changed" if isinstance(getattr(c.report, field), str)
+                    else 12345.0)
+        assert c.report.describe() == phrase and auto.first_key(c, None) == key
+        c.report.zero_diagonal = 7
+        assert auto.first_key(c, None) != key

@@ -40,3 +40,4 @@ cdef int polish(const double* M, const double* q, Py_ssize_t n, const double* z,
                 const int64_t* basic, double* out) noexcept nogil
 cdef double* _ones(Py_ssize_t n) noexcept nogil
 cdef list basis_list(const int64_t* basic, Py_ssize_t n)
+cdef int64_t default_pivot_limit(int64_t n) noexcept nogil

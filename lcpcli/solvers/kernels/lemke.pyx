@@ -54,6 +54,23 @@ TRIVIAL = LEMKE_TRIVIAL  # q >= 0: z = 0 without pivoting
 cdef double _DEGENERATE_RTOL = 1e-13
 # Relative tolerance of the lexicographic comparison (floored at an identity entry's scale).
 cdef double _LEX_RTOL = 1e-10
+
+cdef enum:
+    # the largest n whose polish works on the stack (:c:func:`polish`)
+    _POLISH_SMALL_N = 16
+
+
+cdef int64_t default_pivot_limit(int64_t n) noexcept nogil:
+    """Lemke's pivot limit when none is given, ``max(1000, 100 n)``: generous, but finite
+    (Murty's family needs 2^n).  The one definition: :func:`default_max_iter` reads it, and
+    the kernels that take a limit of 0 for "the default" apply it."""
+    return 100 * n if 100 * n > 1000 else 1000
+
+
+def default_max_iter(int64_t n):
+    """Pivot limit when none is given: generous, but finite (Murty's family needs 2^n):
+    ``max(1000, 100 n)`` (:c:func:`default_pivot_limit`)."""
+    return default_pivot_limit(n)
 DEGENERATE_RTOL = _DEGENERATE_RTOL
 LEX_RTOL = _LEX_RTOL
 
@@ -363,14 +380,26 @@ cdef int polish(const double* M, const double* q, Py_ssize_t n, const double* z,
             m += 1
     if m == 0:
         return 0
-    cdef double* work = <double*>malloc((2 * m * m + 3 * m + n) * sizeof(double))
-    cdef int64_t* idx = <int64_t*>malloc((m + n) * sizeof(int64_t))
-    cdef int* ipiv = <int*>malloc(m * sizeof(int))
-    if work == NULL or idx == NULL or ipiv == NULL:
-        free(work)
-        free(idx)
-        free(ipiv)
-        return -1
+    # up to _POLISH_SMALL_N the work space is on the stack (about 5 KiB; malloc and free
+    # would be a noticeable part of a small solve)
+    cdef double small_work[2 * _POLISH_SMALL_N * _POLISH_SMALL_N + 4 * _POLISH_SMALL_N]
+    cdef int64_t small_idx[2 * _POLISH_SMALL_N]
+    cdef int small_piv[_POLISH_SMALL_N]
+    cdef bint small = n <= _POLISH_SMALL_N
+    cdef double* work
+    cdef int64_t* idx
+    cdef int* ipiv
+    if small:
+        work, idx, ipiv = small_work, small_idx, small_piv
+    else:
+        work = <double*>malloc((2 * m * m + 3 * m + n) * sizeof(double))
+        idx = <int64_t*>malloc((m + n) * sizeof(int64_t))
+        ipiv = <int*>malloc(m * sizeof(int))
+        if work == NULL or idx == NULL or ipiv == NULL:
+            free(work)
+            free(idx)
+            free(ipiv)
+            return -1
     cdef double* A = work
     cdef double* lu = A + m * m
     cdef double* x = lu + m * m
@@ -402,9 +431,10 @@ cdef int polish(const double* M, const double* q, Py_ssize_t n, const double* z,
         if finite and min_residual(M, q, zc, n) <= min_residual(M, q, out, n):
             for j in range(n):
                 out[j] = zc[j]
-    free(work)
-    free(idx)
-    free(ipiv)
+    if not small:
+        free(work)
+        free(idx)
+        free(ipiv)
     return 0
 
 

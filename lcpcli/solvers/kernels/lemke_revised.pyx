@@ -45,6 +45,7 @@ from lcpcli.solvers.kernels.lemke cimport (
     _ones,
     basic_solution,
     basis_list,
+    default_pivot_limit,
     initial_row,
     keep_lex_min,
     lex_unit,
@@ -55,6 +56,8 @@ from lcpcli.solvers.kernels.lemke cimport (
 from lcpcli.solvers.kernels.simd cimport axpy, big_alloc, dot4
 
 import numpy as np
+
+from lcpcli.core.certificate import certificate_of
 
 cimport numpy as cnp
 
@@ -89,6 +92,24 @@ SMALL_PIVOT = _SMALL_PIVOT
 DRIFT_TOL = _DRIFT_TOL
 CHECK_EVERY = _CHECK_EVERY
 RESID_TOL = _RESID_TOL
+
+cdef enum:
+    # Problems up to this size are solved without releasing the GIL (the whole call takes a
+    # few microseconds; releasing and taking back the GIL is a noticeable part of it) ...
+    GIL_FREE_N = 32
+    # ... and up to this size with their work space on the stack (about 15 KiB).
+    SMALL_N = 16
+
+
+cdef int64_t default_refactor(int64_t n) noexcept nogil:
+    """Pivots between two refactorisations when not given: ``max(50, n)`` (the one definition:
+    :func:`default_refactor_every` reads it; :func:`lemke_solve_certified` applies it to 0)."""
+    return n if n > 50 else 50
+
+
+def default_refactor_every(int64_t n):
+    """Pivots between two refactorisations when not given: ``max(50, n)``."""
+    return default_refactor(n)
 
 
 cdef struct State:
@@ -282,12 +303,24 @@ cdef int lemke_revised(const double* M, const double* q, const double* d, Py_ssi
     cdef int status
     cdef double colmax, unit, key, piv, qr, inv, bu, f, y0, x0, bsp
     cdef State S
-    cdef double* work = <double*>big_alloc(((n + 1) * n + 2 * n * n + 8 * n + 1) * sizeof(double))
-    cdef int64_t* iwork = <int64_t*>malloc((2 * n + 1 + 4 * n + 1 + n) * sizeof(int64_t))
-    if work == NULL or iwork == NULL:
-        free(work)
-        free(iwork)
-        return -1
+    # up to SMALL_N the work space lives on the stack (the refactorisation's too): a solve of
+    # a microsecond or two would otherwise spend a tenth of it in malloc and free
+    cdef double small_work[(SMALL_N + 1) * SMALL_N + 2 * SMALL_N * SMALL_N + 8 * SMALL_N + 1]
+    cdef int64_t small_iwork[7 * SMALL_N + 2]
+    cdef double small_factor[3 * SMALL_N * SMALL_N + 2 * SMALL_N]
+    cdef int small_piv[SMALL_N]
+    cdef bint small = n <= SMALL_N
+    cdef double* work
+    cdef int64_t* iwork
+    if small:
+        work, iwork = small_work, small_iwork
+    else:
+        work = <double*>big_alloc(((n + 1) * n + 2 * n * n + 8 * n + 1) * sizeof(double))
+        iwork = <int64_t*>malloc((2 * n + 1 + 4 * n + 1 + n) * sizeof(int64_t))
+        if work == NULL or iwork == NULL:
+            free(work)
+            free(iwork)
+            return -1
     cdef double* MT = work
     S.B = MT + (n + 1) * n
     S.Ct = S.B + n * n
@@ -309,9 +342,11 @@ cdef int lemke_revised(const double* M, const double* q, const double* d, Py_ssi
     S.MT = MT
     S.q = q
     S.basic = basic
-    S.fA = NULL
+    S.fA = NULL  # allocated on first use (_refactor), on the stack when small
     S.fwork = NULL
     S.fpiv = NULL
+    if small:
+        S.fA, S.fwork, S.fpiv = small_factor, small_factor + 2 * n * n + n, small_piv
     # MT = [M, d]^T, so that a column of [M, d] is a contiguous row (blocked transpose)
     i0 = 0
     while i0 < n:
@@ -344,8 +379,9 @@ cdef int lemke_revised(const double* M, const double* q, const double* d, Py_ssi
     r = initial_row(q, d, n, tie_tol)
     if r < 0:
         out.status = LEMKE_TRIVIAL
-        free(work)
-        free(iwork)
+        if not small:
+            free(work)
+            free(iwork)
         return 0
     # initial pivot: z0 enters, w_r leaves: A = [d_r]
     S.m = 1
@@ -520,11 +556,12 @@ cdef int lemke_revised(const double* M, const double* q, const double* d, Py_ssi
     out.status = status
     out.pivots = pivots
     out.refactors = refactors
-    free(S.fA)
-    free(S.fwork)
-    free(S.fpiv)
-    free(work)
-    free(iwork)
+    if not small:
+        free(S.fA)
+        free(S.fwork)
+        free(S.fpiv)
+        free(work)
+        free(iwork)
     return 0
 
 
@@ -581,9 +618,11 @@ cdef class LemkeRun:
     SINGULAR, TRIVIAL), ``z`` (polished on OK, else ``max(z, 0)`` of the kernel's), ``w = M z
     + q``, ``pivots``, ``basis`` (sorted 0-based indices of the basic z's, a list), ``ray``
     (the secondary ray's direction, None unless RAY), ``z0`` (the artificial variable's last
-    value), ``refactors`` and ``cert``: the tuple of
+    value), ``refactors``, ``cert``: the tuple of
     :func:`lcpcli.core._certificate.certify_arrays` (first entry 2: out of range, certify again
-    with :func:`lcpcli.core.certificate.check`, which rescales), None when TRIVIAL."""
+    with :func:`lcpcli.core.certificate.check`, which rescales), None when TRIVIAL, and
+    :meth:`certificate`: the same numbers as a :class:`~lcpcli.core.certificate.Certificate`
+    at a tolerance."""
 
     cdef readonly int status
     cdef readonly object z
@@ -593,7 +632,28 @@ cdef class LemkeRun:
     cdef readonly object ray
     cdef readonly double z0
     cdef readonly int64_t refactors
-    cdef readonly object cert
+    cdef CertOut _cert
+    cdef bint _certified  # _cert holds the certificate of z (not TRIVIAL)
+
+    @property
+    def cert(self):
+        if not self._certified:
+            return None
+        cdef CertOut c = self._cert
+        return (c.status, c.error, c.backward_error, c.growth, c.residual, c.bound_violation,
+                c.w_violation, c.complementarity, c.equality_residual, c.worst)
+
+    def certificate(self, tol):
+        """The :class:`~lcpcli.core.certificate.Certificate` of ``z`` at ``tol``
+        (:func:`~lcpcli.core.certificate.certificate_of`, the one rule for ``passed``; no tuple
+        in between, this is on the small-solve path); None when TRIVIAL or out of range
+        (``cert[0] == 2``: :func:`~lcpcli.core.certificate.check` rescales)."""
+        if not self._certified or self._cert.status == 2:
+            return None
+        cdef CertOut c = self._cert
+        return certificate_of(c.status, c.error, c.backward_error, c.growth, c.residual,
+                              c.bound_violation, c.w_violation, c.complementarity,
+                              c.equality_residual, c.worst, tol)
 
     def __repr__(self):
         return (f"LemkeRun(status={self.status}, pivots={self.pivots}, "
@@ -601,11 +661,44 @@ cdef class LemkeRun:
 
 
 cdef LemkeRun _run(int status, object z, object w, int64_t pivots, list basis, object ray,
-                   double z0, int64_t refactors, object cert):
+                   double z0, int64_t refactors, const CertOut* cert):
+    """The record (``cert`` NULL: no certificate, TRIVIAL)."""
     cdef LemkeRun r = LemkeRun.__new__(LemkeRun)
     r.status, r.z, r.w, r.pivots, r.basis = status, z, w, pivots, basis
-    r.ray, r.z0, r.refactors, r.cert = ray, z0, refactors, cert
+    r.ray, r.z0, r.refactors = ray, z0, refactors
+    r._certified = cert != NULL
+    if cert != NULL:
+        r._cert = cert[0]
     return r
+
+
+
+
+cdef int _solve_certified(const double* Mp, const double* qp, const double* dp, Py_ssize_t n,
+                          int64_t max_iter, double piv_tol, double tie_tol,
+                          int64_t refactor_every, double* raw, int64_t* bp, double* rp,
+                          Py_ssize_t* iwork, double* zp, double* wp, LemkeOut* out,
+                          CertOut* cert) noexcept nogil:
+    """The compiled part of :func:`lemke_solve_certified` (workspace as laid out there; ``dp``
+    NULL: the covering vector of ones, written at ``rp + n``): kernel, final polish of an
+    answer, ``max(z, 0)`` of any other end, and the certificate.  0, or -1 (no memory)."""
+    cdef int rc
+    cdef Py_ssize_t i
+    if dp == NULL:
+        for i in range(n):
+            rp[n + i] = 1.0
+        dp = rp + n
+    rc = lemke_revised(Mp, qp, dp, n, max_iter, piv_tol, tie_tol, NULL, 0, refactor_every, raw,
+                       bp, rp, out)
+    if rc == 0:
+        if out.status == LEMKE_OK:
+            rc = polish(Mp, qp, n, raw, bp, zp)
+        else:
+            for i in range(n):
+                zp[i] = raw[i] if raw[i] > 0.0 else 0.0
+    if rc == 0 and out.status != LEMKE_TRIVIAL:
+        certify_dense(n, Mp, n, qp, zp, 0, NULL, NULL, wp, raw + n, iwork, NULL, cert)
+    return rc
 
 
 def lemke_solve_certified(M, q, d, int64_t max_iter, double piv_tol, double tie_tol,
@@ -618,9 +711,15 @@ def lemke_solve_certified(M, q, d, int64_t max_iter, double piv_tol, double tie_
     q_balanced)`` of :data:`lcpcli.analysis.scaling.BALANCE`: the call then first makes the
     equilibration's balance test (:c:func:`lcpcli.analysis._scaling._balanced`, the one
     definition, as :func:`lcpcli.analysis.scaling.is_balanced`) and returns None, without
-    solving, when the problem is not balanced.
+    solving, when the problem is not balanced.  ``max_iter`` or ``refactor_every`` 0 (or
+    less): the defaults, :func:`lcpcli.solvers.kernels.lemke.default_max_iter` and
+    :func:`default_refactor_every` (no Python call for them on the small path).
     """
     cdef Py_ssize_t n = len(q)
+    if max_iter <= 0:
+        max_iter = default_pivot_limit(n)
+    if refactor_every <= 0:
+        refactor_every = default_refactor(n)
     cdef cnp.ndarray qa = f64(q, n, -1)
     cdef cnp.ndarray Ma = f64(M, n, n)
     cdef cnp.ndarray da
@@ -630,21 +729,27 @@ def lemke_solve_certified(M, q, d, int64_t max_iter, double piv_tol, double tie_
         dp = f64_ptr(da)
     cdef cnp.ndarray z = empty_f64(n)
     cdef cnp.ndarray w = empty_f64(n)
-    if n == 0:
-        return _run(TRIVIAL, z, w, 0, [], None, 0.0, 0,
-                    (0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1))
+    cdef CertOut cert
+    if n == 0:  # the certificate of the empty problem
+        cert.status, cert.error, cert.backward_error, cert.growth = 0, 0.0, 0.0, 1.0
+        cert.residual = cert.bound_violation = cert.w_violation = 0.0
+        cert.complementarity = cert.equality_residual = 0.0
+        cert.worst = -1
+        return _run(TRIVIAL, z, w, 0, [], None, 0.0, 0, &cert)
     cdef const double* Mp = f64_ptr(Ma)
     cdef const double* qp = f64_ptr(qa)
     cdef double* zp = f64_ptr(z)
     cdef LemkeOut out
-    cdef CertOut cert
     cdef int rc = 0
-    cdef Py_ssize_t i
     # one block of 8-byte words: raw z (6 n doubles, the kernel's workspace), the ray (n), the
-    # covering vector of ones (n), the basis (n int64) and the certificate's 3 n indices
-    cdef double* raw = <double*>malloc(12 * n * sizeof(double))
-    if raw == NULL:
-        raise MemoryError()
+    # covering vector of ones (n), the basis (n int64) and the certificate's 3 n indices; on
+    # the stack up to SMALL_N
+    cdef double small_raw[12 * SMALL_N]
+    cdef double* raw = &small_raw[0]
+    if n > SMALL_N:
+        raw = <double*>malloc(12 * n * sizeof(double))
+        if raw == NULL:
+            raise MemoryError()
     cdef double* rp = raw + 6 * n
     cdef int64_t* bp = <int64_t*>(raw + 8 * n)
     cdef Py_ssize_t* iwork = <Py_ssize_t*>(raw + 9 * n)
@@ -653,26 +758,20 @@ def lemke_solve_certified(M, q, d, int64_t max_iter, double piv_tol, double tie_
         balanced, q_balanced = balance
         # the test's workspace (4 n long longs) is the block's first 4 n words
         if not _balanced(n, Mp, n, qp, balanced, q_balanced, <long long*> raw):
-            free(raw)
+            if n > SMALL_N:
+                free(raw)
             return None
-    with nogil:
-        if dp == NULL:
-            for i in range(n):
-                rp[n + i] = 1.0
-            dp = rp + n
-        rc = lemke_revised(Mp, qp, dp, n, max_iter, piv_tol, tie_tol, NULL, 0,
-                           refactor_every, raw, bp, rp, &out)
-        if rc == 0:
-            if out.status == LEMKE_OK:
-                rc = polish(Mp, qp, n, raw, bp, zp)
-            else:
-                for i in range(n):
-                    zp[i] = raw[i] if raw[i] > 0.0 else 0.0
-        if rc == 0 and out.status != LEMKE_TRIVIAL:
-            certify_dense(n, Mp, n, qp, zp, 0, NULL, NULL, f64_ptr(w), raw + n, iwork, NULL,
-                          &cert)
+    cdef double* wp = f64_ptr(w)
+    if n > GIL_FREE_N:
+        with nogil:
+            rc = _solve_certified(Mp, qp, dp, n, max_iter, piv_tol, tie_tol, refactor_every,
+                                  raw, bp, rp, iwork, zp, wp, &out, &cert)
+    else:  # a call of a microsecond or two: releasing the GIL would cost more than it frees
+        rc = _solve_certified(Mp, qp, dp, n, max_iter, piv_tol, tie_tol, refactor_every, raw,
+                              bp, rp, iwork, zp, wp, &out, &cert)
     if rc:
-        free(raw)
+        if n > SMALL_N:
+            free(raw)
         raise MemoryError()
     cdef cnp.ndarray ray = None
     cdef list basis = []
@@ -683,10 +782,8 @@ def lemke_solve_certified(M, q, d, int64_t max_iter, double piv_tol, double tie_
         if out.status != LEMKE_TRIVIAL:
             basis = basis_list(bp, n)
     finally:
-        free(raw)
+        if n > SMALL_N:
+            free(raw)
     if out.status == LEMKE_TRIVIAL:  # z = 0: the caller certifies it the ordinary way
-        return _run(out.status, z, w, 0, basis, ray, 0.0, 0, None)
-    return _run(out.status, z, w, out.pivots, basis, ray, out.z0, out.refactors,
-                (cert.status, cert.error, cert.backward_error, cert.growth, cert.residual,
-                 cert.bound_violation, cert.w_violation, cert.complementarity,
-                 cert.equality_residual, cert.worst))
+        return _run(out.status, z, w, 0, basis, ray, 0.0, 0, NULL)
+    return _run(out.status, z, w, out.pivots, basis, ray, out.z0, out.refactors, &cert)

@@ -48,7 +48,7 @@ from lcpcli.core.result import (
     Status,
 )
 from lcpcli.solvers import policy
-from lcpcli.solvers.memo import ATTEMPTS
+from lcpcli.solvers.memo import ATTEMPTS, FIRSTS
 from lcpcli.solvers.options import positive_int, vector_option
 from lcpcli.solvers.pipeline import run_method
 from lcpcli.solvers.policy import Step
@@ -111,6 +111,53 @@ def _attempt(name: str, max_iter: int | None, z0: np.ndarray | None
     return found if key is None else ATTEMPTS.put(key, found)
 
 
+def first_key(c: Classifier, max_iter: int | None) -> tuple[Any, ...] | None:
+    """The key of :data:`lcpcli.solvers.memo.FIRSTS` (None: a sparse problem, never
+    memoised): auto's first attempt and its message head depend on the opening's facts
+    (:func:`lcpcli.solvers.policy.opening_key`: kind, n, registry, the diagonal test's facts),
+    the ``max_iter`` given (the attempt's options) and, for the class report's phrase
+    (:meth:`ClassReport.describe`), the number of zero diagonal entries: every field that
+    phrase reads and the diagonal test sets."""
+    key = policy.opening_key(c)
+    return None if key is None else (key, max_iter, c.report.zero_diagonal)
+
+
+def _first(problem: Any, c: Classifier, max_iter: int | None, z0: np.ndarray | None,
+           given: list[Step] | None) -> tuple[Any, Step | None, Method | None, dict[str, Any],
+                                              str]:
+    """``(regime, step, method, options, head)``: auto's first attempt (the first of the
+    ``order=`` steps ``given``, or :func:`lcpcli.solvers.policy.first_step`), its method and
+    options (:func:`_attempt`; None and ``{}`` when no method applies) and the head of its
+    message when it succeeds, ``"auto (<class report>): solved by <method> (<reason>)"``.
+
+    Memoised (:func:`first_key`) without ``z0`` or ``order`` for a dense problem whose
+    opening needed only the O(n) diagonal test (as :func:`lcpcli.solvers.policy.opening`),
+    so that a repeated small solve makes one look-up."""
+    key = first_key(c, max_iter) if z0 is None and given is None else None
+    if key is not None:
+        found = FIRSTS.get(key)
+        if found is not None:
+            return found
+    before = c.tests_run
+    if given is not None:
+        regime, step = policy.regime_of(c), (given[0] if given else None)
+    else:
+        regime, step = policy.first_step(problem, c)
+    if step is None:
+        return regime, None, None, {}, ""
+    spec, opts = _attempt(step.method, max_iter, z0)
+    found = (regime, step, spec, opts, _solved_by(c.report, step.method, step.reason))
+    if key is not None and c.tests_run == before:  # planned on the diagonal test alone
+        FIRSTS.put(key, found)
+    return found
+
+
+def _solved_by(report: Any, name: str, why: str) -> str:
+    """The head of auto's message when ``name`` solved the problem (``report``: what is known
+    of M, :meth:`ClassReport.describe`)."""
+    return f"auto ({report.describe()}): solved by {name} ({why})"
+
+
 def run(problem: Any, *, tol: float, max_iter: int | None = None,
         z0: np.ndarray | None = None, order: str | None = None) -> Outcome:
     """Plan, try and certify methods until one's answer passes; see the module docstring.
@@ -120,17 +167,15 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None,
         z0 = start_point(problem, z0)  # length check before any method runs
     t_start = perf_counter()
     c = Classifier(problem)
-    n = c.report.n
-    if c.report.kind == "lcp" and (n == 0 or c.minima()[1] >= 0):
+    report = c.report
+    n = report.n
+    if report.kind == "lcp" and (n == 0 or c.minima()[1] >= 0):
         return Outcome(np.zeros(n), 0, CONVERGED, "auto: q >= 0, so z = 0 solves the problem",
                        info={"chosen": None, "attempts": []})
-    queue: Iterator[Step]
-    if order:
-        regime = policy.regime_of(c)
-        queue, replanned = iter(_given_order(order, c, methods())), True
-    else:
-        regime, first = policy.first_step(problem, c)
-        queue, replanned = iter(() if first is None else (first,)), False
+    given = _given_order(order, c, methods()) if order else None
+    regime, step, spec, opts, head = _first(problem, c, max_iter, z0, given)
+    # the steps after the first: order='s, or (None) planned once the first attempt failed
+    queue: Iterator[Step] | None = None if given is None else iter(given[1:])
     attempts: list[dict[str, Any]] = []
     best: tuple[float, np.ndarray, Any] | None = None
     total_it = 0
@@ -138,21 +183,21 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None,
     imported = 0.0
 
     while True:
-        step = next(queue, None)
-        if step is None and not replanned:  # the first attempt failed: plan the rest
-            # the tests and methods that follow may factorise: their modules load here, timed
-            # apart (Outcome.import_seconds, left out of Result.seconds)
-            t_import = perf_counter()
-            preload_linalg(problem)
-            imported += perf_counter() - t_import
-            queue = policy.iter_plan(problem, c, skip=[a["method"] for a in attempts],
-                                     regime=regime)
-            replanned = True
+        if spec is None:  # the next step (the first is planned above)
+            if queue is None:  # the first attempt failed: plan the rest
+                # the tests and methods that follow may factorise: their modules load here,
+                # timed apart (Outcome.import_seconds, left out of Result.seconds)
+                t_import = perf_counter()
+                preload_linalg(problem)
+                imported += perf_counter() - t_import
+                queue = policy.iter_plan(problem, c, skip=[a["method"] for a in attempts],
+                                         regime=regime)
             step = next(queue, None)
-        if step is None:
-            break
-        name, why, _ = step
-        spec, opts = _attempt(name, max_iter, z0)
+            if step is None:
+                break
+            spec, opts = _attempt(step.method, max_iter, z0)
+            head = ""
+        name, why = step.method, step.reason
         t1 = perf_counter()
         try:
             out: Outcome = run_method(spec, problem, tol, opts)  # certified there
@@ -163,8 +208,10 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None,
             t_methods += t2 - t1
             attempts.append({"method": name, "reason": why, "status": Status.ERROR,
                              "message": f"{type(exc).__name__}: {exc}", "seconds": t2 - t1})
+            spec = None
             continue
         t2 = perf_counter()
+        spec = None
         t_methods += t2 - t1
         iterations = int(out.iterations)
         total_it += iterations
@@ -176,37 +223,39 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None,
                          "termination": out.termination, "iterations": iterations,
                          "error": cert.error, "seconds": t2 - t1, "message": out.message})
         if status is SOLVED:
-            failed = "".join(f"; {a['method']} failed first ({a['message']})"
-                             for a in attempts[:-1]) if len(attempts) > 1 else ""
-            return Outcome.converged(z, total_it,
-                                     f"auto ({c.report.describe()}): solved by {name} ({why})"
-                                     f"{failed}",
-                                     _info(name, attempts, c, regime, t_start,
-                                           t_methods + imported),
+            if len(attempts) == 1 and head:  # the first attempt: no test ran since the plan
+                message = head
+            else:
+                message = _solved_by(report, name, why) + "".join(
+                    f"; {a['method']} failed first ({a['message']})" for a in attempts[:-1])
+            return Outcome.converged(z, total_it, message,
+                                     _info(name, attempts, report, regime,
+                                           t2 - t_start - t_methods - imported),
                                      (cert, w), imported)
         if status is NO_SOLUTION:
             return Outcome(z, total_it, out.termination,
-                           f"auto ({c.report.describe()}): {name} proved that no solution "
+                           f"auto ({report.describe()}): {name} proved that no solution "
                            f"exists: {out.message}", proven_infeasible=True,
-                           info={**_info(name, attempts, c, regime, t_start,
-                                         t_methods + imported),
+                           info={**_info(name, attempts, report, regime,
+                                         perf_counter() - t_start - t_methods - imported),
                                  "farkas_y": proof.y.tolist()}, import_seconds=imported)
         if best is None or cert.error < best[0]:
             best = (cert.error, z, out.termination)
     tried = "; ".join(f"{a['method']}: {a['message']}" for a in attempts) or "no method applies"
     z = best[1] if best else np.clip(np.zeros(n), problem.bounds()[0], None)
     return Outcome(z, total_it, best[2] if best else ITERATION_LIMIT,
-                   f"auto ({c.report.describe()}): every suitable method failed ({tried})",
-                   info=_info(None, attempts, c, regime, t_start, t_methods + imported),
+                   f"auto ({report.describe()}): every suitable method failed ({tried})",
+                   info=_info(None, attempts, report, regime,
+                              perf_counter() - t_start - t_methods - imported),
                    import_seconds=imported)
 
 
-def _info(chosen: str | None, attempts: list[dict[str, Any]], c: Classifier, regime: Any,
-          t_start: float, t_methods: float) -> dict[str, Any]:
-    """``Outcome.info`` of auto (see the module docstring)."""
-    spent = perf_counter() - t_start
-    return {"chosen": chosen, "attempts": attempts, "classification": c.report,
-            "regime": regime.name, "classify_seconds": spent - t_methods}
+def _info(chosen: str | None, attempts: list[dict[str, Any]], report: Any, regime: Any,
+          classify_seconds: float) -> dict[str, Any]:
+    """``Outcome.info`` of auto (see the module docstring); ``classify_seconds``: the time
+    spent outside the attempts (classifying and planning)."""
+    return {"chosen": chosen, "attempts": attempts, "classification": report,
+            "regime": regime.name, "classify_seconds": classify_seconds}
 
 
 METHODS = [

@@ -29,7 +29,14 @@ from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, RAY, Outcome
 from lcpcli.core.text import plural
 from lcpcli.core.tolerances import PIVOT_TOL, TIE_TOL
 from lcpcli.solvers.kernels.dense import bind_numpy_lapack
-from lcpcli.solvers.kernels.lemke import MAX_ITER, OK, TRIVIAL, lemke_solve, polish_kernel
+from lcpcli.solvers.kernels.lemke import (
+    MAX_ITER,
+    OK,
+    TRIVIAL,
+    default_max_iter,
+    lemke_solve,
+    polish_kernel,
+)
 from lcpcli.solvers.options import bool_option, positive_int, vector_option
 from lcpcli.solvers.registry import BatchSpec, Cost, Guarantee, Method, Option, when
 
@@ -50,11 +57,6 @@ def covering_vector(n: int, covering: np.ndarray | None) -> np.ndarray | None:
     if not np.all(np.isfinite(d)) or np.any(d <= 0):
         raise OptionError("covering vector must be finite and positive")
     return d
-
-
-def default_max_iter(n: int) -> int:
-    """Pivot limit when none is given: generous, but finite (Murty's family needs 2^n)."""
-    return max(1000, 100 * n)
 
 
 def batch_params(n: int, options: Mapping[str, Any]) -> dict[str, Any]:

@@ -22,7 +22,6 @@ from typing import Any
 
 import numpy as np
 
-from lcpcli.core.certificate import from_kernel
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, NUMERICAL, Outcome
 from lcpcli.core.text import plural
 from lcpcli.solvers.kernels.dense import bind_numpy_lapack
@@ -54,11 +53,6 @@ def _refactor_every(value: Any) -> int:
     return v
 
 
-def default_refactor_every(n: int) -> int:
-    """Pivots between two refactorisations when not given: ``max(50, n)``."""
-    return max(50, n)
-
-
 def run(problem: Any, *, tol: float, covering: np.ndarray | None = None,
         max_iter: int | None = None, refactor_every: int | None = None,
         trace: bool = False, balance: tuple[int, int] | None = None) -> Outcome | None:
@@ -76,32 +70,35 @@ def run(problem: Any, *, tol: float, covering: np.ndarray | None = None,
         return out
     q = problem.q
     n = len(q)
-    M = problem.dense_M()  # the kernel takes it as it is when float64 C-contiguous
+    M = problem.M  # the kernel takes it as it is when float64 C-contiguous
+    if type(M) is not np.ndarray:
+        M = problem.dense_M()
     d = None if covering is None else covering_vector(n, covering)  # None: all ones
-    limit = max_iter or default_max_iter(n)
-    # kernel, final polish and the certificate in one compiled call
-    got = lemke_solve_certified(M, q, d, limit, PIVOT_TOL, TIE_TOL,
-                                refactor_every or default_refactor_every(n), balance)
+    # kernel, final polish and the certificate in one compiled call (a limit of 0: the
+    # kernels' defaults, default_max_iter and default_refactor_every)
+    got = lemke_solve_certified(M, q, d, max_iter or 0, PIVOT_TOL, TIE_TOL, refactor_every or 0,
+                                balance)
     if got is None:
         return None
     status = got.status
     if status == OK:  # the artificial variable left the basis
-        # the certificate of this z for this problem, as check() computes it (out of range:
-        # status 2, left to check(), which rescales)
-        cert = got.cert
+        # the certificate of this z for this problem, as check() computes it (None: out of
+        # range, left to check(), which rescales)
+        cert = got.certificate(tol)
         pivots, refactors = got.pivots, got.refactors
         return Outcome.converged(got.z, pivots,
                                  f"artificial variable left the basis after "
                                  f"{plural(pivots, 'pivot')} ({refactors} refactorisations)",
                                  {"refactorisations": refactors, "basis": got.basis},
-                                 (from_kernel(cert, tol), got.w) if cert[0] != 2 else None)
+                                 None if cert is None else (cert, got.w))
     if status == TRIVIAL:
         return Outcome(np.zeros(n), 0, CONVERGED, "q >= 0: z = 0 solves the problem")
     z, pivots, refactors = got.z, got.pivots, got.refactors
     info = {"refactorisations": refactors}
     if status == MAX_ITER:
         return Outcome(np.maximum(z, 0.0), pivots, ITERATION_LIMIT,
-                       f"pivot limit {limit} reached (raise it with --max-iter)", info=info)
+                       f"pivot limit {max_iter or default_max_iter(n)} reached (raise it with "
+                       f"--max-iter)", info=info)
     if status == SINGULAR:
         out = Outcome(np.maximum(z, 0.0), pivots, NUMERICAL,
                       f"basis block M^(alpha beta) became singular at a refactorisation "
