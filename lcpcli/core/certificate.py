@@ -216,8 +216,7 @@ def from_row(row: Any, tol: float) -> Certificate:
     :class:`Certificate` in order, ``worst`` as a float), written only for an answer the
     kernel certified (its status 0: z and w finite and in range)."""
     error, back, growth, res, bound, wv, comp, eq, worst = row.tolist()
-    return Certificate(error, back, growth, res, bound, wv, comp, eq, int(worst), float(tol),
-                       error <= tol and error < math.inf)
+    return certificate_of(0, error, back, growth, res, bound, wv, comp, eq, int(worst), tol)
 
 
 def _pow2_exponent(x: float) -> int:
