@@ -25,20 +25,24 @@ is solved again). A file that is still unreadable is refused by ``--resume`` wit
 again without it).
 
 **Fingerprint** (``--resume`` never keeps results of other data): each group records
-``chunk`` (problems per chunk), ``chunk_digest`` (chunks, 16) uint8, the SHA-256 digest of each
+``chunk`` (problems per chunk), ``chunk_digest`` (chunks, 16) uint8, the digest of each
 finished chunk's input bytes (M, q, bounds and names: :func:`chunk_digest`; zeros: none yet),
-and ``solve_options`` (JSON: method, tol, options).  ``--resume`` reads the chunks that hold
+``digest`` (its algorithm, :mod:`lcpcli.batch.digest`: ``mxs128`` in new files; a file
+without it was written with ``sha256``, which ``--resume`` then verifies and goes on with) and
+``solve_options`` (JSON: method, tol, options).  ``--resume`` reads the chunks that hold
 finished problems again and refuses, with one line, a file whose digests or options differ
-from this run's, and a file without them (written by an older lcpcli: run without
-``--resume``); a problem counts as done only when its chunk's digest is recorded.
+from this run's, a file that names a digest this lcpcli does not know, and a file without
+them (written by an older lcpcli: run without ``--resume``); a problem counts as done only
+when its chunk's digest is recorded.
 
-**NPZ** (``results.npz``, one input stack): the same arrays at the top level plus ``source``;
+**NPZ** (``results.npz``, one input stack): the same arrays at the top level plus ``source``
+(and ``digest``, as the attribute);
 held in memory and written atomically when the batch ends (also on Ctrl-C / SIGTERM), so the
 file on disk is always complete; ``--resume`` starts from it.
 
 **Rows** (``.jsonl``/``.csv``): one row per problem, see :mod:`lcpcli.batch.stacked`; the
 row's ``index`` is the position in the stack, which ``--resume`` uses, and its ``input_hash``
-the digest of its chunk (chunks of :func:`lcpcli.io.stack.chunk_size` problems).
+the ``sha256`` digest of its chunk (chunks of :func:`lcpcli.io.stack.chunk_size` problems).
 """
 
 from __future__ import annotations
@@ -51,12 +55,12 @@ from typing import Any
 import numpy as np
 
 from lcpcli.batch import output
+from lcpcli.batch.digest import LEGACY, STACKED, digest_of, recorded_algorithm
 from lcpcli.batch.output import (
     DIGEST_BYTES,
     INPUT_HASH,
     checked_output,
     hdf5_text,
-    new_digest,
     output_kind,
 )
 from lcpcli.batch.records import options_difference
@@ -86,19 +90,17 @@ KEPT = "the finished problems are kept (status -1 marks the others): free space,
 _RERUN = "run again without --resume"
 
 
-def chunk_digest(part: Any) -> bytes:
-    """The fingerprint of a chunk of a stack (:class:`lcpcli.io.stack.StackChunk`): the
-    digest (:func:`lcpcli.batch.output.new_digest`) of the little-endian float64 bytes of M,
-    q, lower and upper and of the UTF-8 names."""
-    h = new_digest()
+def chunk_digest(part: Any, algorithm: str) -> bytes:
+    """The fingerprint of a chunk of a stack (:class:`lcpcli.io.stack.StackChunk`) by the
+    digest ``algorithm`` (:mod:`lcpcli.batch.digest`): :func:`lcpcli.batch.digest.digest_of`
+    of the little-endian float64 bytes of M, q, lower and upper (``-`` for a bound the chunk
+    has not) and, when it has names, of their UTF-8 bytes joined by NUL."""
+    pieces: list[Any] = []
     for arr in (part.M, part.q, part.lower, part.upper):
-        if arr is None:
-            h.update(b"-")
-        else:
-            h.update(np.ascontiguousarray(arr, dtype="<f8").data)
+        pieces.append(b"-" if arr is None else np.ascontiguousarray(arr, dtype="<f8"))
     if part.names is not None:
-        h.update("\0".join(part.names).encode("utf-8", "surrogateescape"))
-    return h.digest()[:DIGEST_BYTES]
+        pieces.append("\0".join(part.names).encode("utf-8", "surrogateescape"))
+    return digest_of(algorithm, pieces)
 
 
 def options_fingerprint(opts: Any, warm_digest: str | None = None) -> str:
@@ -180,6 +182,13 @@ def new_chunk(output: str | Any | None, n: int, threads: int) -> int:
     return batch_chunk(n, threads)
 
 
+def new_algorithm(output: str | Any) -> str:
+    """The digest (:mod:`lcpcli.batch.digest`) of a new result file of kind ``output`` (by
+    extension): :data:`~lcpcli.batch.digest.STACKED` for stacked datasets,
+    :data:`~lcpcli.batch.digest.LEGACY` for rows; what its writer's ``algorithm`` says."""
+    return LEGACY if wants_rows(output) else STACKED
+
+
 def wants_rows(output: str | Any) -> bool:
     """Whether the writer of ``output`` (by extension) takes rows (``.jsonl``, ``.csv``)
     rather than stacked arrays (``.h5``, ``.npz``): :attr:`RowStackWriter.wants_rows`."""
@@ -235,6 +244,7 @@ class Hdf5StackWriter:
                                "--resume to replace it", str(path))
         self.groups: dict[str, Any] = {}
         self.chunk_of: dict[str, int] = {}
+        self.algorithm_of: dict[str, str] = {}
         existing = {str(f[g].attrs.get("source", "")): f[g] for g in f}
         missing = []
         for info in infos:
@@ -245,6 +255,8 @@ class Hdf5StackWriter:
             self._check_group(g, info)
             self.groups[info.path] = g
             self.chunk_of[info.path] = int(g.attrs["chunk"])
+            self.algorithm_of[info.path] = recorded_algorithm(g.attrs.get("digest"), path,
+                                                              info.path)
         return missing
 
     def _add_groups(self, infos: list[Any]) -> None:
@@ -318,13 +330,18 @@ class Hdf5StackWriter:
         if info.has_names:
             g.create_dataset("names", shape=(K,), dtype=h5py.string_dtype())
         g.attrs.update({"source": _text(info.path), "n": n, "K": K, "method": "", "tol": np.nan,
-                        "chunk": chunk, "solve_options": self.options,
+                        "chunk": chunk, "digest": STACKED, "solve_options": self.options,
                         "status_codes": json.dumps({str(s): c for s, c in
                                                     STATUS_CODES.items()})})
         return g
 
     def chunk(self, info: Any) -> int:
         return self.chunk_of[info.path]
+
+    def algorithm(self, info: Any) -> str:
+        """The digest of ``info``'s chunks (:mod:`lcpcli.batch.digest`): what its group
+        records."""
+        return self.algorithm_of[info.path]
 
     def recorded(self, info: Any) -> dict[int, bytes]:
         g = self.groups[info.path]
@@ -375,6 +392,7 @@ class NpzStackWriter:
         self.path, self.options = path, options
         self.arrays = _empty_arrays(info.K, info.n)
         self.chunk_size = batch_chunk(info.n, threads)
+        self.digest = STACKED
         self.digests = np.zeros((_chunks(info.K, self.chunk_size), DIGEST_BYTES), np.uint8)
         self.names: list[str] | None = [""] * info.K if info.has_names else None
         self.method, self.tol = "", float("nan")
@@ -404,6 +422,8 @@ class NpzStackWriter:
                     raise ProblemError(f"cannot be resumed: its fingerprint does not fit the "
                                        f"input's K = {info.K}; {_RERUN}", str(path))
                 self.chunk_size = chunk
+                self.digest = recorded_algorithm(
+                    data["digest"] if "digest" in data.files else None, path, info.path)
                 self.digests = data["chunk_digest"].astype(np.uint8)
                 self.method, self.tol = str(data["method"]), float(data["tol"])
                 for key, value in self.arrays.items():
@@ -423,6 +443,9 @@ class NpzStackWriter:
 
     def chunk(self, info: Any) -> int:
         return self.chunk_size
+
+    def algorithm(self, info: Any) -> str:
+        return self.digest
 
     def recorded(self, info: Any) -> dict[int, bytes]:
         return _recorded(self.arrays["status"], self.digests, self.chunk_size)
@@ -450,6 +473,7 @@ class NpzStackWriter:
                                  "tol": np.asarray(self.tol),
                                  "chunk": np.asarray(self.chunk_size),
                                  "chunk_digest": self.digests,
+                                 "digest": np.asarray(self.digest),
                                  "solve_options": np.asarray(self.options)}
         if self.names is not None:
             extra["names"] = np.asarray(self.names, dtype=str)
@@ -475,6 +499,9 @@ class RowStackWriter:
 
     def chunk(self, info: Any) -> int:
         return io_stack.chunk_size(info.n)
+
+    def algorithm(self, info: Any) -> str:
+        return LEGACY
 
     def _rows(self, info: Any) -> list[dict[str, Any]]:
         return [r for r in self.finished.get(info.path, [])

@@ -12,7 +12,8 @@ per stack by :func:`lcpcli.stacks.plan_stack`).  Results go to the output as sta
 ``--json`` stream; row ``problem`` is the stacked problem's name), and ``--resume`` skips the
 problems the output already holds, once it has checked that they were computed from the same
 data: the chunks holding them are read again and their digests compared with the ones the
-output recorded (:func:`lcpcli.batch.stack_output.chunk_digest`), and the solve options too.
+output recorded (:func:`lcpcli.batch.stack_output.chunk_digest`, by the algorithm the output
+records: :mod:`lcpcli.batch.digest`), and the solve options too.
 """
 
 from __future__ import annotations
@@ -113,7 +114,8 @@ def run_stacks(inputs: list[str], opts: SolveOptions, report: BatchReport, *,
             chunk = stack_output.new_chunk(output, first.n, threads)
             early = (first, chunk, _local_parts(first.path, first, opts,
                                                 np.zeros(first.K, bool), threads=threads,
-                                                chunk=chunk, digest=output is not None,
+                                                chunk=chunk, digest=None if output is None
+                                                else stack_output.new_algorithm(output),
                                                 warm=warm))
         if output is not None:
             def make() -> Any:
@@ -125,7 +127,8 @@ def run_stacks(inputs: list[str], opts: SolveOptions, report: BatchReport, *,
             # resuming nothing, the file is made in a thread while the first chunks are read
             # and solved (making it is mostly waiting for the disk: fsync, rename)
             writer = make() if early is None else _OpeningWriter(
-                make, stack_output.wants_rows(output), early[0], early[1])
+                make, stack_output.wants_rows(output), early[0], early[1],
+                stack_output.new_algorithm(output))
         if writer is not None and resume:
             for info in infos:
                 if info is not None:
@@ -177,12 +180,14 @@ class _OpeningWriter:
     """The output writer of a batch that resumes nothing, made by ``make()`` in a thread of
     its own while the first chunks are read and solved; each use waits for it (also when
     Ctrl-C arrives meanwhile) and raises what making it raised (an unwritable output, a full
-    disk).  ``wants_rows``: the writer's, known from the output's kind; ``first``, ``chunk``:
-    the first stack and the chunk it is read in, which a new file must record (checked)."""
+    disk).  ``wants_rows``: the writer's, known from the output's kind; ``first``, ``chunk``,
+    ``algorithm``: the first stack, the chunk it is read in and the digest its chunks are
+    fingerprinted with, which a new file must record (checked)."""
 
     def __init__(self, make: Callable[[], Any], wants_rows: bool, first: Any,
-                 chunk: int) -> None:
+                 chunk: int, algorithm: str) -> None:
         self.wants_rows, self.first, self.want_chunk = wants_rows, first, chunk
+        self.want_algorithm = algorithm
         self.writer: Any = None
         self.error: BaseException | None = None
         self.thread = threading.Thread(target=self._run, args=(make,),
@@ -204,11 +209,13 @@ class _OpeningWriter:
                 self.thread.join()
             except KeyboardInterrupt as exc:
                 interrupted = exc
-        if self.error is None and self.writer.chunk(self.first) != self.want_chunk:
+        if self.error is None and (self.writer.chunk(self.first), self.writer.algorithm(
+                self.first)) != (self.want_chunk, self.want_algorithm):
             self.writer.close()
-            self.error = RuntimeError(f"a new result file records chunks of "
-                                      f"{self.writer.chunk(self.first)} problems, not "
-                                      f"{self.want_chunk}")
+            self.error = RuntimeError(
+                f"a new result file records chunks of {self.writer.chunk(self.first)} "
+                f"problems by {self.writer.algorithm(self.first)}, not {self.want_chunk} by "
+                f"{self.want_algorithm}")
         return interrupted
 
     def get(self) -> Any:
@@ -222,6 +229,9 @@ class _OpeningWriter:
 
     def chunk(self, info: Any) -> int:
         return self.get().chunk(info)
+
+    def algorithm(self, info: Any) -> str:
+        return self.get().algorithm(info)
 
     def write(self, *args: Any) -> None:
         self.get().write(*args)
@@ -282,11 +292,11 @@ def _check_identity(info: Any, writer: Any, output: Any) -> None:
     recorded = writer.recorded(info)
     if not recorded:
         return
-    chunk = writer.chunk(info)
+    chunk, algorithm = writer.chunk(info), writer.algorithm(info)
     with open_stack(info.path) as reader:
         for c, want in sorted(recorded.items()):
             start, stop = c * chunk, min(info.K, (c + 1) * chunk)
-            if chunk_digest(reader.read(start, stop)) != want:
+            if chunk_digest(reader.read(start, stop), algorithm) != want:
                 raise ProblemError(f"holds results computed from other data than {info.path} "
                                    f"has now (problems {start:,} to {stop - 1:,} differ): run "
                                    f"again without --resume, or give another --output",
@@ -294,11 +304,12 @@ def _check_identity(info: Any, writer: Any, output: Any) -> None:
 
 
 def solve_part(reader: Any, info: Any, start: int, stop: int, todo: np.ndarray,
-               opts: SolveOptions, plan: Any, *, threads: int, digest: bool,
+               opts: SolveOptions, plan: Any, *, threads: int, digest: str | None,
                ) -> tuple[list[str] | None, bytes, Any, Any, float, float]:
     """Read problems ``start + todo`` of the open stack ``reader`` and solve them with
     :func:`lcpcli.stacks.solve_many` (``plan``: made here on this chunk when None).  Returns the
-    chunk's names (of ``todo``), the digest of the whole chunk (``digest``: else ``b""``), the
+    chunk's names (of ``todo``), the digest of the whole chunk by the algorithm ``digest``
+    (:mod:`lcpcli.batch.digest`; None: ``b""``), the
     result, the plan, and the read and solve seconds.  The one chunk step of the local and the
     Dask paths (:func:`lcpcli.batch.cluster.stack_chunk_task`)."""
     part, fingerprint, read_s = read_part(reader, start, stop, digest=digest)
@@ -306,17 +317,17 @@ def solve_part(reader: Any, info: Any, start: int, stop: int, todo: np.ndarray,
     return names, fingerprint, res, plan, read_s, solve_s
 
 
-def read_part(reader: Any, start: int, stop: int, *, digest: bool,
+def read_part(reader: Any, start: int, stop: int, *, digest: str | None,
               out: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[Any, bytes, float]:
     """Problems ``start .. stop-1`` of the open stack ``reader``, the digest of that chunk
-    (``digest``: else ``b""``) and the seconds both took: the reading half of
+    by the algorithm ``digest`` (None: ``b""``) and the seconds both took: the reading half of
     :func:`solve_part`.  ``out``: the buffers ``(M, q)`` to read into
     (:meth:`lcpcli.io.stack.StackReader.read`)."""
     from lcpcli.batch.stack_output import chunk_digest
 
     t0 = time.perf_counter()
     part = reader.read(start, stop, out)
-    fingerprint = chunk_digest(part) if digest else b""
+    fingerprint = b"" if digest is None else chunk_digest(part, digest)
     return part, fingerprint, time.perf_counter() - t0
 
 
@@ -348,11 +359,12 @@ def solve_read(part: Any, info: Any, todo: np.ndarray, opts: SolveOptions, plan:
     return names, res, plan, time.perf_counter() - t1
 
 
-def _reads(path: str, info: Any, done: np.ndarray, chunk: int, digest: bool,
+def _reads(path: str, info: Any, done: np.ndarray, chunk: int, digest: str | None,
            stop_event: threading.Event | None = None, warm: Any = None,
            buffers: _Buffers | None = None) -> Iterator[tuple[Any, ...]]:
     """``(todo, part, digest, read_s, prev, held)`` of each chunk with work, in order (the
-    reader's side); ``digest``: the chunk's :class:`_Digest` (``digest``; else ``b""``),
+    reader's side); ``digest``: the chunk's :class:`_Digest` by the algorithm ``digest``
+    (None: ``b""``),
     computed here once the chunk is handed over, so that the solver starts on it meanwhile;
     ``prev``: the chunk of the ``--z0`` result file ``warm`` (None without one); ``held``:
     the buffers of ``buffers`` that ``part`` was read into (None without them), which the
@@ -369,13 +381,13 @@ def _reads(path: str, info: Any, done: np.ndarray, chunk: int, digest: bool,
                 held = None if buffers is None else buffers.take(stop_event)
                 if buffers is not None and held is None:  # told to stop while waiting
                     return
-                part, _, read_s = read_part(reader, start, stop, digest=False, out=held)
+                part, _, read_s = read_part(reader, start, stop, digest=None, out=held)
                 prev = None
                 if warm is not None:  # its read counts as reading
                     t0 = time.perf_counter()
                     prev = warm.read(start, stop)
                     read_s += time.perf_counter() - t0
-                fingerprint = _Digest() if digest else None
+                fingerprint = None if digest is None else _Digest(digest)
                 yield todo, part, fingerprint or b"", read_s, prev, held
                 if fingerprint is not None:  # beside the solver, before the next read
                     fingerprint.compute(part)
@@ -384,9 +396,11 @@ def _reads(path: str, info: Any, done: np.ndarray, chunk: int, digest: bool,
 class _Digest:
     """The digest of a chunk (:func:`lcpcli.batch.stack_output.chunk_digest`) that the reader
     thread computes after it handed the chunk over; :meth:`result` (the chunk's write) waits
-    for it.  ``seconds``: what computing it took (counted as reading)."""
+    for it.  ``algorithm``: the digest's (:mod:`lcpcli.batch.digest`); ``seconds``: what
+    computing it took (counted as reading)."""
 
-    def __init__(self) -> None:
+    def __init__(self, algorithm: str) -> None:
+        self.algorithm = algorithm
         self.done = threading.Event()
         self.value, self.seconds = b"", 0.0
         self.error: BaseException | None = None
@@ -396,7 +410,7 @@ class _Digest:
 
         t0 = time.perf_counter()
         try:
-            self.value = chunk_digest(part)
+            self.value = chunk_digest(part, self.algorithm)
         except BaseException as exc:  # noqa: BLE001 - raised by result(), in the writer
             self.error = exc
             raise
@@ -537,7 +551,7 @@ class _LocalParts:
     :meth:`close` stops and joins the reader."""
 
     def __init__(self, path: str, info: Any, opts: SolveOptions, done: np.ndarray, *,
-                 threads: int, chunk: int, digest: bool, warm: Any = None) -> None:
+                 threads: int, chunk: int, digest: str | None, warm: Any = None) -> None:
         self.info, self.opts, self.threads = info, opts, threads
         self.buffers = _Buffers(READ_AHEAD + 2, min(chunk, info.K), info.n)
         self.reads = _prefetched(lambda stop: _reads(path, info, done, chunk, digest, stop,
@@ -557,7 +571,7 @@ class _LocalParts:
 
 
 def _local_parts(path: str, info: Any, opts: SolveOptions, done: np.ndarray, *, threads: int,
-                 chunk: int, digest: bool, warm: Any = None) -> _LocalParts:
+                 chunk: int, digest: str | None, warm: Any = None) -> _LocalParts:
     """:class:`_LocalParts` (its reader thread starts now)."""
     return _LocalParts(path, info, opts, done, threads=threads, chunk=chunk, digest=digest,
                        warm=warm)
@@ -573,12 +587,13 @@ def _run_one(path: str, info: Any, opts: SolveOptions, report: BatchReport, tall
     stem = Path(path).stem
     if parts is None and scheduler is None:
         parts = _local_parts(path, info, opts, done, threads=threads, chunk=chunk,
-                             digest=writer is not None, warm=warm)
+                             digest=None if writer is None else writer.algorithm(info),
+                             warm=warm)
     elif parts is None:
         from lcpcli.batch.cluster import iter_stack_dask
 
         parts = iter_stack_dask(path, info, opts, done, scheduler, chunk=chunk,
-                                digest=writer is not None)
+                                digest=None if writer is None else writer.algorithm(info))
     try:
         _consume(path, stem, info, parts, report, tally, stats, writer, chunk=chunk,
                  on_progress=on_progress, on_row=on_row, write=write)
