@@ -199,6 +199,23 @@ def _chunks(K: int, chunk: int) -> int:
     return max(1, -(-K // chunk))
 
 
+#: Largest HDF5 storage chunk (bytes) of ``z`` and ``w`` in a new stacked result file (a
+#: batch chunk's z holds 32 MiB / n bytes: :func:`lcpcli.io.stack.chunk_size`).
+STORAGE_BYTES = 8 * 2**20
+
+
+def storage_rows(chunk: int, K: int, n: int) -> int:
+    """Rows of each HDF5 storage chunk of the per-problem datasets of a new result file whose
+    batch chunk is ``chunk``: at most ``K``, and a divisor of ``chunk`` (writing a batch chunk
+    then fills whole storage chunks: none is read back, merged and written again), the
+    largest that keeps a chunk of ``z`` within :data:`STORAGE_BYTES`; when no divisor comes
+    within half of that, ``chunk`` split evenly (storage chunks then straddle batch chunks)."""
+    row_bytes = 8 * max(n, 1)
+    least = max(1, -(-chunk * row_bytes // STORAGE_BYTES))  # parts a batch chunk needs
+    parts = next((k for k in range(least, 2 * least + 1) if chunk % k == 0), least)
+    return max(1, min(K, -(-chunk // parts)))
+
+
 class Hdf5StackWriter:
     """Stacked results in an HDF5 file (see the module docstring)."""
 
@@ -207,6 +224,8 @@ class Hdf5StackWriter:
     def __init__(self, path: Path, infos: list[Any], resume: bool, options: str = "{}",
                  threads: int = 1) -> None:
         self.path, self.options, self.threads = path, options, threads
+        #: ``(method, tol)`` last written to each group's attributes (by :meth:`write`)
+        self.stamped: dict[str, tuple[str, float]] = {}
         if not (resume and own_file(path) is not None):  # a link is refused by own_file
             with atomic_path(path) as tmp, open_hdf5(tmp, "w") as f:  # complete, or nothing
                 f.attrs[MARK] = 1
@@ -310,13 +329,13 @@ class Hdf5StackWriter:
         taken.add(name)
         g = f.create_group(name)
         K, n = info.K, info.n
-        rows = max(1, min(K, (1 << 20) // max(8 * n, 8)))  # ~1 MiB chunks of z and w
+        rows = storage_rows(chunk, K, n)
         arrays = _empty_arrays(0, n)
         arrays["chunk_digest"] = np.zeros((0, DIGEST_BYTES), np.uint8)
         for key, value in arrays.items():
             size = _chunks(K, chunk) if key == "chunk_digest" else K
             shape = (size, value.shape[1]) if value.ndim == 2 else (size,)
-            chunks = (rows, n) if value.ndim == 2 and n else (min(K, 1 << 16),)
+            chunks = (rows, n) if value.ndim == 2 and n else (rows,)
             if key == "chunk_digest":
                 chunks = (min(size, 1 << 12), DIGEST_BYTES)
             fill = NOT_DONE if key == "status" else NO_BASIS if key == "basis" else \
@@ -369,8 +388,10 @@ class Hdf5StackWriter:
             self.h5.flush()  # the data reach the file before what vouches for them
             g["chunk_digest"][chunk_no] = np.frombuffer(digest, np.uint8)
             g["status"][where] = arrays["status"]
-            g.attrs["method"] = res.method
-            g.attrs["tol"] = res.tol
+            if self.stamped.get(info.path) != (res.method, res.tol):  # metadata: when new
+                g.attrs["method"] = res.method
+                g.attrs["tol"] = res.tol
+                self.stamped[info.path] = (res.method, res.tol)
             self.h5.flush()
         self.h5.check(KEPT)
 

@@ -703,6 +703,20 @@ def _consume(path: str, stem: str, info: Any, parts: Any, report: BatchReport, t
             writes.close()
 
 
+def _largest_first(values: np.ndarray, k: int) -> np.ndarray:
+    """Positions of the ``k`` largest of ``values`` (no NaN), largest first, ties in position
+    order: ``np.argsort(-values, kind="stable")[:k]``, without sorting all of them (the
+    candidates are those at least the k-th largest, found by a partition)."""
+    if k <= 0:
+        return np.zeros(0, np.intp)
+    neg = -values
+    if neg.size > 4 * k:
+        kth = np.partition(neg, k - 1)[k - 1]
+        cand = np.flatnonzero(neg <= kth)
+        return cand[np.argsort(neg[cand], kind="stable")[:k]]
+    return np.argsort(neg, kind="stable")[:k]
+
+
 def add_to_tally(tally: Tally, source: str, stem: str, positions: np.ndarray,
                  names: list[str] | None, res: Any) -> None:
     """Counts, the worst errors and the first error messages of a chunk, without rows."""
@@ -711,7 +725,7 @@ def add_to_tally(tally: Tally, source: str, stem: str, positions: np.ndarray,
     err = np.where(np.isfinite(res.error), res.error, np.inf)
     idx = np.flatnonzero(ok)
     if idx.size:
-        worst = idx[np.argsort(-err[idx], kind="stable")[:tally.top]]
+        worst = idx[_largest_first(err[idx], tally.top)]
         for i in worst.tolist():
             k = int(positions[i])
             heapq.heappush(tally.worst, (float(err[i]), source,

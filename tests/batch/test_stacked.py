@@ -517,3 +517,32 @@ def test_interrupted_stacked_batch_keeps_its_finished_chunks_and_resumes(tmp_pat
         def by_index(p):
             return {r["index"]: (r["z"], r["status"], r["input_hash"]) for r in read_rows(p)}
         assert by_index(out) == by_index(ref)
+
+
+@settings(max_examples=300, deadline=None)
+@given(values=st.lists(st.sampled_from([0.0, 1.0, 2.5, -1.0, float("inf"), -float("inf")])
+                       | st.floats(allow_nan=False), max_size=120),
+       k=st.integers(0, 8))
+def test_worst_of_a_chunk_equals_a_stable_sort(values, k):
+    """The tally's worst errors of a chunk (a partition, not a full sort) are the first k of
+    the stable descending sort, ties in position order."""
+    from lcpcli.batch.stacked import _largest_first
+
+    v = np.asarray(values, dtype=float)
+    assert np.array_equal(_largest_first(v, k), np.argsort(-v, kind="stable")[:k])
+
+
+@settings(max_examples=300, deadline=None)
+@given(n=st.integers(0, 3000), threads=st.integers(1, 64), K=st.integers(1, 10**7))
+def test_storage_chunks_of_results_fit_the_batch_chunks(n, threads, K):
+    """The HDF5 storage chunk of z, w, status, ... divides the batch chunk (each chunk's write
+    covers whole storage chunks) where a divisor within a factor 2 of the size cap exists,
+    never exceeds K or twice the cap, and is at least one row."""
+    from lcpcli.batch.stack_output import STORAGE_BYTES, batch_chunk, storage_rows
+
+    chunk = batch_chunk(n, threads)
+    rows = storage_rows(chunk, K, n)
+    assert 1 <= rows <= K
+    assert rows * 8 * max(n, 1) <= 2 * STORAGE_BYTES or rows == 1
+    if chunk * 8 * max(n, 1) <= STORAGE_BYTES:
+        assert rows == min(K, chunk)  # one storage chunk per batch chunk
