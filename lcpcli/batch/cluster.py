@@ -82,7 +82,7 @@ def stack_chunk_task(path: str, info: Any, start: int, stop: int, todo: np.ndarr
     from lcpcli.batch.stacked import solve_part
     from lcpcli.io.stack import open_stack
 
-    with open_stack(path) as reader:
+    with open_stack(path, direct=True) as reader:
         return solve_part(reader, info, start, stop, todo, opts, plan, threads=1, digest=digest)
 
 
@@ -119,7 +119,7 @@ def iter_stack_dask(path: str, info: Any, opts: SolveOptions, done: np.ndarray, 
             try:
                 return fut.result()
             except Exception:  # noqa: BLE001 - a lost chunk is solved here, not dropped
-                with open_stack(path) as reader:
+                with open_stack(path, direct=True) as reader:
                     return solve_part(reader, info, item[0], item[1], item[2], opts, plan,
                                       threads=1, digest=digest)
             finally:

@@ -293,7 +293,7 @@ def _check_identity(info: Any, writer: Any, output: Any) -> None:
     if not recorded:
         return
     chunk, algorithm = writer.chunk(info), writer.algorithm(info)
-    with open_stack(info.path) as reader:
+    with open_stack(info.path, direct=True) as reader:
         for c, want in sorted(recorded.items()):
             start, stop = c * chunk, min(info.K, (c + 1) * chunk)
             if chunk_digest(reader.read(start, stop), algorithm) != want:
@@ -371,7 +371,7 @@ def _reads(path: str, info: Any, done: np.ndarray, chunk: int, digest: str | Non
     consumer gives back once it is done with the chunk's data."""
     from lcpcli.io.stack import open_stack
 
-    with open_stack(path) as reader:
+    with open_stack(path, direct=True) as reader:
         for start in range(0, info.K, chunk):
             if stop_event is not None and stop_event.is_set():
                 return
