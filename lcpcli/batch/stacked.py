@@ -440,7 +440,10 @@ class _Buffers:
     when first needed and then reused, chunk after chunk: reading into memory already
     faulted in costs a copy, a new allocation of 32 MiB also the kernel's page faults (the
     arrays ``solve_many`` is measured on were faulted in before it runs).  ``count`` is
-    :data:`READ_AHEAD` + 2: one being read, those queued, one being solved."""
+    :data:`READ_AHEAD` + 1: those queued and the one being solved; the reader reads the next
+    chunk into the solved one's pair once it is given back (a read takes a tenth of a solve
+    or less), so no third pair of fresh pages is zeroed by the kernel (a third of the
+    memory a short batch touches)."""
 
     def __init__(self, count: int, chunk: int, n: int) -> None:
         import queue
@@ -553,7 +556,7 @@ class _LocalParts:
     def __init__(self, path: str, info: Any, opts: SolveOptions, done: np.ndarray, *,
                  threads: int, chunk: int, digest: str | None, warm: Any = None) -> None:
         self.info, self.opts, self.threads = info, opts, threads
-        self.buffers = _Buffers(READ_AHEAD + 2, min(chunk, info.K), info.n)
+        self.buffers = _Buffers(READ_AHEAD + 1, min(chunk, info.K), info.n)
         self.reads = _prefetched(lambda stop: _reads(path, info, done, chunk, digest, stop,
                                                      warm, self.buffers), READ_AHEAD)
 
