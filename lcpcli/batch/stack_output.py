@@ -153,8 +153,15 @@ def _chunk_arrays(res: Any) -> dict[str, np.ndarray]:
             else res.basis}
 
 
+#: M (bytes) of one chunk of a stacked batch (:func:`batch_chunk`) where its threads all get
+#: work: half :func:`lcpcli.io.stack.chunk_size`'s 32 MiB.  Each chunk read goes into memory
+#: the process has not touched yet until the two chunk buffers are made, and the kernel
+#: zeroes every such page first (on the 2-core reference machine: 60-120 ms of CPU for two
+#: chunks of 32 MiB, 0.03-0.05 s less CPU in all at n = 12 with 16 MiB; smaller chunks cost
+#: more again at n = 50, per chunk).
+BATCH_CHUNK_BYTES = 16 * 2**20
 #: Largest M (bytes) of one chunk of a stacked batch that :func:`batch_chunk` grows for its
-#: threads (three chunks are in memory at once: one read ahead, one solved, one written).
+#: threads (two chunks are in memory at once: one read ahead, one solved).
 MAX_CHUNK_BYTES = 256 * 2**20
 #: Problems per thread a chunk holds at least where that fits :data:`MAX_CHUNK_BYTES` (the
 #: kernels hand out problems 16 at a time).
@@ -163,11 +170,13 @@ PER_THREAD = 16
 
 def batch_chunk(n: int, threads: int) -> int:
     """Problems per chunk of a stacked batch of size-n problems on ``threads`` threads:
-    :func:`lcpcli.io.stack.chunk_size` (32 MiB of M), or more for large n, so that every
+    :func:`lcpcli.io.stack.chunk_size` for :data:`BATCH_CHUNK_BYTES` of M, or more for large
+    n, so that every
     thread gets :data:`PER_THREAD` problems while M stays within :data:`MAX_CHUNK_BYTES`.
     A result file records its chunk (``--resume`` reads it from there, whatever ``--jobs``);
     row outputs, which do not, use :func:`chunk_size` alone."""
-    base = io_stack.chunk_size(n)  # looked up at call time: a test may replace it
+    # looked up at call time: a test may replace it
+    base = io_stack.chunk_size(n, budget_bytes=BATCH_CHUNK_BYTES)
     return max(base, min(PER_THREAD * threads, MAX_CHUNK_BYTES // max(8, 8 * n * n)))
 
 

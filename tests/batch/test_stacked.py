@@ -300,15 +300,21 @@ def test_pipelined_stack_equals_solve_many_chunk_by_chunk(tmp_path, monkeypatch)
 @given(n=st.integers(0, 3000), threads=st.integers(1, 256))
 def test_batch_chunk_gives_every_thread_work_within_the_memory_cap(n, threads):
     """Chunks of a stacked batch come from n and the thread count: at least chunk_size(n)
-    (32 MiB of M), PER_THREAD problems per thread where M then stays within MAX_CHUNK_BYTES,
-    and never more than both."""
-    from lcpcli.batch.stack_output import MAX_CHUNK_BYTES, PER_THREAD, batch_chunk
+    for BATCH_CHUNK_BYTES of M, PER_THREAD problems per thread where M then stays within
+    MAX_CHUNK_BYTES, and never more than both."""
+    from lcpcli.batch.stack_output import (
+        BATCH_CHUNK_BYTES,
+        MAX_CHUNK_BYTES,
+        PER_THREAD,
+        batch_chunk,
+    )
     from lcpcli.io.stack import chunk_size
 
     c, per = batch_chunk(n, threads), max(8, 8 * n * n)
-    assert c >= chunk_size(n) >= 1
+    base = chunk_size(n, budget_bytes=BATCH_CHUNK_BYTES)
+    assert c >= base >= 1
     assert c >= PER_THREAD * threads or c * per > MAX_CHUNK_BYTES - per
-    assert c == chunk_size(n) or c * per <= MAX_CHUNK_BYTES
+    assert c == base or c * per <= MAX_CHUNK_BYTES
 
 
 def test_resume_with_other_jobs_uses_the_recorded_chunk(tmp_path, monkeypatch):
