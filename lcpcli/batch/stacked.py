@@ -77,14 +77,16 @@ def run_stacks(inputs: list[str], opts: SolveOptions, report: BatchReport, *,
                on_start: Callable[[int, int], None] | None,
                on_progress: Callable[[int, dict[str, int]], None] | None,
                on_row: Callable[[dict[str, Any]], None] | None,
-               write: Callable[[Callable[[], None]], None], scheduler: Any = None) -> None:
+               write: Callable[[Callable[[], None]], None], scheduler: Any = None,
+               memory: MemoryPool | None = None) -> None:
     """Solve every problem of the stacked ``inputs`` into ``report`` (see the module docstring).
 
     ``write(fn)`` runs an output write (the caller holds signals around it and times it);
     ``on_progress(count, counts)`` after each chunk with the number of problems it finished
     and the status counts so far; ``on_row`` gets each row when given (the ``--json`` stream).
     ``scheduler`` (a Dask address or Client): chunks are solved as tasks on its workers
-    (:func:`lcpcli.batch.cluster.iter_stack_dask`), written here as locally.
+    (:func:`lcpcli.batch.cluster.iter_stack_dask`), written here as locally.  ``memory``:
+    the :func:`memory_pool` started for the chunk buffers, if any.
     """
     from lcpcli.batch import stack_output
     from lcpcli.io.stack import stack_info
@@ -116,7 +118,7 @@ def run_stacks(inputs: list[str], opts: SolveOptions, report: BatchReport, *,
                                                 np.zeros(first.K, bool), threads=threads,
                                                 chunk=chunk, digest=None if output is None
                                                 else stack_output.new_algorithm(output),
-                                                warm=warm))
+                                                warm=warm, memory=memory))
         if output is not None:
             def make() -> Any:
                 return stack_output.open_stack_writer(
@@ -166,7 +168,7 @@ def run_stacks(inputs: list[str], opts: SolveOptions, report: BatchReport, *,
                      chunk=chunk if chunk is not None else
                      stack_output.batch_chunk(info.n, threads),
                      on_progress=on_progress, on_row=on_row, write=write,
-                     scheduler=scheduler, warm=warm, parts=parts)
+                     scheduler=scheduler, warm=warm, parts=parts, memory=memory)
     finally:
         if early is not None:
             early[2].close()
@@ -435,6 +437,63 @@ def _digest_bytes(digest: bytes | _Digest, stats: BatchStats) -> bytes:
     return digest
 
 
+class MemoryPool:
+    """``count`` blocks of ``nbytes`` bytes that a thread of its own allocates and writes
+    once (so that the kernel maps and zeroes their pages) as soon as the pool is made:
+    started before the rest of a stacked batch (loading h5py and the solver's modules, checking
+    the inputs: one thread), it makes the chunk buffers on a core that is idle meanwhile.  New
+    memory is costly on the reference machine (2-2.5 ms per MiB written the first time, a
+    virtual machine whose host backs each new page: a chunk of 16 MiB read into new memory
+    took 37 ms instead of 4).  :meth:`take` is called from one thread (the reader)."""
+
+    def __init__(self, count: int, nbytes: int) -> None:
+        import queue
+
+        self.nbytes, self.left = nbytes, count
+        self.blocks: queue.Queue[np.ndarray | None] = queue.Queue()
+        self.thread = threading.Thread(target=self._run, args=(count,),
+                                       name="lcpcli-stack-memory", daemon=True)
+        self.thread.start()
+
+    def _run(self, count: int) -> None:
+        try:
+            for _ in range(count):
+                block = np.empty(self.nbytes, np.uint8)
+                block.fill(0)
+                self.blocks.put(block)
+        except BaseException:  # noqa: BLE001 - out of memory: the reader allocates instead
+            for _ in range(count):
+                self.blocks.put(None)
+
+    def take(self, nbytes: int) -> np.ndarray | None:
+        """A block of at least ``nbytes`` (waits while it is being written); None when the
+        pool has none that large or none left (the caller allocates)."""
+        if nbytes > self.nbytes or self.left <= 0:
+            return None
+        self.left -= 1
+        return self.blocks.get()
+
+
+def memory_pool(inputs: list[str], count: int = 2) -> MemoryPool | None:
+    """The :class:`MemoryPool` of a batch whose first input looks like a large stack (a
+    stack's extension, :data:`lcpcli.io.stack.layout.STACK_FORMATS`, and at least ``count``
+    chunks of :data:`lcpcli.batch.stack_output.BATCH_CHUNK_BYTES`): ``count`` blocks of one
+    chunk's M (the chunk buffers of :class:`_LocalParts`); None otherwise.  Looks at the
+    file's name and size only (a batch that turns out not to be stacked frees the blocks)."""
+    import os
+
+    from lcpcli.batch.stack_output import BATCH_CHUNK_BYTES
+    from lcpcli.io.stack.layout import STACK_FORMATS
+
+    if not inputs or Path(inputs[0]).suffix.lower() not in STACK_FORMATS:
+        return None
+    try:
+        size = os.stat(inputs[0]).st_size
+    except (OSError, ValueError):
+        return None
+    return MemoryPool(count, BATCH_CHUNK_BYTES) if size >= count * BATCH_CHUNK_BYTES else None
+
+
 class _Buffers:
     """At most ``count`` pairs of chunk buffers ``(M (chunk, n, n), q (chunk, n))``, made
     when first needed and then reused, chunk after chunk: reading into memory already
@@ -445,11 +504,20 @@ class _Buffers:
     or less), so no third pair of fresh pages is zeroed by the kernel (a third of the
     memory a short batch touches)."""
 
-    def __init__(self, count: int, chunk: int, n: int) -> None:
+    def __init__(self, count: int, chunk: int, n: int, memory: MemoryPool | None = None
+                 ) -> None:
         import queue
 
         self.free: queue.Queue[tuple[np.ndarray, np.ndarray]] = queue.Queue()
         self.count, self.made, self.shape = count, 0, (chunk, n)
+        self.memory = memory  # M's memory, faulted in ahead when it has a block
+
+    def _new_m(self) -> np.ndarray:
+        c, n = self.shape
+        block = None if self.memory is None else self.memory.take(8 * c * n * n)
+        if block is None:
+            return np.empty((c, n, n))
+        return block[:8 * c * n * n].view(np.float64).reshape(c, n, n)
 
     def take(self, stop: threading.Event | None) -> tuple[np.ndarray, np.ndarray] | None:
         """A free pair (waits for one given back); None once ``stop`` is set."""
@@ -463,7 +531,7 @@ class _Buffers:
             if self.made < self.count:
                 self.made += 1
                 c, n = self.shape
-                return np.empty((c, n, n)), np.empty((c, n))
+                return self._new_m(), np.empty((c, n))
             try:
                 return self.free.get(timeout=0.1)
             except queue.Empty:
@@ -554,9 +622,10 @@ class _LocalParts:
     :meth:`close` stops and joins the reader."""
 
     def __init__(self, path: str, info: Any, opts: SolveOptions, done: np.ndarray, *,
-                 threads: int, chunk: int, digest: str | None, warm: Any = None) -> None:
+                 threads: int, chunk: int, digest: str | None, warm: Any = None,
+                 memory: MemoryPool | None = None) -> None:
         self.info, self.opts, self.threads = info, opts, threads
-        self.buffers = _Buffers(READ_AHEAD + 1, min(chunk, info.K), info.n)
+        self.buffers = _Buffers(READ_AHEAD + 1, min(chunk, info.K), info.n, memory)
         self.reads = _prefetched(lambda stop: _reads(path, info, done, chunk, digest, stop,
                                                      warm, self.buffers), READ_AHEAD)
 
@@ -574,16 +643,18 @@ class _LocalParts:
 
 
 def _local_parts(path: str, info: Any, opts: SolveOptions, done: np.ndarray, *, threads: int,
-                 chunk: int, digest: str | None, warm: Any = None) -> _LocalParts:
-    """:class:`_LocalParts` (its reader thread starts now)."""
+                 chunk: int, digest: str | None, warm: Any = None,
+                 memory: MemoryPool | None = None) -> _LocalParts:
+    """:class:`_LocalParts` (its reader thread starts now; ``memory``: where its chunk
+    buffers come from, when it has blocks)."""
     return _LocalParts(path, info, opts, done, threads=threads, chunk=chunk, digest=digest,
-                       warm=warm)
+                       warm=warm, memory=memory)
 
 
 def _run_one(path: str, info: Any, opts: SolveOptions, report: BatchReport, tally: Tally,
              stats: BatchStats, writer: Any, done: np.ndarray, *, threads: int, chunk: int,
              on_progress: Any, on_row: Any, write: Any, scheduler: Any = None,
-             warm: Any = None, parts: Any = None) -> None:
+             warm: Any = None, parts: Any = None, memory: MemoryPool | None = None) -> None:
     """One stacked input, chunk by chunk: solved here, or as Dask tasks when ``scheduler``;
     ``warm``: the ``--z0`` result file (local runs only); ``parts``: its
     :class:`_LocalParts` when already started (closed here)."""
@@ -591,7 +662,7 @@ def _run_one(path: str, info: Any, opts: SolveOptions, report: BatchReport, tall
     if parts is None and scheduler is None:
         parts = _local_parts(path, info, opts, done, threads=threads, chunk=chunk,
                              digest=None if writer is None else writer.algorithm(info),
-                             warm=warm)
+                             warm=warm, memory=memory)
     elif parts is None:
         from lcpcli.batch.cluster import iter_stack_dask
 

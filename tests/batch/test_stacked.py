@@ -552,3 +552,37 @@ def test_storage_chunks_of_results_fit_the_batch_chunks(n, threads, K):
     assert rows * 8 * max(n, 1) <= 2 * STORAGE_BYTES or rows == 1
     if chunk * 8 * max(n, 1) <= STORAGE_BYTES:
         assert rows == min(K, chunk)  # one storage chunk per batch chunk
+
+
+def test_chunk_buffers_come_from_the_memory_pool(tmp_path, monkeypatch):
+    """A large stack's two chunk buffers are the blocks that the memory pool faulted in
+    ahead (here with chunks of 4 KiB of M); the results equal solve_many's; a block too
+    small, or none left, leaves the allocation to the caller."""
+    from lcpcli.batch import stack_output, stacked
+    from lcpcli.batch.records import SolveOptions
+    from lcpcli.batch.run import run_batch
+
+    monkeypatch.setattr(stack_output, "BATCH_CHUNK_BYTES", 4096)
+    M, q = pd_stack(1000, 5, seed=6)
+    path, out = tmp_path / "s.h5", tmp_path / "r.h5"
+    write_stack(path, M, q)
+    given: list[int] = []
+    take = stacked.MemoryPool.take
+
+    def counted(self, nbytes):
+        block = take(self, nbytes)
+        if block is not None:
+            given.append(block.nbytes)
+        return block
+
+    monkeypatch.setattr(stacked.MemoryPool, "take", counted)
+    run_batch([str(path)], SolveOptions(method="lemke"), output=out, jobs=1)  # 20 a chunk
+    assert given == [4096, 4096]
+    with h5py.File(out, "r") as f:
+        np.testing.assert_array_equal(f["s"]["z"][...], solve_many(M, q, "lemke").z)
+    pool = stacked.MemoryPool(1, 64)
+    assert pool.take(65) is None
+    block = pool.take(64)
+    assert block is not None and block.nbytes == 64 and not block.any()
+    assert pool.take(8) is None
+    assert stacked.memory_pool([str(tmp_path / "small.json")]) is None
