@@ -61,6 +61,14 @@ def test_mxs128_equals_the_written_definition(data, seed):
     assert mxs128(data, seed) == reference_mxs128(data, seed)
 
 
+@pytest.mark.parametrize("length", [0, 1, 7, 8, 9, 24, 31, 32, 33, 63, 64, 65, 1000, 4099])
+def test_mxs128_at_the_edges_of_words_and_stripes(length):
+    """Empty input, partial 8-byte words, partial and whole 32-byte stripes."""
+    data = np.random.default_rng(length).integers(0, 256, length, dtype=np.uint8).tobytes()
+    assert mxs128(data) == reference_mxs128(data)
+    assert mxs128(data, 12345) == reference_mxs128(data, 12345)
+
+
 @settings(max_examples=50, deadline=None)
 @given(values=st.lists(st.floats(allow_nan=False), min_size=0, max_size=40))
 def test_mxs128_of_an_array_is_that_of_its_little_endian_bytes(values):
