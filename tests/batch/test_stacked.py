@@ -586,3 +586,20 @@ def test_chunk_buffers_come_from_the_memory_pool(tmp_path, monkeypatch):
     assert block is not None and block.nbytes == 64 and not block.any()
     assert pool.take(8) is None
     assert stacked.memory_pool([str(tmp_path / "small.json")]) is None
+
+
+def test_the_cli_lets_idle_threads_sleep_unless_told_otherwise(monkeypatch, capsys):
+    """``lcpcli`` sets OMP_WAIT_POLICY and OPENBLAS_THREAD_TIMEOUT for what it loads (idle
+    OpenMP and OpenBLAS threads sleep instead of spinning beside a stacked batch's reader and
+    writer), and keeps a value the user set."""
+    import os
+
+    from lcpcli.cli import QUIET_THREADS, main
+
+    monkeypatch.delenv("OMP_WAIT_POLICY", raising=False)
+    monkeypatch.setenv("OPENBLAS_THREAD_TIMEOUT", "9")
+    with pytest.raises(SystemExit) as exc:
+        main(["--version"])
+    assert exc.value.code == 0
+    assert os.environ["OMP_WAIT_POLICY"] == QUIET_THREADS["OMP_WAIT_POLICY"] == "PASSIVE"
+    assert os.environ["OPENBLAS_THREAD_TIMEOUT"] == "9"
