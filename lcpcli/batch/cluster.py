@@ -75,19 +75,19 @@ def _connected(address: Any) -> Iterator[Any]:
 
 
 def stack_chunk_task(path: str, info: Any, start: int, stop: int, todo: np.ndarray,
-                     opts: SolveOptions, plan: Any, digest: bool) -> tuple[Any, ...]:
+                     opts: SolveOptions, plan: Any, digest: str | None) -> tuple[Any, ...]:
     """Run on a Dask worker: read problems ``start + todo`` of the stack at ``path`` (a path
     every worker sees) through the reading layer and solve them on one thread (the cluster's
     workers give the parallelism); :func:`lcpcli.batch.stacked.solve_part`'s tuple."""
     from lcpcli.batch.stacked import solve_part
     from lcpcli.io.stack import open_stack
 
-    with open_stack(path) as reader:
+    with open_stack(path, direct=True) as reader:
         return solve_part(reader, info, start, stop, todo, opts, plan, threads=1, digest=digest)
 
 
 def iter_stack_dask(path: str, info: Any, opts: SolveOptions, done: np.ndarray, address: Any,
-                    *, chunk: int, digest: bool) -> Iterator[tuple[Any, ...]]:
+                    *, chunk: int, digest: str | None) -> Iterator[tuple[Any, ...]]:
     """The chunks of one stacked input solved as Dask tasks, yielded in stack order as
     ``(start, todo, names, digest, res, read_s, solve_s)`` (what the local path yields, so the
     client writes the same output).  The first chunk with work is solved alone and its plan
@@ -119,7 +119,7 @@ def iter_stack_dask(path: str, info: Any, opts: SolveOptions, done: np.ndarray, 
             try:
                 return fut.result()
             except Exception:  # noqa: BLE001 - a lost chunk is solved here, not dropped
-                with open_stack(path) as reader:
+                with open_stack(path, direct=True) as reader:
                     return solve_part(reader, info, item[0], item[1], item[2], opts, plan,
                                       threads=1, digest=digest)
             finally:

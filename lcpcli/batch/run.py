@@ -86,13 +86,17 @@ def run_batch(inputs: Iterable[str], opts: SolveOptions, *, recursive: bool = Fa
                           "stop a running problem); bound the work with --max-iter instead")
     jobs = jobs or os.cpu_count() or 1
     start = time.perf_counter()
+    inputs = [str(i) for i in inputs]
+    from lcpcli.batch.stacked import memory_pool
+
+    # a large stack's chunk buffers are faulted in by a thread while the rest starts up
+    memory = memory_pool(inputs) if scheduler is None else None
     from lcpcli.solvers.request import method_of, resolve_tol
 
     spec = method_of(opts.method)  # unknown method or bad tol: OptionError before any work
     canonical = spec.name
     resolve_tol(spec, opts.tol)
     opts = SolveOptions(canonical, opts.tol, dict(opts.options), opts.warm)
-    inputs = [str(i) for i in inputs]
     stacked = _stacked_inputs(inputs, timeout=timeout)
     if opts.warm is not None and not stacked:
         raise OptionError(f"--z0 {opts.warm}: a stacked result file warm-starts a stacked "
@@ -104,7 +108,7 @@ def run_batch(inputs: Iterable[str], opts: SolveOptions, *, recursive: bool = Fa
     if stacked:
         return _run_stacked(inputs, opts, output=output, resume=resume, threads=jobs,
                             start=start, on_start=on_start, on_row=on_row,
-                            on_progress=on_progress, scheduler=scheduler)
+                            on_progress=on_progress, scheduler=scheduler, memory=memory)
     if output is not None and batch_output.output_kind(output) == "npz":
         raise OptionError(f"--output {output}: an .npz result file is written for stacked "
                           f"inputs only (see docs/batch.md); use .jsonl, .csv or .h5")
@@ -152,7 +156,7 @@ def _stacked_inputs(inputs: list[str], *, timeout: float | None) -> bool:
 
 def _run_stacked(inputs: list[str], opts: SolveOptions, *, output: Any, resume: bool,
                  threads: int, start: float, on_start: Any, on_row: Any,
-                 on_progress: Any, scheduler: Any = None) -> BatchReport:
+                 on_progress: Any, scheduler: Any = None, memory: Any = None) -> BatchReport:
     """A batch of stacked files (see :mod:`lcpcli.batch.stacked`), output locked."""
     from lcpcli.batch.stacked import run_stacks
 
@@ -173,7 +177,7 @@ def _run_stacked(inputs: list[str], opts: SolveOptions, *, output: Any, resume: 
         try:
             run_stacks(inputs, opts, report, output=output, resume=resume, threads=threads,
                        on_start=on_start, on_progress=on_progress, on_row=on_row, write=write,
-                       scheduler=scheduler)
+                       scheduler=scheduler, memory=memory)
         except KeyboardInterrupt:
             report.interrupted = True
             raise

@@ -25,20 +25,24 @@ is solved again). A file that is still unreadable is refused by ``--resume`` wit
 again without it).
 
 **Fingerprint** (``--resume`` never keeps results of other data): each group records
-``chunk`` (problems per chunk), ``chunk_digest`` (chunks, 16) uint8, the SHA-256 digest of each
+``chunk`` (problems per chunk), ``chunk_digest`` (chunks, 16) uint8, the digest of each
 finished chunk's input bytes (M, q, bounds and names: :func:`chunk_digest`; zeros: none yet),
-and ``solve_options`` (JSON: method, tol, options).  ``--resume`` reads the chunks that hold
+``digest`` (its algorithm, :mod:`lcpcli.batch.digest`: ``mxs128`` in new files; a file
+without it was written with ``sha256``, which ``--resume`` then verifies and goes on with) and
+``solve_options`` (JSON: method, tol, options).  ``--resume`` reads the chunks that hold
 finished problems again and refuses, with one line, a file whose digests or options differ
-from this run's, and a file without them (written by an older lcpcli: run without
-``--resume``); a problem counts as done only when its chunk's digest is recorded.
+from this run's, a file that names a digest this lcpcli does not know, and a file without
+them (written by an older lcpcli: run without ``--resume``); a problem counts as done only
+when its chunk's digest is recorded.
 
-**NPZ** (``results.npz``, one input stack): the same arrays at the top level plus ``source``;
+**NPZ** (``results.npz``, one input stack): the same arrays at the top level plus ``source``
+(and ``digest``, as the attribute);
 held in memory and written atomically when the batch ends (also on Ctrl-C / SIGTERM), so the
 file on disk is always complete; ``--resume`` starts from it.
 
 **Rows** (``.jsonl``/``.csv``): one row per problem, see :mod:`lcpcli.batch.stacked`; the
 row's ``index`` is the position in the stack, which ``--resume`` uses, and its ``input_hash``
-the digest of its chunk (chunks of :func:`lcpcli.io.stack.chunk_size` problems).
+the ``sha256`` digest of its chunk (chunks of :func:`lcpcli.io.stack.chunk_size` problems).
 """
 
 from __future__ import annotations
@@ -51,12 +55,12 @@ from typing import Any
 import numpy as np
 
 from lcpcli.batch import output
+from lcpcli.batch.digest import LEGACY, STACKED, digest_of, recorded_algorithm
 from lcpcli.batch.output import (
     DIGEST_BYTES,
     INPUT_HASH,
     checked_output,
     hdf5_text,
-    new_digest,
     output_kind,
 )
 from lcpcli.batch.records import options_difference
@@ -86,19 +90,17 @@ KEPT = "the finished problems are kept (status -1 marks the others): free space,
 _RERUN = "run again without --resume"
 
 
-def chunk_digest(part: Any) -> bytes:
-    """The fingerprint of a chunk of a stack (:class:`lcpcli.io.stack.StackChunk`): the
-    digest (:func:`lcpcli.batch.output.new_digest`) of the little-endian float64 bytes of M,
-    q, lower and upper and of the UTF-8 names."""
-    h = new_digest()
+def chunk_digest(part: Any, algorithm: str) -> bytes:
+    """The fingerprint of a chunk of a stack (:class:`lcpcli.io.stack.StackChunk`) by the
+    digest ``algorithm`` (:mod:`lcpcli.batch.digest`): :func:`lcpcli.batch.digest.digest_of`
+    of the little-endian float64 bytes of M, q, lower and upper (``-`` for a bound the chunk
+    has not) and, when it has names, of their UTF-8 bytes joined by NUL."""
+    pieces: list[Any] = []
     for arr in (part.M, part.q, part.lower, part.upper):
-        if arr is None:
-            h.update(b"-")
-        else:
-            h.update(np.ascontiguousarray(arr, dtype="<f8").data)
+        pieces.append(b"-" if arr is None else np.ascontiguousarray(arr, dtype="<f8"))
     if part.names is not None:
-        h.update("\0".join(part.names).encode("utf-8", "surrogateescape"))
-    return h.digest()[:DIGEST_BYTES]
+        pieces.append("\0".join(part.names).encode("utf-8", "surrogateescape"))
+    return digest_of(algorithm, pieces)
 
 
 def options_fingerprint(opts: Any, warm_digest: str | None = None) -> str:
@@ -151,8 +153,15 @@ def _chunk_arrays(res: Any) -> dict[str, np.ndarray]:
             else res.basis}
 
 
+#: M (bytes) of one chunk of a stacked batch (:func:`batch_chunk`) where its threads all get
+#: work: half :func:`lcpcli.io.stack.chunk_size`'s 32 MiB.  Each chunk read goes into memory
+#: the process has not touched yet until the two chunk buffers are made, and the kernel
+#: zeroes every such page first (on the 2-core reference machine: 60-120 ms of CPU for two
+#: chunks of 32 MiB, 0.03-0.05 s less CPU in all at n = 12 with 16 MiB; smaller chunks cost
+#: more again at n = 50, per chunk).
+BATCH_CHUNK_BYTES = 16 * 2**20
 #: Largest M (bytes) of one chunk of a stacked batch that :func:`batch_chunk` grows for its
-#: threads (three chunks are in memory at once: one read ahead, one solved, one written).
+#: threads (two chunks are in memory at once: one read ahead, one solved).
 MAX_CHUNK_BYTES = 256 * 2**20
 #: Problems per thread a chunk holds at least where that fits :data:`MAX_CHUNK_BYTES` (the
 #: kernels hand out problems 16 at a time).
@@ -161,11 +170,13 @@ PER_THREAD = 16
 
 def batch_chunk(n: int, threads: int) -> int:
     """Problems per chunk of a stacked batch of size-n problems on ``threads`` threads:
-    :func:`lcpcli.io.stack.chunk_size` (32 MiB of M), or more for large n, so that every
+    :func:`lcpcli.io.stack.chunk_size` for :data:`BATCH_CHUNK_BYTES` of M, or more for large
+    n, so that every
     thread gets :data:`PER_THREAD` problems while M stays within :data:`MAX_CHUNK_BYTES`.
     A result file records its chunk (``--resume`` reads it from there, whatever ``--jobs``);
     row outputs, which do not, use :func:`chunk_size` alone."""
-    base = io_stack.chunk_size(n)  # looked up at call time: a test may replace it
+    # looked up at call time: a test may replace it
+    base = io_stack.chunk_size(n, budget_bytes=BATCH_CHUNK_BYTES)
     return max(base, min(PER_THREAD * threads, MAX_CHUNK_BYTES // max(8, 8 * n * n)))
 
 
@@ -180,6 +191,13 @@ def new_chunk(output: str | Any | None, n: int, threads: int) -> int:
     return batch_chunk(n, threads)
 
 
+def new_algorithm(output: str | Any) -> str:
+    """The digest (:mod:`lcpcli.batch.digest`) of a new result file of kind ``output`` (by
+    extension): :data:`~lcpcli.batch.digest.STACKED` for stacked datasets,
+    :data:`~lcpcli.batch.digest.LEGACY` for rows; what its writer's ``algorithm`` says."""
+    return LEGACY if wants_rows(output) else STACKED
+
+
 def wants_rows(output: str | Any) -> bool:
     """Whether the writer of ``output`` (by extension) takes rows (``.jsonl``, ``.csv``)
     rather than stacked arrays (``.h5``, ``.npz``): :attr:`RowStackWriter.wants_rows`."""
@@ -190,6 +208,23 @@ def _chunks(K: int, chunk: int) -> int:
     return max(1, -(-K // chunk))
 
 
+#: Largest HDF5 storage chunk (bytes) of ``z`` and ``w`` in a new stacked result file (a
+#: batch chunk's z holds 32 MiB / n bytes: :func:`lcpcli.io.stack.chunk_size`).
+STORAGE_BYTES = 8 * 2**20
+
+
+def storage_rows(chunk: int, K: int, n: int) -> int:
+    """Rows of each HDF5 storage chunk of the per-problem datasets of a new result file whose
+    batch chunk is ``chunk``: at most ``K``, and a divisor of ``chunk`` (writing a batch chunk
+    then fills whole storage chunks: none is read back, merged and written again), the
+    largest that keeps a chunk of ``z`` within :data:`STORAGE_BYTES`; when no divisor comes
+    within half of that, ``chunk`` split evenly (storage chunks then straddle batch chunks)."""
+    row_bytes = 8 * max(n, 1)
+    least = max(1, -(-chunk * row_bytes // STORAGE_BYTES))  # parts a batch chunk needs
+    parts = next((k for k in range(least, 2 * least + 1) if chunk % k == 0), least)
+    return max(1, min(K, -(-chunk // parts)))
+
+
 class Hdf5StackWriter:
     """Stacked results in an HDF5 file (see the module docstring)."""
 
@@ -198,6 +233,10 @@ class Hdf5StackWriter:
     def __init__(self, path: Path, infos: list[Any], resume: bool, options: str = "{}",
                  threads: int = 1) -> None:
         self.path, self.options, self.threads = path, options, threads
+        #: ``(method, tol)`` last written to each group's attributes (by :meth:`write`)
+        self.stamped: dict[str, tuple[str, float]] = {}
+        #: each group's datasets by name, once opened (:meth:`_datasets`)
+        self.opened: dict[str, dict[str, Any]] = {}
         if not (resume and own_file(path) is not None):  # a link is refused by own_file
             with atomic_path(path) as tmp, open_hdf5(tmp, "w") as f:  # complete, or nothing
                 f.attrs[MARK] = 1
@@ -235,6 +274,7 @@ class Hdf5StackWriter:
                                "--resume to replace it", str(path))
         self.groups: dict[str, Any] = {}
         self.chunk_of: dict[str, int] = {}
+        self.algorithm_of: dict[str, str] = {}
         existing = {str(f[g].attrs.get("source", "")): f[g] for g in f}
         missing = []
         for info in infos:
@@ -245,6 +285,8 @@ class Hdf5StackWriter:
             self._check_group(g, info)
             self.groups[info.path] = g
             self.chunk_of[info.path] = int(g.attrs["chunk"])
+            self.algorithm_of[info.path] = recorded_algorithm(g.attrs.get("digest"), path,
+                                                              info.path)
         return missing
 
     def _add_groups(self, infos: list[Any]) -> None:
@@ -298,13 +340,13 @@ class Hdf5StackWriter:
         taken.add(name)
         g = f.create_group(name)
         K, n = info.K, info.n
-        rows = max(1, min(K, (1 << 20) // max(8 * n, 8)))  # ~1 MiB chunks of z and w
+        rows = storage_rows(chunk, K, n)
         arrays = _empty_arrays(0, n)
         arrays["chunk_digest"] = np.zeros((0, DIGEST_BYTES), np.uint8)
         for key, value in arrays.items():
             size = _chunks(K, chunk) if key == "chunk_digest" else K
             shape = (size, value.shape[1]) if value.ndim == 2 else (size,)
-            chunks = (rows, n) if value.ndim == 2 and n else (min(K, 1 << 16),)
+            chunks = (rows, n) if value.ndim == 2 and n else (rows,)
             if key == "chunk_digest":
                 chunks = (min(size, 1 << 12), DIGEST_BYTES)
             fill = NOT_DONE if key == "status" else NO_BASIS if key == "basis" else \
@@ -318,13 +360,18 @@ class Hdf5StackWriter:
         if info.has_names:
             g.create_dataset("names", shape=(K,), dtype=h5py.string_dtype())
         g.attrs.update({"source": _text(info.path), "n": n, "K": K, "method": "", "tol": np.nan,
-                        "chunk": chunk, "solve_options": self.options,
+                        "chunk": chunk, "digest": STACKED, "solve_options": self.options,
                         "status_codes": json.dumps({str(s): c for s, c in
                                                     STATUS_CODES.items()})})
         return g
 
     def chunk(self, info: Any) -> int:
         return self.chunk_of[info.path]
+
+    def algorithm(self, info: Any) -> str:
+        """The digest of ``info``'s chunks (:mod:`lcpcli.batch.digest`): what its group
+        records."""
+        return self.algorithm_of[info.path]
 
     def recorded(self, info: Any) -> dict[int, bytes]:
         g = self.groups[info.path]
@@ -338,22 +385,33 @@ class Hdf5StackWriter:
         status = self.groups[info.path]["status"][...]
         tally.add_counts(status_counts(np.where(self.done(info), status, NOT_DONE)))
 
+    def _datasets(self, info: Any) -> dict[str, Any]:
+        """The datasets of ``info``'s group, opened once (opening one by name costs about
+        0.4 ms in h5py, eight of them per chunk written)."""
+        sets = self.opened.get(info.path)
+        if sets is None:
+            g = self.groups[info.path]
+            sets = self.opened[info.path] = {key: g[key] for key in g}
+        return sets
+
     def write(self, info: Any, positions: np.ndarray, names: list[str] | None, res: Any,
               rows: Any, chunk_no: int, digest: bytes) -> None:
-        g = self.groups[info.path]
+        g, sets = self.groups[info.path], self._datasets(info)
         first, last = int(positions[0]), int(positions[-1])
         where: Any = slice(first, last + 1) if last - first + 1 == positions.size else positions
         arrays = _chunk_arrays(res)
         with writing(self.path, KEPT):
             for key in ("z", "w", "iterations", "error", "residual", "basis"):
-                g[key][where] = arrays[key]
-            if names is not None and "names" in g:
-                g["names"][where] = [_text(s) for s in names]
+                sets[key][where] = arrays[key]
+            if names is not None and "names" in sets:
+                sets["names"][where] = [_text(s) for s in names]
             self.h5.flush()  # the data reach the file before what vouches for them
-            g["chunk_digest"][chunk_no] = np.frombuffer(digest, np.uint8)
-            g["status"][where] = arrays["status"]
-            g.attrs["method"] = res.method
-            g.attrs["tol"] = res.tol
+            sets["chunk_digest"][chunk_no] = np.frombuffer(digest, np.uint8)
+            sets["status"][where] = arrays["status"]
+            if self.stamped.get(info.path) != (res.method, res.tol):  # metadata: when new
+                g.attrs["method"] = res.method
+                g.attrs["tol"] = res.tol
+                self.stamped[info.path] = (res.method, res.tol)
             self.h5.flush()
         self.h5.check(KEPT)
 
@@ -375,6 +433,7 @@ class NpzStackWriter:
         self.path, self.options = path, options
         self.arrays = _empty_arrays(info.K, info.n)
         self.chunk_size = batch_chunk(info.n, threads)
+        self.digest = STACKED
         self.digests = np.zeros((_chunks(info.K, self.chunk_size), DIGEST_BYTES), np.uint8)
         self.names: list[str] | None = [""] * info.K if info.has_names else None
         self.method, self.tol = "", float("nan")
@@ -404,6 +463,8 @@ class NpzStackWriter:
                     raise ProblemError(f"cannot be resumed: its fingerprint does not fit the "
                                        f"input's K = {info.K}; {_RERUN}", str(path))
                 self.chunk_size = chunk
+                self.digest = recorded_algorithm(
+                    data["digest"] if "digest" in data.files else None, path, info.path)
                 self.digests = data["chunk_digest"].astype(np.uint8)
                 self.method, self.tol = str(data["method"]), float(data["tol"])
                 for key, value in self.arrays.items():
@@ -423,6 +484,9 @@ class NpzStackWriter:
 
     def chunk(self, info: Any) -> int:
         return self.chunk_size
+
+    def algorithm(self, info: Any) -> str:
+        return self.digest
 
     def recorded(self, info: Any) -> dict[int, bytes]:
         return _recorded(self.arrays["status"], self.digests, self.chunk_size)
@@ -450,6 +514,7 @@ class NpzStackWriter:
                                  "tol": np.asarray(self.tol),
                                  "chunk": np.asarray(self.chunk_size),
                                  "chunk_digest": self.digests,
+                                 "digest": np.asarray(self.digest),
                                  "solve_options": np.asarray(self.options)}
         if self.names is not None:
             extra["names"] = np.asarray(self.names, dtype=str)
@@ -475,6 +540,9 @@ class RowStackWriter:
 
     def chunk(self, info: Any) -> int:
         return io_stack.chunk_size(info.n)
+
+    def algorithm(self, info: Any) -> str:
+        return LEGACY
 
     def _rows(self, info: Any) -> list[dict[str, Any]]:
         return [r for r in self.finished.get(info.path, [])

@@ -12,7 +12,8 @@ per stack by :func:`lcpcli.stacks.plan_stack`).  Results go to the output as sta
 ``--json`` stream; row ``problem`` is the stacked problem's name), and ``--resume`` skips the
 problems the output already holds, once it has checked that they were computed from the same
 data: the chunks holding them are read again and their digests compared with the ones the
-output recorded (:func:`lcpcli.batch.stack_output.chunk_digest`), and the solve options too.
+output recorded (:func:`lcpcli.batch.stack_output.chunk_digest`, by the algorithm the output
+records: :mod:`lcpcli.batch.digest`), and the solve options too.
 """
 
 from __future__ import annotations
@@ -76,14 +77,16 @@ def run_stacks(inputs: list[str], opts: SolveOptions, report: BatchReport, *,
                on_start: Callable[[int, int], None] | None,
                on_progress: Callable[[int, dict[str, int]], None] | None,
                on_row: Callable[[dict[str, Any]], None] | None,
-               write: Callable[[Callable[[], None]], None], scheduler: Any = None) -> None:
+               write: Callable[[Callable[[], None]], None], scheduler: Any = None,
+               memory: MemoryPool | None = None) -> None:
     """Solve every problem of the stacked ``inputs`` into ``report`` (see the module docstring).
 
     ``write(fn)`` runs an output write (the caller holds signals around it and times it);
     ``on_progress(count, counts)`` after each chunk with the number of problems it finished
     and the status counts so far; ``on_row`` gets each row when given (the ``--json`` stream).
     ``scheduler`` (a Dask address or Client): chunks are solved as tasks on its workers
-    (:func:`lcpcli.batch.cluster.iter_stack_dask`), written here as locally.
+    (:func:`lcpcli.batch.cluster.iter_stack_dask`), written here as locally.  ``memory``:
+    the :func:`memory_pool` started for the chunk buffers, if any.
     """
     from lcpcli.batch import stack_output
     from lcpcli.io.stack import stack_info
@@ -113,8 +116,9 @@ def run_stacks(inputs: list[str], opts: SolveOptions, report: BatchReport, *,
             chunk = stack_output.new_chunk(output, first.n, threads)
             early = (first, chunk, _local_parts(first.path, first, opts,
                                                 np.zeros(first.K, bool), threads=threads,
-                                                chunk=chunk, digest=output is not None,
-                                                warm=warm))
+                                                chunk=chunk, digest=None if output is None
+                                                else stack_output.new_algorithm(output),
+                                                warm=warm, memory=memory))
         if output is not None:
             def make() -> Any:
                 return stack_output.open_stack_writer(
@@ -125,7 +129,8 @@ def run_stacks(inputs: list[str], opts: SolveOptions, report: BatchReport, *,
             # resuming nothing, the file is made in a thread while the first chunks are read
             # and solved (making it is mostly waiting for the disk: fsync, rename)
             writer = make() if early is None else _OpeningWriter(
-                make, stack_output.wants_rows(output), early[0], early[1])
+                make, stack_output.wants_rows(output), early[0], early[1],
+                stack_output.new_algorithm(output))
         if writer is not None and resume:
             for info in infos:
                 if info is not None:
@@ -163,7 +168,7 @@ def run_stacks(inputs: list[str], opts: SolveOptions, report: BatchReport, *,
                      chunk=chunk if chunk is not None else
                      stack_output.batch_chunk(info.n, threads),
                      on_progress=on_progress, on_row=on_row, write=write,
-                     scheduler=scheduler, warm=warm, parts=parts)
+                     scheduler=scheduler, warm=warm, parts=parts, memory=memory)
     finally:
         if early is not None:
             early[2].close()
@@ -177,12 +182,14 @@ class _OpeningWriter:
     """The output writer of a batch that resumes nothing, made by ``make()`` in a thread of
     its own while the first chunks are read and solved; each use waits for it (also when
     Ctrl-C arrives meanwhile) and raises what making it raised (an unwritable output, a full
-    disk).  ``wants_rows``: the writer's, known from the output's kind; ``first``, ``chunk``:
-    the first stack and the chunk it is read in, which a new file must record (checked)."""
+    disk).  ``wants_rows``: the writer's, known from the output's kind; ``first``, ``chunk``,
+    ``algorithm``: the first stack, the chunk it is read in and the digest its chunks are
+    fingerprinted with, which a new file must record (checked)."""
 
     def __init__(self, make: Callable[[], Any], wants_rows: bool, first: Any,
-                 chunk: int) -> None:
+                 chunk: int, algorithm: str) -> None:
         self.wants_rows, self.first, self.want_chunk = wants_rows, first, chunk
+        self.want_algorithm = algorithm
         self.writer: Any = None
         self.error: BaseException | None = None
         self.thread = threading.Thread(target=self._run, args=(make,),
@@ -204,11 +211,13 @@ class _OpeningWriter:
                 self.thread.join()
             except KeyboardInterrupt as exc:
                 interrupted = exc
-        if self.error is None and self.writer.chunk(self.first) != self.want_chunk:
+        if self.error is None and (self.writer.chunk(self.first), self.writer.algorithm(
+                self.first)) != (self.want_chunk, self.want_algorithm):
             self.writer.close()
-            self.error = RuntimeError(f"a new result file records chunks of "
-                                      f"{self.writer.chunk(self.first)} problems, not "
-                                      f"{self.want_chunk}")
+            self.error = RuntimeError(
+                f"a new result file records chunks of {self.writer.chunk(self.first)} "
+                f"problems by {self.writer.algorithm(self.first)}, not {self.want_chunk} by "
+                f"{self.want_algorithm}")
         return interrupted
 
     def get(self) -> Any:
@@ -222,6 +231,9 @@ class _OpeningWriter:
 
     def chunk(self, info: Any) -> int:
         return self.get().chunk(info)
+
+    def algorithm(self, info: Any) -> str:
+        return self.get().algorithm(info)
 
     def write(self, *args: Any) -> None:
         self.get().write(*args)
@@ -282,11 +294,11 @@ def _check_identity(info: Any, writer: Any, output: Any) -> None:
     recorded = writer.recorded(info)
     if not recorded:
         return
-    chunk = writer.chunk(info)
-    with open_stack(info.path) as reader:
+    chunk, algorithm = writer.chunk(info), writer.algorithm(info)
+    with open_stack(info.path, direct=True) as reader:
         for c, want in sorted(recorded.items()):
             start, stop = c * chunk, min(info.K, (c + 1) * chunk)
-            if chunk_digest(reader.read(start, stop)) != want:
+            if chunk_digest(reader.read(start, stop), algorithm) != want:
                 raise ProblemError(f"holds results computed from other data than {info.path} "
                                    f"has now (problems {start:,} to {stop - 1:,} differ): run "
                                    f"again without --resume, or give another --output",
@@ -294,11 +306,12 @@ def _check_identity(info: Any, writer: Any, output: Any) -> None:
 
 
 def solve_part(reader: Any, info: Any, start: int, stop: int, todo: np.ndarray,
-               opts: SolveOptions, plan: Any, *, threads: int, digest: bool,
+               opts: SolveOptions, plan: Any, *, threads: int, digest: str | None,
                ) -> tuple[list[str] | None, bytes, Any, Any, float, float]:
     """Read problems ``start + todo`` of the open stack ``reader`` and solve them with
     :func:`lcpcli.stacks.solve_many` (``plan``: made here on this chunk when None).  Returns the
-    chunk's names (of ``todo``), the digest of the whole chunk (``digest``: else ``b""``), the
+    chunk's names (of ``todo``), the digest of the whole chunk by the algorithm ``digest``
+    (:mod:`lcpcli.batch.digest`; None: ``b""``), the
     result, the plan, and the read and solve seconds.  The one chunk step of the local and the
     Dask paths (:func:`lcpcli.batch.cluster.stack_chunk_task`)."""
     part, fingerprint, read_s = read_part(reader, start, stop, digest=digest)
@@ -306,17 +319,17 @@ def solve_part(reader: Any, info: Any, start: int, stop: int, todo: np.ndarray,
     return names, fingerprint, res, plan, read_s, solve_s
 
 
-def read_part(reader: Any, start: int, stop: int, *, digest: bool,
+def read_part(reader: Any, start: int, stop: int, *, digest: str | None,
               out: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[Any, bytes, float]:
     """Problems ``start .. stop-1`` of the open stack ``reader``, the digest of that chunk
-    (``digest``: else ``b""``) and the seconds both took: the reading half of
+    by the algorithm ``digest`` (None: ``b""``) and the seconds both took: the reading half of
     :func:`solve_part`.  ``out``: the buffers ``(M, q)`` to read into
     (:meth:`lcpcli.io.stack.StackReader.read`)."""
     from lcpcli.batch.stack_output import chunk_digest
 
     t0 = time.perf_counter()
     part = reader.read(start, stop, out)
-    fingerprint = chunk_digest(part) if digest else b""
+    fingerprint = b"" if digest is None else chunk_digest(part, digest)
     return part, fingerprint, time.perf_counter() - t0
 
 
@@ -348,18 +361,19 @@ def solve_read(part: Any, info: Any, todo: np.ndarray, opts: SolveOptions, plan:
     return names, res, plan, time.perf_counter() - t1
 
 
-def _reads(path: str, info: Any, done: np.ndarray, chunk: int, digest: bool,
+def _reads(path: str, info: Any, done: np.ndarray, chunk: int, digest: str | None,
            stop_event: threading.Event | None = None, warm: Any = None,
            buffers: _Buffers | None = None) -> Iterator[tuple[Any, ...]]:
     """``(todo, part, digest, read_s, prev, held)`` of each chunk with work, in order (the
-    reader's side); ``digest``: the chunk's :class:`_Digest` (``digest``; else ``b""``),
+    reader's side); ``digest``: the chunk's :class:`_Digest` by the algorithm ``digest``
+    (None: ``b""``),
     computed here once the chunk is handed over, so that the solver starts on it meanwhile;
     ``prev``: the chunk of the ``--z0`` result file ``warm`` (None without one); ``held``:
     the buffers of ``buffers`` that ``part`` was read into (None without them), which the
     consumer gives back once it is done with the chunk's data."""
     from lcpcli.io.stack import open_stack
 
-    with open_stack(path) as reader:
+    with open_stack(path, direct=True) as reader:
         for start in range(0, info.K, chunk):
             if stop_event is not None and stop_event.is_set():
                 return
@@ -369,13 +383,13 @@ def _reads(path: str, info: Any, done: np.ndarray, chunk: int, digest: bool,
                 held = None if buffers is None else buffers.take(stop_event)
                 if buffers is not None and held is None:  # told to stop while waiting
                     return
-                part, _, read_s = read_part(reader, start, stop, digest=False, out=held)
+                part, _, read_s = read_part(reader, start, stop, digest=None, out=held)
                 prev = None
                 if warm is not None:  # its read counts as reading
                     t0 = time.perf_counter()
                     prev = warm.read(start, stop)
                     read_s += time.perf_counter() - t0
-                fingerprint = _Digest() if digest else None
+                fingerprint = None if digest is None else _Digest(digest)
                 yield todo, part, fingerprint or b"", read_s, prev, held
                 if fingerprint is not None:  # beside the solver, before the next read
                     fingerprint.compute(part)
@@ -384,9 +398,11 @@ def _reads(path: str, info: Any, done: np.ndarray, chunk: int, digest: bool,
 class _Digest:
     """The digest of a chunk (:func:`lcpcli.batch.stack_output.chunk_digest`) that the reader
     thread computes after it handed the chunk over; :meth:`result` (the chunk's write) waits
-    for it.  ``seconds``: what computing it took (counted as reading)."""
+    for it.  ``algorithm``: the digest's (:mod:`lcpcli.batch.digest`); ``seconds``: what
+    computing it took (counted as reading)."""
 
-    def __init__(self) -> None:
+    def __init__(self, algorithm: str) -> None:
+        self.algorithm = algorithm
         self.done = threading.Event()
         self.value, self.seconds = b"", 0.0
         self.error: BaseException | None = None
@@ -396,7 +412,7 @@ class _Digest:
 
         t0 = time.perf_counter()
         try:
-            self.value = chunk_digest(part)
+            self.value = chunk_digest(part, self.algorithm)
         except BaseException as exc:  # noqa: BLE001 - raised by result(), in the writer
             self.error = exc
             raise
@@ -421,18 +437,87 @@ def _digest_bytes(digest: bytes | _Digest, stats: BatchStats) -> bytes:
     return digest
 
 
+class MemoryPool:
+    """``count`` blocks of ``nbytes`` bytes that a thread of its own allocates and writes
+    once (so that the kernel maps and zeroes their pages) as soon as the pool is made:
+    started before the rest of a stacked batch (loading h5py and the solver's modules, checking
+    the inputs: one thread), it makes the chunk buffers on a core that is idle meanwhile.  New
+    memory is costly on the reference machine (2-2.5 ms per MiB written the first time, a
+    virtual machine whose host backs each new page: a chunk of 16 MiB read into new memory
+    took 37 ms instead of 4).  :meth:`take` is called from one thread (the reader)."""
+
+    def __init__(self, count: int, nbytes: int) -> None:
+        import queue
+
+        self.nbytes, self.left = nbytes, count
+        self.blocks: queue.Queue[np.ndarray | None] = queue.Queue()
+        self.thread = threading.Thread(target=self._run, args=(count,),
+                                       name="lcpcli-stack-memory", daemon=True)
+        self.thread.start()
+
+    def _run(self, count: int) -> None:
+        try:
+            for _ in range(count):
+                block = np.empty(self.nbytes, np.uint8)
+                block.fill(0)
+                self.blocks.put(block)
+        except BaseException:  # noqa: BLE001 - out of memory: the reader allocates instead
+            for _ in range(count):
+                self.blocks.put(None)
+
+    def take(self, nbytes: int) -> np.ndarray | None:
+        """A block of at least ``nbytes`` (waits while it is being written); None when the
+        pool has none that large or none left (the caller allocates)."""
+        if nbytes > self.nbytes or self.left <= 0:
+            return None
+        self.left -= 1
+        return self.blocks.get()
+
+
+def memory_pool(inputs: list[str], count: int = 2) -> MemoryPool | None:
+    """The :class:`MemoryPool` of a batch whose first input looks like a large stack (a
+    stack's extension, :data:`lcpcli.io.stack.layout.STACK_FORMATS`, and at least ``count``
+    chunks of :data:`lcpcli.batch.stack_output.BATCH_CHUNK_BYTES`): ``count`` blocks of one
+    chunk's M (the chunk buffers of :class:`_LocalParts`); None otherwise.  Looks at the
+    file's name and size only (a batch that turns out not to be stacked frees the blocks)."""
+    import os
+
+    from lcpcli.batch.stack_output import BATCH_CHUNK_BYTES
+    from lcpcli.io.stack.layout import STACK_FORMATS
+
+    if not inputs or Path(inputs[0]).suffix.lower() not in STACK_FORMATS:
+        return None
+    try:
+        size = os.stat(inputs[0]).st_size
+    except (OSError, ValueError):
+        return None
+    return MemoryPool(count, BATCH_CHUNK_BYTES) if size >= count * BATCH_CHUNK_BYTES else None
+
+
 class _Buffers:
     """At most ``count`` pairs of chunk buffers ``(M (chunk, n, n), q (chunk, n))``, made
     when first needed and then reused, chunk after chunk: reading into memory already
     faulted in costs a copy, a new allocation of 32 MiB also the kernel's page faults (the
     arrays ``solve_many`` is measured on were faulted in before it runs).  ``count`` is
-    :data:`READ_AHEAD` + 2: one being read, those queued, one being solved."""
+    :data:`READ_AHEAD` + 1: those queued and the one being solved; the reader reads the next
+    chunk into the solved one's pair once it is given back (a read takes a tenth of a solve
+    or less), so no third pair of fresh pages is zeroed by the kernel (a third of the
+    memory a short batch touches)."""
 
-    def __init__(self, count: int, chunk: int, n: int) -> None:
+    def __init__(self, count: int, chunk: int, n: int, memory: MemoryPool | None = None
+                 ) -> None:
         import queue
 
         self.free: queue.Queue[tuple[np.ndarray, np.ndarray]] = queue.Queue()
         self.count, self.made, self.shape = count, 0, (chunk, n)
+        self.memory = memory  # M's memory, faulted in ahead when it has a block
+
+    def _new_m(self) -> np.ndarray:
+        c, n = self.shape
+        block = None if self.memory is None else self.memory.take(8 * c * n * n)
+        if block is None:
+            return np.empty((c, n, n))
+        return block[:8 * c * n * n].view(np.float64).reshape(c, n, n)
 
     def take(self, stop: threading.Event | None) -> tuple[np.ndarray, np.ndarray] | None:
         """A free pair (waits for one given back); None once ``stop`` is set."""
@@ -446,7 +531,7 @@ class _Buffers:
             if self.made < self.count:
                 self.made += 1
                 c, n = self.shape
-                return np.empty((c, n, n)), np.empty((c, n))
+                return self._new_m(), np.empty((c, n))
             try:
                 return self.free.get(timeout=0.1)
             except queue.Empty:
@@ -537,9 +622,10 @@ class _LocalParts:
     :meth:`close` stops and joins the reader."""
 
     def __init__(self, path: str, info: Any, opts: SolveOptions, done: np.ndarray, *,
-                 threads: int, chunk: int, digest: bool, warm: Any = None) -> None:
+                 threads: int, chunk: int, digest: str | None, warm: Any = None,
+                 memory: MemoryPool | None = None) -> None:
         self.info, self.opts, self.threads = info, opts, threads
-        self.buffers = _Buffers(READ_AHEAD + 2, min(chunk, info.K), info.n)
+        self.buffers = _Buffers(READ_AHEAD + 1, min(chunk, info.K), info.n, memory)
         self.reads = _prefetched(lambda stop: _reads(path, info, done, chunk, digest, stop,
                                                      warm, self.buffers), READ_AHEAD)
 
@@ -557,28 +643,31 @@ class _LocalParts:
 
 
 def _local_parts(path: str, info: Any, opts: SolveOptions, done: np.ndarray, *, threads: int,
-                 chunk: int, digest: bool, warm: Any = None) -> _LocalParts:
-    """:class:`_LocalParts` (its reader thread starts now)."""
+                 chunk: int, digest: str | None, warm: Any = None,
+                 memory: MemoryPool | None = None) -> _LocalParts:
+    """:class:`_LocalParts` (its reader thread starts now; ``memory``: where its chunk
+    buffers come from, when it has blocks)."""
     return _LocalParts(path, info, opts, done, threads=threads, chunk=chunk, digest=digest,
-                       warm=warm)
+                       warm=warm, memory=memory)
 
 
 def _run_one(path: str, info: Any, opts: SolveOptions, report: BatchReport, tally: Tally,
              stats: BatchStats, writer: Any, done: np.ndarray, *, threads: int, chunk: int,
              on_progress: Any, on_row: Any, write: Any, scheduler: Any = None,
-             warm: Any = None, parts: Any = None) -> None:
+             warm: Any = None, parts: Any = None, memory: MemoryPool | None = None) -> None:
     """One stacked input, chunk by chunk: solved here, or as Dask tasks when ``scheduler``;
     ``warm``: the ``--z0`` result file (local runs only); ``parts``: its
     :class:`_LocalParts` when already started (closed here)."""
     stem = Path(path).stem
     if parts is None and scheduler is None:
         parts = _local_parts(path, info, opts, done, threads=threads, chunk=chunk,
-                             digest=writer is not None, warm=warm)
+                             digest=None if writer is None else writer.algorithm(info),
+                             warm=warm, memory=memory)
     elif parts is None:
         from lcpcli.batch.cluster import iter_stack_dask
 
         parts = iter_stack_dask(path, info, opts, done, scheduler, chunk=chunk,
-                                digest=writer is not None)
+                                digest=None if writer is None else writer.algorithm(info))
     try:
         _consume(path, stem, info, parts, report, tally, stats, writer, chunk=chunk,
                  on_progress=on_progress, on_row=on_row, write=write)
@@ -688,6 +777,20 @@ def _consume(path: str, stem: str, info: Any, parts: Any, report: BatchReport, t
             writes.close()
 
 
+def _largest_first(values: np.ndarray, k: int) -> np.ndarray:
+    """Positions of the ``k`` largest of ``values`` (no NaN), largest first, ties in position
+    order: ``np.argsort(-values, kind="stable")[:k]``, without sorting all of them (the
+    candidates are those at least the k-th largest, found by a partition)."""
+    if k <= 0:
+        return np.zeros(0, np.intp)
+    neg = -values
+    if neg.size > 4 * k:
+        kth = np.partition(neg, k - 1)[k - 1]
+        cand = np.flatnonzero(neg <= kth)
+        return cand[np.argsort(neg[cand], kind="stable")[:k]]
+    return np.argsort(neg, kind="stable")[:k]
+
+
 def add_to_tally(tally: Tally, source: str, stem: str, positions: np.ndarray,
                  names: list[str] | None, res: Any) -> None:
     """Counts, the worst errors and the first error messages of a chunk, without rows."""
@@ -696,7 +799,7 @@ def add_to_tally(tally: Tally, source: str, stem: str, positions: np.ndarray,
     err = np.where(np.isfinite(res.error), res.error, np.inf)
     idx = np.flatnonzero(ok)
     if idx.size:
-        worst = idx[np.argsort(-err[idx], kind="stable")[:tally.top]]
+        worst = idx[_largest_first(err[idx], tally.top)]
         for i in worst.tolist():
             k = int(positions[i])
             heapq.heappush(tally.worst, (float(err[i]), source,

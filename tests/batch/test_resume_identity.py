@@ -1,6 +1,6 @@
 """``--resume`` keeps only results computed from the same data, and fails in one line otherwise.
 
-A stacked result records a SHA-256 digest per chunk of its input and the solve options; a
+A stacked result records a digest per chunk of its input and the solve options; a
 per-file batch records ``input_hash`` per row.  Resuming against other data (same path, K and n),
 other options, a file without fingerprints (an older lcpcli) or a damaged status is refused with
 one line and exit code 2; nothing of the result file is changed by the refusal.

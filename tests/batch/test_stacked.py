@@ -204,7 +204,7 @@ info = stack_info({str(path)!r})
 opts = options_fingerprint(SolveOptions("auto", None, {{}}))
 w = Hdf5StackWriter(Path({str(out)!r}), [info], resume=False, options=opts)
 with open_stack(info.path) as r:
-    digest = chunk_digest(r.read(0, min(info.K, w.chunk(info))))  # chunk 0 holds all 300
+    digest = chunk_digest(r.read(0, min(info.K, w.chunk(info))), w.algorithm(info))
     part = r.read(0, 100)
 res = solve_many(part.M, part.q, on_error="mark")
 w.write(info, np.arange(100), None, res, None, 0, digest)
@@ -289,25 +289,32 @@ def test_pipelined_stack_equals_solve_many_chunk_by_chunk(tmp_path, monkeypatch)
         np.testing.assert_array_equal(g["status"][...], ref.status)
         np.testing.assert_array_equal(g["iterations"][...], ref.iterations)
         digests = g["chunk_digest"][...]
+        assert g.attrs["digest"] == "mxs128"  # a new file's
     with open_stack(path) as reader:
         for c in range(digests.shape[0]):
             part = reader.read(c * 96, min(1000, (c + 1) * 96))
-            assert bytes(digests[c]) == chunk_digest(part)
+            assert bytes(digests[c]) == chunk_digest(part, "mxs128")
 
 
 @settings(max_examples=200, deadline=None)
 @given(n=st.integers(0, 3000), threads=st.integers(1, 256))
 def test_batch_chunk_gives_every_thread_work_within_the_memory_cap(n, threads):
     """Chunks of a stacked batch come from n and the thread count: at least chunk_size(n)
-    (32 MiB of M), PER_THREAD problems per thread where M then stays within MAX_CHUNK_BYTES,
-    and never more than both."""
-    from lcpcli.batch.stack_output import MAX_CHUNK_BYTES, PER_THREAD, batch_chunk
+    for BATCH_CHUNK_BYTES of M, PER_THREAD problems per thread where M then stays within
+    MAX_CHUNK_BYTES, and never more than both."""
+    from lcpcli.batch.stack_output import (
+        BATCH_CHUNK_BYTES,
+        MAX_CHUNK_BYTES,
+        PER_THREAD,
+        batch_chunk,
+    )
     from lcpcli.io.stack import chunk_size
 
     c, per = batch_chunk(n, threads), max(8, 8 * n * n)
-    assert c >= chunk_size(n) >= 1
+    base = chunk_size(n, budget_bytes=BATCH_CHUNK_BYTES)
+    assert c >= base >= 1
     assert c >= PER_THREAD * threads or c * per > MAX_CHUNK_BYTES - per
-    assert c == chunk_size(n) or c * per <= MAX_CHUNK_BYTES
+    assert c == base or c * per <= MAX_CHUNK_BYTES
 
 
 def test_resume_with_other_jobs_uses_the_recorded_chunk(tmp_path, monkeypatch):
@@ -516,3 +523,83 @@ def test_interrupted_stacked_batch_keeps_its_finished_chunks_and_resumes(tmp_pat
         def by_index(p):
             return {r["index"]: (r["z"], r["status"], r["input_hash"]) for r in read_rows(p)}
         assert by_index(out) == by_index(ref)
+
+
+@settings(max_examples=300, deadline=None)
+@given(values=st.lists(st.sampled_from([0.0, 1.0, 2.5, -1.0, float("inf"), -float("inf")])
+                       | st.floats(allow_nan=False), max_size=120),
+       k=st.integers(0, 8))
+def test_worst_of_a_chunk_equals_a_stable_sort(values, k):
+    """The tally's worst errors of a chunk (a partition, not a full sort) are the first k of
+    the stable descending sort, ties in position order."""
+    from lcpcli.batch.stacked import _largest_first
+
+    v = np.asarray(values, dtype=float)
+    assert np.array_equal(_largest_first(v, k), np.argsort(-v, kind="stable")[:k])
+
+
+@settings(max_examples=300, deadline=None)
+@given(n=st.integers(0, 3000), threads=st.integers(1, 64), K=st.integers(1, 10**7))
+def test_storage_chunks_of_results_fit_the_batch_chunks(n, threads, K):
+    """The HDF5 storage chunk of z, w, status, ... divides the batch chunk (each chunk's write
+    covers whole storage chunks) where a divisor within a factor 2 of the size cap exists,
+    never exceeds K or twice the cap, and is at least one row."""
+    from lcpcli.batch.stack_output import STORAGE_BYTES, batch_chunk, storage_rows
+
+    chunk = batch_chunk(n, threads)
+    rows = storage_rows(chunk, K, n)
+    assert 1 <= rows <= K
+    assert rows * 8 * max(n, 1) <= 2 * STORAGE_BYTES or rows == 1
+    if chunk * 8 * max(n, 1) <= STORAGE_BYTES:
+        assert rows == min(K, chunk)  # one storage chunk per batch chunk
+
+
+def test_chunk_buffers_come_from_the_memory_pool(tmp_path, monkeypatch):
+    """A large stack's two chunk buffers are the blocks that the memory pool faulted in
+    ahead (here with chunks of 4 KiB of M); the results equal solve_many's; a block too
+    small, or none left, leaves the allocation to the caller."""
+    from lcpcli.batch import stack_output, stacked
+    from lcpcli.batch.records import SolveOptions
+    from lcpcli.batch.run import run_batch
+
+    monkeypatch.setattr(stack_output, "BATCH_CHUNK_BYTES", 4096)
+    M, q = pd_stack(1000, 5, seed=6)
+    path, out = tmp_path / "s.h5", tmp_path / "r.h5"
+    write_stack(path, M, q)
+    given: list[int] = []
+    take = stacked.MemoryPool.take
+
+    def counted(self, nbytes):
+        block = take(self, nbytes)
+        if block is not None:
+            given.append(block.nbytes)
+        return block
+
+    monkeypatch.setattr(stacked.MemoryPool, "take", counted)
+    run_batch([str(path)], SolveOptions(method="lemke"), output=out, jobs=1)  # 20 a chunk
+    assert given == [4096, 4096]
+    with h5py.File(out, "r") as f:
+        np.testing.assert_array_equal(f["s"]["z"][...], solve_many(M, q, "lemke").z)
+    pool = stacked.MemoryPool(1, 64)
+    assert pool.take(65) is None
+    block = pool.take(64)
+    assert block is not None and block.nbytes == 64 and not block.any()
+    assert pool.take(8) is None
+    assert stacked.memory_pool([str(tmp_path / "small.json")]) is None
+
+
+def test_the_cli_lets_idle_threads_sleep_unless_told_otherwise(monkeypatch, capsys):
+    """``lcpcli`` sets OMP_WAIT_POLICY and OPENBLAS_THREAD_TIMEOUT for what it loads (idle
+    OpenMP and OpenBLAS threads sleep instead of spinning beside a stacked batch's reader and
+    writer), and keeps a value the user set."""
+    import os
+
+    from lcpcli.cli import QUIET_THREADS, main
+
+    monkeypatch.delenv("OMP_WAIT_POLICY", raising=False)
+    monkeypatch.setenv("OPENBLAS_THREAD_TIMEOUT", "9")
+    with pytest.raises(SystemExit) as exc:
+        main(["--version"])
+    assert exc.value.code == 0
+    assert os.environ["OMP_WAIT_POLICY"] == QUIET_THREADS["OMP_WAIT_POLICY"] == "PASSIVE"
+    assert os.environ["OPENBLAS_THREAD_TIMEOUT"] == "9"

@@ -61,18 +61,32 @@ def is_stack(path: str | Path) -> bool:
 
 # ------------------------------------------------------------------------------ HDF5
 class _H5Source:
-    """The HDF5 side of a reader: checked datasets, read by slices."""
+    """The HDF5 side of a reader: checked datasets, read by slices.  ``direct``: no chunk
+    cache where the data are stored unfiltered (each read goes from the file into the
+    caller's array, not through the cache and a second copy; a storage chunk cut by two read
+    chunks is then read in two parts, none twice); filtered (compressed) data keep the
+    cache."""
 
-    def __init__(self, path: Path) -> None:
+    def __init__(self, path: Path, direct: bool = False) -> None:
         from lcpcli.io import hdf5_format as h5
 
-        self.f = h5.open_file(path, rdcc_nbytes=H5_CACHE_BYTES, rdcc_nslots=H5_CACHE_SLOTS,
-                          rdcc_w0=1.0)
+        self.f = h5.open_file(path, rdcc_nbytes=0 if direct else H5_CACHE_BYTES,
+                              rdcc_nslots=H5_CACHE_SLOTS, rdcc_w0=1.0)
         try:
             self._scan(path)
+            if direct and self._filtered():
+                self.f.close()
+                self.f = h5.open_file(path, rdcc_nbytes=H5_CACHE_BYTES,
+                                      rdcc_nslots=H5_CACHE_SLOTS, rdcc_w0=1.0)
+                self._scan(path)
         except BaseException:
             self.f.close()
             raise
+
+    def _filtered(self) -> bool:
+        """Whether a dataset read by rows (M, q, bounds) is stored through filters."""
+        return any(d is not None and d.id.get_create_plist().get_nfilters() > 0
+                   for key, d in self.d.items() if key != "names")
 
     def _scan(self, path: Path) -> None:
         import h5py
@@ -306,14 +320,14 @@ class StackReader:
     :class:`StackChunk`; only that chunk is allocated.
     """
 
-    def __init__(self, path: str | Path) -> None:
+    def __init__(self, path: str | Path, direct: bool = False) -> None:
         self.path = Path(path)
         self._stack = ExitStack()
         try:
             fmt = _stack_format(path)
             check_input_file(path)
             if fmt == "hdf5":
-                src: Any = _H5Source(self.path)
+                src: Any = _H5Source(self.path, direct)
                 self._stack.callback(src.close)
             else:
                 src = _NpzSource(self.path, self._stack)
@@ -406,9 +420,11 @@ class StackReader:
             yield self.read(start, min(self.info.K, start + step))
 
 
-def open_stack(path: str | Path) -> StackReader:
-    """Open and check a stack file (every rule of :func:`stack_info`)."""
-    return StackReader(path)
+def open_stack(path: str | Path, *, direct: bool = False) -> StackReader:
+    """Open and check a stack file (every rule of :func:`stack_info`).  ``direct``: for
+    reading in large chunks, in order (a stacked batch): HDF5 data stored unfiltered are read
+    without the chunk cache (:class:`_H5Source`)."""
+    return StackReader(path, direct)
 
 
 def stack_info(path: str | Path) -> StackInfo:

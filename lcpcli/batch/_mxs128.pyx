@@ -1,0 +1,22 @@
+"""The compiled :func:`mxs128` hash (``mxs128.h``; definition in :mod:`lcpcli.batch.digest`)."""
+
+from libc.stdint cimport uint64_t
+
+cdef extern from "mxs128.h" nogil:
+    void c_mxs128 "mxs128"(const unsigned char *data, uint64_t length, uint64_t seed,
+                           unsigned char *out)
+
+
+def mxs128(data, uint64_t seed=0):
+    """The 16 bytes of mxs128 of the bytes of ``data`` (any C-contiguous buffer: bytes, a
+    numpy array, read as its memory bytes), computed without the GIL."""
+    cdef const unsigned char[::1] view = memoryview(data).cast("B")
+    cdef unsigned char out[16]
+    cdef unsigned char empty = 0
+    cdef const unsigned char *p = &empty
+    cdef uint64_t length = view.shape[0]
+    if length:
+        p = &view[0]
+    with nogil:
+        c_mxs128(p, length, seed, out)
+    return out[:16]
