@@ -743,8 +743,8 @@ cdef bint _plainly_infeasible(const double* M, const double* q, Py_ssize_t n,
                              const double* z, double tol) noexcept nogil:
     """Is a nonbasic pair of the basic solution ``z`` (``z_i = 0``, ``i`` not in ``F``)
     infeasible by more than twice ``tol`` of its row's scale, its ``w_i`` and scale summed
-    over the basic ``z_j`` above rounding level (``> 1e-14 ||z||``, the ones
-    :func:`_certify_basic` keeps)?  Such a pair scores ``eps_i = |w_i| / s_i > tol``
+    over the basic ``z_j`` above rounding level (``> TINY_Z ||z||``: the ones
+    :func:`_zero_tiny` keeps)?  Such a pair scores ``eps_i = |w_i| / s_i > tol``
     (docs/certificate.md: ``z_i = 0`` needs ``w_i >= 0``), so the certificate is not
     computed: O((n - m) m) here against a certificate's passes over all of M, on the many
     warm bases that are wrong (a choice of speed only: the pivoting goes on, and only a
