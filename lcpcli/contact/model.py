@@ -348,21 +348,23 @@ def _solve_islands(clcp: ContactLCP, method: str, tol: float | None, z0: np.ndar
     lay, isl = clcp.layout, clcp.islands
     t0 = time.perf_counter()
     problems = island_problems(clcp.problem, lay, clcp.storage, clcp.scene.name or "contact")
-    z0s = None if z0 is None else [z0[lay.unknowns(k)] for k in range(lay.count)]
-    bases = None if basis0 is None else [basis0[lay.unknowns(k)] for k in range(lay.count)]
+    cuts = lay.offsets[1:-1]  # the islands' unknowns are lay.perm's consecutive pieces
+    z0s = None if z0 is None else np.split(z0[lay.perm], cuts)
+    bases = None if basis0 is None else np.split(basis0[lay.perm], cuts)
     results = solve_problems(problems, method, tol, z0s, jobs, bases0=bases, **options)
     seconds = time.perf_counter() - t0
     z = np.zeros(clcp.problem.n)
     basic = np.zeros(clcp.problem.n, dtype=bool)
-    sizes, bodies = isl.sizes(), isl.body_counts()
+    if results:
+        z[lay.perm] = np.concatenate([res.z for res in results])
+        basic[lay.perm] = np.concatenate([_basic_of(res) for res in results])
+    sizes, bodies = isl.sizes().tolist(), isl.body_counts().tolist()
     reports = []
     used: dict[str, int] = {}
     for k, res in enumerate(results):
-        z[lay.unknowns(k)] = res.z
-        basic[lay.unknowns(k)] = _basic_of(res)
         chosen = res.info.get("chosen") or res.method
         used[chosen] = used.get(chosen, 0) + 1
-        reports.append({"index": k + 1, "contacts": int(sizes[k]), "bodies": int(bodies[k]),
+        reports.append({"index": k + 1, "contacts": sizes[k], "bodies": bodies[k],
                         "unknowns": int(problems[k].n), "method": chosen, "status": res.status,
                         "iterations": int(res.iterations), "seconds": res.seconds,
                         "error": _finite(res.certificate.error),
