@@ -354,3 +354,32 @@ def test_default_threads_follow_the_work(monkeypatch) -> None:
     assert seen == [(default_threads(), 12, 4)]
     solve_many(M, q, "lemke", threads=2)
     assert len(seen) == 1
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.integers(1, 9), st.integers(0, 2**32 - 1), st.sampled_from(["pd", "psd", "degenerate"]),
+       st.booleans())
+def test_pivot_basis_is_complementary_to_every_certified_answer(n, seed, family, warm) -> None:
+    """A recorded pivoting basis agrees with its answer: z_i != 0 only where z_i is basic, and
+    w_i != 0 (beyond rounding of its row) only where w_i is (z_i nonbasic); rows of problems
+    the kernel did not certify stay -1."""
+    rng = np.random.default_rng(seed)
+    K = 12
+    A = rng.standard_normal((K, n, max(1, n // 2) if family != "pd" else n))
+    M = A @ A.transpose(0, 2, 1) + (np.eye(n) if family == "pd" else 0.0)
+    q = rng.standard_normal((K, n))
+    if family == "degenerate":
+        q[:, : n // 2] = 0.0
+    prev = solve_many(M, q, "lemke", pivot_basis=True) if warm else None
+    res = solve_many(M, q * 1.01, "lemke", pivot_basis=True, warm=prev)
+    assert res.pivot_basis is not None and res.pivot_basis.shape == (K, n)
+    for k in range(K):
+        row = res.pivot_basis[k]
+        if k in res.results or not res.solved[k]:
+            assert (row == -1).all()
+            continue
+        assert set(row.tolist()) <= {0, 1}
+        scale = np.abs(M[k]) @ np.abs(res.z[k]) + np.abs(q[k] * 1.01)
+        assert np.all((res.z[k] == 0) | (row == 1)), (k, row, res.z[k])
+        big_w = np.abs(res.w[k]) > 1e-9 * np.maximum(scale, 1e-300)
+        assert np.all(~big_w | (row == 0)), (k, row, res.w[k])
