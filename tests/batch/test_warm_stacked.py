@@ -28,6 +28,14 @@ def perturbed(q: np.ndarray, seed: int = 1) -> np.ndarray:
     return q * (1 + 0.01 * rng.uniform(-1, 1, q.shape))
 
 
+def two_steps(tmp_path, M: np.ndarray, q: np.ndarray):
+    """Stacked files ``s1.h5`` (M, q) and ``s2.h5`` (M, q perturbed): two steps of a sequence."""
+    first, second = tmp_path / "s1.h5", tmp_path / "s2.h5"
+    write_stack(first, M, q)
+    write_stack(second, M, perturbed(q))
+    return first, second
+
+
 def arrays(path, key: str) -> np.ndarray:
     if str(path).endswith(".npz"):
         with np.load(path) as d:
@@ -81,9 +89,7 @@ def test_warm_stack_round_trip_equals_a_cold_run_in_fewer_pivots(cli, tmp_path, 
     of a cold run of the perturbed stack (to rounding), in fewer pivots; the warm file's
     digest is recorded in the run's solve options."""
     M, q = pd_stack(400, 8, seed=2)
-    first, second = tmp_path / "s1.h5", tmp_path / "s2.h5"
-    write_stack(first, M, q)
-    write_stack(second, M, perturbed(q))
+    first, second = two_steps(tmp_path, M, q)
     prev, cold, warm = (tmp_path / f"{x}.{ext}" for x in ("prev", "cold", "warm"))
     assert cli("solve", str(first), "-o", str(prev)).returncode == 0
     assert cli("solve", str(second), "-o", str(cold)).returncode == 0
@@ -104,9 +110,7 @@ def test_warm_file_without_a_basis_starts_from_z_and_unsolved_problems_cold(cli,
     """A result file without ``basis`` (written before it existed) warm-starts from z; a
     problem the previous run did not solve starts cold; the answers are a cold run's."""
     M, q = pd_stack(60, 6, seed=3)
-    first, second = tmp_path / "s1.h5", tmp_path / "s2.h5"
-    write_stack(first, M, q)
-    write_stack(second, M, perturbed(q))
+    first, second = two_steps(tmp_path, M, q)
     prev, cold, warm = tmp_path / "prev.h5", tmp_path / "cold.h5", tmp_path / "warm.h5"
     cli("solve", str(first), "-o", str(prev))
     with h5py.File(prev, "r+") as f:
@@ -125,9 +129,7 @@ def test_resume_with_a_warm_file_needs_the_same_file(cli, tmp_path):
     """The warm file's digest is part of the solve options: --resume goes on with the same
     file, and refuses another file or none, with one line."""
     M, q = pd_stack(50, 4, seed=6)
-    first, second = tmp_path / "s1.h5", tmp_path / "s2.h5"
-    write_stack(first, M, q)
-    write_stack(second, M, perturbed(q))
+    first, second = two_steps(tmp_path, M, q)
     prev, other, out = tmp_path / "prev.h5", tmp_path / "other.h5", tmp_path / "out.h5"
     cli("solve", str(first), "-o", str(prev))
     cli("solve", str(first), "-m", "lemke", "-o", str(other))
