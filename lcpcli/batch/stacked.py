@@ -19,6 +19,8 @@ records: :mod:`lcpcli.batch.digest`), and the solve options too.
 from __future__ import annotations
 
 import heapq
+import os
+import queue
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -447,7 +449,6 @@ class MemoryPool:
     took 37 ms instead of 4).  :meth:`take` is called from one thread (the reader)."""
 
     def __init__(self, count: int, nbytes: int) -> None:
-        import queue
 
         self.nbytes, self.left = nbytes, count
         self.blocks: queue.Queue[np.ndarray | None] = queue.Queue()
@@ -480,7 +481,6 @@ def memory_pool(inputs: list[str], count: int = 2) -> MemoryPool | None:
     chunks of :data:`lcpcli.batch.stack_output.BATCH_CHUNK_BYTES`): ``count`` blocks of one
     chunk's M (the chunk buffers of :class:`_LocalParts`); None otherwise.  Looks at the
     file's name and size only (a batch that turns out not to be stacked frees the blocks)."""
-    import os
 
     from lcpcli.batch.stack_output import BATCH_CHUNK_BYTES
     from lcpcli.io.stack.layout import STACK_FORMATS
@@ -506,7 +506,6 @@ class _Buffers:
 
     def __init__(self, count: int, chunk: int, n: int, memory: MemoryPool | None = None
                  ) -> None:
-        import queue
 
         self.free: queue.Queue[tuple[np.ndarray, np.ndarray]] = queue.Queue()
         self.count, self.made, self.shape = count, 0, (chunk, n)
@@ -521,7 +520,6 @@ class _Buffers:
 
     def take(self, stop: threading.Event | None) -> tuple[np.ndarray, np.ndarray] | None:
         """A free pair (waits for one given back); None once ``stop`` is set."""
-        import queue
 
         while True:
             try:
@@ -550,7 +548,6 @@ class _Prefetch:
     error, Ctrl-C) tells the thread to stop and joins it, so no read outlives the batch."""
 
     def __init__(self, items: Callable[[threading.Event], Iterator[Any]], depth: int) -> None:
-        import queue
 
         self.q: queue.Queue[tuple[str, Any]] = queue.Queue(maxsize=depth)
         self.stop = threading.Event()
@@ -560,7 +557,6 @@ class _Prefetch:
         self.thread.start()
 
     def _put(self, item: tuple[str, Any]) -> bool:
-        import queue
 
         while not self.stop.is_set():
             try:
@@ -692,7 +688,6 @@ class _WriteBehind:
     while it waits, so the output is never closed under a running write."""
 
     def __init__(self, write: Callable[[Callable[[], None]], None]) -> None:
-        import queue
 
         self.write = write
         self.pending: queue.Queue[Callable[[], None] | None] = queue.Queue(maxsize=WRITE_BEHIND)
