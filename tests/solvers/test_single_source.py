@@ -311,13 +311,19 @@ class _FakeKernel:
             a[pname] = value
         K, n = int(a["K"]), int(a["n"])
         warp = "warp" in self.name
-        slots = grid[0] * block[0] // (32 if warp else 1)
         kind = "lemke" if "lemke" in self.name else "sor"
-        dw, iw = stack_c.workspace(kind, n)
-        assert a["work"].size >= slots * dw and a["iwork"].size >= slots * iw
-        if warp and a["use_shared"]:
-            tdw, tiw = stack_c.workspace("tableau", n)
-            assert shared_mem >= block[0] // 32 * 8 * (tdw + tiw)
+        if warp:  # groups of `lanes` lanes, each with its fast and cold workspace
+            lanes, stage = int(a["lanes"]), bool(a["stage"])
+            assert lanes in (8, 16, 32) and block[0] % lanes == 0
+            assert not stage or a["use_shared"]  # staging is in shared memory
+            fast, cold = stack_c.group_slots(n, stage)
+            assert a["work"].size >= grid[0] * block[0] // lanes * (fast + cold)
+            if a["use_shared"]:
+                assert shared_mem >= block[0] // lanes * 8 * fast
+        else:
+            slots = grid[0] * block[0]
+            dw, iw = stack_c.workspace(kind, n)
+            assert a["work"].size >= slots * dw and a["iwork"].size >= slots * iw
         out = [a[k].reshape(K, -1)[:, :n] if k in ("z", "w") else a[k]
                for k in ("z", "w", "code", "iters", "err", "res")]
         M, q = a["M"].reshape(K, n, n), a["q"].reshape(K, n)
@@ -326,7 +332,8 @@ class _FakeKernel:
                                                   int(a["max_rounds"]))
             stack_c.lemke_stack(M, q, a["d"] if a["use_d"] else None, int(a["max_iter"]),
                                 float(a["piv_tol"]), float(a["tie_tol"]), float(a["tol"]),
-                                float(a["polished"]), bal, *out, 1, warp)
+                                float(a["polished"]), bal, *out, 1, warp,
+                                bool(a["stage"]) if warp else True)
         else:
             lo, up = (a["lo"], a["up"]) if a["bounded"] else (None, None)
             stack_c.sor_stack(M, q, lo, up, float(a["omega"]), int(a["max_iter"]),

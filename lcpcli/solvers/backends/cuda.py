@@ -21,7 +21,7 @@ import functools
 import importlib.resources
 import time
 from collections.abc import Mapping
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -37,12 +37,21 @@ BLOCK = 128
 #: Bytes of device workspace the kernels may take at once (the grid is sized to fit; at most
 #: a quarter of the free device memory).
 WORK_BYTES = 4 << 30
-#: Lemke's device kernel: "warp" (one warp per problem, the tableau in shared memory) or
-#: "thread" (one thread per problem).  Both run the code the CPU tests check (the warp paths
-#: with one lane).  On an H100 (benchmarks/README.md) both gave the CPU's status, z and pivots
-#: on every problem compared, and "warp" ran 3.1x (n = 12) and 13x (n = 50) faster.
+#: Lemke's device kernel: "warp" (a group of lanes of one warp per problem, its workspace in
+#: shared memory) or "thread" (one thread per problem).  Both run the code the CPU tests check
+#: (the group paths with one lane, and with 8-32 emulated lanes in
+#: tests/solvers/test_lane_groups.py).  On an H100 (benchmarks/README.md) both gave the CPU's
+#: status, z and pivots on every problem compared, and "warp" ran 3.1x (n = 12) and 13x
+#: (n = 50) faster.
 LEMKE_VARIANT = "warp"
-#: Warps per block of the warp kernel, and the shared memory a block may use for tableaux.
+#: Lanes per problem in the warp kernel by size: (largest n, lanes), the first that fits;
+#: larger problems get a whole warp (32).  Speed only: every choice computes the same numbers.
+LANES: tuple[tuple[int, int], ...] = ((16, 16),)
+#: Largest n whose M, q, z and w are staged in shared memory with the workspace (the
+#: certificate's passes then never wait on device memory; more shared memory per problem means
+#: fewer problems at once).  Speed only.
+STAGE_MAX_N = 32
+#: Warps per block of the warp kernel, and the shared memory a block may use for workspaces.
 WARPS_PER_BLOCK = 8
 SHARED_BYTES = 96 << 10
 #: NVRTC options: no contraction into FMA (the CPU build has none: the same rounding).
@@ -197,20 +206,54 @@ def run_lemke(Md: Any, qd: Any, *, tol: float, options: Mapping[str, Any], scali
         iwork = cp.empty(blocks * BLOCK * iw, cp.int64)
         kernel("lcp_lemke_stack", n)((blocks,), (BLOCK,), head + (work, iwork) + tail)
         return o
-    tdw, tiw = workspace("tableau", n)
-    per_warp = 8 * (tdw + tiw)
-    use_shared = per_warp <= SHARED_BYTES
-    wpb = max(1, min(WARPS_PER_BLOCK, SHARED_BYTES // per_warp)) if use_shared else 4
-    blocks = _grid(K, 8 * (dw + iw), wpb, cp)
-    work = cp.empty(blocks * wpb * dw, cp.float64)
-    iwork = cp.empty(blocks * wpb * iw, cp.int64)
+    g = warp_launch(n)
+    blocks = _grid(K, 8 * g.slots, g.groups, cp)
+    work = cp.empty(blocks * g.groups * g.slots, cp.float64)
     fn = kernel("lcp_lemke_warp_stack", n)
-    shared = wpb * per_warp if use_shared else 0
-    if shared > 48 << 10:
-        fn.max_dynamic_shared_size_bytes = shared
-    fn((blocks,), (32 * wpb,), head + (np.int32(use_shared), work, iwork) + tail,
-       shared_mem=shared)
+    if g.shared > 48 << 10:
+        fn.max_dynamic_shared_size_bytes = g.shared
+    fn((blocks,), (32 * g.warps,),
+       head + (np.int32(g.lanes), np.int32(g.shared > 0), np.int32(g.stage), work) + tail,
+       shared_mem=g.shared)
     return o
+
+
+class WarpLaunch(NamedTuple):
+    """How the warp kernel runs problems of one size: ``lanes`` per problem, ``warps`` per
+    block, ``groups`` (problems) per block, ``stage`` (M, q, z, w in shared memory),
+    ``shared`` bytes of shared memory per block (0: the workspace in device memory),
+    ``slots``: 8-byte workspace slots per group in device memory."""
+
+    lanes: int
+    warps: int
+    groups: int
+    stage: bool
+    shared: int
+    slots: int
+
+
+def warp_launch(n: int, lanes: int | None = None, stage: bool | None = None) -> WarpLaunch:
+    """The warp kernel's launch shape for size ``n`` (:data:`LANES`, :data:`STAGE_MAX_N`,
+    :data:`WARPS_PER_BLOCK`, :data:`SHARED_BYTES`; ``lanes``/``stage`` override the tables,
+    for benchmarks).  The fast part of each group's workspace goes to shared memory when one
+    warp's groups fit in :data:`SHARED_BYTES`, else everything stays in device memory."""
+    from lcpcli.solvers.kernels.stack_c import group_slots
+
+    if lanes is None:
+        lanes = next((k for most, k in LANES if n <= most), 32)
+    if lanes not in (8, 16, 32):
+        raise OptionError(f"lanes per problem must be 8, 16 or 32, not {lanes}")
+    if stage is None:
+        stage = n <= STAGE_MAX_N
+    per_warp = 32 // lanes
+    for staged in ((True, False) if stage else (False,)):
+        fast, cold = group_slots(n, staged)
+        if 8 * fast * per_warp <= SHARED_BYTES:
+            warps = max(1, min(WARPS_PER_BLOCK, SHARED_BYTES // (8 * fast * per_warp)))
+            return WarpLaunch(lanes, warps, warps * per_warp, staged,
+                              warps * per_warp * 8 * fast, fast + cold)
+    fast, cold = group_slots(n, False)
+    return WarpLaunch(lanes, 4, 4 * per_warp, False, 0, fast + cold)
 
 
 def run_sor(Md: Any, qd: Any, lo: Any, up: Any, *, tol: float,

@@ -31,9 +31,21 @@ cdef extern from "src/lcp_stack.h" nogil:
     void lcp_lemke_one(long long n, const double* M, const double* q, const double* d,
                        long long max_iter, double piv_tol, double tie_tol, double tol,
                        double polished, int balanced, int q_balanced, int max_rounds,
-                       double* tw, long long* ti, double* rw, long long* ri, double* z,
-                       double* w, signed char* code, long long* iters, double* err,
-                       double* res, long long lane, long long lanes, int warp)
+                       double* tw, long long* ti, double* rw, long long* ri, double* cw,
+                       long long* ci, double* z, double* w, signed char* code,
+                       long long* iters, double* err, double* res, long long lane,
+                       long long lanes, int warp)
+    long long LCP_HOT_DWORK(long long n)
+    long long LCP_HOT_IWORK(long long n)
+    long long LCP_FAST_SLOTS(long long n, int stage)
+    long long LCP_COLD_SLOTS(long long n)
+    long long LCP_COLD_DWORK(long long n)
+    void lcp_lemke_group(long long n, const double* M, const double* q, const double* d,
+                         long long max_iter, double piv_tol, double tie_tol, double tol,
+                         double polished, int balanced, int q_balanced, int max_rounds,
+                         int stage, double* sh, double* cw, long long* ci, double* z, double* w,
+                         signed char* code, long long* iters, double* err, double* res,
+                         long long lane, long long lanes)
     void lcp_sor_one(long long n, const double* M, const double* q, const double* lo_in,
                      const double* up_in, double omega, long long max_iter, double tol,
                      double* work, long long* iwork, double* z, double* w, signed char* code,
@@ -98,6 +110,13 @@ def workspace(str kernel, long long n):
     return int(LCP_SOR_DWORK(n)), int(LCP_SOR_IWORK(n))
 
 
+def group_slots(long long n, bint stage):
+    """(fast, cold): the 8-byte slots of the warp kernel's workspace per group for size ``n``
+    (``stage``: M, q, z, w staged in the fast part); the fast part goes to shared memory when
+    it fits."""
+    return int(LCP_FAST_SLOTS(n, stage)), int(LCP_COLD_SLOTS(n))
+
+
 cdef cnp.ndarray _out(object a, int typenum, Py_ssize_t size, str label):
     if not (cnp.PyArray_Check(a) and cnp.PyArray_TYPE(<cnp.ndarray>a) == typenum
             and cnp.PyArray_IS_C_CONTIGUOUS(<cnp.ndarray>a)
@@ -109,15 +128,17 @@ cdef cnp.ndarray _out(object a, int typenum, Py_ssize_t size, str label):
 
 def lemke_stack(M, q, d, long long max_iter, double piv_tol, double tie_tol, double tol,
                 double polished, balance, z, w, code, iters, err, residual, int threads,
-                bint warp=False):
+                bint warp=False, bint stage=True):
     """Lemke and the certificate on every problem of ``M`` (K, n, n), ``q`` (K, n).
 
     ``d``: covering vector (n,) or None (ones); ``balance``: None (no balance test) or
     ``(balanced, q_balanced, max_rounds)``: a problem that is not balanced is equilibrated
     first (:mod:`lcpcli.analysis.scaling`).  ``polished``: answers certified above this error
     have their end basis re-solved (as the CPU kernel).
-    ``warp``: run the warp-per-problem code paths (one lane here: the device kernel's
-    arithmetic, label-propagation blocks in the certificate) instead of the thread ones.
+    ``warp``: run the warp kernel's body (``lcp_lemke_group``, one lane here: the device
+    kernel's arithmetic, label-propagation blocks in the certificate) instead of the thread
+    one; ``stage``: with M, q, z, w staged in the group's fast workspace, as the
+    device does up to ``backends.cuda.STAGE_MAX_N``).
     Outputs as :func:`lcpcli.solvers.kernels.batch.lemke_stack`."""
     cdef cnp.ndarray Ma = np.ascontiguousarray(M, dtype=np.float64)
     cdef cnp.ndarray qa = np.ascontiguousarray(q, dtype=np.float64)
@@ -144,6 +165,10 @@ def lemke_stack(M, q, d, long long max_iter, double piv_tol, double tie_tol, dou
     cdef const double* pq = <const double*>cnp.PyArray_DATA(qa)
     cdef long long dw = LCP_LEMKE_DWORK(n), iw = LCP_LEMKE_IWORK(n)
     cdef long long tdw = LCP_TAB_DWORK(n), tiw = LCP_TAB_IWORK(n)
+    cdef long long hdw = LCP_HOT_DWORK(n), hiw = LCP_HOT_IWORK(n)
+    cdef int st = stage
+    cdef long long fast = LCP_FAST_SLOTS(n, st), cold = LCP_COLD_SLOTS(n)
+    cdef long long cdw = LCP_COLD_DWORK(n)
     cdef int wp = warp
     cdef double* work
     cdef long long* iwork
@@ -155,12 +180,22 @@ def lemke_stack(M, q, d, long long max_iter, double piv_tol, double tie_tol, dou
         return
     for k in prange(K, nogil=True, schedule="dynamic", chunksize=16,
                     num_threads=threads if threads > 0 else 1):
-        work = <double*>malloc(dw * sizeof(double))
-        iwork = <long long*>malloc(iw * sizeof(long long))
-        if work != NULL and iwork != NULL:
+        if wp:
+            work = <double*>malloc((fast + cold) * sizeof(double))
+            iwork = <long long*>malloc(sizeof(long long))
+        else:
+            work = <double*>malloc(dw * sizeof(double))
+            iwork = <long long*>malloc(iw * sizeof(long long))
+        if work != NULL and iwork != NULL and wp:
+            lcp_lemke_group(n, pM + k * n * n, pq + k * n, dp, max_iter, piv_tol, tie_tol, tol,
+                            polished, bal, qbal, rounds, st, work, work + fast,
+                            <long long*>(work + fast + cdw), pz + k * n, pw + k * n, pc + k,
+                            pi + k, pe + k, pr + k, 0, 1)
+        elif work != NULL and iwork != NULL:
             lcp_lemke_one(n, pM + k * n * n, pq + k * n, dp, max_iter, piv_tol, tie_tol, tol,
                           polished, bal, qbal, rounds, work, iwork, work + tdw, iwork + tiw,
-                          pz + k * n, pw + k * n, pc + k, pi + k, pe + k, pr + k, 0, 1, wp)
+                          work + tdw + hdw, iwork + tiw + hiw, pz + k * n, pw + k * n, pc + k,
+                          pi + k, pe + k, pr + k, 0, 1, 0)
         else:
             pc[k] = 1
         free(work)

@@ -25,12 +25,16 @@
 
 #if defined(__CUDACC_RTC__) || defined(__CUDACC__)
 #define LCP_FN static __device__ __forceinline__
+/* the serial steps lane 0 takes rarely (equilibration, polish, the lexicographic tie-break,
+ * the serial certificate): called, not inlined, so they do not add to the registers of the
+ * hot loops (the kernel's register count bounds how many problems run at once) */
+#define LCP_COLD static __device__ __noinline__
 #define LCP_INF __longlong_as_double(0x7ff0000000000000LL)
 #define LCP_NAN __longlong_as_double(0x7ff8000000000000LL)
 #define LCP_ISFINITE(x) isfinite(x)
 #define LCP_AXPY(y, x, a, n)                                                                 \
     do {                                                                                     \
-        for (lcp_i64 j_ = 0; j_ < (n); j_++)                                                 \
+        for (lcp_ix j_ = 0; j_ < (n); j_++)                                                 \
             (y)[j_] += (a) * (x)[j_];                                                        \
     } while (0)
 #else
@@ -41,75 +45,97 @@
 #include "../simd.h"
 #define LCP_AXPY(y, x, a, n) lcpcli_axpy((y), (x), (a), (n))
 #define LCP_FN static inline
+#define LCP_COLD static inline
 #define LCP_INF INFINITY
 #define LCP_NAN NAN
 #define LCP_ISFINITE(x) isfinite(x)
 #endif
 
+/* lcp_i64: the 64-bit integers of the interface (sizes K and n, offsets into a stack, pivot
+ * counts); lcp_ix: indices inside one problem: 32-bit on the device (fewer registers and
+ * instructions than 64-bit arithmetic), 64-bit on the CPU (the stack_c.pyx declarations). */
 typedef long long lcp_i64;
-
-/* Lanes: functions that take (lane, lanes) split their loops over `lanes` lanes (a warp of 32
- * on the device: one warp per problem; 1 for one thread per problem and on the CPU, where the
- * warp code paths run with one lane, so the tests check their arithmetic) and meet at
- * LCP_SYNC(); lane 0 does the serial steps.  `lanes` is uniform in a warp. */
 #if defined(__CUDACC_RTC__) || defined(__CUDACC__)
+typedef int lcp_ix;
+#else
+typedef long long lcp_ix;
+#endif
+
+/* Lanes: functions that take (lane, lanes) split their loops over `lanes` lanes (on the device
+ * a group of 8, 16 or 32 lanes of one warp per problem, groups aligned within the warp; 1 for
+ * one thread per problem and on the CPU, where the lane code paths run with one lane) and meet
+ * at LCP_SYNC(); lane 0 does the serial steps.  `lanes` is uniform in a group, and every
+ * collective below names only the group's lanes (groups of one warp run independently).
+ * LCP_EMULATE_LANES: the includer provides lcp_emu_sync, lcp_emu_any and lcp_emu_shfl (threads
+ * standing in for lanes: tests/solvers/lanes_harness.cpp), so the CPU checks the lane paths. */
+#if defined(__CUDACC_RTC__) || defined(__CUDACC__)
+/* the mask of the calling lane's group of `lanes` (a power of two, at most 32) */
+static __device__ __forceinline__ unsigned lcp_group_mask(int lanes)
+{
+    unsigned first = (threadIdx.x & 31u) & ~(unsigned)(lanes - 1);
+    return lanes >= 32 ? 0xffffffffu : ((1u << lanes) - 1u) << first;
+}
 #define LCP_SYNC()                                                                           \
     do {                                                                                     \
         if (lanes > 1)                                                                       \
-            __syncwarp();                                                                    \
+            __syncwarp(lcp_group_mask((int)lanes));                                          \
     } while (0)
-#define LCP_ANY(p) (lanes > 1 ? __any_sync(0xffffffffu, (p)) : (p))
+#define LCP_ANY(p) (lanes > 1 ? __any_sync(lcp_group_mask((int)lanes), (p)) : (p))
+#define LCP_SHFL(x, o) __shfl_xor_sync(lcp_group_mask((int)lanes), (x), (o))
+#elif defined(LCP_EMULATE_LANES)
+#define LCP_SYNC()                                                                           \
+    do {                                                                                     \
+        if (lanes > 1)                                                                       \
+            lcp_emu_sync();                                                                  \
+    } while (0)
+#define LCP_ANY(p) (lanes > 1 ? lcp_emu_any(p) : (p))
+#define LCP_SHFL(x, o) lcp_emu_shfl((x), (o))
 #else
 #define LCP_SYNC() ((void)lanes)
 #define LCP_ANY(p) (p)
-#endif
-
-/* Reductions over the lanes of a warp (every lane gets the result; one lane: the value
- * itself).  Min and max by comparison, as the serial loops compute them: the same value
- * whatever the order (the operands are never NaN: each lane starts from a number and keeps
- * only values that compare). */
-#if defined(__CUDACC_RTC__) || defined(__CUDACC__)
-#define LCP_SHFL(x, o) __shfl_xor_sync(0xffffffffu, (x), (o))
-#else
 #define LCP_SHFL(x, o) (x) /* never reached: lanes == 1 on the CPU */
 #endif
-LCP_FN double lcp_lanes_min(double x, lcp_i64 lanes)
+
+/* Reductions over the lanes of a group (every lane gets the result; one lane: the value
+ * itself).  Min and max by comparison, as the serial loops compute them: the same value
+ * whatever the order (the operands are never NaN: each lane starts from a number and keeps
+ * only values that compare).  The xor offsets stay below `lanes`: inside the group. */
+LCP_FN double lcp_lanes_min(double x, lcp_ix lanes)
 {
     double y;
-    int o;
-    for (o = 16; lanes > 1 && o > 0; o >>= 1) {
+    lcp_ix o;
+    for (o = lanes >> 1; o > 0; o >>= 1) {
         y = LCP_SHFL(x, o);
         if (y < x)
             x = y;
     }
     return x;
 }
-LCP_FN double lcp_lanes_max(double x, lcp_i64 lanes)
+LCP_FN double lcp_lanes_max(double x, lcp_ix lanes)
 {
     double y;
-    int o;
-    for (o = 16; lanes > 1 && o > 0; o >>= 1) {
+    lcp_ix o;
+    for (o = lanes >> 1; o > 0; o >>= 1) {
         y = LCP_SHFL(x, o);
         if (y > x)
             x = y;
     }
     return x;
 }
-LCP_FN lcp_i64 lcp_lanes_imax(lcp_i64 x, lcp_i64 lanes)
+LCP_FN lcp_ix lcp_lanes_imax(lcp_ix x, lcp_ix lanes)
 {
-    lcp_i64 y;
-    int o;
-    for (o = 16; lanes > 1 && o > 0; o >>= 1) {
+    lcp_ix y, o;
+    for (o = lanes >> 1; o > 0; o >>= 1) {
         y = LCP_SHFL(x, o);
         if (y > x)
             x = y;
     }
     return x;
 }
-LCP_FN lcp_i64 lcp_lanes_isum(lcp_i64 x, lcp_i64 lanes)
+LCP_FN lcp_ix lcp_lanes_isum(lcp_ix x, lcp_ix lanes)
 {
-    int o;
-    for (o = 16; lanes > 1 && o > 0; o >>= 1)
+    lcp_ix o;
+    for (o = lanes >> 1; o > 0; o >>= 1)
         x += LCP_SHFL(x, o);
     return x;
 }
@@ -128,8 +154,22 @@ enum { LCP_OK = 0, LCP_RAY = 1, LCP_MAX_ITER = 2, LCP_TRIVIAL = 3 };
 /* Lemke: the tableau part (LCP_TAB_*, below) and the rest: raw z (n), the certificate's,
  * the equilibrated copy (n^2 + 2 n), polish (2 n^2 + 3 n); equilibration exponents (4 n),
  * polish indices (3 n) */
-#define LCP_REST_DWORK(n) (3 * (n) * (n) + 11 * (n))
-#define LCP_REST_IWORK(n) (10 * (n))
+#define LCP_REST_DWORK(n) (LCP_HOT_DWORK(n) + LCP_COLD_DWORK(n))
+#define LCP_REST_IWORK(n) (LCP_HOT_IWORK(n) + LCP_COLD_IWORK(n))
+/* the rest in two parts: hot (every problem: raw z, the certificate's work, the scaling's
+ * exponents) and cold (a scaled copy of the problem, the polish's work: rarely touched) */
+#define LCP_HOT_DWORK(n) (6 * (n))
+#define LCP_HOT_IWORK(n) (7 * (n))
+#define LCP_COLD_DWORK(n) (3 * (n) * (n) + 5 * (n))
+#define LCP_COLD_IWORK(n) (3 * (n))
+/* The warp kernel's workspace per group, in 8-byte slots (an lcp_ix takes a slot): the fast
+ * part (shared memory when it fits: the tableau part, the hot part and, with stage, the
+ * problem's M and q and its outputs z and w) and the cold part (device memory). */
+#define LCP_STAGE_DWORK(n) ((n) * (n) + 3 * (n))
+#define LCP_FAST_SLOTS(n, stage)                                                             \
+    (LCP_TAB_DWORK(n) + LCP_TAB_IWORK(n) + LCP_HOT_DWORK(n) + LCP_HOT_IWORK(n)              \
+     + ((stage) ? LCP_STAGE_DWORK(n) : 0))
+#define LCP_COLD_SLOTS(n) (LCP_COLD_DWORK(n) + LCP_COLD_IWORK(n))
 #define LCP_LEMKE_DWORK(n) (LCP_TAB_DWORK(n) + LCP_REST_DWORK(n))
 #define LCP_LEMKE_IWORK(n) (LCP_TAB_IWORK(n) + LCP_REST_IWORK(n))
 #define LCP_SOR_DWORK(n) (4 * (n) + 1 + LCP_CERT_DWORK(n))
@@ -144,7 +184,7 @@ typedef struct {
     int status; /* 0 ok, 1 non-finite z or w, 2 out of range (the CPU rescales: RETRY here) */
 } lcp_cert;
 
-LCP_FN lcp_i64 lcp_find(lcp_i64 *parent, lcp_i64 x)
+LCP_FN lcp_ix lcp_find(lcp_ix *parent, lcp_ix x)
 {
     while (parent[x] != x) {
         parent[x] = parent[parent[x]];
@@ -153,7 +193,7 @@ LCP_FN lcp_i64 lcp_find(lcp_i64 *parent, lcp_i64 x)
     return x;
 }
 
-LCP_FN void lcp_union(lcp_i64 *parent, lcp_i64 a, lcp_i64 b)
+LCP_FN void lcp_union(lcp_ix *parent, lcp_ix a, lcp_ix b)
 {
     a = lcp_find(parent, a);
     b = lcp_find(parent, b);
@@ -176,7 +216,7 @@ LCP_FN double lcp_rel(double v, double s)
 
 LCP_FN double lcp_move(double x, double kappa) { return x == 0.0 ? 0.0 : x * kappa; }
 
-LCP_FN void lcp_bounds(lcp_i64 i, const double *lo, const double *up, double *l, double *u)
+LCP_FN void lcp_bounds(lcp_ix i, const double *lo, const double *up, double *l, double *u)
 {
     if (lo) {
         *l = lo[i];
@@ -188,12 +228,12 @@ LCP_FN void lcp_bounds(lcp_i64 i, const double *lo, const double *up, double *l,
 }
 
 /* sum_j row_j z_j and sum_j |row_j z_j| with four partial sums each (as _certificate.pyx) */
-LCP_FN void lcp_row_dot(const double *row, const double *z, lcp_i64 n, double *dot,
+LCP_FN void lcp_row_dot(const double *row, const double *z, lcp_ix n, double *dot,
                         double *absdot)
 {
     double s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0, a0 = 0.0, a1 = 0.0, a2 = 0.0, a3 = 0.0;
     double t0, t1, t2, t3;
-    lcp_i64 j = 0;
+    lcp_ix j = 0;
     while (j + 4 <= n) {
         t0 = row[j] * z[j];
         t1 = row[j + 1] * z[j + 1];
@@ -230,12 +270,12 @@ LCP_FN int lcp_cert_fail(lcp_cert *out, int status)
 /* Pass 3 of the certificate (a, s, kappa filled in work; root[i]: the least member of row
  * i's block, rows 0..n-1 and columns n..2n-1 as vertices): score the pairs, then the blocks.
  * anchor: n long longs of scratch. */
-LCP_FN int lcp_cert_finish(lcp_i64 n, const double *q, const double *z, const double *lo,
-                           const double *up, const double *w, double *work, const lcp_i64 *root,
-                           lcp_i64 *anchor, lcp_cert *out)
+LCP_FN int lcp_cert_finish(lcp_ix n, const double *q, const double *z, const double *lo,
+                           const double *up, const double *w, double *work, const lcp_ix *root,
+                           lcp_ix *anchor, lcp_cert *out)
 {
     double *a = work, *s = work + n, *kappa = work + 2 * n, *compmin = work + 3 * n;
-    lcp_i64 i, r, worst = -1;
+    lcp_ix i, r, worst = -1;
     double l, u, zi, wi, si, best, x, g, den, e, err = 0.0, gi, cF, cL, cU, resid = 0.0, t;
     int st;
     /* (a) every pair's backward error */
@@ -332,13 +372,13 @@ LCP_FN int lcp_cert_finish(lcp_i64 n, const double *q, const double *z, const do
  * row-major M (n x n): lcpcli/core/_certificate.pyx's certify_dense with n_eq = 0, field for
  * field (error and residual kept).  w (n) receives M z + q; work: LCP_CERT_DWORK(n) doubles,
  * iwork: LCP_CERT_IWORK(n).  Returns out->status. */
-LCP_FN int lcp_certify(lcp_i64 n, const double *M, const double *q, const double *z,
+LCP_COLD int lcp_certify(lcp_ix n, const double *M, const double *q, const double *z,
                        const double *lo, const double *up, double *w, double *work,
-                       lcp_i64 *iwork, lcp_cert *out)
+                       lcp_ix *iwork, lcp_cert *out)
 {
     double *a = work, *s = work + n, *kappa = work + 2 * n;
-    lcp_i64 *parent = iwork, *cols = iwork + 2 * n, *anchor = iwork + 2 * n;
-    lcp_i64 i, j, k, nc = 0;
+    lcp_ix *parent = iwork, *cols = iwork + 2 * n, *anchor = iwork + 2 * n;
+    lcp_ix i, j, k, nc = 0;
     const double *row;
     double wi, ai, t, m, inv, BIG = lcp_big(), SMALL = lcp_small();
     for (j = 0; j < n; j++) {
@@ -407,14 +447,14 @@ LCP_FN int lcp_certify(lcp_i64 n, const double *M, const double *q, const double
  * label propagation on the row-column graph instead of union-find (either gives each row its
  * block's least member); lane 0 scores the pairs (lcp_cert_finish).  Every lane returns the
  * status; only lane 0's *out is filled.  work, iwork as lcp_certify. */
-LCP_FN int lcp_certify_warp(lcp_i64 n, const double *M, const double *q, const double *z,
+LCP_FN int lcp_certify_warp(lcp_ix n, const double *M, const double *q, const double *z,
                             const double *lo, const double *up, double *w, double *work,
-                            lcp_i64 *iwork, lcp_cert *out, lcp_i64 lane, lcp_i64 lanes)
+                            lcp_ix *iwork, lcp_cert *out, lcp_ix lane, lcp_ix lanes)
 {
     /* rinv: 1 / s_i (Inf where s_i = 0), in the space lcp_cert_finish's compmin takes later */
     double *a = work, *s = work + n, *kappa = work + 2 * n, *rinv = work + 3 * n;
-    lcp_i64 *lab = iwork, *movable = iwork + 2 * n;
-    lcp_i64 i, j, best;
+    lcp_ix *lab = iwork, *movable = iwork + 2 * n;
+    lcp_ix i, j, best;
     int bad = 0, changed;
     double wi, ai, t, m, inv, BIG = lcp_big(), SMALL = lcp_small();
     for (j = 0; j < n; j++) { /* every lane: the same answer */
@@ -499,17 +539,17 @@ LCP_FN int lcp_certify_warp(lcp_i64 n, const double *M, const double *q, const d
 
 /* -------------------------------------------------------------------------- equilibration */
 /* frexp's exponent of x != 0, finite, read from the IEEE-754 bits (subnormals: frexp) */
-LCP_FN lcp_i64 lcp_exp(double x)
+LCP_FN lcp_ix lcp_exp(double x)
 {
     unsigned long long bits;
-    lcp_i64 field;
+    lcp_ix field;
     int e;
 #if defined(__CUDACC_RTC__) || defined(__CUDACC__)
     bits = (unsigned long long)__double_as_longlong(x);
 #else
     memcpy(&bits, &x, 8);
 #endif
-    field = (lcp_i64)((bits >> 52) & 0x7ff);
+    field = (lcp_ix)((bits >> 52) & 0x7ff);
     if (field == 0) {
         frexp(x, &e);
         return e;
@@ -517,15 +557,17 @@ LCP_FN lcp_i64 lcp_exp(double x)
     return field - 1022;
 }
 
-LCP_FN lcp_i64 lcp_floordiv2(lcp_i64 x) { return x >= 0 ? x / 2 : -((-x + 1) / 2); }
+LCP_FN lcp_ix lcp_floordiv2(lcp_ix x) { return x >= 0 ? x / 2 : -((-x + 1) / 2); }
 
-#define LCP_FLOOR (-((lcp_i64)1 << 40))
+/* below and above every exponent sum of the scaling (|e| < 2^12 per factor): fits 32 bits */
+#define LCP_FLOOR (-((lcp_ix)1 << 29))
+#define LCP_CEIL ((lcp_ix)1 << 29)
 
 /* row and column maxima of the exponents of D_r M D_c over the nonzeros (_scaling.pyx) */
-LCP_FN void lcp_maxima(lcp_i64 n, const double *M, const lcp_i64 *r, const lcp_i64 *c,
-                       lcp_i64 *rmax, lcp_i64 *cmax)
+LCP_FN void lcp_maxima(lcp_ix n, const double *M, const lcp_ix *r, const lcp_ix *c,
+                       lcp_ix *rmax, lcp_ix *cmax)
 {
-    lcp_i64 i, j, e;
+    lcp_ix i, j, e;
     for (i = 0; i < n; i++) {
         rmax[i] = LCP_FLOOR;
         cmax[i] = LCP_FLOOR;
@@ -544,11 +586,11 @@ LCP_FN void lcp_maxima(lcp_i64 n, const double *M, const lcp_i64 *r, const lcp_i
 /* Ruiz's iteration on binary exponents, dense (lcpcli/analysis/_scaling.pyx's _ruiz): fill
  * r, c (n each); return 1 when a scaling is needed, 0 when the problem is balanced.
  * rmax, cmax: n each. */
-LCP_FN int lcp_ruiz(lcp_i64 n, const double *M, const double *q, int symmetric, int balanced,
-                    int q_balanced, int max_rounds, lcp_i64 *r, lcp_i64 *c, lcp_i64 *rmax,
-                    lcp_i64 *cmax)
+LCP_FN int lcp_ruiz(lcp_ix n, const double *M, const double *q, int symmetric, int balanced,
+                    int q_balanced, int max_rounds, lcp_ix *r, lcp_ix *c, lcp_ix *rmax,
+                    lcp_ix *cmax)
 {
-    lcp_i64 i, j, k, e, lo, hi, clo, chi, d, qexp;
+    lcp_ix i, j, k, e, lo, hi, clo, chi, d, qexp;
     int rnd;
     for (i = 0; i < n; i++) {
         r[i] = 0;
@@ -556,10 +598,10 @@ LCP_FN int lcp_ruiz(lcp_i64 n, const double *M, const double *q, int symmetric, 
     }
     for (rnd = 0; rnd < max_rounds; rnd++) {
         lcp_maxima(n, M, r, c, rmax, cmax);
-        lo = (lcp_i64)1 << 40;
-        hi = -((lcp_i64)1 << 40);
-        clo = (lcp_i64)1 << 40;
-        chi = -((lcp_i64)1 << 40);
+        lo = LCP_CEIL;
+        hi = LCP_FLOOR;
+        clo = LCP_CEIL;
+        chi = LCP_FLOOR;
         for (i = 0; i < n; i++) {
             if (rmax[i] == LCP_FLOOR)
                 rmax[i] = 1;
@@ -612,9 +654,9 @@ LCP_FN int lcp_ruiz(lcp_i64 n, const double *M, const double *q, int symmetric, 
     return 1;
 }
 
-LCP_FN int lcp_symmetric(const double *M, lcp_i64 n)
+LCP_FN int lcp_symmetric(const double *M, lcp_ix n)
 {
-    lcp_i64 i, j;
+    lcp_ix i, j;
     for (i = 0; i < n; i++)
         for (j = 0; j < i; j++)
             if (M[i * n + j] != M[j * n + i])
@@ -625,11 +667,11 @@ LCP_FN int lcp_symmetric(const double *M, lcp_i64 n)
 /* Equilibrate one problem as batch.pyx's _balance does (D M D for a symmetric M, two-sided
  * otherwise): fill Ms = D_r M D_c, qs = D_r q, ds = D_r d (ones when d is NULL) and return 1,
  * or return 0 when the problem is balanced already.  rc: 4 n long longs (r, c, scratch). */
-LCP_FN int lcp_balance(lcp_i64 n, const double *M, const double *q, const double *d,
+LCP_COLD int lcp_balance(lcp_ix n, const double *M, const double *q, const double *d,
                        int balanced, int q_balanced, int max_rounds, double *Ms, double *qs,
-                       double *ds, lcp_i64 *rc)
+                       double *ds, lcp_ix *rc)
 {
-    lcp_i64 i, j, *r = rc, *c = rc + n;
+    lcp_ix i, j, *r = rc, *c = rc + n;
     if (!lcp_ruiz(n, M, q, 0, balanced, q_balanced, 1, r, c, rc + 2 * n, rc + 3 * n))
         return 0;
     if (!lcp_ruiz(n, M, q, lcp_symmetric(M, n), balanced, q_balanced, max_rounds, r, c,
@@ -647,12 +689,12 @@ LCP_FN int lcp_balance(lcp_i64 n, const double *M, const double *q, const double
 /* The first balance test of lcp_balance split over the lanes: 1 when the problem is balanced
  * at once (row and column exponent maxima, then q: lcp_ruiz's round 0 passing), 0 when
  * lcp_balance must decide.  rmax, cmax: n each; every lane returns the same value. */
-LCP_FN int lcp_balanced_warp(lcp_i64 n, const double *M, const double *q, int balanced,
-                             int q_balanced, lcp_i64 *rmax, lcp_i64 *cmax, lcp_i64 lane,
-                             lcp_i64 lanes)
+LCP_FN int lcp_balanced_warp(lcp_ix n, const double *M, const double *q, int balanced,
+                             int q_balanced, lcp_ix *rmax, lcp_ix *cmax, lcp_ix lane,
+                             lcp_ix lanes)
 {
-    lcp_i64 i, j, e, best, lo = (lcp_i64)1 << 40, hi = LCP_FLOOR, clo = (lcp_i64)1 << 40;
-    lcp_i64 chi = LCP_FLOOR, qexp = LCP_FLOOR, k;
+    lcp_ix i, j, e, best, lo = LCP_CEIL, hi = LCP_FLOOR, clo = LCP_CEIL;
+    lcp_ix chi = LCP_FLOOR, qexp = LCP_FLOOR, k;
     int ok;
     for (i = lane; i < n; i += lanes) {
         best = LCP_FLOOR;
@@ -701,10 +743,10 @@ LCP_FN int lcp_balanced_warp(lcp_i64 n, const double *M, const double *q, int ba
 #define LCP_TAB_IWORK(n) (4 * (n) + 6)
 
 /* pivot the nrows x ncols tableau on (r, c); rowr: ncols of work (lemke.pyx's pivot) */
-LCP_FN void lcp_pivot(double *T, double *qb, lcp_i64 nrows, lcp_i64 ncols, lcp_i64 r,
-                      lcp_i64 c, double *rowr)
+LCP_FN void lcp_pivot(double *T, double *qb, lcp_ix nrows, lcp_ix ncols, lcp_ix r,
+                      lcp_ix c, double *rowr)
 {
-    lcp_i64 i, j;
+    lcp_ix i, j;
     double p = T[r * ncols + c], inv = 1.0 / p, f, qr;
     double *Ti;
     for (j = 0; j < ncols; j++)
@@ -727,45 +769,40 @@ LCP_FN void lcp_pivot(double *T, double *qb, lcp_i64 nrows, lcp_i64 ncols, lcp_i
     qb[r] = qr;
 }
 
-/* The same pivot split over the lanes (every entry computed as lcp_pivot computes it: the
- * same rounding).  fcol: the pivot column T[:, c] as it was before the pivot. */
-LCP_FN void lcp_pivot_warp(double *T, double *qb, lcp_i64 nrows, lcp_i64 ncols, lcp_i64 r,
-                           lcp_i64 c, double *rowr, const double *fcol, lcp_i64 lane,
-                           lcp_i64 lanes)
+/* The same pivot split over the lanes, a lane per column (every entry computed as lcp_pivot
+ * computes it: the same rounding).  fcol: the pivot column T[:, c] as it was before the pivot
+ * (fcol[r] is the pivot element).  A lane reads and writes only its own columns of T, so the
+ * lanes meet only around the update of qb. */
+LCP_FN void lcp_pivot_warp(double *T, double *qb, lcp_ix nrows, lcp_ix ncols, lcp_ix r,
+                           lcp_ix c, const double *fcol, lcp_ix lane, lcp_ix lanes)
 {
-    lcp_i64 e, i, j;
-    double inv = 1.0 / T[r * ncols + c], qr = -qb[r] * inv, f;
-    for (j = lane; j < ncols; j += lanes)
-        rowr[j] = j == c ? inv : -T[r * ncols + j] * inv;
-    LCP_SYNC();
-    for (i = lane; i < nrows; i += lanes)
-        if (i != r && fcol[i] != 0.0)
-            qb[i] += fcol[i] * qr;
-    i = lane / ncols; /* entry e = i ncols + j, stepped without a division per entry */
-    j = lane - i * ncols;
-    for (e = lane; e < nrows * ncols; e += lanes) {
-        f = fcol[i];
-        if (i != r && f != 0.0)
-            T[e] = j == c ? f * inv : T[e] + f * rowr[j];
-        j += lanes;
-        while (j >= ncols) {
-            j -= ncols;
-            i += 1;
+    lcp_ix i, j;
+    double inv = 1.0 / fcol[r], qr = -qb[r] * inv, f, rj;
+    double *Tj;
+    for (j = lane; j < ncols; j += lanes) {
+        Tj = T + j;
+        rj = j == c ? inv : -Tj[r * ncols] * inv;
+        for (i = 0; i < nrows; i++) {
+            f = fcol[i];
+            if (i != r && f != 0.0)
+                Tj[i * ncols] = j == c ? f * inv : Tj[i * ncols] + f * rj;
         }
+        Tj[r * ncols] = rj;
     }
-    LCP_SYNC();
-    for (j = lane; j < ncols; j += lanes)
-        T[r * ncols + j] = rowr[j];
-    if (lane == 0)
-        qb[r] = qr;
+    LCP_SYNC(); /* every lane has read qb[r] */
+    for (i = lane; i < nrows; i += lanes)
+        if (i == r)
+            qb[i] = qr;
+        else if (fcol[i] != 0.0)
+            qb[i] += fcol[i] * qr;
     LCP_SYNC();
 }
 
 /* Row of the initial pivot (most negative q_i / d_i, ties: the largest index); -1 when
  * q >= 0 (d NULL: ones) */
-LCP_FN lcp_i64 lcp_initial_row(const double *q, const double *d, lcp_i64 n, double tie_tol)
+LCP_FN lcp_ix lcp_initial_row(const double *q, const double *d, lcp_ix n, double tie_tol)
 {
-    lcp_i64 i, r = -1;
+    lcp_ix i, r = -1;
     double v, best = 0.0;
     for (i = 0; i < n; i++) {
         v = q[i] / (d ? d[i] : 1.0);
@@ -784,12 +821,12 @@ LCP_FN lcp_i64 lcp_initial_row(const double *q, const double *d, lcp_i64 n, doub
  * (lemke.pyx's ratio_candidates) and, among tied rows, the lexicographic minimum over rows of
  * the basis inverse divided by the pivot element (Cottle-Pang-Stone 4.9: no cycling); z0
  * leaves when it ties.  Returns -1 when no row blocks (a ray). */
-LCP_FN lcp_i64 lcp_leaving_row(lcp_i64 n, lcp_i64 m, const double *T, const double *qb,
-                               const double *col, double *keys, const lcp_i64 *basic,
-                               const lcp_i64 *where, lcp_i64 *cand, double piv_tol,
+LCP_COLD lcp_ix lcp_leaving_row(lcp_ix n, lcp_ix m, const double *T, const double *qb,
+                               const double *col, double *keys, const lcp_ix *basic,
+                               const lcp_ix *where, lcp_ix *cand, double piv_tol,
                                double tie_tol)
 {
-    lcp_i64 i, k, s, nc, mm, loc, z0_row = -1, nz = 2 * n;
+    lcp_ix i, k, s, nc, mm, loc, z0_row = -1, nz = 2 * n;
     double a, v, t, cmax = 0.0, qmax = 0.0, ptol, ztol, tmin = LCP_INF, unit, key, kmin, kmax;
     double bound;
     for (i = 0; i < n; i++) {
@@ -868,10 +905,10 @@ LCP_FN lcp_i64 lcp_leaving_row(lcp_i64 n, lcp_i64 m, const double *T, const doub
 
 /* lcp_initial_row split over the lanes (the same row: the minimum by reduction, the last
  * index within the tie band by an index maximum); every lane returns it. */
-LCP_FN lcp_i64 lcp_initial_row_lanes(const double *q, const double *d, lcp_i64 n,
-                                     double tie_tol, lcp_i64 lane, lcp_i64 lanes)
+LCP_FN lcp_ix lcp_initial_row_lanes(const double *q, const double *d, lcp_ix n,
+                                     double tie_tol, lcp_ix lane, lcp_ix lanes)
 {
-    lcp_i64 i, r = -1;
+    lcp_ix i, r = -1;
     double v, best = 0.0;
     for (i = lane; i < n; i += lanes) {
         v = q[i] / (d ? d[i] : 1.0);
@@ -892,12 +929,12 @@ LCP_FN lcp_i64 lcp_initial_row_lanes(const double *q, const double *d, lcp_i64 n
  * z0 is not among them (a degenerate step), lane 0 breaks the tie with lcp_leaving_row's
  * lexicographic rule.  Every lane returns the row (-1: a ray); ctl: the lanes' broadcast
  * slot. */
-LCP_FN lcp_i64 lcp_leaving_row_lanes(lcp_i64 n, lcp_i64 m, const double *T, const double *qb,
-                                     const double *col, double *keys, const lcp_i64 *basic,
-                                     const lcp_i64 *where, lcp_i64 *cand, double piv_tol,
-                                     double tie_tol, lcp_i64 *ctl, lcp_i64 lane, lcp_i64 lanes)
+LCP_FN lcp_ix lcp_leaving_row_lanes(lcp_ix n, lcp_ix m, const double *T, const double *qb,
+                                     const double *col, double *keys, const lcp_ix *basic,
+                                     const lcp_ix *where, lcp_ix *cand, double piv_tol,
+                                     double tie_tol, lcp_ix *ctl, lcp_ix lane, lcp_ix lanes)
 {
-    lcp_i64 i, nc = 0, one = -1, z0_row = -1, nz = 2 * n;
+    lcp_ix i, nc = 0, one = -1, z0_row = -1, nz = 2 * n;
     double a, v, t, cmax = 0.0, qmax = 0.0, ptol, ztol, tmin = LCP_INF;
     for (i = lane; i < n; i += lanes) {
         a = fabs(col[i]);
@@ -950,17 +987,22 @@ LCP_FN lcp_i64 lcp_leaving_row_lanes(lcp_i64 n, lcp_i64 m, const double *T, cons
  * else lcp_pivot_warp.  z (n) receives the basic solution; returns the status (LCP_OK,
  * LCP_RAY, LCP_MAX_ITER, LCP_TRIVIAL) and the pivots in *pivots_out.  tw: LCP_TAB_DWORK(n)
  * doubles, ti: LCP_TAB_IWORK(n) long longs (ti's first n: the end basis). */
-LCP_FN int lcp_lemke(lcp_i64 n, const double *M, const double *q, const double *d,
+LCP_FN int lcp_lemke(lcp_ix n, const double *M, const double *q, const double *d,
                      lcp_i64 max_iter, double piv_tol, double tie_tol, double *z, double *tw,
-                     lcp_i64 *ti, lcp_i64 *pivots_out, lcp_i64 lane, lcp_i64 lanes, int warp)
+                     lcp_ix *ti, lcp_i64 *pivots_out, lcp_ix lane, lcp_ix lanes, int warp)
 {
-    lcp_i64 m = n + 1, nz = 2 * n, i, j, r, c, entering, leaving, pivots;
+    lcp_ix m = n + 1, nz = 2 * n, i, j, e, r, c, entering, leaving;
+    lcp_i64 pivots;
     int status = LCP_MAX_ITER;
     double *T = tw, *qb = T + n * m, *keys = qb + n, *col = keys + n, *rowr = col + n;
-    lcp_i64 *basic = ti, *where = basic + n, *cand = where + 2 * n + 1, *ctl = cand + n;
-    for (i = 0; i < n; i++) /* lanes along each row of M: coalesced reads */
-        for (j = lane; j < n; j += lanes)
-            T[i * m + j] = M[i * n + j];
+    lcp_ix *basic = ti, *where = basic + n, *cand = where + 2 * n + 1, *ctl = cand + n;
+    i = lane / n; /* M in order over the lanes (coalesced reads): entry e = i n + j */
+    j = lane - i * n;
+    for (e = lane; e < n * n; e += lanes) {
+        T[e + i] = M[e]; /* T[i, j] = T[i m + j] */
+        for (j += lanes; j >= n; j -= n)
+            i += 1;
+    }
     for (i = lane; i < n; i += lanes) {
         T[i * m + n] = d ? d[i] : 1.0;
         col[i] = T[i * m + n];
@@ -987,7 +1029,7 @@ LCP_FN int lcp_lemke(lcp_i64 n, const double *M, const double *q, const double *
     if (!warp)
         lcp_pivot(T, qb, n, m, r, c, rowr);
     else
-        lcp_pivot_warp(T, qb, n, m, r, c, rowr, col, lane, lanes);
+        lcp_pivot_warp(T, qb, n, m, r, c, col, lane, lanes);
     if (lane == 0) {
         basic[r] = entering;
         where[entering] = r;
@@ -1014,7 +1056,7 @@ LCP_FN int lcp_lemke(lcp_i64 n, const double *M, const double *q, const double *
         if (!warp)
             lcp_pivot(T, qb, n, m, r, c, rowr);
         else
-            lcp_pivot_warp(T, qb, n, m, r, c, rowr, col, lane, lanes);
+            lcp_pivot_warp(T, qb, n, m, r, c, col, lane, lanes);
         if (lane == 0) {
             basic[r] = entering;
             where[entering] = r;
@@ -1038,9 +1080,9 @@ LCP_FN int lcp_lemke(lcp_i64 n, const double *M, const double *q, const double *
 /* ---------------------------------------------------------------------------------- polish */
 /* In-place LU with partial pivoting of the row-major m x m a (dense.pyx's own loops, used by
  * the CPU below LCP_LAPACK_MIN); returns 0 or k + 1 (a zero pivot). */
-LCP_FN int lcp_lu_factor(double *a, lcp_i64 m, lcp_i64 *ipiv)
+LCP_FN int lcp_lu_factor(double *a, lcp_ix m, lcp_ix *ipiv)
 {
-    lcp_i64 i, j, k, p;
+    lcp_ix i, j, k, p;
     double best, v, f, piv, *rk, *ri;
     for (k = 0; k < m; k++) {
         p = k;
@@ -1075,9 +1117,9 @@ LCP_FN int lcp_lu_factor(double *a, lcp_i64 m, lcp_i64 *ipiv)
     return 0;
 }
 
-LCP_FN void lcp_lu_solve(const double *lu, lcp_i64 m, const lcp_i64 *ipiv, double *b)
+LCP_FN void lcp_lu_solve(const double *lu, lcp_ix m, const lcp_ix *ipiv, double *b)
 {
-    lcp_i64 i, j, k;
+    lcp_ix i, j, k;
     double s, v;
     for (k = 0; k < m; k++) {
         i = ipiv[k];
@@ -1102,9 +1144,9 @@ LCP_FN void lcp_lu_solve(const double *lu, lcp_i64 m, const lcp_i64 *ipiv, doubl
 }
 
 /* ||min(z, M z + q)||_inf */
-LCP_FN double lcp_min_residual(const double *M, const double *q, const double *z, lcp_i64 n)
+LCP_FN double lcp_min_residual(const double *M, const double *q, const double *z, lcp_ix n)
 {
-    lcp_i64 i, j;
+    lcp_ix i, j;
     double w, v, worst = 0.0;
     for (i = 0; i < n; i++) {
         w = q[i];
@@ -1125,10 +1167,10 @@ LCP_FN double lcp_min_residual(const double *M, const double *q, const double *z
  * step; out receives the better (by ||min(z, M z + q)||_inf) of max(z, 0) and the re-solve.
  * Returns 0, or -1 when the basis is too large for the loops here (out is then max(z, 0)).
  * work: 2 n^2 + 3 n doubles; iwork: 3 n. */
-LCP_FN int lcp_polish(const double *M, const double *q, lcp_i64 n, const double *z,
-                      const lcp_i64 *basic, double *out, double *work, lcp_i64 *iwork)
+LCP_COLD int lcp_polish(const double *M, const double *q, lcp_ix n, const double *z,
+                      const lcp_ix *basic, double *out, double *work, lcp_ix *iwork)
 {
-    lcp_i64 i, j, k, m = 0, *idx = iwork, *mark = iwork + n, *ipiv = iwork + 2 * n;
+    lcp_ix i, j, k, m = 0, *idx = iwork, *mark = iwork + n, *ipiv = iwork + 2 * n;
     double *A, *lu, *x, *r, *zc;
     int finite = 1;
     for (i = 0; i < n; i++) {
@@ -1195,19 +1237,21 @@ LCP_FN int lcp_polish(const double *M, const double *q, lcp_i64 n, const double 
  * exactly and certified on the problem as given); the end basis is re-solved (polish) when
  * the answer is not certified at rounding level (`polished`).  Lanes: (0, 1, warp = 0) one
  * thread per problem; (lane, 32, 1) a warp per problem (lane 0 writes the outputs).
- * tw, ti: LCP_TAB_DWORK(n), LCP_TAB_IWORK(n) (shared memory in the warp kernel); rw, ri:
- * LCP_REST_DWORK(n), LCP_REST_IWORK(n). */
-LCP_FN void lcp_lemke_one(lcp_i64 n, const double *M, const double *q, const double *d,
+ * tw, ti: LCP_TAB_DWORK(n), LCP_TAB_IWORK(n); rw, ri: LCP_HOT_DWORK(n), LCP_HOT_IWORK(n) (the
+ * warp kernel keeps both in shared memory when they fit); cw, ci: LCP_COLD_DWORK(n),
+ * LCP_COLD_IWORK(n). */
+LCP_FN void lcp_lemke_one(lcp_ix n, const double *M, const double *q, const double *d,
                           lcp_i64 max_iter, double piv_tol, double tie_tol, double tol,
                           double polished, int balanced, int q_balanced, int max_rounds,
-                          double *tw, lcp_i64 *ti, double *rw, lcp_i64 *ri, double *z, double *w,
-                          signed char *code, lcp_i64 *iters, double *err, double *res,
-                          lcp_i64 lane, lcp_i64 lanes, int warp)
+                          double *tw, lcp_ix *ti, double *rw, lcp_ix *ri, double *cw,
+                          lcp_ix *ci, double *z, double *w, signed char *code, lcp_i64 *iters,
+                          double *err, double *res, lcp_ix lane, lcp_ix lanes, int warp)
 {
-    double *raw = rw, *cwork = raw + n, *Ms = cwork + 5 * n, *qs = Ms + n * n, *ds = qs + n;
+    double *raw = rw, *cwork = raw + n, *Ms = cw, *qs = Ms + n * n, *ds = qs + n;
     double *pwork = ds + n;
-    lcp_i64 *ciwork = ri, *rc = ciwork + 3 * n, *piwork = rc + 4 * n, *ctl = ti + 4 * n + 1;
-    lcp_i64 pivots = 0, i;
+    lcp_ix *ciwork = ri, *rc = ciwork + 3 * n, *piwork = ci, *ctl = ti + 4 * n + 1;
+    lcp_i64 pivots = 0;
+    lcp_ix i;
     const double *Mu = M, *qu = q, *du = d;
     int scaled = 0, prc = 0, status;
     lcp_cert cert;
@@ -1267,11 +1311,57 @@ LCP_FN void lcp_lemke_one(lcp_i64 n, const double *M, const double *q, const dou
     LCP_SYNC(); /* the workspace is the next problem's */
 }
 
+/* One problem on a group of lanes (the warp kernel's body): sh, the group's fast workspace
+ * (LCP_FAST_SLOTS(n, stage) slots: shared memory on the device), holds the tableau and hot
+ * parts; with stage, M and q are first copied there (in order over the lanes: coalesced
+ * reads) and z, w computed there and copied out, so that the certificate's passes over M, z
+ * and w never wait on device memory.  cw, ci: the cold part.  Outputs as lcp_lemke_one (z, w
+ * as lcp_lemke_one leaves them: entries it does not write are 0 either way). */
+LCP_FN void lcp_lemke_group(lcp_ix n, const double *M, const double *q, const double *d,
+                            lcp_i64 max_iter, double piv_tol, double tie_tol, double tol,
+                            double polished, int balanced, int q_balanced, int max_rounds,
+                            int stage, double *sh, double *cw, lcp_ix *ci, double *z, double *w,
+                            signed char *code, lcp_i64 *iters, double *err, double *res,
+                            lcp_ix lane, lcp_ix lanes)
+{
+    double *tw = sh, *rw = sh + LCP_TAB_DWORK(n) + LCP_TAB_IWORK(n);
+    lcp_ix *ti = (lcp_ix *)(sh + LCP_TAB_DWORK(n)), *ri = (lcp_ix *)(rw + LCP_HOT_DWORK(n));
+    double *Ms = rw + LCP_HOT_DWORK(n) + LCP_HOT_IWORK(n), *qs = Ms + n * n, *zs = qs + n;
+    double *ws = zs + n;
+    const double *Mu = M, *qu = q;
+    double *zu = z, *wu = w;
+    lcp_ix e;
+    if (stage) {
+        for (e = lane; e < n * n; e += lanes)
+            Ms[e] = M[e];
+        for (e = lane; e < n; e += lanes) {
+            qs[e] = q[e];
+            zs[e] = z[e];
+            ws[e] = w[e];
+        }
+        LCP_SYNC();
+        Mu = Ms;
+        qu = qs;
+        zu = zs;
+        wu = ws;
+    }
+    lcp_lemke_one(n, Mu, qu, d, max_iter, piv_tol, tie_tol, tol, polished, balanced, q_balanced,
+                  max_rounds, tw, ti, rw, ri, cw, ci, zu, wu, code, iters, err, res, lane, lanes,
+                  1);
+    if (!stage)
+        return;
+    for (e = lane; e < n; e += lanes) {
+        z[e] = zs[e];
+        w[e] = ws[e];
+    }
+    LCP_SYNC(); /* the fast workspace is the next problem's */
+}
+
 /* ------------------------------------------------------------------------- projected SOR */
 LCP_FN double lcp_scaled_error(const double *z, const double *w, const double *lo,
-                               const double *up, lcp_i64 n, double mu, double qnorm)
+                               const double *up, lcp_ix n, double mu, double qnorm)
 {
-    lcp_i64 i;
+    lcp_ix i;
     double r, r2, num = 0.0, zmax = 0.0, den;
     for (i = 0; i < n; i++) {
         r = mu * (z[i] - lo[i]);
@@ -1293,11 +1383,11 @@ LCP_FN double lcp_scaled_error(const double *z, const double *w, const double *l
     return num / den;
 }
 
-LCP_FN double lcp_row(const double *M, const double *q, const double *z, lcp_i64 n, lcp_i64 i)
+LCP_FN double lcp_row(const double *M, const double *q, const double *z, lcp_ix n, lcp_ix i)
 {
     double s = q[i];
     const double *Mi = M + i * n;
-    lcp_i64 j;
+    lcp_ix j;
     for (j = 0; j < n; j++)
         s += Mi[j] * z[j];
     return s;
@@ -1305,10 +1395,11 @@ LCP_FN double lcp_row(const double *M, const double *q, const double *z, lcp_i64
 
 /* pgs.pyx's pgs_sweeps (dense): 0 converged, 1 limit, 2 non-finite; w: n doubles */
 LCP_FN int lcp_sweeps(const double *M, const double *q, const double *diag, const double *lo,
-                      const double *up, double *z, lcp_i64 n, double omega, lcp_i64 max_iter,
+                      const double *up, double *z, lcp_ix n, double omega, lcp_i64 max_iter,
                       double tol, double mu, double qnorm, lcp_i64 *sweeps, double *w)
 {
-    lcp_i64 i, it, gap = 1, next_check = 1;
+    lcp_ix i;
+    lcp_i64 it, gap = 1, next_check = 1;
     double est, zmax, r, zi, znew, wi, rc, r2, err;
     for (it = 1; it <= max_iter; it++) {
         est = 0.0;
@@ -1357,15 +1448,16 @@ LCP_FN int lcp_sweeps(const double *M, const double *q, const double *diag, cons
 /* Projected SOR from z (inside the bounds) until the certificate passes, tightening the
  * sweeps' normwise target tenfold as batch.pyx's _sor_one does.  lo_in/up_in NULL: an LCP.
  * work: LCP_SOR_DWORK(n); iwork: LCP_SOR_IWORK(n). */
-LCP_FN void lcp_sor_one(lcp_i64 n, const double *M, const double *q, const double *lo_in,
+LCP_FN void lcp_sor_one(lcp_ix n, const double *M, const double *q, const double *lo_in,
                         const double *up_in, double omega, lcp_i64 max_iter, double tol,
-                        double *work, lcp_i64 *iwork, double *z, double *w, signed char *code,
+                        double *work, lcp_ix *iwork, double *z, double *w, signed char *code,
                         lcp_i64 *iters, double *err, double *res)
 {
     double *diag = work, *lo = work + n, *up = work + 2 * n, *sw = work + 3 * n;
     double *cwork = work + 4 * n + 1;
     double mu = 0.0, qnorm = 0.0, rowsum, target = tol;
-    lcp_i64 i, j, sweeps = 0, done = 0;
+    lcp_ix i, j;
+    lcp_i64 sweeps = 0, done = 0;
     int status;
     lcp_cert cert;
     *code = LCP_RETRY;
@@ -1417,7 +1509,8 @@ LCP_FN void lcp_sor_one(lcp_i64 n, const double *M, const double *q, const doubl
 #if defined(__CUDACC_RTC__) || defined(__CUDACC__)
 /* One thread per problem; grid-stride loop over the K problems; slot = the thread's global
  * index (its workspace).  Arrays: M (K, n, n), q, z, w (K, n), row-major.  use_d: d (n) is
- * the covering vector (else ones and d is not read). */
+ * the covering vector (else ones and d is not read).  iwork: LCP_LEMKE_IWORK(n) 8-byte slots
+ * per thread (the device uses the first half of each as 32-bit lcp_ix). */
 extern "C" __global__ void lcp_lemke_stack(
     lcp_i64 K, lcp_i64 n, const double *M, const double *q, int use_d, const double *d,
     lcp_i64 max_iter, double piv_tol, double tie_tol, double tol, double polished, int balanced,
@@ -1427,18 +1520,21 @@ extern "C" __global__ void lcp_lemke_stack(
     lcp_i64 slot = (lcp_i64)blockIdx.x * blockDim.x + threadIdx.x;
     lcp_i64 stride = (lcp_i64)gridDim.x * blockDim.x, k;
     double *tw = work + slot * LCP_LEMKE_DWORK(n);
-    lcp_i64 *ti = iwork + slot * LCP_LEMKE_IWORK(n);
+    lcp_ix *ti = (lcp_ix *)(iwork + slot * LCP_LEMKE_IWORK(n));
     for (k = slot; k < K; k += stride)
         lcp_lemke_one(n, M + k * n * n, q + k * n, use_d ? d : 0, max_iter, piv_tol, tie_tol,
                       tol, polished, balanced, q_balanced, max_rounds, tw, ti,
-                      tw + LCP_TAB_DWORK(n), ti + LCP_TAB_IWORK(n), z + k * n, w + k * n,
-                      code + k, iters + k, err + k, res + k, 0, 1, 0);
+                      tw + LCP_TAB_DWORK(n), ti + LCP_TAB_IWORK(n),
+                      tw + LCP_TAB_DWORK(n) + LCP_HOT_DWORK(n),
+                      ti + LCP_TAB_IWORK(n) + LCP_HOT_IWORK(n), z + k * n, w + k * n, code + k,
+                      iters + k, err + k, res + k, 0, 1, 0);
 }
 
-/* One warp per problem (blockDim.x a multiple of 32; every lane of a warp takes part):
- * use_shared: the tableau part of each warp's workspace in dynamic shared memory
- * (blockDim.x / 32 * 8 * (LCP_TAB_DWORK(n) + LCP_TAB_IWORK(n)) bytes), else in work/iwork,
- * which hold LCP_LEMKE_DWORK(n) / LCP_LEMKE_IWORK(n) per warp of the grid either way. */
+/* A group of `lanes` lanes per problem (8, 16 or 32, dividing blockDim.x; every lane of a
+ * group takes part; several groups share a warp when lanes < 32).  work: LCP_FAST_SLOTS(n,
+ * stage) + LCP_COLD_SLOTS(n) slots per group of the grid; use_shared: each group's fast part
+ * in dynamic shared memory instead (blockDim.x / lanes * 8 * LCP_FAST_SLOTS(n, stage) bytes);
+ * stage (with use_shared): M, q, z and w staged there too (lcp_lemke_group). */
 /* LCP_WARP_MIN_BLOCKS: blocks of 256 threads the compiler must fit on one multiprocessor (its
  * register budget); an NVRTC -D option (EXTRA_OPTIONS in backends/cuda.py), speed only. */
 #ifndef LCP_WARP_MIN_BLOCKS
@@ -1447,23 +1543,21 @@ extern "C" __global__ void lcp_lemke_stack(
 extern "C" __global__ void __launch_bounds__(256, LCP_WARP_MIN_BLOCKS) lcp_lemke_warp_stack(
     lcp_i64 K, lcp_i64 n, const double *M, const double *q, int use_d, const double *d,
     lcp_i64 max_iter, double piv_tol, double tie_tol, double tol, double polished, int balanced,
-    int q_balanced, int max_rounds, int use_shared, double *work, lcp_i64 *iwork, double *z,
-    double *w, signed char *code, lcp_i64 *iters, double *err, double *res)
+    int q_balanced, int max_rounds, int lanes, int use_shared, int stage, double *work,
+    double *z, double *w, signed char *code, lcp_i64 *iters, double *err, double *res)
 {
     extern __shared__ double lcp_smem[];
-    lcp_i64 lane = threadIdx.x & 31, wib = threadIdx.x >> 5, wpb = blockDim.x >> 5;
-    lcp_i64 slot = (lcp_i64)blockIdx.x * wpb + wib, nslots = (lcp_i64)gridDim.x * wpb, k;
-    double *gw = work + slot * LCP_LEMKE_DWORK(n), *tw = gw;
-    lcp_i64 *gi = iwork + slot * LCP_LEMKE_IWORK(n), *ti = gi;
-    if (use_shared) {
-        tw = lcp_smem + wib * (LCP_TAB_DWORK(n) + LCP_TAB_IWORK(n));
-        ti = (lcp_i64 *)(tw + LCP_TAB_DWORK(n));
-    }
+    lcp_ix lane = threadIdx.x & (lanes - 1), grp = threadIdx.x / lanes, gpb = blockDim.x / lanes;
+    lcp_i64 slot = (lcp_i64)blockIdx.x * gpb + grp, nslots = (lcp_i64)gridDim.x * gpb, k;
+    lcp_i64 fast = LCP_FAST_SLOTS(n, stage), per = fast + LCP_COLD_SLOTS(n);
+    double *gw = work + slot * per, *sh = use_shared ? lcp_smem + grp * fast : gw;
+    double *cw = gw + fast;
+    lcp_ix *ci = (lcp_ix *)(cw + LCP_COLD_DWORK(n));
     for (k = slot; k < K; k += nslots)
-        lcp_lemke_one(n, M + k * n * n, q + k * n, use_d ? d : 0, max_iter, piv_tol, tie_tol,
-                      tol, polished, balanced, q_balanced, max_rounds, tw, ti,
-                      gw + LCP_TAB_DWORK(n), gi + LCP_TAB_IWORK(n), z + k * n, w + k * n,
-                      code + k, iters + k, err + k, res + k, lane, 32, 1);
+        lcp_lemke_group(n, M + k * n * n, q + k * n, use_d ? d : 0, max_iter, piv_tol, tie_tol,
+                        tol, polished, balanced, q_balanced, max_rounds, stage, sh, cw, ci,
+                        z + k * n, w + k * n, code + k, iters + k, err + k, res + k, lane,
+                        lanes);
 }
 
 /* bounded: lo, up (K, n) are the box (else an LCP: they are not read); z: the start points */
@@ -1477,8 +1571,8 @@ extern "C" __global__ void lcp_sor_stack(
     for (k = slot; k < K; k += stride)
         lcp_sor_one(n, M + k * n * n, q + k * n, bounded ? lo + k * n : 0,
                     bounded ? up + k * n : 0, omega, max_iter, tol,
-                    work + slot * LCP_SOR_DWORK(n), iwork + slot * LCP_SOR_IWORK(n), z + k * n,
-                    w + k * n, code + k, iters + k, err + k, res + k);
+                    work + slot * LCP_SOR_DWORK(n), (lcp_ix *)(iwork + slot * LCP_SOR_IWORK(n)),
+                    z + k * n, w + k * n, code + k, iters + k, err + k, res + k);
 }
 #endif
 

@@ -1,0 +1,142 @@
+"""The single-source kernel's lane code paths, run on the CPU by threads standing in for lanes.
+
+The device runs ``lcp_lemke_group`` (the warp kernel's body) on a group of 8, 16 or 32 lanes per
+problem; the CPU build runs it with one lane.  ``lanes_harness.cpp`` compiles the same header with
+``LCP_EMULATE_LANES`` (each lane a thread, ``LCP_SYNC`` a barrier, shuffles and votes exchanged
+through memory), so that every split loop, reduction and hand-over between lanes is checked here
+against the one-lane answers bit for bit, on a machine without a GPU.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from lcpcli.core.tolerances import PIVOT_TOL, POLISHED, TIE_TOL
+from lcpcli.solvers.kernels import stack_c
+
+SRC = Path(stack_c.__file__).parent / "src"
+HARNESS = Path(__file__).with_name("lanes_harness.cpp")
+CXX = shutil.which("g++") or shutil.which("clang++")
+pytestmark = pytest.mark.skipif(CXX is None, reason="no C++ compiler for the lane harness")
+F64 = np.ctypeslib.ndpointer(np.float64, flags="C_CONTIGUOUS")
+I64 = np.ctypeslib.ndpointer(np.int64, flags="C_CONTIGUOUS")
+I8 = np.ctypeslib.ndpointer(np.int8, flags="C_CONTIGUOUS")
+
+
+@pytest.fixture(scope="module")
+def emu(tmp_path_factory):
+    lib = tmp_path_factory.mktemp("lanes") / "liblanes.so"
+    subprocess.run([CXX, "-std=c++20", "-O1", "-shared", "-fPIC", "-pthread",
+                    "-Drestrict=__restrict__", f"-I{SRC}", str(HARNESS), "-o", str(lib)],
+                   check=True, capture_output=True, text=True)
+    so = ctypes.CDLL(str(lib))
+    ll, dbl, i32 = ctypes.c_longlong, ctypes.c_double, ctypes.c_int
+    so.emu_lemke_stack.argtypes = [ll, ll, F64, F64, ctypes.c_void_p, ll, dbl, dbl, dbl, dbl,
+                                   i32, i32, i32, i32, i32, F64, F64, I8, I64, F64, F64]
+    so.emu_certify.argtypes = [ll, F64, F64, F64, ctypes.c_void_p, ctypes.c_void_p, i32, F64,
+                               ctypes.POINTER(dbl), ctypes.POINTER(dbl)]
+    return so
+
+
+def outputs(K, n):
+    return (np.zeros((K, n)), np.zeros((K, n)), np.ones(K, np.int8), np.zeros(K, np.int64),
+            np.full(K, np.inf), np.full(K, np.nan))
+
+
+def one_lane(M, q, stage, balance=(4, 8, 12)):
+    K, n = q.shape
+    out = outputs(K, n)
+    stack_c.lemke_stack(M, q, None, 10 * n + 10, PIVOT_TOL, TIE_TOL, 1e-9, POLISHED, balance,
+                        *out, 1, True, stage)
+    return out
+
+
+def lanes(emu, M, q, stage, count, balance=(4, 8, 12)):
+    K, n = q.shape
+    out = outputs(K, n)
+    bal = balance or (-1, 0, 0)
+    rc = emu.emu_lemke_stack(K, n, np.ascontiguousarray(M), np.ascontiguousarray(q), None,
+                             10 * n + 10, PIVOT_TOL, TIE_TOL, 1e-9, POLISHED, *bal, int(stage),
+                             count, *out)
+    assert rc == 0, "the lanes of a group diverged (a collective they did not all reach)"
+    return out
+
+
+def stack(kind, K, n, seed):
+    """pd: random positive definite plus a skew part; ties: small integers (degenerate ratio
+    tests: the lexicographic tie-break); scaled: rows and columns 2^+-30 apart (equilibrated
+    first); general: Gaussian (rays and iteration limits: handed back)."""
+    rng = np.random.default_rng(seed)
+    if kind == "ties":
+        M = rng.integers(-2, 3, (K, n, n)).astype(float) + 3 * np.eye(n)
+        return M, rng.integers(-2, 2, (K, n)).astype(float)
+    if kind == "general":
+        return rng.standard_normal((K, n, n)), rng.standard_normal((K, n))
+    A = rng.standard_normal((K, n, n))
+    S = rng.standard_normal((K, n, n)) * 0.2
+    M = A @ A.transpose(0, 2, 1) / n + np.eye(n) + S - S.transpose(0, 2, 1)
+    q = rng.standard_normal((K, n))
+    if kind == "scaled":
+        D, E = 2.0 ** rng.integers(-30, 30, (K, n)), 2.0 ** rng.integers(-30, 30, (K, n))
+        M, q = M * D[:, :, None] * E[:, None, :], q * D
+    return M, q
+
+
+@pytest.mark.parametrize("count", [8, 16, 32])
+@pytest.mark.parametrize("kind", ["pd", "ties", "scaled", "general"])
+def test_groups_of_lanes_give_the_one_lane_answers(emu, kind, count):
+    """z, w, code, pivots, error and residual equal bit for bit, staged and not, for sizes
+    below, at and above the group's width (n = 1, 7, 12, 17, 40)."""
+    solved = 0
+    for n in (1, 7, 12, 17, 40):
+        M, q = stack(kind, 4 if n == 40 else 6, n, seed=n + count)
+        for stage in (True, False):
+            ref = one_lane(M, q, stage)
+            got = lanes(emu, M, q, stage, count)
+            for a, b in zip(got, ref, strict=True):
+                np.testing.assert_array_equal(a, b, err_msg=f"{kind} n={n} stage={stage}")
+        solved += int((ref[2] == 0).sum())
+    assert solved > 0  # the lanes' certificates were compared, not only hand-backs
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.integers(1, 24), st.sampled_from([8, 16, 32]), st.integers(0, 2**32 - 1),
+       st.booleans())
+def test_lane_groups_property(emu, n, count, seed, balance):
+    """Any size, group width and seed: the lanes compute what one lane computes."""
+    rng = np.random.default_rng(seed)
+    M, q = stack(rng.choice(["pd", "ties", "scaled", "general"]), 3, n, seed)
+    bal = (4, 8, 12) if balance else None
+    ref = one_lane(M, q, True, bal)
+    got = lanes(emu, M, q, True, count, bal)
+    for a, b in zip(got, ref, strict=True):
+        np.testing.assert_array_equal(a, b)
+
+
+@pytest.mark.parametrize("count", [8, 32])
+def test_the_certificate_split_over_lanes(emu, count):
+    """lcp_certify_warp over lanes against one lane (LCP and box, zeros in z, blocks)."""
+    rng = np.random.default_rng(count)
+    for n in (1, 5, 13, 33):
+        M = rng.standard_normal((n, n)) * 10.0 ** rng.integers(-3, 4, (n, 1))
+        M *= rng.integers(0, 2, n)[:, None] == rng.integers(0, 2, n)[None, :]
+        q = rng.standard_normal(n)
+        z = np.where(rng.random(n) < 0.4, 0.0, rng.random(n))
+        for lo, up in ((None, None), (-rng.random(n), rng.random(n))):
+            zz = z if lo is None else np.clip(z, lo, up)
+            ref = stack_c.certify(M, q, zz, lo, up, warp=True)
+            err, res, w = ctypes.c_double(), ctypes.c_double(), np.zeros(n)
+            st_ = emu.emu_certify(n, M, q, zz, None if lo is None else lo.ctypes.data,
+                                  None if up is None else up.ctypes.data, count, w,
+                                  ctypes.byref(err), ctypes.byref(res))
+            assert st_ == ref[0]
+            if st_ == 0:
+                assert (err.value, res.value) == (ref[1], ref[2])
