@@ -213,7 +213,16 @@ def main() -> None:
     ap.add_argument("--sizes", default="12,50", help="n of the device cases (comma-separated)")
     ap.add_argument("--min-blocks", default="1,2,3,4",
                     help="LCP_WARP_MIN_BLOCKS builds of the warp kernel to compare")
+    ap.add_argument("--table", type=Path, default=None,
+                    help="a WARP_TABLE for backends/cuda.py (JSON rows, from gpu_sweep.py "
+                         "--table-out) instead of the shipped one")
     args = ap.parse_args()
+    if args.table is not None:
+        from lcpcli.solvers.backends import cuda
+
+        cuda.WARP_TABLE = tuple((int(a), int(b), bool(c), int(d))
+                                for a, b, c, d in json.loads(args.table.read_text()))
+        print(json.dumps({"warp_table": cuda.WARP_TABLE}), flush=True)
     info = {"date": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
             "python": platform.python_version(), "numpy": np.__version__,
             "machine": platform.platform(), "cpus": os.cpu_count()}
@@ -226,9 +235,12 @@ def main() -> None:
         import cupy as cp
 
         props = cp.cuda.runtime.getDeviceProperties(cp.cuda.Device().id)
-        info.update(device=props["name"].decode(), cupy=cp.__version__)
+        from lcpcli.solvers.backends import cuda
+
+        info.update(device=props["name"].decode(), cupy=cp.__version__,
+                    warp_table=cuda.WARP_TABLE)
         stacks = {12: 1_000_000, 24: 300_000, 32: 200_000, 50: 100_000}
-        blocks = tuple(int(b) for b in args.min_blocks.split(","))
+        blocks = tuple(int(b) for b in args.min_blocks.split(",") if b)
         for n in (int(x) for x in args.sizes.split(",")):
             K = stacks.get(n, 100_000)
             cases.append(gpu_case(n, max(1, int(K * args.scale)), args.sample, args.repeat,

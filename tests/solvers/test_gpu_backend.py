@@ -109,3 +109,16 @@ def test_warp_register_budgets_change_no_answer(n, blocks, monkeypatch):
     monkeypatch.setattr(cuda, "EXTRA_OPTIONS", (f"-DLCP_WARP_MIN_BLOCKS={blocks}",))
     M, q = stack("mixed", 1500, n, seed=9)
     assert_same(solve_many(M, q, "lemke"), solve_many(M, q, "lemke", backend="cuda"))
+
+
+@pytest.mark.parametrize("n", [3, 12, 24, 40])
+@pytest.mark.parametrize("lanes", [8, 16, 32])
+@pytest.mark.parametrize("stage", [True, False])
+def test_lane_groups_and_staging_change_no_answer(n, lanes, stage, monkeypatch):
+    """Every WARP_TABLE choice (lanes per problem, M/q/z/w staged in shared memory or not)
+    gives the CPU's status, z and pivots: several problems per warp when lanes < 32."""
+    monkeypatch.setattr(cuda, "LEMKE_VARIANT", "warp")
+    monkeypatch.setattr(cuda, "WARP_TABLE", ((1 << 62, lanes, stage, 4 if n <= 32 else 1),))
+    for kind in ("mixed", "degenerate"):
+        M, q = stack(kind, 700, n, seed=n + lanes)
+        assert_same(solve_many(M, q, "lemke"), solve_many(M, q, "lemke", backend="cuda"))

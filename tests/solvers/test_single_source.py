@@ -453,3 +453,27 @@ def test_device_arrays_with_auto_and_with_a_host_backend(fake_device):
     np.testing.assert_array_equal(np.asarray(dev.z), ref.z)
     with pytest.raises(OptionError, match="device memory"):
         solve_many(fake_device.asarray(M), fake_device.asarray(q), backend="cpu")
+
+
+def test_warp_launch_shapes_fit_their_shared_memory():
+    """The warp kernel's launch shape for every size: whole groups per warp, at most
+    SHARED_BYTES per block, staged only when asked and it fits, the workspace slots of the
+    staging actually used, device memory when one warp's groups do not fit."""
+    for n in range(1, 200):
+        for lanes in (8, 16, 32):
+            for stage in (True, False):
+                g = cuda.warp_launch(n, lanes, stage)
+                fast, cold = stack_c.group_slots(n, g.stage)
+                assert g.lanes == lanes and g.groups == g.warps * 32 // lanes
+                assert g.slots == fast + cold
+                assert not g.stage or stage
+                if g.shared:
+                    assert g.shared == g.groups * 8 * fast <= cuda.SHARED_BYTES
+                    if stage and not g.stage:  # staging did not fit, the rest does
+                        assert 8 * stack_c.group_slots(n, True)[0] * 32 // lanes \
+                            > cuda.SHARED_BYTES
+                else:
+                    assert 8 * fast * 32 // lanes > cuda.SHARED_BYTES and not g.stage
+    with pytest.raises(OptionError, match="8, 16 or 32"):
+        cuda.warp_launch(12, 4)
+    assert cuda.warp_row(10**9) == cuda.WARP_TABLE[-1]

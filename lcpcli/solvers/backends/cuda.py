@@ -44,26 +44,24 @@ WORK_BYTES = 4 << 30
 #: status, z and pivots on every problem compared, and "warp" ran 3.1x (n = 12) and 13x
 #: (n = 50) faster.
 LEMKE_VARIANT = "warp"
-#: Lanes per problem in the warp kernel by size: (largest n, lanes), the first that fits;
-#: larger problems get a whole warp (32).  Speed only: every choice computes the same numbers.
-LANES: tuple[tuple[int, int], ...] = ((16, 16),)
-#: Largest n whose M, q, z and w are staged in shared memory with the workspace (the
-#: certificate's passes then never wait on device memory; more shared memory per problem means
-#: fewer problems at once).  Speed only.
-STAGE_MAX_N = 32
 #: Warps per block of the warp kernel, and the shared memory a block may use for workspaces.
 WARPS_PER_BLOCK = 8
 SHARED_BYTES = 96 << 10
 #: NVRTC options: no contraction into FMA (the CPU build has none: the same rounding).
 NVRTC_OPTIONS = ("--std=c++11", "--fmad=false")
-#: The warp kernel's register budget by size: (largest n, blocks of 256 threads that must fit
-#: on one multiprocessor: the ``LCP_WARP_MIN_BLOCKS`` of its ``__launch_bounds__``).  On an
-#: H100 (benchmarks/README.md) 4 (64 registers, 384 bytes spilled) against 1 (244 registers):
-#: 1.48x faster at n = 12, 1.09x at n = 24, 1.17x at n = 32, 0.78x at n = 50.  Speed only:
-#: every build computes the same numbers.
-WARP_MIN_BLOCKS = ((32, 4),)
-#: Extra NVRTC options that replace the choice above (``-D`` tuning macros of lcp_stack.h),
-#: for benchmarks/bench_gpu.py; speed only, never a result.
+#: The warp kernel's speed choices by size: rows (largest n, lanes per problem, stage,
+#: register budget), the first row whose n fits.  Lanes: 8, 16 or 32 (a warp holds 32 / lanes
+#: problems); stage: M, q, z and w copied to shared memory with the workspace (the
+#: certificate's passes then never wait on device memory; more shared memory per problem means
+#: fewer problems at once); register budget: the LCP_WARP_MIN_BLOCKS of its
+#: ``__launch_bounds__`` (blocks of 256 threads that must fit on one multiprocessor: 1 = up
+#: to 255 registers, 4 = 64).  Speed only: every choice computes the same numbers
+#: (tests/solvers/test_lane_groups.py, test_gpu_backend.py).  Measured on the device by
+#: benchmarks/gpu_sweep.py (benchmarks/README.md).
+WARP_TABLE: tuple[tuple[int, int, bool, int], ...] = (
+    (16, 16, True, 4), (32, 32, True, 4), (1 << 62, 32, False, 1))
+#: Extra NVRTC options that replace the table's register budget (``-D`` tuning macros of
+#: lcp_stack.h), for benchmarks/bench_gpu.py; speed only, never a result.
 EXTRA_OPTIONS: tuple[str, ...] = ()
 #: Host stacks go to the device in chunks of about this many bytes of M, on two streams, so
 #: that the copy of one chunk overlaps the kernel of the one before.
@@ -110,14 +108,17 @@ def _module(device: int, extra: tuple[str, ...] = ()) -> Any:
     return cp.RawModule(code=source(), options=NVRTC_OPTIONS + extra)
 
 
+def warp_row(n: int) -> tuple[int, int, bool, int]:
+    """The :data:`WARP_TABLE` row of size ``n``."""
+    return next(row for row in WARP_TABLE if n <= row[0])
+
+
 def build_options(name: str, n: int) -> tuple[str, ...]:
     """The extra NVRTC options of kernel ``name`` for problems of size ``n``."""
     if EXTRA_OPTIONS or name != "lcp_lemke_warp_stack":
         return EXTRA_OPTIONS
-    for most, blocks in WARP_MIN_BLOCKS:
-        if n <= most:
-            return (f"-DLCP_WARP_MIN_BLOCKS={blocks}",)
-    return ()
+    blocks = warp_row(n)[3]
+    return (f"-DLCP_WARP_MIN_BLOCKS={blocks}",) if blocks != 1 else ()
 
 
 def kernel(name: str, n: int = 0) -> Any:
@@ -233,18 +234,18 @@ class WarpLaunch(NamedTuple):
 
 
 def warp_launch(n: int, lanes: int | None = None, stage: bool | None = None) -> WarpLaunch:
-    """The warp kernel's launch shape for size ``n`` (:data:`LANES`, :data:`STAGE_MAX_N`,
-    :data:`WARPS_PER_BLOCK`, :data:`SHARED_BYTES`; ``lanes``/``stage`` override the tables,
-    for benchmarks).  The fast part of each group's workspace goes to shared memory when one
-    warp's groups fit in :data:`SHARED_BYTES`, else everything stays in device memory."""
+    """The warp kernel's launch shape for size ``n`` (:data:`WARP_TABLE`,
+    :data:`WARPS_PER_BLOCK`, :data:`SHARED_BYTES`; ``lanes``/``stage`` override the table).
+    The fast part of each group's workspace goes to shared memory when one warp's groups fit
+    in :data:`SHARED_BYTES` (staged when asked and it fits, else not staged), else everything
+    stays in device memory."""
     from lcpcli.solvers.kernels.stack_c import group_slots
 
-    if lanes is None:
-        lanes = next((k for most, k in LANES if n <= most), 32)
+    row = warp_row(n)
+    lanes = row[1] if lanes is None else lanes
+    stage = row[2] if stage is None else stage
     if lanes not in (8, 16, 32):
         raise OptionError(f"lanes per problem must be 8, 16 or 32, not {lanes}")
-    if stage is None:
-        stage = n <= STAGE_MAX_N
     per_warp = 32 // lanes
     for staged in ((True, False) if stage else (False,)):
         fast, cold = group_slots(n, staged)

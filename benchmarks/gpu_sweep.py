@@ -1,0 +1,220 @@
+"""The warp kernel's speed choices on a CUDA device, against the kernel of an earlier commit.
+
+    PYTHONPATH=. python benchmarks/gpu_sweep.py --out "$OUT/gpu_sweep.json" \
+        [--cubins DIR] [--old-cubins DIR] [--sizes 12,24,32,50]
+
+For random positive definite stacks (benchmarks/bench_stack.py's ``make_stack``, the sizes of
+benchmarks/bench_gpu.py), Lemke with the certificate on data already on the device (CUDA
+events, best of ``--repeat``), every combination of the choices that change speed only:
+
+* the register budget (``LCP_WARP_MIN_BLOCKS`` of ``__launch_bounds__``: 1-4),
+* lanes per problem (8, 16, 32),
+* staging M, q, z, w in shared memory,
+
+the three columns of ``backends/cuda.py``'s ``WARP_TABLE``.
+
+Every combination must give the first one's z, w, code, pivots, error and residual bit for
+bit (``same``), and the first one the CPU's status, z and pivots on a sample (``cpu``).
+``--cubins DIR``: modules built ahead with nvcc (``mb1.cubin`` ... ``mb4.cubin``: the
+current ``lcp_stack.h`` with ``-DLCP_WARP_MIN_BLOCKS=k``), so that the sweep does not wait on
+NVRTC; without it each budget is compiled by NVRTC as the package does.  ``--old-cubins DIR``:
+the same builds of an earlier ``lcp_stack.h`` (whose warp kernel has one warp per problem and
+takes ``(use_shared, work, iwork)``), run in the same process as the baseline.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_stack import make_stack  # noqa: E402
+
+import lcpcli  # noqa: E402
+from lcpcli.solvers.backends import cuda  # noqa: E402
+from lcpcli.solvers.backends.c import lemke_args  # noqa: E402
+from lcpcli.solvers.batched import KERNEL_SOLVED  # noqa: E402
+from lcpcli.solvers.registry import get_method  # noqa: E402
+
+STACKS = {12: 1_000_000, 24: 300_000, 32: 200_000, 50: 100_000}
+KEYS = ("z", "w", "code", "iterations", "error", "residual")
+
+
+def timed(cp, fn, repeat: int) -> float:  # noqa: ANN001
+    best = float("inf")
+    for _ in range(repeat):
+        e0, e1 = cp.cuda.Event(), cp.cuda.Event()
+        e0.record()
+        fn()
+        e1.record()
+        e1.synchronize()
+        best = min(best, cp.cuda.get_elapsed_time(e0, e1) / 1e3)
+    return best
+
+
+def old_launch(cp, mod, Md, qd, tol: float, scaling: str):  # noqa: ANN001, ANN201
+    """The earlier warp kernel (one warp per problem), launched as its backends/cuda.py did."""
+    K, n = qd.shape
+    a = lemke_args(n, {}, scaling)
+    tdw, tiw = n * (n + 1) + 4 * n + 1, 4 * n + 6
+    dw, iw = tdw + 3 * n * n + 11 * n, tiw + 10 * n
+    per_warp = 8 * (tdw + tiw)
+    use_shared = per_warp <= cuda.SHARED_BYTES
+    wpb = max(1, min(cuda.WARPS_PER_BLOCK, cuda.SHARED_BYTES // per_warp)) if use_shared else 4
+    blocks = cuda._grid(K, 8 * (dw + iw), wpb, cp)
+    o = cuda._outputs(K, n, cp)
+    work = cp.empty(blocks * wpb * dw, cp.float64)
+    iwork = cp.empty(blocks * wpb * iw, cp.int64)
+    d = cp.ones(n)
+    bal = a["balance"] or (-1, 0, 0)
+    fn = mod.get_function("lcp_lemke_warp_stack")
+    shared = wpb * per_warp if use_shared else 0
+    if shared > 48 << 10:
+        fn.max_dynamic_shared_size_bytes = shared
+    fn((blocks,), (32 * wpb,),
+       (np.int64(K), np.int64(n), Md, qd, np.int32(0), d, np.int64(a["max_iter"]),
+        np.float64(a["piv_tol"]), np.float64(a["tie_tol"]), np.float64(tol),
+        np.float64(a["polished"]), np.int32(bal[0]), np.int32(bal[1]), np.int32(bal[2]),
+        np.int32(use_shared), work, iwork, o["z"], o["w"], o["code"], o["iterations"],
+        o["error"], o["residual"]), shared_mem=shared)
+    return o
+
+
+def sweep(n: int, K: int, args: argparse.Namespace, modules: dict, old: dict) -> dict:
+    import cupy as cp
+
+    spec = get_method("lemke")
+    tol = spec.default_tol
+    M, q = make_stack(K, n, seed=2026)
+    Md, qd = cp.asarray(M), cp.asarray(q)
+    out: dict = {"n": n, "K": K, "configs": []}
+    first = None
+    lanes_list = [8, 16, 32] if n <= 24 else [16, 32]
+    for mb in args.blocks:
+        cuda.EXTRA_OPTIONS = (f"-DLCP_WARP_MIN_BLOCKS={mb}",)
+        for lanes in lanes_list:
+            for stage in (True, False):
+                cuda.WARP_TABLE = ((1 << 62, lanes, stage, mb),)
+                shape = cuda.warp_launch(n)
+                res = {}
+
+                def run(res=res) -> None:  # noqa: ANN001
+                    res["o"] = cuda.run_lemke(Md, qd, tol=tol, options={},
+                                              scaling=spec.scaling, variant="warp")
+                secs = timed(cp, run, args.repeat)
+                o = res["o"]
+                certified = int((o["code"] == KERNEL_SOLVED).sum())
+                row = {"min_blocks": mb, "lanes": lanes, "stage": shape.stage,
+                       "warps_per_block": shape.warps, "shared_per_block": shape.shared,
+                       "kernel_s": secs, "certified_per_s": certified / secs,
+                       "certified": certified}
+                if first is None:
+                    first = {k: o[k].get() for k in KEYS}
+                    idx = np.random.default_rng(1).choice(K, min(args.sample, K), replace=False)
+                    host = lcpcli.solve_many(M[idx], q[idx], "lemke")
+                    ok = first["code"][idx] == KERNEL_SOLVED
+                    out["cpu"] = {
+                        "sample": int(idx.size), "device_certified": int(ok.sum()),
+                        "cpu_solved_where_device_certified": bool(host.solved[ok].all()),
+                        "same_z": bool(np.array_equal(first["z"][idx][ok], host.z[ok])),
+                        "same_pivots": bool(np.array_equal(first["iterations"][idx][ok],
+                                                           host.iterations[ok]))}
+                    row["same"] = True
+                else:
+                    row["same"] = all(np.array_equal(o[k].get(), first[k], equal_nan=True)
+                                      for k in KEYS)
+                del o, res["o"]
+                out["configs"].append(row)
+                print(json.dumps({"n": n, **row}), flush=True)
+    for mb, mod in sorted(old.items()):
+        res = {}
+
+        def run_old(res=res, mod=mod) -> None:  # noqa: ANN001
+            res["o"] = old_launch(cp, mod, Md, qd, tol, spec.scaling)
+        secs = timed(cp, run_old, args.repeat)
+        o = res["o"]
+        certified = int((o["code"] == KERNEL_SOLVED).sum())
+        row = {"min_blocks": mb, "kernel_s": secs, "certified_per_s": certified / secs,
+               "same": all(np.array_equal(o[k].get(), first[k], equal_nan=True)
+                           for k in KEYS)}
+        out.setdefault("old", []).append(row)
+        print(json.dumps({"n": n, "old": row}), flush=True)
+        del o, res["o"]
+    good = [c for c in out["configs"] if c["same"]]
+    if good:
+        out["best"] = max(good, key=lambda c: c["certified_per_s"])
+    if out.get("old"):
+        out["best_old"] = max(out["old"], key=lambda c: c["certified_per_s"])
+    Md = qd = None  # noqa: F841 - the stack's device memory back before the next size
+    cp.get_default_memory_pool().free_all_blocks()
+    return out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--out", type=Path, default=None)
+    ap.add_argument("--sizes", default="12,24,32,50")
+    ap.add_argument("--blocks", default="1,2,3,4")
+    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--sample", type=int, default=20_000)
+    ap.add_argument("--scale", type=float, default=1.0, help="multiply every K by this")
+    ap.add_argument("--cubins", type=Path, default=None)
+    ap.add_argument("--old-cubins", type=Path, default=None)
+    ap.add_argument("--table-out", type=Path, default=None,
+                    help="the WARP_TABLE the best rows make (JSON), for bench_gpu.py --table")
+    args = ap.parse_args()
+    args.blocks = [int(b) for b in args.blocks.split(",")]
+    import cupy as cp
+
+    modules: dict = {}
+    if args.cubins is not None:  # modules built ahead: the package's lookup returns them
+        for mb in args.blocks:
+            path = args.cubins / f"mb{mb}.cubin"
+            if path.exists():
+                modules[(f"-DLCP_WARP_MIN_BLOCKS={mb}",)] = cp.RawModule(path=str(path))
+        nvrtc = cuda._module
+
+        def lookup(device: int, extra: tuple[str, ...] = ()):  # noqa: ANN202
+            return modules[extra] if extra in modules else nvrtc(device, extra)
+        cuda._module = lookup
+    old = {}
+    if args.old_cubins is not None:
+        for mb in args.blocks:
+            path = args.old_cubins / f"mb{mb}.cubin"
+            if path.exists():
+                old[mb] = cp.RawModule(path=str(path))
+    props = cp.cuda.runtime.getDeviceProperties(cp.cuda.Device().id)
+    info = {"date": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
+            "device": props["name"].decode(), "cupy": cp.__version__,
+            "prebuilt": sorted(" ".join(k) for k in modules), "old": sorted(old)}
+    print(json.dumps(info), flush=True)
+    cases = []
+    for n in (int(x) for x in args.sizes.split(",")):
+        t = time.perf_counter()
+        cases.append(sweep(n, max(1, int(STACKS.get(n, 100_000) * args.scale)), args, modules,
+                           old))
+        cases[-1]["seconds"] = time.perf_counter() - t
+        print(json.dumps({"n": n, "best": cases[-1].get("best"),
+                          "best_old": cases[-1].get("best_old")}), flush=True)
+    rows = [[c["n"], c["best"]["lanes"], c["best"]["stage"], c["best"]["min_blocks"]]
+            for c in cases if c.get("best")]
+    if rows:
+        rows[-1][0] = 1 << 62  # the largest size measured speaks for every larger one
+        print(json.dumps({"table": rows}), flush=True)
+        if args.table_out is not None:
+            args.table_out.write_text(json.dumps(rows) + "\n")
+    path = args.out or (Path(os.environ["OUT"]) / "gpu_sweep.json" if os.environ.get("OUT")
+                        else None)
+    if path is not None:
+        path.write_text(json.dumps({"info": info, "cases": cases}, indent=1) + "\n")
+        print(f"wrote {path}")
+
+
+if __name__ == "__main__":
+    main()
