@@ -100,7 +100,7 @@ extern "C" int emu_lemke_stack(long long K, long long n, const double *M, const 
                                double *w, signed char *code, long long *iters, double *err,
                                double *res)
 {
-    long long fast = LCP_FAST_SLOTS(n, stage), cold = LCP_COLD_SLOTS(n);
+    long long fast = LCP_FAST_SLOTS(n), cold = LCP_COLD_SLOTS(n);
     std::vector<double> work((size_t)(fast + cold) + 1);
     emu_start(lanes);
     std::vector<std::thread> pool;

@@ -51,15 +51,15 @@ SHARED_BYTES = 96 << 10
 NVRTC_OPTIONS = ("--std=c++11", "--fmad=false")
 #: The warp kernel's speed choices by size: rows (largest n, lanes per problem, stage,
 #: register budget), the first row whose n fits.  Lanes: 8, 16 or 32 (a warp holds 32 / lanes
-#: problems); stage: M, q, z and w copied to shared memory with the workspace (the
-#: certificate's passes then never wait on device memory; more shared memory per problem means
-#: fewer problems at once); register budget: the LCP_WARP_MIN_BLOCKS of its
+#: problems); stage: the certificate reads M, q, z and w from the shared workspace (M copied
+#: into the spent tableau's space: no more shared memory) instead of device memory; register
+#: budget: the LCP_WARP_MIN_BLOCKS of its
 #: ``__launch_bounds__`` (blocks of 256 threads that must fit on one multiprocessor: 1 = up
 #: to 255 registers, 4 = 64).  Speed only: every choice computes the same numbers
 #: (tests/solvers/test_lane_groups.py, test_gpu_backend.py).  Measured on the device by
 #: benchmarks/gpu_sweep.py (benchmarks/README.md).
 WARP_TABLE: tuple[tuple[int, int, bool, int], ...] = (
-    (16, 16, True, 4), (32, 32, True, 4), (1 << 62, 32, False, 1))
+    (12, 8, False, 2), (32, 32, False, 2), (1 << 62, 32, False, 1))
 #: Extra NVRTC options that replace the table's register budget (``-D`` tuning macros of
 #: lcp_stack.h), for benchmarks/bench_gpu.py; speed only, never a result.
 EXTRA_OPTIONS: tuple[str, ...] = ()
@@ -237,8 +237,8 @@ def warp_launch(n: int, lanes: int | None = None, stage: bool | None = None) -> 
     """The warp kernel's launch shape for size ``n`` (:data:`WARP_TABLE`,
     :data:`WARPS_PER_BLOCK`, :data:`SHARED_BYTES`; ``lanes``/``stage`` override the table).
     The fast part of each group's workspace goes to shared memory when one warp's groups fit
-    in :data:`SHARED_BYTES` (staged when asked and it fits, else not staged), else everything
-    stays in device memory."""
+    in :data:`SHARED_BYTES`, else everything stays in device memory (and nothing is
+    staged)."""
     from lcpcli.solvers.kernels.stack_c import group_slots
 
     row = warp_row(n)
@@ -247,13 +247,11 @@ def warp_launch(n: int, lanes: int | None = None, stage: bool | None = None) -> 
     if lanes not in (8, 16, 32):
         raise OptionError(f"lanes per problem must be 8, 16 or 32, not {lanes}")
     per_warp = 32 // lanes
-    for staged in ((True, False) if stage else (False,)):
-        fast, cold = group_slots(n, staged)
-        if 8 * fast * per_warp <= SHARED_BYTES:
-            warps = max(1, min(WARPS_PER_BLOCK, SHARED_BYTES // (8 * fast * per_warp)))
-            return WarpLaunch(lanes, warps, warps * per_warp, staged,
-                              warps * per_warp * 8 * fast, fast + cold)
-    fast, cold = group_slots(n, False)
+    fast, cold = group_slots(n)
+    if 8 * fast * per_warp <= SHARED_BYTES:
+        warps = max(1, min(WARPS_PER_BLOCK, SHARED_BYTES // (8 * fast * per_warp)))
+        return WarpLaunch(lanes, warps, warps * per_warp, bool(stage),
+                          warps * per_warp * 8 * fast, fast + cold)
     return WarpLaunch(lanes, 4, 4 * per_warp, False, 0, fast + cold)
 
 

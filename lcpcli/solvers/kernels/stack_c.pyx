@@ -34,10 +34,10 @@ cdef extern from "src/lcp_stack.h" nogil:
                        double* tw, long long* ti, double* rw, long long* ri, double* cw,
                        long long* ci, double* z, double* w, signed char* code,
                        long long* iters, double* err, double* res, long long lane,
-                       long long lanes, int warp)
+                       long long lanes, int warp, int stage)
     long long LCP_HOT_DWORK(long long n)
     long long LCP_HOT_IWORK(long long n)
-    long long LCP_FAST_SLOTS(long long n, int stage)
+    long long LCP_FAST_SLOTS(long long n)
     long long LCP_COLD_SLOTS(long long n)
     long long LCP_COLD_DWORK(long long n)
     void lcp_lemke_group(long long n, const double* M, const double* q, const double* d,
@@ -110,11 +110,10 @@ def workspace(str kernel, long long n):
     return int(LCP_SOR_DWORK(n)), int(LCP_SOR_IWORK(n))
 
 
-def group_slots(long long n, bint stage):
-    """(fast, cold): the 8-byte slots of the warp kernel's workspace per group for size ``n``
-    (``stage``: M, q, z, w staged in the fast part); the fast part goes to shared memory when
-    it fits."""
-    return int(LCP_FAST_SLOTS(n, stage)), int(LCP_COLD_SLOTS(n))
+def group_slots(long long n):
+    """(fast, cold): the 8-byte slots of the warp kernel's workspace per group for size ``n``;
+    the fast part goes to shared memory when it fits."""
+    return int(LCP_FAST_SLOTS(n)), int(LCP_COLD_SLOTS(n))
 
 
 cdef cnp.ndarray _out(object a, int typenum, Py_ssize_t size, str label):
@@ -137,8 +136,8 @@ def lemke_stack(M, q, d, long long max_iter, double piv_tol, double tie_tol, dou
     have their end basis re-solved (as the CPU kernel).
     ``warp``: run the warp kernel's body (``lcp_lemke_group``, one lane here: the device
     kernel's arithmetic, label-propagation blocks in the certificate) instead of the thread
-    one; ``stage``: with M, q, z, w staged in the group's fast workspace, as the
-    device does up to ``backends.cuda.STAGE_MAX_N``).
+    one; ``stage``: the certificate reading M, q, z, w from the group's fast workspace, a
+    speed choice of ``backends.cuda.WARP_TABLE``).
     Outputs as :func:`lcpcli.solvers.kernels.batch.lemke_stack`."""
     cdef cnp.ndarray Ma = np.ascontiguousarray(M, dtype=np.float64)
     cdef cnp.ndarray qa = np.ascontiguousarray(q, dtype=np.float64)
@@ -167,7 +166,7 @@ def lemke_stack(M, q, d, long long max_iter, double piv_tol, double tie_tol, dou
     cdef long long tdw = LCP_TAB_DWORK(n), tiw = LCP_TAB_IWORK(n)
     cdef long long hdw = LCP_HOT_DWORK(n), hiw = LCP_HOT_IWORK(n)
     cdef int st = stage
-    cdef long long fast = LCP_FAST_SLOTS(n, st), cold = LCP_COLD_SLOTS(n)
+    cdef long long fast = LCP_FAST_SLOTS(n), cold = LCP_COLD_SLOTS(n)
     cdef long long cdw = LCP_COLD_DWORK(n)
     cdef int wp = warp
     cdef double* work
@@ -195,7 +194,7 @@ def lemke_stack(M, q, d, long long max_iter, double piv_tol, double tie_tol, dou
             lcp_lemke_one(n, pM + k * n * n, pq + k * n, dp, max_iter, piv_tol, tie_tol, tol,
                           polished, bal, qbal, rounds, work, iwork, work + tdw, iwork + tiw,
                           work + tdw + hdw, iwork + tiw + hiw, pz + k * n, pw + k * n, pc + k,
-                          pi + k, pe + k, pr + k, 0, 1, 0)
+                          pi + k, pe + k, pr + k, 0, 1, 0, 0)
         else:
             pc[k] = 1
         free(work)

@@ -25,6 +25,7 @@
 
 #if defined(__CUDACC_RTC__) || defined(__CUDACC__)
 #define LCP_FN static __device__ __forceinline__
+#define LCP_RESTRICT __restrict__
 /* the serial steps lane 0 takes rarely (equilibration, polish, the lexicographic tie-break,
  * the serial certificate): called, not inlined, so they do not add to the registers of the
  * hot loops (the kernel's register count bounds how many problems run at once) */
@@ -45,6 +46,7 @@
 #include "../simd.h"
 #define LCP_AXPY(y, x, a, n) lcpcli_axpy((y), (x), (a), (n))
 #define LCP_FN static inline
+#define LCP_RESTRICT restrict
 #define LCP_COLD static inline
 #define LCP_INF INFINITY
 #define LCP_NAN NAN
@@ -156,19 +158,18 @@ enum { LCP_OK = 0, LCP_RAY = 1, LCP_MAX_ITER = 2, LCP_TRIVIAL = 3 };
  * polish indices (3 n) */
 #define LCP_REST_DWORK(n) (LCP_HOT_DWORK(n) + LCP_COLD_DWORK(n))
 #define LCP_REST_IWORK(n) (LCP_HOT_IWORK(n) + LCP_COLD_IWORK(n))
-/* the rest in two parts: hot (every problem: raw z, the certificate's work, the scaling's
- * exponents) and cold (a scaled copy of the problem, the polish's work: rarely touched) */
-#define LCP_HOT_DWORK(n) (6 * (n))
+/* the rest in two parts: hot (every problem: raw z, the certificate's work, staged q, z, w,
+ * the scaling's exponents) and cold (a scaled copy of the problem, the polish's work: rarely
+ * touched) */
+#define LCP_HOT_DWORK(n) (9 * (n))
 #define LCP_HOT_IWORK(n) (7 * (n))
 #define LCP_COLD_DWORK(n) (3 * (n) * (n) + 5 * (n))
 #define LCP_COLD_IWORK(n) (3 * (n))
 /* The warp kernel's workspace per group, in 8-byte slots (an lcp_ix takes a slot): the fast
- * part (shared memory when it fits: the tableau part, the hot part and, with stage, the
- * problem's M and q and its outputs z and w) and the cold part (device memory). */
-#define LCP_STAGE_DWORK(n) ((n) * (n) + 3 * (n))
-#define LCP_FAST_SLOTS(n, stage)                                                             \
-    (LCP_TAB_DWORK(n) + LCP_TAB_IWORK(n) + LCP_HOT_DWORK(n) + LCP_HOT_IWORK(n)              \
-     + ((stage) ? LCP_STAGE_DWORK(n) : 0))
+ * part (shared memory when it fits: the tableau part and the hot part) and the cold part
+ * (device memory). */
+#define LCP_FAST_SLOTS(n)                                                                    \
+    (LCP_TAB_DWORK(n) + LCP_TAB_IWORK(n) + LCP_HOT_DWORK(n) + LCP_HOT_IWORK(n))
 #define LCP_COLD_SLOTS(n) (LCP_COLD_DWORK(n) + LCP_COLD_IWORK(n))
 #define LCP_LEMKE_DWORK(n) (LCP_TAB_DWORK(n) + LCP_REST_DWORK(n))
 #define LCP_LEMKE_IWORK(n) (LCP_TAB_IWORK(n) + LCP_REST_IWORK(n))
@@ -177,6 +178,20 @@ enum { LCP_OK = 0, LCP_RAY = 1, LCP_MAX_ITER = 2, LCP_TRIVIAL = 3 };
 
 LCP_FN double lcp_big(void) { return ldexp(1.0, 960); }
 LCP_FN double lcp_small(void) { return ldexp(1.0, -960); }
+
+/* dst[i ld + j] = src[i n + j] for the n x n block src, split over the lanes in the order of
+ * src (consecutive lanes read consecutive entries: coalesced on the device); restrict: the
+ * loads may all be in flight before the stores. */
+LCP_FN void lcp_copy_block(double *LCP_RESTRICT dst, lcp_ix ld, const double *LCP_RESTRICT src,
+                           lcp_ix n, lcp_ix lane, lcp_ix lanes)
+{
+    lcp_ix e, i = lane / (n > 0 ? n : 1), j = lane - i * n, skip = ld - n;
+    for (e = lane; e < n * n; e += lanes) {
+        dst[e + i * skip] = src[e];
+        for (j += lanes; j >= n; j -= n)
+            i += 1;
+    }
+}
 
 /* ------------------------------------------------------------------------------ certificate */
 typedef struct {
@@ -688,10 +703,11 @@ LCP_COLD int lcp_balance(lcp_ix n, const double *M, const double *q, const doubl
 
 /* The first balance test of lcp_balance split over the lanes: 1 when the problem is balanced
  * at once (row and column exponent maxima, then q: lcp_ruiz's round 0 passing), 0 when
- * lcp_balance must decide.  rmax, cmax: n each; every lane returns the same value. */
-LCP_FN int lcp_balanced_warp(lcp_ix n, const double *M, const double *q, int balanced,
-                             int q_balanced, lcp_ix *rmax, lcp_ix *cmax, lcp_ix lane,
-                             lcp_ix lanes)
+ * lcp_balance must decide.  M: rows ld apart; rmax, cmax: n each; every lane returns the
+ * same value. */
+LCP_FN int lcp_balanced_warp(lcp_ix n, const double *M, lcp_ix ld, const double *q,
+                             int balanced, int q_balanced, lcp_ix *rmax, lcp_ix *cmax,
+                             lcp_ix lane, lcp_ix lanes)
 {
     lcp_ix i, j, e, best, lo = LCP_CEIL, hi = LCP_FLOOR, clo = LCP_CEIL;
     lcp_ix chi = LCP_FLOOR, qexp = LCP_FLOOR, k;
@@ -699,8 +715,8 @@ LCP_FN int lcp_balanced_warp(lcp_ix n, const double *M, const double *q, int bal
     for (i = lane; i < n; i += lanes) {
         best = LCP_FLOOR;
         for (j = 0; j < n; j++)
-            if (M[i * n + j] != 0.0) {
-                e = lcp_exp(M[i * n + j]);
+            if (M[i * ld + j] != 0.0) {
+                e = lcp_exp(M[i * ld + j]);
                 if (e > best)
                     best = e;
             }
@@ -709,8 +725,8 @@ LCP_FN int lcp_balanced_warp(lcp_ix n, const double *M, const double *q, int bal
     for (j = lane; j < n; j += lanes) {
         best = LCP_FLOOR;
         for (i = 0; i < n; i++)
-            if (M[i * n + j] != 0.0) {
-                e = lcp_exp(M[i * n + j]);
+            if (M[i * ld + j] != 0.0) {
+                e = lcp_exp(M[i * ld + j]);
                 if (e > best)
                     best = e;
             }
@@ -985,24 +1001,21 @@ LCP_FN lcp_ix lcp_leaving_row_lanes(lcp_ix n, lcp_ix m, const double *T, const d
  * Cottle-Pang-Stone, The Linear Complementarity Problem, 4.4-4.9) on one problem, as
  * lemke.pyx's lemke_tableau, split over the lanes; warp = 0: lcp_pivot (one lane only),
  * else lcp_pivot_warp.  z (n) receives the basic solution; returns the status (LCP_OK,
- * LCP_RAY, LCP_MAX_ITER, LCP_TRIVIAL) and the pivots in *pivots_out.  tw: LCP_TAB_DWORK(n)
+ * LCP_RAY, LCP_MAX_ITER, LCP_TRIVIAL) and the pivots in *pivots_out.  ready: the tableau's
+ * first n columns hold M already (rows n + 1 apart).  tw: LCP_TAB_DWORK(n)
  * doubles, ti: LCP_TAB_IWORK(n) long longs (ti's first n: the end basis). */
 LCP_FN int lcp_lemke(lcp_ix n, const double *M, const double *q, const double *d,
                      lcp_i64 max_iter, double piv_tol, double tie_tol, double *z, double *tw,
-                     lcp_ix *ti, lcp_i64 *pivots_out, lcp_ix lane, lcp_ix lanes, int warp)
+                     lcp_ix *ti, lcp_i64 *pivots_out, lcp_ix lane, lcp_ix lanes, int warp,
+                     int ready)
 {
-    lcp_ix m = n + 1, nz = 2 * n, i, j, e, r, c, entering, leaving;
+    lcp_ix m = n + 1, nz = 2 * n, i, j, r, c, entering, leaving;
     lcp_i64 pivots;
     int status = LCP_MAX_ITER;
     double *T = tw, *qb = T + n * m, *keys = qb + n, *col = keys + n, *rowr = col + n;
     lcp_ix *basic = ti, *where = basic + n, *cand = where + 2 * n + 1, *ctl = cand + n;
-    i = lane / n; /* M in order over the lanes (coalesced reads): entry e = i n + j */
-    j = lane - i * n;
-    for (e = lane; e < n * n; e += lanes) {
-        T[e + i] = M[e]; /* T[i, j] = T[i m + j] */
-        for (j += lanes; j >= n; j -= n)
-            i += 1;
-    }
+    if (!ready)
+        lcp_copy_block(T, m, M, n, lane, lanes);
     for (i = lane; i < n; i += lanes) {
         T[i * m + n] = d ? d[i] : 1.0;
         col[i] = T[i * m + n];
@@ -1239,21 +1252,26 @@ LCP_COLD int lcp_polish(const double *M, const double *q, lcp_ix n, const double
  * thread per problem; (lane, 32, 1) a warp per problem (lane 0 writes the outputs).
  * tw, ti: LCP_TAB_DWORK(n), LCP_TAB_IWORK(n); rw, ri: LCP_HOT_DWORK(n), LCP_HOT_IWORK(n) (the
  * warp kernel keeps both in shared memory when they fit); cw, ci: LCP_COLD_DWORK(n),
- * LCP_COLD_IWORK(n). */
+ * LCP_COLD_IWORK(n).  stage: the certificate reads M, q, z and w from the fast workspace
+ * (copied into the spent tableau's space and the hot part), and z, w are copied out at the
+ * end. */
 LCP_FN void lcp_lemke_one(lcp_ix n, const double *M, const double *q, const double *d,
                           lcp_i64 max_iter, double piv_tol, double tie_tol, double tol,
                           double polished, int balanced, int q_balanced, int max_rounds,
                           double *tw, lcp_ix *ti, double *rw, lcp_ix *ri, double *cw,
                           lcp_ix *ci, double *z, double *w, signed char *code, lcp_i64 *iters,
-                          double *err, double *res, lcp_ix lane, lcp_ix lanes, int warp)
+                          double *err, double *res, lcp_ix lane, lcp_ix lanes, int warp,
+                          int stage)
 {
-    double *raw = rw, *cwork = raw + n, *Ms = cw, *qs = Ms + n * n, *ds = qs + n;
-    double *pwork = ds + n;
+    double *raw = rw, *cwork = raw + n, *zs = cwork + 5 * n, *ws = zs + n, *qs = ws + n;
+    double *Ms = cw, *qsc = Ms + n * n, *ds = qsc + n, *pwork = ds + n;
+    const double *Mc = M, *qc = q;
+    double *zc = z, *wc = w;
     lcp_ix *ciwork = ri, *rc = ciwork + 3 * n, *piwork = ci, *ctl = ti + 4 * n + 1;
     lcp_i64 pivots = 0;
     lcp_ix i;
     const double *Mu = M, *qu = q, *du = d;
-    int scaled = 0, prc = 0, status;
+    int scaled = 0, prc = 0, status, ready = 0;
     lcp_cert cert;
     if (lane == 0) {
         *code = LCP_RETRY;
@@ -1261,12 +1279,18 @@ LCP_FN void lcp_lemke_one(lcp_ix n, const double *M, const double *q, const doub
         *err = LCP_INF;
         *res = LCP_NAN;
     }
+    if (warp) { /* M into the tableau first (one coalesced pass): the balance test reads it there */
+        lcp_copy_block(tw, n + 1, M, n, lane, lanes);
+        ready = 1;
+        LCP_SYNC();
+    }
     if (balanced >= 0) {
         if (!warp) {
-            scaled = lcp_balance(n, M, q, d, balanced, q_balanced, max_rounds, Ms, qs, ds, rc);
-        } else if (!lcp_balanced_warp(n, M, q, balanced, q_balanced, rc, rc + n, lane, lanes)) {
+            scaled = lcp_balance(n, M, q, d, balanced, q_balanced, max_rounds, Ms, qsc, ds, rc);
+        } else if (!lcp_balanced_warp(n, tw, n + 1, q, balanced, q_balanced, rc, rc + n, lane,
+                                      lanes)) {
             if (lane == 0)
-                ctl[4] = lcp_balance(n, M, q, d, balanced, q_balanced, max_rounds, Ms, qs, ds,
+                ctl[4] = lcp_balance(n, M, q, d, balanced, q_balanced, max_rounds, Ms, qsc, ds,
                                      rc);
             LCP_SYNC();
             scaled = (int)ctl[4];
@@ -1274,31 +1298,46 @@ LCP_FN void lcp_lemke_one(lcp_ix n, const double *M, const double *q, const doub
     }
     if (scaled) {
         Mu = Ms;
-        qu = qs;
+        qu = qsc;
         du = ds;
+        ready = 0;
     }
     status = lcp_lemke(n, Mu, qu, du, max_iter, piv_tol, tie_tol, raw, tw, ti, &pivots, lane,
-                       lanes, warp);
+                       lanes, warp, ready);
     if (status != LCP_OK && status != LCP_TRIVIAL)
         return; /* a ray or the iteration limit: the CPU pipeline classifies it */
+    if (stage) {
+        /* the tableau is spent (z is in raw, the end basis in ti): its space (n (n + 1) >= n^2
+         * doubles) takes M, the hot part q, z and w, so that the certificate's passes read
+         * the fast workspace (shared memory on the device), not device memory */
+        lcp_copy_block(tw, n, M, n, lane, lanes);
+        for (i = lane; i < n; i += lanes) {
+            qs[i] = q[i];
+            ws[i] = w[i];
+        }
+        Mc = tw;
+        qc = qs;
+        zc = zs;
+        wc = ws;
+    }
     for (i = lane; i < n; i += lanes) {
         if (scaled) /* z = D_c z~ (exact) */
             raw[i] = ldexp(raw[i], (int)rc[n + i]);
-        z[i] = (status == LCP_TRIVIAL || raw[i] < 0.0) ? 0.0 : raw[i];
+        zc[i] = (status == LCP_TRIVIAL || raw[i] < 0.0) ? 0.0 : raw[i];
     }
     LCP_SYNC();
     if (warp)
-        lcp_certify_warp(n, M, q, z, 0, 0, w, cwork, ciwork, &cert, lane, lanes);
+        lcp_certify_warp(n, Mc, qc, zc, 0, 0, wc, cwork, ciwork, &cert, lane, lanes);
     else
-        lcp_certify(n, M, q, z, 0, 0, w, cwork, ciwork, &cert);
+        lcp_certify(n, Mc, qc, zc, 0, 0, wc, cwork, ciwork, &cert);
     if (lane == 0) {
         *iters = pivots;
         if (status == LCP_OK && !(cert.status == 0 && cert.error <= polished)) {
             /* not at rounding level: the end basis (ti's first n) re-solved by LU with one
              * refinement step, then certified again (a rare path: lane 0 alone) */
-            prc = lcp_polish(M, q, n, raw, ti, z, pwork, piwork);
+            prc = lcp_polish(Mc, qc, n, raw, ti, zc, pwork, piwork);
             if (prc == 0)
-                lcp_certify(n, M, q, z, 0, 0, w, cwork, ciwork, &cert);
+                lcp_certify(n, Mc, qc, zc, 0, 0, wc, cwork, ciwork, &cert);
         }
         if (prc == 0) { /* else a basis the CPU re-solves with LAPACK: RETRY */
             if (cert.status == 0)
@@ -1308,15 +1347,19 @@ LCP_FN void lcp_lemke_one(lcp_ix n, const double *M, const double *q, const doub
                 *code = LCP_SOLVED;
         }
     }
-    LCP_SYNC(); /* the workspace is the next problem's */
+    LCP_SYNC();
+    if (stage) {
+        for (i = lane; i < n; i += lanes) {
+            z[i] = zs[i];
+            w[i] = ws[i];
+        }
+        LCP_SYNC(); /* the workspace is the next problem's */
+    }
 }
 
 /* One problem on a group of lanes (the warp kernel's body): sh, the group's fast workspace
- * (LCP_FAST_SLOTS(n, stage) slots: shared memory on the device), holds the tableau and hot
- * parts; with stage, M and q are first copied there (in order over the lanes: coalesced
- * reads) and z, w computed there and copied out, so that the certificate's passes over M, z
- * and w never wait on device memory.  cw, ci: the cold part.  Outputs as lcp_lemke_one (z, w
- * as lcp_lemke_one leaves them: entries it does not write are 0 either way). */
+ * (LCP_FAST_SLOTS(n) slots: shared memory on the device), holds the tableau and hot parts;
+ * cw, ci: the cold part; stage as lcp_lemke_one.  Outputs as lcp_lemke_one. */
 LCP_FN void lcp_lemke_group(lcp_ix n, const double *M, const double *q, const double *d,
                             lcp_i64 max_iter, double piv_tol, double tie_tol, double tol,
                             double polished, int balanced, int q_balanced, int max_rounds,
@@ -1326,35 +1369,9 @@ LCP_FN void lcp_lemke_group(lcp_ix n, const double *M, const double *q, const do
 {
     double *tw = sh, *rw = sh + LCP_TAB_DWORK(n) + LCP_TAB_IWORK(n);
     lcp_ix *ti = (lcp_ix *)(sh + LCP_TAB_DWORK(n)), *ri = (lcp_ix *)(rw + LCP_HOT_DWORK(n));
-    double *Ms = rw + LCP_HOT_DWORK(n) + LCP_HOT_IWORK(n), *qs = Ms + n * n, *zs = qs + n;
-    double *ws = zs + n;
-    const double *Mu = M, *qu = q;
-    double *zu = z, *wu = w;
-    lcp_ix e;
-    if (stage) {
-        for (e = lane; e < n * n; e += lanes)
-            Ms[e] = M[e];
-        for (e = lane; e < n; e += lanes) {
-            qs[e] = q[e];
-            zs[e] = z[e];
-            ws[e] = w[e];
-        }
-        LCP_SYNC();
-        Mu = Ms;
-        qu = qs;
-        zu = zs;
-        wu = ws;
-    }
-    lcp_lemke_one(n, Mu, qu, d, max_iter, piv_tol, tie_tol, tol, polished, balanced, q_balanced,
-                  max_rounds, tw, ti, rw, ri, cw, ci, zu, wu, code, iters, err, res, lane, lanes,
-                  1);
-    if (!stage)
-        return;
-    for (e = lane; e < n; e += lanes) {
-        z[e] = zs[e];
-        w[e] = ws[e];
-    }
-    LCP_SYNC(); /* the fast workspace is the next problem's */
+    lcp_lemke_one(n, M, q, d, max_iter, piv_tol, tie_tol, tol, polished, balanced, q_balanced,
+                  max_rounds, tw, ti, rw, ri, cw, ci, z, w, code, iters, err, res, lane, lanes, 1,
+                  stage);
 }
 
 /* ------------------------------------------------------------------------- projected SOR */
@@ -1527,14 +1544,14 @@ extern "C" __global__ void lcp_lemke_stack(
                       tw + LCP_TAB_DWORK(n), ti + LCP_TAB_IWORK(n),
                       tw + LCP_TAB_DWORK(n) + LCP_HOT_DWORK(n),
                       ti + LCP_TAB_IWORK(n) + LCP_HOT_IWORK(n), z + k * n, w + k * n, code + k,
-                      iters + k, err + k, res + k, 0, 1, 0);
+                      iters + k, err + k, res + k, 0, 1, 0, 0);
 }
 
 /* A group of `lanes` lanes per problem (8, 16 or 32, dividing blockDim.x; every lane of a
- * group takes part; several groups share a warp when lanes < 32).  work: LCP_FAST_SLOTS(n,
- * stage) + LCP_COLD_SLOTS(n) slots per group of the grid; use_shared: each group's fast part
- * in dynamic shared memory instead (blockDim.x / lanes * 8 * LCP_FAST_SLOTS(n, stage) bytes);
- * stage (with use_shared): M, q, z and w staged there too (lcp_lemke_group). */
+ * group takes part; several groups share a warp when lanes < 32).  work: LCP_FAST_SLOTS(n) +
+ * LCP_COLD_SLOTS(n) slots per group of the grid; use_shared: each group's fast part in
+ * dynamic shared memory instead (blockDim.x / lanes * 8 * LCP_FAST_SLOTS(n) bytes); stage:
+ * the certificate reads M, q, z, w from the fast part (lcp_lemke_one). */
 /* LCP_WARP_MIN_BLOCKS: blocks of 256 threads the compiler must fit on one multiprocessor (its
  * register budget); an NVRTC -D option (EXTRA_OPTIONS in backends/cuda.py), speed only. */
 #ifndef LCP_WARP_MIN_BLOCKS
@@ -1549,7 +1566,7 @@ extern "C" __global__ void __launch_bounds__(256, LCP_WARP_MIN_BLOCKS) lcp_lemke
     extern __shared__ double lcp_smem[];
     lcp_ix lane = threadIdx.x & (lanes - 1), grp = threadIdx.x / lanes, gpb = blockDim.x / lanes;
     lcp_i64 slot = (lcp_i64)blockIdx.x * gpb + grp, nslots = (lcp_i64)gridDim.x * gpb, k;
-    lcp_i64 fast = LCP_FAST_SLOTS(n, stage), per = fast + LCP_COLD_SLOTS(n);
+    lcp_i64 fast = LCP_FAST_SLOTS(n), per = fast + LCP_COLD_SLOTS(n);
     double *gw = work + slot * per, *sh = use_shared ? lcp_smem + grp * fast : gw;
     double *cw = gw + fast;
     lcp_ix *ci = (lcp_ix *)(cw + LCP_COLD_DWORK(n));
