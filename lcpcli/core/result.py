@@ -140,6 +140,8 @@ class Result:
     ``status`` is ``solved`` (certificate passed), ``no_solution`` (proven, see ``message``) or
     ``unsolved`` (the method gave up or its answer failed the certificate; ``message`` says why).
     ``seconds`` is the method's own wall time (no process start-up, no file reading).
+    ``info`` is a dict of the method's details (``auto``'s, when its first attempt solved, is
+    built on first read: the Result is then a :class:`LazyResult`).
     """
 
     status: Status
