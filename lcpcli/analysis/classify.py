@@ -732,7 +732,6 @@ DIAGONAL_WORDS = ("diagonal_min", "zero_diagonal", "p_matrix_reason", "definiten
 diagonal_facts = attrgetter(*DIAGONAL_FACTS)
 
 
-
 def _positive_diagonal(r: ClassReport, dmin: float) -> None:
     """The fields the O(n) diagonal test sets when every diagonal entry is positive (the
     smallest is ``dmin > 0``; n >= 1): the usual case, decided by ``dmin`` alone."""
