@@ -146,7 +146,7 @@ def certify_outcome(problem: Problem, outcome: Outcome, method: str, seconds: fl
     (warm starts, whose next step needs it); otherwise it is computed on first use."""
     if outcome.import_seconds:  # imports are never timed (Outcome.import_seconds)
         seconds = max(0.0, seconds - outcome.import_seconds)
-        outcome.info["import_seconds"] = outcome.import_seconds
+        outcome.details()["import_seconds"] = outcome.import_seconds
     states = np.empty(problem.n, dtype=np.int8) if basis else None
     cert, w = certified(problem, outcome, tol, states)  # reused when the dispatcher made it
     z = outcome.z
@@ -157,8 +157,9 @@ def certify_outcome(problem: Problem, outcome: Outcome, method: str, seconds: fl
             message = f"{message}; the returned point passes the certificate anyway"
     elif outcome.proven_infeasible and (proof := confirm(problem, outcome)) is not None:
         status = NO_SOLUTION  # the Farkas vector passed its check (lcpcli.analysis.proof)
-        outcome.info["farkas_y"] = proof.y.tolist()
-        outcome.info["proof"] = proof.as_dict()
+        info = outcome.details()
+        info["farkas_y"] = proof.y.tolist()
+        info["proof"] = proof.as_dict()
     else:
         if outcome.proven_infeasible:
             message = (f"{message}; claimed infeasible, but no Farkas vector passes the check, "

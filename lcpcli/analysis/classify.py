@@ -731,6 +731,27 @@ DIAGONAL_WORDS = ("diagonal_min", "zero_diagonal", "p_matrix_reason", "definiten
 #: ``diagonal_facts(report)``: the values of :data:`DIAGONAL_FACTS`, as a tuple.
 diagonal_facts = attrgetter(*DIAGONAL_FACTS)
 
+
+def _positive_diagonal(r: ClassReport, dmin: float) -> None:
+    """The fields the O(n) diagonal test sets when every diagonal entry is positive (the
+    smallest is ``dmin > 0``; n >= 1): the usual case, decided by ``dmin`` alone."""
+    r.diagonal_min, r.positive_diagonal, r.zero_diagonal = float(dmin), True, 0
+
+
+def positive_diagonal_report(kind: str, n: int, n_eq: int, dmin: float) -> ClassReport:
+    """The report of a dense M (kind, n >= 1, n_eq) after the O(n) diagonal test alone found
+    every diagonal entry positive, the smallest ``dmin``: what ``Classifier(problem)``
+    holds after :meth:`Classifier.minima`, built from these facts without the problem (auto's
+    ``info["classification"]`` when its first attempt, planned on that test alone, solved)."""
+    r = ClassReport(kind, n, n_eq, False)
+    _positive_diagonal(r, dmin)
+    return r
+
+
+#: :func:`diagonal_facts` of every report whose diagonal test found a positive diagonal (they
+#: depend on nothing else): the opening of such a problem is keyed without its report.
+POSITIVE_DIAGONAL_FACTS = diagonal_facts(positive_diagonal_report("lcp", 1, 0, 1.0))
+
 #: The properties decided by O(n) or O(n^2) tests (O(nnz) for a sparse M).
 CHEAP = frozenset({"sparse", "symmetric", "positive_diagonal", "nonnegative", "z_matrix",
                    "diagonally_dominant"})
@@ -747,11 +768,18 @@ class Classifier:
 
     __slots__ = ("problem", "report", "_done", "_minima")
 
-    def __init__(self, problem: Any) -> None:
+    def __init__(self, problem: Any, minima: tuple[float, float] | None = None) -> None:
+        """``minima``: :meth:`minima` already computed (``dense_minima`` of a dense M, by a
+        caller that needed them first): the diagonal test is run on them now, as
+        :meth:`minima` would."""
         self.problem = problem
         self.report = ClassReport(problem.kind, problem.n, problem.n_eq, problem.sparse)
         self._done: set[str] = set()
         self._minima: tuple[float, float] | None = None
+        if minima is not None:
+            self._minima = minima
+            self._done.add("_diagonal")
+            self._diagonal_test(minima[0])
 
     @property
     def tests_run(self) -> frozenset[str]:
@@ -795,7 +823,7 @@ class Classifier:
     def _diagonal_test(self, dmin: float) -> None:
         r = self.report
         if dmin > 0 and r.n:  # the usual case, in one step
-            r.diagonal_min, r.positive_diagonal, r.zero_diagonal = float(dmin), True, 0
+            _positive_diagonal(r, dmin)
             return
         r.diagonal_min = float(dmin) if r.n else None
         r.positive_diagonal = r.n == 0 or dmin > 0

@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field, fields
 from enum import Enum
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -74,6 +75,20 @@ STALLED = Termination.STALLED
 NOT_APPLICABLE = Termination.NOT_APPLICABLE
 
 
+class LazyInfo(partial):
+    """An ``info`` dict not built yet: the call that builds it (a :func:`functools.partial`
+    whose arguments are values fixed when it was made, never the problem's mutable arrays).
+
+    ``auto`` hands its ``info`` on so when its first attempt solved (on a 4 us solve at
+    n = 10, building the attempt record and the class report up front cost about a tenth of
+    the call, and most callers never read them).  :meth:`Outcome.details` builds it;
+    :meth:`Result.certified` hands it on unbuilt to a :class:`LazyResult`, whose ``info``
+    builds it on first read, once: every reader of ``Result.info`` gets a plain ``dict``, the
+    one the same call gives at any time."""
+
+    __slots__ = ()
+
+
 @dataclass(slots=True)
 class Outcome:
     """What a solver method hands back before certification.
@@ -83,6 +98,8 @@ class Outcome:
     passes :func:`lcpcli.analysis.proof.check_farkas` on the user's data (see ``confirm``).
     ``checked`` is ``(certificate, w)`` when the method already certified ``z`` itself (``auto``
     does, to decide whether to fall back): the caller reuses it instead of checking twice.
+    ``info`` is a dict, or (``auto``'s first attempt that solved) a :class:`LazyInfo` not built
+    yet: code that reads or changes it reads :meth:`details`.
     """
 
     z: np.ndarray
@@ -108,6 +125,13 @@ class Outcome:
         return cls(z, iterations, CONVERGED, message, False, None, {} if info is None else info,
                    checked, import_seconds)
 
+    def details(self) -> dict[str, Any]:
+        """``info`` as a dict (a :class:`LazyInfo` is built now, and kept)."""
+        info = self.info
+        if type(info) is LazyInfo:
+            info = self.info = info()
+        return info
+
 
 @dataclass(slots=True)
 class Result:
@@ -116,6 +140,8 @@ class Result:
     ``status`` is ``solved`` (certificate passed), ``no_solution`` (proven, see ``message``) or
     ``unsolved`` (the method gave up or its answer failed the certificate; ``message`` says why).
     ``seconds`` is the method's own wall time (no process start-up, no file reading).
+    ``info`` is a dict of the method's details (``auto``'s, when its first attempt solved, is
+    built on first read: the Result is then a :class:`LazyResult`).
     """
 
     status: Status
@@ -145,9 +171,16 @@ class Result:
         """The Result of ``outcome`` certified on ``problem`` (what
         :func:`lcpcli.api.certify_outcome` builds); without ``known_basis`` the basis is
         computed from ``problem`` on first use."""
-        return cls(status, method, z, w, outcome.iterations, seconds, certificate, message,
-                   outcome.termination, problem.name, outcome.trace, dict(outcome.info),
-                   known_basis, None, None if known_basis is not None else problem)
+        info = outcome.info
+        lazy = type(info) is LazyInfo
+        res = cls(status, method, z, w, outcome.iterations, seconds, certificate, message,
+                  outcome.termination, problem.name, outcome.trace,
+                  info if lazy else dict(info), known_basis, None,
+                  None if known_basis is not None else problem)
+        if lazy:  # not built yet: the Result builds it on first read (the same layout, so
+            # every other Result keeps a plain slot and one type on the small path)
+            res.__class__ = LazyResult
+        return res
 
     @property
     def basis(self) -> np.ndarray | None:
@@ -237,6 +270,30 @@ class Result:
             f"error: {float(self.certificate.error):.3e} (tol {float(self.certificate.tol):.1e})",
             f"  z = {z}",
             f"  w = {w}"])
+
+
+class LazyResult(Result):
+    """A :class:`Result` whose ``info`` slot may hold a :class:`LazyInfo`: the ``info``
+    property builds it on first read and keeps the dict (:meth:`Result.certified` makes one
+    from an Outcome whose info was not built)."""
+
+    __slots__ = ()
+
+    @property  # type: ignore[override]
+    def info(self) -> dict[str, Any]:
+        info = _RESULT_INFO.__get__(self, Result)
+        if type(info) is LazyInfo:
+            info = info()
+            _RESULT_INFO.__set__(self, info)
+        return info
+
+    @info.setter
+    def info(self, value: dict[str, Any]) -> None:
+        _RESULT_INFO.__set__(self, value)
+
+
+#: ``Result``'s ``info`` slot (its member descriptor), which :class:`LazyResult` reads as it is.
+_RESULT_INFO = Result.__dict__["info"]
 
 
 #: The letter of each basis state code in ``--json`` (``"basis"``): ``L`` z_i at its lower

@@ -23,8 +23,10 @@ new fact that changes the value cannot be left out of the key without changing t
   :func:`lcpcli.analysis.classify.diagonal_facts`: every property that test decides);
 * :data:`FIRSTS`: ``auto``'s first attempt on such a problem without a warm start or
   ``order=``: the opening, the attempt's method and options and the head of its message (key:
-  :func:`lcpcli.solvers.methods.auto.first_key`: the opening's key, the ``max_iter`` given and
-  the number of zero diagonal entries, the one other fact the message's class phrase reads).
+  :func:`lcpcli.solvers.methods.auto.first_key`: the opening's facts, the number of zero
+  diagonal entries, the one other fact the message's class phrase reads, and the ``max_iter``
+  given; one flat tuple, :func:`~lcpcli.solvers.methods.auto.first_key_of`, which ``auto``
+  also builds from the minima of a dense M with a positive diagonal, without a classifier).
 
 Rule: a value stored under a key equals what a fresh computation with the same facts returns
 (``tests/solvers/test_memo.py`` checks every memo is hit and that a hit equals a fresh

@@ -235,3 +235,69 @@ def test_the_first_attempt_key_lists_every_fact_the_message_reads():
         assert c.report.describe() == phrase and auto.first_key(c, None) == key
         c.report.zero_diagonal = 7
         assert auto.first_key(c, None) != key
+
+
+@pytest.mark.parametrize("diag", [[2.0, 1.0, 3.0], [0.0, 1.0, 3.0], [-1.0, 1.0, 3.0]])
+def test_a_classifier_seeded_with_the_minima_equals_one_that_computed_them(diag):
+    """``Classifier(problem, minima)`` (auto, which computed the minima first) holds what
+    ``Classifier(problem)`` holds after :meth:`Classifier.minima`; for a positive diagonal,
+    :func:`positive_diagonal_report` builds that report from the facts alone."""
+    from lcpcli.analysis._scaling import dense_minima
+    from lcpcli.analysis.classify import (
+        POSITIVE_DIAGONAL_FACTS,
+        diagonal_facts,
+        positive_diagonal_report,
+    )
+
+    M = np.array([[diag[0], 1.0, 0.0], [1.0, diag[1], 0.5], [0.0, 0.5, diag[2]]])
+    p = Problem.create(M, -np.ones(3))
+    plain = Classifier(p)
+    minima = plain.minima()
+    seeded = Classifier(p, dense_minima(p.M, p.q))
+    assert seeded.minima() == minima and seeded.tests_run == plain.tests_run == {"_diagonal"}
+    assert seeded.report == plain.report
+    if min(diag) > 0:
+        assert positive_diagonal_report("lcp", 3, 0, minima[0]) == plain.report
+        assert diagonal_facts(plain.report) == POSITIVE_DIAGONAL_FACTS
+    else:
+        assert diagonal_facts(plain.report) != POSITIVE_DIAGONAL_FACTS
+
+
+@pytest.mark.parametrize("max_iter", [None, 50])
+@pytest.mark.parametrize("n", [1, 3, 12])
+def test_the_first_key_from_the_minima_is_first_key_and_is_hit(n, max_iter):
+    """``auto.run`` looks a dense problem with a positive diagonal up by
+    ``first_key_of(kind, n, POSITIVE_DIAGONAL_FACTS, 0, max_iter)``, without a classifier: that
+    is the key the general path stores under, so a second problem with the same facts is
+    served from the memo (no miss, no classifier built) and gets what planning afresh gives."""
+    from lcpcli.analysis.classify import POSITIVE_DIAGONAL_FACTS
+
+    p = _diagonal_problem(n, 1.0, 1)
+    c = Classifier(p)
+    c.minima()
+    assert auto.first_key_of("lcp", n, POSITIVE_DIAGONAL_FACTS, 0, max_iter) == \
+        auto.first_key(c, max_iter)
+    first = lcpcli.solve(p, max_iter=max_iter)
+    assert len(memo.FIRSTS) == memo.FIRSTS.misses == 1
+    built = []
+    real = auto.Classifier
+
+    class Counting(real):  # type: ignore[misc, valid-type]
+        __slots__ = ()
+
+        def __init__(self, *args, **kwargs):
+            built.append(args)
+            super().__init__(*args, **kwargs)
+
+    other = _diagonal_problem(n, 1.0, 2)  # other data, the same facts
+    try:
+        auto.Classifier = Counting
+        hit = lcpcli.solve(other, max_iter=max_iter)
+    finally:
+        auto.Classifier = real
+    assert memo.FIRSTS.misses == 1 and built == []  # served from the memo, no classifier
+    assert hit.solved and first.solved and hit.message == first.message
+    assert hit.info["attempts"][0]["reason"] == first.info["attempts"][0]["reason"]
+    c = Classifier(other)
+    c.minima()
+    assert hit.info["classification"] == c.report

@@ -22,7 +22,12 @@ classification.  A method's *proof* that no solution exists ends the search with
 (a ray without one is a failed attempt: the search goes on).  ``message`` names what is known
 of M, the method that succeeded and every failed attempt; ``info["attempts"]`` has the details
 (method, reason, status, error, iterations, seconds, certification included),
-``info["classify_seconds"]`` the time spent classifying and planning.
+``info["classify_seconds"]`` the time spent classifying and planning.  When the first attempt
+solves (the usual case), ``info`` is built on first read (:class:`lcpcli.core.result.LazyInfo`:
+the same dict, from values fixed at the solve): on a 4 us solve at n = 10 its records cost a
+tenth of the call.  On a dense M the memoised first attempt (:data:`lcpcli.solvers.memo.FIRSTS`)
+is found from the q >= 0 and diagonal tests' one compiled pass; a
+:class:`~lcpcli.analysis.classify.Classifier` is built only when the plan or a message needs it.
 
 Matrix classes: any; the guarantees are those of the methods it picks (see docs/methods.md).
 """
@@ -35,7 +40,13 @@ from typing import Any
 
 import numpy as np
 
-from lcpcli.analysis.classify import Classifier
+from lcpcli.analysis._scaling import dense_minima
+from lcpcli.analysis.classify import (
+    POSITIVE_DIAGONAL_FACTS,
+    Classifier,
+    diagonal_facts,
+    positive_diagonal_report,
+)
 from lcpcli.analysis.proof import confirm
 from lcpcli.core.errors import OptionError
 from lcpcli.core.result import (
@@ -44,6 +55,7 @@ from lcpcli.core.result import (
     NO_SOLUTION,
     SOLVED,
     UNSOLVED,
+    LazyInfo,
     Outcome,
     Status,
 )
@@ -118,8 +130,21 @@ def first_key(c: Classifier, max_iter: int | None) -> tuple[Any, ...] | None:
     the ``max_iter`` given (the attempt's options) and, for the class report's phrase
     (:meth:`ClassReport.describe`), the number of zero diagonal entries: every field that
     phrase reads and the diagonal test sets."""
-    key = policy.opening_key(c)
-    return None if key is None else (key, max_iter, c.report.zero_diagonal)
+    if policy.opening_key(c) is None:  # sparse (for a dense M: runs the diagonal test)
+        return None
+    r = c.report
+    return first_key_of(r.kind, r.n, diagonal_facts(r), r.zero_diagonal, max_iter)
+
+
+def first_key_of(kind: str, n: int, facts: tuple[Any, ...], zero_diagonal: int,
+                 max_iter: int | None) -> tuple[Any, ...]:
+    """:func:`first_key` from its facts, as one flat tuple: those of the opening's key
+    (:func:`lcpcli.solvers.policy.opening_key`: ``kind``, ``n``, the registry's version, the
+    diagonal test's ``facts``), the number of zero diagonal entries and ``max_iter``.
+    :func:`run` builds it so for a dense M with a positive diagonal, whose facts it knows from
+    the minima alone (:data:`lcpcli.analysis.classify.POSITIVE_DIAGONAL_FACTS`, no zero
+    entries), without a classifier."""
+    return (kind, n, registry_version(), facts, zero_diagonal, max_iter)
 
 
 def _first(problem: Any, c: Classifier, max_iter: int | None, z0: np.ndarray | None,
@@ -166,14 +191,29 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None,
     if z0 is not None:
         z0 = start_point(problem, z0)  # length check before any method runs
     t_start = perf_counter()
-    c = Classifier(problem)
-    report = c.report
-    n = report.n
-    if report.kind == "lcp" and (n == 0 or c.minima()[1] >= 0):
+    M, n, kind = problem.M, problem.n, problem.kind
+    c: Classifier | None = None  # built once the plan or a message needs more than the minima
+    if type(M) is np.ndarray:  # the q >= 0 and diagonal tests: one compiled pass
+        minima = dense_minima(M, problem.q)
+    else:
+        c = Classifier(problem)
+        minima = c.minima() if kind == "lcp" else None
+    if kind == "lcp" and (n == 0 or minima[1] >= 0):  # type: ignore[index]
         return Outcome(np.zeros(n), 0, CONVERGED, "auto: q >= 0, so z = 0 solves the problem",
                        info={"chosen": None, "attempts": []})
-    given = _given_order(order, c, methods()) if order else None
-    regime, step, spec, opts, head = _first(problem, c, max_iter, z0, given)
+    found = None
+    if c is None and n and minima[0] > 0 and z0 is None and not order:  # type: ignore[index]
+        # a dense M with a positive diagonal: the first attempt's key follows from the minima
+        # (it is first_key(Classifier(problem, minima), max_iter)), no report needed for it
+        found = FIRSTS.get(first_key_of(kind, n, POSITIVE_DIAGONAL_FACTS, 0, max_iter))
+    given = None
+    if found is None:
+        if c is None:  # the diagonal test's facts from the minima, as the plan would find them
+            # (an MLCP or a box LCP with order=: only the plan decides whether it runs)
+            c = Classifier(problem, minima if kind == "lcp" or not order else None)
+        given = _given_order(order, c, methods()) if order else None
+        found = _first(problem, c, max_iter, z0, given)
+    regime, step, spec, opts, head = found
     # the steps after the first: order='s, or (None) planned once the first attempt failed
     queue: Iterator[Step] | None = None if given is None else iter(given[1:])
     attempts: list[dict[str, Any]] = []
@@ -184,6 +224,8 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None,
 
     while True:
         if spec is None:  # the next step (the first is planned above)
+            if c is None:  # the first attempt (from the memo) failed: classify from here on
+                c = Classifier(problem, minima)
             if queue is None:  # the first attempt failed: plan the rest
                 # the tests and methods that follow may factorise: their modules load here,
                 # timed apart (Outcome.import_seconds, left out of Result.seconds)
@@ -212,50 +254,85 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None,
             continue
         t2 = perf_counter()
         spec = None
-        t_methods += t2 - t1
         iterations = int(out.iterations)
+        cert, w = out.checked  # type: ignore[misc]
+        if cert.passed and head and not attempts:
+            # the first attempt solved, no test ran since its plan: the message is its head.
+            # The dispatcher's Outcome becomes auto's (Outcome.converged's fields, one record
+            # fewer); its info is built on first read (LazyInfo) from values fixed here.
+            out.info = LazyInfo(_first_info, step, out.termination, iterations, out.message,
+                                cert.error, t2 - t1, regime.name, t1 - t_start,
+                                c.report if c is not None else (kind, n, problem.n_eq, minima[0]))
+            out.iterations, out.termination, out.message = iterations, CONVERGED, head
+            out.proven_infeasible, out.trace, out.import_seconds = False, None, 0.0
+            return out
+        t_methods += t2 - t1
         total_it += iterations
         z = out.z
-        cert, w = out.checked  # type: ignore[misc]
         proof = None if cert.passed else confirm(problem, out)
         status = SOLVED if cert.passed else NO_SOLUTION if proof is not None else UNSOLVED
-        attempts.append({"method": name, "reason": why, "status": status,
-                         "termination": out.termination, "iterations": iterations,
-                         "error": cert.error, "seconds": t2 - t1, "message": out.message})
+        attempts.append(_record(name, why, status, out.termination, iterations, cert.error,
+                                t2 - t1, out.message))
+        if c is None:
+            c = Classifier(problem, minima)
+        report = c.report
         if status is SOLVED:
-            if len(attempts) == 1 and head:  # the first attempt: no test ran since the plan
-                message = head
-            else:
-                message = _solved_by(report, name, why) + "".join(
-                    f"; {a['method']} failed first ({a['message']})" for a in attempts[:-1])
+            message = _solved_by(report, name, why) + "".join(
+                f"; {a['method']} failed first ({a['message']})" for a in attempts[:-1])
             return Outcome.converged(z, total_it, message,
-                                     _info(name, attempts, report, regime,
+                                     _info(name, attempts, report, regime.name,
                                            t2 - t_start - t_methods - imported),
                                      (cert, w), imported)
         if status is NO_SOLUTION:
             return Outcome(z, total_it, out.termination,
                            f"auto ({report.describe()}): {name} proved that no solution "
                            f"exists: {out.message}", proven_infeasible=True,
-                           info={**_info(name, attempts, report, regime,
+                           info={**_info(name, attempts, report, regime.name,
                                          perf_counter() - t_start - t_methods - imported),
                                  "farkas_y": proof.y.tolist()}, import_seconds=imported)
         if best is None or cert.error < best[0]:
             best = (cert.error, z, out.termination)
+    report = c.report
     tried = "; ".join(f"{a['method']}: {a['message']}" for a in attempts) or "no method applies"
     z = best[1] if best else np.clip(np.zeros(n), problem.bounds()[0], None)
     return Outcome(z, total_it, best[2] if best else ITERATION_LIMIT,
                    f"auto ({report.describe()}): every suitable method failed ({tried})",
-                   info=_info(None, attempts, report, regime,
+                   info=_info(None, attempts, report, regime.name,
                               perf_counter() - t_start - t_methods - imported),
                    import_seconds=imported)
 
 
-def _info(chosen: str | None, attempts: list[dict[str, Any]], report: Any, regime: Any,
+def _record(name: str, why: str, status: Status, termination: Any, iterations: int,
+            error: float, seconds: float, message: str) -> dict[str, Any]:
+    """One entry of ``info["attempts"]`` for an attempt that returned (see the module
+    docstring; one that raised has ``method``, ``reason``, ``status``, ``message``,
+    ``seconds``)."""
+    return {"method": name, "reason": why, "status": status, "termination": termination,
+            "iterations": iterations, "error": error, "seconds": seconds, "message": message}
+
+
+def _info(chosen: str | None, attempts: list[dict[str, Any]], report: Any, regime: str,
           classify_seconds: float) -> dict[str, Any]:
-    """``Outcome.info`` of auto (see the module docstring); ``classify_seconds``: the time
-    spent outside the attempts (classifying and planning)."""
+    """``Outcome.info`` of auto (see the module docstring); ``regime``: its name;
+    ``classify_seconds``: the time spent outside the attempts (classifying and planning)."""
     return {"chosen": chosen, "attempts": attempts, "classification": report,
-            "regime": regime.name, "classify_seconds": classify_seconds}
+            "regime": regime, "classify_seconds": classify_seconds}
+
+
+def _first_info(step: Step, termination: Any, iterations: int, message: str, error: float,
+                seconds: float, regime: str, classify_seconds: float,
+                report: Any) -> dict[str, Any]:
+    """:func:`_info` when the first attempt (``step``) solved, its :func:`_record` the only
+    attempt (``termination``, ``iterations``, ``message``: its dispatcher's, ``error``: its
+    certified error, ``seconds``: its time).  ``report``: the class report, or
+    ``(kind, n, n_eq, dmin)`` of a dense M whose O(n) diagonal test alone ran and found every
+    diagonal entry positive, the smallest ``dmin`` (the report
+    :func:`lcpcli.analysis.classify.positive_diagonal_report` builds from them)."""
+    if type(report) is tuple:
+        report = positive_diagonal_report(*report)
+    return _info(step.method, [_record(step.method, step.reason, SOLVED, termination,
+                                       iterations, error, seconds, message)],
+                 report, regime, classify_seconds)
 
 
 METHODS = [
