@@ -317,7 +317,11 @@ def test_row_and_column_scaling_keeps_p_z_h_and_the_diagonal_sign(n, seed, famil
     else:
         d1, d2 = np.exp(rng.uniform(-spread, spread, (2, n)) / 3)
     a, b = classify(problem(M)), classify(problem(d1[:, None] * M * d2[None, :]))
-    assert report_key(a, D1MD2) == report_key(b, D1MD2)
+    # family 1 is rank-deficient: on the boundary of P and H, its exact minors are rounding
+    # noise whose sign a scaling that is not a power of two (so rounded) may flip; scaling by
+    # powers of two is exact and keeps every property
+    keys = D1MD2 if pow2 or family != 1 else ("positive_diagonal", "z_matrix")
+    assert report_key(a, keys) == report_key(b, keys)
 
 
 @settings(max_examples=40, deadline=None)
