@@ -9,7 +9,8 @@ measures, for random positive definite stacks (benchmarks/bench_stack.py's ``mak
 with the certificate:
 
 * ``kernel``: the device kernel alone on data already on the device (CUDA events), for both
-  variants (``thread``: one thread per problem; ``warp``: one warp per problem);
+  variants (``thread``: one thread per problem; ``warp``: a group of lanes per problem, as
+  ``backends/cuda.py``'s WARP_TABLE or ``--table`` says);
 * ``pinned``: ``solve_many(M, q, backend="cuda")`` from host arrays in pinned memory (copy in,
   kernel, copy out, the CPU for what the device hands back);
 * ``pageable``: the same from ordinary numpy arrays;

@@ -44,7 +44,7 @@ def assert_same(a, b):
 
 @pytest.fixture(params=["thread", "warp"])
 def variant(request, monkeypatch):
-    """Lemke's device kernel: one thread or one warp per problem."""
+    """Lemke's device kernel: one thread, or a group of lanes of a warp, per problem."""
     monkeypatch.setattr(cuda, "LEMKE_VARIANT", request.param)
     return request.param
 

@@ -5,7 +5,10 @@
  *   - by the C compiler, for the CPU: lcpcli/solvers/kernels/stack_c.pyx (`cdef extern`), so the
  *     test suite (which never has a GPU) checks this code against lcpcli.solve_many;
  *   - by NVRTC through CuPy (lcpcli/solvers/backends/cuda.py), for the device: the __global__
- *     kernels at the end (one thread per problem, grid-stride loop) call the same functions.
+ *     kernels at the end (one thread, or a group of 8-32 lanes of a warp, per problem;
+ *     grid-stride loops) call the same functions.  The lane code runs on the CPU too, with one
+ *     lane and (tests/solvers/test_lane_groups.py, LCP_EMULATE_LANES) with threads standing in
+ *     for the lanes of a group.
  *
  * Plain C99 (and valid C++ for NVRTC); no allocation: the caller passes each problem's
  * workspace (LCP_LEMKE_DWORK / LCP_LEMKE_IWORK, LCP_SOR_DWORK / LCP_SOR_IWORK entries).
@@ -1249,7 +1252,8 @@ LCP_COLD int lcp_polish(const double *M, const double *q, lcp_ix n, const double
  * equilibrated first when it is not balanced (balanced < 0: never; the answer is mapped back
  * exactly and certified on the problem as given); the end basis is re-solved (polish) when
  * the answer is not certified at rounding level (`polished`).  Lanes: (0, 1, warp = 0) one
- * thread per problem; (lane, 32, 1) a warp per problem (lane 0 writes the outputs).
+ * thread per problem; (lane, lanes, 1) a group of lanes per problem (lane 0 writes the
+ * outputs).
  * tw, ti: LCP_TAB_DWORK(n), LCP_TAB_IWORK(n); rw, ri: LCP_HOT_DWORK(n), LCP_HOT_IWORK(n) (the
  * warp kernel keeps both in shared memory when they fit); cw, ci: LCP_COLD_DWORK(n),
  * LCP_COLD_IWORK(n).  stage: the certificate reads M, q, z and w from the fast workspace
