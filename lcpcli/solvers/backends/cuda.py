@@ -3,9 +3,10 @@
 ``lcpcli/solvers/kernels/src/lcp_stack.h`` (the C text the ``"c"`` backend and the test suite
 run on the CPU) is compiled by NVRTC through CuPy's :class:`cupy.RawModule` on first use
 (once per process, with ``--fmad=false`` so that the device rounds as the CPU does), and its
-``__global__`` kernels run one device thread, or a group of lanes of a warp, per problem.  CuPy is the optional ``gpu`` extra
-(``pip install "lcpcli[gpu]"``); without it, or without a device, asking for this backend is an
-:class:`~lcpcli.core.errors.OptionError` (exit 2 on the command line).
+``__global__`` kernels run one device thread, or a group of lanes of a warp, per problem.
+CuPy is the optional ``gpu`` extra (``pip install "lcpcli[gpu]"``); without it, or without a
+device, asking for this backend is an :class:`~lcpcli.core.errors.OptionError` (exit 2 on the
+command line).
 
 Host arrays (:data:`lcpcli.solvers.batched.StackKernel`): copied to the device, solved, the
 outputs copied back.  Device arrays (CuPy, or anything with ``__dlpack__`` on a CUDA device:
