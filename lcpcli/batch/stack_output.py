@@ -423,6 +423,7 @@ class Hdf5StackWriter:
                 self.stamped[info.path] = (res.method, res.tol)
             self.h5.flush()
         self.h5.check(KEPT)
+        self.h5.start_writeback()  # the close's fsync then waits for the last chunk only
 
     def close(self) -> None:
         self.h5.close(KEPT)
