@@ -91,6 +91,16 @@ def run_batch(inputs: Iterable[str], opts: SolveOptions, *, recursive: bool = Fa
 
     # a large stack's chunk buffers are faulted in by a thread while the rest starts up
     memory = memory_pool(inputs) if scheduler is None else None
+    return _run_batch(inputs, opts, recursive=recursive, jobs=jobs, timeout=timeout,
+                      output=output, resume=resume, scheduler=scheduler, on_start=on_start,
+                      on_row=on_row, on_progress=on_progress, start=start, memory=memory)
+
+
+def _run_batch(inputs: list[str], opts: SolveOptions, *, recursive: bool, jobs: int,
+               timeout: float | None, output: Any, resume: bool, scheduler: Any,
+               on_start: Any, on_row: Any, on_progress: Any, start: float,
+               memory: Any) -> BatchReport:
+    """:func:`run_batch` once its clock and memory pool are started."""
     from lcpcli.solvers.request import method_of, resolve_tol
 
     spec = method_of(opts.method)  # unknown method or bad tol: OptionError before any work
