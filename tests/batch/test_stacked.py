@@ -487,6 +487,59 @@ def test_output_file_is_made_while_the_first_chunk_is_solved(tmp_path, monkeypat
         assert int(g.attrs["chunk"]) == 100 and g["chunk_digest"][...].any(axis=1).all()
 
 
+def test_first_chunks_are_read_while_the_method_is_looked_up(tmp_path, monkeypatch):
+    """A batch that resumes nothing starts reading its first stack with the batch, before
+    the method is looked up (EarlyReads): that one reader thread then serves the whole stack
+    and the results equal solve_many's; with an unknown method the batch fails as before and
+    leaves no reader running; reads that do not fit the batch (another chunk) are not
+    taken."""
+    import threading
+
+    import lcpcli.io.stack as stack_mod
+    import lcpcli.solvers.request as request
+    from lcpcli.batch import stacked
+    from lcpcli.batch.records import SolveOptions
+    from lcpcli.batch.run import run_batch
+    from lcpcli.core.errors import OptionError
+    from lcpcli.io.stack import stack_info
+
+    monkeypatch.setattr(stack_mod, "chunk_size", lambda n, **kw: 64)
+    M, q = pd_stack(300, 5, seed=12)
+    path, out = tmp_path / "s.h5", tmp_path / "r.h5"
+    write_stack(path, M, q)
+    read, looked_up = threading.Event(), []
+    read_part, method_of = stacked.read_part, request.method_of
+    starts: list[int] = []
+
+    def reading(reader, start, stop, **kw):
+        starts.append(start)
+        read.set()
+        return read_part(reader, start, stop, **kw)
+
+    def looking_up(name):
+        looked_up.append(read.wait(10))  # the first chunk was read meanwhile
+        return method_of(name)
+
+    monkeypatch.setattr(stacked, "read_part", reading)
+    monkeypatch.setattr(request, "method_of", looking_up)
+    run_batch([str(path)], SolveOptions(method="lemke"), output=out, jobs=2)
+    assert looked_up[0] is True
+    assert starts == list(range(0, 300, 64))  # one reader, each chunk read once
+    with h5py.File(out, "r") as f:
+        np.testing.assert_array_equal(f["s"]["z"][...], solve_many(M, q, "lemke").z)
+    with pytest.raises(OptionError):
+        run_batch([str(path)], SolveOptions(method="no-such-method"), output=out, jobs=2)
+    assert not [t for t in threading.enumerate() if t.name.startswith("lcpcli-stack")]
+    early = stacked.early_reads([str(path)], out, 2, None)
+    info = stack_info(path)
+    assert early.take(info, 63, "mxs128") is None  # another chunk: read again
+    assert early.take(info, 64, "sha256") is None
+    assert early.take(info, 64, "mxs128") is not None
+    assert early.take(info, 64, "mxs128") is None  # taken once
+    early.close()
+    assert stacked.early_reads([str(tmp_path / "p.json")], out, 2, None) is None
+
+
 @pytest.mark.parametrize("ext", ["h5", "jsonl"])
 def test_interrupted_stacked_batch_keeps_its_finished_chunks_and_resumes(tmp_path, monkeypatch,
                                                                          ext):
