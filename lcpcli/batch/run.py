@@ -87,10 +87,29 @@ def run_batch(inputs: Iterable[str], opts: SolveOptions, *, recursive: bool = Fa
     jobs = jobs or os.cpu_count() or 1
     start = time.perf_counter()
     inputs = [str(i) for i in inputs]
-    from lcpcli.batch.stacked import memory_pool
+    from lcpcli.batch.stacked import early_reads, memory_pool
 
-    # a large stack's chunk buffers are faulted in by a thread while the rest starts up
+    # a large stack's chunk buffers are faulted in by a thread while the rest starts up, and
+    # (resuming nothing) the stack's first chunks read into them
     memory = memory_pool(inputs) if scheduler is None else None
+    early = early_reads(inputs, output, jobs, memory) \
+        if scheduler is None and not resume and opts.warm is None else None
+    try:
+        return _run_batch(inputs, opts, recursive=recursive, jobs=jobs, timeout=timeout,
+                          output=output, resume=resume, scheduler=scheduler,
+                          on_start=on_start, on_row=on_row, on_progress=on_progress,
+                          start=start, memory=memory, early=early)
+    finally:
+        if early is not None:
+            early.close()  # unused (another input, an error before), or done with
+
+
+def _run_batch(inputs: list[str], opts: SolveOptions, *, recursive: bool, jobs: int,
+               timeout: float | None, output: Any, resume: bool, scheduler: Any,
+               on_start: Any, on_row: Any, on_progress: Any, start: float,
+               memory: Any, early: Any = None) -> BatchReport:
+    """:func:`run_batch` once its clock, memory pool and early reads
+    (:func:`lcpcli.batch.stacked.early_reads`) are started."""
     from lcpcli.solvers.request import method_of, resolve_tol
 
     spec = method_of(opts.method)  # unknown method or bad tol: OptionError before any work
@@ -108,7 +127,8 @@ def run_batch(inputs: Iterable[str], opts: SolveOptions, *, recursive: bool = Fa
     if stacked:
         return _run_stacked(inputs, opts, output=output, resume=resume, threads=jobs,
                             start=start, on_start=on_start, on_row=on_row,
-                            on_progress=on_progress, scheduler=scheduler, memory=memory)
+                            on_progress=on_progress, scheduler=scheduler, memory=memory,
+                            early=early)
     if output is not None and batch_output.output_kind(output) == "npz":
         raise OptionError(f"--output {output}: an .npz result file is written for stacked "
                           f"inputs only (see docs/batch.md); use .jsonl, .csv or .h5")
@@ -156,7 +176,8 @@ def _stacked_inputs(inputs: list[str], *, timeout: float | None) -> bool:
 
 def _run_stacked(inputs: list[str], opts: SolveOptions, *, output: Any, resume: bool,
                  threads: int, start: float, on_start: Any, on_row: Any,
-                 on_progress: Any, scheduler: Any = None, memory: Any = None) -> BatchReport:
+                 on_progress: Any, scheduler: Any = None, memory: Any = None,
+                 early: Any = None) -> BatchReport:
     """A batch of stacked files (see :mod:`lcpcli.batch.stacked`), output locked."""
     from lcpcli.batch.stacked import run_stacks
 
@@ -177,7 +198,7 @@ def _run_stacked(inputs: list[str], opts: SolveOptions, *, output: Any, resume: 
         try:
             run_stacks(inputs, opts, report, output=output, resume=resume, threads=threads,
                        on_start=on_start, on_progress=on_progress, on_row=on_row, write=write,
-                       scheduler=scheduler, memory=memory)
+                       scheduler=scheduler, memory=memory, early_reads=early)
         except KeyboardInterrupt:
             report.interrupted = True
             raise

@@ -225,6 +225,15 @@ def storage_rows(chunk: int, K: int, n: int) -> int:
     return max(1, min(K, -(-chunk // parts)))
 
 
+#: How a stacked result file is opened for writing: without HDF5's chunk cache.  A batch chunk
+#: fills whole storage chunks (:func:`storage_rows`), which HDF5 then writes straight from the
+#: result arrays; through the cache (1 MiB by default) each storage chunk that fits it was
+#: first copied into a buffer allocated for it (new memory, page faults) and written at the
+#: flush.  Measured: writing the 24 chunks of n = 50, K = 20,000, 21-23 -> 13 ms, the 7 of
+#: n = 12, K = 100,000, 18-22 -> 8 ms, page faults 4,400 -> 50 and 5,900 -> 350.
+NO_CHUNK_CACHE = {"rdcc_nbytes": 0}
+
+
 class Hdf5StackWriter:
     """Stacked results in an HDF5 file (see the module docstring)."""
 
@@ -244,7 +253,7 @@ class Hdf5StackWriter:
                 for info in infos:
                     self._create(f, info, taken, batch_chunk(info.n, threads))
         try:
-            self.h5 = Hdf5Handle(path, "r+")
+            self.h5 = Hdf5Handle(path, "r+", **NO_CHUNK_CACHE)
         except ProblemError as exc:
             raise ProblemError(f"cannot be resumed: {str(exc).removeprefix(f'{path}: ')} "
                                f"(interrupted by kill -9?); {_RERUN}", str(path)) from None
@@ -257,7 +266,7 @@ class Hdf5StackWriter:
         if missing:  # new inputs: a new file with their groups added, renamed over this one
             self.h5.close()
             self._add_groups(missing)
-            self.h5 = Hdf5Handle(path, "r+")
+            self.h5 = Hdf5Handle(path, "r+", **NO_CHUNK_CACHE)
             self.file = self.h5.file
             try:
                 self._open_groups(infos)
@@ -414,6 +423,7 @@ class Hdf5StackWriter:
                 self.stamped[info.path] = (res.method, res.tol)
             self.h5.flush()
         self.h5.check(KEPT)
+        self.h5.start_writeback()  # the close's fsync then waits for the last chunk only
 
     def close(self) -> None:
         self.h5.close(KEPT)

@@ -487,6 +487,59 @@ def test_output_file_is_made_while_the_first_chunk_is_solved(tmp_path, monkeypat
         assert int(g.attrs["chunk"]) == 100 and g["chunk_digest"][...].any(axis=1).all()
 
 
+def test_first_chunks_are_read_while_the_method_is_looked_up(tmp_path, monkeypatch):
+    """A batch that resumes nothing starts reading its first stack with the batch, before
+    the method is looked up (EarlyReads): that one reader thread then serves the whole stack
+    and the results equal solve_many's; with an unknown method the batch fails as before and
+    leaves no reader running; reads that do not fit the batch (another chunk) are not
+    taken."""
+    import threading
+
+    import lcpcli.io.stack as stack_mod
+    import lcpcli.solvers.request as request
+    from lcpcli.batch import stacked
+    from lcpcli.batch.records import SolveOptions
+    from lcpcli.batch.run import run_batch
+    from lcpcli.core.errors import OptionError
+    from lcpcli.io.stack import stack_info
+
+    monkeypatch.setattr(stack_mod, "chunk_size", lambda n, **kw: 64)
+    M, q = pd_stack(300, 5, seed=12)
+    path, out = tmp_path / "s.h5", tmp_path / "r.h5"
+    write_stack(path, M, q)
+    read, looked_up = threading.Event(), []
+    read_part, method_of = stacked.read_part, request.method_of
+    starts: list[int] = []
+
+    def reading(reader, start, stop, **kw):
+        starts.append(start)
+        read.set()
+        return read_part(reader, start, stop, **kw)
+
+    def looking_up(name):
+        looked_up.append(read.wait(10))  # the first chunk was read meanwhile
+        return method_of(name)
+
+    monkeypatch.setattr(stacked, "read_part", reading)
+    monkeypatch.setattr(request, "method_of", looking_up)
+    run_batch([str(path)], SolveOptions(method="lemke"), output=out, jobs=2)
+    assert looked_up[0] is True
+    assert starts == list(range(0, 300, 64))  # one reader, each chunk read once
+    with h5py.File(out, "r") as f:
+        np.testing.assert_array_equal(f["s"]["z"][...], solve_many(M, q, "lemke").z)
+    with pytest.raises(OptionError):
+        run_batch([str(path)], SolveOptions(method="no-such-method"), output=out, jobs=2)
+    assert not [t for t in threading.enumerate() if t.name.startswith("lcpcli-stack")]
+    early = stacked.early_reads([str(path)], out, 2, None)
+    info = stack_info(path)
+    assert early.take(info, 63, "mxs128") is None  # another chunk: read again
+    assert early.take(info, 64, "sha256") is None
+    assert early.take(info, 64, "mxs128") is not None
+    assert early.take(info, 64, "mxs128") is None  # taken once
+    early.close()
+    assert stacked.early_reads([str(tmp_path / "p.json")], out, 2, None) is None
+
+
 @pytest.mark.parametrize("ext", ["h5", "jsonl"])
 def test_interrupted_stacked_batch_keeps_its_finished_chunks_and_resumes(tmp_path, monkeypatch,
                                                                          ext):
@@ -523,6 +576,68 @@ def test_interrupted_stacked_batch_keeps_its_finished_chunks_and_resumes(tmp_pat
         def by_index(p):
             return {r["index"]: (r["z"], r["status"], r["input_hash"]) for r in read_rows(p)}
         assert by_index(out) == by_index(ref)
+
+
+def test_each_write_is_handed_over_after_its_tally_and_before_the_next_solve(tmp_path,
+                                                                             monkeypatch):
+    """The main thread hands chunk k's write to the writer thread once its own work on chunk
+    k is done (the tally) and right before chunk k + 1 is solved, the last chunk's at once:
+    the writer never runs beside the main thread's work between two solves.  Writes stay in
+    order and the results equal solve_many's; a read that fails after a chunk was solved
+    still leaves that chunk written (status and digest recorded), the later ones not."""
+    import lcpcli.io.stack as stack_mod
+    from lcpcli.batch import stacked
+    from lcpcli.batch.records import SolveOptions
+    from lcpcli.batch.run import run_batch
+    from lcpcli.core.errors import ProblemError
+
+    monkeypatch.setattr(stack_mod, "chunk_size", lambda n, **kw: 70)
+    M, q = pd_stack(300, 4, seed=11)  # chunks of 70: 4 full, the last of 20
+    path, out = tmp_path / "s.h5", tmp_path / "r.h5"
+    write_stack(path, M, q)
+    events: list[tuple[str, int]] = []
+    solve_read, tally, submit = stacked.solve_read, stacked.add_to_tally, \
+        stacked._WriteBehind.submit
+
+    def solving(part, *a, **kw):
+        events.append(("solve", part.start // 70))
+        return solve_read(part, *a, **kw)
+
+    def tallying(tally_, source, stem, positions, *a):
+        events.append(("tally", int(positions[0]) // 70))
+        return tally(tally_, source, stem, positions, *a)
+
+    def submitting(self, fn):
+        events.append(("submit", fn.__defaults__[4]))  # its chunk_no
+        return submit(self, fn)
+
+    monkeypatch.setattr(stacked, "solve_read", solving)
+    monkeypatch.setattr(stacked, "add_to_tally", tallying)
+    monkeypatch.setattr(stacked._WriteBehind, "submit", submitting)
+    run_batch([str(path)], SolveOptions(method="lemke"), output=out, jobs=2)
+    want = [e for c in range(4) for e in (("solve", c), ("tally", c), ("submit", c))]
+    assert events == want + [("solve", 4), ("submit", 4), ("tally", 4)]
+    ref = solve_many(M, q, "lemke")
+    with h5py.File(out, "r") as f:
+        np.testing.assert_array_equal(f["s"]["z"][...], ref.z)
+        np.testing.assert_array_equal(f["s"]["status"][...], ref.status)
+        assert f["s"]["chunk_digest"][...].any(axis=1).all()
+
+    read_part = stacked.read_part
+
+    def failing(reader, start, stop, **kw):
+        if start >= 140:
+            raise ProblemError("the disk went away")
+        return read_part(reader, start, stop, **kw)
+
+    monkeypatch.setattr(stacked, "read_part", failing)
+    with pytest.raises(ProblemError, match="disk went away"):
+        run_batch([str(path)], SolveOptions(method="lemke"), output=out, jobs=2)
+    with h5py.File(out, "r") as f:
+        status, digests = f["s"]["status"][...], f["s"]["chunk_digest"][...]
+    np.testing.assert_array_equal(status[:140], ref.status[:140])
+    assert (status[140:] == NOT_DONE).all()
+    assert digests[:2].any(axis=1).all() and not digests[2:].any()
 
 
 @settings(max_examples=300, deadline=None)

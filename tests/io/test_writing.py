@@ -678,3 +678,34 @@ def _umask() -> int:
     mask = os.umask(0)
     os.umask(mask)
     return mask
+
+
+def test_start_writeback_changes_no_byte_and_never_fails(tmp_path, monkeypatch):
+    """``start_writeback`` (Linux ``sync_file_range``, nothing elsewhere) only starts the
+    writing of a file's dirty pages: the bytes read back are those written, before and after
+    more writes; a descriptor that is no file, or a C library without the call, is no error;
+    a handle opened read-only never asks."""
+    path = tmp_path / "f.bin"
+    data = os.urandom(3 << 20)
+    fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o600)
+    try:
+        os.write(fd, data)
+        writing.start_writeback(fd)
+        os.pwrite(fd, b"x" * 100, 1000)
+        writing.start_writeback(fd)
+    finally:
+        os.close(fd)
+    assert path.read_bytes() == data[:1000] + b"x" * 100 + data[1100:]
+    writing.start_writeback(fd)  # closed now: the call fails, silently
+    monkeypatch.setattr(writing, "_SYNC_FILE_RANGE", False)
+    writing.start_writeback(0)
+    called = []
+    monkeypatch.setattr(writing, "start_writeback", called.append)
+    import h5py
+
+    with h5py.File(tmp_path / "r.h5", "w") as f:
+        f["x"] = np.arange(3)
+    handle = writing.Hdf5Handle(tmp_path / "r.h5", "r")
+    handle.start_writeback()
+    handle.close()
+    assert called == []
