@@ -22,3 +22,12 @@ def write_results(out: str | Path, rows: list[Any]) -> dict[str, Any]:
     Path(out).write_text(json.dumps({"meta": meta, "rows": rows}, indent=1) + "\n")
     print(f"written {out}; load average {meta['load']}")
     return meta
+
+
+def write_cases(out: Path | None, name: str, info: dict[str, Any], cases: list[Any]) -> None:
+    """Write ``{"info": info, "cases": cases}`` (the device benchmarks' layout) to ``out``, else
+    to ``$OUT/name`` when ``$OUT`` is set (a device run's result folder), else nowhere."""
+    path = out or (Path(os.environ["OUT"]) / name if os.environ.get("OUT") else None)
+    if path is not None:
+        Path(path).write_text(json.dumps({"info": info, "cases": cases}, indent=1) + "\n")
+        print(f"wrote {path}")

@@ -37,6 +37,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _results import write_cases  # noqa: E402
 from bench_stack import make_stack  # noqa: E402
 
 import lcpcli  # noqa: E402
@@ -247,11 +248,7 @@ def main() -> None:
             cases.append(gpu_case(n, max(1, int(K * args.scale)), args.sample, args.repeat,
                                   blocks))
             print(json.dumps(cases[-1]), flush=True)
-    path = args.out or (Path(os.environ["OUT"]) / "bench_gpu.json" if os.environ.get("OUT")
-                        else None)
-    if path is not None:
-        path.write_text(json.dumps({"info": info, "cases": cases}, indent=1) + "\n")
-        print(f"wrote {path}")
+    write_cases(args.out, "bench_gpu.json", info, cases)
 
 
 if __name__ == "__main__":

@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 import time
 from pathlib import Path
@@ -34,6 +33,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _results import write_cases  # noqa: E402
 from bench_stack import make_stack  # noqa: E402
 
 import lcpcli  # noqa: E402
@@ -209,11 +209,7 @@ def main() -> None:
         print(json.dumps({"table": rows}), flush=True)
         if args.table_out is not None:
             args.table_out.write_text(json.dumps(rows) + "\n")
-    path = args.out or (Path(os.environ["OUT"]) / "gpu_sweep.json" if os.environ.get("OUT")
-                        else None)
-    if path is not None:
-        path.write_text(json.dumps({"info": info, "cases": cases}, indent=1) + "\n")
-        print(f"wrote {path}")
+    write_cases(args.out, "gpu_sweep.json", info, cases)
 
 
 if __name__ == "__main__":
