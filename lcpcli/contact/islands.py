@@ -305,6 +305,17 @@ def warm_attempt(problem: Problem, method: str, tol: float | None,
     return None, basis
 
 
+def basic_of(result: Any) -> np.ndarray:
+    """z_i basic in ``result``'s pivoting basis (``info["basis"]``, the basic z's that Lemke
+    reports), else in its answer's support (``z_i > 0``)."""
+    basic = result.z > 0
+    listed = result.info.get("basis")
+    if listed is not None and result.solved:
+        basic = np.zeros(result.z.shape[0], dtype=bool)
+        basic[np.asarray(listed, dtype=np.int64)] = True
+    return basic
+
+
 def _chunks(sizes: list[int], parts: int) -> list[list[int]]:
     """Split indices 0..len(sizes)-1 into ``parts`` lists of about equal summed cost n^2."""
     order = np.argsort(-np.asarray(sizes, dtype=np.float64) ** 2, kind="stable")

@@ -28,6 +28,7 @@ from lcpcli.contact.impact import (
 from lcpcli.contact.islands import (
     IslandLayout,
     Islands,
+    basic_of,
     find_islands,
     island_problems,
     layout,
@@ -324,19 +325,8 @@ def solve(clcp: ContactLCP, method: str = DEFAULT_METHOD, tol: float | None = No
         basis0 = check_basis0(clcp, basis0)
     if not islands or clcp.layout.count == 0:
         result = solve_one(clcp.problem, method, tol, z0, dict(options), basis0)
-        return impact_from(clcp, result.z, result, basic=_basic_of(result))
+        return impact_from(clcp, result.z, result, basic=basic_of(result))
     return impact_from(clcp, *_solve_islands(clcp, method, tol, z0, jobs, options, basis0))
-
-
-def _basic_of(result: Any) -> np.ndarray:
-    """z_i basic in ``result``'s pivoting basis (``info["basis"]``, the basic z's that Lemke
-    reports), else in its answer's support (``z_i > 0``)."""
-    basic = result.z > 0
-    listed = result.info.get("basis")
-    if listed is not None and result.solved:
-        basic = np.zeros(result.z.shape[0], dtype=bool)
-        basic[np.asarray(listed, dtype=np.int64)] = True
-    return basic
 
 
 def _solve_islands(clcp: ContactLCP, method: str, tol: float | None, z0: np.ndarray | None,
@@ -357,7 +347,7 @@ def _solve_islands(clcp: ContactLCP, method: str, tol: float | None, z0: np.ndar
     basic = np.zeros(clcp.problem.n, dtype=bool)
     if results:
         z[lay.perm] = np.concatenate([res.z for res in results])
-        basic[lay.perm] = np.concatenate([_basic_of(res) for res in results])
+        basic[lay.perm] = np.concatenate([basic_of(res) for res in results])
     sizes, bodies = isl.sizes().tolist(), isl.body_counts().tolist()
     reports = []
     used: dict[str, int] = {}
