@@ -29,7 +29,7 @@ from lcpcli.contact._blocks import scatter_blocks
 from lcpcli.contact.assembly import choose_storage
 from lcpcli.contact.scene import Scene
 from lcpcli.core.problem import Problem, is_sparse
-from lcpcli.core.result import CONVERGED, Outcome
+from lcpcli.core.result import CONVERGED, SOLVED, Outcome
 from lcpcli.solvers import DEFAULT_METHOD
 
 #: Warm start, islands of at least WARM_NEWTON_MIN_N unknowns whose ``z0`` does not already
@@ -162,11 +162,24 @@ def island_problems(problem: Problem, lay: IslandLayout, storage: str = "auto",
 
 def _dense_blocks(M: Any, lay: IslandLayout, storage: str) -> list[np.ndarray] | None:
     """The islands' blocks of the CSR matrix ``M`` as dense arrays, when every island is stored
-    dense (:func:`choose_storage`), written by one compiled pass over ``M``'s entries
-    (:func:`lcpcli.contact._blocks.scatter_blocks`) into one buffer: the blocks of one size
-    back to back in island order, so that a stack of them (:func:`lcpcli.stacks.solve_each`)
-    is a view of it.  None when an island is stored sparse or ``M`` is not block diagonal in
-    the islands (the caller slices instead)."""
+    dense (:func:`choose_storage`): views of :func:`_block_buffer`'s buffer, the blocks of one
+    size back to back in island order, so that a stack of them
+    (:func:`lcpcli.stacks.solve_each`) is a view of it.  None when an island is stored sparse
+    or ``M`` is not block diagonal in the islands (the caller slices instead)."""
+    found = _block_buffer(M, lay, storage)
+    if found is None:
+        return None
+    buf, start, sizes = found
+    return [buf[a: a + n * n].reshape(n, n)
+            for a, n in zip(start.tolist(), sizes.tolist(), strict=True)]
+
+
+def _block_buffer(M: Any, lay: IslandLayout,
+                  storage: str) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """``(buf, start, sizes)``: the islands' dense blocks of the CSR matrix ``M`` written by one
+    compiled pass over ``M``'s entries (:func:`lcpcli.contact._blocks.scatter_blocks`) into one
+    buffer, island ``k``'s ``sizes[k] x sizes[k]`` block (row-major) at ``buf[start[k]:]``: the
+    blocks of one size back to back in island order.  None as :func:`_dense_blocks`."""
     N = M.shape[0]
     sizes = np.diff(lay.offsets).astype(np.int64)
     if lay.perm.size != N or lay.count == 0 or not np.all(sizes > 0):
@@ -191,8 +204,138 @@ def _dense_blocks(M: Any, lay: IslandLayout, storage: str) -> list[np.ndarray] |
         indices, indptr = indices.astype(np.int64), indptr.astype(np.int64)
     if not scatter_blocks(M.data, indices, indptr, row_start, local, island, buf):
         return None
-    return [buf[a: a + m].reshape(n, n)
-            for a, m, n in zip(start.tolist(), length.tolist(), sizes.tolist(), strict=True)]
+    return buf, start, sizes
+
+
+@dataclass
+class IslandAnswers:
+    """The islands' answers, island ``k`` at index ``k`` of every list: what the scene's
+    verdict and per-island report are made of (:func:`lcpcli.contact.model.solve`).
+
+    ``z`` and ``basic`` are merged in the scene's unknown order (``basic``: :func:`basic_of` of
+    each island's answer); ``methods`` (the method that answered, ``info["chosen"]`` where
+    ``auto`` chose), ``status``, ``iterations``, ``seconds``, ``errors`` (the certified error)
+    and ``warm`` (whether the warm start gave the answer) are those of each island's
+    :class:`Result`; ``results`` holds the full Result of every island that is not solved (its
+    message, termination and Farkas vector) and of the islands answered one by one."""
+
+    z: np.ndarray
+    basic: np.ndarray
+    methods: list[str]
+    status: list[Any]
+    iterations: list[int]
+    seconds: list[float]
+    errors: list[float]
+    warm: list[bool]
+    results: dict[int, Any]
+
+
+def solve_islands(problem: Problem, lay: IslandLayout, storage: str, name: str,
+                  method: str = DEFAULT_METHOD, tol: float | None = None,
+                  z0: np.ndarray | None = None, basis0: np.ndarray | None = None, jobs: int = 1,
+                  stacked: bool = True, **options: Any) -> IslandAnswers:
+    """Solve the islands of ``problem`` (``lay``; blocks stored by ``storage``, named
+    ``name#k``) from the warm start ``z0`` (and ``basis0``) of the whole scene, if given:
+    :func:`solve_problems` on :func:`island_problems`, the same answers without a
+    :class:`Result` per island where every island is a dense block of one size that
+    :func:`lcpcli.stacks.solve_each` would stack (:func:`_solve_stacked`; ``stacked=False``:
+    never, the reference the tests compare it with)."""
+    fast = None if not stacked else _solve_stacked(problem, lay, storage, name, method, tol, z0,
+                                                    basis0, jobs, options)
+    if fast is not None:
+        return fast
+    problems = island_problems(problem, lay, storage, name)
+    cuts = lay.offsets[1:-1]  # the islands' unknowns are lay.perm's consecutive pieces
+    z0s = None if z0 is None else np.split(z0[lay.perm], cuts)
+    bases = None if basis0 is None else np.split(basis0[lay.perm], cuts)
+    results = solve_problems(problems, method, tol, z0s, jobs, bases0=bases, **options)
+    z = np.zeros(problem.n)
+    basic = np.zeros(problem.n, dtype=bool)
+    if results:
+        z[lay.perm] = np.concatenate([res.z for res in results])
+        basic[lay.perm] = np.concatenate([basic_of(res) for res in results])
+    return IslandAnswers(
+        z=z, basic=basic, methods=[res.info.get("chosen") or res.method for res in results],
+        status=[res.status for res in results],
+        iterations=[int(res.iterations) for res in results],
+        seconds=[res.seconds for res in results],
+        errors=[float(res.certificate.error) for res in results],
+        warm=[bool(res.info.get("warm", False)) for res in results],
+        results=dict(enumerate(results)))
+
+
+def _solve_stacked(problem: Problem, lay: IslandLayout, storage: str, name: str, method: str,
+                   tol: float | None, z0: np.ndarray | None, basis0: np.ndarray | None,
+                   jobs: int, options: dict[str, Any]) -> IslandAnswers | None:
+    """The islands' answers when every island is a dense block of one size ``n`` (of a dense
+    ``problem.M``, or of a CSR one: :func:`_block_buffer`), at least ``STACK_MIN`` of them, below
+    ``WARM_MIN_N`` with a warm start, and no process pool (the cases where
+    :func:`solve_problems` stacks them all in one :func:`lcpcli.solve_many` call): that call on
+    the buffer as it is, the warm rows gathered in one step, and the answers read from the
+    stack's arrays; a :class:`Result` (:func:`lcpcli.stacks.stacked_result`) only for the
+    islands the kernel did not certify.  None in every other case."""
+    from lcpcli.solvers.warm import WARM_MIN_N
+    from lcpcli.stacks import STACK_MIN, solve_many, stacked_result
+
+    K = lay.count
+    if K < STACK_MIN or lay.perm.size != problem.n:
+        return None
+    sizes = np.diff(lay.offsets)
+    n = int(sizes[0])
+    if not np.all(sizes == n) or (z0 is not None and n >= WARM_MIN_N) or \
+            (z0 is None and jobs > 1 and 2 * jobs <= K and problem.n >= PARALLEL_MIN_UNKNOWNS):
+        return None
+    perm = lay.perm
+    if is_sparse(problem.M):
+        found = _block_buffer(problem.M, lay, storage)
+        if found is None:
+            return None
+        M = found[0].reshape(K, n, n)  # one size: the blocks in island order
+    elif storage == "sparse":  # island_problems stores the blocks sparse: not stacked
+        return None
+    else:  # the principal blocks of a dense M, as island_problems slices them
+        at = perm.reshape(K, n)
+        M = np.asarray(problem.M)[at[:, :, None], at[:, None, :]]
+    q = problem.q[perm].reshape(K, n)
+    warm = None
+    if z0 is not None:  # rows as solve_each makes them: 1 where z_i is basic
+        warm = (basis0[perm] if basis0 is not None else z0[perm] > 0).reshape(K, n)
+        warm = warm.astype(np.float64)
+    res = solve_many(M, q, method, tol=tol, warm=warm, certificates=True, pivot_basis=True,
+                     **options)
+    errors = np.full(K, np.nan) if res.certificates is None else res.certificates[:, 0]
+    # answered and certified in the kernel: a Result's certificate from that row passes
+    # (lcpcli.core.certificate.certificate_of: error <= tol, finite)
+    kernel = (errors <= res.tol) & (errors < np.inf)
+    kernel[list(res.results)] = False
+    warmed = np.zeros(K, bool) if res.warmed is None else res.warmed
+    basic = res.z > 0
+    if res.pivot_basis is not None:
+        listed = kernel & (res.pivot_basis[:, 0] >= 0)
+        basic[listed] = res.pivot_basis[listed] != 0
+    share = res.seconds / K
+    methods = ["bpp" if w else res.method for w in warmed.tolist()]
+    status = [SOLVED] * K
+    iterations = res.iterations.tolist()
+    seconds = [share] * K
+    errors_out = errors.tolist()
+    warm_out = warmed.tolist()
+    results: dict[int, Any] = {}
+    for j in np.flatnonzero(~kernel).tolist():
+        r = stacked_result(res, j, Problem(M=M[j], q=q[j].copy(), name=f"{name}#{j + 1}"))
+        r.info["warm"] = bool(r.info.get("warm", False))
+        results[j] = r
+        basic[j] = basic_of(r)
+        methods[j] = r.info.get("chosen") or r.method
+        status[j], iterations[j], seconds[j] = r.status, int(r.iterations), r.seconds
+        errors_out[j], warm_out[j] = float(r.certificate.error), r.info["warm"]
+    z = np.empty(problem.n)
+    z[perm] = res.z.reshape(-1)
+    merged = np.empty(problem.n, dtype=bool)
+    merged[perm] = basic.reshape(-1)
+    return IslandAnswers(z=z, basic=merged, methods=methods, status=status,
+                         iterations=iterations, seconds=seconds, errors=errors_out,
+                         warm=warm_out, results=results)
 
 
 def solve_problems(problems: list[Problem], method: str = DEFAULT_METHOD, tol: float | None = None,

@@ -32,8 +32,8 @@ from lcpcli.contact.islands import (
     find_islands,
     island_problems,
     layout,
+    solve_islands,
     solve_one,
-    solve_problems,
 )
 from lcpcli.contact.planar import plane_normal
 from lcpcli.contact.scene import Scene, check_coupling, check_nonnegative, per_contact
@@ -337,28 +337,20 @@ def _solve_islands(clcp: ContactLCP, method: str, tol: float | None, z0: np.ndar
 
     lay, isl = clcp.layout, clcp.islands
     t0 = time.perf_counter()
-    problems = island_problems(clcp.problem, lay, clcp.storage, clcp.scene.name or "contact")
-    cuts = lay.offsets[1:-1]  # the islands' unknowns are lay.perm's consecutive pieces
-    z0s = None if z0 is None else np.split(z0[lay.perm], cuts)
-    bases = None if basis0 is None else np.split(basis0[lay.perm], cuts)
-    results = solve_problems(problems, method, tol, z0s, jobs, bases0=bases, **options)
+    ans = solve_islands(clcp.problem, lay, clcp.storage, clcp.scene.name or "contact", method,
+                        tol, z0, basis0, jobs, **options)
     seconds = time.perf_counter() - t0
-    z = np.zeros(clcp.problem.n)
-    basic = np.zeros(clcp.problem.n, dtype=bool)
-    if results:
-        z[lay.perm] = np.concatenate([res.z for res in results])
-        basic[lay.perm] = np.concatenate([basic_of(res) for res in results])
-    sizes, bodies = isl.sizes().tolist(), isl.body_counts().tolist()
-    reports = []
+    z, basic, results = ans.z, ans.basic, ans.results
     used: dict[str, int] = {}
-    for k, res in enumerate(results):
-        chosen = res.info.get("chosen") or res.method
+    for chosen in ans.methods:
         used[chosen] = used.get(chosen, 0) + 1
-        reports.append({"index": k + 1, "contacts": sizes[k], "bodies": bodies[k],
-                        "unknowns": int(problems[k].n), "method": chosen, "status": res.status,
-                        "iterations": int(res.iterations), "seconds": res.seconds,
-                        "error": _finite(res.certificate.error),
-                        "warm": bool(res.info.get("warm", False))})
+    reports = [{"index": k + 1, "contacts": c, "bodies": b, "unknowns": u, "method": m,
+                "status": st, "iterations": it, "seconds": sec, "error": _finite(e),
+                "warm": wm}
+               for k, (c, b, u, m, st, it, sec, e, wm) in enumerate(zip(
+                   isl.sizes().tolist(), isl.body_counts().tolist(),
+                   np.diff(lay.offsets).tolist(), ans.methods, ans.status, ans.iterations,
+                   ans.seconds, ans.errors, ans.warm, strict=True))]
     failed = [r for r in reports if r["status"] != SOLVED]
     infeasible = [r for r in reports if r["status"] == NO_SOLUTION]
     mix = ", ".join(f"{m} {c}" for m, c in sorted(used.items(), key=lambda x: -x[1]))
