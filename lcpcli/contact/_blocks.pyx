@@ -3,7 +3,9 @@
 block-diagonal CSR matrix, written in one pass over its entries (no permuted copy of the
 matrix, no slicing per block)."""
 
+from cython.parallel cimport prange
 from libc.stdint cimport int64_t
+from libc.string cimport memset
 
 from lcpcli.core.arrays cimport _as, f64, f64_ptr, i64, i64_ptr, inout
 
@@ -11,37 +13,65 @@ cimport numpy as cnp
 
 cnp.import_array()
 
+#: Doubles per piece of the buffer a thread zeroes (2 MiB: one huge page).
+cdef Py_ssize_t CHUNK = 1 << 18
+
 ctypedef fused index_t:
     int
     long long
 
 
+cdef int _scatter_row(Py_ssize_t i, const double* data, const index_t* indices,
+                      const index_t* indptr, const int64_t* row_start,
+                      const int64_t* col_local, const int64_t* block,
+                      double* out) noexcept nogil:
+    """Row ``i``'s entries into its block row; 1 at the first entry in another block."""
+    cdef Py_ssize_t p, j
+    cdef int64_t start = row_start[i]
+    cdef int64_t b = block[i]
+    for p in range(indptr[i], indptr[i + 1]):
+        j = indices[p]
+        if block[j] != b:
+            return 1
+        out[start + col_local[j]] += data[p]
+    return 0
+
+
 cdef bint _scatter(Py_ssize_t n, const double* data, const index_t* indices,
                    const index_t* indptr, const int64_t* row_start, const int64_t* col_local,
-                   const int64_t* block, double* out) noexcept nogil:
-    cdef Py_ssize_t i, p, j
-    cdef int64_t start, b
-    for i in range(n):
-        start = row_start[i]
-        b = block[i]
-        for p in range(indptr[i], indptr[i + 1]):
-            j = indices[p]
-            if block[j] != b:
+                   const int64_t* block, double* out, Py_ssize_t size,
+                   int threads) noexcept nogil:
+    cdef Py_ssize_t i, c
+    cdef Py_ssize_t bad = 0
+    if threads <= 1:
+        for i in range(n):
+            if _scatter_row(i, data, indices, indptr, row_start, col_local, block, out):
                 return False
-            out[start + col_local[j]] += data[p]
-    return True
+        return True
+    # first the buffer's pages, each thread its own contiguous part (threads that fault in
+    # the same huge pages wait on each other: slower than one thread), then the rows in
+    # parallel: each row writes only its own block row (row_start[i] onwards)
+    for c in prange((size + CHUNK - 1) // CHUNK, num_threads=threads, schedule="static"):
+        memset(out + c * CHUNK, 0, (CHUNK if size - c * CHUNK > CHUNK else size - c * CHUNK)
+               * sizeof(double))
+    for i in prange(n, num_threads=threads, schedule="static"):
+        bad += _scatter_row(i, data, indices, indptr, row_start, col_local, block, out)
+    return bad == 0
 
 
-def scatter_blocks(data, indices, indptr, row_start, col_local, block, out):
+def scatter_blocks(data, indices, indptr, row_start, col_local, block, out,
+                   int threads=1):
     """Add every entry ``(i, j, v)`` of the CSR matrix (``data``, ``indices``, ``indptr``;
     0-based, int32 or int64 indices) into ``out[row_start[i] + col_local[j]]`` (``out``: a
     writeable float64 array zeroed by the caller; duplicate entries add up, as a CSR matrix
     reads them).  ``block[i]`` is the diagonal block of row/column ``i`` (``row_start``,
     ``col_local``, ``block``: int64, one per row); returns False, with ``out`` partly written,
     at the first entry whose row and column lie in different blocks (the matrix is not block
-    diagonal in them).  The CSR arrays are taken as scipy makes them (indices within the rows,
-    ``indptr`` nondecreasing up to the length of ``data``): an internal helper, not a reader
-    of outside data."""
+    diagonal in them).  ``threads`` > 1: ``out`` zeroed again, each OpenMP thread its own
+    contiguous part (its first touch), then the rows split between the threads (each row
+    writes only its own block row).  The CSR arrays are taken as scipy makes them (indices
+    within the rows, ``indptr`` nondecreasing up to the length of ``data``): an internal
+    helper, not a reader of outside data."""
     cdef cnp.ndarray d = f64(data, -1, -1)
     cdef cnp.ndarray o = inout(out, cnp.NPY_FLOAT64, -1, -1)
     cdef cnp.ndarray rs = i64(row_start, -1, -1)
@@ -64,9 +94,9 @@ def scatter_blocks(data, indices, indptr, row_start, col_local, block, out):
         if typ == cnp.NPY_INT32:
             ok = _scatter(n, f64_ptr(d), <const int*>cnp.PyArray_DATA(ia),
                           <const int*>cnp.PyArray_DATA(pa), i64_ptr(rs), i64_ptr(cl),
-                          i64_ptr(bl), f64_ptr(o))
+                          i64_ptr(bl), f64_ptr(o), cnp.PyArray_SIZE(o), threads)
         else:
             ok = _scatter(n, f64_ptr(d), <const long long*>cnp.PyArray_DATA(ia),
                           <const long long*>cnp.PyArray_DATA(pa), i64_ptr(rs), i64_ptr(cl),
-                          i64_ptr(bl), f64_ptr(o))
+                          i64_ptr(bl), f64_ptr(o), cnp.PyArray_SIZE(o), threads)
     return ok
