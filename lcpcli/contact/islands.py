@@ -28,6 +28,7 @@ import numpy as np
 from lcpcli.contact._blocks import scatter_blocks
 from lcpcli.contact.assembly import choose_storage
 from lcpcli.contact.scene import Scene
+from lcpcli.core.certificate import Certificate, certificate_of
 from lcpcli.core.problem import Problem, is_sparse
 from lcpcli.core.result import CONVERGED, SOLVED, Outcome
 from lcpcli.solvers import DEFAULT_METHOD
@@ -224,7 +225,9 @@ class IslandAnswers:
     ``auto`` chose), ``status``, ``iterations``, ``seconds``, ``errors`` (the certified error)
     and ``warm`` (whether the warm start gave the answer) are those of each island's
     :class:`Result`; ``results`` holds the full Result of every island that is not solved (its
-    message, termination and Farkas vector) and of the islands answered one by one."""
+    message, termination and Farkas vector) and of the islands answered one by one.
+    ``checked``: the whole scene's ``(certificate, w)`` for ``z`` when it follows from the
+    islands' own (:func:`scene_check`), else None (the caller checks ``z`` on the scene)."""
 
     z: np.ndarray
     basic: np.ndarray
@@ -235,6 +238,7 @@ class IslandAnswers:
     errors: list[float]
     warm: list[bool]
     results: dict[int, Any]
+    checked: tuple[Certificate, np.ndarray] | None = None
 
 
 def solve_islands(problem: Problem, lay: IslandLayout, storage: str, name: str,
@@ -340,9 +344,48 @@ def _solve_stacked(problem: Problem, lay: IslandLayout, storage: str, name: str,
     z[perm] = res.z.reshape(-1)
     merged = np.empty(problem.n, dtype=bool)
     merged[perm] = basic.reshape(-1)
+    checked = None
+    if kernel.all() and is_sparse(problem.M):  # block diagonal: checked by _block_buffer
+        checked = scene_check(res.certificates, res.w, lay, res.tol)
     return IslandAnswers(z=z, basic=merged, methods=methods, status=status,
                          iterations=iterations, seconds=seconds, errors=errors_out,
-                         warm=warm_out, results=results)
+                         warm=warm_out, results=results, checked=checked)
+
+
+def scene_check(rows: np.ndarray, w: np.ndarray, lay: IslandLayout,
+                tol: float) -> tuple[Certificate, np.ndarray]:
+    """The whole scene's ``(certificate, w)`` (:func:`lcpcli.core.certificate.check` of the
+    merged ``z`` on the scene's LCP) from its islands' certificates ``rows`` (one row of
+    :data:`lcpcli.solvers.kernels.batch.CERT_FIELDS` per island, all status 0) and ``w``
+    ((K, n), island order), for a scene whose ``M`` is block diagonal in the islands ``lay``.
+
+    Why this is the scene's certificate (the definitions in :mod:`lcpcli.core.certificate`):
+    with ``M`` block diagonal, row ``i``'s terms are those of its island's columns, so ``w_i``,
+    ``(|M| |z|)_i`` and the row scale ``s_i`` are the island's; column ``j``'s entries lie in
+    its island's rows, so ``kappa_j = max_i |M_ij| / s_i`` is the island's; a link joins row
+    ``i`` and column ``j`` only where ``M_ij != 0``, so every block of linked rows lies in one
+    island and its growth is the island's; each pair's backward error ``eps_i`` depends on
+    ``z_i``, ``w_i``, ``s_i``, ``kappa_i`` only.  Hence ``error = max_i eps_i max(1, G)`` is
+    the largest island error, the backward error and the diagnostics in data units (maxima
+    over the pairs) are the islands' largest, and ``worst``, the first row (in the scene's
+    order) with the largest error, is the first such row among the islands' own worst rows
+    (inside an island the unknowns keep the scene's order), ``growth`` its island's.  The
+    numbers are those of the islands' evaluation (their blocks stored dense: the sums in
+    another order than a CSR pass over the scene, the same definition to rounding).  ``passed``
+    by the one rule, :func:`lcpcli.core.certificate.certificate_of`, at ``tol``: the scene is
+    solved exactly when every island's certificate passes."""
+    err = rows[:, 0]
+    top = err.max()
+    at = np.flatnonzero(err == top)
+    first = lay.perm[lay.offsets[at] + rows[at, 8].astype(np.int64)]
+    pick = int(np.argmin(first))
+    largest = rows.max(axis=0).tolist()
+    cert = certificate_of(0, float(top), largest[1], float(rows[at[pick], 2]), largest[3],
+                          largest[4], largest[5], largest[6], largest[7], int(first[pick]),
+                          tol)
+    merged = np.empty(lay.perm.size)
+    merged[lay.perm] = w.reshape(-1)
+    return cert, merged
 
 
 def solve_problems(problems: list[Problem], method: str = DEFAULT_METHOD, tol: float | None = None,

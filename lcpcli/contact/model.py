@@ -375,10 +375,10 @@ def _solve_islands(clcp: ContactLCP, method: str, tol: float | None, z0: np.ndar
                                            for r in infeasible])
     if y is not None:
         info["farkas_y"] = y.tolist()
+    tol_used = resolve_tol(method_of(method), tol)
     outcome = Outcome(z=z, iterations=sum(r["iterations"] for r in reports),
                       termination=termination, message=msg, proven_infeasible=bool(infeasible),
-                      info=info)
-    tol_used = resolve_tol(method_of(method), tol)
+                      info=info, checked=ans.checked)  # the scene's, from its islands' if set
     result = certify_outcome(clcp.problem, outcome, method, seconds, tol_used)
     return z, result, reports, basic
 

@@ -70,6 +70,22 @@ def _same_answers(a: islands.IslandAnswers, b: islands.IslandAnswers) -> None:
         assert str(st_) == "solved" or k in a.results
 
 
+def _same_certificate(a: Any, b: Any) -> None:
+    """The same verdict, worst pair and numbers to rounding: the scene's certificate taken from
+    its islands' (their blocks summed dense) against a CSR pass over the scene.  Rounding of
+    w (sums of 72 terms of size about 1) moves the relative errors by about 1e-14 at most and
+    the diagnostics in data units (|w_i|, |z_i w_i| near 0) by about as much in absolute; the
+    worst pair, and the growth of its block, are compared where the error is more than
+    rounding (among rounding-level errors the largest is rounding's pick)."""
+    assert (a.passed, a.tol) == (b.passed, b.tol)
+    if b.error > 1e-10:
+        assert a.worst == b.worst
+        assert a.growth == pytest.approx(b.growth, rel=1e-9)
+    for name in ("error", "backward_error", "residual", "bound_violation", "w_violation",
+                 "complementarity", "equality_residual"):
+        assert getattr(a, name) == pytest.approx(getattr(b, name), rel=1e-9, abs=1e-12), name
+
+
 @settings(max_examples=12, deadline=None)
 @given(st.integers(8, 14), st.sampled_from([1, 2, 3]), st.integers(0, 2**16),
        st.sampled_from(sorted(CASES)))
@@ -100,7 +116,8 @@ def test_scene_verdict_and_report_unchanged(case, monkeypatch) -> None:
     slow = solve(nxt, method, **opts)
     assert fast.result.status == slow.result.status
     assert fast.result.message == slow.result.message
-    assert fast.result.certificate == slow.result.certificate
+    _same_certificate(fast.result.certificate, slow.result.certificate)
+    np.testing.assert_allclose(fast.result.w, slow.result.w, rtol=0, atol=1e-12)
     np.testing.assert_array_equal(fast.result.z, slow.result.z)
     np.testing.assert_array_equal(fast.basic, slow.basic)
     drop = [{k: v for k, v in r.items() if k != "seconds"} for r in fast.islands]
@@ -125,3 +142,52 @@ def test_sparse_islands_and_mixed_sizes_take_the_per_island_path() -> None:
         (lay.offsets[:1], lay.offsets[2:])))  # the first two islands as one: two sizes
     assert islands._solve_stacked(one.problem, two, one.storage, "s", "auto", None, None, None,
                                   1, {}) is None
+
+
+@settings(max_examples=10, deadline=None)
+@given(st.integers(8, 14), st.integers(0, 2**16), st.sampled_from(["cold", "warm_basis"]))
+def test_scene_certificate_from_the_islands_is_the_scenes(stacks, seed, case) -> None:
+    """Every island certified in the kernel: the scene's certificate is its islands' combined
+    (scene_check: the largest error, the first worst row in the scene's order, its island's
+    growth, the largest diagnostics), exactly the combination of each island's own certificate
+    (check on its dense block), and the scene's certificate by a CSR pass over the whole scene
+    to rounding, with the same verdict."""
+    from lcpcli.core.certificate import check
+
+    first, nxt = _pair(stacks, 3, seed)
+    method, opts = _arguments(case, first)
+    lay, p = nxt.layout, nxt.problem
+    ans = islands._solve_stacked(p, lay, nxt.storage, "s", method, None, opts.get("z0"),
+                                 opts.get("basis0"), 1, {})
+    assert ans is not None and p.sparse and ans.checked is not None
+    cert, w = ans.checked
+    scene, w_scene = check(p, ans.z, cert.tol)
+    _same_certificate(cert, scene)
+    np.testing.assert_allclose(w, w_scene, rtol=0, atol=1e-12)
+    own = []  # each island's certificate on its own dense block, and its first worst row
+    blocks = islands._dense_blocks(p.M, lay, nxt.storage)
+    for k, block in enumerate(blocks):
+        rows = lay.unknowns(k)
+        c, wk = check(islands.Problem(M=block, q=p.q[rows]), ans.z[rows], cert.tol)
+        np.testing.assert_array_equal(wk, w[rows])
+        own.append((c, int(rows[c.worst])))
+    top = max(c.error for c, _ in own)
+    worst, growth = min((r, c.growth) for c, r in own if c.error == top)
+    assert (cert.error, cert.worst, cert.growth) == (top, worst, growth)
+    for name in ("backward_error", "residual", "bound_violation", "w_violation",
+                 "complementarity", "equality_residual"):
+        assert getattr(cert, name) == max(getattr(c, name) for c, _ in own), name
+    assert cert.passed == all(c.passed for c, _ in own)
+
+
+def test_an_island_not_certified_leaves_the_scene_to_its_own_check() -> None:
+    """An island the kernel did not certify (tol = 1e-16): no combined certificate, and the
+    scene's Result carries exactly the certificate of a check on the whole scene."""
+    from lcpcli.core.certificate import check
+
+    first, nxt = _pair(9, 3, 5)
+    ans = islands._solve_stacked(nxt.problem, nxt.layout, nxt.storage, "s", "auto", 1e-16,
+                                 None, None, 1, {})
+    assert ans is not None and ans.checked is None
+    out = solve(nxt, tol=1e-16)
+    assert out.result.certificate == check(nxt.problem, out.result.z, 1e-16)[0]
