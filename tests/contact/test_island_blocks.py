@@ -63,8 +63,9 @@ def test_dense_blocks_equal_the_sliced_blocks(sizes, seed, duplicates, wide) -> 
        st.sampled_from([2, 3]), st.booleans())
 def test_scatter_in_threads_equals_one_thread(sizes, seed, threads, across) -> None:
     """scatter_blocks split between OpenMP threads (the buffer zeroed by each thread in its
-    part first) writes the same buffer as one thread, and refuses an entry across blocks the
-    same way (the threads' path, which islands take from 2**18 entries, on small matrices)."""
+    part first), or with each row zeroing its own block row (a reused buffer), writes the same
+    buffer as one thread on a zeroed one, and refuses an entry across blocks the same way (the
+    threads' path, which islands take from 2**18 entries, on small matrices)."""
     from lcpcli.contact._blocks import scatter_blocks
 
     rng = np.random.default_rng(seed)
@@ -81,13 +82,18 @@ def test_scatter_in_threads_equals_one_thread(sizes, seed, threads, across) -> N
     local = np.arange(N) - np.repeat(lay.offsets[:-1], size)
     row_start = start[island] + local * size[island]
     got = []
-    for t in (1, threads):
-        buf = np.full(int((size * size).sum()), np.nan if t > 1 else 0.0)  # t > 1 zeroes it
-        ok = scatter_blocks(M.data, M.indices, M.indptr, row_start, local, island, buf, t)
+    # one thread on a zeroed buffer; threads on fresh memory (zeroed there first); each row
+    # zeroing its own block row (sizes=) in a buffer holding anything, one thread or several
+    for t, kw in ((1, {}), (threads, {}), (1, {"sizes": size, "fresh": False}),
+                  (threads, {"sizes": size, "fresh": False})):
+        buf = np.full(int((size * size).sum()), np.nan if t > 1 or kw else 0.0)
+        ok = scatter_blocks(M.data, M.indices, M.indptr, row_start, local, island, buf, t,
+                            **kw)
         got.append((ok, buf))
-    assert got[0][0] == got[1][0] == (not (across and sizes[0] < N))
+    assert all(ok == (not (across and sizes[0] < N)) for ok, _ in got)
     if got[0][0]:
-        np.testing.assert_array_equal(got[0][1], got[1][1])
+        for _, buf in got[1:]:
+            np.testing.assert_array_equal(got[0][1], buf)
 
 
 def test_an_entry_across_islands_is_refused() -> None:

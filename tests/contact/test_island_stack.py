@@ -191,3 +191,27 @@ def test_an_island_not_certified_leaves_the_scene_to_its_own_check() -> None:
     assert ans is not None and ans.checked is None
     out = solve(nxt, tol=1e-16)
     assert out.result.certificate == check(nxt.problem, out.result.z, 1e-16)[0]
+
+
+def test_the_block_buffer_is_kept_only_when_nothing_refers_to_it() -> None:
+    """solve_islands keeps its island-block buffer for the next call (the same answers from a
+    reused buffer, which every row zeroes again), but never one that a view still refers to."""
+    first, nxt = _pair(9, 3, 5)
+    lay, p = nxt.layout, nxt.problem
+    islands._block_pool.clear()
+    a = islands._solve_stacked(p, lay, nxt.storage, "s", "auto", None, None, None, 1, {})
+    assert len(islands._block_pool) == 1
+    islands._block_pool[0][:] = np.nan  # whatever the last scene left there
+    kept = id(islands._block_pool[0])  # (no reference held: the pool keeps it alive)
+    b = islands._solve_stacked(p, lay, nxt.storage, "s", "auto", None, None, None, 1, {})
+    assert [id(x) for x in islands._block_pool] == [kept]  # taken, filled, given back
+    _same_answers(a, b)
+    assert a.checked[0] == b.checked[0]
+    islands._block_pool.clear()
+    buf = islands._block_buffer(p.M, lay, nxt.storage, pooled=True)[0]
+    view = buf[:3]
+    islands._keep_buffer(buf)
+    assert not islands._block_pool  # a view of it lives on
+    del view
+    islands._keep_buffer(buf)
+    assert islands._block_pool == [buf]
