@@ -200,8 +200,8 @@ def _block_buffer(M: Any, lay: IslandLayout, storage: str,
         return None
     M = M.tocsr()
     nnz = np.add.reduceat(np.diff(M.indptr)[lay.perm], lay.offsets[:-1])
-    if any(choose_storage(storage, int(n), int(e)) != "dense"
-           for n, e in zip(sizes.tolist(), nnz.tolist(), strict=True)):
+    if any(choose_storage(storage, n, e) != "dense"  # once per distinct size and fill
+           for n, e in set(zip(sizes.tolist(), nnz.tolist(), strict=True))):
         return None
     order = np.argsort(sizes, kind="stable")  # one size after another, islands in order
     length = sizes * sizes

@@ -10,6 +10,7 @@ per-island report.
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field
 from typing import Any
@@ -528,4 +529,4 @@ def _ang(scene: Scene, w: np.ndarray) -> Any:
 
 def _finite(x: float) -> float | None:
     x = float(x)
-    return x if np.isfinite(x) else None
+    return x if math.isfinite(x) else None
