@@ -371,7 +371,8 @@ def _solve_stacked(problem: Problem, lay: IslandLayout, storage: str, name: str,
     merged = np.empty(problem.n, dtype=bool)
     merged[perm] = basic.reshape(-1)
     checked = None
-    if kernel.all() and is_sparse(problem.M):  # block diagonal: checked by _block_buffer
+    if kernel.all() and is_sparse(problem.M) and problem.kind == "lcp":
+        # M block diagonal in the islands: checked entry by entry by _block_buffer
         checked = scene_check(res.certificates, res.w, lay, res.tol)
     if buf is not None:
         del M
