@@ -13,7 +13,9 @@ the scene's order (normal impulses, then tangential impulses, then slacks).  Box
 (``dxProcessIslands``), Bullet and MuJoCo (``mj_island``) split their contact problems the same
 way.
 
-:func:`solve_problems` is the one place where the island LCPs are solved; its
+:func:`solve_islands` solves a scene's islands: where they are all dense blocks of one size, in
+one call of the batched solver on the blocks as written (:func:`_solve_stacked`), the answers
+read from the stack's arrays; otherwise through :func:`solve_problems`, whose
 :func:`solve_cold` stacks the islands of one size for the batched solver (``solve_each``).
 """
 
