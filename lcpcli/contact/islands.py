@@ -49,10 +49,12 @@ WARM_NEWTON_MIN_N = 1000
 #: unknowns in all and there are at least ``2 * jobs`` islands (below, forking the workers and
 #: sending the problems back and forth costs more than it saves; benchmarks/bench_contact.py).
 PARALLEL_MIN_UNKNOWNS = 20_000
-#: :func:`_block_buffer` writes the blocks in one OpenMP thread per this many stored entries of
-#: ``M`` (at most the cores this process may use): 2.4 million entries (834 box stacks) take
-#: about 7 ms on one core, half of it the first touch of the 35 MB buffer.
-SCATTER_ENTRIES_PER_THREAD = 1 << 18
+#: Seconds :func:`_block_buffer` takes per stored entry of ``M`` on one core (834 box stacks,
+#: 2.4 million entries: 3 ms with a reused buffer, 5-7 ms on fresh memory): it writes the
+#: blocks in one OpenMP thread per ``lcpcli.solvers.batched.MIN_THREAD_SECONDS`` of that work
+#: at most (the batched kernels' rule: on a busy machine a thread with less to do costs more
+#: in waiting to be scheduled than it saves; 834 box stacks: one thread).
+SCATTER_SECONDS_PER_ENTRY = 1.25e-9
 #: :func:`solve_islands` keeps one island-block buffer of at most this many doubles between
 #: calls (a time-stepping loop solves one scene after another of the same size), when nothing
 #: else refers to it: reusing it spares the first touch of fresh memory (about 2 ms of the
@@ -222,9 +224,10 @@ def _block_buffer(M: Any, lay: IslandLayout, storage: str,
     indices, indptr = M.indices, M.indptr
     if indices.dtype != indptr.dtype:
         indices, indptr = indices.astype(np.int64), indptr.astype(np.int64)
-    from lcpcli.solvers.batched import default_threads
+    from lcpcli.solvers.batched import MIN_THREAD_SECONDS, default_threads
 
-    threads = max(1, min(default_threads(), M.data.size // SCATTER_ENTRIES_PER_THREAD))
+    threads = max(1, min(default_threads(),
+                         int(M.data.size * SCATTER_SECONDS_PER_ENTRY / MIN_THREAD_SECONDS)))
     if not scatter_blocks(M.data, indices, indptr, row_start, local, island, buf, threads,
                           sizes, fresh):
         return None

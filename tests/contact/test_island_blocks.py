@@ -65,7 +65,7 @@ def test_scatter_in_threads_equals_one_thread(sizes, seed, threads, across) -> N
     """scatter_blocks split between OpenMP threads (the buffer zeroed by each thread in its
     part first), or with each row zeroing its own block row (a reused buffer), writes the same
     buffer as one thread on a zeroed one, and refuses an entry across blocks the same way (the
-    threads' path, which islands take from 2**18 entries, on small matrices)."""
+    threads' path, which islands take on large scenes, on small matrices)."""
     from lcpcli.contact._blocks import scatter_blocks
 
     rng = np.random.default_rng(seed)
