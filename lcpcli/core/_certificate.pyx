@@ -275,7 +275,9 @@ cdef void _link(Py_ssize_t n, const double* M, Py_ssize_t ldm, const double* z,
             j = cols[k]
             m = fabs(row[j])
             sig[cnt] = j
-            cnt += (m != 0.0) & (z[j] != 0.0) & (m * inv >= THETA * kappa[j])
+            # (M and z are finite here, or the row pass failed: m != 0 is m > 0, and the
+            # tests need no NaN handling)
+            cnt += (m > 0.0) & (fabs(z[j]) > 0.0) & (m * inv >= THETA * kappa[j])
         joined = False  # row i's set holds a column (rows before i never change again)
         for k in range(cnt):
             j = sig[k]
