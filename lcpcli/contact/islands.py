@@ -59,7 +59,7 @@ SCATTER_SECONDS_PER_ENTRY = 1.25e-9
 #: calls (a time-stepping loop solves one scene after another of the same size), when nothing
 #: else refers to it: reusing it spares the first touch of fresh memory (about 2 ms of the
 #: 6 ms that writing the 35 MB of 834 box stacks' blocks takes on one core).
-BLOCK_POOL_MAX = 1 << 25
+BLOCK_POOL_MAX = 1 << 23  # 64 MiB: 834 box stacks need 35 MB
 _block_pool: list[np.ndarray] = []
 
 
