@@ -22,8 +22,8 @@ from setuptools.command.build_ext import build_ext
 
 ROOT = Path(__file__).resolve().parent
 #: Modules that use ``prange`` (OpenMP); the others are built without it.
-OPENMP_MODULES = {"lcpcli.analysis._enum", "lcpcli.solvers.kernels.batch",
-                  "lcpcli.solvers.kernels.stack_c"}
+OPENMP_MODULES = {"lcpcli.analysis._enum", "lcpcli.contact._blocks",
+                  "lcpcli.solvers.kernels.batch", "lcpcli.solvers.kernels.stack_c"}
 #: Set ``LCPCLI_NO_OPENMP=1`` to build every module serial.
 NO_OPENMP = os.environ.get("LCPCLI_NO_OPENMP", "") not in ("", "0")
 

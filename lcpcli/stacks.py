@@ -353,37 +353,8 @@ def solve_each(problems: list[Problem], method: str | None = None, *, tol: float
                          np.stack([problems[i].q for i in idx]), method, tol=tol,
                          threads=threads, warm=warm, certificates=True, pivot_basis=True,
                          **options)
-        share = res.seconds / len(idx)
-        rows = res.certificates
         for j, i in enumerate(idx):
-            p = problems[i]
-            if j in res.results:  # solved on its own (the kernel handed it back)
-                out[i] = res.results[j]
-                out[i].problem_name = p.name
-                continue
-            z = res.z[j].copy()
-            source = None
-            if rows is not None and rows[j, 0] == rows[j, 0]:
-                # certified in the kernel: its certificate and w (and pair states, when the
-                # kernel recorded them; else computed on first use), as check gives them
-                cert, w = from_row(rows[j], res.tol), res.w[j].copy()
-                basis = None if res.basis is None else res.basis[j].copy()
-                source = p if basis is None else None
-            else:
-                basis = np.empty(p.n, dtype=np.int8)
-                cert, w = check(p, z, res.tol, state=basis)
-            status = SOLVED if cert.passed else UNSOLVED
-            out[i] = Result(status=status, method=res.method_of(j), z=z, w=w,
-                            iterations=int(res.iterations[j]), seconds=share,
-                            certificate=cert, message=res.message(j),
-                            termination=CONVERGED if cert.passed else Termination.NUMERICAL,
-                            problem_name=p.name, info={"batched": True}, known_basis=basis,
-                            basis_source=source)
-            if res.pivot_basis is not None and res.pivot_basis[j, 0] >= 0:
-                # the basic z's of the pivoting's final basis (as lcpcli.solve's Lemke reports)
-                out[i].info["basis"] = np.flatnonzero(res.pivot_basis[j]).tolist()
-            if res.warmed is not None:
-                out[i].info["warm"] = bool(res.warmed[j])
+            out[i] = stacked_result(res, j, problems[i])
     for i, p in enumerate(problems):
         if out[i] is None:
             warm = None if warms is None else warms[i]
@@ -391,6 +362,44 @@ def solve_each(problems: list[Problem], method: str | None = None, *, tol: float
             if warm is not None:
                 out[i].info["warm"] = bool(out[i].info.get("warm", False))
     return out  # type: ignore[return-value]
+
+
+def stacked_result(res: StackResult, j: int, p: Problem) -> Result:
+    """Problem ``j`` of ``res`` (a :func:`solve_many` stack run with ``certificates=True`` and
+    ``pivot_basis=True``) as the :class:`Result` of ``p``, the problem it stacked: the Result of
+    its own :func:`solve` when the kernel handed it back, else the kernel's answer with the
+    kernel's certificate and ``w`` (recomputed where the backend did not record them);
+    ``seconds``: its share of the stack's time; ``info["batched"]``, ``info["basis"]`` (the
+    basic z's of the pivoting's final basis) and, for a warm stack, ``info["warm"]``."""
+    if j in res.results:  # solved on its own (the kernel handed it back)
+        r = res.results[j]
+        r.problem_name = p.name
+        return r
+    rows = res.certificates
+    z = res.z[j].copy()
+    source = None
+    if rows is not None and rows[j, 0] == rows[j, 0]:
+        # certified in the kernel: its certificate and w (and pair states, when the
+        # kernel recorded them; else computed on first use), as check gives them
+        cert, w = from_row(rows[j], res.tol), res.w[j].copy()
+        basis = None if res.basis is None else res.basis[j].copy()
+        source = p if basis is None else None
+    else:
+        basis = np.empty(p.n, dtype=np.int8)
+        cert, w = check(p, z, res.tol, state=basis)
+    status = SOLVED if cert.passed else UNSOLVED
+    out = Result(status=status, method=res.method_of(j), z=z, w=w,
+                 iterations=int(res.iterations[j]), seconds=res.seconds / len(res),
+                 certificate=cert, message=res.message(j),
+                 termination=CONVERGED if cert.passed else Termination.NUMERICAL,
+                 problem_name=p.name, info={"batched": True}, known_basis=basis,
+                 basis_source=source)
+    if res.pivot_basis is not None and res.pivot_basis[j, 0] >= 0:
+        # the basic z's of the pivoting's final basis (as lcpcli.solve's Lemke reports)
+        out.info["basis"] = np.flatnonzero(res.pivot_basis[j]).tolist()
+    if res.warmed is not None:
+        out.info["warm"] = bool(res.warmed[j])
+    return out
 
 
 def _stacked(blocks: list[np.ndarray]) -> np.ndarray:

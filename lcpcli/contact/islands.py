@@ -13,13 +13,16 @@ the scene's order (normal impulses, then tangential impulses, then slacks).  Box
 (``dxProcessIslands``), Bullet and MuJoCo (``mj_island``) split their contact problems the same
 way.
 
-:func:`solve_problems` is the one place where the island LCPs are solved; its
+:func:`solve_islands` solves a scene's islands: where they are all dense blocks of one size, in
+one call of the batched solver on the blocks as written (:func:`_solve_stacked`), the answers
+read from the stack's arrays; otherwise through :func:`solve_problems`, whose
 :func:`solve_cold` stacks the islands of one size for the batched solver (``solve_each``).
 """
 
 from __future__ import annotations
 
 import os
+import sys
 from dataclasses import dataclass
 from typing import Any
 
@@ -28,8 +31,9 @@ import numpy as np
 from lcpcli.contact._blocks import scatter_blocks
 from lcpcli.contact.assembly import choose_storage
 from lcpcli.contact.scene import Scene
+from lcpcli.core.certificate import Certificate, certificate_of
 from lcpcli.core.problem import Problem, is_sparse
-from lcpcli.core.result import CONVERGED, Outcome
+from lcpcli.core.result import CONVERGED, SOLVED, Outcome
 from lcpcli.solvers import DEFAULT_METHOD
 
 #: Warm start, islands of at least WARM_NEWTON_MIN_N unknowns whose ``z0`` does not already
@@ -45,6 +49,18 @@ WARM_NEWTON_MIN_N = 1000
 #: unknowns in all and there are at least ``2 * jobs`` islands (below, forking the workers and
 #: sending the problems back and forth costs more than it saves; benchmarks/bench_contact.py).
 PARALLEL_MIN_UNKNOWNS = 20_000
+#: Seconds :func:`_block_buffer` takes per stored entry of ``M`` on one core (834 box stacks,
+#: 2.4 million entries: 3 ms with a reused buffer, 5-7 ms on fresh memory): it writes the
+#: blocks in one OpenMP thread per ``lcpcli.solvers.batched.MIN_THREAD_SECONDS`` of that work
+#: at most (the batched kernels' rule: on a busy machine a thread with less to do costs more
+#: in waiting to be scheduled than it saves; 834 box stacks: one thread).
+SCATTER_SECONDS_PER_ENTRY = 1.25e-9
+#: :func:`solve_islands` keeps one island-block buffer of at most this many doubles between
+#: calls (a time-stepping loop solves one scene after another of the same size), when nothing
+#: else refers to it: reusing it spares the first touch of fresh memory (about 2 ms of the
+#: 6 ms that writing the 35 MB of 834 box stacks' blocks takes on one core).
+BLOCK_POOL_MAX = 1 << 23  # 64 MiB: 834 box stacks need 35 MB
+_block_pool: list[np.ndarray] = []
 
 
 @dataclass
@@ -162,19 +178,34 @@ def island_problems(problem: Problem, lay: IslandLayout, storage: str = "auto",
 
 def _dense_blocks(M: Any, lay: IslandLayout, storage: str) -> list[np.ndarray] | None:
     """The islands' blocks of the CSR matrix ``M`` as dense arrays, when every island is stored
-    dense (:func:`choose_storage`), written by one compiled pass over ``M``'s entries
-    (:func:`lcpcli.contact._blocks.scatter_blocks`) into one buffer: the blocks of one size
-    back to back in island order, so that a stack of them (:func:`lcpcli.stacks.solve_each`)
-    is a view of it.  None when an island is stored sparse or ``M`` is not block diagonal in
-    the islands (the caller slices instead)."""
+    dense (:func:`choose_storage`): views of :func:`_block_buffer`'s buffer, the blocks of one
+    size back to back in island order, so that a stack of them
+    (:func:`lcpcli.stacks.solve_each`) is a view of it.  None when an island is stored sparse
+    or ``M`` is not block diagonal in the islands (the caller slices instead)."""
+    found = _block_buffer(M, lay, storage)
+    if found is None:
+        return None
+    buf, start, sizes = found
+    return [buf[a: a + n * n].reshape(n, n)
+            for a, n in zip(start.tolist(), sizes.tolist(), strict=True)]
+
+
+def _block_buffer(M: Any, lay: IslandLayout, storage: str,
+                  pooled: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """``(buf, start, sizes)``: the islands' dense blocks of the CSR matrix ``M`` written by one
+    compiled pass over ``M``'s entries (:func:`lcpcli.contact._blocks.scatter_blocks`) into one
+    buffer, island ``k``'s ``sizes[k] x sizes[k]`` block (row-major) at ``buf[start[k]:]``: the
+    blocks of one size back to back in island order.  None as :func:`_dense_blocks`.
+    ``pooled``: ``buf`` may be the buffer :func:`_keep_buffer` kept (the caller gives it back
+    there when done)."""
     N = M.shape[0]
     sizes = np.diff(lay.offsets).astype(np.int64)
     if lay.perm.size != N or lay.count == 0 or not np.all(sizes > 0):
         return None
     M = M.tocsr()
     nnz = np.add.reduceat(np.diff(M.indptr)[lay.perm], lay.offsets[:-1])
-    if any(choose_storage(storage, int(n), int(e)) != "dense"
-           for n, e in zip(sizes.tolist(), nnz.tolist(), strict=True)):
+    if any(choose_storage(storage, n, e) != "dense"  # once per distinct size and fill
+           for n, e in set(zip(sizes.tolist(), nnz.tolist(), strict=True))):
         return None
     order = np.argsort(sizes, kind="stable")  # one size after another, islands in order
     length = sizes * sizes
@@ -185,14 +216,211 @@ def _dense_blocks(M: Any, lay: IslandLayout, storage: str) -> list[np.ndarray] |
     local = np.empty(N, np.int64)
     local[lay.perm] = np.arange(N) - np.repeat(lay.offsets[:-1].astype(np.int64), sizes)
     row_start = start[island] + local * sizes[island]
-    buf = np.zeros(int(length.sum()))
+    total = int(length.sum())
+    buf = _block_pool.pop() if pooled and _block_pool else None
+    fresh = buf is None or buf.size != total
+    if fresh:
+        buf = np.empty(total)  # every row zeroes its own block row first (sizes=)
     indices, indptr = M.indices, M.indptr
     if indices.dtype != indptr.dtype:
         indices, indptr = indices.astype(np.int64), indptr.astype(np.int64)
-    if not scatter_blocks(M.data, indices, indptr, row_start, local, island, buf):
+    from lcpcli.solvers.batched import MIN_THREAD_SECONDS, default_threads
+
+    threads = max(1, min(default_threads(),
+                         int(M.data.size * SCATTER_SECONDS_PER_ENTRY / MIN_THREAD_SECONDS)))
+    if not scatter_blocks(M.data, indices, indptr, row_start, local, island, buf, threads,
+                          sizes, fresh):
         return None
-    return [buf[a: a + m].reshape(n, n)
-            for a, m, n in zip(start.tolist(), length.tolist(), sizes.tolist(), strict=True)]
+    return buf, start, sizes
+
+
+def _keep_buffer(buf: np.ndarray) -> None:
+    """Keep ``buf`` (from :func:`_block_buffer`) for the next call when nothing but the
+    caller's name refers to it (no view of it lives on: a Result built on an island's block
+    keeps it from being reused) and it holds at most :data:`BLOCK_POOL_MAX` doubles."""
+    # references: the caller's name, this parameter and getrefcount's own argument
+    if sys.getrefcount(buf) == 3 and buf.base is None and buf.size <= BLOCK_POOL_MAX:
+        _block_pool[:] = [buf]
+
+
+@dataclass
+class IslandAnswers:
+    """The islands' answers, island ``k`` at index ``k`` of every list: what the scene's
+    verdict and per-island report are made of (:func:`lcpcli.contact.model.solve`).
+
+    ``z`` and ``basic`` are merged in the scene's unknown order (``basic``: :func:`basic_of` of
+    each island's answer); ``methods`` (the method that answered, ``info["chosen"]`` where
+    ``auto`` chose), ``status``, ``iterations``, ``seconds``, ``errors`` (the certified error)
+    and ``warm`` (whether the warm start gave the answer) are those of each island's
+    :class:`Result`; ``results`` holds the full Result of every island that is not solved (its
+    message, termination and Farkas vector) and of the islands answered one by one.
+    ``checked``: the whole scene's ``(certificate, w)`` for ``z`` when it follows from the
+    islands' own (:func:`scene_check`), else None (the caller checks ``z`` on the scene)."""
+
+    z: np.ndarray
+    basic: np.ndarray
+    methods: list[str]
+    status: list[Any]
+    iterations: list[int]
+    seconds: list[float]
+    errors: list[float]
+    warm: list[bool]
+    results: dict[int, Any]
+    checked: tuple[Certificate, np.ndarray] | None = None
+
+
+def solve_islands(problem: Problem, lay: IslandLayout, storage: str, name: str,
+                  method: str = DEFAULT_METHOD, tol: float | None = None,
+                  z0: np.ndarray | None = None, basis0: np.ndarray | None = None, jobs: int = 1,
+                  stacked: bool = True, **options: Any) -> IslandAnswers:
+    """Solve the islands of ``problem`` (``lay``; blocks stored by ``storage``, named
+    ``name#k``) from the warm start ``z0`` (and ``basis0``) of the whole scene, if given:
+    :func:`solve_problems` on :func:`island_problems`, the same answers without a
+    :class:`Result` per island where every island is a dense block of one size that
+    :func:`lcpcli.stacks.solve_each` would stack (:func:`_solve_stacked`; ``stacked=False``:
+    never, the reference the tests compare it with)."""
+    fast = None if not stacked else _solve_stacked(problem, lay, storage, name, method, tol, z0,
+                                                    basis0, jobs, options)
+    if fast is not None:
+        return fast
+    problems = island_problems(problem, lay, storage, name)
+    cuts = lay.offsets[1:-1]  # the islands' unknowns are lay.perm's consecutive pieces
+    z0s = None if z0 is None else np.split(z0[lay.perm], cuts)
+    bases = None if basis0 is None else np.split(basis0[lay.perm], cuts)
+    results = solve_problems(problems, method, tol, z0s, jobs, bases0=bases, **options)
+    z = np.zeros(problem.n)
+    basic = np.zeros(problem.n, dtype=bool)
+    if results:
+        z[lay.perm] = np.concatenate([res.z for res in results])
+        basic[lay.perm] = np.concatenate([basic_of(res) for res in results])
+    return IslandAnswers(
+        z=z, basic=basic, methods=[res.info.get("chosen") or res.method for res in results],
+        status=[res.status for res in results],
+        iterations=[int(res.iterations) for res in results],
+        seconds=[res.seconds for res in results],
+        errors=[float(res.certificate.error) for res in results],
+        warm=[bool(res.info.get("warm", False)) for res in results],
+        results=dict(enumerate(results)))
+
+
+def _solve_stacked(problem: Problem, lay: IslandLayout, storage: str, name: str, method: str,
+                   tol: float | None, z0: np.ndarray | None, basis0: np.ndarray | None,
+                   jobs: int, options: dict[str, Any]) -> IslandAnswers | None:
+    """The islands' answers when every island is a dense block of one size ``n`` (of a dense
+    ``problem.M``, or of a CSR one: :func:`_block_buffer`), at least ``STACK_MIN`` of them, below
+    ``WARM_MIN_N`` with a warm start, and no process pool (the cases where
+    :func:`solve_problems` stacks them all in one :func:`lcpcli.solve_many` call): that call on
+    the buffer as it is, the warm rows gathered in one step, and the answers read from the
+    stack's arrays; a :class:`Result` (:func:`lcpcli.stacks.stacked_result`) only for the
+    islands the kernel did not certify.  None in every other case."""
+    from lcpcli.solvers.warm import WARM_MIN_N
+    from lcpcli.stacks import STACK_MIN, solve_many, stacked_result
+
+    K = lay.count
+    if K < STACK_MIN or lay.perm.size != problem.n:
+        return None
+    sizes = np.diff(lay.offsets)
+    n = int(sizes[0])
+    if not np.all(sizes == n) or (z0 is not None and n >= WARM_MIN_N) or \
+            (z0 is None and jobs > 1 and 2 * jobs <= K and problem.n >= PARALLEL_MIN_UNKNOWNS):
+        return None
+    perm = lay.perm
+    buf = None
+    if is_sparse(problem.M):
+        found = _block_buffer(problem.M, lay, storage, pooled=True)
+        if found is None:
+            return None
+        buf = found[0]
+        del found
+        M = buf.reshape(K, n, n)  # one size: the blocks in island order
+    elif storage == "sparse":  # island_problems stores the blocks sparse: not stacked
+        return None
+    else:  # the principal blocks of a dense M, as island_problems slices them
+        at = perm.reshape(K, n)
+        M = np.asarray(problem.M)[at[:, :, None], at[:, None, :]]
+    q = problem.q[perm].reshape(K, n)
+    warm = None
+    if z0 is not None:  # rows as solve_each makes them: 1 where z_i is basic
+        warm = (basis0[perm] if basis0 is not None else z0[perm] > 0).reshape(K, n)
+        warm = warm.astype(np.float64)
+    res = solve_many(M, q, method, tol=tol, warm=warm, certificates=True, pivot_basis=True,
+                     **options)
+    errors = np.full(K, np.nan) if res.certificates is None else res.certificates[:, 0]
+    # answered and certified in the kernel: a Result's certificate from that row passes
+    # (lcpcli.core.certificate.certificate_of: error <= tol, finite)
+    kernel = (errors <= res.tol) & (errors < np.inf)
+    kernel[list(res.results)] = False
+    warmed = np.zeros(K, bool) if res.warmed is None else res.warmed
+    basic = res.z > 0
+    if res.pivot_basis is not None:
+        listed = kernel & (res.pivot_basis[:, 0] >= 0)
+        basic[listed] = res.pivot_basis[listed] != 0
+    share = res.seconds / K
+    methods = ["bpp" if w else res.method for w in warmed.tolist()]
+    status = [SOLVED] * K
+    iterations = res.iterations.tolist()
+    seconds = [share] * K
+    errors_out = errors.tolist()
+    warm_out = warmed.tolist()
+    results: dict[int, Any] = {}
+    for j in np.flatnonzero(~kernel).tolist():
+        r = stacked_result(res, j, Problem(M=M[j], q=q[j].copy(), name=f"{name}#{j + 1}"))
+        r.info["warm"] = bool(r.info.get("warm", False))
+        results[j] = r
+        basic[j] = basic_of(r)
+        methods[j] = r.info.get("chosen") or r.method
+        status[j], iterations[j], seconds[j] = r.status, int(r.iterations), r.seconds
+        errors_out[j], warm_out[j] = float(r.certificate.error), r.info["warm"]
+    z = np.empty(problem.n)
+    z[perm] = res.z.reshape(-1)
+    merged = np.empty(problem.n, dtype=bool)
+    merged[perm] = basic.reshape(-1)
+    checked = None
+    if kernel.all() and is_sparse(problem.M) and problem.kind == "lcp":
+        # M block diagonal in the islands: checked entry by entry by _block_buffer
+        checked = scene_check(res.certificates, res.w, lay, res.tol)
+    if buf is not None:
+        del M
+        _keep_buffer(buf)
+    return IslandAnswers(z=z, basic=merged, methods=methods, status=status,
+                         iterations=iterations, seconds=seconds, errors=errors_out,
+                         warm=warm_out, results=results, checked=checked)
+
+
+def scene_check(rows: np.ndarray, w: np.ndarray, lay: IslandLayout,
+                tol: float) -> tuple[Certificate, np.ndarray]:
+    """The whole scene's ``(certificate, w)`` (:func:`lcpcli.core.certificate.check` of the
+    merged ``z`` on the scene's LCP) from its islands' certificates ``rows`` (one row of
+    :data:`lcpcli.solvers.kernels.batch.CERT_FIELDS` per island, all status 0) and ``w``
+    ((K, n), island order), for a scene whose ``M`` is block diagonal in the islands ``lay``.
+
+    Why this is the scene's certificate (the definitions in :mod:`lcpcli.core.certificate`):
+    with ``M`` block diagonal, row ``i``'s terms are those of its island's columns, so ``w_i``,
+    ``(|M| |z|)_i`` and the row scale ``s_i`` are the island's; column ``j``'s entries lie in
+    its island's rows, so ``kappa_j = max_i |M_ij| / s_i`` is the island's; a link joins row
+    ``i`` and column ``j`` only where ``M_ij != 0``, so every block of linked rows lies in one
+    island and its growth is the island's; each pair's backward error ``eps_i`` depends on
+    ``z_i``, ``w_i``, ``s_i``, ``kappa_i`` only.  Hence ``error = max_i eps_i max(1, G)`` is
+    the largest island error, the backward error and the diagnostics in data units (maxima
+    over the pairs) are the islands' largest, and ``worst``, the first row (in the scene's
+    order) with the largest error, is the first such row among the islands' own worst rows
+    (inside an island the unknowns keep the scene's order), ``growth`` its island's.  The
+    numbers are those of the islands' evaluation (their blocks stored dense: the sums in
+    another order than a CSR pass over the scene, the same definition to rounding).  ``passed``
+    by the one rule, :func:`lcpcli.core.certificate.certificate_of`, at ``tol``: the scene is
+    solved exactly when every island's certificate passes."""
+    err = rows[:, 0]
+    top = err.max()
+    at = np.flatnonzero(err == top)
+    first = lay.perm[lay.offsets[at] + rows[at, 8].astype(np.int64)]
+    pick = int(np.argmin(first))
+    largest = rows.max(axis=0).tolist()
+    cert = certificate_of(0, float(top), largest[1], float(rows[at[pick], 2]), largest[3],
+                          largest[4], largest[5], largest[6], largest[7], int(first[pick]),
+                          tol)
+    merged = np.empty(lay.perm.size)
+    merged[lay.perm] = w.reshape(-1)
+    return cert, merged
 
 
 def solve_problems(problems: list[Problem], method: str = DEFAULT_METHOD, tol: float | None = None,
@@ -303,6 +531,17 @@ def warm_attempt(problem: Problem, method: str, tol: float | None,
             warm.info["warm"] = True
             return warm, basis
     return None, basis
+
+
+def basic_of(result: Any) -> np.ndarray:
+    """z_i basic in ``result``'s pivoting basis (``info["basis"]``, the basic z's that Lemke
+    reports), else in its answer's support (``z_i > 0``)."""
+    basic = result.z > 0
+    listed = result.info.get("basis")
+    if listed is not None and result.solved:
+        basic = np.zeros(result.z.shape[0], dtype=bool)
+        basic[np.asarray(listed, dtype=np.int64)] = True
+    return basic
 
 
 def _chunks(sizes: list[int], parts: int) -> list[list[int]]:

@@ -10,6 +10,7 @@ per-island report.
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field
 from typing import Any
@@ -28,11 +29,12 @@ from lcpcli.contact.impact import (
 from lcpcli.contact.islands import (
     IslandLayout,
     Islands,
+    basic_of,
     find_islands,
     island_problems,
     layout,
+    solve_islands,
     solve_one,
-    solve_problems,
 )
 from lcpcli.contact.planar import plane_normal
 from lcpcli.contact.scene import Scene, check_coupling, check_nonnegative, per_contact
@@ -324,19 +326,8 @@ def solve(clcp: ContactLCP, method: str = DEFAULT_METHOD, tol: float | None = No
         basis0 = check_basis0(clcp, basis0)
     if not islands or clcp.layout.count == 0:
         result = solve_one(clcp.problem, method, tol, z0, dict(options), basis0)
-        return impact_from(clcp, result.z, result, basic=_basic_of(result))
+        return impact_from(clcp, result.z, result, basic=basic_of(result))
     return impact_from(clcp, *_solve_islands(clcp, method, tol, z0, jobs, options, basis0))
-
-
-def _basic_of(result: Any) -> np.ndarray:
-    """z_i basic in ``result``'s pivoting basis (``info["basis"]``, the basic z's that Lemke
-    reports), else in its answer's support (``z_i > 0``)."""
-    basic = result.z > 0
-    listed = result.info.get("basis")
-    if listed is not None and result.solved:
-        basic = np.zeros(result.z.shape[0], dtype=bool)
-        basic[np.asarray(listed, dtype=np.int64)] = True
-    return basic
 
 
 def _solve_islands(clcp: ContactLCP, method: str, tol: float | None, z0: np.ndarray | None,
@@ -347,28 +338,20 @@ def _solve_islands(clcp: ContactLCP, method: str, tol: float | None, z0: np.ndar
 
     lay, isl = clcp.layout, clcp.islands
     t0 = time.perf_counter()
-    problems = island_problems(clcp.problem, lay, clcp.storage, clcp.scene.name or "contact")
-    cuts = lay.offsets[1:-1]  # the islands' unknowns are lay.perm's consecutive pieces
-    z0s = None if z0 is None else np.split(z0[lay.perm], cuts)
-    bases = None if basis0 is None else np.split(basis0[lay.perm], cuts)
-    results = solve_problems(problems, method, tol, z0s, jobs, bases0=bases, **options)
+    ans = solve_islands(clcp.problem, lay, clcp.storage, clcp.scene.name or "contact", method,
+                        tol, z0, basis0, jobs, **options)
     seconds = time.perf_counter() - t0
-    z = np.zeros(clcp.problem.n)
-    basic = np.zeros(clcp.problem.n, dtype=bool)
-    if results:
-        z[lay.perm] = np.concatenate([res.z for res in results])
-        basic[lay.perm] = np.concatenate([_basic_of(res) for res in results])
-    sizes, bodies = isl.sizes().tolist(), isl.body_counts().tolist()
-    reports = []
+    z, basic, results = ans.z, ans.basic, ans.results
     used: dict[str, int] = {}
-    for k, res in enumerate(results):
-        chosen = res.info.get("chosen") or res.method
+    for chosen in ans.methods:
         used[chosen] = used.get(chosen, 0) + 1
-        reports.append({"index": k + 1, "contacts": sizes[k], "bodies": bodies[k],
-                        "unknowns": int(problems[k].n), "method": chosen, "status": res.status,
-                        "iterations": int(res.iterations), "seconds": res.seconds,
-                        "error": _finite(res.certificate.error),
-                        "warm": bool(res.info.get("warm", False))})
+    reports = [{"index": k + 1, "contacts": c, "bodies": b, "unknowns": u, "method": m,
+                "status": st, "iterations": it, "seconds": sec, "error": _finite(e),
+                "warm": wm}
+               for k, (c, b, u, m, st, it, sec, e, wm) in enumerate(zip(
+                   isl.sizes().tolist(), isl.body_counts().tolist(),
+                   np.diff(lay.offsets).tolist(), ans.methods, ans.status, ans.iterations,
+                   ans.seconds, ans.errors, ans.warm, strict=True))]
     failed = [r for r in reports if r["status"] != SOLVED]
     infeasible = [r for r in reports if r["status"] == NO_SOLUTION]
     mix = ", ".join(f"{m} {c}" for m, c in sorted(used.items(), key=lambda x: -x[1]))
@@ -393,10 +376,10 @@ def _solve_islands(clcp: ContactLCP, method: str, tol: float | None, z0: np.ndar
                                            for r in infeasible])
     if y is not None:
         info["farkas_y"] = y.tolist()
+    tol_used = resolve_tol(method_of(method), tol)
     outcome = Outcome(z=z, iterations=sum(r["iterations"] for r in reports),
                       termination=termination, message=msg, proven_infeasible=bool(infeasible),
-                      info=info)
-    tol_used = resolve_tol(method_of(method), tol)
+                      info=info, checked=ans.checked)  # the scene's, from its islands' if set
     result = certify_outcome(clcp.problem, outcome, method, seconds, tol_used)
     return z, result, reports, basic
 
@@ -546,4 +529,4 @@ def _ang(scene: Scene, w: np.ndarray) -> Any:
 
 def _finite(x: float) -> float | None:
     x = float(x)
-    return x if np.isfinite(x) else None
+    return x if math.isfinite(x) else None

@@ -251,12 +251,15 @@ cdef int _fail(CertOut* out, int status) noexcept nogil:
 
 cdef void _link(Py_ssize_t n, const double* M, Py_ssize_t ldm, const double* z,
                 const double* rinv, const double* kappa, const Py_ssize_t* cols,
-                Py_ssize_t nc, Py_ssize_t* parent) noexcept nogil:
+                Py_ssize_t nc, Py_ssize_t* parent, Py_ssize_t* sig) noexcept nogil:
     """Union rows i (nodes 0..n-1) and columns j (nodes n + j) wherever z_j != 0 counts in row
     i: ``|M_ij| / s_i >= 2^-10 kappa_j`` (invariant under scaling).  Once every column with
     z_j != 0 is in one set, a row joins it through its first such term and the rest of the row
-    changes nothing (the partition is the same as linking every term)."""
-    cdef Py_ssize_t i, j, k, ri, rj, nz = 0, colsets, one = -1
+    changes nothing (the partition is the same as linking every term).  Each row's terms that
+    count are listed first (in ``sig``, nc entries of scratch), in column order, without a
+    branch per entry: whether M_ij is 0 is data, and a branch on it is mispredicted about as
+    often as not on a block of contacts."""
+    cdef Py_ssize_t i, j, k, ri, rj, nz = 0, colsets, one = -1, cnt
     cdef bint joined
     cdef const double* row
     cdef double m, inv
@@ -267,27 +270,33 @@ cdef void _link(Py_ssize_t n, const double* M, Py_ssize_t ldm, const double* z,
     for i in range(n):
         row = M + i * ldm
         inv = rinv[i]  # 1 / s_i, inf when s_i = 0
-        joined = False  # row i's set holds a column (rows before i never change again)
+        cnt = 0
         for k in range(nc):
             j = cols[k]
             m = fabs(row[j])
-            if m != 0.0 and z[j] != 0.0 and m * inv >= THETA * kappa[j]:
-                if one >= 0:  # every such column is in the set rooted at `one` (a row before
-                    parent[i] = one  # i): row i, alone so far, joins it as the union would
-                    break
-                ri = _find(parent, i)
-                rj = _find(parent, n + j)
-                if ri != rj:
-                    if joined:  # two sets that each hold such a column become one
-                        colsets -= 1
-                    joined = True
-                    if ri < rj:
-                        parent[rj] = ri
-                    else:
-                        parent[ri] = rj
-                if colsets == 1:
-                    one = _find(parent, i)
-                    break
+            sig[cnt] = j
+            # (M and z are finite here, or the row pass failed: m != 0 is m > 0, and the
+            # tests need no NaN handling)
+            cnt += (m > 0.0) & (fabs(z[j]) > 0.0) & (m * inv >= THETA * kappa[j])
+        joined = False  # row i's set holds a column (rows before i never change again)
+        for k in range(cnt):
+            j = sig[k]
+            if one >= 0:  # every such column is in the set rooted at `one` (a row before
+                parent[i] = one  # i): row i, alone so far, joins it as the union would
+                break
+            ri = _find(parent, i)
+            rj = _find(parent, n + j)
+            if ri != rj:
+                if joined:  # two sets that each hold such a column become one
+                    colsets -= 1
+                joined = True
+                if ri < rj:
+                    parent[rj] = ri
+                else:
+                    parent[ri] = rj
+            if colsets == 1:
+                one = _find(parent, i)
+                break
 
 
 cdef int certify_dense(Py_ssize_t n, const double* M, Py_ssize_t ldm, const double* q,
@@ -350,16 +359,14 @@ cdef int certify_dense(Py_ssize_t n, const double* M, Py_ssize_t ldm, const doub
         for i in range(n):
             row = M + i * ldm
             inv = rinv[i]
-            for k in range(nc):
-                j = cols[k]
-                m = fabs(row[j])
-                if m != 0.0:
-                    t = m * inv
-                    if t > kappa[j]:
-                        kappa[j] = t
+            for k in range(nc):  # no branch on the data: an entry 0 gives t = 0 (or 0 x inf
+                j = cols[k]      # = NaN), which never exceeds kappa_j >= 0
+                t = fabs(row[j]) * inv
+                kappa[j] = t if t > kappa[j] else kappa[j]
     for i in range(2 * n):
         parent[i] = i
-    _link(n, M, ldm, z, rinv, kappa, cols, nc, parent)
+    # scratch for _link: the last n entries of work (free until _finish)
+    _link(n, M, ldm, z, rinv, kappa, cols, nc, parent, <Py_ssize_t*>(work + 4 * n))
     for k in range(nc):
         j = cols[k]
         if kappa[j] == 0.0:      # a zero column: moving z_j is never negligible

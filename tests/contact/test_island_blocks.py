@@ -58,6 +58,44 @@ def test_dense_blocks_equal_the_sliced_blocks(sizes, seed, duplicates, wide) -> 
         assert got.flags.c_contiguous
 
 
+@settings(max_examples=25, deadline=None)
+@given(st.lists(st.integers(1, 9), min_size=1, max_size=40), st.integers(0, 2**32 - 1),
+       st.sampled_from([2, 3]), st.booleans())
+def test_scatter_in_threads_equals_one_thread(sizes, seed, threads, across) -> None:
+    """scatter_blocks split between OpenMP threads (the buffer zeroed by each thread in its
+    part first), or with each row zeroing its own block row (a reused buffer), writes the same
+    buffer as one thread on a zeroed one, and refuses an entry across blocks the same way (the
+    threads' path, which islands take on large scenes, on small matrices)."""
+    from lcpcli.contact._blocks import scatter_blocks
+
+    rng = np.random.default_rng(seed)
+    N = sum(sizes)
+    blocks = [rng.normal(size=(k, k)) * (rng.random((k, k)) < 0.6) for k in sizes]
+    M = sp.csr_matrix(sp.block_diag(blocks))
+    if across and N > 1:
+        M = sp.csr_matrix(M + sp.csr_matrix(([1.0], ([0], [N - 1])), shape=(N, N)))
+    lay = islands.IslandLayout(perm=np.arange(N), offsets=np.concatenate(([0],
+                                                                          np.cumsum(sizes))))
+    size = np.asarray(sizes, np.int64)
+    start = np.concatenate(([0], np.cumsum(size * size)[:-1]))
+    island = np.repeat(np.arange(len(sizes)), size)
+    local = np.arange(N) - np.repeat(lay.offsets[:-1], size)
+    row_start = start[island] + local * size[island]
+    got = []
+    # one thread on a zeroed buffer; threads on fresh memory (zeroed there first); each row
+    # zeroing its own block row (sizes=) in a buffer holding anything, one thread or several
+    for t, kw in ((1, {}), (threads, {}), (1, {"sizes": size, "fresh": False}),
+                  (threads, {"sizes": size, "fresh": False})):
+        buf = np.full(int((size * size).sum()), np.nan if t > 1 or kw else 0.0)
+        ok = scatter_blocks(M.data, M.indices, M.indptr, row_start, local, island, buf, t,
+                            **kw)
+        got.append((ok, buf))
+    assert all(ok == (not (across and sizes[0] < N)) for ok, _ in got)
+    if got[0][0]:
+        for _, buf in got[1:]:
+            np.testing.assert_array_equal(got[0][1], buf)
+
+
 def test_an_entry_across_islands_is_refused() -> None:
     """A matrix that is not block diagonal in the islands: None (the caller slices)."""
     M = sp.csr_matrix(np.array([[1.0, 2.0], [0.0, 1.0]]))
