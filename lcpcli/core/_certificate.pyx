@@ -270,6 +270,14 @@ cdef void _link(Py_ssize_t n, const double* M, Py_ssize_t ldm, const double* z,
     for i in range(n):
         row = M + i * ldm
         inv = rinv[i]  # 1 / s_i, inf when s_i = 0
+        if one >= 0:  # every such column is in the set rooted at `one` (a row before i): row
+            for k in range(nc):  # i, alone so far, joins it through its first term that counts
+                j = cols[k]      # (dense rows: the first one or two columns; no listing)
+                m = fabs(row[j])
+                if m > 0.0 and fabs(z[j]) > 0.0 and m * inv >= THETA * kappa[j]:
+                    parent[i] = one
+                    break
+            continue
         cnt = 0
         for k in range(nc):
             j = cols[k]
@@ -281,9 +289,6 @@ cdef void _link(Py_ssize_t n, const double* M, Py_ssize_t ldm, const double* z,
         joined = False  # row i's set holds a column (rows before i never change again)
         for k in range(cnt):
             j = sig[k]
-            if one >= 0:  # every such column is in the set rooted at `one` (a row before
-                parent[i] = one  # i): row i, alone so far, joins it as the union would
-                break
             ri = _find(parent, i)
             rj = _find(parent, n + j)
             if ri != rj:
