@@ -107,11 +107,10 @@ extern "C" int emu_lemke_stack(long long K, long long n, const double *M, const 
     for (int t = 0; t < lanes; t++)
         pool.emplace_back([&, t]() {
             emu_lane = t;
-            double *sh = work.data(), *cw = sh + fast;
-            lcp_ix *ci = (lcp_ix *)(cw + LCP_COLD_DWORK(n));
+            double *sh = work.data();
             for (long long k = 0; k < K; k++)
                 lcp_lemke_group(n, M + k * n * n, q + k * n, d, max_iter, piv_tol, tie_tol, tol,
-                                polished, balanced, q_balanced, max_rounds, stage, sh, cw, ci,
+                                polished, balanced, q_balanced, max_rounds, stage, sh, sh + fast,
                                 z + k * n, w + k * n, code + k, iters + k, err + k, res + k, t,
                                 lanes);
         });

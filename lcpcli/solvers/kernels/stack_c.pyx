@@ -39,11 +39,10 @@ cdef extern from "src/lcp_stack.h" nogil:
     long long LCP_HOT_IWORK(long long n)
     long long LCP_FAST_SLOTS(long long n)
     long long LCP_COLD_SLOTS(long long n)
-    long long LCP_COLD_DWORK(long long n)
     void lcp_lemke_group(long long n, const double* M, const double* q, const double* d,
                          long long max_iter, double piv_tol, double tie_tol, double tol,
                          double polished, int balanced, int q_balanced, int max_rounds,
-                         int stage, double* sh, double* cw, long long* ci, double* z, double* w,
+                         int stage, double* sh, double* cold, double* z, double* w,
                          signed char* code, long long* iters, double* err, double* res,
                          long long lane, long long lanes)
     void lcp_sor_one(long long n, const double* M, const double* q, const double* lo_in,
@@ -167,7 +166,6 @@ def lemke_stack(M, q, d, long long max_iter, double piv_tol, double tie_tol, dou
     cdef long long hdw = LCP_HOT_DWORK(n), hiw = LCP_HOT_IWORK(n)
     cdef int st = stage
     cdef long long fast = LCP_FAST_SLOTS(n), cold = LCP_COLD_SLOTS(n)
-    cdef long long cdw = LCP_COLD_DWORK(n)
     cdef int wp = warp
     cdef double* work
     cdef long long* iwork
@@ -179,17 +177,12 @@ def lemke_stack(M, q, d, long long max_iter, double piv_tol, double tie_tol, dou
         return
     for k in prange(K, nogil=True, schedule="dynamic", chunksize=16,
                     num_threads=threads if threads > 0 else 1):
-        if wp:
-            work = <double*>malloc((fast + cold) * sizeof(double))
-            iwork = <long long*>malloc(sizeof(long long))
-        else:
-            work = <double*>malloc(dw * sizeof(double))
-            iwork = <long long*>malloc(iw * sizeof(long long))
-        if work != NULL and iwork != NULL and wp:
+        work = <double*>malloc((fast + cold if wp else dw) * sizeof(double))
+        iwork = NULL if wp else <long long*>malloc(iw * sizeof(long long))
+        if work != NULL and wp:
             lcp_lemke_group(n, pM + k * n * n, pq + k * n, dp, max_iter, piv_tol, tie_tol, tol,
-                            polished, bal, qbal, rounds, st, work, work + fast,
-                            <long long*>(work + fast + cdw), pz + k * n, pw + k * n, pc + k,
-                            pi + k, pe + k, pr + k, 0, 1)
+                            polished, bal, qbal, rounds, st, work, work + fast, pz + k * n,
+                            pw + k * n, pc + k, pi + k, pe + k, pr + k, 0, 1)
         elif work != NULL and iwork != NULL:
             lcp_lemke_one(n, pM + k * n * n, pq + k * n, dp, max_iter, piv_tol, tie_tol, tol,
                           polished, bal, qbal, rounds, work, iwork, work + tdw, iwork + tiw,

@@ -1363,19 +1363,21 @@ LCP_FN void lcp_lemke_one(lcp_ix n, const double *M, const double *q, const doub
 
 /* One problem on a group of lanes (the warp kernel's body): sh, the group's fast workspace
  * (LCP_FAST_SLOTS(n) slots: shared memory on the device), holds the tableau and hot parts;
- * cw, ci: the cold part; stage as lcp_lemke_one.  Outputs as lcp_lemke_one. */
+ * cold, the cold part (LCP_COLD_SLOTS(n) slots); stage as lcp_lemke_one.  Outputs as
+ * lcp_lemke_one. */
 LCP_FN void lcp_lemke_group(lcp_ix n, const double *M, const double *q, const double *d,
                             lcp_i64 max_iter, double piv_tol, double tie_tol, double tol,
                             double polished, int balanced, int q_balanced, int max_rounds,
-                            int stage, double *sh, double *cw, lcp_ix *ci, double *z, double *w,
+                            int stage, double *sh, double *cold, double *z, double *w,
                             signed char *code, lcp_i64 *iters, double *err, double *res,
                             lcp_ix lane, lcp_ix lanes)
 {
     double *tw = sh, *rw = sh + LCP_TAB_DWORK(n) + LCP_TAB_IWORK(n);
     lcp_ix *ti = (lcp_ix *)(sh + LCP_TAB_DWORK(n)), *ri = (lcp_ix *)(rw + LCP_HOT_DWORK(n));
+    lcp_ix *ci = (lcp_ix *)(cold + LCP_COLD_DWORK(n));
     lcp_lemke_one(n, M, q, d, max_iter, piv_tol, tie_tol, tol, polished, balanced, q_balanced,
-                  max_rounds, tw, ti, rw, ri, cw, ci, z, w, code, iters, err, res, lane, lanes, 1,
-                  stage);
+                  max_rounds, tw, ti, rw, ri, cold, ci, z, w, code, iters, err, res, lane, lanes,
+                  1, stage);
 }
 
 /* ------------------------------------------------------------------------- projected SOR */
@@ -1572,11 +1574,9 @@ extern "C" __global__ void __launch_bounds__(256, LCP_WARP_MIN_BLOCKS) lcp_lemke
     lcp_i64 slot = (lcp_i64)blockIdx.x * gpb + grp, nslots = (lcp_i64)gridDim.x * gpb, k;
     lcp_i64 fast = LCP_FAST_SLOTS(n), per = fast + LCP_COLD_SLOTS(n);
     double *gw = work + slot * per, *sh = use_shared ? lcp_smem + grp * fast : gw;
-    double *cw = gw + fast;
-    lcp_ix *ci = (lcp_ix *)(cw + LCP_COLD_DWORK(n));
     for (k = slot; k < K; k += nslots)
         lcp_lemke_group(n, M + k * n * n, q + k * n, use_d ? d : 0, max_iter, piv_tol, tie_tol,
-                        tol, polished, balanced, q_balanced, max_rounds, stage, sh, cw, ci,
+                        tol, polished, balanced, q_balanced, max_rounds, stage, sh, gw + fast,
                         z + k * n, w + k * n, code + k, iters + k, err + k, res + k, lane,
                         lanes);
 }
