@@ -11,7 +11,7 @@ import json
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 import lcpcli
@@ -58,6 +58,8 @@ def _close(a: np.ndarray, b: np.ndarray, rel: float = 1e-7) -> bool:
 # ----------------------------------------------------------- the principal pivot transform
 @settings(max_examples=40, deadline=None)
 @given(n=st.integers(1, 12), seed=st.integers(0, 2**32 - 1), kind=st.sampled_from(["pd", "p"]))
+@example(n=8, seed=7, kind="pd")  # |G| = 1 of n = 8: numpy 2.4's in-place negative on that
+# column (a stride of 8 elements) negated the wrong entries
 def test_principal_pivot_transform_exchanges_w_and_z_on_the_set(n: int, seed: int,
                                                                 kind: str) -> None:
     """For any z': w' = M' z' + q' read as z_F = w'_F, w_F = z'_F, z_G = z'_G, w_G = w'_G

@@ -219,7 +219,9 @@ def principal_pivot_transform(M: np.ndarray, q: np.ndarray, F: np.ndarray, solve
     np.matmul(P[k:, :k], inv, out=B[k:, :k])
     B[k:, k:] = P[k:, k:]
     B[k:, k:] -= P[k:, :k] @ B[:k, k:]
-    np.negative(B[:k, k:], out=B[:k, k:])
+    # not np.negative(..., out=...): numpy 2.4's in-place negative is wrong on a view whose
+    # stride is 8 elements (one column of an 8 x 8 B), tests/solvers/test_warm_index_set.py
+    B[:k, k:] *= -1.0
     qa = inv @ q[a]
     qp = q.copy()
     qp[a] = -qa
