@@ -100,12 +100,16 @@ def check_bounds(lower: np.ndarray, upper: np.ndarray) -> None:
                            f"({lower[at]:g} > {upper[at]:g})")
 
 
+#: The kinds of problem (:attr:`Problem.kind`).
+LCP, MLCP, BOX = "lcp", "mlcp", "box"
+
+
 def problem_kind(n_eq: int, bounded: bool) -> str:
     """The kind of a problem (or of a stack): ``"box"`` when bounds are given, ``"mlcp"`` when
     ``n_eq > 0``, else ``"lcp"`` (bounds and n_eq together are refused by the validation)."""
     if bounded:
-        return "box"
-    return "mlcp" if n_eq else "lcp"
+        return BOX
+    return MLCP if n_eq else LCP
 
 
 def is_sparse(M: Any) -> bool:

@@ -301,3 +301,55 @@ def test_the_first_key_from_the_minima_is_first_key_and_is_hit(n, max_iter):
     c = Classifier(other)
     c.minima()
     assert hit.info["classification"] == c.report
+
+
+def _kind_problem(kind: str, n: int, seed: int) -> Problem:
+    """A dense problem of ``kind`` with a positive diagonal (the memoised first attempt's)."""
+    p = _pd(n, seed)
+    if kind == "mlcp":
+        return Problem.create(p.M, p.q, n_eq=n // 3)
+    if kind == "box":
+        return Problem.create(p.M, p.q, lower=np.zeros(n), upper=np.full(n, 0.05))
+    return p
+
+
+def _without_times(info: dict) -> dict:
+    out = {k: v for k, v in info.items() if k not in ("classify_seconds", "import_seconds")}
+    out["attempts"] = [{k: v for k, v in a.items() if k != "seconds"} for a in info["attempts"]]
+    return out
+
+
+@pytest.mark.parametrize("max_iter", [None, 1])
+@pytest.mark.parametrize("kind", ["lcp", "mlcp", "box"])
+def test_a_first_attempt_served_from_the_memo_solves_or_searches_as_a_fresh_solve(
+        kind, max_iter, monkeypatch):
+    """On a dense M with a positive diagonal, ``auto.run`` looks its first attempt up from the
+    minima alone and runs it (``_first_from_memo``).  Whether that attempt solves or fails (a
+    pivot limit of 1: the search then goes on from it), the Result equals a solve with every
+    memo off: verdict, z, iterations, message and info (times aside)."""
+    stored = kind != "box"  # a box LCP's plan reads symmetry: planned afresh each time
+    first = lcpcli.solve(_kind_problem(kind, 12, 1), max_iter=max_iter)
+    assert memo.FIRSTS.misses == len(memo.FIRSTS) == int(stored), first.message
+    other = _kind_problem(kind, 12, 2)  # other data, the same facts
+    runs: list[str] = []
+    real = auto.run_method
+
+    def counted(spec, *args):
+        runs.append(spec.name)
+        return real(spec, *args)
+
+    monkeypatch.setattr(auto, "run_method", counted)
+    hit = lcpcli.solve(other, max_iter=max_iter)
+    assert memo.FIRSTS.misses == int(stored)  # served from the memo when stored
+    hit_runs, runs[:] = runs[:], []
+    _replace_memos(monkeypatch, limit=0)
+    fresh = lcpcli.solve(other, max_iter=max_iter)
+    assert len(memo.FIRSTS) == 0
+    assert hit_runs == runs == [a["method"] for a in fresh.info["attempts"]]  # each run once
+    assert (hit.status, hit.method, hit.iterations, hit.message) == \
+        (fresh.status, fresh.method, fresh.iterations, fresh.message)
+    assert np.array_equal(hit.z, fresh.z)
+    assert _without_times(hit.info) == _without_times(fresh.info)
+    failed_first = hit.info["attempts"][0]["status"] != "solved"
+    assert failed_first == (max_iter == 1 and stored), hit.info["attempts"]  # the box LCP:
+    # Dantzig's index loop is not capped by one pivot

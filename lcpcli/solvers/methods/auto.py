@@ -49,6 +49,7 @@ from lcpcli.analysis.classify import (
 )
 from lcpcli.analysis.proof import confirm
 from lcpcli.core.errors import OptionError
+from lcpcli.core.problem import LCP
 from lcpcli.core.result import (
     CONVERGED,
     ITERATION_LIMIT,
@@ -191,21 +192,85 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None,
     if z0 is not None:
         z0 = start_point(problem, z0)  # length check before any method runs
     t_start = perf_counter()
+    M = problem.M
+    if type(M) is np.ndarray and z0 is None and not order:
+        # a dense M: the q >= 0 and diagonal tests in one compiled pass; with a positive
+        # diagonal (and q >= 0 refuted for an LCP) the first attempt's key follows from the
+        # minima (it is first_key(Classifier(problem, minima), max_iter)), no report needed
+        minima = dense_minima(M, problem.q)
+        if minima[0] > 0:
+            kind = LCP if problem.lower is None and not problem.n_eq else problem.kind
+            if kind != LCP or minima[1] < 0:
+                found = FIRSTS.get(first_key_of(kind, len(M), POSITIVE_DIAGONAL_FACTS, 0,
+                                                max_iter))
+                if found is not None:
+                    return _first_from_memo(problem, tol, max_iter, found, minima, kind,
+                                            t_start)
+        return _search(problem, tol, max_iter, None, None, t_start, minima)
+    return _search(problem, tol, max_iter, z0, order, t_start, None)
+
+
+def _first_from_memo(problem: Any, tol: float, max_iter: int | None, found: tuple[Any, ...],
+                     minima: tuple[float, float], kind: str, t_start: float) -> Outcome:
+    """:func:`run` on a dense M with a positive diagonal (``kind``: the problem's) whose first
+    attempt ``found`` came from :data:`~lcpcli.solvers.memo.FIRSTS`: that attempt through the
+    dispatcher and, when it solves (the usual case), its Outcome handed on with the head of
+    auto's message and ``info`` built on first read; otherwise the search goes on from it
+    (:func:`_search`)."""
+    t1 = perf_counter()
+    try:  # _try's body, in line: this is the small solves' path
+        out = run_method(found[2], problem, tol, found[3])  # certified there
+    except (np.linalg.LinAlgError, MemoryError, ValueError, RuntimeError) as exc:
+        if isinstance(exc, OptionError):
+            raise
+        return _search(problem, tol, max_iter, None, None, t_start, minima, found,
+                       (exc, t1, perf_counter()))
+    t2 = perf_counter()
+    cert = out.checked[0]  # type: ignore[index]
+    if cert.passed:
+        # the first attempt solved, no test ran since its plan: the message is its head.
+        # The dispatcher's Outcome becomes auto's (Outcome.converged's fields, one record
+        # fewer); its info is built on first read (LazyInfo) from values fixed here.
+        iterations = int(out.iterations)
+        out.info = LazyInfo(_first_info, found[1], out.termination, iterations, out.message,
+                            cert.error, t2 - t1, found[0].name, t1 - t_start,
+                            (kind, len(problem.q), problem.n_eq, minima[0]))
+        out.iterations, out.termination, out.message = iterations, CONVERGED, found[4]
+        out.proven_infeasible, out.trace, out.import_seconds = False, None, 0.0
+        return out
+    return _search(problem, tol, max_iter, None, None, t_start, minima, found, (out, t1, t2))
+
+
+def _try(spec: Method, problem: Any, tol: float, opts: dict[str, Any]
+         ) -> Outcome | BaseException:
+    """One attempt through the dispatcher, which certifies it: its Outcome, or the numerical
+    error it raised (a failed attempt; an :class:`OptionError` is the caller's and raised)."""
+    try:
+        return run_method(spec, problem, tol, opts)
+    except (np.linalg.LinAlgError, MemoryError, ValueError, RuntimeError) as exc:
+        if isinstance(exc, OptionError):
+            raise
+        return exc
+
+
+def _search(problem: Any, tol: float, max_iter: int | None, z0: np.ndarray | None,
+            order: str | None, t_start: float, minima: tuple[float, float] | None,
+            found: tuple[Any, ...] | None = None,
+            tried: tuple[Any, float, float] | None = None) -> Outcome:
+    """:func:`run` from its first attempt on: ``minima`` (a dense LCP's, or None), the first
+    attempt ``found`` from the memo and its result ``tried`` (``(Outcome or the exception it
+    raised, start, end)``) when :func:`_first_from_memo` ran it already."""
     M, n, kind = problem.M, problem.n, problem.kind
     c: Classifier | None = None  # built once the plan or a message needs more than the minima
-    if type(M) is np.ndarray:  # the q >= 0 and diagonal tests: one compiled pass
-        minima = dense_minima(M, problem.q)
-    else:
-        c = Classifier(problem)
-        minima = c.minima() if kind == "lcp" else None
+    if minima is None:
+        if type(M) is np.ndarray:  # the q >= 0 and diagonal tests: one compiled pass
+            minima = dense_minima(M, problem.q)
+        else:
+            c = Classifier(problem)
+            minima = c.minima() if kind == "lcp" else None
     if kind == "lcp" and (n == 0 or minima[1] >= 0):  # type: ignore[index]
         return Outcome(np.zeros(n), 0, CONVERGED, "auto: q >= 0, so z = 0 solves the problem",
                        info={"chosen": None, "attempts": []})
-    found = None
-    if c is None and n and minima[0] > 0 and z0 is None and not order:  # type: ignore[index]
-        # a dense M with a positive diagonal: the first attempt's key follows from the minima
-        # (it is first_key(Classifier(problem, minima), max_iter)), no report needed for it
-        found = FIRSTS.get(first_key_of(kind, n, POSITIVE_DIAGONAL_FACTS, 0, max_iter))
     given = None
     if found is None:
         if c is None:  # the diagonal test's facts from the minima, as the plan would find them
@@ -240,20 +305,20 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None,
             spec, opts = _attempt(step.method, max_iter, z0)
             head = ""
         name, why = step.method, step.reason
-        t1 = perf_counter()
-        try:
-            out: Outcome = run_method(spec, problem, tol, opts)  # certified there
-        except (np.linalg.LinAlgError, MemoryError, ValueError, RuntimeError) as exc:
-            if isinstance(exc, OptionError):
-                raise
+        if tried is not None:  # run by _first_from_memo already
+            got, t1, t2 = tried
+            tried = None
+        else:
+            t1 = perf_counter()
+            got = _try(spec, problem, tol, opts)
             t2 = perf_counter()
+        spec = None
+        if type(got) is not Outcome:  # the attempt raised
             t_methods += t2 - t1
             attempts.append({"method": name, "reason": why, "status": Status.ERROR,
-                             "message": f"{type(exc).__name__}: {exc}", "seconds": t2 - t1})
-            spec = None
+                             "message": f"{type(got).__name__}: {got}", "seconds": t2 - t1})
             continue
-        t2 = perf_counter()
-        spec = None
+        out = got
         iterations = int(out.iterations)
         cert, w = out.checked  # type: ignore[misc]
         if cert.passed and head and not attempts:
@@ -262,7 +327,7 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None,
             # fewer); its info is built on first read (LazyInfo) from values fixed here.
             out.info = LazyInfo(_first_info, step, out.termination, iterations, out.message,
                                 cert.error, t2 - t1, regime.name, t1 - t_start,
-                                c.report if c is not None else (kind, n, problem.n_eq, minima[0]))
+                                c.report)  # type: ignore[union-attr]
             out.iterations, out.termination, out.message = iterations, CONVERGED, head
             out.proven_infeasible, out.trace, out.import_seconds = False, None, 0.0
             return out
