@@ -228,17 +228,23 @@ def _first_from_memo(problem: Any, tol: float, max_iter: int | None, found: tupl
     t2 = perf_counter()
     cert = out.checked[0]  # type: ignore[index]
     if cert.passed:
-        # the first attempt solved, no test ran since its plan: the message is its head.
-        # The dispatcher's Outcome becomes auto's (Outcome.converged's fields, one record
-        # fewer); its info is built on first read (LazyInfo) from values fixed here.
-        iterations = int(out.iterations)
-        out.info = LazyInfo(_first_info, found[1], out.termination, iterations, out.message,
-                            cert.error, t2 - t1, found[0].name, t1 - t_start,
-                            (kind, len(problem.q), problem.n_eq, minima[0]))
-        out.iterations, out.termination, out.message = iterations, CONVERGED, found[4]
-        out.proven_infeasible, out.trace, out.import_seconds = False, None, 0.0
-        return out
+        return _solved_first(out, cert.error, found[1], found[0].name, found[4], t_start, t1,
+                             t2, (kind, len(problem.q), problem.n_eq, minima[0]))
     return _search(problem, tol, max_iter, None, None, t_start, minima, found, (out, t1, t2))
+
+
+def _solved_first(out: Outcome, error: float, step: Step, regime: str, head: str,
+                  t_start: float, t1: float, t2: float, report: Any) -> Outcome:
+    """auto's Outcome when its first attempt (``step``, run from ``t1`` to ``t2``) solved and
+    no test ran since its plan: the dispatcher's ``out`` (certified error ``error``) becomes
+    auto's (Outcome.converged's fields, one record fewer), its message the head ``head``, its
+    info built on first read (:class:`LazyInfo`, :func:`_first_info`) from values fixed here."""
+    iterations = int(out.iterations)
+    out.info = LazyInfo(_first_info, step, out.termination, iterations, out.message, error,
+                        t2 - t1, regime, t1 - t_start, report)
+    out.iterations, out.termination, out.message = iterations, CONVERGED, head
+    out.proven_infeasible, out.trace, out.import_seconds = False, None, 0.0
+    return out
 
 
 def _try(spec: Method, problem: Any, tol: float, opts: dict[str, Any]
@@ -322,15 +328,8 @@ def _search(problem: Any, tol: float, max_iter: int | None, z0: np.ndarray | Non
         iterations = int(out.iterations)
         cert, w = out.checked  # type: ignore[misc]
         if cert.passed and head and not attempts:
-            # the first attempt solved, no test ran since its plan: the message is its head.
-            # The dispatcher's Outcome becomes auto's (Outcome.converged's fields, one record
-            # fewer); its info is built on first read (LazyInfo) from values fixed here.
-            out.info = LazyInfo(_first_info, step, out.termination, iterations, out.message,
-                                cert.error, t2 - t1, regime.name, t1 - t_start,
-                                c.report)  # type: ignore[union-attr]
-            out.iterations, out.termination, out.message = iterations, CONVERGED, head
-            out.proven_infeasible, out.trace, out.import_seconds = False, None, 0.0
-            return out
+            return _solved_first(out, cert.error, step, regime.name, head, t_start, t1, t2,
+                                 c.report)  # type: ignore[union-attr]
         t_methods += t2 - t1
         total_it += iterations
         z = out.z
