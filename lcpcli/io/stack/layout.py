@@ -33,6 +33,7 @@ Errors are :class:`ProblemError` with a one-line message; readers leave the file
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -94,6 +95,10 @@ class StackChunk:
     names: list[str] | None       # the stored names (empty strings kept), None without names
     lower: np.ndarray | None      # (c, n); a shared bound is copied to every row
     upper: np.ndarray | None
+    #: For arrays read in place (read-only views of the mapped file): raises ProblemError
+    #: when the file was truncated under them; call it once done with the data
+    #: (:mod:`lcpcli.io.stack.mapped`).  None: every array is a copy.
+    check: Callable[[], None] | None = None
 
 
 def problem_name(stem: str, names: list[str] | None, k: int, start: int = 0) -> str:
