@@ -48,7 +48,8 @@ from lcpcli.io.files import MAX_NAME_BYTES
 STACK_FORMATS = {".h5": "hdf5", ".hdf5": "hdf5", ".hdf": "hdf5", ".npz": "npz"}
 #: Most problems one stack may declare (a batch keeps one record per problem).
 MAX_STACK_PROBLEMS = 100_000_000
-#: About the bytes of one HDF5 storage chunk of M written by :func:`write_stack`.
+#: About the bytes of one HDF5 storage chunk of M written by a :class:`StackWriter` that is not
+#: told the number of problems in advance (:func:`write_stack` stores M contiguous).
 H5_CHUNK_BYTES = 2**20
 #: The HDF5 chunk cache of a reader (a storage chunk cut by two read chunks is read once).
 H5_CACHE_BYTES = 16 * 2**20
