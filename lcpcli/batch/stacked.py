@@ -375,23 +375,27 @@ def _reads(path: str, info: Any, done: np.ndarray, chunk: int, digest: str | Non
            stop_event: threading.Event | None = None, warm: Any = None,
            buffers: _Buffers | None = None) -> Iterator[tuple[Any, ...]]:
     """``(todo, part, digest, read_s, prev, held)`` of each chunk with work, in order (the
-    reader's side); ``digest``: the chunk's :class:`_Digest` by the algorithm ``digest``
-    (None: ``b""``),
+    reader's side); ``part``: its rows read in place where the file allows
+    (:mod:`lcpcli.io.stack.mapped`: ``part.check`` then runs after the chunk's solve and
+    digest, :func:`checked`), else copied; ``digest``: the chunk's :class:`_Digest` by the
+    algorithm ``digest`` (None: ``b""``),
     computed here once the chunk is handed over, so that the solver starts on it meanwhile;
     ``prev``: the chunk of the ``--z0`` result file ``warm`` (None without one); ``held``:
     the buffers of ``buffers`` that ``part`` was read into (None without them), which the
     consumer gives back once it is done with the chunk's data."""
     from lcpcli.io.stack import open_stack
 
-    with open_stack(path, direct=True) as reader:
+    with open_stack(path, direct=True, mapped=True) as reader:
         for start in range(0, info.K, chunk):
             if stop_event is not None and stop_event.is_set():
                 return
             stop = min(info.K, start + chunk)
             todo = np.flatnonzero(~done[start:stop])
             if todo.size:
-                held = None if buffers is None else buffers.take(stop_event)
-                if buffers is not None and held is None:  # told to stop while waiting
+                # rows read in place (views of the mapped file) need no buffer
+                copies = buffers is not None and reader.copies(start, stop)
+                held = buffers.take(stop_event) if copies else None  # type: ignore[union-attr]
+                if copies and held is None:  # told to stop while waiting
                     return
                 part, _, read_s = read_part(reader, start, stop, digest=None, out=held)
                 prev = None
@@ -399,20 +403,34 @@ def _reads(path: str, info: Any, done: np.ndarray, chunk: int, digest: str | Non
                     t0 = time.perf_counter()
                     prev = warm.read(start, stop)
                     read_s += time.perf_counter() - t0
-                fingerprint = None if digest is None else _Digest(digest)
+                fingerprint = None if digest is None else _Digest(digest, path)
                 yield todo, part, fingerprint or b"", read_s, prev, held
                 if fingerprint is not None:  # beside the solver, before the next read
                     fingerprint.compute(part)
 
 
+def checked(part: Any, path: str) -> None:
+    """Refuse (ProblemError naming ``path``) a chunk read in place from a stack file that was
+    truncated under it (``part.check``, :mod:`lcpcli.io.stack.mapped`); called on the chunk
+    once its results and its digest are computed, before they are written or counted."""
+    check = getattr(part, "check", None)
+    if check is not None:
+        try:
+            check()
+        except ProblemError as exc:
+            raise exc.with_source(path) from None
+
+
 class _Digest:
     """The digest of a chunk (:func:`lcpcli.batch.stack_output.chunk_digest`) that the reader
     thread computes after it handed the chunk over; :meth:`result` (the chunk's write) waits
-    for it.  ``algorithm``: the digest's (:mod:`lcpcli.batch.digest`); ``seconds``: what
-    computing it took (counted as reading)."""
+    for it, and raises what computing it raised, or :func:`checked`'s error when the chunk was
+    read in place from ``path`` and the file was truncated under it.  ``algorithm``: the
+    digest's (:mod:`lcpcli.batch.digest`); ``seconds``: what computing it took (counted as
+    reading)."""
 
-    def __init__(self, algorithm: str) -> None:
-        self.algorithm = algorithm
+    def __init__(self, algorithm: str, path: str) -> None:
+        self.algorithm, self.path = algorithm, path
         self.done = threading.Event()
         self.value, self.seconds = b"", 0.0
         self.error: BaseException | None = None
@@ -423,6 +441,7 @@ class _Digest:
         t0 = time.perf_counter()
         try:
             self.value = chunk_digest(part, self.algorithm)
+            checked(part, self.path)  # the digest is of the file's bytes
         except BaseException as exc:  # noqa: BLE001 - raised by result(), in the writer
             self.error = exc
             raise
@@ -633,6 +652,7 @@ class _LocalParts:
                  started: tuple[_Prefetch, _Buffers] | None = None) -> None:
         self.info, self.opts, self.threads = info, opts, threads
         self.before_solve: Callable[[], None] | None = None
+        self.in_place = 0  # chunks solved from views of the mapped file
         if started is not None:  # the same reads, begun earlier (:class:`EarlyReads`)
             self.reads, self.buffers = started
             return
@@ -647,6 +667,9 @@ class _LocalParts:
                 self.before_solve()
             names, res, plan, solve_s = solve_read(part, self.info, todo, self.opts, plan,
                                                    threads=self.threads, prev=prev)
+            checked(part, self.info.path)  # solved from the file's bytes
+            if part.check is not None:
+                self.in_place += 1
             yield part.start, todo, names, fingerprint, res, read_s, solve_s
             # the consumer is done with this chunk (its results hold no view of M or q)
             self.buffers.give(held)
@@ -752,6 +775,7 @@ def _run_one(path: str, info: Any, opts: SolveOptions, report: BatchReport, tall
         _consume(path, stem, info, parts, report, tally, stats, writer, chunk=chunk,
                  on_progress=on_progress, on_row=on_row, write=write)
     finally:
+        stats.in_place_chunks += getattr(parts, "in_place", 0)
         # closed here, not when the garbage collector finds it: closing joins the reader
         # thread, which must not happen inside h5py (its lock held) on some later line
         close = getattr(parts, "close", None)

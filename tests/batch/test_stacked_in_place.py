@@ -1,0 +1,168 @@
+"""Stacked batches reading their stacks in place (lcpcli.io.stack.mapped): the same result
+files as copying reads, the path really taken, resume across the two, and a stack truncated
+during the run is one line and exit 2, never a SIGBUS death."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+from lcpcli.io.stack import write_stack
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def pd_stack(K: int, n: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    rng = np.random.default_rng(seed)
+    A = rng.standard_normal((K, n, n))
+    return A @ A.transpose(0, 2, 1) / n + np.eye(n), rng.standard_normal((K, n))
+
+
+def _arrays(path: Path) -> dict[str, bytes]:
+    out: dict[str, bytes] = {}
+    with h5py.File(path, "r") as f:
+        def visit(name: str, obj: object) -> None:
+            if isinstance(obj, h5py.Dataset):
+                out[name] = obj[()].tobytes()
+        f.visititems(visit)
+    return out
+
+
+@pytest.mark.parametrize("suffix", [".h5", ".npz"])
+def test_in_place_batch_equals_copying_batch_and_is_taken(tmp_path, monkeypatch, suffix):
+    """Every dataset of the result file (z, w, status, basis, digests, ...) is bit for bit
+    the same whether the chunks were read in place or copied; the batch's stats count the
+    chunks read in place (none when mapping is off)."""
+    import lcpcli.io.stack as stack_mod
+    from lcpcli.batch.records import SolveOptions
+    from lcpcli.batch.run import run_batch
+    from lcpcli.io.stack import mapped
+
+    M, q = pd_stack(700, 5, seed=3)
+    M[11] = 0.0  # no solution: through the one-problem pipeline, on the mapped rows
+    q[11] = -1.0
+    path = tmp_path / f"s{suffix}"
+    if suffix == ".h5":
+        write_stack(path, M, q)
+    else:
+        np.savez(path, M=M, q=q)
+    monkeypatch.setattr(stack_mod, "chunk_size", lambda n, **kw: 64)
+    reports = {}
+    for on in (True, False):
+        monkeypatch.setattr(mapped, "MAP_STACKS", on)
+        reports[on] = run_batch([str(path)], SolveOptions(method="lemke"),
+                                output=tmp_path / f"r{on}.h5", jobs=2)
+    chunks = -(-700 // 64)
+    monkeypatch.setattr(mapped, "MAP_STACKS", True)
+    with stack_mod.open_stack(path, mapped=True) as r:
+        expected = 0 if r.copies(0, 64) else chunks  # an NPZ member may sit unaligned
+    if suffix == ".h5":
+        assert expected == chunks  # write_stack's files are read in place
+    assert reports[True].stats.in_place_chunks == expected
+    assert reports[False].stats.in_place_chunks == 0
+    assert reports[True].tally.counts == reports[False].tally.counts
+    assert _arrays(tmp_path / "rTrue.h5") == _arrays(tmp_path / "rFalse.h5")
+
+
+def test_resume_checks_in_place_digests_against_copied_ones(tmp_path, monkeypatch):
+    """A run stopped after some chunks read in place resumes with copying reads (and the
+    other way round): the recorded digests are of the same bytes, so the identity check
+    passes and the finished file equals a run in one go."""
+    import lcpcli.io.stack as stack_mod
+    from lcpcli.batch import stacked
+    from lcpcli.batch.records import SolveOptions
+    from lcpcli.batch.run import run_batch
+    from lcpcli.io.stack import mapped
+
+    M, q = pd_stack(500, 4, seed=5)
+    path = tmp_path / "s.h5"
+    write_stack(path, M, q)
+    monkeypatch.setattr(stack_mod, "chunk_size", lambda n, **kw: 50)
+    run_batch([str(path)], SolveOptions(method="lemke"), output=tmp_path / "whole.h5",
+              jobs=1)
+    solve_read = stacked.solve_read
+    seen: list[int] = []
+
+    def stop_at_the_fourth(part, *args, **kwargs):
+        seen.append(part.start)
+        if len(seen) == 4:
+            raise KeyboardInterrupt
+        return solve_read(part, *args, **kwargs)
+
+    for first in (True, False):
+        out = tmp_path / f"part{first}.h5"
+        seen.clear()
+        monkeypatch.setattr(mapped, "MAP_STACKS", first)
+        monkeypatch.setattr(stacked, "solve_read", stop_at_the_fourth)
+        with pytest.raises(KeyboardInterrupt):
+            run_batch([str(path)], SolveOptions(method="lemke"), output=out, jobs=1)
+        monkeypatch.setattr(stacked, "solve_read", solve_read)
+        monkeypatch.setattr(mapped, "MAP_STACKS", not first)
+        report = run_batch([str(path)], SolveOptions(method="lemke"), output=out, jobs=1,
+                           resume=True)
+        assert report.skipped == 150 and report.new == 350
+        assert report.stats.in_place_chunks == (7 if not first else 0)
+        got, want = _arrays(out), _arrays(tmp_path / "whole.h5")
+        assert got == want
+
+
+#: Runs the command line in a process of its own, truncating the stack right before its
+#: second chunk is solved (the reader has handed that chunk over as views already).
+TRUNCATING_RUN = """
+import os, sys
+import lcpcli.io.stack as stack_mod
+from lcpcli.batch import stacked
+stack_mod.chunk_size = lambda n, **kw: 200
+path, cut = sys.argv[1], int(sys.argv[2])
+solve_read, seen = stacked.solve_read, []
+
+def solve_then_cut(part, *args, **kwargs):
+    seen.append(part.start)
+    if len(seen) == 2:
+        os.truncate(path, cut)
+    return solve_read(part, *args, **kwargs)
+
+stacked.solve_read = solve_then_cut
+from lcpcli.cli import main
+sys.argv = ["lcpcli", "solve", path, *sys.argv[3:]]
+main()
+"""
+
+
+@pytest.mark.parametrize("output", ["r.h5", "r.jsonl", None])
+def test_stack_truncated_during_the_run_is_one_line_and_exit_2(tmp_path, output):
+    """The stack is cut inside M of the second chunk right before that chunk is solved:
+    the kernel's threads (and the digest) read zeros where the file has gone, and the batch
+    stops with ``lcpcli: error: FILE: was truncated while it was read ...`` and exit 2, with
+    the first chunk's results written (resumable), never with a signal."""
+    M, q = pd_stack(1000, 12, seed=2)
+    path = tmp_path / "s.h5"
+    write_stack(path, M, q)
+    with h5py.File(path, "r") as f:
+        cut = f["M"].id.get_offset() + 300 * 12 * 12 * 8  # problems 0..299 of M stay
+    args = [str(path), str(cut), "-j", "2"]
+    if output is not None:
+        args += ["-o", str(tmp_path / output)]
+    r = subprocess.run([sys.executable, "-c", textwrap.dedent(TRUNCATING_RUN), *args],
+                       capture_output=True, text=True, timeout=300,
+                       env=dict(os.environ, PYTHONPATH=str(ROOT)), cwd=tmp_path)
+    lines = r.stderr.strip().splitlines()
+    assert r.returncode == 2, r.stderr[-2000:]
+    assert len(lines) == 1 and lines[0].startswith(f"lcpcli: error: {path}: was truncated "
+                                                   f"while it was read (problems 200 to 399")
+    if output == "r.h5":
+        with h5py.File(tmp_path / output, "r") as f:
+            status = f["s"]["status"][()]
+        assert (status[:200] >= 0).all()  # the first chunk: written
+        assert (status[200:] < 0).all()  # the truncated one and after: not
+    if output == "r.jsonl":
+        rows = [json.loads(x) for x in (tmp_path / output).read_text().splitlines()]
+        assert sorted(row["index"] for row in rows) == list(range(200))
