@@ -72,6 +72,60 @@ def test_in_place_batch_equals_copying_batch_and_is_taken(tmp_path, monkeypatch,
     assert _arrays(tmp_path / "rTrue.h5") == _arrays(tmp_path / "rFalse.h5")
 
 
+def test_memory_pool_stops_when_the_stack_is_read_in_place(tmp_path, monkeypatch):
+    """A stack read in place takes no chunk buffer: the memory pool started for it is told
+    to stop; a stack that is copied takes its buffers from the pool as before."""
+    from lcpcli.batch import stack_output, stacked
+    from lcpcli.batch.records import SolveOptions
+    from lcpcli.batch.run import run_batch
+    from lcpcli.io.stack import mapped
+
+    monkeypatch.setattr(stack_output, "BATCH_CHUNK_BYTES", 4096)
+    M, q = pd_stack(400, 5, seed=8)
+    path = tmp_path / "s.h5"
+    write_stack(path, M, q)
+    calls: list[str] = []
+    take, cancel = stacked.MemoryPool.take, stacked.MemoryPool.cancel
+
+    def taking(self, nbytes):
+        calls.append("take")
+        return take(self, nbytes)
+
+    def cancelling(self):
+        calls.append("cancel")
+        cancel(self)
+
+    monkeypatch.setattr(stacked.MemoryPool, "take", taking)
+    monkeypatch.setattr(stacked.MemoryPool, "cancel", cancelling)
+    for on, want in ((True, ["cancel"]), (False, ["take", "take"])):
+        calls.clear()
+        monkeypatch.setattr(mapped, "MAP_STACKS", on)
+        report = run_batch([str(path)], SolveOptions(method="lemke"),
+                           output=tmp_path / f"r{on}.h5", jobs=1)
+        assert calls == want and report.tally.counts == {"solved": 400}
+
+
+def test_memory_pool_cancelled_gives_none_for_blocks_not_made():
+    """Cancelled before its thread writes anything, the pool makes no block: each take is
+    None (the caller allocates), and none blocks."""
+    import threading
+
+    from lcpcli.batch.stacked import MemoryPool
+
+    gate = threading.Event()
+
+    class Gated(MemoryPool):
+        def _run(self, count: int) -> None:
+            gate.wait()
+            super()._run(count)
+
+    pool = Gated(3, 4 * MemoryPool.STEP)
+    pool.cancel()
+    gate.set()
+    pool.thread.join()
+    assert [pool.take(16) for _ in range(4)] == [None] * 4
+
+
 def test_resume_checks_in_place_digests_against_copied_ones(tmp_path, monkeypatch):
     """A run stopped after some chunks read in place resumes with copying reads (and the
     other way round): the recorded digests are of the same bytes, so the identity check
