@@ -24,6 +24,7 @@ import queue
 import threading
 import time
 from collections.abc import Callable, Iterator
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -110,6 +111,8 @@ def run_stacks(inputs: list[str], opts: SolveOptions, report: BatchReport, *,
             report.new += 1
             if on_row:
                 on_row(row)
+    if scheduler is not None:  # Dask workers copy their chunks: the chunks for copies
+        infos = [None if i is None else replace(i, in_place=False) for i in infos]
     report.total = sum(i.K for i in infos if i is not None) + infos.count(None)
     warm, warm_digest = _open_warm(opts, infos, scheduler)
     writer = None
@@ -118,7 +121,7 @@ def run_stacks(inputs: list[str], opts: SolveOptions, report: BatchReport, *,
         first = next((i for i in infos if i is not None), None)
         if first is not None and scheduler is None and not resume:
             # nothing is resumed: the first chunks are read while the output file is made
-            chunk = stack_output.new_chunk(output, first.n, threads)
+            chunk = stack_output.new_chunk(output, first.n, threads, first.in_place)
             digest = None if output is None else stack_output.new_algorithm(output)
             started = None
             if early_reads is not None:
@@ -176,7 +179,7 @@ def run_stacks(inputs: list[str], opts: SolveOptions, report: BatchReport, *,
             _run_one(path, info, opts, report, tally, stats, writer, done_masks[path],
                      threads=threads,
                      chunk=chunk if chunk is not None else
-                     stack_output.batch_chunk(info.n, threads),
+                     stack_output.batch_chunk(info.n, threads, info.in_place),
                      on_progress=on_progress, on_row=on_row, write=write,
                      scheduler=scheduler, warm=warm, parts=parts, memory=memory)
     finally:
@@ -741,7 +744,7 @@ class EarlyReads:
 
         try:
             info = stack_info(self.path)
-            self.chunk = new_chunk(self.output, info.n, self.threads)
+            self.chunk = new_chunk(self.output, info.n, self.threads, info.in_place)
             self.digest = None if self.output is None else new_algorithm(self.output)
             self.buffers = _Buffers(READ_AHEAD + 1, min(self.chunk, info.K), info.n,
                                     self.memory)

@@ -72,6 +72,57 @@ def test_in_place_batch_equals_copying_batch_and_is_taken(tmp_path, monkeypatch,
     assert _arrays(tmp_path / "rTrue.h5") == _arrays(tmp_path / "rFalse.h5")
 
 
+def test_stacks_read_in_place_are_read_in_larger_chunks(tmp_path, monkeypatch):
+    """A stack stored for reading in place (StackInfo.in_place, from the metadata) is read
+    in chunks of IN_PLACE_CHUNK_BYTES of M, which its result file records; a copied one in
+    chunks of BATCH_CHUNK_BYTES; the results are the same."""
+    from lcpcli.batch import stack_output
+    from lcpcli.batch.records import SolveOptions
+    from lcpcli.batch.run import run_batch
+    from lcpcli.io.stack import mapped, stack_info
+
+    monkeypatch.setattr(stack_output, "BATCH_CHUNK_BYTES", 8 * 5 * 5 * 40)  # 40 problems
+    monkeypatch.setattr(stack_output, "IN_PLACE_CHUNK_BYTES", 8 * 5 * 5 * 160)  # 160
+    M, q = pd_stack(500, 5, seed=9)
+    path = tmp_path / "s.h5"
+    write_stack(path, M, q)
+    for on, chunk in ((True, 160), (False, 40)):
+        monkeypatch.setattr(mapped, "MAP_STACKS", on)
+        assert stack_info(path).in_place == on
+        assert stack_output.batch_chunk(5, 2, stack_info(path).in_place) == chunk
+        report = run_batch([str(path)], SolveOptions(method="lemke"),
+                           output=tmp_path / f"r{on}.h5", jobs=2)
+        assert report.stats.in_place_chunks == (4 if on else 0)
+        with h5py.File(tmp_path / f"r{on}.h5", "r") as f:
+            assert int(f["s"].attrs["chunk"]) == chunk
+    got, want = _arrays(tmp_path / "rTrue.h5"), _arrays(tmp_path / "rFalse.h5")
+    assert {k: v for k, v in got.items() if "digest" not in k} == \
+        {k: v for k, v in want.items() if "digest" not in k}  # digests: per chunk
+
+
+def test_in_place_needs_every_row_in_one_run(tmp_path):
+    """StackInfo.in_place: contiguous float64 (write_stack, h5py's default) yes; compressed,
+    float32 or chunks apart in the file no."""
+    from lcpcli.io.stack import stack_info
+
+    M, q = pd_stack(30, 3)
+    write_stack(tmp_path / "a.h5", M, q)
+    with h5py.File(tmp_path / "b.h5", "w") as f:
+        f["M"], f["q"] = M, q
+    with h5py.File(tmp_path / "c.h5", "w") as f:
+        f.create_dataset("M", data=M, chunks=(3, 3, 3), compression="gzip")
+        f["q"] = q
+    with h5py.File(tmp_path / "d.h5", "w") as f:
+        f["M"], f["q"] = M.astype(np.float32), q
+    with h5py.File(tmp_path / "e.h5", "w") as f:  # chunks written last first
+        d = f.create_dataset("M", shape=M.shape, chunks=(10, 3, 3), dtype="f8")
+        for a in (20, 10, 0):
+            d[a:a + 10] = M[a:a + 10]
+        f["q"] = q
+    assert [stack_info(tmp_path / f"{x}.h5").in_place for x in "abcde"] == \
+        [True, True, False, False, False]
+
+
 def test_memory_pool_stops_when_the_stack_is_read_in_place(tmp_path, monkeypatch):
     """A stack read in place takes no chunk buffer: the memory pool started for it is told
     to stop; a stack that is copied takes its buffers from the pool as before."""

@@ -34,7 +34,7 @@ Errors are :class:`ProblemError` with a one-line message; readers leave the file
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -84,6 +84,11 @@ class StackInfo:
     #: given one bound gets the other by the one-sided bounds rule, core.problem.default_bound).
     lower_shape: tuple[int, ...] | None = None
     upper_shape: tuple[int, ...] | None = None
+    #: Whether every row of M, q and per-problem bounds is stored so that a mapped reader
+    #: reads it in place (:mod:`lcpcli.io.stack.mapped`: one run each, from the metadata;
+    #: the reader still checks); a batch then reads larger chunks.  Not part of equality (a
+    #: property of the storage, not of what the file holds).
+    in_place: bool = field(default=False, compare=False)
 
 
 @dataclass

@@ -126,6 +126,13 @@ def npz_runs(shape: tuple[int, ...], dtype: Any, fortran: bool, offset: int | No
     return Runs(tuple(shape[1:]), [0], [int(shape[0])], [int(offset)])  # type: ignore[list-item]
 
 
+def in_place(runs: list[Runs | None], K: int) -> bool:
+    """Whether each of ``runs`` (one per row array) holds every row of K in one run, and
+    mapping is on (:data:`MAP_STACKS`): a reader opened ``mapped`` then copies no chunk."""
+    return MAP_STACKS and all(r is not None and r.starts == [0] and r.stops == [K]
+                              for r in runs)
+
+
 class MappedStack:
     """The file ``fd`` (open, owned by this object: closed with it) mapped read-only whole
     (:class:`lcpcli.io.stack._mapped.Mapping`), with the :class:`Runs` of each array

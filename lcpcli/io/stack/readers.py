@@ -10,6 +10,7 @@ import struct
 import zipfile
 from collections.abc import Iterator
 from contextlib import ExitStack
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -35,7 +36,7 @@ from lcpcli.io.stack.layout import (
     problem_name,
     stacked_message,
 )
-from lcpcli.io.stack.mapped import MappedStack, h5_runs, map_stack, npz_runs
+from lcpcli.io.stack.mapped import MappedStack, Runs, h5_runs, in_place, map_stack, npz_runs
 
 
 # ------------------------------------------------------------------------- detection
@@ -58,6 +59,13 @@ def is_stack(path: str | Path) -> bool:
         return False
 
 
+
+
+def _row_keys(info: StackInfo) -> list[str]:
+    """The arrays read row by row: M, q and the bounds stored per problem ((K, n))."""
+    return ["M", "q"] + [label for label, shape in (("lower", info.lower_shape),
+                                                    ("upper", info.upper_shape))
+                         if shape is not None and len(shape) == 2]
 
 
 # ------------------------------------------------------------------------------ HDF5
@@ -124,6 +132,8 @@ class _H5Source:
             self.info = _layout(str(path), "hdf5", shape("M"), shape("q"),
                                 names_shape=shape("names"), lower=shape("lower"),
                                 upper=shape("upper"), n_eq=h5.attr_int(f, "n_eq") or 0)
+            self.info = replace(self.info, in_place=in_place(
+                [h5_runs(self.d[key]) for key in _row_keys(self.info)], self.info.K))
             if names is not None and self.info.K * longest > MAX_NAMES_DECLARED:
 
                 raise too_big(self.info.K * longest, MAX_NAMES_DECLARED,
@@ -247,6 +257,12 @@ class _NpzSource:
                             names_shape=shape("names"), lower=shape("lower"),
                             upper=shape("upper"), n_eq=n_eq)
         self.offsets = {key: self._data_offset(m.info) for key, m in self.m.items()}
+        self.info = replace(self.info, in_place=in_place(
+            [self._runs(key) for key in _row_keys(self.info)], self.info.K))
+
+    def _runs(self, key: str) -> Runs | None:
+        m, base = self.m[key], self.offsets[key]
+        return npz_runs(m.shape, m.dtype, m.fortran, None if base is None else base + m.header_len)
 
     def _data_offset(self, info: zipfile.ZipInfo) -> int | None:
         """Where a stored (uncompressed, unencrypted) member's bytes start in the file;
@@ -301,12 +317,7 @@ class _NpzSource:
 
     def map(self, keys: list[str]) -> MappedStack | None:
         """The members ``keys`` mapped where stored uncompressed (:mod:`.mapped`)."""
-        runs = {}
-        for key in keys:
-            m, base = self.m[key], self.offsets[key]
-            runs[key] = npz_runs(m.shape, m.dtype, m.fortran,
-                                 None if base is None else base + m.header_len)
-        return map_stack(self.path, self.fh.fileno(), runs)
+        return map_stack(self.path, self.fh.fileno(), {key: self._runs(key) for key in keys})
 
     def rows(self, key: str, start: int, stop: int, out: np.ndarray) -> None:
         member = self.m[key]
@@ -389,17 +400,12 @@ class StackReader:
     def close(self) -> None:
         self._stack.close()
 
-    def _row_keys(self) -> list[str]:
-        """The arrays read row by row: M, q and the bounds stored per problem."""
-        return ["M", "q"] + [label for label in ("lower", "upper")
-                             if self.info.bounds is not None and label not in self._side]
-
     def _map(self) -> MappedStack | None:
         """The row arrays mapped (:mod:`lcpcli.io.stack.mapped`), once the first row of
         each array's first run read in place is found equal to the same row read by the
         format's own reader (a check of the offsets the format gave); None when nothing is
         mappable."""
-        mapped = self._src.map(self._row_keys())
+        mapped = self._src.map(_row_keys(self.info))
         if mapped is None:
             return None
         n = self.info.n
