@@ -478,21 +478,31 @@ class MemoryPool:
     the inputs: one thread), it makes the chunk buffers on a core that is idle meanwhile.  New
     memory is costly on the reference machine (2-2.5 ms per MiB written the first time, a
     virtual machine whose host backs each new page: a chunk of 16 MiB read into new memory
-    took 37 ms instead of 4).  :meth:`take` is called from one thread (the reader);
-    :meth:`cancel` stops the writing (a stack read in place needs no buffer: 12-54 ms of CPU
-    at the start of a batch, beside the first solves, measured at n = 50)."""
+    took 37 ms instead of 4).  :meth:`take` is called from one thread (the reader).  Made
+    with ``start=False``, the thread starts at :meth:`start` (a batch's early reader starts it
+    once it knows that the stack is copied, not read in place); :meth:`cancel` stops the
+    writing (a stack read in place needs no buffer: 12-54 ms of CPU at the start of a batch,
+    beside the first solves, measured at n = 50, and the GIL in 1 MiB steps while the main
+    thread imports the solver).  A pool never started or cancelled gives no block."""
 
     #: Bytes written between two looks at :meth:`cancel`.
     STEP = 2**20
 
-    def __init__(self, count: int, nbytes: int) -> None:
+    def __init__(self, count: int, nbytes: int, start: bool = True) -> None:
 
-        self.nbytes, self.left = nbytes, count
+        self.nbytes, self.left, self.count = nbytes, count, count
         self.blocks: queue.Queue[np.ndarray | None] = queue.Queue()
         self.cancelled = threading.Event()
-        self.thread = threading.Thread(target=self._run, args=(count,),
-                                       name="lcpcli-stack-memory", daemon=True)
-        self.thread.start()
+        self.thread: threading.Thread | None = None
+        if start:
+            self.start()
+
+    def start(self) -> None:
+        """Start writing the blocks (once; not after :meth:`cancel`)."""
+        if self.thread is None and not self.cancelled.is_set():
+            self.thread = threading.Thread(target=self._run, args=(self.count,),
+                                           name="lcpcli-stack-memory", daemon=True)
+            self.thread.start()
 
     def _run(self, count: int) -> None:
         made = 0
@@ -518,14 +528,15 @@ class MemoryPool:
 
     def take(self, nbytes: int) -> np.ndarray | None:
         """A block of at least ``nbytes`` (waits while it is being written); None when the
-        pool has none that large or none left (the caller allocates)."""
-        if nbytes > self.nbytes or self.left <= 0:
+        pool has none that large or none left, or was never started (the caller
+        allocates)."""
+        if nbytes > self.nbytes or self.left <= 0 or self.thread is None:
             return None
         self.left -= 1
         return self.blocks.get()
 
 
-def memory_pool(inputs: list[str], count: int = 2) -> MemoryPool | None:
+def memory_pool(inputs: list[str], count: int = 2, start: bool = True) -> MemoryPool | None:
     """The :class:`MemoryPool` of a batch whose first input looks like a large stack (a
     stack's extension, :data:`lcpcli.io.stack.layout.STACK_FORMATS`, and at least ``count``
     chunks of :data:`lcpcli.batch.stack_output.BATCH_CHUNK_BYTES`): ``count`` blocks of one
@@ -541,7 +552,8 @@ def memory_pool(inputs: list[str], count: int = 2) -> MemoryPool | None:
         size = os.stat(inputs[0]).st_size
     except (OSError, ValueError):
         return None
-    return MemoryPool(count, BATCH_CHUNK_BYTES) if size >= count * BATCH_CHUNK_BYTES else None
+    return MemoryPool(count, BATCH_CHUNK_BYTES, start) \
+        if size >= count * BATCH_CHUNK_BYTES else None
 
 
 class _Buffers:
@@ -744,6 +756,8 @@ class EarlyReads:
 
         try:
             info = stack_info(self.path)
+            if self.memory is not None:  # buffers only for a stack that is copied
+                (self.memory.cancel if info.in_place else self.memory.start)()
             self.chunk = new_chunk(self.output, info.n, self.threads, info.in_place)
             self.digest = None if self.output is None else new_algorithm(self.output)
             self.buffers = _Buffers(READ_AHEAD + 1, min(self.chunk, info.K), info.n,
