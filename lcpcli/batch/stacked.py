@@ -376,7 +376,7 @@ def solve_read(part: Any, info: Any, todo: np.ndarray, opts: SolveOptions, plan:
 
 def _reads(path: str, info: Any, done: np.ndarray, chunk: int, digest: str | None,
            stop_event: threading.Event | None = None, warm: Any = None,
-           buffers: _Buffers | None = None) -> Iterator[tuple[Any, ...]]:
+           buffers: _Buffers | None = None, reader: Any = None) -> Iterator[tuple[Any, ...]]:
     """``(todo, part, digest, read_s, prev, held)`` of each chunk with work, in order (the
     reader's side); ``part``: its rows read in place where the file allows
     (:mod:`lcpcli.io.stack.mapped`: ``part.check`` then runs after the chunk's solve and
@@ -385,10 +385,11 @@ def _reads(path: str, info: Any, done: np.ndarray, chunk: int, digest: str | Non
     computed here once the chunk is handed over, so that the solver starts on it meanwhile;
     ``prev``: the chunk of the ``--z0`` result file ``warm`` (None without one); ``held``:
     the buffers of ``buffers`` that ``part`` was read into (None without them), which the
-    consumer gives back once it is done with the chunk's data."""
-    from lcpcli.io.stack import open_stack
-
-    with open_stack(path, direct=True, mapped=True) as reader:
+    consumer gives back once it is done with the chunk's data.  ``reader``: the stack
+    already opened so (:func:`_open_mapped`; closed here), else opened here."""
+    if reader is None:
+        reader = _open_mapped(path)
+    with reader:
         if buffers is not None and not reader.copies(0, info.K):
             buffers.unneeded()
         for start in range(0, info.K, chunk):
@@ -424,6 +425,14 @@ def checked(part: Any, path: str) -> None:
             check()
         except ProblemError as exc:
             raise exc.with_source(path) from None
+
+
+def _open_mapped(path: str) -> Any:
+    """The stack at ``path`` opened as a stacked batch reads it: large chunks in order,
+    rows in place where the file allows (:func:`lcpcli.io.stack.open_stack`)."""
+    from lcpcli.io.stack import open_stack
+
+    return open_stack(path, direct=True, mapped=True)
 
 
 class _Digest:
@@ -732,9 +741,10 @@ def _local_parts(path: str, info: Any, opts: SolveOptions, done: np.ndarray, *, 
 class EarlyReads:
     """The reads of a batch's first input, started with the batch (:func:`early_reads`),
     before the method is looked up (its modules take ~9 ms to load on the reference
-    machine), the inputs checked and the output made: a reader thread finds the stack's
-    layout (:func:`lcpcli.io.stack.stack_info`) and reads its first chunks as a batch that
-    resumes nothing reads them (:func:`_reads`: the chunk of
+    machine), the inputs checked and the output made: a reader thread opens the stack as
+    the batch reads it (:func:`_open_mapped`, once: its layout, then its chunks), starts or
+    stops the memory pool by the layout, and reads its first chunks as a batch that resumes
+    nothing reads them (:func:`_reads`: the chunk of
     :func:`lcpcli.batch.stack_output.new_chunk` for ``output``, every problem, no ``--z0``).
     :meth:`take` hands them to the batch when it reads that stack so; :meth:`close` stops
     and joins the thread (idempotent).  An input that is no stack only ends the thread: the
@@ -752,10 +762,11 @@ class EarlyReads:
 
     def _items(self, stop: threading.Event) -> Iterator[tuple[Any, ...]]:
         from lcpcli.batch.stack_output import new_algorithm, new_chunk
-        from lcpcli.io.stack import stack_info
 
+        reader = None
         try:
-            info = stack_info(self.path)
+            reader = _open_mapped(self.path)  # opened once: its layout, then its chunks
+            info = reader.info
             if self.memory is not None:  # buffers only for a stack that is copied
                 (self.memory.cancel if info.in_place else self.memory.start)()
             self.chunk = new_chunk(self.output, info.n, self.threads, info.in_place)
@@ -763,10 +774,14 @@ class EarlyReads:
             self.buffers = _Buffers(READ_AHEAD + 1, min(self.chunk, info.K), info.n,
                                     self.memory)
             self.info = info
+        except BaseException:
+            if reader is not None:
+                reader.close()
+            raise
         finally:
             self.known.set()
         yield from _reads(self.path, info, np.zeros(info.K, bool), self.chunk, self.digest,
-                          stop, None, self.buffers)
+                          stop, None, self.buffers, reader)
 
     def take(self, info: Any, chunk: int, digest: str | None
              ) -> tuple[_Prefetch, _Buffers] | None:
