@@ -196,6 +196,32 @@ def test_truncation_inside_a_page_is_seen_without_a_fault(tmp_path):
             part.check()
 
 
+def test_truncated_and_regrown_file_is_refused_too(tmp_path):
+    """Cut, then written to its old size again before the check: the pages met while the
+    file was short read zeros, so the chunk is refused all the same (in a subprocess)."""
+    M, q = pd_stack(500, 8)
+    path = tmp_path / "s.h5"
+    write_stack(path, M, q)
+    r = _run(f"""
+    import os, numpy as np
+    from lcpcli.core.errors import ProblemError
+    from lcpcli.io.stack import open_stack
+    path = {str(path)!r}
+    size = os.path.getsize(path)
+    with open_stack(path, direct=True, mapped=True) as r:
+        part = r.read(0, 500)
+        os.truncate(path, 8192)
+        assert float(np.abs(part.M[-1]).sum()) == 0.0
+        os.truncate(path, size)  # as long as before, zeros
+        try:
+            part.check()
+        except ProblemError as exc:
+            print("error:", exc)
+    """)
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert "error: lost data while it was read (problems 0 to 499" in r.stdout
+
+
 def test_other_sigbus_still_ends_the_process(tmp_path):
     """The guard takes only faults inside its own maps: a SIGBUS sent by kill, or a fault
     in another map of a truncated file, still ends the process by SIGBUS."""

@@ -10,7 +10,8 @@ returns: the faulting load runs again and reads zeros, in any thread, with no ju
 compiled code.  The reader that made the map then refuses the data read from it
 (:meth:`lcpcli.io.stack.mapped.MappedStack.check`).  A SIGBUS anywhere else (or one sent by
 another process) gets the action that was in place before the handler, as if it were never
-installed.  Linux (and other systems with ``MAP_ANONYMOUS``, ``MAP_FIXED`` and ``si_addr``).
+installed.  POSIX systems with ``MAP_FIXED`` and ``si_addr`` (Linux, macOS); on Windows no map
+is made (:class:`Mapping` raises OSError: every chunk is copied).
 """
 
 from cpython.buffer cimport PyBUF_WRITABLE
@@ -20,16 +21,32 @@ from libc.stdint cimport uintptr_t
 cdef extern from *:
     """
     #include <errno.h>
-    #include <signal.h>
     #include <stdint.h>
     #include <string.h>
+    #define LCPCLI_MAP_SLOTS 256
+
+    #ifdef _WIN32
+    /* no guarded maps: Mapping refuses, every chunk is copied */
+    static int lcpcli_install_bus(void) { return ENOSYS; }
+    static int lcpcli_bus_is_ours(void) { return 0; }
+    static int lcpcli_register(uintptr_t start, uintptr_t end) { return -1; }
+    static void lcpcli_unregister(int i) {}
+    static uintptr_t lcpcli_lost(int i) { return UINTPTR_MAX; }
+    static uintptr_t lcpcli_faults(int i) { return 0; }
+    static void *lcpcli_map(int fd, size_t length) { return NULL; }
+    static int lcpcli_populate(void *base, size_t offset, size_t length) { return ENOSYS; }
+    static int lcpcli_unmap(void *addr, size_t length) { return 0; }
+    #else
+    #include <signal.h>
     #include <sys/mman.h>
     #include <unistd.h>
 
     #ifndef MADV_POPULATE_READ
     #define MADV_POPULATE_READ 22
     #endif
-    #define LCPCLI_MAP_SLOTS 256
+    #ifndef MAP_ANONYMOUS
+    #define MAP_ANONYMOUS MAP_ANON
+    #endif
 
     typedef struct {
         uintptr_t start, end;  /* the map's pages, [start, end) */
@@ -135,6 +152,9 @@ cdef extern from *:
         if (r != 0 && errno == EINVAL) r = madvise((void *)a, b - a, MADV_WILLNEED);
         return r == 0 ? 0 : errno;
     }
+
+    static int lcpcli_unmap(void *addr, size_t length) { return munmap(addr, length); }
+    #endif
     """
     int LCPCLI_MAP_SLOTS
     int lcpcli_install_bus()
@@ -145,7 +165,7 @@ cdef extern from *:
     uintptr_t lcpcli_faults(int i)
     void *lcpcli_map(int fd, size_t length)
     int lcpcli_populate(void *base, size_t offset, size_t length) nogil
-    int munmap(void *addr, size_t length)
+    int lcpcli_unmap(void *addr, size_t length)
 
 
 def install() -> None:
@@ -187,14 +207,14 @@ cdef class Mapping:
         self.length = length
         self.slot = lcpcli_register(<uintptr_t>self.base, <uintptr_t>self.base + length)
         if self.slot < 0:
-            munmap(self.base, length)
+            lcpcli_unmap(self.base, length)
             self.base = NULL
             raise OSError(0, f"{LCPCLI_MAP_SLOTS} guarded maps are open already")
 
     def __dealloc__(self):
         if self.base != NULL:
             lcpcli_unregister(self.slot)
-            munmap(self.base, self.length)
+            lcpcli_unmap(self.base, self.length)
             self.base = NULL
 
     def __len__(self) -> int:

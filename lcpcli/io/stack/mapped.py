@@ -177,10 +177,14 @@ class MappedStack:
         lost = self.mapping.lost()
         size = os.fstat(self.fd).st_size
         for _first, end in spans:
-            if end > size or 0 <= lost < end:
+            if end > size:
                 raise ProblemError(f"was truncated while it was read (problems {start:,} to "
                                    f"{stop - 1:,} are no longer all in it, now "
                                    f"{size:,} bytes); run again on the complete file")
+            if 0 <= lost < end:  # a SIGBUS, the size whole again: regrown, or a disk error
+                raise ProblemError(f"lost data while it was read (problems {start:,} to "
+                                   f"{stop - 1:,}: the file was truncated and written again, "
+                                   f"or the disk failed to read it); run again")
 
 
 def map_stack(path: str | os.PathLike[str], reading: int, runs: dict[str, Runs | None]
