@@ -236,6 +236,29 @@ def test_resume_checks_in_place_digests_against_copied_ones(tmp_path, monkeypatc
         assert got == want
 
 
+def test_digest_of_a_chunk_lost_under_it_is_refused_through_the_write():
+    """The reader thread's digest checks the chunk after hashing it: a chunk whose file
+    was truncated meanwhile makes result() (the chunk's write) raise the one-line error,
+    naming the stack."""
+    from lcpcli.batch.stacked import _Digest
+    from lcpcli.core.errors import ProblemError
+    from lcpcli.io.stack import StackChunk
+
+    def lost() -> None:
+        raise ProblemError("was truncated while it was read (problems 0 to 1 ...)")
+
+    M, q = pd_stack(2, 3)
+    fine = StackChunk(0, M, q, None, None, None, None)
+    digest = _Digest("mxs128", "s.h5")
+    digest.compute(fine)
+    assert len(digest.result()) == 16
+    digest = _Digest("mxs128", "s.h5")
+    with pytest.raises(ProblemError):
+        digest.compute(StackChunk(0, M, q, None, None, None, lost))
+    with pytest.raises(ProblemError, match=r"^s\.h5: was truncated while it was read"):
+        digest.result()
+
+
 #: Runs the command line in a process of its own, truncating the stack right before its
 #: second chunk is solved (the reader has handed that chunk over as views already).
 TRUNCATING_RUN = """
