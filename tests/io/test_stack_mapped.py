@@ -15,7 +15,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from lcpcli.io.stack import open_stack, write_stack
@@ -118,6 +118,37 @@ def test_write_stack_files_are_read_in_place_and_chunks_apart_copied(tmp_path):
         assert a.mapped_views == 2  # M and q
     with open_stack(tmp_path / "a.h5") as plain:  # not asked: copies
         assert plain.copies(0, 50) and plain.read(0, 50).check is None
+
+
+@settings(max_examples=25, deadline=None)
+@given(order=st.permutations(range(5)), K=st.integers(9, 15))
+@example(order=[0, 1, 2, 3, 4], K=15)  # in order: one run
+@example(order=[1, 0, 2, 3, 4], K=15)
+def test_whole_listing_agrees_with_the_full_one(tmp_path_factory, order, K):
+    """h5_runs(whole=True), which stops at the first chunk out of place, says "one run"
+    exactly when the full listing finds one run of every row; more chunks than
+    MAX_LISTED_CHUNKS are not listed (copied)."""
+    from lcpcli.io.stack import mapped
+
+    path = tmp_path_factory.mktemp("w") / "c.h5"
+    M = np.arange(K * 4, dtype=np.float64).reshape(K, 2, 2)
+    with h5py.File(path, "w") as f:
+        d = f.create_dataset("M", shape=M.shape, chunks=(3, 2, 2), dtype="f8")
+        for i in order:  # chunks allocated in this order
+            if 3 * i < K:
+                d[3 * i:3 * i + 3] = M[3 * i:3 * i + 3]
+    with h5py.File(path, "r") as f:
+        full, whole = mapped.h5_runs(f["M"]), mapped.h5_runs(f["M"], whole=True)
+        one = full is not None and full.starts == [0] and full.stops == [K]
+        assert (whole is not None) == one
+        if whole is not None:
+            assert whole == full
+        cap = mapped.MAX_LISTED_CHUNKS
+        try:
+            mapped.MAX_LISTED_CHUNKS = 2
+            assert mapped.h5_runs(f["M"]) is None
+        finally:
+            mapped.MAX_LISTED_CHUNKS = cap
 
 
 def test_map_stacks_off_copies_everything(tmp_path, monkeypatch):

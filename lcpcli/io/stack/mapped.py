@@ -69,10 +69,17 @@ def _usable(dtype: Any, offset: int | None) -> bool:
     return offset is not None and np.dtype(dtype) == MAPPED_DTYPE and offset % 8 == 0
 
 
-def h5_runs(d: Any) -> Runs | None:
+#: Most storage chunks of one dataset whose places :func:`h5_runs` lists (its callback costs
+#: ~10 us a chunk: 385 chunks 4 ms); a dataset in more chunks is copied.
+MAX_LISTED_CHUNKS = 65_536
+
+
+def h5_runs(d: Any, whole: bool = False) -> Runs | None:
     """The :class:`Runs` of the h5py dataset ``d`` (shape (K, ...)), or None when no row of
-    it is mappable: not float64 little-endian, filtered, external or virtual, compact, or
-    chunked in chunks that split a row."""
+    it is mappable: not float64 little-endian, filtered, external or virtual, compact,
+    chunked in chunks that split a row or in more than :data:`MAX_LISTED_CHUNKS`.
+    ``whole``: only whether one run holds every row (None otherwise), the listing stopped at
+    the first chunk that does not follow the one before."""
     import h5py
 
     if not _usable(d.dtype, 0):
@@ -86,19 +93,21 @@ def h5_runs(d: Any) -> Runs | None:
     if layout == h5py.h5d.CONTIGUOUS:
         offset = d.id.get_offset()
         return Runs(row, [0], [K], [offset]) if _usable(d.dtype, offset) else None
-    if layout != h5py.h5d.CHUNKED or tuple(d.chunks[1:]) != row:
+    if layout != h5py.h5d.CHUNKED or tuple(d.chunks[1:]) != row or \
+            not hasattr(d.id, "chunk_iter") or d.id.get_num_chunks() > MAX_LISTED_CHUNKS:
         return None
     c = int(d.chunks[0])
     chunks: list[tuple[int, int, int]] = []  # (first row, byte offset, bytes)
 
-    def add(info: Any) -> None:
-        chunks.append((int(info.chunk_offset[0]), int(info.byte_offset), int(info.size)))
+    def add(info: Any) -> bool | None:
+        first, offset = int(info.chunk_offset[0]), int(info.byte_offset)
+        if whole and (first != c * len(chunks) or (chunks and offset != chunks[-1][1]
+                                                   + c * row_bytes)):
+            return True  # stops the listing: not one run
+        chunks.append((first, offset, int(info.size)))
+        return None
 
-    if hasattr(d.id, "chunk_iter"):
-        d.id.chunk_iter(add)
-    else:  # older HDF5: one lookup per chunk
-        for i in range(d.id.get_num_chunks()):
-            add(d.id.get_chunk_info(i))
+    d.id.chunk_iter(add)
     chunks.sort()
     starts: list[int] = []
     stops: list[int] = []
@@ -114,7 +123,9 @@ def h5_runs(d: Any) -> Runs | None:
             starts.append(first)
             stops.append(last)
             offsets.append(offset)
-    return Runs(row, starts, stops, offsets) if starts else None
+    if not starts or (whole and (starts != [0] or stops != [K])):
+        return None
+    return Runs(row, starts, stops, offsets)
 
 
 def npz_runs(shape: tuple[int, ...], dtype: Any, fortran: bool, offset: int | None

@@ -133,7 +133,8 @@ class _H5Source:
                                 names_shape=shape("names"), lower=shape("lower"),
                                 upper=shape("upper"), n_eq=h5.attr_int(f, "n_eq") or 0)
             self.info = replace(self.info, in_place=in_place(
-                [h5_runs(self.d[key]) for key in _row_keys(self.info)], self.info.K))
+                [h5_runs(self.d[key], whole=True) for key in _row_keys(self.info)],
+                self.info.K))
             if names is not None and self.info.K * longest > MAX_NAMES_DECLARED:
 
                 raise too_big(self.info.K * longest, MAX_NAMES_DECLARED,
