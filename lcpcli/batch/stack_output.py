@@ -167,6 +167,21 @@ BATCH_CHUNK_BYTES = 16 * 2**20
 #: 0.30-0.39 s with 32, 0.26-0.29 s with 64, 0.26 s with 128; n = 12, K = 100,000 0.15-0.17 s
 #: with 16 MiB, 0.126-0.134 s with 64, 0.128-0.139 s with 128.
 IN_PLACE_CHUNK_BYTES = 64 * 2**20
+
+
+def result_row_bytes(n: int) -> int:
+    """About the bytes of one problem's results in memory while its chunk is solved and
+    written: z and w (8n each), the basis (n), status, iterations, error, residual and the
+    kernel's certificate fields (64)."""
+    return 17 * n + 64
+
+
+def _in_place_budget(n: int) -> int:
+    """The bytes of M of a chunk read in place: at most :data:`IN_PLACE_CHUNK_BYTES`, and
+    at most as many problems as have that many bytes of results (which outweigh M below
+    n = 5: a chunk of n = 1 holds 0.83 million problems, not 8 million)."""
+    m = max(8, 8 * n * n)
+    return min(IN_PLACE_CHUNK_BYTES, IN_PLACE_CHUNK_BYTES * m // result_row_bytes(n))
 #: Largest M (bytes) of one chunk of a stacked batch that :func:`batch_chunk` grows for its
 #: threads (two chunks are in memory at once: one read ahead, one solved).
 MAX_CHUNK_BYTES = 256 * 2**20
@@ -177,14 +192,14 @@ PER_THREAD = 16
 
 def batch_chunk(n: int, threads: int, in_place: bool = False) -> int:
     """Problems per chunk of a stacked batch of size-n problems on ``threads`` threads:
-    :func:`lcpcli.io.stack.chunk_size` for :data:`BATCH_CHUNK_BYTES` of M
-    (:data:`IN_PLACE_CHUNK_BYTES` for a stack read ``in_place``), or more for large n, so
-    that every
+    :func:`lcpcli.io.stack.chunk_size` for :data:`BATCH_CHUNK_BYTES` of M (for a stack read
+    ``in_place``, :data:`IN_PLACE_CHUNK_BYTES` of M, and of results: :func:`_in_place_budget`),
+    or more for large n, so that every
     thread gets :data:`PER_THREAD` problems while M stays within :data:`MAX_CHUNK_BYTES`.
     A result file records its chunk (``--resume`` reads it from there, whatever ``--jobs``);
     row outputs, which do not, use :func:`chunk_size` alone."""
     # looked up at call time: a test may replace it
-    base = io_stack.chunk_size(n, budget_bytes=IN_PLACE_CHUNK_BYTES if in_place
+    base = io_stack.chunk_size(n, budget_bytes=_in_place_budget(n) if in_place
                                else BATCH_CHUNK_BYTES)
     return max(base, min(PER_THREAD * threads, MAX_CHUNK_BYTES // max(8, 8 * n * n)))
 

@@ -82,11 +82,11 @@ def test_stacks_read_in_place_are_read_in_larger_chunks(tmp_path, monkeypatch):
     from lcpcli.io.stack import mapped, stack_info
 
     monkeypatch.setattr(stack_output, "BATCH_CHUNK_BYTES", 8 * 5 * 5 * 40)  # 40 problems
-    monkeypatch.setattr(stack_output, "IN_PLACE_CHUNK_BYTES", 8 * 5 * 5 * 160)  # 160
+    monkeypatch.setattr(stack_output, "IN_PLACE_CHUNK_BYTES", 8 * 5 * 5 * 125)  # 125
     M, q = pd_stack(500, 5, seed=9)
     path = tmp_path / "s.h5"
     write_stack(path, M, q)
-    for on, chunk in ((True, 160), (False, 40)):
+    for on, chunk in ((True, 125), (False, 40)):
         monkeypatch.setattr(mapped, "MAP_STACKS", on)
         assert stack_info(path).in_place == on
         assert stack_output.batch_chunk(5, 2, stack_info(path).in_place) == chunk
@@ -98,6 +98,27 @@ def test_stacks_read_in_place_are_read_in_larger_chunks(tmp_path, monkeypatch):
     got, want = _arrays(tmp_path / "rTrue.h5"), _arrays(tmp_path / "rFalse.h5")
     assert {k: v for k, v in got.items() if "digest" not in k} == \
         {k: v for k, v in want.items() if "digest" not in k}  # digests: per chunk
+
+
+@pytest.mark.parametrize("n", [1, 2, 3, 5, 12, 50, 200, 1000])
+def test_in_place_chunks_share_their_bytes_between_m_and_the_results(n):
+    """A chunk read in place holds at most IN_PLACE_CHUNK_BYTES of M and as much of results
+    (unless every thread's PER_THREAD problems need more), as many problems as that allows,
+    and never fewer than a copied chunk where M outweighs the results."""
+    from lcpcli.batch.stack_output import (
+        BATCH_CHUNK_BYTES,
+        IN_PLACE_CHUNK_BYTES,
+        PER_THREAD,
+        batch_chunk,
+        result_row_bytes,
+    )
+
+    per = max(max(8, 8 * n * n), result_row_bytes(n))  # the larger share
+    c = batch_chunk(n, 2, True)
+    assert c * per <= IN_PLACE_CHUNK_BYTES or c == PER_THREAD * 2
+    assert (c + 1) * per > IN_PLACE_CHUNK_BYTES or c == PER_THREAD * 2
+    if 8 * n * n >= result_row_bytes(n):
+        assert c >= min(batch_chunk(n, 2), BATCH_CHUNK_BYTES // (8 * n * n))
 
 
 def test_in_place_needs_every_row_in_one_run(tmp_path):
