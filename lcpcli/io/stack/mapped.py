@@ -5,11 +5,11 @@ the file's pages in the page cache instead of copying them into buffers (a copy 
 of M, 400 MB for n = 50, K = 20,000, on a core the solver needs).  Rows are *mappable* where
 they are stored as little-endian float64 in C order, unfiltered, at an offset that is a
 multiple of 8, and in runs of rows that follow one another in the file (:func:`h5_runs`,
-:func:`npz_runs`): an HDF5 dataset stored contiguous, or chunked in chunks of whole rows
-that lie one after another in the file (what :func:`lcpcli.io.stack.write_stack` writes:
-every chunk allocated at once, in order); an NPZ member stored uncompressed.  A chunk read
-across two runs, or from anything else (compressed, other types, external storage), is
-copied as before.
+:func:`npz_runs`): an HDF5 dataset stored contiguous (what :func:`lcpcli.io.stack.write_stack`
+and h5py's defaults write), or chunked in chunks of whole rows that lie one after another in
+the file; an NPZ member stored uncompressed at an offset that is a multiple of 8 (``np.savez``
+puts M at byte 183 and q at no multiple of 8 either: copied).  A chunk read across two
+runs, or from anything else (compressed, other types, external storage), is copied as before.
 
 **Truncation.**  A page of the map past the end of a file truncated during the run raises
 SIGBUS in the thread that touches it; the guard of :mod:`lcpcli.io.stack._mapped` turns
