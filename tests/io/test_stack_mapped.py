@@ -282,6 +282,31 @@ def test_other_sigbus_still_ends_the_process(tmp_path):
     assert fault.returncode == -signal.SIGBUS, fault.stderr[-1000:]
 
 
+@pytest.mark.parametrize("K, n", [(1, 1), (30, 4), (257, 12)])
+def test_lcpcli_npz_stacks_are_read_in_place_and_stay_plain_npz(tmp_path, K, n):
+    """write_stack's NPZ members start at a multiple of 64 (a padded local header): every
+    row array is read in place, and numpy and zipfile read the file as before."""
+    rng = np.random.default_rng(K)
+    M, q = rng.standard_normal((K, n, n)), rng.standard_normal((K, n))
+    lo, up = -rng.random((K, n)), rng.random((K, n))
+    names = [f"p{i}" for i in range(K)]
+    path = tmp_path / "s.npz"
+    write_stack(path, M, q, names=names, lower=lo, upper=up)
+    with zipfile.ZipFile(path) as zf:
+        assert zf.testzip() is None
+    with np.load(path) as d:
+        assert d["M"].tobytes() == M.tobytes() and d["upper"].tobytes() == up.tobytes()
+        assert list(d["names"]) == names
+    with open_stack(path, mapped=True) as r:
+        assert r.info.in_place and not r.copies(0, K)
+        part = r.read(0, K)
+        assert sorted(r._mapped.runs) == ["M", "lower", "q", "upper"]
+        assert all(v.offsets[0] % 64 == 0 for v in r._mapped.runs.values())
+        for got, want in ((part.M, M), (part.q, q), (part.lower, lo), (part.upper, up)):
+            assert not got.flags.writeable and got.tobytes() == want.tobytes()
+        assert part.names == names
+
+
 def test_npz_members_read_in_place_when_aligned(tmp_path):
     """np.savez members are stored uncompressed: read in place when their data start at a
     multiple of 8 bytes in the file, copied otherwise; the same bytes either way."""

@@ -5,7 +5,9 @@ from __future__ import annotations
 
 import contextlib
 import shutil
+import struct
 import tempfile
+import time
 import zipfile
 from contextlib import ExitStack
 from pathlib import Path
@@ -144,7 +146,7 @@ class StackWriter:
                              allowZip64=True) as zf:
             for key, fh in self.tmp.items():
                 shape = (K, n, n) if key == "M" else (K, n)
-                with zf.open(f"{key}.npy", "w", force_zip64=True) as out:
+                with zf.open(_aligned_member(zf, f"{key}.npy"), "w", force_zip64=True) as out:
                     _npy_header(out, shape, np.dtype("<f8"))
                     fh.seek(0)
                     shutil.copyfileobj(fh, out, 16 * 2**20)
@@ -164,6 +166,30 @@ class StackWriter:
             for key, arr in extra.items():
                 with zf.open(f"{key}.npy", "w", force_zip64=True) as out:
                     np.lib.format.write_array(out, np.asarray(arr), allow_pickle=False)
+
+
+#: Where the data of the row arrays of an NPZ stack start: at a multiple of this many bytes of
+#: the file (a batch reads float64 rows in place only at a multiple of 8,
+#: :mod:`lcpcli.io.stack.mapped`; numpy's own header already ends at a multiple of 64 of the
+#: member).
+NPZ_ALIGN = 64
+#: The id of the extra field that pads a member's local zip header (an id no reader knows:
+#: each skips it; "lc").
+_PAD_FIELD = 0x636C
+
+
+def _aligned_member(zf: zipfile.ZipFile, name: str) -> zipfile.ZipInfo:
+    """A stored member ``name``, about to be written at the current end of ``zf`` with
+    zip64 sizes (``force_zip64``), whose local header is padded by an extra field so that
+    the ``.npy`` data after numpy's header start at a multiple of :data:`NPZ_ALIGN`."""
+    info = zipfile.ZipInfo(name, date_time=time.localtime(time.time())[:6])
+    info.compress_type = zipfile.ZIP_STORED
+    assert zf.fp is not None
+    # local header (30), the name, the pad field's own 4 bytes, the zip64 sizes (20)
+    fixed = 30 + len(name.encode("utf-8")) + 4 + 20
+    pad = -(zf.fp.tell() + fixed) % NPZ_ALIGN
+    info.extra = struct.pack("<HH", _PAD_FIELD, pad) + bytes(pad)
+    return info
 
 
 def _allocated_at_once() -> Any:
