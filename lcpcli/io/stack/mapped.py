@@ -7,9 +7,10 @@ they are stored as little-endian float64 in C order, unfiltered, at an offset th
 multiple of 8, and in runs of rows that follow one another in the file (:func:`h5_runs`,
 :func:`npz_runs`): an HDF5 dataset stored contiguous (what :func:`lcpcli.io.stack.write_stack`
 and h5py's defaults write), or chunked in chunks of whole rows that lie one after another in
-the file; an NPZ member stored uncompressed at an offset that is a multiple of 8 (``np.savez``
-puts M at byte 183 and q at no multiple of 8 either: copied).  A chunk read across two
-runs, or from anything else (compressed, other types, external storage), is copied as before.
+the file; an NPZ member stored uncompressed at an offset that is a multiple of 8 (as
+``write_stack`` writes them; ``np.savez`` puts M at byte 183 and q at no multiple of 8
+either: copied).  A chunk read across two runs, or from anything else (compressed, other
+types, external storage), is copied as before.
 
 **Truncation.**  A page of the map past the end of a file truncated during the run raises
 SIGBUS in the thread that touches it; the guard of :mod:`lcpcli.io.stack._mapped` turns
