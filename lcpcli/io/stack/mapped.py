@@ -36,6 +36,7 @@ from typing import Any
 import numpy as np
 
 from lcpcli.core.errors import ProblemError
+from lcpcli.io.files import _open_regular
 
 #: Read stack rows in place where they are mappable (:mod:`lcpcli.io.stack.mapped`); False:
 #: always copy (tests compare the two).
@@ -208,8 +209,6 @@ def map_stack(path: str | os.PathLike[str], reading: int, runs: dict[str, Runs |
     map or its guard (then every chunk is copied).  The file is opened again by the reading
     layer's rules (:mod:`lcpcli.io.files`), not ``reading`` duplicated: HDF5's lock on that
     one ends when the reader closes, whatever views are still alive."""
-    from lcpcli.io.files import _open_regular
-
     have = {k: r for k, r in runs.items() if r is not None}
     if not MAP_STACKS or not have:
         return None
