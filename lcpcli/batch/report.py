@@ -20,6 +20,7 @@ class BatchStats:
     method_seconds: float = 0.0  # the method alone (the rows' ``seconds``)
     write_seconds: float = 0.0   # the client writing the output (wall)
     problems: int = 0
+    in_place_chunks: int = 0     # stacked chunks solved from the mapped file, not copies
 
     def add(self, other: dict[str, float]) -> None:
         self.read_seconds += other.get("read", 0.0)
@@ -30,7 +31,7 @@ class BatchStats:
     def as_dict(self) -> dict[str, float]:
         return {"read_seconds": self.read_seconds, "solve_seconds": self.solve_seconds,
                 "method_seconds": self.method_seconds, "write_seconds": self.write_seconds,
-                "problems": self.problems}
+                "problems": self.problems, "in_place_chunks": self.in_place_chunks}
 
 
 @dataclass

@@ -90,10 +90,13 @@ def run_batch(inputs: Iterable[str], opts: SolveOptions, *, recursive: bool = Fa
     from lcpcli.batch.stacked import early_reads, memory_pool
 
     # a large stack's chunk buffers are faulted in by a thread while the rest starts up, and
-    # (resuming nothing) the stack's first chunks read into them
-    memory = memory_pool(inputs) if scheduler is None else None
+    # (resuming nothing) the stack's first chunks read into them; the early reader starts the
+    # buffers only for a stack that it cannot read in place
+    memory = memory_pool(inputs, start=False) if scheduler is None else None
     early = early_reads(inputs, output, jobs, memory) \
         if scheduler is None and not resume and opts.warm is None else None
+    if memory is not None and early is None:
+        memory.start()
     try:
         return _run_batch(inputs, opts, recursive=recursive, jobs=jobs, timeout=timeout,
                           output=output, resume=resume, scheduler=scheduler,

@@ -160,6 +160,28 @@ def _chunk_arrays(res: Any) -> dict[str, np.ndarray]:
 #: chunks of 32 MiB, 0.03-0.05 s less CPU in all at n = 12 with 16 MiB; smaller chunks cost
 #: more again at n = 50, per chunk).
 BATCH_CHUNK_BYTES = 16 * 2**20
+#: M (bytes) of one chunk of a stacked batch whose stack is read in place
+#: (:attr:`lcpcli.io.stack.StackInfo.in_place`: no buffer is filled, so no new memory): fewer
+#: chunks, fewer of the serial steps between two kernel calls.  Measured on the reference
+#: machine (in-process timelines, --jobs 2): n = 50, K = 20,000 0.31-0.33 s with 16 MiB,
+#: 0.30-0.39 s with 32, 0.26-0.29 s with 64, 0.26 s with 128; n = 12, K = 100,000 0.15-0.17 s
+#: with 16 MiB, 0.126-0.134 s with 64, 0.128-0.139 s with 128.
+IN_PLACE_CHUNK_BYTES = 64 * 2**20
+
+
+def result_row_bytes(n: int) -> int:
+    """About the bytes of one problem's results in memory while its chunk is solved and
+    written: z and w (8n each), the basis (n), status, iterations, error, residual and the
+    kernel's certificate fields (64)."""
+    return 17 * n + 64
+
+
+def _in_place_budget(n: int) -> int:
+    """The bytes of M of a chunk read in place: at most :data:`IN_PLACE_CHUNK_BYTES`, and
+    at most as many problems as have that many bytes of results (which outweigh M below
+    n = 5: a chunk of n = 1 holds 0.83 million problems, not 8 million)."""
+    m = max(8, 8 * n * n)
+    return min(IN_PLACE_CHUNK_BYTES, IN_PLACE_CHUNK_BYTES * m // result_row_bytes(n))
 #: Largest M (bytes) of one chunk of a stacked batch that :func:`batch_chunk` grows for its
 #: threads (two chunks are in memory at once: one read ahead, one solved).
 MAX_CHUNK_BYTES = 256 * 2**20
@@ -168,19 +190,21 @@ MAX_CHUNK_BYTES = 256 * 2**20
 PER_THREAD = 16
 
 
-def batch_chunk(n: int, threads: int) -> int:
+def batch_chunk(n: int, threads: int, in_place: bool = False) -> int:
     """Problems per chunk of a stacked batch of size-n problems on ``threads`` threads:
-    :func:`lcpcli.io.stack.chunk_size` for :data:`BATCH_CHUNK_BYTES` of M, or more for large
-    n, so that every
+    :func:`lcpcli.io.stack.chunk_size` for :data:`BATCH_CHUNK_BYTES` of M (for a stack read
+    ``in_place``, :data:`IN_PLACE_CHUNK_BYTES` of M, and of results: :func:`_in_place_budget`),
+    or more for large n, so that every
     thread gets :data:`PER_THREAD` problems while M stays within :data:`MAX_CHUNK_BYTES`.
     A result file records its chunk (``--resume`` reads it from there, whatever ``--jobs``);
     row outputs, which do not, use :func:`chunk_size` alone."""
     # looked up at call time: a test may replace it
-    base = io_stack.chunk_size(n, budget_bytes=BATCH_CHUNK_BYTES)
+    base = io_stack.chunk_size(n, budget_bytes=_in_place_budget(n) if in_place
+                               else BATCH_CHUNK_BYTES)
     return max(base, min(PER_THREAD * threads, MAX_CHUNK_BYTES // max(8, 8 * n * n)))
 
 
-def new_chunk(output: str | Any | None, n: int, threads: int) -> int:
+def new_chunk(output: str | Any | None, n: int, threads: int, in_place: bool = False) -> int:
     """The chunk of a new result file of kind ``output`` (by extension; None: no file) for
     stacks of size n on ``threads`` threads: what :func:`open_stack_writer` records
     (:func:`batch_chunk`; row files :func:`lcpcli.io.stack.chunk_size`, which they do not
@@ -188,7 +212,7 @@ def new_chunk(output: str | Any | None, n: int, threads: int) -> int:
     exists."""
     if output is not None and wants_rows(output):
         return io_stack.chunk_size(n)
-    return batch_chunk(n, threads)
+    return batch_chunk(n, threads, in_place)
 
 
 def new_algorithm(output: str | Any) -> str:
@@ -251,7 +275,7 @@ class Hdf5StackWriter:
                 f.attrs[MARK] = 1
                 taken: set[str] = set()
                 for info in infos:
-                    self._create(f, info, taken, batch_chunk(info.n, threads))
+                    self._create(f, info, taken, batch_chunk(info.n, threads, info.in_place))
         try:
             self.h5 = Hdf5Handle(path, "r+", **NO_CHUNK_CACHE)
         except ProblemError as exc:
@@ -312,7 +336,8 @@ class Hdf5StackWriter:
                 src.close()
             taken = set(dst.keys())
             for info in infos:
-                self._create(dst, info, taken, batch_chunk(info.n, self.threads))
+                self._create(dst, info, taken,
+                             batch_chunk(info.n, self.threads, info.in_place))
 
     def _check_group(self, g: Any, info: Any) -> None:
         path = self.path
@@ -442,7 +467,7 @@ class NpzStackWriter:
         info = self.info = infos[0]
         self.path, self.options = path, options
         self.arrays = _empty_arrays(info.K, info.n)
-        self.chunk_size = batch_chunk(info.n, threads)
+        self.chunk_size = batch_chunk(info.n, threads, info.in_place)
         self.digest = STACKED
         self.digests = np.zeros((_chunks(info.K, self.chunk_size), DIGEST_BYTES), np.uint8)
         self.names: list[str] | None = [""] * info.K if info.has_names else None

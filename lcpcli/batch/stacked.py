@@ -24,6 +24,7 @@ import queue
 import threading
 import time
 from collections.abc import Callable, Iterator
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -110,6 +111,8 @@ def run_stacks(inputs: list[str], opts: SolveOptions, report: BatchReport, *,
             report.new += 1
             if on_row:
                 on_row(row)
+    if scheduler is not None:  # Dask workers copy their chunks: the chunks for copies
+        infos = [None if i is None else replace(i, in_place=False) for i in infos]
     report.total = sum(i.K for i in infos if i is not None) + infos.count(None)
     warm, warm_digest = _open_warm(opts, infos, scheduler)
     writer = None
@@ -118,7 +121,7 @@ def run_stacks(inputs: list[str], opts: SolveOptions, report: BatchReport, *,
         first = next((i for i in infos if i is not None), None)
         if first is not None and scheduler is None and not resume:
             # nothing is resumed: the first chunks are read while the output file is made
-            chunk = stack_output.new_chunk(output, first.n, threads)
+            chunk = stack_output.new_chunk(output, first.n, threads, first.in_place)
             digest = None if output is None else stack_output.new_algorithm(output)
             started = None
             if early_reads is not None:
@@ -176,7 +179,7 @@ def run_stacks(inputs: list[str], opts: SolveOptions, report: BatchReport, *,
             _run_one(path, info, opts, report, tally, stats, writer, done_masks[path],
                      threads=threads,
                      chunk=chunk if chunk is not None else
-                     stack_output.batch_chunk(info.n, threads),
+                     stack_output.batch_chunk(info.n, threads, info.in_place),
                      on_progress=on_progress, on_row=on_row, write=write,
                      scheduler=scheduler, warm=warm, parts=parts, memory=memory)
     finally:
@@ -373,25 +376,32 @@ def solve_read(part: Any, info: Any, todo: np.ndarray, opts: SolveOptions, plan:
 
 def _reads(path: str, info: Any, done: np.ndarray, chunk: int, digest: str | None,
            stop_event: threading.Event | None = None, warm: Any = None,
-           buffers: _Buffers | None = None) -> Iterator[tuple[Any, ...]]:
+           buffers: _Buffers | None = None, reader: Any = None) -> Iterator[tuple[Any, ...]]:
     """``(todo, part, digest, read_s, prev, held)`` of each chunk with work, in order (the
-    reader's side); ``digest``: the chunk's :class:`_Digest` by the algorithm ``digest``
-    (None: ``b""``),
+    reader's side); ``part``: its rows read in place where the file allows
+    (:mod:`lcpcli.io.stack.mapped`: ``part.check`` then runs after the chunk's solve and
+    digest, :func:`checked`), else copied; ``digest``: the chunk's :class:`_Digest` by the
+    algorithm ``digest`` (None: ``b""``),
     computed here once the chunk is handed over, so that the solver starts on it meanwhile;
     ``prev``: the chunk of the ``--z0`` result file ``warm`` (None without one); ``held``:
     the buffers of ``buffers`` that ``part`` was read into (None without them), which the
-    consumer gives back once it is done with the chunk's data."""
-    from lcpcli.io.stack import open_stack
-
-    with open_stack(path, direct=True) as reader:
+    consumer gives back once it is done with the chunk's data.  ``reader``: the stack
+    already opened so (:func:`_open_mapped`; closed here), else opened here."""
+    if reader is None:
+        reader = _open_mapped(path)
+    with reader:
+        if buffers is not None and not reader.copies(0, info.K):
+            buffers.unneeded()
         for start in range(0, info.K, chunk):
             if stop_event is not None and stop_event.is_set():
                 return
             stop = min(info.K, start + chunk)
             todo = np.flatnonzero(~done[start:stop])
             if todo.size:
-                held = None if buffers is None else buffers.take(stop_event)
-                if buffers is not None and held is None:  # told to stop while waiting
+                # rows read in place (views of the mapped file) need no buffer
+                copies = buffers is not None and reader.copies(start, stop)
+                held = buffers.take(stop_event) if copies else None  # type: ignore[union-attr]
+                if copies and held is None:  # told to stop while waiting
                     return
                 part, _, read_s = read_part(reader, start, stop, digest=None, out=held)
                 prev = None
@@ -399,20 +409,42 @@ def _reads(path: str, info: Any, done: np.ndarray, chunk: int, digest: str | Non
                     t0 = time.perf_counter()
                     prev = warm.read(start, stop)
                     read_s += time.perf_counter() - t0
-                fingerprint = None if digest is None else _Digest(digest)
+                fingerprint = None if digest is None else _Digest(digest, path)
                 yield todo, part, fingerprint or b"", read_s, prev, held
                 if fingerprint is not None:  # beside the solver, before the next read
                     fingerprint.compute(part)
 
 
+def checked(part: Any, path: str) -> None:
+    """Refuse (ProblemError naming ``path``) a chunk read in place from a stack file that was
+    truncated under it (``part.check``, :mod:`lcpcli.io.stack.mapped`); called on the chunk
+    once its results and its digest are computed, before they are written or counted."""
+    check = getattr(part, "check", None)
+    if check is not None:
+        try:
+            check()
+        except ProblemError as exc:
+            raise exc.with_source(path) from None
+
+
+def _open_mapped(path: str) -> Any:
+    """The stack at ``path`` opened as a stacked batch reads it: large chunks in order,
+    rows in place where the file allows (:func:`lcpcli.io.stack.open_stack`)."""
+    from lcpcli.io.stack import open_stack
+
+    return open_stack(path, direct=True, mapped=True)
+
+
 class _Digest:
     """The digest of a chunk (:func:`lcpcli.batch.stack_output.chunk_digest`) that the reader
     thread computes after it handed the chunk over; :meth:`result` (the chunk's write) waits
-    for it.  ``algorithm``: the digest's (:mod:`lcpcli.batch.digest`); ``seconds``: what
-    computing it took (counted as reading)."""
+    for it, and raises what computing it raised, or :func:`checked`'s error when the chunk was
+    read in place from ``path`` and the file was truncated under it.  ``algorithm``: the
+    digest's (:mod:`lcpcli.batch.digest`); ``seconds``: what computing it took (counted as
+    reading)."""
 
-    def __init__(self, algorithm: str) -> None:
-        self.algorithm = algorithm
+    def __init__(self, algorithm: str, path: str) -> None:
+        self.algorithm, self.path = algorithm, path
         self.done = threading.Event()
         self.value, self.seconds = b"", 0.0
         self.error: BaseException | None = None
@@ -423,6 +455,7 @@ class _Digest:
         t0 = time.perf_counter()
         try:
             self.value = chunk_digest(part, self.algorithm)
+            checked(part, self.path)  # the digest is of the file's bytes
         except BaseException as exc:  # noqa: BLE001 - raised by result(), in the writer
             self.error = exc
             raise
@@ -454,36 +487,65 @@ class MemoryPool:
     the inputs: one thread), it makes the chunk buffers on a core that is idle meanwhile.  New
     memory is costly on the reference machine (2-2.5 ms per MiB written the first time, a
     virtual machine whose host backs each new page: a chunk of 16 MiB read into new memory
-    took 37 ms instead of 4).  :meth:`take` is called from one thread (the reader)."""
+    took 37 ms instead of 4).  :meth:`take` is called from one thread (the reader).  Made
+    with ``start=False``, the thread starts at :meth:`start` (a batch's early reader starts it
+    once it knows that the stack is copied, not read in place); :meth:`cancel` stops the
+    writing (a stack read in place needs no buffer: 12-54 ms of CPU at the start of a batch,
+    beside the first solves, measured at n = 50, and the GIL in 1 MiB steps while the main
+    thread imports the solver).  A pool never started or cancelled gives no block."""
 
-    def __init__(self, count: int, nbytes: int) -> None:
+    #: Bytes written between two looks at :meth:`cancel`.
+    STEP = 2**20
 
-        self.nbytes, self.left = nbytes, count
+    def __init__(self, count: int, nbytes: int, start: bool = True) -> None:
+
+        self.nbytes, self.left, self.count = nbytes, count, count
         self.blocks: queue.Queue[np.ndarray | None] = queue.Queue()
-        self.thread = threading.Thread(target=self._run, args=(count,),
-                                       name="lcpcli-stack-memory", daemon=True)
-        self.thread.start()
+        self.cancelled = threading.Event()
+        self.thread: threading.Thread | None = None
+        if start:
+            self.start()
+
+    def start(self) -> None:
+        """Start writing the blocks (once; not after :meth:`cancel`)."""
+        if self.thread is None and not self.cancelled.is_set():
+            self.thread = threading.Thread(target=self._run, args=(self.count,),
+                                           name="lcpcli-stack-memory", daemon=True)
+            self.thread.start()
 
     def _run(self, count: int) -> None:
+        made = 0
         try:
             for _ in range(count):
+                if self.cancelled.is_set():
+                    break
                 block = np.empty(self.nbytes, np.uint8)
-                block.fill(0)
+                for a in range(0, self.nbytes, self.STEP):
+                    if self.cancelled.is_set():
+                        break
+                    block[a:a + self.STEP].fill(0)
                 self.blocks.put(block)
+                made += 1
         except BaseException:  # noqa: BLE001 - out of memory: the reader allocates instead
-            for _ in range(count):
-                self.blocks.put(None)
+            pass
+        for _ in range(count - made):  # none made: the caller allocates
+            self.blocks.put(None)
+
+    def cancel(self) -> None:
+        """Stop writing blocks (those not made yet are None for :meth:`take`)."""
+        self.cancelled.set()
 
     def take(self, nbytes: int) -> np.ndarray | None:
         """A block of at least ``nbytes`` (waits while it is being written); None when the
-        pool has none that large or none left (the caller allocates)."""
-        if nbytes > self.nbytes or self.left <= 0:
+        pool has none that large or none left, or was never started (the caller
+        allocates)."""
+        if nbytes > self.nbytes or self.left <= 0 or self.thread is None:
             return None
         self.left -= 1
         return self.blocks.get()
 
 
-def memory_pool(inputs: list[str], count: int = 2) -> MemoryPool | None:
+def memory_pool(inputs: list[str], count: int = 2, start: bool = True) -> MemoryPool | None:
     """The :class:`MemoryPool` of a batch whose first input looks like a large stack (a
     stack's extension, :data:`lcpcli.io.stack.layout.STACK_FORMATS`, and at least ``count``
     chunks of :data:`lcpcli.batch.stack_output.BATCH_CHUNK_BYTES`): ``count`` blocks of one
@@ -499,7 +561,8 @@ def memory_pool(inputs: list[str], count: int = 2) -> MemoryPool | None:
         size = os.stat(inputs[0]).st_size
     except (OSError, ValueError):
         return None
-    return MemoryPool(count, BATCH_CHUNK_BYTES) if size >= count * BATCH_CHUNK_BYTES else None
+    return MemoryPool(count, BATCH_CHUNK_BYTES, start) \
+        if size >= count * BATCH_CHUNK_BYTES else None
 
 
 class _Buffers:
@@ -547,6 +610,11 @@ class _Buffers:
     def give(self, pair: tuple[np.ndarray, np.ndarray] | None) -> None:
         if pair is not None:
             self.free.put(pair)
+
+    def unneeded(self) -> None:
+        """No chunk will be copied (the stack is read in place): the memory pool stops."""
+        if self.memory is not None:
+            self.memory.cancel()
 
 
 class _Prefetch:
@@ -633,6 +701,7 @@ class _LocalParts:
                  started: tuple[_Prefetch, _Buffers] | None = None) -> None:
         self.info, self.opts, self.threads = info, opts, threads
         self.before_solve: Callable[[], None] | None = None
+        self.in_place = 0  # chunks solved from views of the mapped file
         if started is not None:  # the same reads, begun earlier (:class:`EarlyReads`)
             self.reads, self.buffers = started
             return
@@ -647,6 +716,9 @@ class _LocalParts:
                 self.before_solve()
             names, res, plan, solve_s = solve_read(part, self.info, todo, self.opts, plan,
                                                    threads=self.threads, prev=prev)
+            checked(part, self.info.path)  # solved from the file's bytes
+            if part.check is not None:
+                self.in_place += 1
             yield part.start, todo, names, fingerprint, res, read_s, solve_s
             # the consumer is done with this chunk (its results hold no view of M or q)
             self.buffers.give(held)
@@ -669,9 +741,10 @@ def _local_parts(path: str, info: Any, opts: SolveOptions, done: np.ndarray, *, 
 class EarlyReads:
     """The reads of a batch's first input, started with the batch (:func:`early_reads`),
     before the method is looked up (its modules take ~9 ms to load on the reference
-    machine), the inputs checked and the output made: a reader thread finds the stack's
-    layout (:func:`lcpcli.io.stack.stack_info`) and reads its first chunks as a batch that
-    resumes nothing reads them (:func:`_reads`: the chunk of
+    machine), the inputs checked and the output made: a reader thread opens the stack as
+    the batch reads it (:func:`_open_mapped`, once: its layout, then its chunks), starts or
+    stops the memory pool by the layout, and reads its first chunks as a batch that resumes
+    nothing reads them (:func:`_reads`: the chunk of
     :func:`lcpcli.batch.stack_output.new_chunk` for ``output``, every problem, no ``--z0``).
     :meth:`take` hands them to the batch when it reads that stack so; :meth:`close` stops
     and joins the thread (idempotent).  An input that is no stack only ends the thread: the
@@ -689,19 +762,26 @@ class EarlyReads:
 
     def _items(self, stop: threading.Event) -> Iterator[tuple[Any, ...]]:
         from lcpcli.batch.stack_output import new_algorithm, new_chunk
-        from lcpcli.io.stack import stack_info
 
+        reader = None
         try:
-            info = stack_info(self.path)
-            self.chunk = new_chunk(self.output, info.n, self.threads)
+            reader = _open_mapped(self.path)  # opened once: its layout, then its chunks
+            info = reader.info
+            if self.memory is not None:  # buffers only for a stack that is copied
+                (self.memory.cancel if info.in_place else self.memory.start)()
+            self.chunk = new_chunk(self.output, info.n, self.threads, info.in_place)
             self.digest = None if self.output is None else new_algorithm(self.output)
             self.buffers = _Buffers(READ_AHEAD + 1, min(self.chunk, info.K), info.n,
                                     self.memory)
             self.info = info
+        except BaseException:
+            if reader is not None:
+                reader.close()
+            raise
         finally:
             self.known.set()
         yield from _reads(self.path, info, np.zeros(info.K, bool), self.chunk, self.digest,
-                          stop, None, self.buffers)
+                          stop, None, self.buffers, reader)
 
     def take(self, info: Any, chunk: int, digest: str | None
              ) -> tuple[_Prefetch, _Buffers] | None:
@@ -752,6 +832,7 @@ def _run_one(path: str, info: Any, opts: SolveOptions, report: BatchReport, tall
         _consume(path, stem, info, parts, report, tally, stats, writer, chunk=chunk,
                  on_progress=on_progress, on_row=on_row, write=write)
     finally:
+        stats.in_place_chunks += getattr(parts, "in_place", 0)
         # closed here, not when the garbage collector finds it: closing joins the reader
         # thread, which must not happen inside h5py (its lock held) on some later line
         close = getattr(parts, "close", None)

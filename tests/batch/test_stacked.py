@@ -672,11 +672,14 @@ def test_storage_chunks_of_results_fit_the_batch_chunks(n, threads, K):
 def test_chunk_buffers_come_from_the_memory_pool(tmp_path, monkeypatch):
     """A large stack's two chunk buffers are the blocks that the memory pool faulted in
     ahead (here with chunks of 4 KiB of M); the results equal solve_many's; a block too
-    small, or none left, leaves the allocation to the caller."""
+    small, or none left, leaves the allocation to the caller.  (Chunks copied: rows read in
+    place, lcpcli.io.stack.mapped, need no buffer.)"""
     from lcpcli.batch import stack_output, stacked
     from lcpcli.batch.records import SolveOptions
     from lcpcli.batch.run import run_batch
+    from lcpcli.io.stack import mapped
 
+    monkeypatch.setattr(mapped, "MAP_STACKS", False)
     monkeypatch.setattr(stack_output, "BATCH_CHUNK_BYTES", 4096)
     M, q = pd_stack(1000, 5, seed=6)
     path, out = tmp_path / "s.h5", tmp_path / "r.h5"

@@ -15,6 +15,7 @@ from lcpcli.io import list_problems, load
 from lcpcli.io.stack import (
     MAX_STACK_PROBLEMS,
     StackInfo,
+    StackWriter,
     chunk_size,
     is_stack,
     iter_problems,
@@ -270,7 +271,35 @@ def test_write_stack_checks_its_arguments(tmp_path):
     assert not (tmp_path / "x.h5").exists()
     write_stack(tmp_path / "x.h5", M, q)
     with h5py.File(tmp_path / "x.h5") as f:
-        assert f["M"].chunks == (3, 2, 2) and f["M"].compression is None
+        # contiguous, uncompressed: a batch reads the rows in place (lcpcli.io.stack.mapped)
+        assert f["M"].chunks is None and f["M"].compression is None
+
+
+def test_stack_writer_told_the_count_stores_contiguous_and_holds_to_it(tmp_path):
+    """Told the count (``expected``), the HDF5 writer makes M and q at their size, stored
+    contiguous (read in place by a batch); appending more, or closing with fewer, is a
+    ValueError; without a count M is chunked and grows."""
+    M, q = data(5, 3)
+    w = StackWriter(tmp_path / "a.h5", "hdf5", 3, expected=5)
+    w.append(M[:2], q[:2])
+    w.append(M[2:], q[2:])
+    assert w.close() == 5
+    with h5py.File(tmp_path / "a.h5") as f:
+        assert f["M"].chunks is None and f["q"].chunks is None
+        assert f["M"][()].tobytes() == M.tobytes() and f["q"][()].tobytes() == q.tobytes()
+    w = StackWriter(tmp_path / "b.h5", "hdf5", 3, expected=2)
+    with pytest.raises(ValueError, match="more problems appended"):
+        w.append(M[:3], q[:3])
+    w.abort()
+    w = StackWriter(tmp_path / "c.h5", "hdf5", 3, expected=4)
+    w.append(M[:3], q[:3])
+    with pytest.raises(ValueError, match="3 problems appended, not the 4"):
+        w.close()
+    w = StackWriter(tmp_path / "d.h5", "hdf5", 3)
+    w.append(M, q)
+    w.close()
+    with h5py.File(tmp_path / "d.h5") as f:
+        assert f["M"].chunks is not None and f["M"].shape == (5, 3, 3)
 
 
 BOUND_SHAPES = st.sampled_from([None, "shared", "per_problem"])

@@ -33,7 +33,8 @@ Errors are :class:`ProblemError` with a one-line message; readers leave the file
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -47,7 +48,8 @@ from lcpcli.io.files import MAX_NAME_BYTES
 STACK_FORMATS = {".h5": "hdf5", ".hdf5": "hdf5", ".hdf": "hdf5", ".npz": "npz"}
 #: Most problems one stack may declare (a batch keeps one record per problem).
 MAX_STACK_PROBLEMS = 100_000_000
-#: About the bytes of one HDF5 storage chunk of M written by :func:`write_stack`.
+#: About the bytes of one HDF5 storage chunk of M written by a :class:`StackWriter` that is not
+#: told the number of problems in advance (:func:`write_stack` stores M contiguous).
 H5_CHUNK_BYTES = 2**20
 #: The HDF5 chunk cache of a reader (a storage chunk cut by two read chunks is read once).
 H5_CACHE_BYTES = 16 * 2**20
@@ -82,6 +84,11 @@ class StackInfo:
     #: given one bound gets the other by the one-sided bounds rule, core.problem.default_bound).
     lower_shape: tuple[int, ...] | None = None
     upper_shape: tuple[int, ...] | None = None
+    #: Whether every row of M, q and per-problem bounds is stored so that a mapped reader
+    #: reads it in place (:mod:`lcpcli.io.stack.mapped`: one run each, from the metadata;
+    #: the reader still checks); a batch then reads larger chunks.  Not part of equality (a
+    #: property of the storage, not of what the file holds).
+    in_place: bool = field(default=False, compare=False)
 
 
 @dataclass
@@ -94,6 +101,10 @@ class StackChunk:
     names: list[str] | None       # the stored names (empty strings kept), None without names
     lower: np.ndarray | None      # (c, n); a shared bound is copied to every row
     upper: np.ndarray | None
+    #: For arrays read in place (read-only views of the mapped file): raises ProblemError
+    #: when the file was truncated under them; call it once done with the data
+    #: (:mod:`lcpcli.io.stack.mapped`).  None: every array is a copy.
+    check: Callable[[], None] | None = None
 
 
 def problem_name(stem: str, names: list[str] | None, k: int, start: int = 0) -> str:

@@ -10,6 +10,7 @@ import struct
 import zipfile
 from collections.abc import Iterator
 from contextlib import ExitStack
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -35,6 +36,7 @@ from lcpcli.io.stack.layout import (
     problem_name,
     stacked_message,
 )
+from lcpcli.io.stack.mapped import MappedStack, Runs, h5_runs, in_place, map_stack, npz_runs
 
 
 # ------------------------------------------------------------------------- detection
@@ -59,6 +61,13 @@ def is_stack(path: str | Path) -> bool:
 
 
 
+def _row_keys(info: StackInfo) -> list[str]:
+    """The arrays read row by row: M, q and the bounds stored per problem ((K, n))."""
+    return ["M", "q"] + [label for label, shape in (("lower", info.lower_shape),
+                                                    ("upper", info.upper_shape))
+                         if shape is not None and len(shape) == 2]
+
+
 # ------------------------------------------------------------------------------ HDF5
 class _H5Source:
     """The HDF5 side of a reader: checked datasets, read by slices.  ``direct``: no chunk
@@ -70,6 +79,7 @@ class _H5Source:
     def __init__(self, path: Path, direct: bool = False) -> None:
         from lcpcli.io import hdf5_format as h5
 
+        self.path = path
         self.f = h5.open_file(path, rdcc_nbytes=0 if direct else H5_CACHE_BYTES,
                               rdcc_nslots=H5_CACHE_SLOTS, rdcc_w0=1.0)
         try:
@@ -122,12 +132,28 @@ class _H5Source:
             self.info = _layout(str(path), "hdf5", shape("M"), shape("q"),
                                 names_shape=shape("names"), lower=shape("lower"),
                                 upper=shape("upper"), n_eq=h5.attr_int(f, "n_eq") or 0)
+            self.info = replace(self.info, in_place=in_place(
+                [h5_runs(self.d[key], whole=True) for key in _row_keys(self.info)],
+                self.info.K))
             if names is not None and self.info.K * longest > MAX_NAMES_DECLARED:
 
                 raise too_big(self.info.K * longest, MAX_NAMES_DECLARED,
                               "the declared 'names' (rows x longest name or fill value)")
         except ProblemError:
             raise
+        except h5.H5_ERRORS as exc:
+            raise h5.damaged(exc) from None
+
+    def map(self, keys: list[str]) -> MappedStack | None:
+        """The arrays ``keys`` mapped where their rows are (:mod:`lcpcli.io.stack.mapped`),
+        through the file descriptor HDF5 reads (a file opened by the default driver only)."""
+        from lcpcli.io import hdf5_format as h5
+
+        try:
+            if self.f.driver != "sec2":
+                return None
+            runs = {key: h5_runs(self.d[key]) for key in keys}
+            return map_stack(self.path, int(self.f.id.get_vfd_handle()), runs)
         except h5.H5_ERRORS as exc:
             raise h5.damaged(exc) from None
 
@@ -176,6 +202,7 @@ class _NpzSource:
     a stored member is read at its file offset, a compressed one sequentially."""
 
     def __init__(self, path: Path, stack: ExitStack) -> None:
+        self.path = path
         self.fh = stack.enter_context(open_input(path))
         try:
             self.zf = zipfile.ZipFile(self.fh)
@@ -231,6 +258,12 @@ class _NpzSource:
                             names_shape=shape("names"), lower=shape("lower"),
                             upper=shape("upper"), n_eq=n_eq)
         self.offsets = {key: self._data_offset(m.info) for key, m in self.m.items()}
+        self.info = replace(self.info, in_place=in_place(
+            [self._runs(key) for key in _row_keys(self.info)], self.info.K))
+
+    def _runs(self, key: str) -> Runs | None:
+        m, base = self.m[key], self.offsets[key]
+        return npz_runs(m.shape, m.dtype, m.fortran, None if base is None else base + m.header_len)
 
     def _data_offset(self, info: zipfile.ZipInfo) -> int | None:
         """Where a stored (uncompressed, unencrypted) member's bytes start in the file;
@@ -283,6 +316,10 @@ class _NpzSource:
         if raw is not out:
             out[...] = raw
 
+    def map(self, keys: list[str]) -> MappedStack | None:
+        """The members ``keys`` mapped where stored uncompressed (:mod:`.mapped`)."""
+        return map_stack(self.path, self.fh.fileno(), {key: self._runs(key) for key in keys})
+
     def rows(self, key: str, start: int, stop: int, out: np.ndarray) -> None:
         member = self.m[key]
         self._fill(key, start * math.prod(member.shape[1:]) * member.dtype.itemsize, out)
@@ -320,8 +357,9 @@ class StackReader:
     :class:`StackChunk`; only that chunk is allocated.
     """
 
-    def __init__(self, path: str | Path, direct: bool = False) -> None:
+    def __init__(self, path: str | Path, direct: bool = False, mapped: bool = False) -> None:
         self.path = Path(path)
+        self._mapped: MappedStack | None = None
         self._stack = ExitStack()
         try:
             fmt = _stack_format(path)
@@ -348,6 +386,8 @@ class StackReader:
             self._shared: tuple[np.ndarray, np.ndarray] | None = None
             if self.info.bounds == "shared":
                 self._shared = (self._side["lower"], self._side["upper"])
+            if mapped:
+                self._mapped = self._map()
         except BaseException:
             self._stack.close()
             raise
@@ -360,6 +400,37 @@ class StackReader:
 
     def close(self) -> None:
         self._stack.close()
+
+    def _map(self) -> MappedStack | None:
+        """The row arrays mapped (:mod:`lcpcli.io.stack.mapped`), once the first row of
+        each array's first run read in place is found equal to the same row read by the
+        format's own reader (a check of the offsets the format gave); None when nothing is
+        mappable."""
+        mapped = self._src.map(_row_keys(self.info))
+        if mapped is None:
+            return None
+        n = self.info.n
+        for key, runs in list(mapped.runs.items()):
+            first = runs.starts[0]
+            got = mapped.view(key, first, first + 1)
+            want = np.empty((1, n, n) if key == "M" else (1, n))
+            self._src.rows(key, first, first + 1, want)
+            if got is None or got[0].tobytes() != want.tobytes():
+                del mapped.runs[key]
+        mapped.views = 0
+        return mapped if mapped.runs else None
+
+    @property
+    def mapped_views(self) -> int:
+        """Arrays of chunks read in place so far (:meth:`read`), 0 when nothing is mapped."""
+        return 0 if self._mapped is None else self._mapped.views
+
+    def copies(self, start: int, stop: int) -> bool:
+        """Whether :meth:`read` of problems ``start .. stop - 1`` copies M or q (into its
+        ``out`` buffers), rather than handing out views of the mapped file."""
+        m = self._mapped
+        return m is None or any(key not in m.runs or m.runs[key].find(start, stop) is None
+                                for key in ("M", "q"))
 
     def _check_range(self, start: int, stop: int) -> None:
         if not 0 <= start <= stop <= self.info.K:
@@ -375,30 +446,52 @@ class StackReader:
         """Problems ``start .. stop-1``: float64 C-contiguous arrays (values not checked).
         ``out``: float64 C-contiguous buffers ``(M, q)`` of at least ``stop - start`` rows that
         the chunk's ``M`` and ``q`` are read into (their leading rows; a batch reuses them from
-        chunk to chunk instead of allocating, and faulting in, new memory for each)."""
+        chunk to chunk instead of allocating, and faulting in, new memory for each).  A reader
+        opened ``mapped`` hands out read-only views of the file instead where the rows are
+        mappable (:mod:`lcpcli.io.stack.mapped`; ``out`` is then not used for them) and
+        the chunk's ``check`` (call it once done with the chunk's data) raises when the file
+        was truncated under them."""
         self._check_range(start, stop)
         c, n = stop - start, self.info.n
-        if out is None:
-            M, q = np.empty((c, n, n)), np.empty((c, n))
-        else:
-            M, q = out[0][:c], out[1][:c]
+        spans: list[tuple[int, int]] = []
+
+        def place(key: str, shape: tuple[int, ...], buffer: np.ndarray | None) -> np.ndarray:
+            got = None if self._mapped is None else self._mapped.view(key, start, stop)
+            if got is not None:
+                spans.append(got[1:])
+                return got[0]
+            arr = np.empty(shape) if buffer is None else buffer
+            self._src.rows(key, start, stop, arr)
+            return arr
+
+        bufs: list[np.ndarray | None] = [None, None]
+        if out is not None:
+            bufs = [out[0][:c], out[1][:c]]
+            M, q = bufs
             if M.shape != (c, n, n) or q.shape != (c, n) or M.dtype != np.float64 \
                     or q.dtype != np.float64 or not (M.flags.c_contiguous
                                                      and q.flags.c_contiguous):
                 raise ValueError(f"read buffers {out[0].shape}, {out[1].shape} do not hold "
                                  f"{c} problems of n = {n} as C-contiguous float64")
-        self._src.rows("M", start, stop, M)
-        self._src.rows("q", start, stop, q)
+        M = place("M", (c, n, n), bufs[0])
+        q = place("q", (c, n), bufs[1])
         bounds: list[np.ndarray | None] = [None, None]
         if self.info.bounds is not None:
             for j, label in enumerate(("lower", "upper")):
                 if label in self._side:
                     bounds[j] = np.repeat(self._side[label][None, :], c, axis=0)
                 else:
-                    bounds[j] = np.empty((c, n))
-                    self._src.rows(label, start, stop, bounds[j])
+                    bounds[j] = place(label, (c, n), None)
         lower, upper = bounds
-        return StackChunk(start, M, q, self.read_names(start, stop), lower, upper)
+        check = None
+        if spans:
+            mapped = self._mapped
+            assert mapped is not None
+
+            def check() -> None:
+                mapped.check(spans, start, stop)
+
+        return StackChunk(start, M, q, self.read_names(start, stop), lower, upper, check)
 
     def problem(self, chunk: StackChunk, i: int) -> Problem:
         """Row ``i`` of ``chunk`` as a validated Problem named by :func:`problem_name`
@@ -420,11 +513,14 @@ class StackReader:
             yield self.read(start, min(self.info.K, start + step))
 
 
-def open_stack(path: str | Path, *, direct: bool = False) -> StackReader:
+def open_stack(path: str | Path, *, direct: bool = False, mapped: bool = False
+               ) -> StackReader:
     """Open and check a stack file (every rule of :func:`stack_info`).  ``direct``: for
     reading in large chunks, in order (a stacked batch): HDF5 data stored unfiltered are read
-    without the chunk cache (:class:`_H5Source`)."""
-    return StackReader(path, direct)
+    without the chunk cache (:class:`_H5Source`).  ``mapped``: rows stored so are read in
+    place, as views of the file mapped into memory (:mod:`lcpcli.io.stack.mapped`; each
+    chunk's ``check`` must then be called once its data are used)."""
+    return StackReader(path, direct, mapped)
 
 
 def stack_info(path: str | Path) -> StackInfo:

@@ -5,7 +5,9 @@ from __future__ import annotations
 
 import contextlib
 import shutil
+import struct
 import tempfile
+import time
 import zipfile
 from contextlib import ExitStack
 from pathlib import Path
@@ -32,7 +34,10 @@ class StackWriter:
     """Write a stack chunk by chunk to ``path`` (a new file; callers go through
     :func:`~lcpcli.io.writing.atomic_path`).  ``fmt`` is "hdf5" or "npz"; ``bounds`` is None,
     "shared" (give ``lower``/``upper`` of shape (n,) here) or "per_problem" (give them with
-    every :meth:`append`).  :meth:`close` completes the file and returns K.
+    every :meth:`append`).  ``expected``: the number of problems that will be appended, when
+    known (HDF5: M, q and per-problem bounds are then made at that size, stored contiguous;
+    appending more, or closing with fewer, is a ValueError).  :meth:`close` completes the
+    file and returns K.
     """
 
     def __init__(self, path: Path, fmt: str, n: int, *, n_eq: int = 0, names: bool = False,
@@ -43,6 +48,7 @@ class StackWriter:
         check_size(n, n)
         self.path, self.fmt, self.n, self.n_eq = Path(path), fmt, n, int(n_eq)
         self.has_names, self.bounds, self.K = names, bounds, 0
+        self.expected = expected
         self._names: list[str] = []
         self._stack = ExitStack()
         keys = ["M", "q"] + (["lower", "upper"] if bounds == "per_problem" else [])
@@ -60,8 +66,13 @@ class StackWriter:
             self.d = {}
             for key in keys:
                 row = (n, n) if key == "M" else (n,)
-                self.d[key] = self.f.create_dataset(key, shape=(0, *row), maxshape=(None, *row),
-                                                    chunks=(c, *row), dtype="f8")
+                if expected:  # one block each, in place in the file (lcpcli.io.stack.mapped)
+                    self.d[key] = self.f.create_dataset(key, shape=(expected, *row), dtype="f8",
+                                                        dcpl=_allocated_at_once())
+                else:
+                    self.d[key] = self.f.create_dataset(key, shape=(0, *row),
+                                                        maxshape=(None, *row),
+                                                        chunks=(c, *row), dtype="f8")
             if names:
                 self.d["names"] = self.f.create_dataset(
                     "names", shape=(0,), maxshape=(None,), chunks=(max(c, 1024),),
@@ -91,7 +102,11 @@ class StackWriter:
             k0, self.K = self.K, self.K + c
             for key, arr in data.items():
                 d = self.d[key]
-                d.resize(self.K, axis=0)
+                if d.shape[0] < self.K:
+                    if self.expected:
+                        raise ValueError(f"more problems appended than the {self.expected:,} "
+                                         f"expected")
+                    d.resize(self.K, axis=0)
                 d.write_direct(np.ascontiguousarray(arr, dtype=np.float64),
                                dest_sel=np.s_[k0:self.K])
             if self.has_names:
@@ -118,6 +133,9 @@ class StackWriter:
                 raise ProblemError("no problem to stack")
             if self.fmt == "npz":
                 self._write_npz()
+            elif self.expected and self.expected != self.K:
+                raise ValueError(f"{self.K:,} problems appended, not the {self.expected:,} "
+                                 f"expected")
         finally:
             self._stack.close()
         return self.K
@@ -128,7 +146,7 @@ class StackWriter:
                              allowZip64=True) as zf:
             for key, fh in self.tmp.items():
                 shape = (K, n, n) if key == "M" else (K, n)
-                with zf.open(f"{key}.npy", "w", force_zip64=True) as out:
+                with zf.open(_aligned_member(zf, f"{key}.npy"), "w", force_zip64=True) as out:
                     _npy_header(out, shape, np.dtype("<f8"))
                     fh.seek(0)
                     shutil.copyfileobj(fh, out, 16 * 2**20)
@@ -150,6 +168,43 @@ class StackWriter:
                     np.lib.format.write_array(out, np.asarray(arr), allow_pickle=False)
 
 
+#: Where the data of the row arrays of an NPZ stack start: at a multiple of this many bytes of
+#: the file (a batch reads float64 rows in place only at a multiple of 8,
+#: :mod:`lcpcli.io.stack.mapped`; numpy's own header already ends at a multiple of 64 of the
+#: member).
+NPZ_ALIGN = 64
+#: The id of the extra field that pads a member's local zip header (an id no reader knows:
+#: each skips it; "lc").
+_PAD_FIELD = 0x636C
+
+
+def _aligned_member(zf: zipfile.ZipFile, name: str) -> zipfile.ZipInfo:
+    """A stored member ``name``, about to be written at the current end of ``zf`` with
+    zip64 sizes (``force_zip64``), whose local header is padded by an extra field so that
+    the ``.npy`` data after numpy's header start at a multiple of :data:`NPZ_ALIGN`."""
+    info = zipfile.ZipInfo(name, date_time=time.localtime(time.time())[:6])
+    info.compress_type = zipfile.ZIP_STORED
+    assert zf.fp is not None
+    # local header (30), the name, the pad field's own 4 bytes, the zip64 sizes (20)
+    fixed = 30 + len(name.encode("utf-8")) + 4 + 20
+    pad = -(zf.fp.tell() + fixed) % NPZ_ALIGN
+    info.extra = struct.pack("<HH", _PAD_FIELD, pad) + bytes(pad)
+    return info
+
+
+def _allocated_at_once() -> Any:
+    """The HDF5 creation properties of a dataset whose size is known: stored contiguous,
+    allocated when it is made (its bytes follow one another in the file: read in place by a
+    batch, :mod:`lcpcli.io.stack.mapped`; chunked storage puts the chunk index's blocks
+    between chunks), no fill value written first."""
+    import h5py
+
+    dcpl = h5py.h5p.create(h5py.h5p.DATASET_CREATE)
+    dcpl.set_alloc_time(h5py.h5d.ALLOC_TIME_EARLY)
+    dcpl.set_fill_time(h5py.h5d.FILL_TIME_NEVER)
+    return dcpl
+
+
 def _npy_header(out: IO[bytes], shape: tuple[int, ...], dtype: np.dtype) -> None:
     d = {"descr": np.lib.format.dtype_to_descr(dtype), "fortran_order": False, "shape": shape}
     try:
@@ -164,9 +219,9 @@ def write_stack(path: str | Path, M: Any, q: Any, *, names: list[str] | None = N
 
     ``M`` (K, n, n), ``q`` (K, n), ``names`` K strings, ``lower``/``upper`` (n,) shared or
     (K, n) (one of them alone: the other by the one-sided bounds rule, stored), ``n_eq``
-    shared.  HDF5: datasets chunked along K (about 1 MiB per chunk of M,
-    uncompressed), names variable-length UTF-8, ``n_eq`` a root attribute.  NPZ: the layout
-    ``np.savez`` writes (uncompressed members).
+    shared.  HDF5: M, q and per-problem bounds stored contiguous (uncompressed, one block
+    each: read in place by a batch), names variable-length UTF-8, ``n_eq`` a root
+    attribute.  NPZ: the layout ``np.savez`` writes (uncompressed members).
     """
     fmt = _stack_format(path)
     M = real_array(M, "M")
