@@ -75,8 +75,10 @@ class Scaling:
         return np.ldexp(np.asarray(z, dtype=np.float64), (-self.col).astype(np.int32))
 
     def unscale_z(self, zt: np.ndarray) -> np.ndarray:
-        """``z = D_c z~``."""
-        return np.ldexp(np.asarray(zt, dtype=np.float64), self.col.astype(np.int32))
+        """``z = D_c z~``; an entry past the float64 range becomes inf, without a warning (an
+        answer whose z is not representable in the problem's units: its certificate fails)."""
+        with np.errstate(over="ignore"):
+            return np.ldexp(np.asarray(zt, dtype=np.float64), self.col.astype(np.int32))
 
     def scale_w(self, w: np.ndarray) -> np.ndarray:
         """``w~ = D_r w`` (also for vectors in the units of w, e.g. a covering vector)."""
@@ -88,8 +90,10 @@ class Scaling:
 
     def farkas_back(self, yt: Any) -> np.ndarray:
         """A Farkas vector of the scaled problem in the units of the given one: ``y = D_r y~``
-        (``M~^T y~ = D_c M^T D_r y~`` and ``q~^T y~ = q^T D_r y~``, so the signs carry over)."""
-        return np.ldexp(np.asarray(yt, dtype=np.float64), self.row.astype(np.int32))
+        (``M~^T y~ = D_c M^T D_r y~`` and ``q~^T y~ = q^T D_r y~``, so the signs carry over);
+        an entry past the float64 range becomes inf, without a warning (its check fails)."""
+        with np.errstate(over="ignore"):
+            return np.ldexp(np.asarray(yt, dtype=np.float64), self.row.astype(np.int32))
 
     @cached_property
     def ranges(self) -> tuple[tuple[int, int], tuple[int, int]]:

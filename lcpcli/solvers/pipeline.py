@@ -174,6 +174,8 @@ def _run_scaled(spec: Any, problem: Problem, tol: float, options: dict[str, Any]
     if y is not None:
         out.info["farkas_y"] = scaling.farkas_back(y).tolist()
     out.message += f" [{scaling.describe()}]"
+    if not np.all(np.isfinite(out.z)):  # e.g. z = 2^2000 for M = 2^-1000, q = -2^1000
+        out.message += "; its z overflows float64 in the problem's units"
     rows, cols = scaling.ranges
     out.info["scaling"] = {"kind": scaling.kind, "row_exponents": list(rows),
                            "column_exponents": list(cols)}

@@ -70,3 +70,21 @@ def test_geometric_scaling_undoes_any_power_of_two_scaling(k: int) -> None:
     Ms = np.ldexp(M, (s.row[:, None] + s.col[None, :]).astype(np.int32))
     e = np.frexp(Ms[K != 0])[1]
     assert e.max() - e.min() <= 3  # K's entries 1 and 2, up to the rounding of the exponents
+
+
+def test_an_answer_past_the_float64_range_is_unsolved_quietly_and_says_why():
+    """M = 2^-1000, q = -2^1000: the one solution z = 2^2000 is not representable.  The run
+    on the equilibrated problem finds it in scaled units; unscaled, z overflows.  The verdict
+    is unsolved (never solved, exit 1), no numpy warning escapes (the CLI would print each
+    one), and the message says that z overflows; a stack gets the same verdicts."""
+    import warnings
+
+    M, q = np.array([[2.0 ** -1000]]), np.array([-(2.0 ** 1000)])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        r = lcpcli.solve(M, q)
+        stack = lcpcli.solve_many(np.repeat(M[None], 3, 0), np.repeat(q[None], 3, 0))
+        alone = lcpcli.solve(M, q, method="lemke")
+    assert r.status == alone.status == "unsolved"
+    assert "its z overflows float64 in the problem's units" in alone.message
+    assert stack.counts() == {"unsolved": 3}
