@@ -263,15 +263,17 @@ def is_psd(M: Any) -> bool:
 
 # ---------------------------------------------------------------------------- H and P matrices
 def _unit_rows(M: Any) -> Any:
-    """``diag(m_ii)^-1 M`` (unit diagonal; M has a positive diagonal), on a normalised copy."""
-    A = normalised(M)
-    d = diagonal(A)
-    with np.errstate(over="ignore"):
-        if _is_sparse(A):
-            import scipy.sparse as sp  # scipy is imported on first use (start-up budget)
-
-            return (sp.diags(1.0 / d) @ A).tocsr()
-        return A / d[:, None]
+    """``diag(m_ii)^-1 M`` (unit diagonal; M has a positive diagonal): each row divided by its
+    own diagonal entry (not on a copy normalised by M's largest entry, where a diagonal entry
+    2^-1000 below it is flushed to 0); a quotient past the float64 range becomes inf (that
+    row is then far from dominant, as it is)."""
+    d = diagonal(M)
+    with np.errstate(over="ignore", under="ignore"):
+        if _is_sparse(M):
+            A = M.tocsr().astype(np.float64, copy=True)
+            A.data /= np.repeat(d, np.diff(A.indptr))
+            return A
+        return np.asarray(M, dtype=np.float64) / d[:, None]
 
 
 def h_matrix_positive_diagonal(M: Any) -> bool | None:
@@ -358,9 +360,18 @@ def _collatz_wielandt(B: np.ndarray) -> bool | None:
 
 
 def _unit_diagonal_symmetric(A: np.ndarray) -> np.ndarray:
-    """``diag(a_ii)^(-1/2) A diag(a_ii)^(-1/2)`` (A dense with a positive diagonal)."""
-    r = 1.0 / np.sqrt(np.diagonal(A))
-    return A * r[:, None] * r[None, :]
+    """``diag(a_ii)^(-1/2) A diag(a_ii)^(-1/2)`` (A dense float64 with a positive diagonal).
+
+    First the exact power-of-two scaling ``2^-(h_i + h_j)`` with ``h_i`` half the exponent of
+    ``a_ii`` (every diagonal entry then in [0.25, 1), however far apart they were: a
+    normalisation by the largest entry would flush a diagonal entry 2^-1000 below it to 0),
+    then the square roots.  An entry past the float64 range becomes inf (``k_ij`` that large
+    refutes what the tests look for), one below it 0."""
+    h = np.frexp(np.diagonal(A))[1] // 2
+    with np.errstate(over="ignore", under="ignore"):
+        B = np.ldexp(A, (-(h[:, None] + h[None, :])).astype(np.int32))
+        r = 1.0 / np.sqrt(np.diagonal(B))
+        return B * r[:, None] * r[None, :]
 
 
 def _balanced(K: np.ndarray) -> np.ndarray:
@@ -468,7 +479,7 @@ def not_p_witness(M: Any, candidates: list[list[int]] | None = None) -> list[int
     dense = not _is_sparse(M) or n <= EXACT_P_MAX_N
     if dense and n <= DENSE_TEST_MAX_N:
         A = np.asarray(M.toarray() if _is_sparse(M) else M, dtype=np.float64)
-        K = _unit_diagonal_symmetric(normalised(A))
+        K = _unit_diagonal_symmetric(A)
         prod = K * K.T
         prod[np.diag_indices(n)] = 0.0
         flagged = np.argwhere(np.triu(1.0 - prod <= P_TEST_PIVOT_TOL * (1.0 + np.abs(prod)), 1))
@@ -502,7 +513,7 @@ def is_p_matrix_exact(M: Any) -> bool:
     d = np.diagonal(A)
     if np.any(~(d > 0)):
         return False
-    return _minor_pivots_positive(_unit_diagonal_symmetric(normalised(A)))
+    return _minor_pivots_positive(_unit_diagonal_symmetric(A))
 
 
 def _refuted(M: Any, candidates: list[list[int]],
@@ -558,7 +569,7 @@ def p_matrix(M: Any, pd: bool | None = None, h_matrix: bool | None = None,
         return None, "not tested (too large)"
     if not sparse or n <= EXACT_P_MAX_N:
         A = np.asarray(M.toarray() if sparse else M, dtype=np.float64)
-        K = _unit_diagonal_symmetric(normalised(A))
+        K = _unit_diagonal_symmetric(A)
         prod = K * K.T  # k_ij k_ji: the 2 x 2 minors are 1 - k_ij k_ji (unit diagonal)
         prod[np.diag_indices(n)] = 0.0
         bad = 1.0 - prod <= P_TEST_PIVOT_TOL * (1.0 + np.abs(prod))

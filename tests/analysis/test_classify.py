@@ -345,3 +345,24 @@ def test_extreme_magnitudes_do_not_overflow(scale):
             a = classify(problem(M))
         b = classify(problem(family(8, 4)))
         assert report_key(a, ALL) == report_key(b, ALL)
+
+
+@pytest.mark.parametrize("sparse", [False, True])
+def test_diagonal_entries_2000_binades_apart_keep_the_h_and_p_tests(sparse):
+    """diag(2^1000, 2^-1000) is an H-matrix and a P-matrix; with off-diagonal entries 1 it is
+    singular (det 1 - 1 = 0: neither).  The unit-row and unit-diagonal scalings divide by each
+    row's own diagonal (a normalisation by the largest entry flushed 2^-1000 to 0: numpy
+    warned of a division by zero and the H test saw NaN); no warning escapes."""
+    import warnings
+
+    D = np.diag([2.0 ** 1000, 2.0 ** -1000])
+    S = np.array([[2.0 ** 1000, 1.0], [1.0, 2.0 ** -1000]])
+    wrap = sp.csr_matrix if sparse else np.asarray
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert h_matrix_positive_diagonal(wrap(D)) is True
+        assert h_matrix_positive_diagonal(wrap(S)) is False
+        assert p_matrix(D)[0] is True
+        assert p_matrix(S)[0] is False
+        for M in (D, S):
+            Classifier(Problem.create(M, -np.ones(2))).complete()
