@@ -195,10 +195,13 @@ def definiteness(M: Any) -> Definiteness:
     """Is ``S = (M + M^T)/2`` positive definite, semidefinite or indefinite?
 
     S is first scaled to a unit diagonal, ``E = D S D`` with ``D = diag(s_ii)^(-1/2)`` (so the
-    answer is the same on ``D' M D'``); a negative ``s_ii``, or a zero one with a nonzero
-    entry in its row, means indefinite at once.  Then: PD when ``E - delta I`` has a Cholesky
-    factor, PSD when ``E + delta I`` has one, ``delta = DEF_TOL sqrt(n) ||E||_inf`` (sparse M:
-    the same with a sparse LU in a symmetric order).  No eigenvalues.
+    answer is the same on ``D' M D'``; exactly by powers of two first,
+    :func:`_diagonal_binades`, so that diagonal entries 2000 binades apart both count; an
+    entry of E past the float64 range means indefinite); a negative ``s_ii``, or a zero one
+    with a nonzero entry in its row, means indefinite at once.  Then: PD when
+    ``E - delta I`` has a Cholesky factor, PSD when ``E + delta I`` has one,
+    ``delta = DEF_TOL sqrt(n) ||E||_inf`` (sparse M: the same with a sparse LU in a symmetric
+    order).  No eigenvalues.
     """
     n = M.shape[0]
     if n == 0:
@@ -207,7 +210,11 @@ def definiteness(M: Any) -> Definiteness:
     limit = SPARSE_TEST_MAX_N if sparse else DENSE_TEST_MAX_N
     if n > limit:
         return Definiteness(None, f"not tested (n > {limit:,})")
-    S = symmetric_part(normalised(M))
+    if max_abs(M) < 2.0 ** 1023:  # M + M^T cannot overflow
+        S = symmetric_part(M)
+    else:  # halves first (what they lose below 2^-1074 is far below the largest entry)
+        S = (M * 0.5 + M.T * 0.5).tocsr() if sparse else 0.5 * M + 0.5 * M.T
+    S = _diagonal_binades(S)  # its diagonal in [0.5, 2): D S D keeps the inertia
     s = diagonal(S)
     if np.any(s < 0):
         i = int(np.argmin(s))
@@ -235,6 +242,9 @@ def definiteness(M: Any) -> Definiteness:
         E = S[np.ix_(keep, keep)] if keep.size < n else S
         E = E * r[:, None] * r[None, :]
         norm = float(np.max(np.sum(np.abs(E), axis=1)))
+    if not np.isfinite(norm):  # an |e_ij| past the float64 range: 1 - e_ij^2 < 0
+        return Definiteness(INDEFINITE, "the unit-diagonal D (M + M^T)/2 D has an entry "
+                                        "beyond double precision (a 2 x 2 minor is negative)")
     delta = DEF_TOL * np.sqrt(n) * norm
     how = "sparse LU (symmetric order, no pivoting)" if sparse else "Cholesky"
     how += " of the unit-diagonal D (M + M^T)/2 D"
@@ -359,18 +369,31 @@ def _collatz_wielandt(B: np.ndarray) -> bool | None:
     return None
 
 
-def _unit_diagonal_symmetric(A: np.ndarray) -> np.ndarray:
-    """``diag(a_ii)^(-1/2) A diag(a_ii)^(-1/2)`` (A dense float64 with a positive diagonal).
-
-    First the exact power-of-two scaling ``2^-(h_i + h_j)`` with ``h_i`` half the exponent of
-    ``a_ii`` (every diagonal entry then in [0.25, 1), however far apart they were: a
-    normalisation by the largest entry would flush a diagonal entry 2^-1000 below it to 0),
-    then the square roots.  An entry past the float64 range becomes inf (``k_ij`` that large
-    refutes what the tests look for), one below it 0."""
-    h = np.frexp(np.diagonal(A))[1] // 2
+def _diagonal_binades(A: Any) -> Any:
+    """``A`` (dense or CSR, float64) times ``2^-(h_i + h_j)``, ``h_i`` half the binary exponent
+    of ``a_ii`` (0 where ``a_ii = 0``): exact, and every nonzero diagonal entry then in
+    [0.5, 2), however far apart they were (a normalisation by the largest entry flushes a
+    diagonal entry 2^-1000 below it to 0).  The unit-diagonal scalings start from it.  An
+    entry pushed past the float64 range becomes inf (it is that much larger than its
+    diagonal entries), one pushed below it 0."""
+    h = np.frexp(diagonal(A))[1] // 2
     with np.errstate(over="ignore", under="ignore"):
-        B = np.ldexp(A, (-(h[:, None] + h[None, :])).astype(np.int32))
-        r = 1.0 / np.sqrt(np.diagonal(B))
+        if _is_sparse(A):
+            B = A.tocsr().astype(np.float64, copy=True)
+            rows = np.repeat(np.arange(B.shape[0]), np.diff(B.indptr))
+            B.data = np.ldexp(B.data, (-(h[rows] + h[B.indices])).astype(np.int32))
+            return B
+        return np.ldexp(np.asarray(A, dtype=np.float64),
+                        (-(h[:, None] + h[None, :])).astype(np.int32))
+
+
+def _unit_diagonal_symmetric(A: np.ndarray) -> np.ndarray:
+    """``diag(a_ii)^(-1/2) A diag(a_ii)^(-1/2)`` (A dense float64 with a positive diagonal),
+    from :func:`_diagonal_binades` (an entry past the float64 range becomes inf: ``k_ij`` that
+    large refutes what the tests look for)."""
+    B = _diagonal_binades(A)
+    r = 1.0 / np.sqrt(np.diagonal(B))
+    with np.errstate(over="ignore", invalid="ignore"):
         return B * r[:, None] * r[None, :]
 
 

@@ -366,3 +366,26 @@ def test_diagonal_entries_2000_binades_apart_keep_the_h_and_p_tests(sparse):
         assert p_matrix(S)[0] is False
         for M in (D, S):
             Classifier(Problem.create(M, -np.ones(2))).complete()
+
+
+@pytest.mark.parametrize("sparse", [False, True])
+@pytest.mark.parametrize("M, kind", [
+    (np.diag([2.0 ** 1000, 2.0 ** -1000]), PD),
+    (np.array([[2.0 ** 1000, 0.5], [0.5, 2.0 ** -1000]]), PD),  # det 0.75
+    (np.array([[2.0 ** 1000, 1.0], [1.0, 2.0 ** -1000]]), PSD),  # det 0, trace > 0
+    (np.array([[2.0 ** 1000, 2.0], [2.0, 2.0 ** -1000]]), INDEFINITE),  # det -3
+    (np.array([[2.0 ** -1000, 1e308], [-1e308, 2.0 ** -1000]]), PD),  # skew part only
+    (np.array([[2.0 ** -1000, 1e308], [1e308, 2.0 ** -1000]]), INDEFINITE),
+    (np.array([[5e-324, 0.0], [0.0, 1.0]]), PD),
+    (np.full((2, 2), 1.7e308), PSD),
+])
+def test_definiteness_of_diagonals_far_apart(M, kind, sparse):
+    """The inertia of (M + M^T)/2 does not depend on how far apart its diagonal entries lie:
+    each case's kind is known exactly (2 x 2: the signs of the diagonal and determinant).
+    A normalisation by the largest entry had flushed 2^-1000 to 0 and called the first
+    three indefinite."""
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert definiteness(sp.csr_matrix(M) if sparse else M).kind == kind
