@@ -165,6 +165,16 @@ def _polish(problem: Problem, out: Outcome, tol: float) -> bool:
 
 def _run_scaled(spec: Any, problem: Problem, tol: float, options: dict[str, Any],
                 scaling: Scaling | None) -> Outcome:
+    """A run on the problem scaled by ``scaling`` (None: as given), mapped back.  Floating-point
+    exceptions inside it are not numpy warnings (the CLI would print each): scaled bounds or
+    an answer past the float64 range become inf, and every inf or NaN ends in the method's
+    own checks, a failed certificate or an unchecked proof."""
+    with np.errstate(all="ignore"):
+        return _scaled_run(spec, problem, tol, options, scaling)
+
+
+def _scaled_run(spec: Any, problem: Problem, tol: float, options: dict[str, Any],
+                scaling: Scaling | None) -> Outcome:
     if scaling is None:
         return spec.run(problem, tol=tol, **options)
     out = spec.run(scaling.apply(problem), tol=tol, **_scaled_options(options, scaling))

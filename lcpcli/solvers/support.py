@@ -96,10 +96,18 @@ def refine(problem: Any, z: np.ndarray, rounds: int = 4, basis: list[int] | None
     ``basis`` (a pivoting method's final basic z's, nonsingular by construction) is tried before
     the certificate's states: on degenerate, rank-deficient problems (coplanar contacts) the
     states can name a singular set while the method's basis is not.  The search stops at the
-    first candidate certified at ``good_enough`` (rounding level by default).
+    first candidate certified at ``good_enough`` (rounding level by default).  Floating-point
+    exceptions inside are not numpy warnings: a candidate past the float64 range is dropped.
     """
     if not np.all(np.isfinite(z)):
         return None
+    with np.errstate(all="ignore"):
+        return _refine(problem, z, rounds, basis, good_enough)
+
+
+def _refine(problem: Any, z: np.ndarray, rounds: int, basis: list[int] | None,
+            good_enough: float) -> tuple[np.ndarray, float] | None:
+    """:func:`refine`'s search."""
     lo, up = problem.bounds()
     state = np.empty(problem.n, dtype=np.int8)
     best_err = check(problem, z, state=state)[0].error
@@ -253,7 +261,8 @@ def _dense_solve(A: np.ndarray, b: np.ndarray) -> np.ndarray:
         if np.any(np.diag(lu[0]) == 0.0):
             raise np.linalg.LinAlgError("singular")
         x = sla.lu_solve(lu, b, check_finite=False)
-        x = x + sla.lu_solve(lu, b - A @ x, check_finite=False)
+        with np.errstate(over="ignore", invalid="ignore"):  # a solution past float64: inf
+            x = x + sla.lu_solve(lu, b - A @ x, check_finite=False)
         if not np.all(np.isfinite(x)):
             raise np.linalg.LinAlgError("singular to working precision")
         return x
