@@ -419,10 +419,9 @@ def checked(part: Any, path: str) -> None:
     """Refuse (ProblemError naming ``path``) a chunk read in place from a stack file that was
     truncated under it (``part.check``, :mod:`lcpcli.io.stack.mapped`); called on the chunk
     once its results and its digest are computed, before they are written or counted."""
-    check = getattr(part, "check", None)
-    if check is not None:
+    if part.check is not None:
         try:
-            check()
+            part.check()
         except ProblemError as exc:
             raise exc.with_source(path) from None
 
@@ -767,8 +766,9 @@ class EarlyReads:
         try:
             reader = _open_mapped(self.path)  # opened once: its layout, then its chunks
             info = reader.info
-            if self.memory is not None:  # buffers only for a stack that is copied
-                (self.memory.cancel if info.in_place else self.memory.start)()
+            if self.memory is not None and reader.copies(0, info.K):
+                self.memory.start()  # buffers only for a stack that is copied (a stack
+                # read in place stops the pool in _reads, by the same test)
             self.chunk = new_chunk(self.output, info.n, self.threads, info.in_place)
             self.digest = None if self.output is None else new_algorithm(self.output)
             self.buffers = _Buffers(READ_AHEAD + 1, min(self.chunk, info.K), info.n,
