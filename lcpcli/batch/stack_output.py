@@ -182,6 +182,8 @@ def _in_place_budget(n: int) -> int:
     n = 5: a chunk of n = 1 holds 0.83 million problems, not 8 million)."""
     m = max(8, 8 * n * n)
     return min(IN_PLACE_CHUNK_BYTES, IN_PLACE_CHUNK_BYTES * m // result_row_bytes(n))
+
+
 #: Largest M (bytes) of one chunk of a stacked batch that :func:`batch_chunk` grows for its
 #: threads (two chunks are in memory at once: one read ahead, one solved).
 MAX_CHUNK_BYTES = 256 * 2**20
