@@ -178,12 +178,23 @@ def gpu_case(n: int, K: int, sample: int, repeat: int,
     out["end_to_end_variant"] = best[1]
     cuda.LEMKE_VARIANT, cuda.EXTRA_OPTIONS = best[2], best[3]
     out["chunk_bytes"] = cuda.CHUNK_BYTES
+    out["output_staging"] = cuda.OUTPUT_STAGING
     # end to end from pinned host memory, then from pageable memory
     Mp = cupyx.empty_pinned(M.shape, np.float64)
     qp = cupyx.empty_pinned(q.shape, np.float64)
     Mp[...] = M
     qp[...] = q
-    for label, (Ma, qa) in (("pinned", (Mp, qp)), ("pageable", (M, q))):
+    # the shipped path ("pinned", "pageable"), then the same calls with the outputs copied
+    # straight into the result's arrays (no pinned slots) and with other chunk sizes
+    shipped = (cuda.OUTPUT_STAGING, cuda.CHUNK_BYTES)
+    runs = [("pinned", Mp, qp, shipped), ("pageable", M, q, shipped),
+            ("pinned_unstaged", Mp, qp, (False, shipped[1])),
+            ("pageable_unstaged", M, q, (False, shipped[1]))]
+    runs += [(f"pinned_chunk{c >> 20}M", Mp, qp, (True, c)) for c in (32 << 20, 64 << 20,
+                                                                        256 << 20)
+             if c != shipped[1]]
+    for label, Ma, qa, (staging, chunk) in runs:
+        cuda.OUTPUT_STAGING, cuda.CHUNK_BYTES = staging, chunk
         res = None
 
         def full(Ma=Ma, qa=qa) -> None:  # noqa: ANN001
@@ -193,6 +204,9 @@ def gpu_case(n: int, K: int, sample: int, repeat: int,
         out[f"{label}_s"] = secs
         out[f"{label}_certified_per_s"] = int(res.solved.sum()) / secs
         out[f"{label}_retried"] = int(res.retried.sum())
+        print(json.dumps({"n": n, "end_to_end": label, "s": secs,
+                          "certified_per_s": out[f"{label}_certified_per_s"]}), flush=True)
+    cuda.OUTPUT_STAGING, cuda.CHUNK_BYTES = shipped
     t = time.perf_counter()
     ref = lcpcli.solve_many(M, q, "lemke")
     out["cpu_s"] = time.perf_counter() - t
@@ -215,6 +229,9 @@ def main() -> None:
     ap.add_argument("--sizes", default="12,50", help="n of the device cases (comma-separated)")
     ap.add_argument("--min-blocks", default="1,2,3,4",
                     help="LCP_WARP_MIN_BLOCKS builds of the warp kernel to compare")
+    ap.add_argument("--cubins", type=Path, default=None,
+                    help="the warp kernel built ahead with nvcc (mb1.cubin ... mb4.cubin) in "
+                         "place of NVRTC builds")
     ap.add_argument("--table", type=Path, default=None,
                     help="a WARP_TABLE for backends/cuda.py (JSON rows, from gpu_sweep.py "
                          "--table-out) instead of the shipped one")
@@ -239,6 +256,19 @@ def main() -> None:
         props = cp.cuda.runtime.getDeviceProperties(cp.cuda.Device().id)
         from lcpcli.solvers.backends import cuda
 
+        if args.cubins is not None:  # modules built ahead: the package's lookup returns them
+            modules = {}
+            for mb in (1, 2, 3, 4):
+                path = args.cubins / f"mb{mb}.cubin"
+                if path.exists():
+                    modules[(f"-DLCP_WARP_MIN_BLOCKS={mb}",)] = cp.RawModule(path=str(path))
+            modules[()] = modules.get(("-DLCP_WARP_MIN_BLOCKS=1",))
+            nvrtc = cuda._module
+
+            def lookup(device: int, extra: tuple[str, ...] = ()):  # noqa: ANN202
+                return modules[extra] if modules.get(extra) is not None else \
+                    nvrtc(device, extra)
+            cuda._module = lookup
         info.update(device=props["name"].decode(), cupy=cp.__version__,
                     warp_table=cuda.WARP_TABLE)
         stacks = {12: 1_000_000, 24: 300_000, 32: 200_000, 50: 100_000}

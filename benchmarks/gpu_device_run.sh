@@ -1,50 +1,98 @@
 #!/usr/bin/env bash
 # The device check of the "cuda" backend, as one run on a GPU machine (results under $OUT):
-# build the package in place (and, beside it, the warp kernel with nvcc for each register
-# budget, for the sweep), the sweep of the warp kernel's speed choices (benchmarks/gpu_sweep.py,
-# against an earlier lcp_stack.h when BASELINE names one), the benchmark with the sweep's best
-# table, the GPU tests, compute-sanitizer (racecheck, memcheck) on small stacks.
-#     OUT=/tmp/gpu [BASELINE=old/lcp_stack.h] bash benchmarks/gpu_device_run.sh
+# build the package in place and, beside it, the warp kernel with nvcc for each register
+# budget (and each LCP_PIVOT_ROWS in ROWS); the sweep of the warp kernel's speed choices
+# (benchmarks/gpu_sweep.py; then the other ROWS and an earlier lcp_stack.h of the same kernel
+# signature, BASELINE, at n = 12 and 50 in the same run); the benchmark with the sweep's best
+# table; then, as asked: PROFILE=1 Nsight Compute on one launch
+# per size (benchmarks/gpu_profile.py), TESTS=1 the GPU tests, SANITIZE=1 compute-sanitizer.
+#     OUT=/tmp/gpu [BASELINE=old/lcp_stack.h] [ROWS="8 4"] [PROFILE=1] [TESTS=1] [SANITIZE=1] \
+#         bash benchmarks/gpu_device_run.sh
+# Everything but the last lines printed goes to $OUT/run.tar.gz.
 set -u
 OUT=${OUT:-/tmp/lcpcli-gpu}
-mkdir -p "$OUT"
+R="$OUT/r"
+mkdir -p "$R"
 export PYTHONUNBUFFERED=1 PYTHONPATH="$PWD"
 PY=${PYTHON:-python3}
-LOG="$OUT/env.txt"
-{ nvidia-smi -L; $PY --version; $PY -c "import cupy, numpy; print('cupy', cupy.__version__, 'numpy', numpy.__version__)"; nvcc --version | tail -1; } 2>&1 | tee "$LOG"
+ROWS=${ROWS:-8}
+{ nvidia-smi -L; $PY --version; $PY -c "import cupy, numpy; print('cupy', cupy.__version__, 'numpy', numpy.__version__)"; nvcc --version | tail -1; } 2>&1 | tee "$R/env.txt"
 t0=$(date +%s)
 CUB=$(mktemp -d)
 SM=$(nvidia-smi --query-gpu=compute_cap --format=csv,noheader | head -1 | tr -d '.')
-build_cubins() {  # $1: header, $2: folder; one nvcc per register budget, in parallel
-    mkdir -p "$2"
+build_cubins() {  # $1: header, $2: folder, $3...: extra nvcc options; one nvcc per budget
+    local h=$1 d=$2; shift 2
+    mkdir -p "$d"
     for mb in 1 2 3 4; do
-        nvcc -cubin -arch="sm_$SM" --fmad=false -std=c++11 -DLCP_WARP_MIN_BLOCKS=$mb -x cu \
-            -o "$2/mb$mb.cubin" "$1" > "$2/mb$mb.log" 2>&1 &
+        nvcc -cubin -arch="sm_$SM" --fmad=false -std=c++11 -DLCP_WARP_MIN_BLOCKS=$mb "$@" -x cu \
+            -o "$d/mb$mb.cubin" "$h" > "$d/mb$mb.log" 2>&1 &
     done
 }
-if command -v nvcc > /dev/null; then
-    build_cubins lcpcli/solvers/kernels/src/lcp_stack.h "$CUB/new"
-    [ -n "${BASELINE:-}" ] && build_cubins "$BASELINE" "$CUB/old"
-fi
-if ! timeout 120 $PY setup.py build_ext --inplace -j "$(nproc)" > "$CUB/build.log" 2>&1; then
-    echo "build failed"; tail -5 "$CUB/build.log" | tee -a "$LOG"
+for rows in $ROWS; do build_cubins lcpcli/solvers/kernels/src/lcp_stack.h "$CUB/rows$rows" -DLCP_PIVOT_ROWS=$rows; done
+[ -n "${BASELINE:-}" ] && build_cubins "$BASELINE" "$CUB/base"
+[ "${PROFILE:-0}" = 1 ] && build_cubins lcpcli/solvers/kernels/src/lcp_stack.h "$CUB/prof" -lineinfo
+if ! timeout 150 $PY setup.py build_ext --inplace -j "$(nproc)" > "$R/build.log" 2>&1; then
+    echo "build failed"; tail -5 "$R/build.log"
 fi
 wait
-echo "build: $(( $(date +%s) - t0 )) s, cubins: $(ls "$CUB"/*/*.cubin 2>/dev/null | wc -l)" | tee -a "$LOG"
-OLD=(); [ -d "$CUB/old" ] && OLD=(--old-cubins "$CUB/old")
-timeout 150 $PY benchmarks/gpu_sweep.py --cubins "$CUB/new" "${OLD[@]}" --out "$OUT/gpu_sweep.json" \
-    --table-out "$OUT/warp_table.json" 2>&1 | grep -v '"min_blocks": [0-9], "lanes"' | tail -12
-echo "sweep: $(( $(date +%s) - t0 )) s"
-TABLE=(); [ -s "$OUT/warp_table.json" ] && TABLE=(--table "$OUT/warp_table.json")
-timeout 120 $PY benchmarks/bench_gpu.py "${TABLE[@]}" --min-blocks "" --out "$OUT/bench_gpu.json" 2>&1 \
-    | tee "$OUT/bench.txt" | tail -4 | cut -c1-600
-echo "bench: $(( $(date +%s) - t0 )) s"
-timeout 160 $PY -m pytest tests/solvers/test_gpu_backend.py -p no:cacheprovider -o addopts="" -q -rs \
-    --timeout 150 2>&1 | tee "$OUT/tests.txt" | tail -4
-echo "tests: $(( $(date +%s) - t0 )) s"
-if command -v compute-sanitizer > /dev/null; then
-    timeout 70 compute-sanitizer --tool racecheck --print-limit 20 $PY benchmarks/gpu_sanitize.py warp warp8 > "$OUT/sanitize.txt" 2>&1
-    timeout 50 compute-sanitizer --tool memcheck --print-limit 20 $PY benchmarks/gpu_sanitize.py warp warp8 >> "$OUT/sanitize.txt" 2>&1
-    grep -ci "hazard\|error" "$OUT/sanitize.txt"; grep -i "summary" "$OUT/sanitize.txt"; tail -2 "$OUT/sanitize.txt"
+echo "build: $(( $(date +%s) - t0 )) s, cubins: $(ls "$CUB"/*/*.cubin 2>/dev/null | wc -l)"
+# NVRTC builds of the package (CuPy's disk cache) for the tests, in the background
+( timeout 200 $PY -c "
+import concurrent.futures as cf
+from lcpcli.solvers.backends import cuda
+def build(extra):
+    cuda._module(0, extra).get_function('lcp_lemke_warp_stack')
+    return extra
+opts = [()] + [('-DLCP_WARP_MIN_BLOCKS=%d' % k,) for k in (2, 3, 4)]
+with cf.ProcessPoolExecutor(4) as ex:
+    print('nvrtc cache:', list(ex.map(build, opts)))
+" > "$R/nvrtc.txt" 2>&1 & )
+SETS=""; for rows in $ROWS; do SETS="$SETS rows$rows"; done
+[ -d "$CUB/base" ] && SETS="$SETS base"
+first=1
+for set in $SETS; do
+    if [ $first = 1 ]; then
+        timeout 200 $PY benchmarks/gpu_sweep.py --cubins "$CUB/$set" \
+            --out "$R/gpu_sweep_$set.json" --table-out "$R/warp_table.json" 2>&1 \
+            | grep -v '"min_blocks": [0-9], "lanes"' | tail -6 | cut -c1-400
+    else
+        timeout 100 $PY benchmarks/gpu_sweep.py --cubins "$CUB/$set" --sizes 12,50 \
+            --out "$R/gpu_sweep_$set.json" 2>&1 | grep '"best"' | cut -c1-400
+    fi
+    first=0
+    echo "sweep $set: $(( $(date +%s) - t0 )) s"
+done
+TABLE=(); [ -s "$R/warp_table.json" ] && TABLE=(--table "$R/warp_table.json")
+FIRST=$(echo $ROWS | cut -d' ' -f1)
+if [ "${PROFILE:-0}" = 1 ] && command -v ncu > /dev/null; then
+    cp "$R/warp_table.json" "$CUB/prof/" 2>/dev/null
+    timeout 150 ncu --clock-control none --kernel-name lcp_lemke_warp_stack --launch-count 2 \
+        --section SpeedOfLight --section Occupancy --section LaunchStats --section WarpStateStats \
+        --section SchedulerStats --section SourceCounters --section MemoryWorkloadAnalysis \
+        --import-source yes -f -o "$R/prof" $PY benchmarks/gpu_profile.py --cubins "$CUB/prof" \
+        > "$R/ncu_run.txt" 2>&1
+    tail -3 "$R/ncu_run.txt"
+    ncu --import "$R/prof.ncu-rep" --page details > "$R/prof_details.txt" 2>&1
+    ncu --import "$R/prof.ncu-rep" --page source --csv --print-source cuda > "$R/prof_source.csv" 2>&1 \
+        || echo "no source page"
+    ncu --import "$R/prof.ncu-rep" --page source --csv --print-source sass > "$R/prof_sass.csv" 2>&1 \
+        || echo "no sass page"
+    grep -i "stall\|issued\|occupancy\|warp cycles per\|registers\|duration" "$R/prof_details.txt" | head -60 | cut -c1-150
+    echo "profile: $(( $(date +%s) - t0 )) s"
 fi
+timeout 200 $PY benchmarks/bench_gpu.py --cubins "$CUB/rows$FIRST" "${TABLE[@]}" --min-blocks "" \
+    --out "$R/bench_gpu.json" 2>&1 | tee "$R/bench.txt" | grep end_to_end | cut -c1-200
+echo "bench: $(( $(date +%s) - t0 )) s"
+if [ "${TESTS:-0}" = 1 ]; then
+    timeout 240 $PY -m pytest tests/solvers/test_gpu_backend.py -p no:cacheprovider -o addopts="" -q -rs \
+        --timeout 200 -x 2>&1 | tee "$R/tests.txt" | tail -4
+    echo "tests: $(( $(date +%s) - t0 )) s"
+fi
+if [ "${SANITIZE:-0}" = 1 ] && command -v compute-sanitizer > /dev/null; then
+    timeout 70 compute-sanitizer --tool racecheck --print-limit 20 $PY benchmarks/gpu_sanitize.py warp warp8 > "$R/sanitize.txt" 2>&1
+    timeout 50 compute-sanitizer --tool memcheck --print-limit 20 $PY benchmarks/gpu_sanitize.py warp warp8 >> "$R/sanitize.txt" 2>&1
+    grep -ci "hazard\|error" "$R/sanitize.txt"; grep -i "summary" "$R/sanitize.txt"
+fi
+cp "$CUB"/*/mb1.log "$R/" 2>/dev/null
+tar czf "$OUT/run.tar.gz" -C "$OUT" r && rm -rf "$R"
 echo "all: $(( $(date +%s) - t0 )) s"

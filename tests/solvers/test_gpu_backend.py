@@ -122,3 +122,25 @@ def test_lane_groups_and_staging_change_no_answer(n, lanes, stage, monkeypatch):
     for kind in ("mixed", "degenerate"):
         M, q = stack(kind, 700, n, seed=n + lanes)
         assert_same(solve_many(M, q, "lemke"), solve_many(M, q, "lemke", backend="cuda"))
+
+
+@pytest.mark.parametrize("staging", [True, False])
+@pytest.mark.parametrize("method", ["lemke", "pgs"])
+def test_host_stacks_in_many_chunks(staging, method, monkeypatch):
+    """A host stack cut into many chunks (two streams, outputs through the pinned slots or
+    straight into the caller's arrays) gives the CPU's answers and the one-chunk run's
+    numbers, every problem in its place: a stack of uneven length, so the last chunk is
+    short, with box bounds for PGS."""
+    M, q = stack("mixed", 1001, 12, seed=11)
+    bounds = {}
+    if method == "pgs":
+        M = (M + M.transpose(0, 2, 1)) / 2
+        bounds = {"lower": -np.ones(12), "upper": np.full(12, 0.5)}
+    whole = solve_many(M, q, method, backend="cuda", **bounds)
+    monkeypatch.setattr(cuda, "CHUNK_BYTES", 37 * 8 * 12 * 12)
+    monkeypatch.setattr(cuda, "OUTPUT_STAGING", staging)
+    assert len(cuda._chunks(1001, 12)) == 28
+    got = solve_many(M, q, method, backend="cuda", **bounds)
+    assert_same(solve_many(M, q, method, **bounds), got)
+    for key in ("z", "w", "status", "iterations", "error", "residual"):
+        np.testing.assert_array_equal(getattr(got, key), getattr(whole, key), err_msg=key)

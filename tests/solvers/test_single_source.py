@@ -256,7 +256,7 @@ class _FakeArray(np.ndarray):
     def __cuda_array_interface__(self):  # what marks device memory to lcpcli.solve_many
         return {"shape": self.shape, "typestr": self.dtype.str, "version": 3}
 
-    def get(self, stream=None, out=None):
+    def get(self, stream=None, out=None, blocking=True):
         if out is None:
             return np.array(self)
         assert isinstance(out, np.ndarray) and out.flags.c_contiguous  # as CuPy requires
@@ -367,7 +367,7 @@ def _fake_cupy():
     runtime = types.SimpleNamespace(getDeviceCount=lambda: 1, memGetInfo=lambda: (8 << 30, 8 << 30))
     module = types.SimpleNamespace(get_function=lambda name: _FakeKernel(name, kernels[name]))
     cp.cuda = types.SimpleNamespace(runtime=runtime, Device=lambda: types.SimpleNamespace(id=0),
-                                    Stream=_FakeStream,
+                                    Stream=_FakeStream, alloc_pinned_memory=bytearray,
                                     get_current_stream=lambda: _FakeStream.current)
     cp.RawModule = lambda code, options: module
     assert len(kernels) == 3, sorted(kernels)  # every __global__ kernel's signature was read
@@ -388,14 +388,17 @@ def fake_device(monkeypatch):
     batched._LOADED.pop("cuda", None)
 
 
+@pytest.mark.parametrize("staging", [True, False])
 @pytest.mark.parametrize("chunked", [False, True])
 @pytest.mark.parametrize("variant", ["thread", "warp"])
 @pytest.mark.parametrize("kind", ["pd", "degenerate", "scaled", "mixed"])
 def test_cuda_backend_host_code_with_a_stand_in_device(fake_device, monkeypatch, kind, variant,
-                                                       chunked):
+                                                       chunked, staging):
     """Host arrays go in chunks on two streams (chunked: 7 problems a chunk, the last one
-    short), device arrays in one launch: both give the CPU's answers."""
+    short; staging: outputs through the two pinned slots, or straight into the result's
+    arrays), device arrays in one launch: both give the CPU's answers."""
     monkeypatch.setattr(cuda, "LEMKE_VARIANT", variant)
+    monkeypatch.setattr(cuda, "OUTPUT_STAGING", staging)
     if chunked:
         n = make(kind)[1].shape[1]
         monkeypatch.setattr(cuda, "CHUNK_BYTES", 7 * 8 * n * n)

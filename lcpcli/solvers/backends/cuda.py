@@ -68,6 +68,13 @@ EXTRA_OPTIONS: tuple[str, ...] = ()
 #: Host stacks go to the device in chunks of about this many bytes of M, on two streams, so
 #: that the copy of one chunk overlaps the kernel of the one before.
 CHUNK_BYTES = 128 << 20
+#: Outputs of host stacks come back through two pinned buffers of one chunk each (copied
+#: asynchronously, then into the caller's arrays by the host while the device runs the next
+#: chunk); False: straight into the caller's (pageable) arrays, which blocks the host for
+#: each copy (benchmarks/bench_gpu.py compares the two).  Speed only.
+OUTPUT_STAGING = True
+#: The output arrays a kernel run fills (run_lemke's and run_sor's keys).
+OUTPUT_KEYS = ("z", "w", "code", "iterations", "error", "residual")
 #: DLPack device types of CUDA memory (kDLCUDA, kDLCUDAHost, kDLCUDAManaged).
 DLPACK_CUDA = (2, 3, 13)
 
@@ -305,21 +312,31 @@ def _host_kernel(name: str):  # noqa: ANN202 - a StackKernel
             scaling: str = "none") -> None:
         cp = require_cupy()
         K, n = np.shape(q)
+        chunks = _chunks(K, n)
         streams = (cp.cuda.Stream(non_blocking=True), cp.cuda.Stream(non_blocking=True))
-        pending: list[tuple[Any, dict[str, Any], int, int, tuple[Any, Any]]] = []
+        stage = _staging(chunks, out, cp) if OUTPUT_STAGING else None
+        pending: list[tuple[Any, dict[str, Any], int, int, int, tuple[Any, Any]]] = []
 
-        def collect() -> None:  # the oldest chunk's outputs to the host
-            stream, o, a, b, _inputs = pending.pop(0)  # inputs held until the kernel ran
-            with stream:
-                for key, arr in o.items():
-                    arr.get(stream=stream, out=getattr(out, key)[a:b])
-            stream.synchronize()
+        def collect() -> None:  # the oldest chunk's outputs to the caller's arrays
+            stream, o, a, b, slot, _inputs = pending.pop(0)  # inputs held until the kernel ran
+            if stage is None:
+                with stream:
+                    for key, arr in o.items():
+                        arr.get(stream=stream, out=getattr(out, key)[a:b])
+                stream.synchronize()
+                return
+            stream.synchronize()  # its copies into the pinned slot are done
+            for key in o:
+                getattr(out, key)[a:b] = stage[slot][key][:b - a]
 
-        # chunk c's copy in and kernel are queued on one stream while chunk c - 1's kernel
-        # runs on the other; its outputs are fetched one chunk later (pinned host memory
-        # makes the copies asynchronous; pageable memory still works, with less overlap)
-        for c, (a, b) in enumerate(_chunks(K, n)):
-            stream = streams[c % 2]
+        # chunk c's copy in, kernel and copy out (into pinned slot c % 2) are queued on one
+        # stream while chunk c - 1 runs on the other; chunk c - 1's outputs then go from its
+        # slot into the caller's arrays on the host while the device works on chunk c
+        # (pinned inputs make the copies in asynchronous; pageable ones still work, with less
+        # overlap)
+        for c, (a, b) in enumerate(chunks):
+            slot = c % 2
+            stream = streams[slot]
             with stream:
                 Md, qd = _copy_in(M[a:b], cp), _copy_in(q[a:b], cp)
                 if name == "lemke":
@@ -329,7 +346,10 @@ def _host_kernel(name: str):  # noqa: ANN202 - a StackKernel
                     up = None if upper is None else np.broadcast_to(upper, (K, n))[a:b]
                     o = run_sor(Md, qd, *_bounds(lo, up, b - a, n, cp), tol=tol,
                                 options=options)
-            pending.append((stream, o, a, b, (Md, qd)))
+                if stage is not None:
+                    for key, arr in o.items():
+                        arr.get(stream=stream, out=stage[slot][key][:b - a], blocking=False)
+            pending.append((stream, o, a, b, slot, (Md, qd)))
             if len(pending) > 1:
                 collect()
         while pending:
@@ -337,6 +357,22 @@ def _host_kernel(name: str):  # noqa: ANN202 - a StackKernel
         retry_on_cpu(name, M, q, lower, upper, tol=tol, options=options, out=out,
                      threads=threads, scaling=scaling)
     return run
+
+
+def _staging(chunks: list[tuple[int, int]], out: StackOut, cp: Any) -> list[dict[str, Any]]:
+    """Two pinned host buffers (from CuPy's pinned memory pool: reused across calls) holding
+    one chunk's outputs each, shaped and typed as ``out``'s arrays."""
+    rows = max((b - a for a, b in chunks), default=0)
+    slots = []
+    for _ in range(2):
+        slot = {}
+        for key in OUTPUT_KEYS:
+            like = getattr(out, key)
+            shape = (rows,) + like.shape[1:]
+            mem = cp.cuda.alloc_pinned_memory(max(1, int(np.prod(shape)) * like.itemsize))
+            slot[key] = np.ndarray(shape, like.dtype, buffer=mem)
+        slots.append(slot)
+    return slots
 
 
 class _HostRows:

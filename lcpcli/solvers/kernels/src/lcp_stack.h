@@ -36,6 +36,7 @@
 #define LCP_INF __longlong_as_double(0x7ff0000000000000LL)
 #define LCP_NAN __longlong_as_double(0x7ff8000000000000LL)
 #define LCP_ISFINITE(x) isfinite(x)
+#define LCP_UNROLL _Pragma("unroll")
 #define LCP_AXPY(y, x, a, n)                                                                 \
     do {                                                                                     \
         for (lcp_ix j_ = 0; j_ < (n); j_++)                                                 \
@@ -48,6 +49,11 @@
  * same rounding as the plain loop the device runs) */
 #include "../simd.h"
 #define LCP_AXPY(y, x, a, n) lcpcli_axpy((y), (x), (a), (n))
+#if defined(__GNUC__) && !defined(__clang__)
+#define LCP_UNROLL _Pragma("GCC unroll 16")
+#else
+#define LCP_UNROLL
+#endif
 #define LCP_FN static inline
 #define LCP_RESTRICT restrict
 #define LCP_COLD static inline
@@ -116,17 +122,6 @@ LCP_FN double lcp_lanes_min(double x, lcp_ix lanes)
     }
     return x;
 }
-LCP_FN double lcp_lanes_max(double x, lcp_ix lanes)
-{
-    double y;
-    lcp_ix o;
-    for (o = lanes >> 1; o > 0; o >>= 1) {
-        y = LCP_SHFL(x, o);
-        if (y > x)
-            x = y;
-    }
-    return x;
-}
 LCP_FN lcp_ix lcp_lanes_imax(lcp_ix x, lcp_ix lanes)
 {
     lcp_ix y, o;
@@ -137,12 +132,40 @@ LCP_FN lcp_ix lcp_lanes_imax(lcp_ix x, lcp_ix lanes)
     }
     return x;
 }
-LCP_FN lcp_ix lcp_lanes_isum(lcp_ix x, lcp_ix lanes)
+
+/* Two maxima at once: their shuffles are independent, so their latencies overlap. */
+LCP_FN void lcp_lanes_max2(double *x, double *y, lcp_ix lanes)
 {
+    double a = *x, b = *y, u, v;
     lcp_ix o;
-    for (o = lanes >> 1; o > 0; o >>= 1)
-        x += LCP_SHFL(x, o);
-    return x;
+    for (o = lanes >> 1; o > 0; o >>= 1) {
+        u = LCP_SHFL(a, o);
+        v = LCP_SHFL(b, o);
+        if (u > a)
+            a = u;
+        if (v > b)
+            b = v;
+    }
+    *x = a;
+    *y = b;
+}
+/* An index maximum, a sum and another index maximum at once (a sum by shuffles: exact on
+ * integers, so any order). */
+LCP_FN void lcp_lanes_imax_isum_imax(lcp_ix *x, lcp_ix *y, lcp_ix *z, lcp_ix lanes)
+{
+    lcp_ix a = *x, b = *y, c = *z, u, v, o;
+    for (o = lanes >> 1; o > 0; o >>= 1) {
+        u = LCP_SHFL(a, o);
+        b += LCP_SHFL(b, o);
+        v = LCP_SHFL(c, o);
+        if (u > a)
+            a = u;
+        if (v > c)
+            c = v;
+    }
+    *x = a;
+    *y = b;
+    *z = c;
 }
 
 enum { LCP_SOLVED = 0, LCP_RETRY = 1 };
@@ -474,7 +497,7 @@ LCP_FN int lcp_certify_warp(lcp_ix n, const double *M, const double *q, const do
     lcp_ix *lab = iwork, *movable = iwork + 2 * n;
     lcp_ix i, j, best;
     int bad = 0, changed;
-    double wi, ai, t, m, inv, BIG = lcp_big(), SMALL = lcp_small();
+    double wi, ai, t, m, inv, kj, BIG = lcp_big(), SMALL = lcp_small();
     for (j = 0; j < n; j++) { /* every lane: the same answer */
         if (!LCP_ISFINITE(z[j]))
             return lcp_cert_fail(out, 1);
@@ -494,23 +517,25 @@ LCP_FN int lcp_certify_warp(lcp_ix n, const double *M, const double *q, const do
     LCP_SYNC();
     if (LCP_ANY(bad))
         return lcp_cert_fail(out, 2);
-    /* kappa_j = max_i |M_ij| / s_i for the columns that may move (a max: any order) */
+    /* kappa_j = max_i |M_ij| / s_i for the columns that may move (a max: any order; kept in
+     * a register: a store in the loop would order every load after it) */
     for (j = lane; j < n; j += lanes) {
         movable[j] = (lo ? !(z[j] == lo[j] && z[j] == up[j]) : z[j] != 0.0) || z[j] != 0.0;
-        kappa[j] = 0.0;
+        kj = 0.0;
         if (movable[j]) {
             for (i = 0; i < n; i++) {
                 inv = rinv[i];
                 m = fabs(M[i * n + j]);
                 if (m != 0.0) {
                     t = m * inv;
-                    if (t > kappa[j])
-                        kappa[j] = t;
+                    if (t > kj)
+                        kj = t;
                 }
             }
-            if (kappa[j] == 0.0) /* a zero column: no link below, moving z_j never negligible */
-                kappa[j] = LCP_INF;
+            if (kj == 0.0) /* a zero column: no link below, moving z_j never negligible */
+                kj = LCP_INF;
         }
+        kappa[j] = kj;
     }
     for (i = lane; i < 2 * n; i += lanes)
         lab[i] = i;
@@ -791,20 +816,35 @@ LCP_FN void lcp_pivot(double *T, double *qb, lcp_ix nrows, lcp_ix ncols, lcp_ix 
 /* The same pivot split over the lanes, a lane per column (every entry computed as lcp_pivot
  * computes it: the same rounding).  fcol: the pivot column T[:, c] as it was before the pivot
  * (fcol[r] is the pivot element).  A lane reads and writes only its own columns of T, so the
- * lanes meet only around the update of qb. */
+ * lanes meet only around the update of qb.  Rows go in blocks of LCP_PIVOT_ROWS: a block's
+ * loads are all issued before its stores (the compiler cannot move a load of fcol or T above
+ * a store to T, which may alias it), so each block waits on memory once, not once per row. */
+#ifndef LCP_PIVOT_ROWS
+#define LCP_PIVOT_ROWS 8
+#endif
 LCP_FN void lcp_pivot_warp(double *T, double *qb, lcp_ix nrows, lcp_ix ncols, lcp_ix r,
                            lcp_ix c, const double *fcol, lcp_ix lane, lcp_ix lanes)
 {
-    lcp_ix i, j;
-    double inv = 1.0 / fcol[r], qr = -qb[r] * inv, f, rj;
+    lcp_ix i, i0, b, j, cnt;
+    double inv = 1.0 / fcol[r], qr = -qb[r] * inv, rj, f[LCP_PIVOT_ROWS], t[LCP_PIVOT_ROWS];
     double *Tj;
     for (j = lane; j < ncols; j += lanes) {
         Tj = T + j;
         rj = j == c ? inv : -Tj[r * ncols] * inv;
-        for (i = 0; i < nrows; i++) {
-            f = fcol[i];
-            if (i != r && f != 0.0)
-                Tj[i * ncols] = j == c ? f * inv : Tj[i * ncols] + f * rj;
+        for (i0 = 0; i0 < nrows; i0 += LCP_PIVOT_ROWS) {
+            cnt = nrows - i0 < LCP_PIVOT_ROWS ? nrows - i0 : LCP_PIVOT_ROWS;
+            LCP_UNROLL
+            for (b = 0; b < LCP_PIVOT_ROWS; b++)
+                if (b < cnt) {
+                    f[b] = fcol[i0 + b];
+                    t[b] = Tj[(i0 + b) * ncols];
+                }
+            LCP_UNROLL
+            for (b = 0; b < LCP_PIVOT_ROWS; b++) {
+                i = i0 + b;
+                if (b < cnt && i != r && f[b] != 0.0)
+                    Tj[i * ncols] = j == c ? f[b] * inv : t[b] + f[b] * rj;
+            }
         }
         Tj[r * ncols] = rj;
     }
@@ -962,8 +1002,9 @@ LCP_FN lcp_ix lcp_leaving_row_lanes(lcp_ix n, lcp_ix m, const double *T, const d
         if (qb[i] > qmax)
             qmax = qb[i];
     }
-    ptol = piv_tol * lcp_lanes_max(cmax, lanes);
-    ztol = LCP_DEGENERATE_RTOL * lcp_lanes_max(qmax, lanes);
+    lcp_lanes_max2(&cmax, &qmax, lanes);
+    ptol = piv_tol * cmax;
+    ztol = LCP_DEGENERATE_RTOL * qmax;
     for (i = lane; i < n; i += lanes) {
         a = col[i];
         if (a < -ptol) {
@@ -989,11 +1030,11 @@ LCP_FN lcp_ix lcp_leaving_row_lanes(lcp_ix n, lcp_ix m, const double *T, const d
             }
         }
     }
-    z0_row = lcp_lanes_imax(z0_row, lanes);
+    lcp_lanes_imax_isum_imax(&z0_row, &nc, &one, lanes);
     if (z0_row >= 0)
         return z0_row;
-    if (lcp_lanes_isum(nc, lanes) == 1)
-        return lcp_lanes_imax(one, lanes);
+    if (nc == 1)
+        return one;
     if (lane == 0)
         ctl[0] = lcp_leaving_row(n, m, T, qb, col, keys, basic, where, cand, piv_tol, tie_tol);
     LCP_SYNC();
