@@ -91,7 +91,7 @@ def cpu_case(n: int, K: int, repeat: int, threads: int) -> dict:
 
 
 def gpu_case(n: int, K: int, sample: int, repeat: int,
-             min_blocks: tuple[int, ...] = (1, 2, 3, 4)) -> dict:
+             min_blocks: tuple[int, ...] = (1, 2, 3, 4), profile: bool = False) -> dict:
     """The device at size n; ``warp`` is the shipped choice (backends/cuda.py's
     WARP_MIN_BLOCKS), ``warp_mbK`` the warp kernel built with LCP_WARP_MIN_BLOCKS = K."""
     import cupy as cp
@@ -184,6 +184,29 @@ def gpu_case(n: int, K: int, sample: int, repeat: int,
     qp = cupyx.empty_pinned(q.shape, np.float64)
     Mp[...] = M
     qp[...] = q
+    # the copy floor: the whole stack from pinned memory to the device in one copy
+    dev_m = cp.empty(M.shape, cp.float64)
+
+    def h2d() -> None:
+        dev_m.set(Mp)
+        cp.cuda.Device().synchronize()
+    out["h2d_pinned_M_s"] = best_of(repeat, h2d)
+    out["h2d_pinned_M_gb_per_s"] = M.nbytes / out["h2d_pinned_M_s"] / 1e9
+    print(json.dumps({"n": n, "h2d_pinned_M_gb_per_s": out["h2d_pinned_M_gb_per_s"]}))
+    dev_m = None
+    if profile:  # where the host's time goes in one pinned call
+        import cProfile
+        import io
+        import pstats
+
+        prof = cProfile.Profile()
+        prof.enable()
+        lcpcli.solve_many(Mp, qp, "lemke", backend="cuda")
+        prof.disable()
+        text = io.StringIO()
+        pstats.Stats(prof, stream=text).sort_stats("tottime").print_stats(18)
+        out["pinned_profile"] = text.getvalue()[-4000:]
+        print(out["pinned_profile"], flush=True)
     # the shipped path ("pinned", "pageable"), then the same calls with the outputs copied
     # straight into the result's arrays (no pinned slots) and with other chunk sizes
     shipped = (cuda.OUTPUT_STAGING, cuda.CHUNK_BYTES)
@@ -229,6 +252,8 @@ def main() -> None:
     ap.add_argument("--sizes", default="12,50", help="n of the device cases (comma-separated)")
     ap.add_argument("--min-blocks", default="1,2,3,4",
                     help="LCP_WARP_MIN_BLOCKS builds of the warp kernel to compare")
+    ap.add_argument("--profile", action="store_true",
+                    help="cProfile one pinned end-to-end call per size (the host's share)")
     ap.add_argument("--cubins", type=Path, default=None,
                     help="the warp kernel built ahead with nvcc (mb1.cubin ... mb4.cubin) in "
                          "place of NVRTC builds")
@@ -276,7 +301,7 @@ def main() -> None:
         for n in (int(x) for x in args.sizes.split(",")):
             K = stacks.get(n, 100_000)
             cases.append(gpu_case(n, max(1, int(K * args.scale)), args.sample, args.repeat,
-                                  blocks))
+                                  blocks, args.profile))
             print(json.dumps(cases[-1]), flush=True)
     write_cases(args.out, "bench_gpu.json", info, cases)
 

@@ -1614,12 +1614,24 @@ extern "C" __global__ void __launch_bounds__(256, LCP_WARP_MIN_BLOCKS) lcp_lemke
     lcp_ix lane = threadIdx.x & (lanes - 1), grp = threadIdx.x / lanes, gpb = blockDim.x / lanes;
     lcp_i64 slot = (lcp_i64)blockIdx.x * gpb + grp, nslots = (lcp_i64)gridDim.x * gpb, k;
     lcp_i64 fast = LCP_FAST_SLOTS(n), per = fast + LCP_COLD_SLOTS(n);
-    double *gw = work + slot * per, *sh = use_shared ? lcp_smem + grp * fast : gw;
-    for (k = slot; k < K; k += nslots)
-        lcp_lemke_group(n, M + k * n * n, q + k * n, use_d ? d : 0, max_iter, piv_tol, tie_tol,
-                        tol, polished, balanced, q_balanced, max_rounds, stage, sh, gw + fast,
-                        z + k * n, w + k * n, code + k, iters + k, err + k, res + k, lane,
-                        lanes);
+    double *gw = work + slot * per;
+    /* two copies of the loop: in the first the fast workspace is known to be shared memory
+     * (the compiler then reads and writes it with shared-memory instructions and 32-bit
+     * addresses), in the second it is device memory; one pointer for both would be generic */
+    if (use_shared) {
+        double *sh = lcp_smem + grp * fast;
+        for (k = slot; k < K; k += nslots)
+            lcp_lemke_group(n, M + k * n * n, q + k * n, use_d ? d : 0, max_iter, piv_tol,
+                            tie_tol, tol, polished, balanced, q_balanced, max_rounds, stage, sh,
+                            gw + fast, z + k * n, w + k * n, code + k, iters + k, err + k,
+                            res + k, lane, lanes);
+    } else {
+        for (k = slot; k < K; k += nslots)
+            lcp_lemke_group(n, M + k * n * n, q + k * n, use_d ? d : 0, max_iter, piv_tol,
+                            tie_tol, tol, polished, balanced, q_balanced, max_rounds, stage, gw,
+                            gw + fast, z + k * n, w + k * n, code + k, iters + k, err + k,
+                            res + k, lane, lanes);
+    }
 }
 
 /* bounded: lo, up (K, n) are the box (else an LCP: they are not read); z: the start points */
