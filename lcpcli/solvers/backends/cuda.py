@@ -59,20 +59,23 @@ NVRTC_OPTIONS = ("--std=c++11", "--fmad=false")
 #: to 255 registers, 4 = 64).  Speed only: every choice computes the same numbers
 #: (tests/solvers/test_lane_groups.py, test_gpu_backend.py).  The best of every combination
 #: at n = 12, 24, 32, 50 in benchmarks/gpu_sweep.py's run on an H200 (benchmarks/README.md,
-#: results/gpu_sweep_h200.json); the n = 50 row speaks for every larger size.
+#: results/gpu_sweep_h200_r3.json, 2026-11-27); the n = 50 row speaks for every larger size.
 WARP_TABLE: tuple[tuple[int, int, bool, int], ...] = (
-    (12, 16, True, 3), (24, 32, True, 3), (32, 32, True, 2), (1 << 62, 32, True, 1))
+    (12, 8, False, 2), (24, 32, False, 2), (32, 32, True, 2), (1 << 62, 32, True, 1))
 #: Extra NVRTC options that replace the table's register budget (``-D`` tuning macros of
 #: lcp_stack.h), for benchmarks/bench_gpu.py; speed only, never a result.
 EXTRA_OPTIONS: tuple[str, ...] = ()
 #: Host stacks go to the device in chunks of about this many bytes of M, on two streams, so
 #: that the copy of one chunk overlaps the kernel of the one before.
 CHUNK_BYTES = 128 << 20
-#: Outputs of host stacks come back through two pinned buffers of one chunk each (copied
-#: asynchronously, then into the caller's arrays by the host while the device runs the next
-#: chunk); False: straight into the caller's (pageable) arrays, which blocks the host for
-#: each copy (benchmarks/bench_gpu.py compares the two).  Speed only.
-OUTPUT_STAGING = True
+#: True: outputs of host stacks come back through two pinned buffers of one chunk each
+#: (copied asynchronously, then into the caller's arrays by the host while the device runs
+#: the next chunk); False: straight into the caller's (pageable) arrays, each copy blocking
+#: the host.  Speed only (tests run both).  On an H200 (benchmarks/README.md, two runs) the
+#: pinned slots were slower at n = 12 (84-88 ms against 74-80 ms for 10^6 problems: the
+#: host's copy into fresh result pages costs more than the driver's own staging) and even at
+#: n = 50 (60-66 ms either way), so they are off.
+OUTPUT_STAGING = False
 #: The output arrays a kernel run fills (run_lemke's and run_sor's keys).
 OUTPUT_KEYS = ("z", "w", "code", "iterations", "error", "residual")
 #: DLPack device types of CUDA memory (kDLCUDA, kDLCUDAHost, kDLCUDAManaged).
