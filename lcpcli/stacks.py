@@ -148,7 +148,6 @@ def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None =
     """
     from lcpcli.solvers.batched import (
         KERNEL_SOLVED,
-        StackOut,
         choose_backend,
         default_backend,
         default_threads,
@@ -205,12 +204,13 @@ def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None =
             bases = np.full((K, n), -1, np.int8)  # no basis: every problem runs cold Lemke
     name = spec.name
     if run_spec is not None:
-        kernel = get_backend(choose_backend(backend, K, n)).kernel(run_spec.batch.kernel)
+        backend_ = get_backend(choose_backend(backend, K, n))
+        kernel = backend_.kernel(run_spec.batch.kernel)
         if kernel is None:
             raise OptionError(f"batch backend '{backend}' has no '{run_spec.batch.kernel}' "
                               f"kernel (method '{run_spec.name}')")
         name = run_spec.batch.runs_as or run_spec.name
-        out = StackOut.empty(K, n, certificates, pivot_basis)  # the kernel's final arrays
+        out = backend_.outputs(M, K, n, certificates, pivot_basis)  # the kernel's final arrays
         run_spec.prepare_once()
         if bases is not None:
             from lcpcli.solvers.warm_stack import lemke_warm

@@ -61,6 +61,18 @@ class StackOut:
     pivot_basis: np.ndarray | None = None
 
     @classmethod
+    def unfilled(cls, K: int, n: int, alloc: Callable[[tuple[int, ...], Any], np.ndarray],
+                 certificates: bool = False, pivot_basis: bool = False) -> StackOut:
+        """Outputs whose six kernel arrays come from ``alloc(shape, dtype)`` with whatever they
+        hold: for a backend whose kernels write every element of them (``cert`` and
+        ``pivot_basis`` as :meth:`empty`)."""
+        base = cls.empty(0, n, certificates, pivot_basis)
+        return cls(alloc((K, n), np.float64), alloc((K, n), np.float64), alloc((K,), np.int8),
+                   alloc((K,), np.int64), alloc((K,), np.float64), alloc((K,), np.float64),
+                   None if base.cert is None else np.full((K, base.cert.shape[1]), np.nan),
+                   None if base.pivot_basis is None else np.full((K, n), -1, np.int8))
+
+    @classmethod
     def empty(cls, K: int, n: int, certificates: bool = False,
               pivot_basis: bool = False) -> StackOut:
         cert = None
@@ -144,13 +156,27 @@ def _cpu_sor(M: Any, q: Any, lower: Any, upper: Any, *, tol: float,
 
 @dataclass
 class Backend:
-    """A named set of stacked kernels (``kernels``: kernel name -> :class:`StackKernel`)."""
+    """A named set of stacked kernels (``kernels``: kernel name -> :class:`StackKernel`).
+    ``output_alloc``: None (outputs in numpy's memory, :meth:`StackOut.empty`), or, for a
+    backend whose kernels write every element of the six kernel arrays, a function of the
+    stack's ``M`` that returns the allocator of those arrays (``(shape, dtype) -> array``;
+    :meth:`StackOut.unfilled`) or None for numpy's."""
 
     name: str
     kernels: dict[str, StackKernel] = field(default_factory=dict)
+    output_alloc: Callable[[Any], Callable[[tuple[int, ...], Any], np.ndarray] | None] | None \
+        = None
 
     def kernel(self, name: str) -> StackKernel | None:
         return self.kernels.get(name)
+
+    def outputs(self, M: Any, K: int, n: int, certificates: bool = False,
+                pivot_basis: bool = False) -> StackOut:
+        """The preallocated outputs of a stack of K problems of size n (``M``: its matrices)."""
+        alloc = None if self.output_alloc is None else self.output_alloc(M)
+        if alloc is None:
+            return StackOut.empty(K, n, certificates, pivot_basis)
+        return StackOut.unfilled(K, n, alloc, certificates, pivot_basis)
 
 
 def _single_source(name: str) -> Callable[[], Backend]:

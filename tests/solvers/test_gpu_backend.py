@@ -144,3 +144,20 @@ def test_host_stacks_in_many_chunks(staging, method, monkeypatch):
     assert_same(solve_many(M, q, method, **bounds), got)
     for key in ("z", "w", "status", "iterations", "error", "residual"):
         np.testing.assert_array_equal(getattr(got, key), getattr(whole, key), err_msg=key)
+
+
+def test_pinned_in_pinned_out(monkeypatch):
+    """A host stack in pinned memory, in several chunks: results in pinned memory, the CPU's
+    answers, and the same numbers as from pageable memory."""
+    import cupyx
+
+    monkeypatch.setattr(cuda, "CHUNK_BYTES", 300 * 8 * 12 * 12)  # 7 chunks, the last short
+    M, q = stack("mixed", 2000, 12, seed=12)
+    Mp = cupyx.empty_pinned(M.shape, np.float64)
+    Mp[...] = M
+    pageable = solve_many(M, q, "lemke", backend="cuda")
+    got = solve_many(Mp, q, "lemke", backend="cuda")
+    assert cuda._pinned(got.z, cp) and not cuda._pinned(pageable.z, cp)
+    assert_same(solve_many(M, q, "lemke"), got)
+    for key in ("z", "w", "status", "iterations", "error", "residual"):
+        np.testing.assert_array_equal(getattr(got, key), getattr(pageable, key), err_msg=key)

@@ -364,10 +364,21 @@ def _fake_cupy():
         broadcast_to=lambda x, s: wrap(np.broadcast_to(x, s)),
         clip=lambda x, lo, up, out=None: np.clip(x, lo, up, out=out),
         from_dlpack=lambda x: wrap(np.from_dlpack(x)))
-    runtime = types.SimpleNamespace(getDeviceCount=lambda: 1, memGetInfo=lambda: (8 << 30, 8 << 30))
+    pinned = []  # the stand-in's page-locked buffers (kept for the test's life)
+
+    def alloc_pinned_memory(size):
+        pinned.append(np.zeros(size, np.uint8))
+        return pinned[-1]
+
+    def pointerGetAttributes(ptr):  # noqa: N802 - CuPy's name
+        inside = any(b.ctypes.data <= ptr < b.ctypes.data + b.size for b in pinned)
+        return types.SimpleNamespace(type=1 if inside else 0)
+
+    runtime = types.SimpleNamespace(getDeviceCount=lambda: 1, memGetInfo=lambda: (8 << 30, 8 << 30),
+                                    pointerGetAttributes=pointerGetAttributes)
     module = types.SimpleNamespace(get_function=lambda name: _FakeKernel(name, kernels[name]))
     cp.cuda = types.SimpleNamespace(runtime=runtime, Device=lambda: types.SimpleNamespace(id=0),
-                                    Stream=_FakeStream, alloc_pinned_memory=bytearray,
+                                    Stream=_FakeStream, alloc_pinned_memory=alloc_pinned_memory,
                                     get_current_stream=lambda: _FakeStream.current)
     cp.RawModule = lambda code, options: module
     assert len(kernels) == 3, sorted(kernels)  # every __global__ kernel's signature was read
@@ -413,6 +424,27 @@ def test_cuda_backend_host_code_with_a_stand_in_device(fake_device, monkeypatch,
     np.testing.assert_array_equal(dev.status, ref.status)
     np.testing.assert_array_equal(np.asarray(dev.z), ref.z)
     np.testing.assert_array_equal(dev.iterations, ref.iterations)
+
+
+@pytest.mark.parametrize("method", ["lemke", "pgs"])
+def test_cuda_backend_pinned_in_pinned_out_with_a_stand_in_device(fake_device, monkeypatch,
+                                                                   method):
+    """A stack whose M is in pinned memory gets its results in pinned memory (copied chunk by
+    chunk as the device goes on), with the CPU's answers; a pageable M, numpy's memory."""
+    monkeypatch.setattr(cuda, "CHUNK_BYTES", 7 * 8 * 6 * 6)
+    M, q = pd(50, 6, seed=21)
+    M = (M + M.transpose(0, 2, 1)) / 2
+    mem = fake_device.cuda.alloc_pinned_memory(M.nbytes)
+    Mp = np.ndarray(M.shape, np.float64, buffer=mem)
+    Mp[...] = M
+    ref = solve_many(M, q, method)
+    for a, pinned in ((Mp, True), (M, False)):
+        res = solve_many(a, q, method, backend="cuda")
+        for key in ("z", "w", "iterations", "error", "residual"):
+            assert cuda._pinned(getattr(res, key), fake_device) is pinned, key
+        np.testing.assert_array_equal(res.status, ref.status)
+        np.testing.assert_array_equal(res.z, ref.z)
+        np.testing.assert_array_equal(res.iterations, ref.iterations)
 
 
 @pytest.mark.parametrize("chunked", [False, True])

@@ -9,7 +9,8 @@ device, asking for this backend is an :class:`~lcpcli.core.errors.OptionError` (
 command line).
 
 Host arrays (:data:`lcpcli.solvers.batched.StackKernel`): copied to the device, solved, the
-outputs copied back.  Device arrays (CuPy, or anything with ``__dlpack__`` on a CUDA device:
+outputs copied back (into pinned memory when ``M`` is in pinned memory: pinned in, pinned
+out, :func:`output_alloc`).  Device arrays (CuPy, or anything with ``__dlpack__`` on a CUDA device:
 torch, JAX) go through :func:`solve_many_device` without a copy of the stack to the host;
 only the problems the device hands back travel to the CPU.  Either way what the device does
 not certify is run by the ``"cpu"`` kernel and then by the full pipeline, so the verdicts are
@@ -76,6 +77,9 @@ CHUNK_BYTES = 128 << 20
 #: host's copy into fresh result pages costs more than the driver's own staging) and even at
 #: n = 50 (60-66 ms either way), so they are off.
 OUTPUT_STAGING = False
+#: A host stack whose M is in pinned memory gets its results in pinned memory too (from
+#: CuPy's pinned memory pool; see :func:`output_alloc`); False: in numpy's memory.  Speed only.
+PINNED_OUT = True
 #: The output arrays a kernel run fills (run_lemke's and run_sor's keys).
 OUTPUT_KEYS = ("z", "w", "code", "iterations", "error", "residual")
 #: DLPack device types of CUDA memory (kDLCUDA, kDLCUDAHost, kDLCUDAManaged).
@@ -318,10 +322,14 @@ def _host_kernel(name: str):  # noqa: ANN202 - a StackKernel
         chunks = _chunks(K, n)
         streams = (cp.cuda.Stream(non_blocking=True), cp.cuda.Stream(non_blocking=True))
         stage = _staging(chunks, out, cp) if OUTPUT_STAGING else None
+        direct = stage is None and _pinned(out.code, cp)  # outputs copied asynchronously
         pending: list[tuple[Any, dict[str, Any], int, int, int, tuple[Any, Any]]] = []
 
         def collect() -> None:  # the oldest chunk's outputs to the caller's arrays
             stream, o, a, b, slot, _inputs = pending.pop(0)  # inputs held until the kernel ran
+            if direct:  # its copies into the (pinned) result were queued after its kernel
+                stream.synchronize()
+                return
             if stage is None:
                 with stream:
                     for key, arr in o.items():
@@ -352,6 +360,9 @@ def _host_kernel(name: str):  # noqa: ANN202 - a StackKernel
                 if stage is not None:
                     for key, arr in o.items():
                         arr.get(stream=stream, out=stage[slot][key][:b - a], blocking=False)
+                elif direct:
+                    for key, arr in o.items():
+                        arr.get(stream=stream, out=getattr(out, key)[a:b], blocking=False)
             pending.append((stream, o, a, b, slot, (Md, qd)))
             if len(pending) > 1:
                 collect()
@@ -360,6 +371,37 @@ def _host_kernel(name: str):  # noqa: ANN202 - a StackKernel
         retry_on_cpu(name, M, q, lower, upper, tol=tol, options=options, out=out,
                      threads=threads, scaling=scaling)
     return run
+
+
+def _pinned(a: Any, cp: Any) -> bool:
+    """Whether host array ``a`` lives in page-locked (pinned) memory CUDA knows of."""
+    if not isinstance(a, np.ndarray) or a.size == 0:
+        return False
+    try:
+        return int(cp.cuda.runtime.pointerGetAttributes(a.ctypes.data).type) == 1  # host
+    except Exception:  # noqa: BLE001 - an unknown pointer or an older runtime: not pinned
+        return False
+
+
+def _pinned_empty(cp: Any) -> Any:
+    """An allocator ``(shape, dtype) -> numpy array`` in pinned memory from CuPy's pinned
+    memory pool (freed arrays go back to the pool, so a loop of calls reuses the pages)."""
+    def alloc(shape: tuple[int, ...], dtype: Any) -> np.ndarray:
+        dtype = np.dtype(dtype)
+        mem = cp.cuda.alloc_pinned_memory(max(1, int(np.prod(shape)) * dtype.itemsize))
+        return np.ndarray(shape, dtype, buffer=mem)
+    return alloc
+
+
+def output_alloc(M: Any) -> Any:
+    """The allocator of a host stack's results (:attr:`Backend.output_alloc`): pinned memory
+    when ``M`` is in pinned memory and :data:`PINNED_OUT` (pinned in, pinned out: the device
+    then copies each chunk's results while it works on the next, with no host copy), else
+    None (numpy's memory)."""
+    if not PINNED_OUT:
+        return None
+    cp = require_cupy()
+    return _pinned_empty(cp) if _pinned(M, cp) else None
 
 
 def _staging(chunks: list[tuple[int, int]], out: StackOut, cp: Any) -> list[dict[str, Any]]:
@@ -464,4 +506,5 @@ def solve_many_device(M: Any, q: Any, method: str | None, *, tol: float | None,
 def backend() -> Backend:
     """The ``"cuda"`` backend; OptionError (:data:`NEEDS`) without CuPy or a device."""
     require_cupy()
-    return Backend("cuda", {"lemke": _host_kernel("lemke"), "sor": _host_kernel("sor")})
+    return Backend("cuda", {"lemke": _host_kernel("lemke"), "sor": _host_kernel("sor")},
+                   output_alloc)
