@@ -245,22 +245,28 @@ def solve_cone(M: np.ndarray, q: np.ndarray, code: int) -> tuple[np.ndarray, np.
     S = [j for j in range(n) if (code >> j) & 1]
     z = np.zeros(n)
     if S:
-        B = M[np.ix_(S, S)]
-        r = _unit_exponents(np.max(np.abs(B), axis=1))
-        Br = np.ldexp(B, -r[:, None])
-        c = _unit_exponents(np.max(np.abs(Br), axis=0))
-        Bs = np.ldexp(Br, -c[None, :])
-        rhs = np.ldexp(-q[S], -r)
-        try:
-            ys = np.linalg.solve(Bs, rhs)
-            ys = ys + np.linalg.solve(Bs, rhs - Bs @ ys)
-        except np.linalg.LinAlgError:
-            ys = np.full(len(S), np.nan)
-        z[S] = np.ldexp(ys, -c)
+        with np.errstate(all="ignore"):  # inf or NaN here ends in a failed certificate
+            z[S] = _solve_block(M[np.ix_(S, S)], q[S])
     with np.errstate(all="ignore"):
         w = M @ z + q
     w[S] = 0.0
     return z, w
+
+
+def _solve_block(B: np.ndarray, qS: np.ndarray) -> np.ndarray:
+    """``B^-1 (-qS)`` on ``B`` equilibrated by powers of two (rows, then columns), with one
+    refinement step; NaN when ``B`` is exactly singular."""
+    r = _unit_exponents(np.max(np.abs(B), axis=1))
+    Br = np.ldexp(B, -r[:, None])
+    c = _unit_exponents(np.max(np.abs(Br), axis=0))
+    Bs = np.ldexp(Br, -c[None, :])
+    rhs = np.ldexp(-qS, -r)
+    try:
+        ys = np.linalg.solve(Bs, rhs)
+        ys = ys + np.linalg.solve(Bs, rhs - Bs @ ys)
+    except np.linalg.LinAlgError:
+        ys = np.full(qS.shape[0], np.nan)
+    return np.ldexp(ys, -c)
 
 
 def _unit_exponents(big: np.ndarray) -> np.ndarray:
@@ -578,7 +584,8 @@ def _enumerate(problem: Any, *, stop_at_first: bool, all_cones: bool, max_n: int
 def _add_det(M: np.ndarray, cones: list[Cone]) -> list[Cone]:
     for c in cones:
         A = complementary_matrix(M, c.code)
-        c.det = float(np.linalg.det(A))
+        with np.errstate(over="ignore", under="ignore", invalid="ignore"):
+            c.det = float(np.linalg.det(A))  # past the float64 range: +-inf
         c.rank = int(np.linalg.matrix_rank(A))
     return cones
 
@@ -594,7 +601,8 @@ def all_cone_details(M: np.ndarray, q: np.ndarray, feasible: list[Cone]) -> list
         codes = np.arange(lo, min(lo + block, 1 << n), dtype=np.int64)
         bits = ((codes[:, None] >> np.arange(n)) & 1).astype(bool)  # (B, n)
         A = np.where(bits[:, None, :], -M[None, :, :], np.eye(n)[None, :, :])
-        dets = np.linalg.det(A)
+        with np.errstate(over="ignore", under="ignore", invalid="ignore"):
+            dets = np.linalg.det(A)  # past the float64 range: +-inf
         ranks = np.linalg.matrix_rank(A)
         for t, code in enumerate(codes.tolist()):
             if code in found:

@@ -85,8 +85,10 @@ class Scaling:
         return np.ldexp(np.asarray(w, dtype=np.float64), self.row.astype(np.int32))
 
     def unscale_w(self, wt: np.ndarray) -> np.ndarray:
-        """``w = D_r^-1 w~``."""
-        return np.ldexp(np.asarray(wt, dtype=np.float64), (-self.row).astype(np.int32))
+        """``w = D_r^-1 w~``; an entry past the float64 range becomes inf, without a warning
+        (its certificate fails)."""
+        with np.errstate(over="ignore"):
+            return np.ldexp(np.asarray(wt, dtype=np.float64), (-self.row).astype(np.int32))
 
     def farkas_back(self, yt: Any) -> np.ndarray:
         """A Farkas vector of the scaled problem in the units of the given one: ``y = D_r y~``

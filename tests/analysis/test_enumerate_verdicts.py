@@ -7,6 +7,7 @@ Checked independently: ``tests/references.py`` (``componentwise_error``, ``farka
 from __future__ import annotations
 
 import json
+import warnings
 
 import numpy as np
 from hypothesis import given, settings
@@ -29,10 +30,15 @@ def _pair(n: int) -> st.SearchStrategy:
 @settings(max_examples=300, deadline=None)
 @given(st.integers(1, 3).flatmap(_pair))
 def test_every_listed_solution_is_certified_and_every_proof_checks(data) -> None:
+    """... and no numpy warning escapes (the CLI would print each as a warning line), also
+    with every cone's details."""
     flat, q = data
     n = len(q)
     M, q = np.array(flat).reshape(n, n), np.array(q)
-    res = enumerate_cones(Problem.create(M, q))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        res = enumerate_cones(Problem.create(M, q))
+        enumerate_cones(Problem.create(M, q), all_cones=True)
     with np.errstate(all="ignore"):
         for sol in res.solutions:
             assert np.all(np.isfinite(sol.z))
