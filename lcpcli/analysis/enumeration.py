@@ -586,7 +586,7 @@ def _add_det(M: np.ndarray, cones: list[Cone]) -> list[Cone]:
         A = complementary_matrix(M, c.code)
         with np.errstate(over="ignore", under="ignore", invalid="ignore"):
             c.det = float(np.linalg.det(A))  # past the float64 range: +-inf
-        c.rank = int(np.linalg.matrix_rank(A))
+            c.rank = int(np.linalg.matrix_rank(A))
     return cones
 
 
@@ -603,7 +603,7 @@ def all_cone_details(M: np.ndarray, q: np.ndarray, feasible: list[Cone]) -> list
         A = np.where(bits[:, None, :], -M[None, :, :], np.eye(n)[None, :, :])
         with np.errstate(over="ignore", under="ignore", invalid="ignore"):
             dets = np.linalg.det(A)  # past the float64 range: +-inf
-        ranks = np.linalg.matrix_rank(A)
+            ranks = np.linalg.matrix_rank(A)
         for t, code in enumerate(codes.tolist()):
             if code in found:
                 c = found[code]

@@ -61,3 +61,13 @@ def test_the_issue_examples_are_not_solved_falsely(cli) -> None:
             with np.errstate(all="ignore"):
                 assert componentwise_error(np.array(M), np.array(q), z) <= 1e-8
         assert out.returncode == (0 if data["status"] == "solved" else 1)
+
+
+def test_the_cone_drawing_takes_data_near_the_float64_range(cli) -> None:
+    """n = 2 draws the cones: generators and q whose length is past the float64 range
+    (1.5e308 in both entries) are drawn by direction, with no warning line."""
+    for M, q in (([[1.5e308, 1.5e308], [1.5e308, -1.5e308]], [-1.5e308, 1.5e308]),
+                 ([[-1e300, 5e-324], [1.5e308, 1e308]], [1e-300, -1e308])):
+        out = cli("enumerate", "-", "--all-cones", stdin=json.dumps({"M": M, "q": q}))
+        assert out.returncode in (0, 1), out.stderr
+        assert "warning" not in out.stderr, out.stderr

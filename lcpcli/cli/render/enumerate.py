@@ -309,6 +309,27 @@ def text_grid(width: int, height: int) -> np.ndarray:
     return np.vstack([X.ravel(), Y.ravel()])
 
 
+def _unit(v: Any) -> np.ndarray | None:
+    """The direction of the 2-vector ``v`` (None for zero or non-finite), without overflow:
+    scaled by its largest entry before its length is taken."""
+    v = np.asarray(v, dtype=float)
+    big = float(np.max(np.abs(v)))
+    if not (0.0 < big < np.inf):
+        return None
+    s = v / big
+    return s / float(np.hypot(*s))
+
+
+def _length(v: Any) -> float:
+    """The length of the 2-vector ``v``, inf past the float64 range (never a warning)."""
+    v = np.asarray(v, dtype=float)
+    big = float(np.max(np.abs(v)))
+    if not (0.0 < big < np.inf):
+        return big
+    with np.errstate(over="ignore"):
+        return big * float(np.hypot(*(v / big)))
+
+
 def draw_cones_text(M: Any, q: Any, width: int = 49, height: int = 21,
                     path: list[dict[str, Any]] | None = None) -> Text:
     """Character drawing of the four complementary cones and q (directions only).
@@ -337,9 +358,9 @@ def draw_cones_text(M: Any, q: Any, width: int = 49, height: int = 21,
         return (int(round((R - y) / (2 * R) * (height - 1))),
                 int(round((x + R) / (2 * R) * (width - 1))))
 
-    gens = [(name, v) for name, v in generators_2d(M).items() if float(np.hypot(*v)) > 0]
-    for name, v in gens:  # all rays first, then every label on top of a clear margin
-        u = v / float(np.hypot(*v))
+    gens = [(name, u) for name, u in ((k, _unit(v)) for k, v in generators_2d(M).items())
+            if u is not None]
+    for name, u in gens:  # all rays first, then every label on top of a clear margin
         style = "bold cyan" if name.startswith("w") else "bold magenta"
         ang = float(np.degrees(np.arctan2(u[1], u[0]))) % 180.0
         ray = "─" if ang < 22.5 or ang >= 157.5 else "│" if 67.5 <= ang < 112.5 else (
@@ -347,21 +368,20 @@ def draw_cones_text(M: Any, q: Any, width: int = 49, height: int = 21,
         for t in np.linspace(0.08, 0.92, 40):
             canvas.put(*cell(*(t * u)), ray, style, fix=True)
     canvas.put(*cell(0.0, 0.0), "+", fix=True)
-    qn = float(np.hypot(*q))
+    qu = _unit(q)
     if path:
         for a, b in zip(path[:-1], path[1:], strict=True):
             pa, pb = np.asarray(a["point"]), np.asarray(b["point"])
             for s_ in np.linspace(0.0, 1.0, 60):
-                x = (1 - s_) * pa + s_ * pb
-                nx = float(np.hypot(*x))
-                if nx > 0:
-                    canvas.put(*cell(*(0.62 * x / nx)), "*", "bold red", fix=True)
-    for name, v in gens:
-        u = v / float(np.hypot(*v))
+                with np.errstate(over="ignore", invalid="ignore"):
+                    ux = _unit((1 - s_) * pa + s_ * pb)
+                if ux is not None:
+                    canvas.put(*cell(*(0.62 * ux)), "*", "bold red", fix=True)
+    for name, u in gens:
         style = "bold cyan" if name.startswith("w") else "bold magenta"
         r, c = cell(*(1.0 * u))
         canvas.place_label(r, c, name, style, right=u[0] < -0.3)
-    r, c = cell(*((0.75 * q / qn) if qn > 0 else np.zeros(2)))
+    r, c = cell(*((0.75 * qu) if qu is not None else np.zeros(2)))
     canvas.place_label(r, c, "q", "bold red", right=False)
     text = canvas.text()
     text.append("1-4: the one cone r holding the region   ", style="dim")
@@ -416,9 +436,9 @@ def cones_figure(M: Any, q: Any, title: str = "",
     M = np.asarray(M, dtype=float)
     q = np.asarray(q, dtype=float)
     gens = generators_2d(M)
-    extent = float(np.hypot(*q))
+    extent = _length(q)
     if path:
-        extent = max([extent] + [float(np.hypot(*p["point"])) for p in path])
+        extent = max([extent] + [_length(p["point"]) for p in path])
     R = max(1.0, extent) * 1.25
     fig, ax = plt.subplots(figsize=(6.4, 7.2))
     colours = ["tab:blue", "tab:orange", "tab:green", "tab:red"]
@@ -439,10 +459,10 @@ def cones_figure(M: Any, q: Any, title: str = "",
         ax.fill(poly[:, 0], poly[:, 1], color=colours[code], alpha=0.22, label=label)
     box = {"boxstyle": "round,pad=0.15", "fc": "white", "ec": "none", "alpha": 0.8}
     for name, v in gens.items():
-        norm = float(np.hypot(*v))
-        if norm == 0:
+        u = _unit(v)
+        if u is None:
             continue
-        u = v / norm * R * 0.8
+        u = u * R * 0.8
         ax.annotate("", xy=u, xytext=(0, 0),
                     arrowprops={"arrowstyle": "->", "color": "black", "lw": 1.2})
         tex = f"$I_{name[1]}$" if name[0] == "w" else f"$-M_{name[1]}$"
