@@ -124,13 +124,11 @@ def test_lane_groups_and_staging_change_no_answer(n, lanes, stage, monkeypatch):
         assert_same(solve_many(M, q, "lemke"), solve_many(M, q, "lemke", backend="cuda"))
 
 
-@pytest.mark.parametrize("staging", [True, False])
 @pytest.mark.parametrize("method", ["lemke", "pgs"])
-def test_host_stacks_in_many_chunks(staging, method, monkeypatch):
-    """A host stack cut into many chunks (two streams, outputs through the pinned slots or
-    straight into the caller's arrays) gives the CPU's answers and the one-chunk run's
-    numbers, every problem in its place: a stack of uneven length, so the last chunk is
-    short, with box bounds for PGS."""
+def test_host_stacks_in_many_chunks(method, monkeypatch):
+    """A host stack cut into many chunks (two streams) gives the CPU's answers and the
+    one-chunk run's numbers, every problem in its place: a stack of uneven length, so the
+    last chunk is short, with box bounds for PGS."""
     M, q = stack("mixed", 1001, 12, seed=11)
     bounds = {}
     if method == "pgs":
@@ -138,7 +136,6 @@ def test_host_stacks_in_many_chunks(staging, method, monkeypatch):
         bounds = {"lower": -np.ones(12), "upper": np.full(12, 0.5)}
     whole = solve_many(M, q, method, backend="cuda", **bounds)
     monkeypatch.setattr(cuda, "CHUNK_BYTES", 37 * 8 * 12 * 12)
-    monkeypatch.setattr(cuda, "OUTPUT_STAGING", staging)
     assert len(cuda._chunks(1001, 12)) == 28
     got = solve_many(M, q, method, backend="cuda", **bounds)
     assert_same(solve_many(M, q, method, **bounds), got)

@@ -399,17 +399,14 @@ def fake_device(monkeypatch):
     batched._LOADED.pop("cuda", None)
 
 
-@pytest.mark.parametrize("staging", [True, False])
 @pytest.mark.parametrize("chunked", [False, True])
 @pytest.mark.parametrize("variant", ["thread", "warp"])
 @pytest.mark.parametrize("kind", ["pd", "degenerate", "scaled", "mixed"])
 def test_cuda_backend_host_code_with_a_stand_in_device(fake_device, monkeypatch, kind, variant,
-                                                       chunked, staging):
+                                                       chunked):
     """Host arrays go in chunks on two streams (chunked: 7 problems a chunk, the last one
-    short; staging: outputs through the two pinned slots, or straight into the result's
-    arrays), device arrays in one launch: both give the CPU's answers."""
+    short), device arrays in one launch: both give the CPU's answers."""
     monkeypatch.setattr(cuda, "LEMKE_VARIANT", variant)
-    monkeypatch.setattr(cuda, "OUTPUT_STAGING", staging)
     if chunked:
         n = make(kind)[1].shape[1]
         monkeypatch.setattr(cuda, "CHUNK_BYTES", 7 * 8 * n * n)

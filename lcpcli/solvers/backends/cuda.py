@@ -69,19 +69,12 @@ EXTRA_OPTIONS: tuple[str, ...] = ()
 #: Host stacks go to the device in chunks of about this many bytes of M, on two streams, so
 #: that the copy of one chunk overlaps the kernel of the one before.
 CHUNK_BYTES = 128 << 20
-#: True: outputs of host stacks come back through two pinned buffers of one chunk each
-#: (copied asynchronously, then into the caller's arrays by the host while the device runs
-#: the next chunk); False: straight into the caller's (pageable) arrays, each copy blocking
-#: the host.  Speed only (tests run both).  On an H200 (benchmarks/README.md, two runs) the
-#: pinned slots were slower at n = 12 (84-88 ms against 74-80 ms for 10^6 problems: the
-#: host's copy into fresh result pages costs more than the driver's own staging) and even at
-#: n = 50 (60-66 ms either way), so they are off.
-OUTPUT_STAGING = False
 #: A host stack whose M is in pinned memory gets its results in pinned memory too (from
 #: CuPy's pinned memory pool; see :func:`output_alloc`); False: in numpy's memory.  Speed only.
+#: On an H200 (benchmarks/README.md) 27.5 ms against 66 ms for 10^6 problems of n = 12; two
+#: pinned slots of one chunk copied into numpy's memory by the host (tried) were slower than
+#: copying straight into it.
 PINNED_OUT = True
-#: The output arrays a kernel run fills (run_lemke's and run_sor's keys).
-OUTPUT_KEYS = ("z", "w", "code", "iterations", "error", "residual")
 #: DLPack device types of CUDA memory (kDLCUDA, kDLCUDAHost, kDLCUDAManaged).
 DLPACK_CUDA = (2, 3, 13)
 
@@ -321,33 +314,23 @@ def _host_kernel(name: str):  # noqa: ANN202 - a StackKernel
         K, n = np.shape(q)
         chunks = _chunks(K, n)
         streams = (cp.cuda.Stream(non_blocking=True), cp.cuda.Stream(non_blocking=True))
-        stage = _staging(chunks, out, cp) if OUTPUT_STAGING else None
-        direct = stage is None and _pinned(out.code, cp)  # outputs copied asynchronously
-        pending: list[tuple[Any, dict[str, Any], int, int, int, tuple[Any, Any]]] = []
+        direct = _pinned(out.code, cp)  # results in pinned memory: copied asynchronously
+        pending: list[tuple[Any, dict[str, Any], int, int, tuple[Any, Any]]] = []
 
         def collect() -> None:  # the oldest chunk's outputs to the caller's arrays
-            stream, o, a, b, slot, _inputs = pending.pop(0)  # inputs held until the kernel ran
-            if direct:  # its copies into the (pinned) result were queued after its kernel
-                stream.synchronize()
-                return
-            if stage is None:
+            stream, o, a, b, _inputs = pending.pop(0)  # inputs held until the kernel ran
+            if not direct:  # into numpy's memory: each copy blocks the host
                 with stream:
                     for key, arr in o.items():
                         arr.get(stream=stream, out=getattr(out, key)[a:b])
-                stream.synchronize()
-                return
-            stream.synchronize()  # its copies into the pinned slot are done
-            for key in o:
-                getattr(out, key)[a:b] = stage[slot][key][:b - a]
+            stream.synchronize()  # (direct: its copies were queued after its kernel)
 
-        # chunk c's copy in, kernel and copy out (into pinned slot c % 2) are queued on one
-        # stream while chunk c - 1 runs on the other; chunk c - 1's outputs then go from its
-        # slot into the caller's arrays on the host while the device works on chunk c
-        # (pinned inputs make the copies in asynchronous; pageable ones still work, with less
-        # overlap)
+        # chunk c's copy in and kernel are queued on one stream while chunk c - 1 runs on the
+        # other; pinned inputs make the copies in asynchronous (pageable ones still work, with
+        # less overlap), and pinned results let chunk c's copy out be queued after its kernel;
+        # into numpy's memory chunk c - 1's results are fetched after chunk c is queued
         for c, (a, b) in enumerate(chunks):
-            slot = c % 2
-            stream = streams[slot]
+            stream = streams[c % 2]
             with stream:
                 Md, qd = _copy_in(M[a:b], cp), _copy_in(q[a:b], cp)
                 if name == "lemke":
@@ -357,13 +340,10 @@ def _host_kernel(name: str):  # noqa: ANN202 - a StackKernel
                     up = None if upper is None else np.broadcast_to(upper, (K, n))[a:b]
                     o = run_sor(Md, qd, *_bounds(lo, up, b - a, n, cp), tol=tol,
                                 options=options)
-                if stage is not None:
-                    for key, arr in o.items():
-                        arr.get(stream=stream, out=stage[slot][key][:b - a], blocking=False)
-                elif direct:
+                if direct:
                     for key, arr in o.items():
                         arr.get(stream=stream, out=getattr(out, key)[a:b], blocking=False)
-            pending.append((stream, o, a, b, slot, (Md, qd)))
+            pending.append((stream, o, a, b, (Md, qd)))
             if len(pending) > 1:
                 collect()
         while pending:
@@ -402,22 +382,6 @@ def output_alloc(M: Any) -> Any:
         return None
     cp = require_cupy()
     return _pinned_empty(cp) if _pinned(M, cp) else None
-
-
-def _staging(chunks: list[tuple[int, int]], out: StackOut, cp: Any) -> list[dict[str, Any]]:
-    """Two pinned host buffers (from CuPy's pinned memory pool: reused across calls) holding
-    one chunk's outputs each, shaped and typed as ``out``'s arrays."""
-    rows = max((b - a for a, b in chunks), default=0)
-    slots = []
-    for _ in range(2):
-        slot = {}
-        for key in OUTPUT_KEYS:
-            like = getattr(out, key)
-            shape = (rows,) + like.shape[1:]
-            mem = cp.cuda.alloc_pinned_memory(max(1, int(np.prod(shape)) * like.itemsize))
-            slot[key] = np.ndarray(shape, like.dtype, buffer=mem)
-        slots.append(slot)
-    return slots
 
 
 class _HostRows:
