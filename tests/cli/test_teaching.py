@@ -382,3 +382,17 @@ def test_plot_with_lemke_path(cli, samples, tmp_path):
     assert p.returncode == 0, p.stderr
     assert target.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
+
+
+@pytest.mark.parametrize("extra", [[], ["-m", "murty"], ["-m", "dantzig"], ["-m", "pgs"],
+                                   ["--exact"]])
+def test_traces_of_data_at_the_ends_of_the_float64_range(cli, extra):
+    """A trace (and the plain table) of data near 1e308 or subnormal: exit 0 or 1 with the
+    trace, and no numpy warning line (intermediates past the range are inf or NaN, as in the
+    kernels, and the verdict is the certificate's)."""
+    for doc in ({"M": [[1e308, -1e308], [1e308, 1e308]], "q": [-1e308, 1e308]},
+                {"M": [[5e-324]], "q": [-5e-324]}):
+        for args in (["solve", "-", "--trace", *extra], ["solve", "-"]):
+            out = cli(*args, stdin=json.dumps(doc))
+            assert out.returncode in (0, 1), out.stderr
+            assert "warning" not in out.stderr, (args, out.stderr)

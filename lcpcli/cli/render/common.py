@@ -228,7 +228,8 @@ def solution_table(z: Any, w: Any, title: str | None = None) -> Table:
         if i < 0:
             table.add_row("...", f"({n - MAX_ROWS} rows not shown: use --json)", "", "")
             continue
-        table.add_row(str(i + 1), fmt(z[i]), fmt(w[i]), fmt(z[i] * w[i]))
+        # Python floats: a product past the float64 range is inf (or nan), with no warning
+        table.add_row(str(i + 1), fmt(z[i]), fmt(w[i]), fmt(float(z[i]) * float(w[i])))
     return table
 
 

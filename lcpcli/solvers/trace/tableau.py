@@ -85,8 +85,15 @@ def pivot_update(T: np.ndarray, qb: np.ndarray, r: int, c: int) -> None:
     """Pivot the dictionary ``x_B = qb + T x_N`` on ``(r, c)`` in place.
 
     The compiled kernels' operations in the same order (same rounding): the basic variable of
-    row ``r`` and the nonbasic variable of column ``c`` exchange places.
+    row ``r`` and the nonbasic variable of column ``c`` exchange places.  An entry past the
+    float64 range becomes inf or NaN without a warning, as in the kernels (the trace's verdict
+    is the certificate's).
     """
+    with np.errstate(all="ignore"):
+        _pivot_update(T, qb, r, c)
+
+
+def _pivot_update(T: np.ndarray, qb: np.ndarray, r: int, c: int) -> None:
     p = T[r, c]
     inv = 1 / p  # 1.0 / p for floats (same rounding), exact for fractions
     rowr = -T[r, :] * inv
