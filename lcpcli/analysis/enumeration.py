@@ -584,8 +584,8 @@ def _enumerate(problem: Any, *, stop_at_first: bool, all_cones: bool, max_n: int
 def _add_det(M: np.ndarray, cones: list[Cone]) -> list[Cone]:
     for c in cones:
         A = complementary_matrix(M, c.code)
-        with np.errstate(over="ignore", under="ignore", invalid="ignore"):
-            c.det = float(np.linalg.det(A))  # past the float64 range: +-inf
+        with np.errstate(all="ignore"):
+            c.det = float(np.linalg.det(A))  # past the float64 range: +-inf (or 0, nan)
             c.rank = int(np.linalg.matrix_rank(A))
     return cones
 
@@ -601,7 +601,7 @@ def all_cone_details(M: np.ndarray, q: np.ndarray, feasible: list[Cone]) -> list
         codes = np.arange(lo, min(lo + block, 1 << n), dtype=np.int64)
         bits = ((codes[:, None] >> np.arange(n)) & 1).astype(bool)  # (B, n)
         A = np.where(bits[:, None, :], -M[None, :, :], np.eye(n)[None, :, :])
-        with np.errstate(over="ignore", under="ignore", invalid="ignore"):
+        with np.errstate(all="ignore"):
             dets = np.linalg.det(A)  # past the float64 range: +-inf
             ranks = np.linalg.matrix_rank(A)
         for t, code in enumerate(codes.tolist()):
