@@ -61,28 +61,32 @@ class StackOut:
     pivot_basis: np.ndarray | None = None
 
     @classmethod
+    def empty(cls, K: int, n: int, certificates: bool = False,
+              pivot_basis: bool = False) -> StackOut:
+        return cls(np.zeros((K, n)), np.zeros((K, n)), np.full(K, KERNEL_RETRY, np.int8),
+                   np.zeros(K, np.int64), np.full(K, np.inf), np.full(K, np.nan),
+                   *_extras(K, n, certificates, pivot_basis))
+
+    @classmethod
     def unfilled(cls, K: int, n: int, alloc: Callable[[tuple[int, ...], Any], np.ndarray],
                  certificates: bool = False, pivot_basis: bool = False) -> StackOut:
         """Outputs whose six kernel arrays come from ``alloc(shape, dtype)`` with whatever they
         hold: for a backend whose kernels write every element of them (``cert`` and
         ``pivot_basis`` as :meth:`empty`)."""
-        base = cls.empty(0, n, certificates, pivot_basis)
         return cls(alloc((K, n), np.float64), alloc((K, n), np.float64), alloc((K,), np.int8),
                    alloc((K,), np.int64), alloc((K,), np.float64), alloc((K,), np.float64),
-                   None if base.cert is None else np.full((K, base.cert.shape[1]), np.nan),
-                   None if base.pivot_basis is None else np.full((K, n), -1, np.int8))
+                   *_extras(K, n, certificates, pivot_basis))
 
-    @classmethod
-    def empty(cls, K: int, n: int, certificates: bool = False,
-              pivot_basis: bool = False) -> StackOut:
-        cert = None
-        if certificates:
-            from lcpcli.solvers.kernels.batch import CERT_FIELDS
 
-            cert = np.full((K, CERT_FIELDS), np.nan)
-        return cls(np.zeros((K, n)), np.zeros((K, n)), np.full(K, KERNEL_RETRY, np.int8),
-                   np.zeros(K, np.int64), np.full(K, np.inf), np.full(K, np.nan), cert,
-                   np.full((K, n), -1, np.int8) if pivot_basis else None)
+def _extras(K: int, n: int, certificates: bool,
+            pivot_basis: bool) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """:class:`StackOut`'s ``cert`` and ``pivot_basis``, as asked: NaN rows, -1 rows."""
+    cert = None
+    if certificates:
+        from lcpcli.solvers.kernels.batch import CERT_FIELDS
+
+        cert = np.full((K, CERT_FIELDS), np.nan)
+    return cert, np.full((K, n), -1, np.int8) if pivot_basis else None
 
 
 #: A stacked kernel: ``kernel(M, q, lower, upper, *, tol, options, out, threads, scaling)``
