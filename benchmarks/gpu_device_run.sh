@@ -6,7 +6,8 @@
 # signature, BASELINE, at n = 12 and 50 in the same run); the benchmark with the sweep's best
 # table; then, as asked: PROFILE=1 Nsight Compute on one launch
 # per size (benchmarks/gpu_profile.py), TESTS=1 the GPU tests, SANITIZE=1 compute-sanitizer.
-#     OUT=/tmp/gpu [BASELINE=old/lcp_stack.h] [ROWS="8 4"] [PROFILE=1] [TESTS=1] [SANITIZE=1] \
+#     OUT=/tmp/gpu [BASELINE=old/lcp_stack.h] [ROWS="8 4"] [BLOCKS=1,2] [WARPS=8,1] [PROFILE=1] \
+#         [TESTS=1] [SANITIZE=1] \
 #         bash benchmarks/gpu_device_run.sh
 # Everything but the last lines printed goes to $OUT/run.tar.gz.
 set -u
@@ -53,6 +54,7 @@ first=1
 for set in $SETS; do
     if [ $first = 1 ]; then
         timeout 200 $PY benchmarks/gpu_sweep.py --cubins "$CUB/$set" --blocks "${BLOCKS:-1,2,3,4}" \
+            ${WARPS:+--warps "$WARPS"} \
             --out "$R/gpu_sweep_$set.json" --table-out "$R/warp_table.json" 2>&1 \
             | grep -v '"min_blocks": [0-9], "lanes"' | tail -6 | cut -c1-400
     else
