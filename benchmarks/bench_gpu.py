@@ -37,6 +37,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _gpu import use_cubins  # noqa: E402
 from _results import write_cases  # noqa: E402
 from bench_stack import make_stack  # noqa: E402
 
@@ -292,18 +293,7 @@ def main() -> None:
         from lcpcli.solvers.backends import cuda
 
         if args.cubins is not None:  # modules built ahead: the package's lookup returns them
-            modules = {}
-            for mb in (1, 2, 3, 4):
-                path = args.cubins / f"mb{mb}.cubin"
-                if path.exists():
-                    modules[(f"-DLCP_WARP_MIN_BLOCKS={mb}",)] = cp.RawModule(path=str(path))
-            modules[()] = modules.get(("-DLCP_WARP_MIN_BLOCKS=1",))
-            nvrtc = cuda._module
-
-            def lookup(device: int, extra: tuple[str, ...] = ()):  # noqa: ANN202
-                return modules[extra] if modules.get(extra) is not None else \
-                    nvrtc(device, extra)
-            cuda._module = lookup
+            use_cubins(args.cubins)
         info.update(device=props["name"].decode(), cupy=cp.__version__,
                     warp_table=cuda.WARP_TABLE)
         stacks = {12: 1_000_000, 24: 300_000, 32: 200_000, 50: 100_000}

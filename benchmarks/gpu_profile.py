@@ -18,6 +18,7 @@ import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _gpu import use_cubins  # noqa: E402
 from bench_stack import make_stack  # noqa: E402
 
 from lcpcli.solvers.backends import cuda  # noqa: E402
@@ -33,17 +34,7 @@ def main() -> None:
     import cupy as cp
 
     if args.cubins is not None:
-        modules = {}
-        for mb in (1, 2, 3, 4):
-            path = args.cubins / f"mb{mb}.cubin"
-            if path.exists():
-                key = () if mb == 1 else (f"-DLCP_WARP_MIN_BLOCKS={mb}",)
-                modules[key] = cp.RawModule(path=str(path))
-        nvrtc = cuda._module
-
-        def lookup(device: int, extra: tuple[str, ...] = ()):  # noqa: ANN202
-            return modules[extra] if extra in modules else nvrtc(device, extra)
-        cuda._module = lookup
+        use_cubins(args.cubins)
     spec = get_method("lemke")
     for pair in args.sizes.split(","):
         n, K = (int(x) for x in pair.split(":"))

@@ -1,7 +1,7 @@
-"""The warp kernel's speed choices on a CUDA device, against the kernel of an earlier commit.
+"""The warp kernel's speed choices on a CUDA device, each checked against the first and the CPU.
 
     PYTHONPATH=. python benchmarks/gpu_sweep.py --out "$OUT/gpu_sweep.json" \
-        [--cubins DIR] [--old-cubins DIR] [--sizes 12,24,32,50]
+        [--cubins DIR] [--sizes 12,24,32,50]
 
 For random positive definite stacks (benchmarks/bench_stack.py's ``make_stack``, the sizes of
 benchmarks/bench_gpu.py), Lemke with the certificate on data already on the device (CUDA
@@ -20,9 +20,9 @@ Every combination must give the first one's z, w, code, pivots, error and residu
 bit (``same``), and the first one the CPU's status, z and pivots on a sample (``cpu``).
 ``--cubins DIR``: modules built ahead with nvcc (``mb1.cubin`` ... ``mb4.cubin``: the
 current ``lcp_stack.h`` with ``-DLCP_WARP_MIN_BLOCKS=k``), so that the sweep does not wait on
-NVRTC; without it each budget is compiled by NVRTC as the package does.  ``--old-cubins DIR``:
-the same builds of an earlier ``lcp_stack.h`` (whose warp kernel has one warp per problem and
-takes ``(use_shared, work, iwork)``), run in the same process as the baseline.
+NVRTC; without it each budget is compiled by NVRTC as the package does.
+An earlier ``lcp_stack.h`` of the same kernel signature is compared by sweeping its own
+build (``gpu_device_run.sh``'s ``BASELINE``).
 """
 
 from __future__ import annotations
@@ -37,12 +37,12 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _gpu import use_cubins  # noqa: E402
 from _results import write_cases  # noqa: E402
 from bench_stack import make_stack  # noqa: E402
 
 import lcpcli  # noqa: E402
 from lcpcli.solvers.backends import cuda  # noqa: E402
-from lcpcli.solvers.backends.c import lemke_args  # noqa: E402
 from lcpcli.solvers.batched import KERNEL_SOLVED  # noqa: E402
 from lcpcli.solvers.registry import get_method  # noqa: E402
 
@@ -62,35 +62,7 @@ def timed(cp, fn, repeat: int) -> float:  # noqa: ANN001
     return best
 
 
-def old_launch(cp, mod, Md, qd, tol: float, scaling: str):  # noqa: ANN001, ANN201
-    """The earlier warp kernel (one warp per problem), launched as its backends/cuda.py did."""
-    K, n = qd.shape
-    a = lemke_args(n, {}, scaling)
-    tdw, tiw = n * (n + 1) + 4 * n + 1, 4 * n + 6
-    dw, iw = tdw + 3 * n * n + 11 * n, tiw + 10 * n
-    per_warp = 8 * (tdw + tiw)
-    use_shared = per_warp <= cuda.SHARED_BYTES
-    wpb = max(1, min(cuda.WARPS_PER_BLOCK, cuda.SHARED_BYTES // per_warp)) if use_shared else 4
-    blocks = cuda._grid(K, 8 * (dw + iw), wpb, cp)
-    o = cuda._outputs(K, n, cp)
-    work = cp.empty(blocks * wpb * dw, cp.float64)
-    iwork = cp.empty(blocks * wpb * iw, cp.int64)
-    d = cp.ones(n)
-    bal = a["balance"] or (-1, 0, 0)
-    fn = mod.get_function("lcp_lemke_warp_stack")
-    shared = wpb * per_warp if use_shared else 0
-    if shared > 48 << 10:
-        fn.max_dynamic_shared_size_bytes = shared
-    fn((blocks,), (32 * wpb,),
-       (np.int64(K), np.int64(n), Md, qd, np.int32(0), d, np.int64(a["max_iter"]),
-        np.float64(a["piv_tol"]), np.float64(a["tie_tol"]), np.float64(tol),
-        np.float64(a["polished"]), np.int32(bal[0]), np.int32(bal[1]), np.int32(bal[2]),
-        np.int32(use_shared), work, iwork, o["z"], o["w"], o["code"], o["iterations"],
-        o["error"], o["residual"]), shared_mem=shared)
-    return o
-
-
-def sweep(n: int, K: int, args: argparse.Namespace, modules: dict, old: dict) -> dict:
+def sweep(n: int, K: int, args: argparse.Namespace) -> dict:
     import cupy as cp
 
     spec = get_method("lemke")
@@ -138,20 +110,6 @@ def sweep(n: int, K: int, args: argparse.Namespace, modules: dict, old: dict) ->
         del o, res["o"]
         out["configs"].append(row)
         print(json.dumps({"n": n, **row}), flush=True)
-    for mb, mod in sorted(old.items()):
-        res = {}
-
-        def run_old(res=res, mod=mod) -> None:  # noqa: ANN001
-            res["o"] = old_launch(cp, mod, Md, qd, tol, spec.scaling)
-        secs = timed(cp, run_old, args.repeat)
-        o = res["o"]
-        certified = int((o["code"] == KERNEL_SOLVED).sum())
-        row = {"min_blocks": mb, "kernel_s": secs, "certified_per_s": certified / secs,
-               "same": all(np.array_equal(o[k].get(), first[k], equal_nan=True)
-                           for k in KEYS)}
-        out.setdefault("old", []).append(row)
-        print(json.dumps({"n": n, "old": row}), flush=True)
-        del o, res["o"]
     cuda.WARPS_PER_BLOCK = shipped_warps
     good = [c for c in out["configs"] if c["same"]]
     shipped = [c for c in good if c["warps_asked"] == shipped_warps]  # what the table can say
@@ -159,8 +117,6 @@ def sweep(n: int, K: int, args: argparse.Namespace, modules: dict, old: dict) ->
         out["best"] = max(shipped, key=lambda c: c["certified_per_s"])
     if good:
         out["best_any_warps"] = max(good, key=lambda c: c["certified_per_s"])
-    if out.get("old"):
-        out["best_old"] = max(out["old"], key=lambda c: c["certified_per_s"])
     Md = qd = None  # noqa: F841 - the stack's device memory back before the next size
     cp.get_default_memory_pool().free_all_blocks()
     return out
@@ -178,7 +134,6 @@ def main() -> None:
     ap.add_argument("--sample", type=int, default=20_000)
     ap.add_argument("--scale", type=float, default=1.0, help="multiply every K by this")
     ap.add_argument("--cubins", type=Path, default=None)
-    ap.add_argument("--old-cubins", type=Path, default=None)
     ap.add_argument("--table-out", type=Path, default=None,
                     help="the WARP_TABLE the best rows make (JSON), for bench_gpu.py --table")
     args = ap.parse_args()
@@ -187,36 +142,18 @@ def main() -> None:
         [int(w) for w in args.warps.split(",")]
     import cupy as cp
 
-    modules: dict = {}
-    if args.cubins is not None:  # modules built ahead: the package's lookup returns them
-        for mb in args.blocks:
-            path = args.cubins / f"mb{mb}.cubin"
-            if path.exists():
-                modules[(f"-DLCP_WARP_MIN_BLOCKS={mb}",)] = cp.RawModule(path=str(path))
-        nvrtc = cuda._module
-
-        def lookup(device: int, extra: tuple[str, ...] = ()):  # noqa: ANN202
-            return modules[extra] if extra in modules else nvrtc(device, extra)
-        cuda._module = lookup
-    old = {}
-    if args.old_cubins is not None:
-        for mb in args.blocks:
-            path = args.old_cubins / f"mb{mb}.cubin"
-            if path.exists():
-                old[mb] = cp.RawModule(path=str(path))
+    modules = {} if args.cubins is None else use_cubins(args.cubins)
     props = cp.cuda.runtime.getDeviceProperties(cp.cuda.Device().id)
     info = {"date": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
             "device": props["name"].decode(), "cupy": cp.__version__,
-            "prebuilt": sorted(" ".join(k) for k in modules), "old": sorted(old)}
+            "prebuilt": sorted(" ".join(k) for k in modules)}
     print(json.dumps(info), flush=True)
     cases = []
     for n in (int(x) for x in args.sizes.split(",")):
         t = time.perf_counter()
-        cases.append(sweep(n, max(1, int(STACKS.get(n, 100_000) * args.scale)), args, modules,
-                           old))
+        cases.append(sweep(n, max(1, int(STACKS.get(n, 100_000) * args.scale)), args))
         cases[-1]["seconds"] = time.perf_counter() - t
-        print(json.dumps({"n": n, "best": cases[-1].get("best"),
-                          "best_old": cases[-1].get("best_old")}), flush=True)
+        print(json.dumps({"n": n, "best": cases[-1].get("best")}), flush=True)
     rows = [[c["n"], c["best"]["lanes"], c["best"]["stage"], c["best"]["min_blocks"]]
             for c in cases if c.get("best")]
     if rows:
