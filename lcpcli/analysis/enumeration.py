@@ -630,6 +630,26 @@ def _unit(v: np.ndarray) -> np.ndarray:
     return v / peak if peak > 0 else v
 
 
+def direction_2d(v: Any) -> np.ndarray | None:
+    """The unit-length direction of the 2-vector ``v`` (None for zero or non-finite), without
+    overflow: scaled to unit largest entry (:func:`_unit`) before its length is taken."""
+    v = np.asarray(v, dtype=float)
+    if not np.all(np.isfinite(v)) or not np.any(v):
+        return None
+    s = _unit(v)
+    return s / float(np.hypot(*s))
+
+
+def length_2d(v: Any) -> float:
+    """The length of the 2-vector ``v`` (inf past the float64 range, with no warning)."""
+    v = np.asarray(v, dtype=float)
+    peak = float(np.max(np.abs(v)))
+    if not (0.0 < peak < np.inf):
+        return peak
+    with np.errstate(over="ignore"):
+        return peak * float(np.hypot(*_unit(v)))
+
+
 def unit_columns_2d(A: np.ndarray) -> np.ndarray:
     """The 2 x 2 ``A`` with each column scaled to unit largest entry: cone membership does not
     change when a generator is scaled by a positive factor, so the tests on the result are

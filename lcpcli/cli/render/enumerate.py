@@ -30,7 +30,9 @@ from lcpcli.analysis.enumeration import (
     complementary_matrix,
     cone_interiors_2d,
     degenerate_2d,
+    direction_2d,
     generators_2d,
+    length_2d,
 )
 from lcpcli.cli.render.common import fit, fmt
 from lcpcli.cli.render.doc import Grid, Heading, Page, Para
@@ -309,27 +311,6 @@ def text_grid(width: int, height: int) -> np.ndarray:
     return np.vstack([X.ravel(), Y.ravel()])
 
 
-def _unit(v: Any) -> np.ndarray | None:
-    """The direction of the 2-vector ``v`` (None for zero or non-finite), without overflow:
-    scaled by its largest entry before its length is taken."""
-    v = np.asarray(v, dtype=float)
-    big = float(np.max(np.abs(v)))
-    if not (0.0 < big < np.inf):
-        return None
-    s = v / big
-    return s / float(np.hypot(*s))
-
-
-def _length(v: Any) -> float:
-    """The length of the 2-vector ``v``, inf past the float64 range (never a warning)."""
-    v = np.asarray(v, dtype=float)
-    big = float(np.max(np.abs(v)))
-    if not (0.0 < big < np.inf):
-        return big
-    with np.errstate(over="ignore"):
-        return big * float(np.hypot(*(v / big)))
-
-
 def draw_cones_text(M: Any, q: Any, width: int = 49, height: int = 21,
                     path: list[dict[str, Any]] | None = None) -> Text:
     """Character drawing of the four complementary cones and q (directions only).
@@ -358,7 +339,7 @@ def draw_cones_text(M: Any, q: Any, width: int = 49, height: int = 21,
         return (int(round((R - y) / (2 * R) * (height - 1))),
                 int(round((x + R) / (2 * R) * (width - 1))))
 
-    gens = [(name, u) for name, u in ((k, _unit(v)) for k, v in generators_2d(M).items())
+    gens = [(name, u) for name, u in ((k, direction_2d(v)) for k, v in generators_2d(M).items())
             if u is not None]
     for name, u in gens:  # all rays first, then every label on top of a clear margin
         style = "bold cyan" if name.startswith("w") else "bold magenta"
@@ -368,13 +349,13 @@ def draw_cones_text(M: Any, q: Any, width: int = 49, height: int = 21,
         for t in np.linspace(0.08, 0.92, 40):
             canvas.put(*cell(*(t * u)), ray, style, fix=True)
     canvas.put(*cell(0.0, 0.0), "+", fix=True)
-    qu = _unit(q)
+    qu = direction_2d(q)
     if path:
         for a, b in zip(path[:-1], path[1:], strict=True):
             pa, pb = np.asarray(a["point"]), np.asarray(b["point"])
             for s_ in np.linspace(0.0, 1.0, 60):
                 with np.errstate(over="ignore", invalid="ignore"):
-                    ux = _unit((1 - s_) * pa + s_ * pb)
+                    ux = direction_2d((1 - s_) * pa + s_ * pb)
                 if ux is not None:
                     canvas.put(*cell(*(0.62 * ux)), "*", "bold red", fix=True)
     for name, u in gens:
@@ -436,9 +417,9 @@ def cones_figure(M: Any, q: Any, title: str = "",
     M = np.asarray(M, dtype=float)
     q = np.asarray(q, dtype=float)
     gens = generators_2d(M)
-    extent = _length(q)
+    extent = length_2d(q)
     if path:
-        extent = max([extent] + [_length(p["point"]) for p in path])
+        extent = max([extent] + [length_2d(p["point"]) for p in path])
     R = max(1.0, extent) * 1.25
     fig, ax = plt.subplots(figsize=(6.4, 7.2))
     colours = ["tab:blue", "tab:orange", "tab:green", "tab:red"]
@@ -459,7 +440,7 @@ def cones_figure(M: Any, q: Any, title: str = "",
         ax.fill(poly[:, 0], poly[:, 1], color=colours[code], alpha=0.22, label=label)
     box = {"boxstyle": "round,pad=0.15", "fc": "white", "ec": "none", "alpha": 0.8}
     for name, v in gens.items():
-        u = _unit(v)
+        u = direction_2d(v)
         if u is None:
             continue
         u = u * R * 0.8
