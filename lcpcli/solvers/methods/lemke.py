@@ -79,15 +79,17 @@ def run(problem: Any, *, tol: float, covering: np.ndarray | None = None,
     d = covering_vector(n, covering)
     limit = max_iter or default_max_iter(n)
     if trace:
+        from lcpcli.solvers.trace import Recorder
         from lcpcli.solvers.trace.lemke import lemke_traced
 
-        status, z, pivots, basic, ray_dz, _, z0, steps = lemke_traced(
+        recorder = Recorder(lemke_traced)  # as the other replicas: the kernel's fp rules
+        status, z, pivots, basic, ray_dz, _, z0 = recorder(
             M, q, np.ones(n) if d is None else d, limit, PIVOT_TOL, TIE_TOL)
         if status == OK:
             z = polish(M, q, z, basic)
         out = finish(problem, M, q, status, z, int(pivots), basic_z(basic, n), ray_dz,
                      float(z0), limit)
-        out.trace = steps
+        out.trace = recorder.trace
         return out
     # kernel and final polish in one compiled call
     status, z, pivots, basis, ray_dz, z0 = lemke_solve(M, q, d, limit, PIVOT_TOL, TIE_TOL)
