@@ -614,8 +614,3 @@ def open_writer(path: str | os.PathLike[str], *, resume: bool = False,
         raise OptionError(f"--output {path}: an .npz result file is written for stacked inputs "
                           f"only (see docs/batch.md); use .jsonl, .csv or .h5")
     return Hdf5Writer(path, resume)
-
-
-def done_keys(path: str | os.PathLike[str]) -> set[tuple[str, str]]:
-    """The ``(source, problem)`` pairs already in a result file (for ``--resume``)."""
-    return {row_key(r) for r in read_rows(path)}

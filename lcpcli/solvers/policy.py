@@ -188,9 +188,6 @@ def table_key(kind: str, regime: Regime,
     return (kind, regime.name, tuple(map(id, registry.values())))
 
 
-_ORDER_CACHE: dict[tuple[Any, ...], list[Row]] = {}
-
-
 def _table(kind: str, regime: Regime, registry: Mapping[str, Method] | None) -> list[Row]:
     """The ordered rows (memoised by :func:`table_key`; None: the live registry)."""
     key = table_key(kind, regime, registry)

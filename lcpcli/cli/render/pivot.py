@@ -11,11 +11,9 @@ from __future__ import annotations
 
 from typing import Any
 
-from rich.console import Group
-
 from lcpcli.analysis.pivoting import ARTIFICIAL
 from lcpcli.cli.render.common import fmt
-from lcpcli.cli.render.doc import Grid, Heading, Items, Page, Para, to_rich
+from lcpcli.cli.render.doc import Grid, Heading, Items, Page, Para
 from lcpcli.solvers.trace.tableau import TableauView, canonical_key, tableau_view
 
 
@@ -358,11 +356,6 @@ def step_labels(trace: list[dict[str, Any]]) -> list[str]:
     """Names of the pages of :func:`step_pages` on the ``--step`` screen."""
     word = "sweep" if trace_kind(trace) == "sweep" else "step"
     return [f"{word} {k}" for k in step_numbers(trace)]
-
-
-def render_trace(trace: list[dict[str, Any]], n: int = 0, layout: str = "dictionary") -> Group:
-    """The whole trace on the terminal."""
-    return to_rich(full_pages(trace, layout))
 
 
 # ------------------------------------------------------------------------------- pivot
