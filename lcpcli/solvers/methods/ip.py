@@ -83,12 +83,18 @@ def _max_step(x: np.ndarray, dx: np.ndarray) -> float:
     neg = dx < 0
     if not np.any(neg):
         return 1.0
-    with np.errstate(over="ignore"):  # a tiny dx_i: no bound from that entry (Inf)
-        return float(min(1.0, np.min(-x[neg] / dx[neg])))
+    return float(min(1.0, np.min(-x[neg] / dx[neg])))  # a tiny dx_i: Inf, no bound
 
 
 def run(problem: Any, *, tol: float, max_iter: int | None = None) -> Outcome:
-    """Mehrotra predictor-corrector on a monotone LCP; see the module docstring."""
+    """Mehrotra predictor-corrector on a monotone LCP; see the module docstring.  Floating-point
+    exceptions are quiet (not numpy warnings, which the CLI would print): a step that is not
+    finite ends the run (termination ``numerical``), as does a divergence."""
+    with np.errstate(all="ignore"):
+        return _run(problem, tol, max_iter)
+
+
+def _run(problem: Any, tol: float, max_iter: int | None) -> Outcome:
     n = problem.n
     q = problem.q
     if n == 0 or np.min(q) >= 0:
