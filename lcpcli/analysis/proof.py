@@ -247,21 +247,23 @@ def _refine(M: np.ndarray, y: np.ndarray, lo: np.ndarray, up: np.ndarray) -> np.
     """One least-squares correction of ``y``'s support so that the sign constraints on
     ``g = M^T y`` that are nearly active (``|g_i|`` below 2^-20 of ``(|M|^T |y|)_i``) hold with
     equality to working accuracy (a ray or an LP vertex carries its own rounding or the LP's
-    feasibility tolerance)."""
+    feasibility tolerance).  Floating-point exceptions are quiet (data near the float64 range
+    overflow the sums): the corrected vector passes :func:`check_farkas` or is not used."""
     S = np.flatnonzero(y)
     if S.size == 0:
         return y
-    g = M.T @ y
-    a = np.abs(M).T @ np.abs(y)
-    T = np.flatnonzero(np.abs(g) <= 2.0 ** -20 * a)
-    if T.size == 0:
-        return y
-    A = M[np.ix_(S, T)].T
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        d = np.linalg.lstsq(A, A @ y[S], rcond=None)[0]
-    out = y.copy()
-    out[S] = y[S] - d
+    with np.errstate(all="ignore"):
+        g = M.T @ y
+        a = np.abs(M).T @ np.abs(y)
+        T = np.flatnonzero(np.abs(g) <= 2.0 ** -20 * a)
+        if T.size == 0:
+            return y
+        A = M[np.ix_(S, T)].T
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            d = np.linalg.lstsq(A, A @ y[S], rcond=None)[0]
+        out = y.copy()
+        out[S] = y[S] - d
     return _project(out, lo, up, M)
 
 
