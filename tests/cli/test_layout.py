@@ -22,6 +22,7 @@ from lcpcli.api import solve
 from lcpcli.cli.render.common import fit, fit_table, fmt, render_methods, render_result
 from lcpcli.cli.render.pivot import full_pages, step_pages
 from lcpcli.core.errors import OptionError
+from lcpcli.core.problem import Problem
 from lcpcli.io import load
 from lcpcli.solvers.trace.exact import EXACT_METHODS, exact_trace, wants_exact
 
@@ -177,6 +178,20 @@ def test_wide_tableau_splits_into_column_blocks_with_a_note():
     for row in values:
         for v in row[1:]:
             assert v in text
+
+
+@pytest.mark.parametrize("width", WIDTHS)
+def test_a_title_wider_than_its_table_is_not_wrapped_at_the_table(width):
+    """The result table of n = 1 under its 58-character title: the title on one line (rich
+    wrapped it at the table's 30 columns, "(n =" on one line and "1)" on the next)."""
+    prob = Problem.create([[-1.0]], [-1.0])  # no solution; PGS's last point is shown
+    res = solve(prob, "pgs", max_iter=3)
+    text = render(render_result(res, prob, "-"), width)
+    assert_fits(text, width, "title")
+    title = "last point, not a solution (the certificate fails) (n = 1)"
+    if width >= len(title):
+        assert title in [line.rstrip() for line in text.splitlines()]
+    assert "(n =\n" not in text and "(n = 1)" in " ".join(text.split())
 
 
 @pytest.mark.parametrize("width", WIDTHS)

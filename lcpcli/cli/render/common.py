@@ -96,7 +96,9 @@ def fit_table(table: Table, console: Console,
     table is split into column blocks, as printed books do with wide tableaux: each block
     repeats the first column (the row names), a note above them says so and each block's
     title names its columns.
-    Only a single word wider than the whole screen is folded (broken, never elided).
+    Only a single word wider than the whole screen is folded (broken, never elided).  A title
+    wider than its table is printed above it, wrapped at the screen's width only (rich wraps
+    a title at the table's: "... (n =" over "1)").
     """
     width = options.max_width
     n = len(table.columns)
@@ -107,9 +109,14 @@ def fit_table(table: Table, console: Console,
     budget = width - table._extra_width - sum(pads)
     widths = _allocate(mins, maxs, budget)
     if widths is not None:
-        if widths == maxs:
-            return [table]
-        return [_with_columns(table, list(range(n)), widths, table.title, fold=True)]
+        fitted = table if widths == maxs else \
+            _with_columns(table, list(range(n)), widths, table.title, fold=True)
+        title = table.title
+        if isinstance(title, str) and len(title) > sum(widths) + table._extra_width + sum(pads):
+            untitled = copy.copy(fitted)
+            untitled.title = None
+            return [Text(title, style="table.title", justify=table.title_justify), untitled]
+        return [fitted]
     edge = 2 if table.box and table.show_edge else 0
     sep = 1 if table.box else 0
     pad = max(pads) if pads else 0
