@@ -50,12 +50,28 @@ def solve_checked(case: Case, method: str, sparse: bool = False) -> None:
     check_verdict(case, res.status, res.message, method, res.info)
 
 
+def _row_scaled_lcp(base: list[list[int]], q: list[int], exps: list[int]) -> Case:
+    """The LCP ``diag(2^exps) (base, q)`` (row scaling by powers of two: exact), infeasible."""
+    e = np.array(exps)
+    return Case("infeasible", "lcp", np.ldexp(np.array(base, float), e[:, None]),
+                np.ldexp(np.array(q, float), e), row_exp=e, col_exp=np.zeros(len(q), np.int64),
+                solvable=False)
+
+
+#: A weighted graph's Laplacian with sum(q) < 0, rows scaled up to 2^+-956: the interior
+#: point's centring cubed a ratio near 1e103 (OverflowError, exit 3 through `lcpcli solve`).
+IP_CUBE_OVERFLOW = _row_scaled_lcp(
+    [[14, -3, -1, -3, -2, -2, -3], [-3, 11, -3, -3, -1, -1, 0], [-1, -3, 8, -1, 0, 0, -3],
+     [-3, -3, -1, 7, 0, 0, 0], [-2, -1, 0, 0, 5, 0, -2], [-2, -1, 0, 0, 0, 5, -2],
+     [-3, 0, -3, 0, -2, -2, 10]], [-2, -4, 0, -2, -1, -1, 3],
+    [33, 580, -486, -956, -356, -432, 522])
+
+
 @SETTINGS
 @given(case=cases(max_n=8), sparse=st.booleans())
 # the interior point's step on w = -z - 3 is not finite (a numpy warning before)
-@example(case=Case("infeasible", "lcp", np.array([[-1.0]]), np.array([-3.0]),
-                  row_exp=np.zeros(1, np.int64), col_exp=np.zeros(1, np.int64),
-                  solvable=False), sparse=False)
+@example(case=_row_scaled_lcp([[-1]], [-3], [0]), sparse=False)
+@example(case=IP_CUBE_OVERFLOW, sparse=False)  # the interior point's centring cubed 1e103
 def test_every_method_answers_every_valid_problem(case: Case, sparse: bool) -> None:
     for method in METHODS[case.kind]:
         solve_checked(case, method, sparse)

@@ -163,7 +163,10 @@ def _run(problem: Any, tol: float, max_iter: int | None) -> Outcome:
         dw_a = matvec(dz_a) + r
         a_aff = min(_max_step(z, dz_a), _max_step(w, dw_a))
         gap_aff = float((z + a_aff * dz_a) @ (w + a_aff * dw_a)) / n
-        sigma = min(1.0, (gap_aff / gap) ** 3) if gap > 0 else 0.0
+        ratio = gap_aff / gap if gap > 0 else 0.0
+        # Python floats: a ratio past 1 (or NaN) centres fully, and is never cubed (its cube
+        # may overflow: OverflowError, where numpy would give inf)
+        sigma = ratio ** 3 if ratio < 1.0 else 1.0
         rhs = (-z * w - dz_a * dw_a + sigma * gap) / z - r
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
