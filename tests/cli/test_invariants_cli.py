@@ -186,9 +186,11 @@ def test_enumerate_and_info_json(tmp_path: Path, case: Case) -> None:
     file, _ = write_problem(case, folder, "json")
     code, out, err = cli("info", file, "--json")
     assert code == 0, err
+    assert "lcpcli: warning" not in err, err
     strict_json(out)
     code, out, err = cli("enumerate", file, "--json")
     assert code in (0, 1), err
+    assert "lcpcli: warning" not in err, err
     res = strict_json(out)
     assert code == (0 if res["solutions"] else 1)
     for sol in res["solutions"]:  # listed solutions are certified ones
