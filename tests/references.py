@@ -122,16 +122,26 @@ def _dense_data(M: Any, q: Any, x: Any, lo: Any, up: Any, n_eq: int) -> tuple[np
     return M, q, np.asarray(x, dtype=float), lo, up
 
 
+#: Costs of two states within this relative distance are a tie at the rounding level (see
+#: ``prefer`` of :func:`componentwise_error`).
+NEAR_TIE = 2.0 ** -40
+
+
 def componentwise_error(M: Any, q: np.ndarray, z: np.ndarray, lo: np.ndarray | None = None,
                         up: np.ndarray | None = None, n_eq: int = 0,
-                        w: np.ndarray | None = None) -> float:
+                        w: np.ndarray | None = None,
+                        prefer: np.ndarray | None = None) -> float:
     """The certificate's ``error``, re-implemented independently (dense numpy, plain loops).
 
     Same definition as :mod:`lcpcli.core.certificate`, written differently on purpose: every
     pair's states are enumerated explicitly, and the blocks of coupled rows are found by a
     breadth-first search over an explicit graph instead of union-find.  Slow; for tests only.
     ``w``: use this ``M z + q`` (e.g. the exact one, rounded once) instead of the one computed
-    here in floating point.
+    here in floating point.  ``prefer``: a state per pair (the kernel's codes: 0 ``L``, 1 ``U``,
+    2 ``F``), taken when its cost is within :data:`NEAR_TIE` (relative) of the best: two
+    states whose costs differ by an ulp are a tie that either rounding may break, and the state
+    decides which rows anchor a block's growth (the error then differs by more than the ulp).
+    A preferred state that costs more than that is not taken.
     """
     M, q, z, lo, up = _dense_data(M, q, z, lo, up, n_eq)
     n = q.size
@@ -181,6 +191,10 @@ def componentwise_error(M: Any, q: np.ndarray, z: np.ndarray, lo: np.ndarray | N
         order = ["L", "F", "U"] if z[i] == lo[i] else (["U", "F", "L"] if z[i] == up[i]
                                                        else ["F", "L", "U"])
         best = min(order, key=lambda k: (costs.get(k, np.inf), order.index(k)))
+        if prefer is not None:
+            want = "LUF"[int(prefer[i])]
+            if want in costs and costs[want] <= costs[best] * (1.0 + NEAR_TIE):
+                best = want
         eps[i] = costs[best]
         equation[i] = best == "F"
     # rows linked through a column z_j != 0 where z_j's share of the row, |M_ij z_j| / s_i, is

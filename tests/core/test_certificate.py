@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import scipy.sparse as sp
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 from references import componentwise_error
 
@@ -18,6 +18,16 @@ from lcpcli.core import _certificate
 from lcpcli.core.certificate import MAX_TOL, MIN_TOL, certify, check, validate_tol
 from lcpcli.core.errors import OptionError
 from lcpcli.core.problem import Problem
+
+
+def kernel_and_reference(p: Problem, M: np.ndarray, q: np.ndarray, z: np.ndarray,
+                         lo: np.ndarray | None = None, up: np.ndarray | None = None,
+                         n_eq: int = 0) -> tuple[float, float]:
+    """The kernel's error for ``z`` and the independent reference's, which takes the kernel's
+    state of a pair only where two states tie to the rounding (``prefer``)."""
+    states = np.zeros(p.n, np.int8)
+    cert = check(p, z, state=states)[0]
+    return cert.error, componentwise_error(M, q, z, lo, up, n_eq, prefer=states)
 
 SEED004 = Problem.create([[2, 1], [1, 2]], [-5, -6])
 
@@ -262,17 +272,20 @@ def test_kernel_agrees_with_the_independent_reference(seed, n, form, sparse, zer
         z = np.where(np.isfinite(z), z, 0.0)
         kw.update(lower=lo, upper=up)
     p = Problem.create(sp.csr_matrix(M) if sparse else M, q, **kw)
-    c = certify(p, z)
-    ref = componentwise_error(M, q, z, lo, up, n_eq)
+    error, ref = kernel_and_reference(p, M, q, z, lo, up, n_eq)
     if np.isinf(ref):
-        assert np.isinf(c.error)
+        assert np.isinf(error)
     else:
-        assert c.error == pytest.approx(ref, rel=1e-9, abs=1e-300)
+        assert error == pytest.approx(ref, rel=1e-9, abs=1e-300)
 
 
 @settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(seed=st.integers(0, 2**32 - 1), n=st.integers(65, 90),
        zero_frac=st.sampled_from([0.0, 0.45, 0.9]), z_zero=st.sampled_from([0.6, 0.9]))
+# pair 58 (1-based) ties between its states L and F to an ulp of its row scale (w_i = s_i in
+# exact arithmetic): the reference's pairwise sum broke the tie the other way, and the block's
+# growth came out 1.0217 against the kernel's 1
+@example(seed=192364917, n=65, zero_frac=0.9, z_zero=0.9)
 def test_few_movable_columns_agree_with_the_independent_reference(seed, n, zero_frac, z_zero):
     """Above n = 64 with fewer than half the z_j movable, the dense certificate gathers those
     columns' maxima and lists each row's linking terms without a branch per entry (zeros of M
@@ -283,13 +296,12 @@ def test_few_movable_columns_agree_with_the_independent_reference(seed, n, zero_
     M *= 2.0 ** rng.integers(-10, 10, (n, 1))
     q = rng.standard_normal(n) * (rng.random(n) >= 0.2)
     z = np.where(rng.random(n) < z_zero, 0.0, rng.uniform(-0.2, 3.0, n))
-    ref = componentwise_error(M, q, z)
     for data in (M, sp.csr_matrix(M)):
-        c = certify(Problem.create(data, q), z)
+        error, ref = kernel_and_reference(Problem.create(data, q), M, q, z)
         if np.isinf(ref):
-            assert np.isinf(c.error)
+            assert np.isinf(error)
         else:
-            assert c.error == pytest.approx(ref, rel=1e-9, abs=1e-300)
+            assert error == pytest.approx(ref, rel=1e-9, abs=1e-300)
 
 
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -314,7 +326,7 @@ def test_lcp_pairs_score_as_the_general_box_does(seed, n, zero_frac, z_zero):
     assert lcp[0] == box[0] and lcp[-1] == box[-1]
     assert np.array_equal(w_lcp.view(np.uint64), w_box.view(np.uint64))
     assert np.array_equal(s_lcp, s_box)
-    ref = componentwise_error(M, q, z)
+    ref = componentwise_error(M, q, z, prefer=s_lcp)
     if np.isinf(ref):
         assert np.isinf(lcp[1])
     else:
