@@ -45,6 +45,7 @@ from lcpcli.analysis.scaling import GEOMETRIC_SPREAD, Scaling, equilibrate, geom
 from lcpcli.core.certificate import DEFAULT_TOL, Certificate, certify, matrix_norm_inf
 from lcpcli.core.errors import OptionError, ProblemError
 from lcpcli.core.limits import ENUM_ANNOUNCE_N, announce, power_of_two
+from lcpcli.core.numeric import binary_exponents
 from lcpcli.core.result import Status
 
 #: Default refusal threshold (2^24 = 16.7 million cones).
@@ -256,9 +257,9 @@ def solve_cone(M: np.ndarray, q: np.ndarray, code: int) -> tuple[np.ndarray, np.
 def _solve_block(B: np.ndarray, qS: np.ndarray) -> np.ndarray:
     """``B^-1 (-qS)`` on ``B`` equilibrated by powers of two (rows, then columns), with one
     refinement step; NaN when ``B`` is exactly singular."""
-    r = _unit_exponents(np.max(np.abs(B), axis=1))
+    r = binary_exponents(np.max(np.abs(B), axis=1))
     Br = np.ldexp(B, -r[:, None])
-    c = _unit_exponents(np.max(np.abs(Br), axis=0))
+    c = binary_exponents(np.max(np.abs(Br), axis=0))
     Bs = np.ldexp(Br, -c[None, :])
     rhs = np.ldexp(-qS, -r)
     try:
@@ -267,11 +268,6 @@ def _solve_block(B: np.ndarray, qS: np.ndarray) -> np.ndarray:
     except np.linalg.LinAlgError:
         ys = np.full(qS.shape[0], np.nan)
     return np.ldexp(ys, -c)
-
-
-def _unit_exponents(big: np.ndarray) -> np.ndarray:
-    """The binary exponents ``e`` with ``big / 2^e`` in ``[0.5, 1)`` (0 where ``big`` is 0)."""
-    return np.where(big > 0, np.frexp(big)[1], 0).astype(np.int32)
 
 
 def cone_y(code: int, z: np.ndarray, w: np.ndarray) -> np.ndarray:

@@ -43,6 +43,7 @@ from typing import Any
 import numpy as np
 
 from lcpcli.core.errors import ProblemError
+from lcpcli.core.numeric import binary_exponents, ldexp_exact
 
 #: A block whose reciprocal condition number is below this is treated as singular.
 RCOND_MIN = 1e-14
@@ -248,9 +249,9 @@ class _Factor:
 
         if not np.all(np.isfinite(A)):
             raise ProblemError("M^{alpha beta} contains NaN or Inf")
-        self.er = _exponents(np.max(np.abs(A), axis=1))
+        self.er = binary_exponents(np.max(np.abs(A), axis=1))
         As = np.ldexp(A, -self.er[:, None])
-        self.ec = _exponents(np.max(np.abs(As), axis=0))
+        self.ec = binary_exponents(np.max(np.abs(As), axis=0))
         As = np.ldexp(As, -self.ec[None, :])
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
@@ -271,20 +272,9 @@ class _Factor:
         import scipy.linalg as sla  # scipy is imported on first use (start-up budget)
 
         with np.errstate(over="ignore", under="ignore"):  # x beyond the double range: Inf
-            y = sla.lu_solve(self.lu, _ldexp2(np.asarray(b, dtype=np.float64), -self.er),
+            y = sla.lu_solve(self.lu, ldexp_exact(np.asarray(b, dtype=np.float64), -self.er),
                              check_finite=False)
-            return _ldexp2(y, -self.ec)
-
-
-def _exponents(peaks: np.ndarray) -> np.ndarray:
-    """frexp exponents of positive peaks (0 for zero rows or columns)."""
-    return np.where(peaks > 0, np.frexp(peaks)[1], 0).astype(np.int64)
-
-
-def _ldexp2(x: np.ndarray, e: np.ndarray) -> np.ndarray:
-    """``x 2^e`` in two exact steps (``2^1074`` is not a double; a subnormal times it is)."""
-    half = e // 2
-    return np.ldexp(np.ldexp(x, half.astype(np.int32)), (e - half).astype(np.int32))
+            return ldexp_exact(y, -self.ec)
 
 
 def _rcond(lu: Any, A: np.ndarray) -> float:

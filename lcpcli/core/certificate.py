@@ -72,6 +72,7 @@ import numpy as np
 
 from lcpcli.core import _certificate
 from lcpcli.core.errors import OptionError
+from lcpcli.core.numeric import binary_exponents
 
 #: Default tolerance on :attr:`Certificate.error` for the verdict ``solved``.
 DEFAULT_TOL = 1e-8
@@ -238,11 +239,6 @@ _NO_EXP = np.iinfo(np.int64).min // 4    # a row with no term and q_i = 0
 _NO_NEED = np.iinfo(np.int64).max // 4   # a column with no entry
 
 
-def _exponent(x: np.ndarray) -> np.ndarray:
-    """frexp exponents (x = m 2^e, 0.5 <= |m| < 1); 0 for zeros."""
-    return np.frexp(x)[1].astype(np.int64)
-
-
 def _rescaled_check(problem: Any, z: np.ndarray,
                     state: np.ndarray | None = None) -> tuple[tuple, np.ndarray]:
     """Certify data whose products leave the safe range: rescale rows and columns exactly by
@@ -253,19 +249,19 @@ def _rescaled_check(problem: Any, z: np.ndarray,
     sparse = hasattr(M, "tocsr")
     Mc = M.tocoo() if sparse else None
     n = problem.n
-    ez = np.where(z != 0.0, _exponent(z), 0)
+    ez = np.where(z != 0.0, binary_exponents(z), 0)
     if sparse:
         rows, cols, vals = Mc.row, Mc.col, Mc.data
     else:
         rows, cols = np.nonzero(M)
         vals = M[rows, cols]
-    em = _exponent(vals)
+    em = binary_exponents(vals)
     # row exponent: the largest term |M_ij z_j| (by exponents, no product formed) or |q_i|
     live = z[cols] != 0.0
     rexp = np.full(n, _NO_EXP, dtype=np.int64)
     np.maximum.at(rexp, rows[live], em[live] + ez[cols[live]])
     nonzero_q = problem.q != 0.0
-    rexp[nonzero_q] = np.maximum(rexp[nonzero_q], _exponent(problem.q[nonzero_q]))
+    rexp[nonzero_q] = np.maximum(rexp[nonzero_q], binary_exponents(problem.q[nonzero_q]))
     untouched = rexp == _NO_EXP
     rexp[untouched] = 0
     # columns with z_j = 0: scale so that their entries stay <= 1 after the row scaling

@@ -163,6 +163,19 @@ def float64_array(x: Any) -> np.ndarray:
 _FLOAT64 = np.dtype(np.float64)
 
 
+def binary_exponents(x: Any) -> np.ndarray:
+    """The exponents ``e`` of ``x = m 2^e`` with ``0.5 <= |m| < 1`` (``np.frexp``), int64; 0
+    where ``x`` is 0 (or not finite).  Power-of-two scalings are built from them (exact)."""
+    return np.frexp(x)[1].astype(np.int64)
+
+
+def ldexp_exact(x: np.ndarray, e: np.ndarray) -> np.ndarray:
+    """``x 2^e`` in two steps, each exact: ``2^1074`` is not a double, while a subnormal times
+    it is (one ``np.ldexp`` takes the exponent whole, and so does each step here)."""
+    half = e // 2
+    return np.ldexp(np.ldexp(x, half.astype(np.int32)), (e - half).astype(np.int32))
+
+
 def json_text(obj: Any) -> str:
     """``obj`` as strict JSON text (no newline), every non-finite float written as ``null``
     (the output rule in the module docstring; the one encoder of every JSON that lcpcli

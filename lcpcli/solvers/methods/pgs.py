@@ -32,6 +32,7 @@ import numpy as np
 
 from lcpcli.analysis.classify import diagonal
 from lcpcli.core.certificate import matrix_norm_inf
+from lcpcli.core.numeric import binary_exponents
 from lcpcli.core.result import (
     CONVERGED,
     ITERATION_LIMIT,
@@ -190,7 +191,7 @@ def _rows_in_range(M: Any, q: np.ndarray, diag: np.ndarray) -> tuple[Any, np.nda
         peak = np.maximum(absq, np.asarray(abs(A).max(axis=1).todense()).ravel())
     else:
         peak = np.maximum(absq, np.max(np.abs(M), axis=1))
-    e = np.where(peak > 0, np.frexp(peak)[1], 0).astype(np.int64)
+    e = binary_exponents(peak)
     if e.max() <= ROW_RANGE and e.min() >= -ROW_RANGE and e.max() - e.min() <= ROW_SPREAD:
         return M, q, diag
     # D = 2^-e in two exact steps (2^1074, for a subnormal row, is not a double)
