@@ -129,6 +129,19 @@ class Scene:
 
 
 # ---------------------------------------------------------------------- rotations
+def unit_rows(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The rows of ``a`` (finite) as unit vectors, and their lengths (a zero row stays zero,
+    length 0).  Each row is divided by its largest component first (any positive divisor keeps
+    the direction): (1e308, 1e308, 0) has a length that overflows (reported as inf), yet a
+    direction."""
+    peak = np.max(np.abs(a), axis=1) if a.size else np.zeros(a.shape[0])
+    scale = np.where(peak > 0, peak, 1.0)
+    unit = a / scale[:, None]
+    rel = np.linalg.norm(unit, axis=1)  # in [1, sqrt(columns)], 0 for a zero row
+    with np.errstate(over="ignore"):
+        return unit / np.where(rel > 0, rel, 1.0)[:, None], peak * rel
+
+
 def quat_to_matrix(qs: np.ndarray) -> np.ndarray:
     """Rotation matrices ``(k, 3, 3)`` from unit quaternions ``(k, 4)``, ``[w, x, y, z]``."""
     w, x, y, z = qs[:, 0], qs[:, 1], qs[:, 2], qs[:, 3]
@@ -385,7 +398,7 @@ def build_scene(dim: int, names: list[str], static: np.ndarray, mass: np.ndarray
             if not np.all(np.isfinite(qm)):
                 bad = np.flatnonzero(~np.all(np.isfinite(qm), axis=1))
                 raise ProblemError(f"{body(idx[bad[0]])}: orientation contains NaN or Inf")
-            qn = np.linalg.norm(qm, axis=1)
+            qu, qn = unit_rows(qm)
             bad = np.flatnonzero(qn < 1e-12)
             if bad.size:
                 raise ProblemError(f"{body(idx[bad[0]])}: orientation quaternion is zero")
@@ -394,7 +407,7 @@ def build_scene(dim: int, names: list[str], static: np.ndarray, mass: np.ndarray
                 warnings.append(f"{body(idx[off[0]])}: orientation quaternion of length "
                                 f"{qn[off[0]]:.6g} normalised"
                                 + (f" (and {off.size - 1} more)" if off.size > 1 else ""))
-            R = quat_to_matrix(qm / qn[:, None])
+            R = quat_to_matrix(qu)
             Iw = R @ Ib @ np.swapaxes(R, 1, 2)
             Iinv_body = np.linalg.inv(Ib)
             Iinv = R @ Iinv_body @ np.swapaxes(R, 1, 2)
@@ -427,17 +440,11 @@ def build_scene(dim: int, names: list[str], static: np.ndarray, mass: np.ndarray
         raise ProblemError(f"contact {k + 1}: both bodies ({names[int(ca[k])]!r}, "
                            f"{names[int(cb[k])]!r}) are static or kinematic: no impulse can "
                            f"act")
-    # the length from the normal divided by its largest component (exact: a power of two
-    # would be too, but any positive divisor keeps the direction): (1e308, 1e308, 0) has a
-    # length that overflows, yet a direction; its length is reported in scientific notation
-    peak = np.max(np.abs(normal), axis=1) if nc else np.zeros(0)
-    bad = np.flatnonzero(peak == 0.0)
-    if bad.size:
-        raise ProblemError(f"contact {bad[0] + 1}: the normal is zero")
-    unit = normal / peak[:, None]
-    rel = np.linalg.norm(unit, axis=1)  # in [1, sqrt(dim)]
-    with np.errstate(over="ignore"):
-        norms = peak * rel
+    if nc:
+        bad = np.flatnonzero(np.max(np.abs(normal), axis=1) == 0.0)
+        if bad.size:
+            raise ProblemError(f"contact {bad[0] + 1}: the normal is zero")
+    normal, norms = unit_rows(normal)
     bad = np.flatnonzero(norms < 1e-12)
     if bad.size:
         raise ProblemError(f"contact {bad[0] + 1}: the normal is zero (length "
@@ -446,7 +453,6 @@ def build_scene(dim: int, names: list[str], static: np.ndarray, mass: np.ndarray
     if off.size:
         warnings.append(f"contact {off[0] + 1}: normal of length {norms[off[0]]:.6g} normalised"
                         + (f" (and {off.size - 1} more contacts)" if off.size > 1 else ""))
-    normal = unit / rel[:, None]
     bad = np.flatnonzero(~(np.isfinite(eps) & (eps >= 0) & (eps <= 1)))
     if bad.size:
         raise ProblemError(f"contact {bad[0] + 1}: restitution {eps[bad[0]]:g} is outside [0, 1]")

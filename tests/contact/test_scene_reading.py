@@ -293,3 +293,24 @@ def test_every_hdf5_column_reads_as_its_json_twin(tmp_path: Path) -> None:
                 "mu", "softness"):
         np.testing.assert_allclose(getattr(a, key), getattr(b, key), rtol=1e-14, atol=0,
                                    err_msg=key)
+
+
+@pytest.mark.parametrize("scale", [1e308, 3e-9])
+def test_a_quaternion_of_any_length_is_normalised_without_overflow(scale: float) -> None:
+    """An orientation ``(1, 1, 0, 0)`` scaled by 1e308 (its length overflows: normalised by
+    that length it became zero, the inertia zero, with a numpy warning) or by 3e-9 is the
+    same rotation: the same world inertia, bit for bit, and one warning naming its length."""
+    import warnings
+
+    samples = Path(__file__).resolve().parents[2] / "samples"
+    data = json.loads((samples / "scene_cube_on_plane.json").read_text())
+    cube = next(b for b in data["bodies"] if b.get("orientation"))
+    cube["orientation"] = [1.0, 1.0, 0.0, 0.0]
+    plain = scene_from_dict(data)
+    cube["orientation"] = [scale, scale, 0.0, 0.0]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        scaled = scene_from_dict(data)
+    np.testing.assert_array_equal(scaled.inertia, plain.inertia)
+    np.testing.assert_array_equal(scaled.inv_inertia, plain.inv_inertia)
+    assert any("orientation quaternion of length" in w for w in scaled.warnings)
