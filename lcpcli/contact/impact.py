@@ -26,20 +26,25 @@ def post_velocities(scene: Scene, modelled: np.ndarray, HA: Any,
                     x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Linear ``(nb, d)`` and angular ``(nb, r)`` velocities after applying impulses ``x``.
 
-    ``HA`` is ``A W`` (sparse, one row per impulse unknown); ``x`` the impulses.
+    ``HA`` is ``A W`` (sparse, one row per impulse unknown); ``x`` the impulses.  A velocity
+    beyond the largest double is Inf (or NaN), as in :func:`kinetic_energy` (null in JSON).
     """
     d, dof = scene.dimension, scene.dof
-    jump = np.asarray(HA.T @ x).ravel().reshape(modelled.size, dof)
-    v = scene.velocity.copy()
-    w = scene.omega.copy()
-    v[modelled] += jump[:, :d]
-    w[modelled] += jump[:, d:]
+    with np.errstate(over="ignore", invalid="ignore"):
+        jump = np.asarray(HA.T @ x).ravel().reshape(modelled.size, dof)
+        v = scene.velocity.copy()
+        w = scene.omega.copy()
+        v[modelled] += jump[:, :d]
+        w[modelled] += jump[:, d:]
     return v, w
 
 
 def normal_velocities(scene: Scene, velocity: np.ndarray, omega: np.ndarray) -> np.ndarray:
-    """Normal relative velocity ``n . (pdot_a - pdot_b)`` at every contact for given velocities."""
-    return relative_velocity(scene, np.arange(scene.n_contacts), scene.normal, velocity, omega)
+    """Normal relative velocity ``n . (pdot_a - pdot_b)`` at every contact for given velocities
+    (Inf or NaN beyond the largest double, as :func:`post_velocities`)."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        return relative_velocity(scene, np.arange(scene.n_contacts), scene.normal, velocity,
+                                 omega)
 
 
 def approaching(v_after: np.ndarray, v_before: np.ndarray) -> np.ndarray:

@@ -339,3 +339,18 @@ def test_pivot_on_extreme_data(tmp_path: Path, M: list, q: list, dependent: str,
     assert got == 0, err
     doc = strict_json(out)
     assert all(v is not None for v in doc["q_prime"]), doc["q_prime"]
+
+
+def test_post_impact_velocity_past_the_range_is_null_without_a_warning(samples: Path,
+                                                                        tmp_path: Path) -> None:
+    """A 2-D contact 1e308 away along its normal (no lever arm: the LCP is finite) whose body
+    spins after the impact: that point's velocity overflows.  It is null in JSON (as an energy
+    past the range is), with no numpy warning on stderr (one was printed before)."""
+    scene = json.loads((samples / "scene_2d_boxes.json").read_text())
+    scene["contacts"][0]["point"][1] = -1e308
+    path = tmp_path / "scene.json"
+    path.write_text(json.dumps(scene))
+    code, out, err = cli("contact-matrix", path, "--solve", "--json")
+    assert code == 0 and err == "", err
+    doc = strict_json(out)
+    assert doc["status"] == "solved" and doc["normal_velocities"][0] is None
