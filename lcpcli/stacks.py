@@ -15,7 +15,7 @@ import numpy as np
 from lcpcli.analysis.classify import Classifier
 from lcpcli.api import check_dense_work, solve
 from lcpcli.core import _certificate
-from lcpcli.core.certificate import check, from_row
+from lcpcli.core.certificate import NO_STATE, check, from_row
 from lcpcli.core.errors import LcpError, OptionError, ProblemError
 from lcpcli.core.numeric import check_dtype
 from lcpcli.core.problem import (
@@ -387,6 +387,8 @@ def stacked_result(res: StackResult, j: int, p: Problem) -> Result:
     else:
         basis = np.empty(p.n, dtype=np.int8)
         cert, w = check(p, z, res.tol, state=basis)
+        if basis.size and basis[0] == NO_STATE:  # no pair scored (z or w not finite)
+            basis = None
     status = SOLVED if cert.passed else UNSOLVED
     out = Result(status=status, method=res.method_of(j), z=z, w=w,
                  iterations=int(res.iterations[j]), seconds=res.seconds / len(res),

@@ -389,3 +389,21 @@ def test_no_numpy_warning_escapes_a_solve_or_a_classification(n: int, family: in
             assert min(componentwise_error(M, q, res.z, lo, up, n_eq=n_eq),
                        componentwise_error(M, q, res.z, lo, up, n_eq=n_eq,
                                            w=exact_w(M, q, res.z))) <= tol
+
+
+def test_no_basis_when_z_is_not_finite() -> None:
+    """PGS and PSOR diverge on this P-matrix with a 1e16 entry (z ends with inf and NaN): no
+    pair has a state, so there is no basis (the certificate left its state array as it was:
+    uninitialised codes such as -54, an IndexError in ``to_dict``, exit 3 through ``solve
+    --json``).  Through ``lcpcli.solve`` and through the stacked path (``solve_each``)."""
+    from lcpcli.stacks import solve_each
+
+    M = np.array([[2.0, 2.0, 0.0, 0.0], [5e-324, 2.0, -1e16, 1.0], [-1.0, -1.0, 2.0, 1.0],
+                  [0.0, 1.0, 0.0, 2.0]])
+    q = np.array([1.0, -2.0, -2.0, -2.0])
+    for method in ("pgs", "psor"):
+        res = lcpcli.solve(M, q, method)
+        assert res.status == Status.UNSOLVED and not np.all(np.isfinite(res.z))
+        assert res.basis is None and res.to_dict()["basis"] is None
+        stacked = solve_each([lcpcli.Problem.create(M, q)] * 9, method)
+        assert all(r.basis is None and r.to_dict()["basis"] is None for r in stacked)

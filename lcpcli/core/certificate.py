@@ -120,6 +120,8 @@ def validate_tol(tol: Any) -> float:
 
 #: The state of a pair that its score came from (:func:`pair_states`).
 AT_LOWER, AT_UPPER, BETWEEN = 0, 1, 2
+#: The "state" of every pair when none was scored (``z`` or ``w`` not finite): no basis.
+NO_STATE = -1
 
 
 def check(problem: Any, z: Any, tol: float = DEFAULT_TOL, *,
@@ -127,7 +129,8 @@ def check(problem: Any, z: Any, tol: float = DEFAULT_TOL, *,
     """Certify ``z`` for ``problem``; return the certificate and ``w = M z + q`` (recomputed).
 
     ``passed`` is true when every number is finite and ``error <= tol``.  ``state`` (int8,
-    length n), when given, receives each pair's state (``AT_LOWER``, ``AT_UPPER``, ``BETWEEN``).
+    length n), when given, receives each pair's state (``AT_LOWER``, ``AT_UPPER``, ``BETWEEN``),
+    or ``NO_STATE`` in every entry when no pair could be scored (``z`` or ``w`` not finite).
     """
     if not (type(z) is np.ndarray and z.dtype == np.float64 and z.ndim == 1
             and z.flags.c_contiguous):
@@ -141,7 +144,16 @@ def check(problem: Any, z: Any, tol: float = DEFAULT_TOL, *,
                                       problem.n_eq, lo, up, w, state)
     if out[0] == 2:
         out, w = _rescaled_check(problem, z, state)
+    else:
+        _unscored(out, state)
     return from_kernel(out, tol), w
+
+
+def _unscored(out: tuple, state: np.ndarray | None) -> None:
+    """``state`` set to ``NO_STATE`` when the kernel's ``out`` says it scored no pair (status
+    1: ``z`` or ``w`` not finite; it returns before the pairs, leaving ``state`` as it was)."""
+    if state is not None and out[0] == 1:
+        state.fill(NO_STATE)
 
 
 def certify(problem: Any, z: Any, tol: float = DEFAULT_TOL) -> Certificate:
@@ -293,6 +305,7 @@ def _rescaled_check(problem: Any, z: np.ndarray,
         up = np.where(np.isfinite(problem.upper), np.clip(up, -big, big), up)
     ws = np.empty(n)
     out = _certificate.certify_arrays(marg, qs, zs, problem.n_eq, lo, up, ws, state)
+    _unscored(out, state)
     with np.errstate(over="ignore"):
         w = np.ldexp(ws, rexp.astype(np.int32))
     res = list(out)

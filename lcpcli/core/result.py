@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from lcpcli.core.certificate import BETWEEN, Certificate, check
+from lcpcli.core.certificate import BETWEEN, NO_STATE, Certificate, check
 from lcpcli.core.text import plural
 
 
@@ -173,10 +173,12 @@ class Result:
         computed from ``problem`` on first use."""
         info = outcome.info
         lazy = type(info) is LazyInfo
+        source = None if known_basis is not None else problem
+        if known_basis is not None and known_basis.size and known_basis[0] == NO_STATE:
+            known_basis = None  # no pair scored (z or w not finite): no basis, none to compute
         res = cls(status, method, z, w, outcome.iterations, seconds, certificate, message,
                   outcome.termination, problem.name, outcome.trace,
-                  info if lazy else dict(info), known_basis, None,
-                  None if known_basis is not None else problem)
+                  info if lazy else dict(info), known_basis, None, source)
         if lazy:  # not built yet: the Result builds it on first read (the same layout, so
             # every other Result keeps a plain slot and one type on the small path)
             res.__class__ = LazyResult
@@ -188,12 +190,14 @@ class Result:
         :mod:`lcpcli.core.certificate`: 0 ``z_i`` at its lower bound and ``w_i`` basic, 1 at
         its upper bound, 2 ``z_i`` basic with ``w_i = 0``); see :mod:`lcpcli.solvers.warm`.
         Computed on first use (one certificate pass), so that solves that never ask pay
-        nothing; None when the Result has neither."""
+        nothing; None when the Result has neither, or when ``z`` or ``w`` is not finite (no
+        pair has a state)."""
         if self.known_basis is None and self.basis_source is not None:
-
             states = np.empty(self.n, dtype=np.int8)
             check(self.basis_source, self.z, self.certificate.tol, state=states)
-            self.known_basis, self.basis_source = states, None
+            self.basis_source = None
+            if not (states.size and states[0] == NO_STATE):  # no pair scored: no basis
+                self.known_basis = states
         return self.known_basis
 
     def __getstate__(self) -> list[Any]:

@@ -341,3 +341,18 @@ def test_sparse_and_dense_agree_on_siconos_sized_problem():
     a = certify(Problem.create(M, q), z)
     b = certify(Problem.create(sp.csr_matrix(M), q), z)
     assert a.passed and b.passed and a.error == pytest.approx(b.error, abs=1e-16)
+
+
+def test_no_pair_state_for_a_z_that_is_not_finite() -> None:
+    """``check(..., state=)`` sets every entry to NO_STATE when no pair is scored (the kernel
+    returns before the pairs on a non-finite z or w): never the array's previous content."""
+    from lcpcli.core.certificate import NO_STATE
+
+    p = Problem.create(np.eye(3), np.array([-1.0, 1.0, -2.0]))
+    for z in (np.array([1.0, np.nan, 2.0]), np.array([np.inf, 0.0, 2.0])):
+        states = np.full(3, 77, np.int8)
+        cert = check(p, z, state=states)[0]
+        assert not cert.passed and np.all(states == NO_STATE)
+    states = np.full(3, 77, np.int8)
+    assert check(p, np.array([1.0, 0.0, 2.0]), state=states)[0].passed
+    assert states.tolist() == [2, 0, 2]
