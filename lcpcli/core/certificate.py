@@ -130,7 +130,7 @@ def check(problem: Any, z: Any, tol: float = DEFAULT_TOL, *,
 
     ``passed`` is true when every number is finite and ``error <= tol``.  ``state`` (int8,
     length n), when given, receives each pair's state (``AT_LOWER``, ``AT_UPPER``, ``BETWEEN``),
-    or ``NO_STATE`` in every entry when no pair could be scored (``z`` or ``w`` not finite).
+    or ``NO_STATE`` in every entry when no pair could be scored (a ``z_j`` not finite).
     """
     if not (type(z) is np.ndarray and z.dtype == np.float64 and z.ndim == 1
             and z.flags.c_contiguous):
@@ -144,15 +144,27 @@ def check(problem: Any, z: Any, tol: float = DEFAULT_TOL, *,
                                       problem.n_eq, lo, up, w, state)
     if out[0] == 2:
         out, w = _rescaled_check(problem, z, state)
-    else:
-        _unscored(out, state)
+    elif out[0] == 1:
+        _unscored(problem, z, w, state)
     return from_kernel(out, tol), w
 
 
-def _unscored(out: tuple, state: np.ndarray | None) -> None:
-    """``state`` set to ``NO_STATE`` when the kernel's ``out`` says it scored no pair (status
-    1: ``z`` or ``w`` not finite; it returns before the pairs, leaving ``state`` as it was)."""
-    if state is not None and out[0] == 1:
+def _unscored(problem: Any, z: np.ndarray, w: np.ndarray, state: np.ndarray | None) -> None:
+    """The kernel's status 1: a ``z_j`` not finite, seen before anything was computed, so
+    ``w`` and ``state`` are as the caller left them.  ``w`` becomes ``M z + q`` with the terms
+    of the stored nonzeros only (as a sparse product: ``0 * inf`` is no term, so the rows that
+    do not touch a non-finite ``z_j`` keep their value), ``state`` ``NO_STATE`` throughout."""
+    M = problem.M
+    bad = np.flatnonzero(~np.isfinite(z))
+    with np.errstate(all="ignore"):
+        if hasattr(M, "tocsr"):
+            w[:] = np.asarray(M @ z).ravel() + problem.q
+        else:
+            w[:] = M @ np.where(np.isfinite(z), z, 0.0) + problem.q
+            for j in bad.tolist():
+                col = M[:, j]
+                w += np.where(col != 0.0, col * z[j], 0.0)
+    if state is not None:
         state.fill(NO_STATE)
 
 
@@ -305,7 +317,6 @@ def _rescaled_check(problem: Any, z: np.ndarray,
         up = np.where(np.isfinite(problem.upper), np.clip(up, -big, big), up)
     ws = np.empty(n)
     out = _certificate.certify_arrays(marg, qs, zs, problem.n_eq, lo, up, ws, state)
-    _unscored(out, state)
     with np.errstate(over="ignore"):
         w = np.ldexp(ws, rexp.astype(np.int32))
     res = list(out)

@@ -344,15 +344,22 @@ def test_sparse_and_dense_agree_on_siconos_sized_problem():
 
 
 def test_no_pair_state_for_a_z_that_is_not_finite() -> None:
-    """``check(..., state=)`` sets every entry to NO_STATE when no pair is scored (the kernel
-    returns before the pairs on a non-finite z or w): never the array's previous content."""
+    """A non-finite ``z_j`` stops the kernel before it computes anything: ``check(...,
+    state=)`` sets every entry to NO_STATE, never the array's previous content, and ``w`` is
+    ``M z + q`` over the stored nonzeros (dense and CSR alike), never uninitialised memory
+    (it returned values such as 6.9e-310)."""
     from lcpcli.core.certificate import NO_STATE
 
-    p = Problem.create(np.eye(3), np.array([-1.0, 1.0, -2.0]))
-    for z in (np.array([1.0, np.nan, 2.0]), np.array([np.inf, 0.0, 2.0])):
-        states = np.full(3, 77, np.int8)
-        cert = check(p, z, state=states)[0]
-        assert not cert.passed and np.all(states == NO_STATE)
+    M = np.array([[2.0, 0.0, 1.0], [0.0, 3.0, 0.0], [0.0, 0.0, 1.0]])
+    q = np.array([-1.0, 1.0, -2.0])
+    for z, want in ((np.array([1.0, np.nan, 2.0]), [3.0, np.nan, 0.0]),
+                    (np.array([np.inf, 0.0, 2.0]), [np.inf, 1.0, 0.0])):
+        for data in (M, sp.csr_matrix(M)):
+            states = np.full(3, 77, np.int8)
+            cert, w = check(Problem.create(data, q), z, state=states)
+            assert not cert.passed and np.all(states == NO_STATE)
+            np.testing.assert_array_equal(w, want)
+    p = Problem.create(np.eye(3), q)
     states = np.full(3, 77, np.int8)
     assert check(p, np.array([1.0, 0.0, 2.0]), state=states)[0].passed
     assert states.tolist() == [2, 0, 2]

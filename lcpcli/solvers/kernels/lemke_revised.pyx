@@ -646,9 +646,10 @@ cdef class LemkeRun:
     def certificate(self, tol):
         """The :class:`~lcpcli.core.certificate.Certificate` of ``z`` at ``tol``
         (:func:`~lcpcli.core.certificate.certificate_of`, the one rule for ``passed``; no tuple
-        in between, this is on the small-solve path); None when TRIVIAL or out of range
-        (``cert[0] == 2``: :func:`~lcpcli.core.certificate.check` rescales)."""
-        if not self._certified or self._cert.status == 2:
+        in between, this is on the small-solve path); None when TRIVIAL, out of range
+        (``cert[0] == 2``: :func:`~lcpcli.core.certificate.check` rescales) or when ``z`` is
+        not finite (1: the kernel stopped before computing ``w``, which ``check`` gives)."""
+        if not self._certified or self._cert.status != 0:
             return None
         cdef CertOut c = self._cert
         return certificate_of(c.status, c.error, c.backward_error, c.growth, c.residual,

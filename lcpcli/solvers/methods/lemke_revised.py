@@ -83,7 +83,7 @@ def run(problem: Any, *, tol: float, covering: np.ndarray | None = None,
     status = got.status
     if status == OK:  # the artificial variable left the basis
         # the certificate of this z for this problem, as check() computes it (None: out of
-        # range, left to check(), which rescales)
+        # range or not finite, left to check(), which rescales or computes w)
         cert = got.certificate(tol)
         pivots, refactors = got.pivots, got.refactors
         return Outcome.converged(got.z, pivots,
