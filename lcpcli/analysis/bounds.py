@@ -66,10 +66,10 @@ def forward_error_bound(problem: Any, z: np.ndarray) -> ForwardBound | None:
         w = M @ z + q
         r = np.minimum(z, w)
         slack = (n + 1) * EPS * float(np.max(np.abs(M) @ np.abs(z) + np.abs(q)))
-    if not (np.all(np.isfinite(r)) and np.isfinite(slack)):
-        return None
-    r_inf = float(np.max(np.abs(r))) + slack
-    r_2 = float(np.linalg.norm(r)) + np.sqrt(n) * slack
+        if not (np.all(np.isfinite(r)) and np.isfinite(slack)):
+            return None
+        r_inf = float(np.max(np.abs(r))) + slack
+        r_2 = float(np.linalg.norm(r)) + np.sqrt(n) * slack  # inf past the range: no bound
     zn = float(np.max(np.abs(z)))
     try:
         with np.errstate(over="ignore", invalid="ignore", divide="ignore"):

@@ -507,9 +507,11 @@ def not_p_witness(M: Any, candidates: list[list[int]] | None = None) -> list[int
     if dense and n <= DENSE_TEST_MAX_N:
         A = np.asarray(M.toarray() if _is_sparse(M) else M, dtype=np.float64)
         K = _unit_diagonal_symmetric(A)
-        prod = K * K.T
-        prod[np.diag_indices(n)] = 0.0
-        flagged = np.argwhere(np.triu(1.0 - prod <= P_TEST_PIVOT_TOL * (1.0 + np.abs(prod)), 1))
+        with np.errstate(over="ignore", invalid="ignore"):  # k_ij may be inf (see there)
+            prod = K * K.T
+            prod[np.diag_indices(n)] = 0.0
+            flagged = np.argwhere(np.triu(1.0 - prod <= P_TEST_PIVOT_TOL * (1.0 + np.abs(prod)),
+                                          1))
         tried += [[int(i), int(j)] for i, j in flagged[:64]]
     searched: Iterator[list[int]] = iter(())
     if dense and n <= EXACT_P_MAX_N:

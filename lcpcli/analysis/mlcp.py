@@ -323,8 +323,9 @@ def polish(problem: Any, z: np.ndarray, *, rel_gap: float = 1e-9) -> np.ndarray:
 
 
 def _natural(M: Any, q: np.ndarray, lo: np.ndarray, up: np.ndarray, z: np.ndarray) -> float:
-    """``||mid(z - l, z - u, w)||_inf`` (the certificate's natural residual, unscaled)."""
-    w = np.asarray(M @ z).ravel() + q
-    with np.errstate(invalid="ignore"):
+    """``||mid(z - l, z - u, w)||_inf`` (the certificate's natural residual, unscaled; Inf
+    when ``w`` leaves the double range)."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        w = np.asarray(M @ z).ravel() + q
         r = np.maximum(z - up, np.minimum(z - lo, w))
     return float(np.max(np.abs(r))) if r.size else 0.0

@@ -385,13 +385,21 @@ def test_plot_with_lemke_path(cli, samples, tmp_path):
 
 
 @pytest.mark.parametrize("extra", [[], ["-m", "murty"], ["-m", "dantzig"], ["-m", "pgs"],
-                                   ["--exact"]])
+                                   ["-m", "psor"], ["--exact"]])
 def test_traces_of_data_at_the_ends_of_the_float64_range(cli, extra):
     """A trace (and the plain table) of data near 1e308 or subnormal: exit 0 or 1 with the
     trace, and no numpy warning line (intermediates past the range are inf or NaN, as in the
-    kernels, and the verdict is the certificate's)."""
+    kernels, and the verdict is the certificate's).  The last four printed warnings from the
+    analysis around the traces (the MLCP polish's residual, the forward error bound's 2-norm,
+    the not-P witness's 2 x 2 products; found by mutating the sample files)."""
     for doc in ({"M": [[1e308, -1e308], [1e308, 1e308]], "q": [-1e308, 1e308]},
-                {"M": [[5e-324]], "q": [-5e-324]}):
+                {"M": [[5e-324]], "q": [-5e-324]},
+                {"M": [[2, 1], [100.0, 2]], "q": [-1e308, -1e-308]},
+                {"M": [[2.0, 2.0, -1.0, 0.0], [0.0, 9.332636185032189e-302, 0.0, 1.0],
+                       [-1.0, -1.0, 2.0, 1.0], [0.0, 1.0, 0.0, 2.0]], "q": [1.0, -2.0, -2.0, -2.0]},
+                {"M": [[1.0, 1e16, 0.0, 0.0], [-1e308, 1.0, 2.0, 0.0], [0.0, -5e-324, 1.0, 2.0],
+                       [2.0, 100.0, 0.0, 0.5]], "q": [-1.0, 0.0, 0.0, -1.0]},
+                {"M": [[5e-324, 1e16], [1, 2]], "q": [-0.5, -6]}):
         for args in (["solve", "-", "--trace", *extra], ["solve", "-"]):
             out = cli(*args, stdin=json.dumps(doc))
             assert out.returncode in (0, 1), out.stderr
