@@ -407,3 +407,23 @@ def test_no_basis_when_z_is_not_finite() -> None:
         assert res.basis is None and res.to_dict()["basis"] is None
         stacked = solve_each([lcpcli.Problem.create(M, q)] * 9, method)
         assert all(r.basis is None and r.to_dict()["basis"] is None for r in stacked)
+
+
+def test_mlcp_with_a_subnormal_pivot_every_method() -> None:
+    """An MLCP whose equality block has a subnormal pivot (5e-324): the block's power-of-two
+    equilibration overflowed (2^1074), mlcp-lemke's SVD of the NaN block raised LinAlgError
+    (exit 3) and the others printed numpy warnings.  Every MLCP method answers without a
+    warning; a solved z passes the independent check."""
+    import warnings
+
+    from references import componentwise_error
+
+    M = np.array([[5e-324, 1, 1, 0], [0, 3, 0, -1], [-1, 0, 1e-16, 0], [0, 1, 0, 1]], float)
+    q = np.array([-3.0, 2.0, -1.0, 4.0])
+    for method in METHODS["mlcp"]:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", RuntimeWarning)
+            res = lcpcli.solve(M, q, method=method, n_eq=2)
+        assert res.status in (Status.SOLVED, Status.UNSOLVED), (method, res.message)
+        if res.status == Status.SOLVED:
+            assert componentwise_error(M, q, res.z, n_eq=2) <= res.certificate.tol * (1 + 1e-6)

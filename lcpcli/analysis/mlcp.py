@@ -77,11 +77,17 @@ def equilibrate(K: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     max-norm rows and columns; zero rows/columns get scale 1."""
     if K.size == 0:
         return np.ones(K.shape[0]), np.ones(K.shape[1])
-    rmax = np.max(np.abs(K), axis=1)
-    r = np.where(rmax > 0, 2.0 ** -np.round(np.log2(np.where(rmax > 0, rmax, 1.0))), 1.0)
-    cmax = np.max(np.abs(K * r[:, None]), axis=0)
-    c = np.where(cmax > 0, 2.0 ** -np.round(np.log2(np.where(cmax > 0, cmax, 1.0))), 1.0)
+    r = _unit_scale(np.max(np.abs(K), axis=1))
+    c = _unit_scale(np.max(np.abs(K * r[:, None]), axis=0))
     return r, c
+
+
+def _unit_scale(peaks: np.ndarray) -> np.ndarray:
+    """``2^-k`` with ``2^k`` the power of two nearest each positive peak (1 for a zero peak),
+    ``k`` kept within [-1022, 1023] so that the scale is a double: a subnormal peak (5e-324:
+    ``2^1074`` overflowed to inf and the block became NaN) is scaled by ``2^1022``."""
+    k = np.round(np.log2(np.where(peaks > 0, peaks, 1.0)))
+    return 2.0 ** -np.clip(k, -1022, 1023)
 
 
 @dataclass(frozen=True)
@@ -148,8 +154,18 @@ def reduce(M: np.ndarray, q: np.ndarray, n_eq: int, J: Any = ()) -> Reduction:
 
     With ``S`` basic and ``T`` the rest, ``z_S = -M_SS^-1 (q_S + M_ST z_T - w_S)`` and the rows
     of ``T`` become ``w_T = (M_TT - M_TS M_SS^-1 M_ST) z_T + M_TS M_SS^-1 w_S + ...``.
-    Raises :class:`ProblemError` when ``M_SS`` is exactly singular.
+    Raises :class:`ProblemError` when ``M_SS`` is exactly singular, or when the reduced LCP
+    leaves the double range (a pivot near the smallest subnormal: its inverse overflows).
     """
+    with np.errstate(all="ignore"):
+        red = _reduce(M, q, n_eq, J)
+    if not (np.all(np.isfinite(red.lcp_M)) and np.all(np.isfinite(red.lcp_q))):
+        raise ProblemError("the reduced problem leaves the double range (a pivot block whose "
+                           "inverse overflows)")
+    return red
+
+
+def _reduce(M: np.ndarray, q: np.ndarray, n_eq: int, J: Any) -> Reduction:
     N = q.shape[0]
     m = N - n_eq
     J = np.asarray(sorted(int(j) for j in J), dtype=np.int64)
@@ -196,7 +212,8 @@ def recover(M: np.ndarray, q: np.ndarray, red: Reduction, x: np.ndarray) -> np.n
     rhs = -q[red.S] - (M[np.ix_(red.S, T)] @ zT if T.size else 0.0)
     if red.J.size:
         rhs[n_eq:] += np.asarray(x)[red.J]  # w_J = x_J
-    z[red.S] = red.fac.solve(rhs)
+    with np.errstate(all="ignore"):  # past the double range: inf, which the certificate refuses
+        z[red.S] = red.fac.solve(rhs)
     return z
 
 
@@ -234,11 +251,17 @@ def choose_pivot_set(M: np.ndarray, n_eq: int, cond_max: float = COND_MAX,
             return 0, 1.0, None
         K = M[np.ix_(S, S)]
         r, c = equilibrate(K)
-        Ks = K * r[:, None] * c[None, :]
-        if with_vectors:
-            U, s, Vt = np.linalg.svd(Ks)
-        else:
-            s = np.linalg.svd(Ks, compute_uv=False)
+        with np.errstate(all="ignore"):
+            Ks = K * r[:, None] * c[None, :]
+        try:
+            if not np.all(np.isfinite(Ks)):
+                raise np.linalg.LinAlgError("not finite")
+            if with_vectors:
+                U, s, Vt = np.linalg.svd(Ks)
+            else:
+                s = np.linalg.svd(Ks, compute_uv=False)
+        except np.linalg.LinAlgError:  # no usable SVD: the block counts as singular
+            return len(S), float("inf"), None
         if s[0] == 0.0:
             deficiency, cond = len(S), float("inf")
         else:
@@ -253,7 +276,7 @@ def choose_pivot_set(M: np.ndarray, n_eq: int, cond_max: float = COND_MAX,
 
     deficiency, cond, vec = analyse(J, True)
     limit = m if max_add is None else max_add
-    while (deficiency > 0 or cond > cond_max) and len(J) < limit:
+    while (deficiency > 0 or cond > cond_max) and len(J) < limit and vec is not None:
         S, r, c, U0, V0 = vec
         rest = np.array([j for j in range(m) if j not in J], dtype=np.int64)
         if rest.size == 0:
@@ -262,9 +285,11 @@ def choose_pivot_set(M: np.ndarray, n_eq: int, cond_max: float = COND_MAX,
         rows = (M[np.ix_(n_eq + rest, S)] * c[None, :])          # new rows, column-scaled
         cn = np.maximum(np.max(np.abs(cols), axis=0), 1e-300)
         rn = np.maximum(np.max(np.abs(rows), axis=1), 1e-300)
-        sc = (np.linalg.norm(U0.T @ cols, axis=0) / cn) * (np.linalg.norm(rows @ V0, axis=1) / rn)
-        sc += 1e-3 * (np.linalg.norm(U0.T @ cols, axis=0) / cn + np.linalg.norm(rows @ V0, axis=1)
-                      / rn)
+        with np.errstate(all="ignore"):  # entries near the double range: inf scores rank first
+            sc = (np.linalg.norm(U0.T @ cols, axis=0) / cn) * \
+                (np.linalg.norm(rows @ V0, axis=1) / rn)
+            sc += 1e-3 * (np.linalg.norm(U0.T @ cols, axis=0) / cn
+                          + np.linalg.norm(rows @ V0, axis=1) / rn)
         order = rest[np.argsort(-sc, kind="stable")][:shortlist]
         best: tuple[int, float] | None = None
         best_j = -1
