@@ -440,11 +440,10 @@ def build_scene(dim: int, names: list[str], static: np.ndarray, mass: np.ndarray
         raise ProblemError(f"contact {k + 1}: both bodies ({names[int(ca[k])]!r}, "
                            f"{names[int(cb[k])]!r}) are static or kinematic: no impulse can "
                            f"act")
-    if nc:
-        bad = np.flatnonzero(np.max(np.abs(normal), axis=1) == 0.0)
-        if bad.size:
-            raise ProblemError(f"contact {bad[0] + 1}: the normal is zero")
     normal, norms = unit_rows(normal)
+    bad = np.flatnonzero(norms == 0.0)
+    if bad.size:
+        raise ProblemError(f"contact {bad[0] + 1}: the normal is zero")
     bad = np.flatnonzero(norms < 1e-12)
     if bad.size:
         raise ProblemError(f"contact {bad[0] + 1}: the normal is zero (length "
