@@ -45,7 +45,7 @@ from lcpcli.analysis.scaling import GEOMETRIC_SPREAD, Scaling, equilibrate, geom
 from lcpcli.core.certificate import DEFAULT_TOL, Certificate, certify, matrix_norm_inf
 from lcpcli.core.errors import OptionError, ProblemError
 from lcpcli.core.limits import ENUM_ANNOUNCE_N, announce, power_of_two
-from lcpcli.core.numeric import binary_exponents
+from lcpcli.core.numeric import binary_exponents, unit_rows
 from lcpcli.core.result import Status
 
 #: Default refusal threshold (2^24 = 16.7 million cones).
@@ -628,12 +628,11 @@ def _unit(v: np.ndarray) -> np.ndarray:
 
 def direction_2d(v: Any) -> np.ndarray | None:
     """The unit-length direction of the 2-vector ``v`` (None for zero or non-finite), without
-    overflow: scaled to unit largest entry (:func:`_unit`) before its length is taken."""
+    overflow (:func:`lcpcli.core.numeric.unit_rows`)."""
     v = np.asarray(v, dtype=float)
     if not np.all(np.isfinite(v)) or not np.any(v):
         return None
-    s = _unit(v)
-    return s / float(np.hypot(*s))
+    return unit_rows(v[None, :])[0][0]
 
 
 def length_2d(v: Any) -> float:
@@ -642,8 +641,7 @@ def length_2d(v: Any) -> float:
     peak = float(np.max(np.abs(v)))
     if not (0.0 < peak < np.inf):
         return peak
-    with np.errstate(over="ignore"):
-        return peak * float(np.hypot(*_unit(v)))
+    return float(unit_rows(v[None, :])[1][0])
 
 
 def unit_columns_2d(A: np.ndarray) -> np.ndarray:

@@ -32,6 +32,7 @@ from typing import Any
 import numpy as np
 
 from lcpcli.core.errors import ProblemError
+from lcpcli.core.numeric import unit_rows
 from lcpcli.core.problem import MAX_SPARSE_NNZ
 from lcpcli.io import atomic_path
 from lcpcli.io.files import (
@@ -129,19 +130,6 @@ class Scene:
 
 
 # ---------------------------------------------------------------------- rotations
-def unit_rows(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The rows of ``a`` (finite) as unit vectors, and their lengths (a zero row stays zero,
-    length 0).  Each row is divided by its largest component first (any positive divisor keeps
-    the direction): (1e308, 1e308, 0) has a length that overflows (reported as inf), yet a
-    direction."""
-    peak = np.max(np.abs(a), axis=1) if a.size else np.zeros(a.shape[0])
-    scale = np.where(peak > 0, peak, 1.0)
-    unit = a / scale[:, None]
-    rel = np.linalg.norm(unit, axis=1)  # in [1, sqrt(columns)], 0 for a zero row
-    with np.errstate(over="ignore"):
-        return unit / np.where(rel > 0, rel, 1.0)[:, None], peak * rel
-
-
 def quat_to_matrix(qs: np.ndarray) -> np.ndarray:
     """Rotation matrices ``(k, 3, 3)`` from unit quaternions ``(k, 4)``, ``[w, x, y, z]``."""
     w, x, y, z = qs[:, 0], qs[:, 1], qs[:, 2], qs[:, 3]

@@ -169,6 +169,19 @@ def binary_exponents(x: Any) -> np.ndarray:
     return np.frexp(x)[1].astype(np.int64)
 
 
+def unit_rows(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The rows of ``a`` (finite) as unit vectors, and their lengths (a zero row stays zero,
+    length 0).  Each row is divided by its largest component first (any positive divisor keeps
+    the direction): (1e308, 1e308, 0) has a length that overflows (reported as inf), yet a
+    direction."""
+    peak = np.max(np.abs(a), axis=1) if a.size else np.zeros(a.shape[0])
+    scale = np.where(peak > 0, peak, 1.0)
+    unit = a / scale[:, None]
+    rel = np.linalg.norm(unit, axis=1)  # in [1, sqrt(columns)], 0 for a zero row
+    with np.errstate(over="ignore"):
+        return unit / np.where(rel > 0, rel, 1.0)[:, None], peak * rel
+
+
 def ldexp_exact(x: np.ndarray, e: np.ndarray) -> np.ndarray:
     """``x 2^e`` in two steps, each exact: ``2^1074`` is not a double, while a subnormal times
     it is (one ``np.ldexp`` takes the exponent whole, and so does each step here)."""
