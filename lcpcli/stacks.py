@@ -15,7 +15,7 @@ import numpy as np
 from lcpcli.analysis.classify import Classifier
 from lcpcli.api import check_dense_work, solve
 from lcpcli.core import _certificate
-from lcpcli.core.certificate import NO_STATE, check, from_row
+from lcpcli.core.certificate import check, from_row, scored
 from lcpcli.core.errors import LcpError, OptionError, ProblemError
 from lcpcli.core.numeric import check_dtype
 from lcpcli.core.problem import (
@@ -385,10 +385,9 @@ def stacked_result(res: StackResult, j: int, p: Problem) -> Result:
         basis = None if res.basis is None else res.basis[j].copy()
         source = p if basis is None else None
     else:
-        basis = np.empty(p.n, dtype=np.int8)
-        cert, w = check(p, z, res.tol, state=basis)
-        if basis.size and basis[0] == NO_STATE:  # no pair scored (z or w not finite)
-            basis = None
+        states = np.empty(p.n, dtype=np.int8)
+        cert, w = check(p, z, res.tol, state=states)
+        basis = scored(states)
     status = SOLVED if cert.passed else UNSOLVED
     out = Result(status=status, method=res.method_of(j), z=z, w=w,
                  iterations=int(res.iterations[j]), seconds=res.seconds / len(res),

@@ -124,6 +124,11 @@ AT_LOWER, AT_UPPER, BETWEEN = 0, 1, 2
 NO_STATE = -1
 
 
+def scored(state: np.ndarray) -> np.ndarray | None:
+    """``state`` as :func:`check` filled it, or None when it scored no pair (``NO_STATE``)."""
+    return None if state.size and state[0] == NO_STATE else state
+
+
 def check(problem: Any, z: Any, tol: float = DEFAULT_TOL, *,
           state: np.ndarray | None = None) -> tuple[Certificate, np.ndarray]:
     """Certify ``z`` for ``problem``; return the certificate and ``w = M z + q`` (recomputed).

@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from lcpcli.core.certificate import BETWEEN, NO_STATE, Certificate, check
+from lcpcli.core.certificate import BETWEEN, Certificate, check, scored
 from lcpcli.core.text import plural
 
 
@@ -174,8 +174,8 @@ class Result:
         info = outcome.info
         lazy = type(info) is LazyInfo
         source = None if known_basis is not None else problem
-        if known_basis is not None and known_basis.size and known_basis[0] == NO_STATE:
-            known_basis = None  # no pair scored (z or w not finite): no basis, none to compute
+        if known_basis is not None:  # None when no pair was scored: no basis, none to compute
+            known_basis = scored(known_basis)
         res = cls(status, method, z, w, outcome.iterations, seconds, certificate, message,
                   outcome.termination, problem.name, outcome.trace,
                   info if lazy else dict(info), known_basis, None, source)
@@ -195,9 +195,7 @@ class Result:
         if self.known_basis is None and self.basis_source is not None:
             states = np.empty(self.n, dtype=np.int8)
             check(self.basis_source, self.z, self.certificate.tol, state=states)
-            self.basis_source = None
-            if not (states.size and states[0] == NO_STATE):  # no pair scored: no basis
-                self.known_basis = states
+            self.known_basis, self.basis_source = scored(states), None
         return self.known_basis
 
     def __getstate__(self) -> list[Any]:
