@@ -506,3 +506,33 @@ def test_warp_launch_shapes_fit_their_shared_memory():
     with pytest.raises(OptionError, match="8, 16 or 32"):
         cuda.warp_launch(12, 4)
     assert cuda.warp_row(10**9) == cuda.WARP_TABLE[-1]
+
+
+def test_warps_per_block_put_the_most_warps_on_a_multiprocessor():
+    """The block shape by shared memory and registers: at n = 50 (32 lanes, 27,832 bytes of
+    shared memory a problem with the device's 32-bit indices two to a slot) blocks of 2 warps
+    place 8 problems on a multiprocessor where blocks of 3, the most SHARED_BYTES holds, place
+    6; every choice is a block within SHARED_BYTES whose residency no other size beats."""
+    fast, _ = stack_c.group_slots(50)
+    assert 8 * fast == 27_832
+    assert cuda.warps_per_block(8 * fast, 1) == 2
+
+    def resident(w, warp_bytes, mb):
+        blocks = min(cuda.SM_SHARED_BYTES // (w * warp_bytes + cuda.BLOCK_RESERVED_BYTES),
+                     8 * mb // w)
+        return w * blocks
+
+    assert resident(2, 8 * fast, 1) == 8 and resident(3, 8 * fast, 1) == 6
+    for n in range(1, 120):
+        fast, _ = stack_c.group_slots(n)
+        for per_warp in (1, 2, 4):
+            warp_bytes = 8 * fast * per_warp
+            if warp_bytes > cuda.SHARED_BYTES:
+                continue
+            for mb in (1, 2, 3, 4):
+                w = cuda.warps_per_block(warp_bytes, mb)
+                assert 1 <= w <= cuda.WARPS_PER_BLOCK and w * warp_bytes <= cuda.SHARED_BYTES
+                fits = [v for v in range(1, cuda.WARPS_PER_BLOCK + 1)
+                        if v * warp_bytes <= cuda.SHARED_BYTES]
+                assert resident(w, warp_bytes, mb) == max(resident(v, warp_bytes, mb)
+                                                          for v in fits)

@@ -46,9 +46,15 @@ WORK_BYTES = 4 << 30
 #: status, z and pivots on every problem compared, and "warp" ran 3.1x (n = 12) and 13x
 #: (n = 50) faster.
 LEMKE_VARIANT = "warp"
-#: Warps per block of the warp kernel, and the shared memory a block may use for workspaces.
+#: Warps per block of the warp kernel (at most), and the shared memory a block may use for
+#: workspaces.
 WARPS_PER_BLOCK = 8
 SHARED_BYTES = 96 << 10
+#: A multiprocessor's shared memory and the part the driver keeps per block (sm_90: H100,
+#: H200), from which :func:`warp_launch` picks the warps per block that put the most warps on
+#: a multiprocessor.  Speed only: a block never asks for more than SHARED_BYTES.
+SM_SHARED_BYTES = 228 << 10
+BLOCK_RESERVED_BYTES = 1 << 10
 #: NVRTC options: no contraction into FMA (the CPU build has none: the same rounding).
 NVRTC_OPTIONS = ("--std=c++11", "--fmad=false")
 #: The warp kernel's speed choices by size: rows (largest n, lanes per problem, stage,
@@ -258,10 +264,34 @@ def warp_launch(n: int, lanes: int | None = None, stage: bool | None = None) -> 
     per_warp = 32 // lanes
     fast, cold = group_slots(n)
     if 8 * fast * per_warp <= SHARED_BYTES:
-        warps = max(1, min(WARPS_PER_BLOCK, SHARED_BYTES // (8 * fast * per_warp)))
+        warps = warps_per_block(8 * fast * per_warp, budget(row[3]))
         return WarpLaunch(lanes, warps, warps * per_warp, bool(stage),
                           warps * per_warp * 8 * fast, fast + cold)
     return WarpLaunch(lanes, 4, 4 * per_warp, False, 0, fast + cold)
+
+
+def budget(table_budget: int) -> int:
+    """The register budget the warp kernel is built with: :data:`EXTRA_OPTIONS`'
+    ``-DLCP_WARP_MIN_BLOCKS`` where given, else the table's."""
+    for opt in EXTRA_OPTIONS:
+        if opt.startswith("-DLCP_WARP_MIN_BLOCKS="):
+            return int(opt.split("=", 1)[1])
+    return table_budget
+
+
+def warps_per_block(warp_bytes: int, min_blocks: int) -> int:
+    """Warps per block (1 to :data:`WARPS_PER_BLOCK`, a block within :data:`SHARED_BYTES`)
+    that put the most warps on one multiprocessor, each warp's groups taking ``warp_bytes``
+    of shared memory: blocks per multiprocessor limited by :data:`SM_SHARED_BYTES` (less
+    :data:`BLOCK_RESERVED_BYTES` a block) and by the registers of a build whose
+    ``__launch_bounds__`` fits ``min_blocks`` blocks of 8 warps; ties: the larger block."""
+    cap = max(1, min(WARPS_PER_BLOCK, SHARED_BYTES // warp_bytes))
+
+    def resident(w: int) -> tuple[int, int]:
+        blocks = min(SM_SHARED_BYTES // (w * warp_bytes + BLOCK_RESERVED_BYTES),
+                     8 * max(1, min_blocks) // w)
+        return w * blocks, w
+    return max(range(1, cap + 1), key=resident)
 
 
 def run_sor(Md: Any, qd: Any, lo: Any, up: Any, *, tol: float,

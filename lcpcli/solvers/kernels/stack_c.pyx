@@ -39,6 +39,8 @@ cdef extern from "src/lcp_stack.h" nogil:
     long long LCP_HOT_IWORK(long long n)
     long long LCP_FAST_SLOTS(long long n)
     long long LCP_COLD_SLOTS(long long n)
+    long long LCP_FAST_SLOTS_FOR(long long n, long long per)
+    long long LCP_COLD_SLOTS_FOR(long long n, long long per)
     void lcp_lemke_group(long long n, const double* M, const double* q, const double* d,
                          long long max_iter, double piv_tol, double tie_tol, double tol,
                          double polished, int balanced, int q_balanced, int max_rounds,
@@ -110,9 +112,10 @@ def workspace(str kernel, long long n):
 
 
 def group_slots(long long n):
-    """(fast, cold): the 8-byte slots of the warp kernel's workspace per group for size ``n``;
-    the fast part goes to shared memory when it fits."""
-    return int(LCP_FAST_SLOTS(n)), int(LCP_COLD_SLOTS(n))
+    """(fast, cold): the 8-byte slots of the device warp kernel's workspace per group for size
+    ``n`` (its 32-bit indices two to a slot); the fast part goes to shared memory when it
+    fits."""
+    return int(LCP_FAST_SLOTS_FOR(n, 2)), int(LCP_COLD_SLOTS_FOR(n, 2))
 
 
 cdef cnp.ndarray _out(object a, int typenum, Py_ssize_t size, str label):

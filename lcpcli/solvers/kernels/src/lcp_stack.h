@@ -68,8 +68,10 @@
 typedef long long lcp_i64;
 #if defined(__CUDACC_RTC__) || defined(__CUDACC__)
 typedef int lcp_ix;
+#define LCP_IX_PER_SLOT 2
 #else
 typedef long long lcp_ix;
+#define LCP_IX_PER_SLOT 1
 #endif
 
 /* Lanes: functions that take (lane, lanes) split their loops over `lanes` lanes (on the device
@@ -191,12 +193,17 @@ enum { LCP_OK = 0, LCP_RAY = 1, LCP_MAX_ITER = 2, LCP_TRIVIAL = 3 };
 #define LCP_HOT_IWORK(n) (7 * (n))
 #define LCP_COLD_DWORK(n) (3 * (n) * (n) + 5 * (n))
 #define LCP_COLD_IWORK(n) (3 * (n))
-/* The warp kernel's workspace per group, in 8-byte slots (an lcp_ix takes a slot): the fast
- * part (shared memory when it fits: the tableau part and the hot part) and the cold part
- * (device memory). */
-#define LCP_FAST_SLOTS(n)                                                                    \
-    (LCP_TAB_DWORK(n) + LCP_TAB_IWORK(n) + LCP_HOT_DWORK(n) + LCP_HOT_IWORK(n))
-#define LCP_COLD_SLOTS(n) (LCP_COLD_DWORK(n) + LCP_COLD_IWORK(n))
+/* The warp kernel's workspace per group, in 8-byte slots: the fast part (shared memory when
+ * it fits: the tableau part and the hot part) and the cold part (device memory), each its
+ * doubles, then its lcp_ix packed `per` to a slot (LCP_IX_PER_SLOT: two 32-bit indices to a
+ * slot on the device, one on the CPU; the *_FOR forms let the host size the device's). */
+#define LCP_IX_SLOTS(k, per) (((k) + (per) - 1) / (per))
+#define LCP_FAST_SLOTS_FOR(n, per)                                                           \
+    (LCP_TAB_DWORK(n) + LCP_IX_SLOTS(LCP_TAB_IWORK(n), per) + LCP_HOT_DWORK(n) +             \
+     LCP_IX_SLOTS(LCP_HOT_IWORK(n), per))
+#define LCP_COLD_SLOTS_FOR(n, per) (LCP_COLD_DWORK(n) + LCP_IX_SLOTS(LCP_COLD_IWORK(n), per))
+#define LCP_FAST_SLOTS(n) LCP_FAST_SLOTS_FOR(n, LCP_IX_PER_SLOT)
+#define LCP_COLD_SLOTS(n) LCP_COLD_SLOTS_FOR(n, LCP_IX_PER_SLOT)
 #define LCP_LEMKE_DWORK(n) (LCP_TAB_DWORK(n) + LCP_REST_DWORK(n))
 #define LCP_LEMKE_IWORK(n) (LCP_TAB_IWORK(n) + LCP_REST_IWORK(n))
 #define LCP_SOR_DWORK(n) (4 * (n) + 1 + LCP_CERT_DWORK(n))
@@ -815,45 +822,57 @@ LCP_FN void lcp_pivot(double *T, double *qb, lcp_ix nrows, lcp_ix ncols, lcp_ix 
 
 /* The same pivot split over the lanes, a lane per column (every entry computed as lcp_pivot
  * computes it: the same rounding).  fcol: the pivot column T[:, c] as it was before the pivot
- * (fcol[r] is the pivot element).  A lane reads and writes only its own columns of T, so the
- * lanes meet only around the update of qb.  Rows go in blocks of LCP_PIVOT_ROWS: a block's
- * loads are all issued before its stores (the compiler cannot move a load of fcol or T above
- * a store to T, which may alias it), so each block waits on memory once, not once per row. */
+ * (fcol[r] is the pivot element; a copy, not T's own column).  A lane reads and writes only its
+ * own columns of T; the entering column c, whose new entries are fcol[i] / p, is written with
+ * qb, a row per lane, after the lanes meet.  Row r is updated with the others (its value is
+ * dropped: rj is stored over it), so that the rows go without a test per entry, in blocks of
+ * LCP_PIVOT_ROWS: a block's loads are all issued before its stores (the compiler cannot move a
+ * load of fcol or T above a store to T, which may alias it), so each block waits on memory
+ * once, not once per row. */
 #ifndef LCP_PIVOT_ROWS
 #define LCP_PIVOT_ROWS 8
 #endif
 LCP_FN void lcp_pivot_warp(double *T, double *qb, lcp_ix nrows, lcp_ix ncols, lcp_ix r,
                            lcp_ix c, const double *fcol, lcp_ix lane, lcp_ix lanes)
 {
-    lcp_ix i, i0, b, j, cnt;
-    double inv = 1.0 / fcol[r], qr = -qb[r] * inv, rj, f[LCP_PIVOT_ROWS], t[LCP_PIVOT_ROWS];
-    double *Tj;
+    lcp_ix i, i0, b, j, full = nrows - nrows % LCP_PIVOT_ROWS;
+    double inv = 1.0 / fcol[r], qr = -qb[r] * inv, rj, fi, f[LCP_PIVOT_ROWS], t[LCP_PIVOT_ROWS];
+    double *Tj, *Tb;
     for (j = lane; j < ncols; j += lanes) {
+        if (j == c)
+            continue;
         Tj = T + j;
-        rj = j == c ? inv : -Tj[r * ncols] * inv;
-        for (i0 = 0; i0 < nrows; i0 += LCP_PIVOT_ROWS) {
-            cnt = nrows - i0 < LCP_PIVOT_ROWS ? nrows - i0 : LCP_PIVOT_ROWS;
-            LCP_UNROLL
-            for (b = 0; b < LCP_PIVOT_ROWS; b++)
-                if (b < cnt) {
-                    f[b] = fcol[i0 + b];
-                    t[b] = Tj[(i0 + b) * ncols];
-                }
+        rj = -Tj[r * ncols] * inv;
+        for (i0 = 0; i0 < full; i0 += LCP_PIVOT_ROWS) {
+            Tb = Tj + i0 * ncols;
             LCP_UNROLL
             for (b = 0; b < LCP_PIVOT_ROWS; b++) {
-                i = i0 + b;
-                if (b < cnt && i != r && f[b] != 0.0)
-                    Tj[i * ncols] = j == c ? f[b] * inv : t[b] + f[b] * rj;
+                f[b] = fcol[i0 + b];
+                t[b] = Tb[b * ncols];
             }
+            LCP_UNROLL
+            for (b = 0; b < LCP_PIVOT_ROWS; b++)
+                if (f[b] != 0.0)
+                    Tb[b * ncols] = t[b] + f[b] * rj;
+        }
+        for (i = full; i < nrows; i++) {
+            fi = fcol[i];
+            if (fi != 0.0)
+                Tj[i * ncols] = Tj[i * ncols] + fi * rj;
         }
         Tj[r * ncols] = rj;
     }
     LCP_SYNC(); /* every lane has read qb[r] */
-    for (i = lane; i < nrows; i += lanes)
-        if (i == r)
+    for (i = lane; i < nrows; i += lanes) {
+        fi = fcol[i];
+        if (i == r) {
             qb[i] = qr;
-        else if (fcol[i] != 0.0)
-            qb[i] += fcol[i] * qr;
+            T[i * ncols + c] = inv;
+        } else if (fi != 0.0) {
+            qb[i] += fi * qr;
+            T[i * ncols + c] = fi * inv;
+        }
+    }
     LCP_SYNC();
 }
 
@@ -1413,7 +1432,8 @@ LCP_FN void lcp_lemke_group(lcp_ix n, const double *M, const double *q, const do
                             signed char *code, lcp_i64 *iters, double *err, double *res,
                             lcp_ix lane, lcp_ix lanes)
 {
-    double *tw = sh, *rw = sh + LCP_TAB_DWORK(n) + LCP_TAB_IWORK(n);
+    double *tw = sh;
+    double *rw = sh + LCP_TAB_DWORK(n) + LCP_IX_SLOTS(LCP_TAB_IWORK(n), LCP_IX_PER_SLOT);
     lcp_ix *ti = (lcp_ix *)(sh + LCP_TAB_DWORK(n)), *ri = (lcp_ix *)(rw + LCP_HOT_DWORK(n));
     lcp_ix *ci = (lcp_ix *)(cold + LCP_COLD_DWORK(n));
     lcp_lemke_one(n, M, q, d, max_iter, piv_tol, tie_tol, tol, polished, balanced, q_balanced,
