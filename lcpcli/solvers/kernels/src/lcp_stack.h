@@ -213,16 +213,30 @@ LCP_FN double lcp_big(void) { return ldexp(1.0, 960); }
 LCP_FN double lcp_small(void) { return ldexp(1.0, -960); }
 
 /* dst[i ld + j] = src[i n + j] for the n x n block src, split over the lanes in the order of
- * src (consecutive lanes read consecutive entries: coalesced on the device); restrict: the
- * loads may all be in flight before the stores. */
+ * src (consecutive lanes read consecutive entries: coalesced on the device), LCP_COPY_BATCH
+ * entries a lane at a time: a batch's loads are all issued before its stores (restrict), so
+ * that a lane waits on device memory once a batch, not once an entry. */
+#define LCP_COPY_BATCH 4
 LCP_FN void lcp_copy_block(double *LCP_RESTRICT dst, lcp_ix ld, const double *LCP_RESTRICT src,
                            lcp_ix n, lcp_ix lane, lcp_ix lanes)
 {
-    lcp_ix e, i = lane / (n > 0 ? n : 1), j = lane - i * n, skip = ld - n;
-    for (e = lane; e < n * n; e += lanes) {
-        dst[e + i * skip] = src[e];
-        for (j += lanes; j >= n; j -= n)
-            i += 1;
+    lcp_ix e, u, nn = n * n, i = lane / (n > 0 ? n : 1), j = lane - i * n, skip = ld - n;
+    lcp_ix o[LCP_COPY_BATCH];
+    double v[LCP_COPY_BATCH];
+    for (e = lane; e < nn; e += LCP_COPY_BATCH * lanes) {
+        LCP_UNROLL
+        for (u = 0; u < LCP_COPY_BATCH; u++) {
+            o[u] = e + u * lanes;
+            if (o[u] < nn)
+                v[u] = src[o[u]];
+        }
+        LCP_UNROLL
+        for (u = 0; u < LCP_COPY_BATCH; u++) {
+            if (o[u] < nn)
+                dst[o[u] + i * skip] = v[u];
+            for (j += lanes; j >= n; j -= n) /* (i, j): the row and column of the next entry */
+                i += 1;
+        }
     }
 }
 
@@ -826,40 +840,57 @@ LCP_FN void lcp_pivot(double *T, double *qb, lcp_ix nrows, lcp_ix ncols, lcp_ix 
  * own columns of T; the entering column c, whose new entries are fcol[i] / p, is written with
  * qb, a row per lane, after the lanes meet.  Row r is updated with the others (its value is
  * dropped: rj is stored over it), so that the rows go without a test per entry, in blocks of
- * LCP_PIVOT_ROWS: a block's loads are all issued before its stores (the compiler cannot move a
- * load of fcol or T above a store to T, which may alias it), so each block waits on memory
- * once, not once per row. */
+ * LCP_PIVOT_ROWS rows (then 4, 2 and 1 for the rest): a block's loads are all issued before
+ * its stores (the compiler cannot move a load of fcol or T above a store to T, which may alias
+ * it), so each block waits on memory once, not once per row. */
 #ifndef LCP_PIVOT_ROWS
 #define LCP_PIVOT_ROWS 8
 #endif
+#if LCP_PIVOT_ROWS > 16 || (LCP_PIVOT_ROWS & (LCP_PIVOT_ROWS - 1))
+#error "LCP_PIVOT_ROWS: a power of two up to 16"
+#endif
+/* `rows` (a constant where it is called: up to LCP_PIVOT_ROWS) rows of one column: T_ij +=
+ * f_i r_j where f_i != 0; Tb: the first row's entry of the column, fb: its f */
+LCP_FN void lcp_pivot_rows(double *Tb, const double *fb, lcp_ix ncols, double rj, int rows)
+{
+    double f[LCP_PIVOT_ROWS], t[LCP_PIVOT_ROWS];
+    int b;
+    LCP_UNROLL
+    for (b = 0; b < LCP_PIVOT_ROWS; b++)
+        if (b < rows) {
+            f[b] = fb[b];
+            t[b] = Tb[b * ncols];
+        }
+    LCP_UNROLL
+    for (b = 0; b < LCP_PIVOT_ROWS; b++)
+        if (b < rows && f[b] != 0.0)
+            Tb[b * ncols] = t[b] + f[b] * rj;
+}
+
+/* the rows left after the whole blocks, in blocks of halving size (each size at most once) */
+#define LCP_PIVOT_TAIL(B)                                                                    \
+    if (LCP_PIVOT_ROWS > (B) && nrows - i0 >= (B)) {                                         \
+        lcp_pivot_rows(Tj + i0 * ncols, fcol + i0, ncols, rj, (B));                          \
+        i0 += (B);                                                                           \
+    }
+
 LCP_FN void lcp_pivot_warp(double *T, double *qb, lcp_ix nrows, lcp_ix ncols, lcp_ix r,
                            lcp_ix c, const double *fcol, lcp_ix lane, lcp_ix lanes)
 {
-    lcp_ix i, i0, b, j, full = nrows - nrows % LCP_PIVOT_ROWS;
-    double inv = 1.0 / fcol[r], qr = -qb[r] * inv, rj, fi, f[LCP_PIVOT_ROWS], t[LCP_PIVOT_ROWS];
-    double *Tj, *Tb;
+    lcp_ix i, i0, j;
+    double inv = 1.0 / fcol[r], qr = -qb[r] * inv, rj, fi;
+    double *Tj;
     for (j = lane; j < ncols; j += lanes) {
         if (j == c)
             continue;
         Tj = T + j;
         rj = -Tj[r * ncols] * inv;
-        for (i0 = 0; i0 < full; i0 += LCP_PIVOT_ROWS) {
-            Tb = Tj + i0 * ncols;
-            LCP_UNROLL
-            for (b = 0; b < LCP_PIVOT_ROWS; b++) {
-                f[b] = fcol[i0 + b];
-                t[b] = Tb[b * ncols];
-            }
-            LCP_UNROLL
-            for (b = 0; b < LCP_PIVOT_ROWS; b++)
-                if (f[b] != 0.0)
-                    Tb[b * ncols] = t[b] + f[b] * rj;
-        }
-        for (i = full; i < nrows; i++) {
-            fi = fcol[i];
-            if (fi != 0.0)
-                Tj[i * ncols] = Tj[i * ncols] + fi * rj;
-        }
+        for (i0 = 0; i0 + LCP_PIVOT_ROWS <= nrows; i0 += LCP_PIVOT_ROWS)
+            lcp_pivot_rows(Tj + i0 * ncols, fcol + i0, ncols, rj, LCP_PIVOT_ROWS);
+        LCP_PIVOT_TAIL(8)
+        LCP_PIVOT_TAIL(4)
+        LCP_PIVOT_TAIL(2)
+        LCP_PIVOT_TAIL(1)
         Tj[r * ncols] = rj;
     }
     LCP_SYNC(); /* every lane has read qb[r] */
