@@ -11,10 +11,10 @@ events, best of ``--repeat``), every combination of the choices that change spee
 * lanes per problem (8, 16, 32),
 * staging M, q, z, w in shared memory,
 
-the three columns of ``backends/cuda.py``'s ``WARP_TABLE``; with ``--warps``, also warps per
-block (``WARPS_PER_BLOCK``; not a table column: the table is made from the shipped value's
-rows, ``best_any_warps`` says whether another did better: at n = 50 one warp per block packs
-7 problems' shared memory on a multiprocessor where blocks of 3 pack 6).
+the three columns of ``backends/cuda.py``'s ``WARP_TABLE``; with ``--warps``, also the most
+warps per block (``WARPS_PER_BLOCK``, within which ``warps_per_block`` shapes the block for
+residency; not a table column: the table is made from the shipped value's rows,
+``best_any_warps`` says whether another did better).
 
 Every combination must give the first one's z, w, code, pivots, error and residual bit for
 bit (``same``), and the first one the CPU's status, z and pivots on a sample (``cpu``).

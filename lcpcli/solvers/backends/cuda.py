@@ -66,9 +66,10 @@ NVRTC_OPTIONS = ("--std=c++11", "--fmad=false")
 #: to 255 registers, 4 = 64).  Speed only: every choice computes the same numbers
 #: (tests/solvers/test_lane_groups.py, test_gpu_backend.py).  The best of every combination
 #: at n = 12, 24, 32, 50 in benchmarks/gpu_sweep.py's run on an H200 (benchmarks/README.md,
-#: results/gpu_sweep_h200_r3.json, 2026-11-27); the n = 50 row speaks for every larger size.
+#: results/gpu_sweep_h200_r4.json, 2026-11-27, blocks shaped by :func:`warps_per_block`); the
+#: n = 50 row speaks for every larger size.
 WARP_TABLE: tuple[tuple[int, int, bool, int], ...] = (
-    (12, 8, False, 2), (24, 32, False, 2), (32, 32, True, 2), (1 << 62, 32, True, 1))
+    (12, 8, False, 2), (24, 16, False, 2), (32, 32, False, 2), (1 << 62, 32, True, 1))
 #: Extra NVRTC options that replace the table's register budget (``-D`` tuning macros of
 #: lcp_stack.h), for benchmarks/bench_gpu.py; speed only, never a result.
 EXTRA_OPTIONS: tuple[str, ...] = ()
