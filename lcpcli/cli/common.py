@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import copy
 import os
 import signal
 import sys
@@ -112,13 +113,25 @@ def parse_key_values(pairs: list[str] | None) -> dict[str, str]:
 
 def _console_class() -> Any:
     """rich's Console, except that a broken pipe raises BrokenPipeError (rich's own handler
-    exits with status 1, which reads as "not solved" under ``set -o pipefail``)."""
+    exits with status 1, which reads as "not solved" under ``set -o pipefail``), and that
+    tables are drawn with rules only on a terminal without ``NO_COLOR``: elsewhere (a pipe, a
+    file, ``NO_COLOR``) the same rows come as plain columns (two spaces apart, no box
+    characters), every table at any depth (rich renders nested renderables through
+    :meth:`render`)."""
     from rich.console import Console  # rich only where something is rendered (start-up)
+    from rich.table import Table
 
     class PipeConsole(Console):
         def on_broken_pipe(self) -> None:
             self.quiet = True
             raise PipeClosed()
+
+        def render(self, renderable: Any, options: Any = None) -> Any:
+            if isinstance(renderable, Table) and renderable.box is not None \
+                    and (self.no_color or not self.is_terminal):
+                renderable = copy.copy(renderable)
+                renderable.box = None
+            return super().render(renderable, options)
 
     return PipeConsole
 

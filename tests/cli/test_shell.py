@@ -241,3 +241,44 @@ def test_bench_stops_on_ctrl_c_with_the_finished_runs(tmp_path):
     text = err.decode()
     assert text.startswith("lcpcli: bench: ") and "lcpcli: interrupted after" in text
     assert "Traceback" not in text
+
+
+BOX = re.compile("[\u2500-\u257f]")  # box-drawing characters (rules, corners, edges)
+COLOUR = re.compile(r"(^|;)(3[0-9]|4[0-9]|9[0-7]|10[0-7])(;|$)")  # SGR colour parameters
+TABLE_COMMANDS = [
+    ("solve", "samples/degenerate.json"),
+    ("solve", "samples/degenerate.json", "--trace", "-m", "lemke"),
+    ("enumerate", "samples/degenerate.json", "--all-cones"),
+    ("info", "samples/degenerate.json"),
+    ("methods",),
+    ("contact-matrix", "samples/scene_two_balls.json", "--solve"),
+    ("solve", "samples/degenerate.json", "samples/seed004.json"),
+]
+
+
+def _words(text):
+    """The words of an output, escape codes and rules aside, numbers of the timing kind left
+    out (times and rates differ from run to run)."""
+    text = BOX.sub(" ", re.sub(r"\x1b\[[0-9;]*m", "", text))
+    return {w for w in text.split() if not re.fullmatch(r"\(?[0-9.]+(ms|s|us)?", w)}
+
+
+@pytest.mark.parametrize("args", TABLE_COMMANDS, ids=lambda a: " ".join(a[:3]))
+def test_tables_have_rules_only_on_a_terminal_without_no_color(cli, args):
+    """Tables drawn with rules on a terminal; piped, or with NO_COLOR even on a terminal, the
+    same rows as plain columns: no box-drawing character, every word still there."""
+    terminal = {"TTY_COMPATIBLE": "1", "FORCE_TERMINAL": "1", "COLUMNS": "100"}  # rich 14+ / 13
+    boxed = cli(*args, env={**terminal, "NO_COLOR": ""})
+    assert boxed.returncode in (0, 1), boxed.stderr
+    assert BOX.search(boxed.stdout)
+    for env in ({"TTY_COMPATIBLE": "", "FORCE_TERMINAL": "", "NO_COLOR": "", "COLUMNS": "100"},
+                {**terminal, "NO_COLOR": "1"}):
+        plain = cli(*args, env=env)
+        assert plain.returncode == boxed.returncode, plain.stderr
+        assert not BOX.search(plain.stdout), plain.stdout[:400]
+        if env["NO_COLOR"]:  # on a terminal: bold may stay, no colour (no-color.org)
+            codes = re.findall(r"\x1b\[([0-9;]*)m", plain.stdout)
+            assert not [c for c in codes if COLOUR.search(c)], codes
+        else:
+            assert "\x1b[" not in plain.stdout
+        assert _words(plain.stdout) == _words(boxed.stdout)
