@@ -138,11 +138,11 @@ def _console_class() -> Any:
 
 def stdout_console() -> Any:
     """A rich console on stdout (colour only on a TTY and never with NO_COLOR)."""
-    return _console_class()(highlight=False)
+    return _console_class()(highlight=False, force_terminal=is_terminal(sys.stdout))
 
 
 def stderr_console() -> Any:
-    return _console_class()(stderr=True, highlight=False)
+    return _console_class()(stderr=True, highlight=False, force_terminal=is_terminal(sys.stderr))
 
 
 def progress_allowed() -> bool:
@@ -152,13 +152,27 @@ def progress_allowed() -> bool:
 
 
 def stderr_is_terminal() -> bool:
-    """Whether stderr is a terminal, as rich decides it (``FORCE_TERMINAL`` too), without
-    importing rich when it is not."""
-    force = os.environ.get("FORCE_TERMINAL")
+    """Whether stderr is a terminal (:func:`is_terminal`)."""
+    return is_terminal(sys.stderr)
+
+
+def is_terminal(stream: Any) -> bool:
+    """Whether ``stream`` is a terminal: the one rule of both consoles and the progress bars,
+    without importing rich.  rich's environment overrides first (``TTY_COMPATIBLE`` 1 / 0,
+    then ``FORCE_TERMINAL`` as rich 13 read it, then ``FORCE_COLOR`` set and not empty: a
+    terminal), else the stream's ``isatty``."""
+    env = os.environ
+    tty = env.get("TTY_COMPATIBLE", "")
+    if tty in ("0", "1"):
+        return tty == "1"
+    force = env.get("FORCE_TERMINAL")
     if force is not None:
         return force.lower() not in ("", "0", "false", "no")
+    color = env.get("FORCE_COLOR")
+    if color is not None:
+        return color != ""
     try:
-        return sys.stderr.isatty()
+        return bool(stream.isatty())
     except (AttributeError, ValueError):
         return False
 
@@ -198,7 +212,7 @@ def write_json_line(obj: Any) -> None:
         sys.stdout.flush()
 
 
-__all__ = ["EXIT_BAD_INPUT", "MethodListCommand", "PipeClosed", "StdoutGuard",
-           "duration", "exit_code_for", "parse_key_values", "pending_exit", "plural",
+__all__ = ["EXIT_BAD_INPUT", "MethodListCommand", "PipeClosed", "StdoutGuard", "duration",
+           "exit_code_for", "is_terminal", "parse_key_values", "pending_exit", "plural",
            "progress_allowed", "stderr_console", "stderr_is_terminal", "stdout_console",
            "write_json_line"]

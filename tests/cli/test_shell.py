@@ -282,3 +282,33 @@ def test_tables_have_rules_only_on_a_terminal_without_no_color(cli, args):
         else:
             assert "\x1b[" not in plain.stdout
         assert _words(plain.stdout) == _words(boxed.stdout)
+
+
+@pytest.mark.parametrize(("env", "tty", "expected"), [
+    ({}, False, False), ({}, True, True),
+    ({"TTY_COMPATIBLE": "1"}, False, True), ({"TTY_COMPATIBLE": "0"}, True, False),
+    ({"TTY_COMPATIBLE": "0", "FORCE_TERMINAL": "1"}, False, False),
+    ({"FORCE_TERMINAL": "1"}, False, True), ({"FORCE_TERMINAL": "0"}, True, False),
+    ({"FORCE_COLOR": "1"}, False, True), ({"FORCE_COLOR": ""}, True, False),
+])
+def test_one_terminal_rule_for_both_consoles_and_the_progress_bars(monkeypatch, env, tty,
+                                                                   expected):
+    """rich's overrides (TTY_COMPATIBLE, then FORCE_TERMINAL, then FORCE_COLOR), else the
+    stream's isatty: the stdout and stderr consoles and the progress bars ask the same rule."""
+    from lcpcli.cli import common
+
+    for name in ("TTY_COMPATIBLE", "FORCE_TERMINAL", "FORCE_COLOR", "NO_COLOR"):
+        monkeypatch.delenv(name, raising=False)
+    for name, value in env.items():
+        monkeypatch.setenv(name, value)
+
+    class Stream(io.StringIO):
+        def isatty(self):
+            return tty
+
+    monkeypatch.setattr(sys, "stdout", Stream())
+    monkeypatch.setattr(sys, "stderr", Stream())
+    assert common.is_terminal(sys.stdout) is expected
+    assert common.stdout_console().is_terminal is expected
+    assert common.stderr_console().is_terminal is expected
+    assert common.progress_allowed() is expected
