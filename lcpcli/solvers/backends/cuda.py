@@ -265,19 +265,19 @@ def warp_launch(n: int, lanes: int | None = None, stage: bool | None = None) -> 
     per_warp = 32 // lanes
     fast, cold = group_slots(n)
     if 8 * fast * per_warp <= SHARED_BYTES:
-        warps = warps_per_block(8 * fast * per_warp, budget(row[3]))
+        warps = warps_per_block(8 * fast * per_warp, warp_budget(n))
         return WarpLaunch(lanes, warps, warps * per_warp, bool(stage),
                           warps * per_warp * 8 * fast, fast + cold)
     return WarpLaunch(lanes, 4, 4 * per_warp, False, 0, fast + cold)
 
 
-def budget(table_budget: int) -> int:
-    """The register budget the warp kernel is built with: :data:`EXTRA_OPTIONS`'
-    ``-DLCP_WARP_MIN_BLOCKS`` where given, else the table's."""
-    for opt in EXTRA_OPTIONS:
+def warp_budget(n: int) -> int:
+    """The register budget (``LCP_WARP_MIN_BLOCKS``) the warp kernel for size ``n`` is built
+    with: :func:`build_options`' define, else the kernel's default, 1."""
+    for opt in build_options("lcp_lemke_warp_stack", n):
         if opt.startswith("-DLCP_WARP_MIN_BLOCKS="):
             return int(opt.split("=", 1)[1])
-    return table_budget
+    return 1
 
 
 def warps_per_block(warp_bytes: int, min_blocks: int) -> int:
