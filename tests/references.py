@@ -173,9 +173,10 @@ def componentwise_error(M: Any, q: np.ndarray, z: np.ndarray, lo: np.ndarray | N
         if not col.any():
             return float("inf")
         kappa = 0.0  # the largest relative change per unit move (same rounding as the kernel)
-        for i in np.flatnonzero(col):
-            kappa = max(kappa, float("inf") if s[i] == 0 else col[i] * (1.0 / s[i]))
-        return x * kappa
+        with np.errstate(over="ignore"):  # past the range: inf, as the kernel's
+            for i in np.flatnonzero(col):
+                kappa = max(kappa, float("inf") if s[i] == 0 else col[i] * (1.0 / s[i]))
+            return x * kappa
 
     eps = np.zeros(n)
     equation = np.zeros(n, dtype=bool)   # the pair is scored in its state "w_i = 0"
