@@ -7,8 +7,10 @@
 # table; then, as asked: PROFILE=1 Nsight Compute on one launch
 # per size (benchmarks/gpu_profile.py), TESTS=1 the GPU tests, SANITIZE=1 compute-sanitizer.
 #     OUT=/tmp/gpu [BASELINE=old/lcp_stack.h] [ROWS="8 4"] [BLOCKS=1,2] [WARPS=8,1] [PROFILE=1] \
-#         [TESTS=1] [SANITIZE=1] \
+#         [TESTS=1] [SANITIZE=1] [VARIANTS="copy8:-DLCP_COPY_BATCH=8 rows4:-DLCP_PIVOT_ROWS=4"] \
 #         bash benchmarks/gpu_device_run.sh
+# VARIANTS: NAME:OPTIONS pairs (options comma-separated -D macros of lcp_stack.h's speed
+# choices), each built beside the others and swept at n = 12 and 50 in the same run.
 # Everything but the last lines printed goes to $OUT/run.tar.gz.
 set -u
 OUT=${OUT:-/tmp/lcpcli-gpu}
@@ -31,6 +33,9 @@ build_cubins() {  # $1: header, $2: folder, $3...: extra nvcc options; one nvcc 
 }
 for rows in $ROWS; do build_cubins lcpcli/solvers/kernels/src/lcp_stack.h "$CUB/rows$rows" -DLCP_PIVOT_ROWS=$rows; done
 [ -n "${BASELINE:-}" ] && build_cubins "$BASELINE" "$CUB/base"
+for v in ${VARIANTS:-}; do
+    build_cubins lcpcli/solvers/kernels/src/lcp_stack.h "$CUB/v_${v%%:*}" $(echo "${v#*:}" | tr ',' ' ')
+done
 [ "${PROFILE:-0}" = 1 ] && build_cubins lcpcli/solvers/kernels/src/lcp_stack.h "$CUB/prof" -lineinfo
 if ! timeout 150 $PY setup.py build_ext --inplace -j "$(nproc)" > "$R/build.log" 2>&1; then
     echo "build failed"; tail -5 "$R/build.log"
@@ -50,6 +55,7 @@ with cf.ProcessPoolExecutor(4) as ex:
 " > "$R/nvrtc.txt" 2>&1 & )
 SETS=""; for rows in $ROWS; do SETS="$SETS rows$rows"; done
 [ -d "$CUB/base" ] && SETS="$SETS base"
+for v in ${VARIANTS:-}; do SETS="$SETS v_${v%%:*}"; done
 first=1
 for set in $SETS; do
     if [ $first = 1 ]; then

@@ -31,12 +31,12 @@ I64 = np.ctypeslib.ndpointer(np.int64, flags="C_CONTIGUOUS")
 I8 = np.ctypeslib.ndpointer(np.int8, flags="C_CONTIGUOUS")
 
 
-@pytest.fixture(scope="module")
-def emu(tmp_path_factory):
-    lib = tmp_path_factory.mktemp("lanes") / "liblanes.so"
+def build_harness(folder, defines=()):
+    """The lane harness compiled with the header's ``-D`` speed choices ``defines``."""
+    lib = folder / "liblanes.so"
     subprocess.run([CXX, "-std=c++20", "-O1", "-shared", "-fPIC", "-pthread",
-                    "-Drestrict=__restrict__", f"-I{SRC}", str(HARNESS), "-o", str(lib)],
-                   check=True, capture_output=True, text=True)
+                    "-Drestrict=__restrict__", *defines, f"-I{SRC}", str(HARNESS), "-o",
+                    str(lib)], check=True, capture_output=True, text=True)
     so = ctypes.CDLL(str(lib))
     ll, dbl, i32 = ctypes.c_longlong, ctypes.c_double, ctypes.c_int
     so.emu_lemke_stack.argtypes = [ll, ll, F64, F64, ctypes.c_void_p, ll, dbl, dbl, dbl, dbl,
@@ -44,6 +44,11 @@ def emu(tmp_path_factory):
     so.emu_certify.argtypes = [ll, F64, F64, F64, ctypes.c_void_p, ctypes.c_void_p, i32, F64,
                                ctypes.POINTER(dbl), ctypes.POINTER(dbl)]
     return so
+
+
+@pytest.fixture(scope="module")
+def emu(tmp_path_factory):
+    return build_harness(tmp_path_factory.mktemp("lanes"))
 
 
 def outputs(K, n):
@@ -140,3 +145,20 @@ def test_the_certificate_split_over_lanes(emu, count):
             assert st_ == ref[0]
             if st_ == 0:
                 assert (err.value, res.value) == (ref[1], ref[2])
+
+
+@pytest.mark.parametrize("defines", [("-DLCP_PIVOT_ROWS=1", "-DLCP_COPY_BATCH=1"),
+                                     ("-DLCP_PIVOT_ROWS=4", "-DLCP_COPY_BATCH=8"),
+                                     ("-DLCP_PIVOT_ROWS=16", "-DLCP_COPY_BATCH=2")])
+def test_the_speed_choices_change_no_answer(tmp_path, defines):
+    """The header's speed macros (pivot row blocks, the copy's batch: the device sweep's
+    VARIANTS) give the one-lane answers of the shipped build bit for bit, over lanes."""
+    so = build_harness(tmp_path, defines)
+    for kind in ("pd", "ties", "scaled"):
+        for n in (1, 5, 12, 23, 40):
+            M, q = stack(kind, 3, n, seed=n)
+            ref = one_lane(M, q, True)
+            for count in (8, 32):
+                got = lanes(so, M, q, True, count)
+                for a, b in zip(got, ref, strict=True):
+                    np.testing.assert_array_equal(a, b, err_msg=f"{defines} {kind} n={n}")

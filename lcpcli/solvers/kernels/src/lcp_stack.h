@@ -216,7 +216,9 @@ LCP_FN double lcp_small(void) { return ldexp(1.0, -960); }
  * src (consecutive lanes read consecutive entries: coalesced on the device), LCP_COPY_BATCH
  * entries a lane at a time: a batch's loads are all issued before its stores (restrict), so
  * that a lane waits on device memory once a batch, not once an entry. */
+#ifndef LCP_COPY_BATCH /* an NVRTC/nvcc -D option for a device sweep; speed only */
 #define LCP_COPY_BATCH 4
+#endif
 LCP_FN void lcp_copy_block(double *LCP_RESTRICT dst, lcp_ix ld, const double *LCP_RESTRICT src,
                            lcp_ix n, lcp_ix lane, lcp_ix lanes)
 {
