@@ -148,12 +148,7 @@ def stderr_console() -> Any:
 def progress_allowed() -> bool:
     """Whether a progress bar may be drawn on stderr: a terminal, and no ``NO_COLOR`` (the one
     rule of every command's live display)."""
-    return stderr_is_terminal() and not os.environ.get("NO_COLOR")
-
-
-def stderr_is_terminal() -> bool:
-    """Whether stderr is a terminal (:func:`is_terminal`)."""
-    return is_terminal(sys.stderr)
+    return is_terminal(sys.stderr) and not os.environ.get("NO_COLOR")
 
 
 def is_terminal(stream: Any) -> bool:
@@ -214,5 +209,4 @@ def write_json_line(obj: Any) -> None:
 
 __all__ = ["EXIT_BAD_INPUT", "MethodListCommand", "PipeClosed", "StdoutGuard", "duration",
            "exit_code_for", "is_terminal", "parse_key_values", "pending_exit", "plural",
-           "progress_allowed", "stderr_console", "stderr_is_terminal", "stdout_console",
-           "write_json_line"]
+           "progress_allowed", "stderr_console", "stdout_console", "write_json_line"]
