@@ -15,14 +15,17 @@ most ``q^T y + sum_i max(g_i l_i, g_i u_i)`` on the box; ``g_i <= 0`` where ``u_
 ``g_i >= 0`` where ``l_i = -inf`` and a negative total are a contradiction.  For the LCP this is the
 classical ``y >= 0, M^T y <= 0, q^T y < 0``.
 
-:func:`check_farkas` accepts ``y`` when it is an *exact* Farkas vector of a problem whose data
-differ from the given ``(M, q)`` by at most the rounding of one evaluation of ``M^T y``:
-componentwise, ``g_i`` may have the wrong sign by at most ``m_i = PROOF_GAMMA(n) (|M|^T |y|)_i``,
-and the total must stay negative by more than ``PROOF_GAMMA(n)`` times its terms.  The margin
-is rounding-level (a few ``n u``, ``u = 2^-53``), not the solve's ``tol``: a solvable problem
-that is merely close to an infeasible one (the positive definite ``M`` with smallest eigenvalue
-1e-12, the scaled Hilbert matrix) is never "proven" infeasible.  This is the only way to a
-``no_solution`` verdict (:func:`confirm`, used by :func:`lcpcli.solve` and ``auto``).
+:func:`check_farkas` accepts ``y`` only when it is an *exact* Farkas vector of the data as
+given (every double is a rational number): a sign of ``g = M^T y`` is taken from its floating-
+point value when that value is farther from zero than Higham's bound on its rounding,
+``PROOF_GAMMA(n) (|M|^T |y|)_i``, and otherwise from the exact sum (:func:`_exact_dots`: each
+product split into exact halves, summed correctly rounded by ``math.fsum``; exact rational
+arithmetic where the halves could underflow); the total must stay negative by more than
+``PROOF_GAMMA(n)`` times its terms.  So a solvable problem, however close to an infeasible one
+(the positive definite ``M`` with smallest eigenvalue 1e-12, or 1e-16, the scaled Hilbert
+matrix, ``B B^T`` rounded to a nonsingular matrix) is never "proven" infeasible.  This is the
+only way to a ``no_solution`` verdict (:func:`confirm`, used by :func:`lcpcli.solve` and
+``auto``).
 
 :func:`prove_infeasible` turns a suggestion of infeasibility into such a vector: the given
 candidates (e.g. Lemke's secondary-ray direction, which is a Farkas vector for a copositive-plus
@@ -33,6 +36,7 @@ active constraints, a single row (``M_i <= 0``, ``q_i < 0``), and, on request, a
 
 from __future__ import annotations
 
+import math
 import warnings
 from collections.abc import Iterable
 from dataclasses import dataclass
@@ -83,12 +87,12 @@ class FarkasCheck:
         if not self.passed:
             return f"no Farkas certificate ({self.reason})"
         if self.lcp:
-            return (f"Farkas certificate: y >= 0 with M^T y <= 0 (componentwise, to within "
-                    f"rounding) and q^T y = {self.value:.3g} < 0 (y scaled by a power of "
-                    f"two), so no z >= 0 has Mz + q >= 0")
-        return (f"Farkas certificate: y with M^T y within the sign rules of the bounds (to "
-                f"within rounding) and sup of y^T (Mz + q) over the box = {self.value:.3g} < 0, "
-                f"so no z in the box makes w feasible")
+            return (f"Farkas certificate: y >= 0 with M^T y <= 0 (componentwise, exactly) "
+                    f"and q^T y = {self.value:.3g} < 0 (y scaled by a power of two), so no "
+                    f"z >= 0 has Mz + q >= 0")
+        return (f"Farkas certificate: y with M^T y within the sign rules of the bounds "
+                f"(exactly) and sup of y^T (Mz + q) over the box = {self.value:.3g} < 0, so no "
+                f"z in the box makes w feasible")
 
     def as_dict(self) -> dict[str, Any]:
         """The proof for ``Result.info`` (JSON-safe)."""
@@ -143,26 +147,35 @@ def check_farkas(M: Any, q: np.ndarray, lo: np.ndarray, up: np.ndarray,
             return fail("M^T y overflows")
         # a column whose terms may have underflowed: its sign is decided exactly (a rounding
         # margin below the normal range would be absolute, not relative to the data)
+        exact = np.zeros(n, dtype=bool)  # g_i is the exact sum, correctly rounded
         small = np.flatnonzero(a < TINY)
         if small.size:
             live = np.asarray((M != 0).T @ (y != 0).astype(np.float64)).ravel() > 0
             for i in small[live[small]]:
                 g[i], a[i] = _exact_column(M, y, i)
-        m = gamma * a
-        # the range of the exact g_i of a problem within the margin, clipped to its sign rule
-        gl, gu = g - m, g + m
+                exact[i] = True
+        # Higham's bound on the rounding of each computed g_i (none on an exact one)
+        m = np.where(exact, 0.0, gamma * a)
         must_nonpos = np.isinf(up)   # z_i unbounded above: g_i <= 0
         must_nonneg = np.isinf(lo)   # z_i unbounded below: g_i >= 0
-        ratio = np.zeros(n)
-        pos = np.where(must_nonpos, np.maximum(g, 0.0), 0.0)
-        neg = np.where(must_nonneg, np.maximum(-g, 0.0), 0.0)
-        viol = np.maximum(pos, neg)
-        ratio = np.where(viol > 0, viol / np.where(m > 0, m, 1.0), 0.0)
-        ratio = np.where((viol > 0) & (m == 0), np.inf, ratio)
-        worst = int(np.argmax(ratio)) if n else -1
-        if n and ratio[worst] > 1.0:
+        worst, ratio = _sign_violation(g, m, must_nonpos, must_nonneg)
+        if n and ratio[worst] > 1.0:  # the wrong sign, farther than any rounding reaches
             return fail(f"(M^T y)_{worst + 1} = {g[worst]:.3g} has the wrong sign beyond its "
                         f"rounding margin {m[worst]:.3g}", worst, float(ratio[worst]))
+        # a sign the rounding bound cannot decide is decided by the exact sum
+        undecided = np.flatnonzero(~exact & ((must_nonpos & (g + m > 0))
+                                             | (must_nonneg & (g - m < 0))))
+        if undecided.size:
+            g[undecided] = _exact_dots(M, y, undecided)
+            m[undecided] = 0.0
+            worst, ratio = _sign_violation(g, m, must_nonpos, must_nonneg)
+            if ratio[worst] > 1.0:
+                return fail(f"(M^T y)_{worst + 1} = {g[worst]:.3g} has the wrong sign (its "
+                            f"exact value: the data are not exactly infeasible)", worst,
+                            float(ratio[worst]))
+        # the range of the exact g_i (within the rounding bound), clipped to its sign rule,
+        # which every g_i now meets exactly
+        gl, gu = g - m, g + m
         gu = np.where(must_nonpos, np.minimum(gu, 0.0), gu)
         gl = np.where(must_nonneg, np.maximum(gl, 0.0), gl)
         # sup over g' in [gl, gu], z in [lo, up] of g' z: at a corner; an infinite z pairs
@@ -193,18 +206,85 @@ def check_farkas(M: Any, q: np.ndarray, lo: np.ndarray, up: np.ndarray,
     return FarkasCheck(True, y, value, margin, worst, ratio_worst, "", lcp)
 
 
+def _sign_violation(g: np.ndarray, m: np.ndarray, must_nonpos: np.ndarray,
+                    must_nonneg: np.ndarray) -> tuple[int, np.ndarray]:
+    """``(worst, ratio)``: each ``g_i``'s wrong-sign part relative to its rounding bound
+    ``m_i`` (0 where the sign is right, inf where it is wrong and ``m_i = 0``: an exact value)
+    and the index of the largest (-1 when ``n = 0``)."""
+    pos = np.where(must_nonpos, np.maximum(g, 0.0), 0.0)
+    neg = np.where(must_nonneg, np.maximum(-g, 0.0), 0.0)
+    viol = np.maximum(pos, neg)
+    ratio = np.where(viol > 0, viol / np.where(m > 0, m, 1.0), 0.0)
+    ratio = np.where((viol > 0) & (m == 0), np.inf, ratio)
+    return (int(np.argmax(ratio)) if g.size else -1), ratio
+
+
+#: Veltkamp's splitting constant for float64 (2^27 + 1): ``x = hi + lo`` exactly, each half
+#: of at most 26 significant bits, so the product of two halves is exact (no underflow).
+_SPLIT = 134217729.0
+#: Partial products below this may have been rounded (subnormal range): exact rationals then.
+_PRODUCT_FLOOR = 2.0 ** -1021
+#: Columns of M made dense at a time by :func:`_exact_dots` (bounded temporaries).
+_BLOCK_ENTRIES = 1 << 20
+
+
+def _halves(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Veltkamp's split of ``x`` (``|x| <= 1``): ``x = hi + lo`` exactly."""
+    c = _SPLIT * x
+    hi = c - (c - x)
+    return hi, x - hi
+
+
+def _exact_dots(M: Any, y: np.ndarray, cols: np.ndarray) -> np.ndarray:
+    """``(M^T y)_j`` for ``j`` in ``cols``, each the exact sum correctly rounded (so its sign is
+    exact; a nonzero sum below the double range keeps its sign as +-2^-1074).  ``y`` is
+    normalised (``max |y_i| < 1``).  Each column is scaled by a power of two (checked exact),
+    every product split into four exact products of halves (Dekker) and the lot summed by
+    ``math.fsum`` (correctly rounded); a column where a scaling or a partial product could
+    lose bits is summed in exact rationals (:func:`_exact_column`)."""
+    out = np.empty(cols.size)
+    rows = np.flatnonzero(y)
+    yh, yl = _halves(y[rows])
+    step = max(1, _BLOCK_ENTRIES // max(1, rows.size))
+    for start in range(0, cols.size, step):
+        block = cols[start:start + step]
+        if hasattr(M, "toarray"):
+            A = M[rows, :][:, block].toarray()
+        else:
+            A = np.asarray(M, dtype=np.float64)[np.ix_(rows, block)]
+        for k, j in enumerate(block.tolist()):
+            a = A[:, k]
+            amax = float(np.max(np.abs(a))) if a.size else 0.0
+            if amax == 0.0:
+                out[start + k] = 0.0
+                continue
+            e = int(np.frexp(amax)[1])
+            s = np.ldexp(a, -e)
+            ah, al = _halves(s)
+            parts = np.concatenate((ah * yh, ah * yl, al * yh, al * yl))
+            live = np.abs(parts[parts != 0.0])
+            if not np.array_equal(np.ldexp(s, e), a) or (live.size and live.min() <
+                                                         _PRODUCT_FLOOR):
+                out[start + k] = _exact_column(M, y, j)[0]
+                continue
+            v = math.fsum(parts.tolist())
+            g = math.ldexp(v, e)
+            out[start + k] = g if g != 0.0 or v == 0.0 else math.copysign(2.0 ** -1074, v)
+    return out
+
+
 def _exact_column(M: Any, y: np.ndarray, i: int) -> tuple[float, float]:
-    """``((M^T y)_i, (|M|^T |y|)_i)`` from exact rational sums, rounded outward enough for the
-    sign test: a positive exact value that rounds to 0 is returned as inf relative to a zero
-    margin (it fails), a negative one as its value."""
+    """``((M^T y)_i, (|M|^T |y|)_i)`` from exact rational sums, each correctly rounded; a
+    nonzero ``(M^T y)_i`` below the double range keeps its sign as +-2^-1074 (the sign test
+    needs it)."""
     col = M[:, [i]].toarray().ravel() if hasattr(M, "toarray") else np.asarray(M[:, i])
     terms = [Fraction(float(mj)) * Fraction(float(yj)) for mj, yj in zip(col, y, strict=True)
              if mj and yj]
     g = sum(terms, Fraction(0))
     a = sum((abs(t) for t in terms), Fraction(0))
     gf, af = float(g), float(a)
-    if g > 0 and gf <= 0.0:
-        gf = float("inf")  # positive but below the double range: the margin cannot cover it
+    if g != 0 and gf == 0.0:
+        gf = 2.0 ** -1074 if g > 0 else -(2.0 ** -1074)
     return gf, af
 
 
@@ -243,11 +323,21 @@ def _project(y: np.ndarray, lo: np.ndarray, up: np.ndarray, M: Any = None,
     return np.where(small, 0.0, y)
 
 
-def _refine(M: np.ndarray, y: np.ndarray, lo: np.ndarray, up: np.ndarray) -> np.ndarray:
+#: How far :func:`_refine` pushes the nearly active ``g_i`` past zero, relative to
+#: ``(|M|^T |y|)_i``: far above rounding (the exact check then decides by the computed sign),
+#: far below any ``q^T y`` worth proving.
+PUSH = 2.0 ** -30
+
+
+def _refine(M: np.ndarray, y: np.ndarray, lo: np.ndarray, up: np.ndarray,
+            push: float = 0.0) -> np.ndarray:
     """One least-squares correction of ``y``'s support so that the sign constraints on
     ``g = M^T y`` that are nearly active (``|g_i|`` below 2^-20 of ``(|M|^T |y|)_i``) hold with
-    equality to working accuracy (a ray or an LP vertex carries its own rounding or the LP's
-    feasibility tolerance).  Floating-point exceptions are quiet (data near the float64 range
+    equality to working accuracy, or (``push > 0``) with ``g_i = -+push (|M|^T |y|)_i``, on the
+    side of zero its sign rule asks for (a ray or an LP vertex carries its own rounding or the
+    LP's feasibility tolerance; the exact check of :func:`check_farkas` accepts an equality
+    only where the data make it exact, while a robustly infeasible problem has proofs strictly
+    inside the sign rules).  Floating-point exceptions are quiet (data near the float64 range
     overflow the sums): the corrected vector passes :func:`check_farkas` or is not used."""
     S = np.flatnonzero(y)
     if S.size == 0:
@@ -258,13 +348,39 @@ def _refine(M: np.ndarray, y: np.ndarray, lo: np.ndarray, up: np.ndarray) -> np.
         T = np.flatnonzero(np.abs(g) <= 2.0 ** -20 * a)
         if T.size == 0:
             return y
+        # target: 0, or pushed to the side its rule asks for (free rows: 0)
+        side = np.where(np.isinf(up[T]) & ~np.isinf(lo[T]), -1.0,
+                        np.where(np.isinf(lo[T]) & ~np.isinf(up[T]), 1.0, 0.0))
+        target = push * side * a[T]
         A = M[np.ix_(S, T)].T
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            d = np.linalg.lstsq(A, A @ y[S], rcond=None)[0]
+            d = np.linalg.lstsq(A, A @ y[S] - target, rcond=None)[0]
         out = y.copy()
         out[S] = y[S] - d
     return _project(out, lo, up, M)
+
+
+#: Largest denominator :func:`_rational` tries.
+RATIONAL_DENOMINATOR = 2 ** 20
+
+
+def _rational(y: np.ndarray) -> np.ndarray | None:
+    """``y`` (scaled so that its largest entry is 1) replaced by the nearest fractions with
+    denominators up to :data:`RATIONAL_DENOMINATOR`, brought to integers (exact doubles), or
+    None when they do not fit in 53 bits: on data of small integers or simple fractions, the
+    vector whose ``M^T y`` has exact zeros where a floating-point ray has only rounding."""
+    big = float(np.max(np.abs(y))) if y.size else 0.0
+    if not big or not np.all(np.isfinite(y)):
+        return None
+    fr = [Fraction(float(v) / big).limit_denominator(RATIONAL_DENOMINATOR) for v in y]
+    den = 1
+    for f in fr:
+        den = den * f.denominator // math.gcd(den, f.denominator)
+    ints = [f.numerator * (den // f.denominator) for f in fr]
+    if max(abs(i) for i in ints) >= 2 ** 53:
+        return None
+    return np.array(ints, dtype=np.float64)
 
 
 def _single_rows(M: Any, q: np.ndarray, lo: np.ndarray, up: np.ndarray) -> Iterable[np.ndarray]:
@@ -370,11 +486,15 @@ def prove_infeasible(problem: Any, candidates: Iterable[Any] = (), *,
                 return last
             if problem.sparse and n > LP_MAX_N:
                 continue
-            y2 = _refine(_dense(M), last.y, lo, up)
-            if np.any(y2) and np.all(np.isfinite(y2)):
-                again = check_farkas(M, q, lo, up, y2)
-                if again.passed:
-                    return again
+            dense = _dense(M)
+            # strictly inside the sign rules first, then on them, then on them exactly
+            # (the nearest vector of small rationals: exact zeros of M^T y on exact data)
+            on = _refine(dense, last.y, lo, up)
+            for y2 in (_refine(dense, last.y, lo, up, PUSH), on, _rational(on)):
+                if y2 is not None and np.any(y2) and np.all(np.isfinite(y2)):
+                    again = check_farkas(M, q, lo, up, y2)
+                    if again.passed:
+                        return again
         if lp_done or not search or n > LP_MAX_N:
             return None
         lp_done = True

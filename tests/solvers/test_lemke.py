@@ -147,9 +147,11 @@ def test_random_p_matrices_match_brute_force(seed):
 def test_random_psd_rank_deficient(seed):
     rng = np.random.default_rng(100 + seed)
     n = int(rng.integers(2, 9))
-    B = rng.standard_normal((n, max(1, n // 2)))
+    # integer B: M = B B^T exact in floating point, so exactly PSD and singular (a rounded
+    # product of a real B may be definite: tests/solvers/test_proofs.py has those)
+    B = rng.integers(-3, 4, size=(n, max(1, n // 2))).astype(float)
     M = B @ B.T
-    q = rng.standard_normal(n)
+    q = rng.integers(-4, 5, size=n).astype(float)
     sols = brute_force_solutions(M, q)
     r = lemke(M, q)
     if sols:

@@ -162,16 +162,56 @@ def test_every_no_solution_carries_an_independently_checked_farkas_vector(data) 
 @pytest.mark.parametrize("seed", range(12))
 def test_rank_one_psd_problems_are_solved_or_proven(seed: int) -> None:
     """On a PSD (copositive-plus) M, Lemke's method either solves or, when no solution exists,
-    proves it: the proof check does not lose the true proofs."""
+    proves it: the proof check does not lose the true proofs.  ``B`` has small integer entries,
+    so ``M = B B^T`` is exact in floating point: exactly PSD and singular, as its proofs need
+    (the rounded product of a real ``B`` is another matrix, see the next test)."""
     rng = np.random.default_rng(seed)
     n = int(rng.integers(2, 7))
-    B = rng.standard_normal((n, max(1, n // 2)))
-    M, q = B @ B.T, rng.standard_normal(n)
+    B = rng.integers(-3, 4, size=(n, max(1, n // 2))).astype(float)
+    M, q = B @ B.T, rng.integers(-4, 5, size=n).astype(float)
     r = lcpcli.solve(M, q, method="lemke")
     if brute_force_solutions(M, q):
         assert r.status == "solved"
     else:
         assert r.status == "no_solution" and farkas_certifies(M, q, r.info["farkas_y"])
+
+
+def test_a_solvable_problem_within_rounding_of_an_infeasible_one_is_never_proven() -> None:
+    """The data as given decide: ``M`` is positive definite (its smallest eigenvalue ~5e-16)
+    although ``y = (1/2, 1/2)`` is a Farkas vector to within rounding (``M^T y`` ~ +2e-16):
+    every method ends ``solved`` or ``unsolved``, never ``no_solution``; so does the same
+    block inside ``I_200``, where the old rounding margin (``2 (n + 2) u`` of ``|M|^T |y|``) was
+    wide enough for a smallest eigenvalue of 3e-14."""
+    M = np.array([[1.0, -1.0], [-1.0, 1.0 + 1e-15]])
+    q = np.array([-1.0, 0.5])
+    big_M, big_q = np.eye(200), np.ones(200)
+    big_M[:2, :2] = [[1.0, -1.0], [-1.0, 1.0 + 6e-14]]
+    big_q[:2] = q
+    for data in ((M, q), (big_M, big_q)):
+        for method in ("auto", "lemke", "lemke-tableau", "newton"):
+            r = lcpcli.solve(*data, method=method)
+            assert r.status != "no_solution", (method, r.message)
+    assert lcpcli.solve(M, q, method="enum").status != "no_solution"
+    assert not farkas_certifies(M, q, [0.5, 0.5])
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_rounded_rank_deficient_psd_problems_are_proven_only_when_exactly_infeasible(
+        seed: int) -> None:
+    """``M = B B^T`` of a real ``B``, rounded: singular in real arithmetic, but the rounded
+    matrix may be positive definite, with an exact solution of size ~1e15.  A no_solution
+    verdict then needs a Farkas vector of the rounded data (the exact reference); a solved one
+    passes the exact certificate."""
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(2, 7))
+    B = rng.standard_normal((n, max(1, n // 2)))
+    M, q = B @ B.T, rng.standard_normal(n)
+    for method in ("auto", "lemke"):
+        r = lcpcli.solve(M, q, method=method)
+        if r.status == "no_solution":
+            assert farkas_certifies(M, q, r.info["farkas_y"]), (seed, method)
+        elif r.status == "solved":
+            assert componentwise_error(M, q, r.z) <= r.certificate.tol * (1 + 1e-6)
 
 
 # ------------------------------------------------------------------ messages say what was shown
