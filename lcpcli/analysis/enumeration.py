@@ -40,7 +40,7 @@ from lcpcli.analysis._enum import (
     classify_chunk,
     classify_chunk_fast,
 )
-from lcpcli.analysis.proof import prove_infeasible
+from lcpcli.analysis.proof import prove_infeasible, search_proof
 from lcpcli.analysis.scaling import GEOMETRIC_SPREAD, Scaling, equilibrate, geometric, spread
 from lcpcli.core.certificate import DEFAULT_TOL, Certificate, certify, matrix_norm_inf
 from lcpcli.core.errors import OptionError, ProblemError
@@ -356,13 +356,8 @@ def enumerate_cones(problem: Any, *, stop_at_first: bool = False, all_cones: boo
         _unscale(found, scaling, problem, tol)
     _rescue(found, problem, tol)
     if found.verdict == NONE:
-        found.proof = prove_infeasible(problem, search=True)
-        if found.proof is None and scaling is not None:
-            # the LP of the search is not scale-free: search the equilibrated copy, then check
-            # its vector, mapped back (y = D_r y~), on the problem as given
-            scaled = prove_infeasible(work, search=True)
-            if scaled is not None:
-                found.proof = prove_infeasible(problem, [scaling.farkas_back(scaled.y)])
+        found.proof = search_proof(problem, scaling=scaling) if scaling is not None else \
+            prove_infeasible(problem, search=True)
     return found
 
 
@@ -538,7 +533,10 @@ def _enumerate(problem: Any, *, stop_at_first: bool, all_cones: bool, max_n: int
                     if status[t] == FEASIBLE:
                         uncertified.append(code)
                     continue
-                solutions.append(Solution(z, M @ z + q, cert, [code], continuum))
+                with np.errstate(over="ignore", invalid="ignore"):  # w in the problem's units
+                    w_user = M @ z + q  # may pass float64's range where the certificate's
+                    # row scaling does not (the certificate passed: z is an answer)
+                solutions.append(Solution(z, w_user, cert, [code], continuum))
             counts["feasible"] += 1
             if len(feasible_cones) < keep_cones:
                 feasible_cones.append(cone)

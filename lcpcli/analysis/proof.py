@@ -457,6 +457,13 @@ def _lp_candidate(problem: Any) -> np.ndarray | None:
     return scaling.farkas_back(y) if scaling is not None else y
 
 
+def preload_proof_search(problem: Any) -> None:
+    """The modules :func:`prove_infeasible` with ``search=True`` imports for ``problem`` (the
+    linear program's scipy.optimize, when it may run), for a caller that times them apart."""
+    if 0 < problem.n <= LP_MAX_N:
+        import scipy.optimize  # noqa: F401
+
+
 def prove_infeasible(problem: Any, candidates: Iterable[Any] = (), *,
                      search: bool = False) -> FarkasCheck | None:
     """A passing :class:`FarkasCheck` for ``problem``, or None; see the module docstring.
@@ -502,6 +509,30 @@ def prove_infeasible(problem: Any, candidates: Iterable[Any] = (), *,
         if found is None:
             return None
         tries = [found]
+
+
+def search_proof(problem: Any, candidates: Iterable[Any] = (),
+                 scaling: Any = None) -> FarkasCheck | None:
+    """:func:`prove_infeasible` with its linear program, on the problem as given and, when
+    that finds nothing, on its equilibrated copy (``scaling``, else Ruiz's two-sided scaling,
+    Curtis and Reid's where Ruiz leaves entries far apart), whose vector, mapped back
+    (``y = D_r y~``), is checked on the problem as given: the linear program and the
+    least-squares corrections are not scale-free, the check is."""
+    from lcpcli.analysis.scaling import GEOMETRIC_SPREAD, equilibrate, geometric, spread
+
+    found = prove_infeasible(problem, candidates, search=True)
+    if found is not None or problem.n == 0:
+        return found
+    if scaling is None:
+        scaling = equilibrate(problem, False)
+        if spread(problem, scaling) > GEOMETRIC_SPREAD:
+            scaling = geometric(problem, False) or scaling
+    if scaling is None:
+        return None
+    scaled = prove_infeasible(scaling.apply(problem), search=True)
+    if scaled is None:
+        return None
+    return prove_infeasible(problem, [scaling.farkas_back(scaled.y)])
 
 
 def confirm(problem: Any, outcome: Any) -> FarkasCheck | None:

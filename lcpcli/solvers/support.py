@@ -8,6 +8,7 @@ and the verdict agree.
 from __future__ import annotations
 
 import warnings
+from time import perf_counter
 from typing import Any
 
 import numpy as np
@@ -24,6 +25,17 @@ def preload_linalg(problem: Any, options: Any = None) -> None:
         import scipy.sparse.linalg  # noqa: F401
     else:
         import scipy.linalg  # noqa: F401
+
+
+def timed_imports(problem: Any, *loaders: Any) -> float:
+    """Run ``loaders`` (each ``loader(problem)``: the modules a run's next steps import, such
+    as :func:`preload_linalg`) and return the seconds they took: the one way a run loads
+    modules it could not know it needed before it started, timed apart
+    (``Outcome.import_seconds``, left out of ``Result.seconds``)."""
+    start = perf_counter()
+    for loader in loaders:
+        loader(problem)
+    return perf_counter() - start
 
 
 def preload_for_basis(problem: Any, options: Any) -> None:

@@ -29,14 +29,15 @@ def watched():  # every clock read of lcpcli.solve: the timed region lies betwee
     return clock()
 api.perf_counter = watched
 
-from lcpcli.solvers.methods import auto
+from lcpcli.solvers.methods import auto, lemke
 window = set()
-preload = auto.preload_linalg
-def watched_preload(problem):  # auto's fallback loads what its next steps need, timed apart
+timed = auto.timed_imports
+def watched_imports(problem, *loaders):  # what a run loads as it goes, timed apart
     before = set(sys.modules)
-    preload(problem)
+    seconds = timed(problem, *loaders)
     window.update(set(sys.modules) - before)
-auto.preload_linalg = watched_preload
+    return seconds
+auto.timed_imports = lemke.timed_imports = watched_imports
 
 method, warm, sparse, n = sys.argv[1], sys.argv[2] == "warm", sys.argv[3] == "sparse", 80
 rng = np.random.default_rng(7)

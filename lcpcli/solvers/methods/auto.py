@@ -47,7 +47,7 @@ from lcpcli.analysis.classify import (
     diagonal_facts,
     positive_diagonal_report,
 )
-from lcpcli.analysis.proof import confirm
+from lcpcli.analysis.proof import confirm, preload_proof_search, search_proof
 from lcpcli.core.errors import OptionError
 from lcpcli.core.problem import LCP
 from lcpcli.core.result import (
@@ -67,7 +67,7 @@ from lcpcli.solvers.pipeline import run_method
 from lcpcli.solvers.policy import Step
 from lcpcli.solvers.registry import Method, Option, get_method, methods, resolve
 from lcpcli.solvers.registry import version as registry_version
-from lcpcli.solvers.support import preload_linalg, start_point
+from lcpcli.solvers.support import preload_linalg, start_point, timed_imports
 
 
 def prepare() -> None:
@@ -243,7 +243,7 @@ def _solved_first(out: Outcome, error: float, step: Step, regime: str, head: str
     out.info = LazyInfo(_first_info, step, out.termination, iterations, out.message, error,
                         t2 - t1, regime, t1 - t_start, report)
     out.iterations, out.termination, out.message = iterations, CONVERGED, head
-    out.proven_infeasible, out.trace, out.import_seconds = False, None, 0.0
+    out.proven_infeasible, out.trace = False, None  # import_seconds: the attempt's, auto's
     return out
 
 
@@ -288,6 +288,7 @@ def _search(problem: Any, tol: float, max_iter: int | None, z0: np.ndarray | Non
     # the steps after the first: order='s, or (None) planned once the first attempt failed
     queue: Iterator[Step] | None = None if given is None else iter(given[1:])
     attempts: list[dict[str, Any]] = []
+    hints: list[Any] = []  # the failed attempts' ray directions (proof candidates)
     best: tuple[float, np.ndarray, Any] | None = None
     total_it = 0
     t_methods = 0.0
@@ -300,9 +301,7 @@ def _search(problem: Any, tol: float, max_iter: int | None, z0: np.ndarray | Non
             if queue is None:  # the first attempt failed: plan the rest
                 # the tests and methods that follow may factorise: their modules load here,
                 # timed apart (Outcome.import_seconds, left out of Result.seconds)
-                t_import = perf_counter()
-                preload_linalg(problem)
-                imported += perf_counter() - t_import
+                imported += timed_imports(problem, preload_linalg)
                 queue = policy.iter_plan(problem, c, skip=[a["method"] for a in attempts],
                                          regime=regime)
             step = next(queue, None)
@@ -330,13 +329,15 @@ def _search(problem: Any, tol: float, max_iter: int | None, z0: np.ndarray | Non
         if cert.passed and head and not attempts:
             return _solved_first(out, cert.error, step, regime.name, head, t_start, t1, t2,
                                  c.report)  # type: ignore[union-attr]
-        t_methods += t2 - t1
+        # the modules the attempt loaded as it went (Outcome.import_seconds) are not its time
+        imported += out.import_seconds
+        t_methods += t2 - t1 - out.import_seconds
         total_it += iterations
         z = out.z
         proof = None if cert.passed else confirm(problem, out)
         status = SOLVED if cert.passed else NO_SOLUTION if proof is not None else UNSOLVED
         attempts.append(_record(name, why, status, out.termination, iterations, cert.error,
-                                t2 - t1, out.message))
+                                t2 - t1 - out.import_seconds, out.message))
         if c is None:
             c = Classifier(problem, minima)
         report = c.report
@@ -356,9 +357,23 @@ def _search(problem: Any, tol: float, max_iter: int | None, z0: np.ndarray | Non
                                  "farkas_y": proof.y.tolist()}, import_seconds=imported)
         if best is None or cert.error < best[0]:
             best = (cert.error, z, out.termination)
+        if out.info.get("ray") is not None:  # a direction that may still be a Farkas vector
+            hints.append(out.info["ray"])
     report = c.report
     tried = "; ".join(f"{a['method']}: {a['message']}" for a in attempts) or "no method applies"
     z = best[1] if best else np.clip(np.zeros(n), problem.bounds()[0], None)
+    # no answer and no proof from any method: a proof may still exist where no method's
+    # class argument offered one (a ray on a matrix not known to be copositive-plus, a
+    # singular equality block): the linear program of the proof search, on the data as given
+    imported += timed_imports(problem, preload_proof_search)
+    proof = search_proof(problem, hints)
+    if proof is not None:
+        return Outcome(z, total_it, best[2] if best else ITERATION_LIMIT,
+                       f"auto ({report.describe()}): no method solved it ({tried}); "
+                       f"{proof.describe()}", proven_infeasible=True,
+                       info={**_info(None, attempts, report, regime.name,
+                                     perf_counter() - t_start - t_methods - imported),
+                             "farkas_y": proof.y.tolist()}, import_seconds=imported)
     return Outcome(z, total_it, best[2] if best else ITERATION_LIMIT,
                    f"auto ({report.describe()}): every suitable method failed ({tried})",
                    info=_info(None, attempts, report, regime.name,

@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 
 from lcpcli.analysis.classify import is_psd
-from lcpcli.analysis.proof import prove_infeasible
+from lcpcli.analysis.proof import preload_proof_search, prove_infeasible
 from lcpcli.core.errors import OptionError
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, RAY, Outcome
 from lcpcli.core.text import plural
@@ -39,6 +39,7 @@ from lcpcli.solvers.kernels.lemke import (
 )
 from lcpcli.solvers.options import bool_option, positive_int, vector_option
 from lcpcli.solvers.registry import BatchSpec, Cost, Guarantee, Method, Option, when
+from lcpcli.solvers.support import preload_linalg, timed_imports
 
 #: Empty pivot record (the kernel records nothing).
 NO_RECORD = np.zeros((0, 3), dtype=np.int64)
@@ -135,22 +136,29 @@ def ray_outcome(problem: Any, M: np.ndarray, q: np.ndarray, z: np.ndarray, pivot
     from rounding (a solvable problem near an infeasible one), so it is a proof only when the
     vector (or one found by the linear program of :func:`prove_infeasible`) passes the check.
     """
+    # the definiteness test factorises (scipy.linalg) and the search may solve a linear
+    # program: modules loaded here, on the ray's path only, are timed apart
+    imported = timed_imports(problem, preload_linalg)
     psd = is_psd(M)
+    if psd:
+        imported += timed_imports(problem, preload_proof_search)
     proof = prove_infeasible(problem, (ray_dz,), search=psd)
     base = f"ray termination after {plural(pivots, 'pivot')} (z0 = {z0:.3g})"
     z = np.maximum(z, 0.0)
     if proof is not None:
         return Outcome(z, pivots, RAY, f"{base}; {proof.describe()}", proven_infeasible=True,
-                       info={"farkas_y": proof.y.tolist()})
+                       info={"farkas_y": proof.y.tolist()}, import_seconds=imported)
+    hint = {"ray": ray_dz.tolist()}  # a proof candidate for a later search (auto's)
     if psd:
         return Outcome(z, pivots, RAY,
                        f"{base}; M is positive semidefinite (copositive-plus), where the ray "
                        f"would prove infeasibility in exact arithmetic, but no Farkas vector "
-                       f"passes the check, so this ray comes from rounding and proves nothing "
-                       f"(try another method)")
+                       f"passes the exact check, so this ray comes from rounding and proves "
+                       f"nothing (try another method)", info=hint,
+                       import_seconds=imported)
     return Outcome(z, pivots, RAY,
                    f"{base}; M is not known to be copositive-plus, so this proves nothing "
-                   f"(try another method)")
+                   f"(try another method)", info=hint, import_seconds=imported)
 
 
 #: Lemke's classes (both Lemke methods, and the inner LCP of the MLCP methods).
