@@ -33,7 +33,8 @@ def solve(
                                    "[default: 1e-8, every method's default_tol]."),
     max_iter: int = typer.Option(None, "--max-iter", help="Pivot / iteration limit."),
     covering: str = typer.Option(None, "--covering",
-                                 help="Lemke covering vector d > 0, e.g. '1,2,1' "
+                                 help="Lemke covering vector d > 0, e.g. '1,2,1', for -m "
+                                      "lemke, lemke-revised or lemke-tableau "
                                       "[default: all ones]."),
     omega: float = typer.Option(None, "--omega",
                                 help="Relaxation parameter of psor, 0 < omega < 2."),
