@@ -1,6 +1,7 @@
 """Regenerate the bundled samples (run from the repository root: python samples/make_samples.py).
 
-* seed000.json      - Cottle-Pang-Stone Example 4.4.7, the LCP of seed 000 (without z0's column)
+* seed000.json      - Cottle, Pang and Stone, The Linear Complementarity Problem, Example
+                      4.4.7 (without the artificial column of Lemke's method)
 * degenerate.json   - a degenerate LCP (zeros in q, a tie in the first ratio test) resolved
                       by the lexicographic rule
 * degenerate_lex.json - a degenerate 4 x 4 P-matrix LCP whose second Lemke pivot is decided
@@ -25,8 +26,9 @@ HERE = Path(__file__).resolve().parent
 
 def seed000() -> Problem:
     return Problem.create([[0, -1, 2], [2, 0, -2], [-1, 1, 0]], [-3, 6, -1], name="seed000",
-                          description="Cottle-Pang-Stone Ex. 4.4.7 (seed 000 without the "
-                                      "artificial column); solution z = (0, 1, 3)")
+                          description="Cottle, Pang and Stone, The Linear Complementarity "
+                                      "Problem, Example 4.4.7 (without the artificial column "
+                                      "of Lemke's method); solution z = (0, 1, 3)")
 
 
 def degenerate() -> Problem:
@@ -64,7 +66,9 @@ def main() -> None:
     save(degenerate_lex(), HERE / "degenerate_lex.json")
     save(sparse_chain(), HERE / "sparse_chain.npz")
     seed004 = Problem.create([[2, 1], [1, 2]], [-5, -6], name="seed004",
-                             description="seed 004 example: z = (4/3, 7/3)")
+                             description="Murty's textbook LCP (K. G. Murty, Linear "
+                                         "Complementarity, Linear and Nonlinear Programming): "
+                                         "z = (4/3, 7/3)")
     trivial = Problem.create(np.diag(np.arange(1.0, 10.0)), -np.ones(9), name="trivial",
                              description="M = diag(1..9), q = -1: z_i = 1/i")
     write_many([seed004, seed000(), degenerate(), trivial, sparse_chain(50)],

@@ -95,13 +95,21 @@ _KINDS = {".jsonl": "jsonl", ".ndjson": "jsonl", ".csv": "csv", ".h5": "hdf5", "
           ".npz": "npz"}
 
 
+def suffixes(kinds: tuple[str, ...] = ("jsonl", "csv", "hdf5")) -> str:
+    """The accepted suffixes of the result ``kinds``, from :data:`_KINDS`, for messages:
+    ``.jsonl/.ndjson, .csv or .h5/.hdf5``."""
+    names = ["/".join(ext for ext, k in _KINDS.items() if k == kind) for kind in kinds]
+    return ", ".join(names[:-1]) + " or " + names[-1] if len(names) > 1 else names[0]
+
+
 def output_kind(path: str | os.PathLike[str]) -> str:
     """``jsonl``, ``csv``, ``hdf5`` or ``npz`` (stacked inputs only) from the extension;
     anything else is an OptionError."""
     ext = Path(path).suffix.lower()
     if ext not in _KINDS:
         raise OptionError(f"--output {path}: unknown result file type {ext or '(none)'} "
-                          f"(expected .jsonl, .csv, .h5, or .npz for stacked inputs)")
+                          f"(expected {suffixes()}; {suffixes(('npz',))} for stacked "
+                          f"inputs)")
     return _KINDS[ext]
 
 
@@ -612,5 +620,5 @@ def open_writer(path: str | os.PathLike[str], *, resume: bool = False,
         return CsvWriter(path, resume)
     if kind == "npz":
         raise OptionError(f"--output {path}: an .npz result file is written for stacked inputs "
-                          f"only (see docs/batch.md); use .jsonl, .csv or .h5")
+                          f"only (see docs/batch.md); use {suffixes()}")
     return Hdf5Writer(path, resume)

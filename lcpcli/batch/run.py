@@ -134,7 +134,7 @@ def _run_batch(inputs: list[str], opts: SolveOptions, *, recursive: bool, jobs: 
                             early=early)
     if output is not None and batch_output.output_kind(output) == "npz":
         raise OptionError(f"--output {output}: an .npz result file is written for stacked "
-                          f"inputs only (see docs/batch.md); use .jsonl, .csv or .h5")
+                          f"inputs only (see docs/batch.md); use {batch_output.suffixes()}")
     prepare_method(canonical)
     with contextlib.ExitStack() as held:
         # local workers start while the inputs are listed (a few tenths of a second)

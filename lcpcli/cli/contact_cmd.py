@@ -22,9 +22,11 @@ def contact_matrix(
     do_solve: bool = typer.Option(False, "--solve",
                                   help="Solve the LCP and report impulses, post-impact "
                                        "velocities and kinetic energies."),
-    friction: int = typer.Option(0, "--friction", metavar="K",
+    friction: int = typer.Option(0, "--friction", metavar="K", show_default=False,
                                  help="Polyhedral friction with K tangent directions per contact "
-                                      "with mu > 0 (3-D: K >= 3; 2-D and planar 3-D scenes: 2) "
+                                      "with mu > 0: in 3-D K >= 3 (a scene whose motion is "
+                                      "planar then uses its 2 in-plane directions, see "
+                                      "--no-planar); in 2-D K >= 2 gives the 2 directions +-t "
                                       "[default: 0, frictionless]."),
     method: str = typer.Option(DEFAULT_METHOD, "--method", "-m",
                                help="Solver method for --solve, per island (listed below)."),

@@ -30,10 +30,11 @@ def solve(
                                help="Solver method (listed below)."),
     tol: float = typer.Option(None, "--tol",
                               help="Tolerance on the certified error for the verdict 'solved' "
-                                   "[default: the method's, 1e-8 for pivoting]."),
+                                   "[default: 1e-8, every method's default_tol]."),
     max_iter: int = typer.Option(None, "--max-iter", help="Pivot / iteration limit."),
     covering: str = typer.Option(None, "--covering",
-                                 help="Lemke covering vector d > 0, e.g. '1,2,1' "
+                                 help="Lemke covering vector d > 0, e.g. '1,2,1', for -m "
+                                      "lemke, lemke-revised or lemke-tableau "
                                       "[default: all ones]."),
     omega: float = typer.Option(None, "--omega",
                                 help="Relaxation parameter of psor, 0 < omega < 2."),
@@ -55,8 +56,8 @@ def solve(
                                       "--output: one summary object)."),
     output: Path = typer.Option(None, "--output", "-o",
                                 help="Also write the JSON result to this file (atomically). "
-                                     "Batch: .jsonl, .csv or .h5 result file, written "
-                                     "incrementally."),
+                                     "Batch: a .jsonl/.ndjson, .csv or .h5/.hdf5 result "
+                                     "file, written incrementally (.npz: stacked inputs)."),
     recursive: bool = typer.Option(False, "--recursive", "-r",
                                    help="Batch: look for problem files in sub-folders too."),
     jobs: int = typer.Option(None, "--jobs", "-j", min=1,

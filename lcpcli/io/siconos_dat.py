@@ -11,6 +11,8 @@ The format is a whitespace-separated token stream (see ``shared/data/siconos/REA
   ``q``; if st2: A (n x n), B (m x m), C (n x m), D (m x n), a, b in row-major order.
   The problem is ``A u + C v + a = 0``, ``0 <= v _|_ D u + B v + b >= 0``.
 
+Whether a file is an LCP or an MLCP is told from its numbers alone (:func:`_mlcp_header`), not
+from its name or its line breaks, so what :func:`write` writes reads back under any name.
 Trailing numbers (old reference solutions) are ignored.  Sizes and counts are checked before
 anything is allocated (integers must be finite whole numbers, block structures consistent);
 a sparse-block M with more than :data:`SBM_DENSE_MAX_ENTRIES` entries is kept sparse (CSR), and
@@ -88,10 +90,39 @@ def read(path: Path) -> Problem:
     tokens = _Tokens(text)
     if not tokens.items:
         raise ProblemError("empty file")
-    first_line = text.strip().splitlines()[0].split()
-    if "mlcp" in path.name.lower() or len(first_line) == 4:
-        return _read_mlcp(tokens, path.stem)
-    return _read_lcp(tokens, path.stem)
+    readers = [_read_lcp, _read_mlcp]
+    if _mlcp_header(tokens.items):
+        readers.reverse()
+    try:
+        return readers[0](tokens, path.stem)
+    except ProblemError as first:
+        try:  # the other layout; its error would only confuse, so the first one is raised
+            return readers[1](_Tokens(text), path.stem)
+        except ProblemError:
+            raise first from None
+
+
+def _whole(tok: str) -> int | None:
+    try:
+        value = float(tok)
+    except ValueError:
+        return None
+    return int(value) if np.isfinite(value) and value == int(value) else None
+
+
+def _mlcp_header(items: list[str]) -> bool:
+    """Whether the tokens start like an MLCP (``st1 st2 n m``, then block boundaries from 0).
+
+    The file's name and line breaks play no part.  An LCP starts ``n s n n`` with ``s`` its
+    matrix storage (0 or 1); an MLCP's two storage flags are 0 or 1, not both 0, and with
+    ``st1`` the first block boundary (the fifth number) is 0.  The two layouts overlap only in
+    the first four numbers of a 1 x 1 LCP, which the fifth one tells apart.  :func:`read` tries
+    the other layout when this guess does not read.
+    """
+    head = [_whole(t) for t in items[:5]]
+    if len(head) < 4 or head[0] not in (0, 1) or head[1] not in (0, 1) or head[:2] == [0, 0]:
+        return False
+    return head[0] == 0 or (len(head) == 5 and head[4] == 0)
 
 
 def _read_lcp(tok: _Tokens, name: str) -> Problem:
@@ -110,8 +141,10 @@ def _read_matrix(tok: _Tokens, what: str) -> Any:
     cols = tok.int(f"{what} size1")
     if storage == 0:
         check_size(rows, cols)
-        tok.int(f"{what} size0 (repeated)")
-        tok.int(f"{what} size1 (repeated)")
+        again = (tok.int(f"{what} size0 (repeated)"), tok.int(f"{what} size1 (repeated)"))
+        if again != (rows, cols):
+            raise ProblemError(f"{what} is {rows} x {cols} but its repeated size is "
+                               f"{again[0]} x {again[1]}")
         vals = tok.floats(rows * cols, f"{what} values")
         return vals.reshape((cols, rows)).T.copy()  # column-major
     if storage == 1:

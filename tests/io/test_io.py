@@ -69,6 +69,64 @@ def test_round_trip_siconos_dat(tmp_path, kind):
     assert p1.n_eq == p0.n_eq
 
 
+DAT_CASES = {
+    "lcp": lambda: Problem.create(np.array([[2.0, 1.0], [1.0, 3.0]]), [-5.0, -6.0]),
+    "lcp_1x1": lambda: Problem.create(np.array([[2.0]]), [-1.0]),
+    "lcp_sparse_1x1": lambda: Problem.create(sp.csr_matrix(np.array([[2.0]])), [-1.0]),
+    "sparse": PROBLEMS["sparse"],
+    "mlcp": PROBLEMS["mlcp"],
+    "mlcp_1_1": lambda: Problem.create(np.array([[2.0, 1.0], [-1.0, 3.0]]), [1.0, -2.0],
+                                       n_eq=1),
+    "all_equalities": lambda: Problem.create(np.eye(2) * 3, [1.0, -2.0], n_eq=2),
+}
+
+
+@pytest.mark.parametrize("name", ["q.dat", "mlcp.dat", "x_mlcp.dat", "lcp.dat"])
+@pytest.mark.parametrize("kind", sorted(DAT_CASES))
+def test_dat_round_trip_whatever_the_file_name(tmp_path, kind, name):
+    """LCP or MLCP is told from a .dat file's numbers, never from its name."""
+    p0 = DAT_CASES[kind]()
+    save(p0, tmp_path / name)
+    p1 = load(tmp_path / name)
+    M0 = p0.M.toarray() if p0.sparse else p0.M
+    M1 = p1.M.toarray() if p1.sparse else p1.M
+    np.testing.assert_array_equal(M0, M1)
+    np.testing.assert_array_equal(p0.q, p1.q)
+    assert (p1.kind, p1.n_eq) == (p0.kind, p0.n_eq)
+
+
+def test_siconos_dat_files_read_the_same_under_any_name(tmp_path, siconos):
+    for f in sorted(siconos.glob("*/*.dat")):
+        if f.name == "Rectangular_mlcp.dat":
+            continue
+        copy = tmp_path / "q.dat"
+        copy.write_bytes(f.read_bytes())
+        p0, p1 = load(f), load(copy)
+        assert (p0.kind, p0.n_eq) == (p1.kind, p1.n_eq), f.name
+        assert p0.kind == ("mlcp" if f.parent.name == "mlcp" else "lcp"), f.name
+        np.testing.assert_array_equal(p0.q, p1.q)
+
+
+def test_convert_then_solve_round_trips_dat(tmp_path, cli, samples):
+    for sample, kind in (("mlcp_small.json", "mlcp"), ("degenerate.json", "lcp")):
+        (tmp_path / "in.json").write_bytes((samples / sample).read_bytes())
+        out = tmp_path / f"{kind}_out.dat"
+        r = cli("convert", str(tmp_path / "in.json"), str(out))
+        assert r.returncode == 0, r.stderr
+        r = cli("solve", str(out), "--json")
+        assert r.returncode == 0, (sample, r.stderr)
+        assert load(out).kind == kind
+    (tmp_path / "q.dat").write_bytes((samples / "mlcp_small.dat").read_bytes())
+    r = cli("solve", str(tmp_path / "q.dat"))
+    assert r.returncode == 0, r.stderr
+
+
+def test_dense_dat_repeated_size_must_match(tmp_path):
+    (tmp_path / "x.dat").write_text("2\n0\n2\n2\n2 3\n1 0 0 1\n1 1\n")
+    with pytest.raises(ProblemError, match="repeated size"):
+        load(tmp_path / "x.dat")
+
+
 def test_box_problem_cannot_be_written_as_dat(tmp_path):
     with pytest.raises(ProblemError, match="box"):
         save(PROBLEMS["box"](), tmp_path / "x.dat")
