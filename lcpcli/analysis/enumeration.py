@@ -223,9 +223,10 @@ def check_problem(problem: Any, max_n: int = DEFAULT_MAX_N) -> np.ndarray:
     n = problem.n
     if n > max_n:
         raise OptionError(f"n = {n} means {power_of_two(n)} complementary cones, above the "
-                          f"limit --max-n {max_n} (2^{max_n} = {2**max_n:,}); raise --max-n "
-                          f"to run it anyway (each extra variable doubles the time), or use "
-                          f"a pivoting method (lcpcli solve -m lemke)")
+                          f"limit max-n = {max_n} (2^{max_n} = {2**max_n:,}); raise it to run "
+                          f"anyway (each extra variable doubles the time: 'lcpcli enumerate "
+                          f"--max-n {n}', 'lcpcli solve -m enum -O max-n={n}', max_n={n} in "
+                          f"Python), or use a pivoting method (-m lemke)")
     return np.ascontiguousarray(problem.dense_M(), dtype=np.float64)
 
 

@@ -359,7 +359,7 @@ def test_enumeration_refusal_of_a_huge_n_is_one_line(tmp_path: Path) -> None:
     """2^20000 has more digits than Python turns into text: the message gives the exponent."""
     _sparse_file(tmp_path / "s.npz", 20_000)
     case = Case("enum", "lenient", ["enumerate", "{d}/s.npz"], BAD,
-                "n = 20000 means 2^20,000 complementary cones, above the limit --max-n 24")
+                "n = 20000 means 2^20,000 complementary cones, above the limit max-n = 24")
     assert problems(case, run_in_process(case, tmp_path), tmp_path, {}) == []
     assert limits.power_of_two(20) == "2^20 = 1,048,576"
 
