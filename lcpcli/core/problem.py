@@ -226,6 +226,20 @@ class Problem:
         lo[: self.n_eq] = -np.inf
         return lo, np.full(self.n, np.inf)
 
+    def inside(self, z: np.ndarray) -> np.ndarray:
+        """``z`` moved onto the box ``[l, u]`` of :meth:`bounds` where it lies outside (a
+        method's rounding, e.g. ``z_i = -1e-15`` of an LCP), else ``z`` itself; NaN stays."""
+        if self.lower is None:
+            rest = z[self.n_eq:]
+            if rest.size and rest.min() < 0.0:
+                z = z.copy()
+                np.maximum(z[self.n_eq:], 0.0, out=z[self.n_eq:])
+            return z
+        lo, up = self.bounds()
+        if np.any(z < lo) or np.any(z > up):
+            return np.clip(z, lo, up)
+        return z
+
     def w(self, z: np.ndarray) -> np.ndarray:
         """``w = M z + q``."""
         return np.asarray(self.M @ z).ravel() + self.q

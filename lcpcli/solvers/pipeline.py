@@ -96,11 +96,12 @@ def certified(problem: Problem, out: Outcome, tol: float,
     """``(certificate, w)`` of ``out.z`` at ``tol``, stored in ``out.checked``: the one rule for
     reusing a certificate.  ``out.checked`` is reused when it was made at this ``tol`` (by
     whoever last set ``out.z``: a kernel that certified its own answer, the polish, an earlier
-    call); otherwise, or when the pair ``state`` codes are asked for, ``z`` is checked now
-    (:func:`lcpcli.core.certificate.check`)."""
+    call); otherwise, or when the pair ``state`` codes are asked for, ``z`` is moved onto its
+    bounds where a method's rounding left it outside (:meth:`Problem.inside`: the move the
+    certificate judges anyway) and checked now (:func:`lcpcli.core.certificate.check`)."""
     checked = out.checked
     if checked is None or checked[0].tol != tol or state is not None:
-        out.z = z = float64_array(out.z)
+        out.z = z = problem.inside(float64_array(out.z))
         checked = out.checked = check(problem, z, tol, state=state)
     return checked
 
