@@ -237,6 +237,26 @@ def test_principal_and_sweep_traces(cli, samples, method, kind):
         assert "the first sweeps and the last" in text
 
 
+def test_sweep_trace_covers_every_kernel_call(cli, tmp_path):
+    # the method calls its kernel several times (blocks of sweeps, a tightened target): the
+    # trace is the whole run's, numbered by the true sweep count, from z = 0
+    lap5 = tmp_path / "lap5.json"
+    lap5.write_text(json.dumps({"M": (2 * np.eye(5) - np.eye(5, k=1) - np.eye(5, k=-1))
+                                .tolist(), "q": [-1] * 5}))
+    d = json.loads(cli("solve", str(lap5), "-m", "pgs", "--trace", "--json").stdout)
+    n = d["iterations"]
+    assert n > 50
+    assert [s["sweep"] for s in d["trace"]] == [*range(11), n]
+    assert d["trace"][0]["z"] == [0.0] * 5 and d["trace"][-1]["z"] == d["z"]
+    p = cli("solve", str(lap5), "-m", "pgs", "--pivot", str(n), env=TEXT)
+    assert p.returncode == 0 and p.stdout.startswith(f"Sweep {n}")
+    pm3 = tmp_path / "pmatrix3.json"
+    pm3.write_text(json.dumps({"M": [[4, -1, 0], [-1, 4, -1], [0, -1, 4]], "q": [-1, -2, 3]}))
+    d = json.loads(cli("solve", str(pm3), "-m", "pgs", "--trace", "--json").stdout)
+    assert [s["sweep"] for s in d["trace"]] == list(range(d["iterations"] + 1))
+    assert d["trace"][0]["z"] == [0.0] * 3 and d["trace"][1]["z"] != d["z"]
+
+
 def test_methods_without_a_replica_refuse_trace(cli, samples):
     p = cli("solve", str(samples / "seed004.json"), "-m", "newton", "--trace")
     assert p.returncode == 2 and "no step-by-step replica" in p.stderr
