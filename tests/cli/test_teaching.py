@@ -332,6 +332,29 @@ def test_enumerate_exports(cli, samples):
     assert "| 4 | [-2 -1; -1 -2] |" in md and "unique solution" in md
 
 
+def test_output_streams_without_unicode_get_ascii(cli, samples, tmp_path):
+    # an output stream that cannot encode the box characters: the cone drawing is ASCII and
+    # no command fails on a character (exit 3)
+    three = tmp_path / "three_sol.json"
+    three.write_text(json.dumps({"M": [[1, 2], [2, 1]], "q": [-1, -1]}))
+    ascii_env = {**TEXT, "PYTHONIOENCODING": "ascii"}
+    p = cli("enumerate", str(three), env=ascii_env)
+    assert p.returncode == 0, p.stderr
+    assert "#" in p.stdout and "|" in p.stdout and "# 2+ cones" in p.stdout
+    utf = cli("enumerate", str(three), env={**TEXT, "PYTHONIOENCODING": "utf-8"}).stdout
+    assert "\u2502" in utf and "\u2592 2+ cones" in utf  # box characters where they encode
+    seed = str(samples / "seed000.json")
+    for args in (["enumerate", str(three), "--all-cones", "--lemke-path"],
+                 ["solve", seed], ["solve", seed, "--trace"], ["solve", seed, "-m", "murty",
+                                                              "--trace"],
+                 ["pivot", str(samples / "seed000_augmented.json"), "-d", "z0,w2,z3",
+                  "--driving", "z2"], ["info", seed], ["methods"],
+                 ["contact-matrix", str(samples / "scene_two_balls.json")],
+                 ["contact-matrix", str(samples / "scene_2d_boxes.json"), "--solve"]):
+        p = cli(*args, env=ascii_env)
+        assert p.returncode in (0, 1) and "internal error" not in p.stderr, (args, p.stderr)
+
+
 def test_enumerate_lemke_path_text_and_errors(cli, samples, tmp_path):
     p = cli("enumerate", str(samples / "seed004.json"), "--lemke-path", env=TEXT)
     assert p.returncode == 0, p.stderr
