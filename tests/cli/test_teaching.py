@@ -319,6 +319,8 @@ def test_pivot_latex_export(cli, samples, tmp_path):
     tex = target.read_text()
     latex_shape(tex)
     assert "$\\{3,\\allowbreak  1\\}$" in tex  # beta', one formula (issue 27)
+    line = next(x for x in tex.splitlines() if x.startswith("$q^{\\alpha}"))
+    assert line.count("$") == 4 and "$,\\quad $q^{\\bar{\\alpha}}" in line  # two formulas
     assert tex.count("\\fbox{") >= 2  # the pivot element in the ratio test and the tableau
 
 

@@ -407,7 +407,7 @@ def pivot_pages(items: list[tuple[Any, dict[str, Any] | None]], M: Any, q: Any,
         page.append(_index_table(t))
         page.append(Para(_matrix_text("M^{alpha beta}", t.M_ab)))
         page.append(Para(_matrix_text("M^{alpha-bar beta}", t.M_abar_b)))
-        page.append(Para(f"q^alpha = {_vec(t.q_a)}   q^{{alpha-bar}} = {_vec(t.q_abar)}"))
+        page.append(Para(f"q^alpha = {_vec(t.q_a)},  q^{{alpha-bar}} = {_vec(t.q_abar)}"))
         beta_p = set(t.beta_prime)
         page.append(Grid(["w'", "q'", "from"],
                          [[f"{i + 1}: {t.names((v,))[0]}", fmt(t.q_prime[i]),
