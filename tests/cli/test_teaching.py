@@ -237,6 +237,18 @@ def test_principal_and_sweep_traces(cli, samples, method, kind):
         assert "the first sweeps and the last" in text
 
 
+@pytest.mark.parametrize("exact", ["--exact", "--no-exact"])
+def test_murty_trace_when_q_is_nonnegative(cli, tmp_path, exact):
+    # no pivot, but the starting basis (z = 0) is a step that solves the LCP
+    f = tmp_path / "qpos.json"
+    f.write_text(json.dumps({"M": [[1, 2], [3, 4]], "q": [1, 0]}))
+    d = json.loads(cli("solve", str(f), "-m", "murty", "--trace", "--json", exact).stdout)
+    assert [(s["pivot"], s["rule"], s.get("end")) for s in d["trace"]] == [(0, "start", "solved")]
+    p = cli("solve", str(f), "-m", "murty", "--pivot", "0", exact, env=TEXT)
+    assert p.returncode == 0 and p.stdout.startswith("Step 0: starting basis")
+    assert "this basis solves the LCP" in p.stdout and "--exact" not in p.stderr
+
+
 def test_sweep_trace_covers_every_kernel_call(cli, tmp_path):
     # the method calls its kernel several times (blocks of sweeps, a tightened target): the
     # trace is the whole run's, numbered by the true sweep count, from z = 0
