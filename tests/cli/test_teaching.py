@@ -369,6 +369,21 @@ def test_output_streams_without_unicode_get_ascii(cli, samples, tmp_path):
         assert p.returncode in (0, 1) and "internal error" not in p.stderr, (args, p.stderr)
 
 
+def test_enumerate_singular_counts_agree_with_the_cones(cli, tmp_path):
+    # skew: both singular cones are excluded by the sign tests, so none is factorised; the
+    # summary says which count is which, and with --all-cones counts the table's marks
+    f = tmp_path / "skew.json"
+    f.write_text(json.dumps({"M": [[0, 1], [-1, 0]], "q": [0, -1]}))
+    d = json.loads(cli("enumerate", str(f), "--all-cones", "--json").stdout)
+    marked = sum(c["singular"] for c in d["cones"])
+    assert marked == 2 and d["counts"]["singular"] == 0 and d["counts"]["pruned"] == 4
+    text = " ".join(cli("enumerate", str(f), "--all-cones", env=TEXT).stdout.split())
+    assert "0 singular of the 0 factorised" in text and f"{marked} singular of all 4" in text
+    assert text.count(" singular ") - 2 == marked  # the two counts, then one mark per cone
+    text = " ".join(cli("enumerate", str(f), env=TEXT).stdout.split())
+    assert "0 singular of the 0 factorised" in text and "of all" not in text
+
+
 def test_enumerate_lemke_path_text_and_errors(cli, samples, tmp_path):
     p = cli("enumerate", str(samples / "seed004.json"), "--lemke-path", env=TEXT)
     assert p.returncode == 0, p.stderr

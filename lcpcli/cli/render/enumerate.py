@@ -171,12 +171,7 @@ def render_enumeration(res: Enumeration, problem: Any, file: str | None, *,
     head.add_column()
     head.add_row("problem", f"{file or ''}{' : ' + problem.name if problem.name else ''}")
     head.add_row("size", f"{problem.summary()}, 2^{res.n} = {res.total:,} complementary cones")
-    c = res.counts
-    pruned = f", {c['pruned']:,} excluded by sign tests" if c["pruned"] else ""
-    if c.get("singular_unresolved"):
-        pruned += f", {c['singular_unresolved']:,} singular ones not resolved"
-    head.add_row("cones", f"{c['feasible']:,} contain q, {c['singular']:,} singular "
-                          f"({c['singular_with_q']:,} of them contain q){pruned}")
+    head.add_row("cones", cone_counts_text(res, all_cones))
     head.add_row("time", f"{res.seconds * 1e3:.3f} ms")
     parts: list[Any] = [fit(head), Text("")]
     if res.cones or all_cones:
@@ -202,16 +197,33 @@ def _matrix_inline(A: np.ndarray) -> str:
     return "[" + "; ".join(" ".join(fmt(x) for x in row) for row in A) + "]"
 
 
+def cone_counts_text(res: Enumeration, all_cones: bool) -> str:
+    """The counts in words.  ``counts.singular`` counts the cones that were factorised (a cone
+    excluded by the sign tests never is); with every cone listed (``all_cones``) the singular
+    ones among all are counted from the list as well, so the line agrees with the table."""
+    c = res.counts
+    factorised = res.examined - c["pruned"]
+    words = f"{c['feasible']:,} contain q"
+    if c["pruned"]:
+        words += f", {c['pruned']:,} excluded by sign tests"
+    words += (f", {c['singular']:,} singular of the {factorised:,} factorised "
+              f"({c['singular_with_q']:,} of them contain q)")
+    if all_cones and len(res.cones) == res.total:
+        words += f", {sum(1 for x in res.cones if x.singular):,} singular of all {res.total:,}"
+    if c.get("singular_unresolved"):
+        words += f", {c['singular_unresolved']:,} singular ones not resolved"
+    return words
+
+
 def enumeration_pages(res: Enumeration, problem: Any, file: str | None, *, all_cones: bool,
                       covers: bool | None = None) -> list[Page]:
     """The enumeration as one page of blocks for ``--format markdown|latex``."""
     M = np.asarray(problem.dense_M(), dtype=float)
     n = res.n
-    c = res.counts
     name = Path(file).name if file and file != "-" else (problem.name or "the problem")
     page: Page = [Heading(f"Complementary cones of {name}"),
                   Para(f"{problem.summary()}, 2^{n} = {res.total:,} complementary cones; "
-                       f"{c['feasible']:,} contain q, {c['singular']:,} singular.")]
+                       f"{cone_counts_text(res, all_cones)}.")]
     if res.cones or all_cones:
         small = n <= MATRIX_MAX_N
         header = ["r", "A_r (I_j or -M_j)" if small else "basic y", "det A_r", "rank",
