@@ -269,6 +269,17 @@ def test_sweep_trace_covers_every_kernel_call(cli, tmp_path):
     assert d["trace"][0]["z"] == [0.0] * 3 and d["trace"][1]["z"] != d["z"]
 
 
+def test_default_method_traces_the_problems_kind(cli, samples):
+    # auto + --trace: Lemke on an LCP, Dantzig on a box LCP; an MLCP has no traced method
+    d = json.loads(cli("solve", str(samples / "box_small.json"), "--trace", "--json").stdout)
+    assert d["method"] == "dantzig" and d["status"] == "solved" and d["trace"]
+    assert json.loads(cli("solve", str(samples / "seed000.json"), "--trace", "--json")
+                      .stdout)["method"].startswith("lemke")
+    p = cli("solve", str(samples / "mlcp_small.json"), "--trace")
+    assert p.returncode == 2 and "no method with a step-by-step replica handles MLCP" in \
+        p.stderr and "dantzig" in p.stderr and "Traceback" not in p.stderr
+
+
 def test_methods_without_a_replica_refuse_trace(cli, samples):
     p = cli("solve", str(samples / "seed004.json"), "-m", "newton", "--trace")
     assert p.returncode == 2 and "no step-by-step replica" in p.stderr
