@@ -249,6 +249,18 @@ def test_murty_trace_when_q_is_nonnegative(cli, tmp_path, exact):
     assert "this basis solves the LCP" in p.stdout and "--exact" not in p.stderr
 
 
+def test_murty_glance_lists_only_the_pivots_made(cli, samples):
+    # seed000's first pivot element is 0: Murty stops without a pivot
+    f = str(samples / "seed000.json")
+    d = json.loads(cli("solve", f, "-m", "murty", "--trace", "--json").stdout)
+    assert d["iterations"] == 0 and d["trace"][-1]["rule"] == "bad_pivot"
+    text = cli("solve", f, "-m", "murty", "--trace", "--no-exact", env=TEXT).stdout
+    glance = text[text.index("Principal pivots at a glance"):text.index("problem ")]
+    rows = [x.split() for x in glance.splitlines() if x.strip()[:1].isdigit()]
+    assert [r[0] for r in rows] == ["0"] and "not > 0" not in glance
+    assert "Not made: least index with q' < 0 is row 1" in " ".join(glance.split())
+
+
 def test_sweep_trace_covers_every_kernel_call(cli, tmp_path):
     # the method calls its kernel several times (blocks of sweeps, a tightened target): the
     # trace is the whole run's, numbered by the true sweep count, from z = 0

@@ -202,7 +202,10 @@ def principal_pages(trace: list[dict[str, Any]], layout: str = "dictionary") -> 
             else:
                 page.append(Para("The pivot limit stops the method here."))
         pages.append(page)
-    pages.append([Heading("Principal pivots at a glance"), principal_table(trace)])
+    glance: Page = [Heading("Principal pivots at a glance"), principal_table(trace)]
+    glance += [Para(f"Not made: {st['reason']}.") for st in trace
+               if st.get("rule") == "bad_pivot"]
+    pages.append(glance)
     return pages
 
 
@@ -216,18 +219,20 @@ def _index_sets(st: dict[str, Any]) -> str:
 
 
 def principal_table(trace: list[dict[str, Any]]) -> Grid:
-    """One line per principal pivot: row, exchanged pair, pivot element, index set, q'."""
+    """One line per principal pivot made: row, exchanged pair, pivot element, index set, q'
+    (a pivot refused as not positive, ``bad_pivot``, is no line: it was not made)."""
     n = len(trace[0]["basis"]) if trace else 0
     header = ["pivot", "row", "enters", "leaves", "pivot element M'_rr", "alpha (z basic)",
               "q'" if n <= 8 else "min q'"]
     rows = []
     for st in trace:
+        if st.get("rule") == "bad_pivot":
+            continue
         pe = st.get("pivot_element")
         qcol = _vec(st["q_prime"]) if n <= 8 else fmt(min(st["q_prime"], default=0.0))
         rows.append([str(st["pivot"]), "-" if st.get("row") is None else str(st["row"]),
                      st.get("entering") or "-", st.get("leaving") or "-",
-                     "-" if pe is None else fmt(pe["value"]) + (
-                         " (not > 0)" if st.get("rule") == "bad_pivot" else ""),
+                     "-" if pe is None else fmt(pe["value"]),
                      "{" + ", ".join(str(x) for x in st["alpha"]) + "}", qcol])
     return Grid(header, rows, ["r", "r", "l", "l", "r", "l", "l"])
 
