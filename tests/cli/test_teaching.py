@@ -35,6 +35,11 @@ def test_json_trace_has_pivot_elements(cli, samples):
     assert trace[3]["basis"] == ["z0", "w2", "z3"] and trace[3]["q_prime"] == [1, 5, 1]
 
 
+def test_json_trace_has_no_negative_zero(cli, samples):
+    p = cli("solve", str(samples / "seed000.json"), "--trace", "--json")
+    assert p.returncode == 0 and "-0.0" not in p.stdout and json.loads(p.stdout)["trace"]
+
+
 def test_murty_layout_text(cli, samples):
     p = cli("solve", str(samples / "seed000.json"), "--layout", "murty", env=TEXT)
     assert p.returncode == 0, p.stderr
