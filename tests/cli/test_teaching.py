@@ -40,6 +40,16 @@ def test_json_trace_has_no_negative_zero(cli, samples):
     assert p.returncode == 0 and "-0.0" not in p.stdout and json.loads(p.stdout)["trace"]
 
 
+@pytest.mark.parametrize("method", ["lemke", "murty"])
+def test_empty_problem_trace_says_empty_basis(cli, tmp_path, method):
+    f = tmp_path / "n0.json"
+    f.write_text(json.dumps({"M": [], "q": []}))
+    p = cli("solve", str(f), "-m", method, "--trace", env=TEXT)
+    assert p.returncode == 0, p.stderr
+    text = " ".join(p.stdout.split())
+    assert "empty basis" in text and "(basis ;" not in text and "(;" not in text
+
+
 def test_murty_layout_text(cli, samples):
     p = cli("solve", str(samples / "seed000.json"), "--layout", "murty", env=TEXT)
     assert p.returncode == 0, p.stderr

@@ -136,15 +136,20 @@ def _decision(step: dict[str, Any], layout: str, has_tableau: bool = True) -> Pa
 
 def _state_heading(step: dict[str, Any], k: int) -> str:
     if k == 0:
-        return ("Step 0: initial tableau (basis " + ", ".join(step["basis"]) +
-                f"; z = 0, {ARTIFICIAL} = 0)")
+        basis = "basis " + ", ".join(step["basis"]) if step["basis"] else EMPTY_BASIS
+        return f"Step 0: initial tableau ({basis}; z = 0, {ARTIFICIAL} = 0)"
     return (f"Step {k}: after pivot {k}: {step['entering']} entered, {step['leaving']} left "
             f"(row {step['row']})")
 
 
+#: The words for the basis of an n = 0 problem.
+EMPTY_BASIS = "empty basis"
+
+
 def _basis_values(step: dict[str, Any]) -> str:
+    """``w1 = 3, z2 = 1``: the basic variables and their values (n = 0: ``empty basis``)."""
     return ", ".join(f"{b} = {fmt(v)}" for b, v in zip(step["basis"], step["q_prime"],
-                                                       strict=True))
+                                                       strict=True)) or EMPTY_BASIS
 
 
 def lemke_pages(trace: list[dict[str, Any]], layout: str = "dictionary") -> list[Page]:
