@@ -34,15 +34,33 @@ class PipeClosed(Exception):  # noqa: N818 - the name says what happened, not "E
     """
 
 
+#: One-character ASCII stand-ins (the columns stay aligned) of the non-ASCII characters that
+#: the renderers and rich write, for a stream whose encoding lacks them; anything else becomes
+#: the encoding's replacement character.
+ASCII_STAND_INS = str.maketrans({
+    "…": "~", "─": "-", "━": "-", "│": "|", "┃": "|", "╱": "/", "╲": "\\", "▒": "#",
+    "█": "#", "░": ".", "┌": "+", "┐": "+", "└": "+", "┘": "+", "├": "+", "┤": "+", "┬": "+",
+    "┴": "+", "┼": "+", "ú": "u",
+})
+
+
 class StdoutGuard:
-    """sys.stdout as the commands see it: a broken pipe raises :class:`PipeClosed`."""
+    """sys.stdout as the commands see it: a broken pipe raises :class:`PipeClosed`, and text
+    the stream's encoding cannot write (``PYTHONIOENCODING=ascii``, a legacy code page) is
+    written with :data:`ASCII_STAND_INS` and replacement characters instead of failing."""
 
     def __init__(self, stream: Any) -> None:
         self._stream = stream
 
     def write(self, text: str) -> int:
         try:
-            return self._stream.write(text)
+            try:
+                return self._stream.write(text)
+            except UnicodeEncodeError:
+                encoding = getattr(self._stream, "encoding", None) or "ascii"
+                safe = text.translate(ASCII_STAND_INS).encode(encoding, errors="replace")
+                self._stream.write(safe.decode(encoding))
+                return len(text)
         except BrokenPipeError:
             raise PipeClosed() from None
 
@@ -149,6 +167,19 @@ def progress_allowed() -> bool:
     """Whether a progress bar may be drawn on stderr: a terminal, and no ``NO_COLOR`` (the one
     rule of every command's live display)."""
     return is_terminal(sys.stderr) and not os.environ.get("NO_COLOR")
+
+
+def stream_encodes(stream: Any, text: str) -> bool:
+    """Whether ``stream``'s encoding can write every character of ``text`` (a stream without
+    an encoding takes str as it is)."""
+    encoding = getattr(stream, "encoding", None)
+    if not encoding:
+        return True
+    try:
+        text.encode(encoding)
+    except (UnicodeEncodeError, LookupError):
+        return False
+    return True
 
 
 def is_terminal(stream: Any) -> bool:

@@ -163,6 +163,8 @@ def solve(
         from lcpcli.io.warmstart import load_z0
 
         opts["z0"] = load_z0(z0, n=prob.n)
+    if trace and method == "auto":
+        method = _traced_auto(prob.kind)
     try:
         warm = opts.pop("z0", None)  # lcpcli.solve's warm start (the basis of z0)
         result = solve_problem(prob, method, tol=tol, warm=warm, **opts)
@@ -196,17 +198,41 @@ def solve(
     return code
 
 
-def _traced_method(method: str) -> str:
-    """The method that runs with ``--trace``: ``auto`` means Lemke; others must have a replica."""
-    from lcpcli.solvers.registry import get_method, methods
+#: With ``--trace``, ``auto`` runs the first of these that handles the problem's kind (Lemke
+#: for an LCP, Cottle-Dantzig for a box LCP): auto picks by matrix class, the trace is a
+#: textbook method's.
+TRACED_AUTO = ("lemke", "dantzig")
 
-    if method == "auto":  # auto picks by matrix class; the teaching trace is Lemke's
-        return "lemke"
-    if "trace" not in get_method(method).options:
-        with_trace = [name for name, m in methods().items() if "trace" in m.options]
+
+def _traced_method(method: str) -> str:
+    """The method that runs with ``--trace``: one with a replica (``auto`` stays ``auto`` until
+    the problem's kind is known, see :func:`_traced_auto`)."""
+    from lcpcli.solvers.registry import get_method
+
+    if method != "auto" and "trace" not in get_method(method).options:
         raise OptionError(f"--trace: method '{method}' has no step-by-step replica (methods "
-                          f"with one: {', '.join(with_trace)})")
+                          f"with one: {', '.join(_replicas())})")
     return method
+
+
+def _traced_auto(kind: str) -> str:
+    """``auto`` with ``--trace`` on a problem of ``kind``: the first of :data:`TRACED_AUTO`
+    that handles it; OptionError naming the methods with a replica when none does."""
+    from lcpcli.solvers.registry import get_method
+
+    for name in TRACED_AUTO:
+        if kind in get_method(name).kinds:
+            return name
+    raise OptionError(f"--trace: no method with a step-by-step replica handles {kind.upper()} "
+                      f"problems (methods with one: {', '.join(_replicas())}); solve without "
+                      f"--trace")
+
+
+def _replicas() -> list[str]:
+    """The methods with a step-by-step replica (option ``trace``)."""
+    from lcpcli.solvers.registry import methods
+
+    return [name for name, m in methods().items() if "trace" in m.options]
 
 
 def _check_layout(layout: str | None) -> str:

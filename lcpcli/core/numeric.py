@@ -217,6 +217,18 @@ def json_text(obj: Any) -> str:
 def finite_or_null(obj: Any) -> Any:
     """A copy of nested dicts/lists/tuples with every non-finite float replaced by None
     (iterative: deep output cannot exhaust the recursion limit)."""
+    return _map_floats(obj, lambda x: x if math.isfinite(x) else None)
+
+
+def without_negative_zero(obj: Any) -> Any:
+    """A copy of nested dicts/lists/tuples with every ``-0.0`` written ``0.0`` (a trace's
+    ``-1 * 0`` is no sign a reader should see)."""
+    return _map_floats(obj, lambda x: x + 0.0 if x == 0 else x)
+
+
+def _map_floats(obj: Any, change: Any) -> Any:
+    """A copy of nested dicts/lists/tuples (lists) with ``change(x)`` for every float ``x``
+    (iterative: deep output cannot exhaust the recursion limit)."""
     root: list[Any] = [obj]
     stack: list[tuple[Any, Any, Any]] = [(root, 0, obj)]
     while stack:
@@ -227,8 +239,8 @@ def finite_or_null(obj: Any) -> Any:
         elif isinstance(item, (list, tuple)):
             copy = list(item)
             stack.extend((copy, i, v) for i, v in enumerate(copy))
-        elif isinstance(item, (float, np.floating)) and not math.isfinite(item):
-            copy = None
+        elif isinstance(item, (float, np.floating)):
+            copy = change(item)
         else:
             continue
         parent[key] = copy

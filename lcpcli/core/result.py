@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 
 from lcpcli.core.certificate import BETWEEN, Certificate, check, scored
+from lcpcli.core.numeric import without_negative_zero
 from lcpcli.core.text import plural
 
 
@@ -251,7 +252,7 @@ class Result:
         }
         out["basis"] = None if self.basis is None else basis_text(self.basis)
         if self.trace is not None:
-            out["trace"] = self.trace
+            out["trace"] = without_negative_zero(self.trace)
         return out
 
     def __repr__(self) -> str:

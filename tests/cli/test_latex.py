@@ -81,6 +81,20 @@ def test_minus_signs_are_math_and_formulas_are_whole():
     assert tex_text("the 1-based rows, a tie-break") == "the 1-based rows, a tie-break"
 
 
+def test_numbers_side_by_side_stay_apart():
+    # TeX drops the spaces of math mode: "$-2 0$" would print -20
+    assert tex_text("[1 -1; 0 -2]", numbers=True) == "[$1\\ {-1}$; $0\\ {-2}$]"
+    assert tex_text("[-2 0; 3 4/3]", numbers=True) == "[$-2\\ 0$; $3\\ 4/3$]"
+    assert tex_text("2 z1 + q", numbers=True) == "$2 z_{1} + q$"  # a product stays one
+
+
+def test_wide_spaces_and_commas_separate_formulas():
+    assert tex_text("q^alpha = (-3, -1),  q^{alpha-bar} = (6)") == \
+        "$q^{\\alpha} = (-3,\\allowbreak  -1)$,\\quad $q^{\\bar{\\alpha}} = (6)$"
+    assert tex_text("z' = (w1, z2)   m = 2") == \
+        "$z' = (w_{1},\\allowbreak  z_{2})$\\quad $m = 2$"
+
+
 @pytest.mark.parametrize("name", NAMES)
 def test_exports_have_no_text_minus(name):
     for key, tex in exports(name).items():

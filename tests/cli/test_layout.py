@@ -161,6 +161,20 @@ def test_methods_fit_every_width():
         assert "copositive-plus/PSD)" in text
 
 
+def test_info_fits_every_width(cli, samples):
+    # a long file name is wrapped, never cut; auto's plan keeps a hanging indent
+    f = str(samples / "seed000.json")
+    for width in (40, *WIDTHS):
+        p = cli("info", f, env={"COLUMNS": str(width), "NO_COLOR": "1"})
+        assert p.returncode == 0, p.stderr
+        assert_fits(p.stdout, width, width)
+        assert f in "".join(x.split("file", 1)[-1].strip() for x in
+                            p.stdout.split("problem ")[0].splitlines())
+        plan = [x for x in p.stdout.split("auto would try:")[1].splitlines() if x.strip()]
+        assert plan[0].startswith("  1. ")
+        assert all(re.match(r"  \d\. |     \S", x) for x in plan), (width, plan)
+
+
 def test_wide_tableau_splits_into_column_blocks_with_a_note():
     """A table wider than the screen whose words cannot wrap is cut into column blocks,
     each repeating the row names, every cell present exactly once outside the names."""

@@ -35,6 +35,21 @@ def test_json_trace_has_pivot_elements(cli, samples):
     assert trace[3]["basis"] == ["z0", "w2", "z3"] and trace[3]["q_prime"] == [1, 5, 1]
 
 
+def test_json_trace_has_no_negative_zero(cli, samples):
+    p = cli("solve", str(samples / "seed000.json"), "--trace", "--json")
+    assert p.returncode == 0 and "-0.0" not in p.stdout and json.loads(p.stdout)["trace"]
+
+
+@pytest.mark.parametrize("method", ["lemke", "murty"])
+def test_empty_problem_trace_says_empty_basis(cli, tmp_path, method):
+    f = tmp_path / "n0.json"
+    f.write_text(json.dumps({"M": [], "q": []}))
+    p = cli("solve", str(f), "-m", method, "--trace", env=TEXT)
+    assert p.returncode == 0, p.stderr
+    text = " ".join(p.stdout.split())
+    assert "empty basis" in text and "(basis ;" not in text and "(;" not in text
+
+
 def test_murty_layout_text(cli, samples):
     p = cli("solve", str(samples / "seed000.json"), "--layout", "murty", env=TEXT)
     assert p.returncode == 0, p.stderr
@@ -237,6 +252,61 @@ def test_principal_and_sweep_traces(cli, samples, method, kind):
         assert "the first sweeps and the last" in text
 
 
+@pytest.mark.parametrize("exact", ["--exact", "--no-exact"])
+def test_murty_trace_when_q_is_nonnegative(cli, tmp_path, exact):
+    # no pivot, but the starting basis (z = 0) is a step that solves the LCP
+    f = tmp_path / "qpos.json"
+    f.write_text(json.dumps({"M": [[1, 2], [3, 4]], "q": [1, 0]}))
+    d = json.loads(cli("solve", str(f), "-m", "murty", "--trace", "--json", exact).stdout)
+    assert [(s["pivot"], s["rule"], s.get("end")) for s in d["trace"]] == [(0, "start", "solved")]
+    p = cli("solve", str(f), "-m", "murty", "--pivot", "0", exact, env=TEXT)
+    assert p.returncode == 0 and p.stdout.startswith("Step 0: starting basis")
+    assert "this basis solves the LCP" in p.stdout and "--exact" not in p.stderr
+
+
+def test_murty_glance_lists_only_the_pivots_made(cli, samples):
+    # seed000's first pivot element is 0: Murty stops without a pivot
+    f = str(samples / "seed000.json")
+    d = json.loads(cli("solve", f, "-m", "murty", "--trace", "--json").stdout)
+    assert d["iterations"] == 0 and d["trace"][-1]["rule"] == "bad_pivot"
+    text = cli("solve", f, "-m", "murty", "--trace", "--no-exact", env=TEXT).stdout
+    glance = text[text.index("Principal pivots at a glance"):text.index("problem ")]
+    rows = [x.split() for x in glance.splitlines() if x.strip()[:1].isdigit()]
+    assert [r[0] for r in rows] == ["0"] and "not > 0" not in glance
+    assert "Not made: least index with q' < 0 is row 1" in " ".join(glance.split())
+
+
+def test_sweep_trace_covers_every_kernel_call(cli, tmp_path):
+    # the method calls its kernel several times (blocks of sweeps, a tightened target): the
+    # trace is the whole run's, numbered by the true sweep count, from z = 0
+    lap5 = tmp_path / "lap5.json"
+    lap5.write_text(json.dumps({"M": (2 * np.eye(5) - np.eye(5, k=1) - np.eye(5, k=-1))
+                                .tolist(), "q": [-1] * 5}))
+    d = json.loads(cli("solve", str(lap5), "-m", "pgs", "--trace", "--json").stdout)
+    n = d["iterations"]
+    assert n > 50
+    assert [s["sweep"] for s in d["trace"]] == [*range(11), n]
+    assert d["trace"][0]["z"] == [0.0] * 5 and d["trace"][-1]["z"] == d["z"]
+    p = cli("solve", str(lap5), "-m", "pgs", "--pivot", str(n), env=TEXT)
+    assert p.returncode == 0 and p.stdout.startswith(f"Sweep {n}")
+    pm3 = tmp_path / "pmatrix3.json"
+    pm3.write_text(json.dumps({"M": [[4, -1, 0], [-1, 4, -1], [0, -1, 4]], "q": [-1, -2, 3]}))
+    d = json.loads(cli("solve", str(pm3), "-m", "pgs", "--trace", "--json").stdout)
+    assert [s["sweep"] for s in d["trace"]] == list(range(d["iterations"] + 1))
+    assert d["trace"][0]["z"] == [0.0] * 3 and d["trace"][1]["z"] != d["z"]
+
+
+def test_default_method_traces_the_problems_kind(cli, samples):
+    # auto + --trace: Lemke on an LCP, Dantzig on a box LCP; an MLCP has no traced method
+    d = json.loads(cli("solve", str(samples / "box_small.json"), "--trace", "--json").stdout)
+    assert d["method"] == "dantzig" and d["status"] == "solved" and d["trace"]
+    assert json.loads(cli("solve", str(samples / "seed000.json"), "--trace", "--json")
+                      .stdout)["method"].startswith("lemke")
+    p = cli("solve", str(samples / "mlcp_small.json"), "--trace")
+    assert p.returncode == 2 and "no method with a step-by-step replica handles MLCP" in \
+        p.stderr and "dantzig" in p.stderr and "Traceback" not in p.stderr
+
+
 def test_methods_without_a_replica_refuse_trace(cli, samples):
     p = cli("solve", str(samples / "seed004.json"), "-m", "newton", "--trace")
     assert p.returncode == 2 and "no step-by-step replica" in p.stderr
@@ -299,6 +369,8 @@ def test_pivot_latex_export(cli, samples, tmp_path):
     tex = target.read_text()
     latex_shape(tex)
     assert "$\\{3,\\allowbreak  1\\}$" in tex  # beta', one formula (issue 27)
+    line = next(x for x in tex.splitlines() if x.startswith("$q^{\\alpha}"))
+    assert line.count("$") == 4 and "$,\\quad $q^{\\bar{\\alpha}}" in line  # two formulas
     assert tex.count("\\fbox{") >= 2  # the pivot element in the ratio test and the tableau
 
 
@@ -310,6 +382,44 @@ def test_enumerate_exports(cli, samples):
     assert p.stdout.count("\\begin{tabular}") == 2  # cones and solutions
     md = cli("enumerate", str(samples / "seed004.json"), "--format", "markdown").stdout
     assert "| 4 | [-2 -1; -1 -2] |" in md and "unique solution" in md
+
+
+def test_output_streams_without_unicode_get_ascii(cli, samples, tmp_path):
+    # an output stream that cannot encode the box characters: the cone drawing is ASCII and
+    # no command fails on a character (exit 3)
+    three = tmp_path / "three_sol.json"
+    three.write_text(json.dumps({"M": [[1, 2], [2, 1]], "q": [-1, -1]}))
+    ascii_env = {**TEXT, "PYTHONIOENCODING": "ascii"}
+    p = cli("enumerate", str(three), env=ascii_env)
+    assert p.returncode == 0, p.stderr
+    assert "#" in p.stdout and "|" in p.stdout and "# 2+ cones" in p.stdout
+    utf = cli("enumerate", str(three), env={**TEXT, "PYTHONIOENCODING": "utf-8"}).stdout
+    assert "\u2502" in utf and "\u2592 2+ cones" in utf  # box characters where they encode
+    seed = str(samples / "seed000.json")
+    for args in (["enumerate", str(three), "--all-cones", "--lemke-path"],
+                 ["solve", seed], ["solve", seed, "--trace"], ["solve", seed, "-m", "murty",
+                                                              "--trace"],
+                 ["pivot", str(samples / "seed000_augmented.json"), "-d", "z0,w2,z3",
+                  "--driving", "z2"], ["info", seed], ["methods"],
+                 ["contact-matrix", str(samples / "scene_two_balls.json")],
+                 ["contact-matrix", str(samples / "scene_2d_boxes.json"), "--solve"]):
+        p = cli(*args, env=ascii_env)
+        assert p.returncode in (0, 1) and "internal error" not in p.stderr, (args, p.stderr)
+
+
+def test_enumerate_singular_counts_agree_with_the_cones(cli, tmp_path):
+    # skew: both singular cones are excluded by the sign tests, so none is factorised; the
+    # summary says which count is which, and with --all-cones counts the table's marks
+    f = tmp_path / "skew.json"
+    f.write_text(json.dumps({"M": [[0, 1], [-1, 0]], "q": [0, -1]}))
+    d = json.loads(cli("enumerate", str(f), "--all-cones", "--json").stdout)
+    marked = sum(c["singular"] for c in d["cones"])
+    assert marked == 2 and d["counts"]["singular"] == 0 and d["counts"]["pruned"] == 4
+    text = " ".join(cli("enumerate", str(f), "--all-cones", env=TEXT).stdout.split())
+    assert "0 singular of the 0 factorised" in text and f"{marked} singular of all 4" in text
+    assert text.count(" singular ") - 2 == marked  # the two counts, then one mark per cone
+    text = " ".join(cli("enumerate", str(f), env=TEXT).stdout.split())
+    assert "0 singular of the 0 factorised" in text and "of all" not in text
 
 
 def test_enumerate_lemke_path_text_and_errors(cli, samples, tmp_path):

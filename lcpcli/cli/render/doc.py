@@ -241,8 +241,8 @@ def _neighbour(kind: list[str], i: int, step: int) -> int | None:
 
 def _runs(tokens: list[tuple[str, str]]) -> list[tuple[bool, list[tuple[str, str]]]]:
     """Split the tokens into text spans and maximal formulas: a formula runs over math tokens
-    and the spaces, brackets and (bracketed) commas between them; a comma outside brackets
-    ends it, so ``z0 = 1, w2 = 5`` is two formulas."""
+    and the spaces, brackets and (bracketed) commas between them; a comma or two spaces
+    outside brackets end it, so ``z0 = 1, w2 = 5`` and ``z0 = 1   m = 2`` are two formulas."""
     math = _classify(tokens)
     out: list[tuple[bool, list[tuple[str, str]]]] = []
     i, n = 0, len(tokens)
@@ -264,8 +264,8 @@ def _runs(tokens: list[tuple[str, str]]) -> list[tuple[bool, list[tuple[str, str
                     break
                 depth -= 1
                 last = j
-            elif k == "comma" and depth == 0:
-                break
+            elif k in ("comma", "space") and depth == 0 and (k == "comma" or len(tok) > 1):
+                break  # a comma or a wider space outside brackets separates two formulas
             elif math[j]:
                 last = j
             elif k not in ("space", "comma"):
@@ -335,11 +335,20 @@ def _tex_token(kind: str, tok: str) -> str:
 
 
 def _tex_math(tokens: list[tuple[str, str]]) -> str:
-    """One formula: the tokens in math mode (a superscript's token braced)."""
+    """One formula: the tokens in math mode (a superscript's token braced).  Numbers side by
+    side (a matrix row ``1 -2 0``) keep a visible space, ``1\\ {-2}\\ 0``: TeX drops the
+    spaces of math mode (``$-2 0$`` would read -20), and the brace keeps a minus unary."""
     out = []
     k = 0
     while k < len(tokens):
         kind, tok = tokens[k]
+        if kind == "num" and k >= 2 and tokens[k - 1][0] == "space" \
+                and tokens[k - 2][0] == "num":
+            out[-1] = "\\ "
+            out.append("{" + _tex_token(kind, tok) + "}" if tok.startswith("-")
+                       else _tex_token(kind, tok))
+            k += 1
+            continue
         if kind == "op" and tok == "^" and k + 1 < len(tokens):
             if out and "'" in out[-1]:  # M'_d^x: the prime is a superscript already
                 out[-1] = "{" + out[-1] + "}"
@@ -374,9 +383,9 @@ def _tex_plain(text: str, numbers: bool = False) -> str:
         has_value = any(k in ("num", "inv", "word") for k, _ in toks)
         if is_math and has_value and (numbers or not _is_plain_number(toks)):
             out.append(f"${_tex_math(toks)}$")
-        else:  # a path or a long name may break after / and _
-            out.append(tex_escape("".join(t for _, t in toks)).replace("/", "/\\allowbreak{}")
-                       .replace("\\_", "\\_\\allowbreak{}"))
+        else:  # a path or a long name may break after / and _; a wide space stays wide
+            out.append(re.sub(r"  +", r"\\quad ", tex_escape("".join(t for _, t in toks)))
+                       .replace("/", "/\\allowbreak{}").replace("\\_", "\\_\\allowbreak{}"))
     return "".join(out)
 
 

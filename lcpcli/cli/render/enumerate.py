@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from fractions import Fraction
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from rich.console import Group
@@ -171,12 +171,7 @@ def render_enumeration(res: Enumeration, problem: Any, file: str | None, *,
     head.add_column()
     head.add_row("problem", f"{file or ''}{' : ' + problem.name if problem.name else ''}")
     head.add_row("size", f"{problem.summary()}, 2^{res.n} = {res.total:,} complementary cones")
-    c = res.counts
-    pruned = f", {c['pruned']:,} excluded by sign tests" if c["pruned"] else ""
-    if c.get("singular_unresolved"):
-        pruned += f", {c['singular_unresolved']:,} singular ones not resolved"
-    head.add_row("cones", f"{c['feasible']:,} contain q, {c['singular']:,} singular "
-                          f"({c['singular_with_q']:,} of them contain q){pruned}")
+    head.add_row("cones", cone_counts_text(res, all_cones))
     head.add_row("time", f"{res.seconds * 1e3:.3f} ms")
     parts: list[Any] = [fit(head), Text("")]
     if res.cones or all_cones:
@@ -202,16 +197,33 @@ def _matrix_inline(A: np.ndarray) -> str:
     return "[" + "; ".join(" ".join(fmt(x) for x in row) for row in A) + "]"
 
 
+def cone_counts_text(res: Enumeration, all_cones: bool) -> str:
+    """The counts in words.  ``counts.singular`` counts the cones that were factorised (a cone
+    excluded by the sign tests never is); with every cone listed (``all_cones``) the singular
+    ones among all are counted from the list as well, so the line agrees with the table."""
+    c = res.counts
+    factorised = res.examined - c["pruned"]
+    words = f"{c['feasible']:,} contain q"
+    if c["pruned"]:
+        words += f", {c['pruned']:,} excluded by sign tests"
+    words += (f", {c['singular']:,} singular of the {factorised:,} factorised "
+              f"({c['singular_with_q']:,} of them contain q)")
+    if all_cones and len(res.cones) == res.total:
+        words += f", {sum(1 for x in res.cones if x.singular):,} singular of all {res.total:,}"
+    if c.get("singular_unresolved"):
+        words += f", {c['singular_unresolved']:,} singular ones not resolved"
+    return words
+
+
 def enumeration_pages(res: Enumeration, problem: Any, file: str | None, *, all_cones: bool,
                       covers: bool | None = None) -> list[Page]:
     """The enumeration as one page of blocks for ``--format markdown|latex``."""
     M = np.asarray(problem.dense_M(), dtype=float)
     n = res.n
-    c = res.counts
     name = Path(file).name if file and file != "-" else (problem.name or "the problem")
     page: Page = [Heading(f"Complementary cones of {name}"),
                   Para(f"{problem.summary()}, 2^{n} = {res.total:,} complementary cones; "
-                       f"{c['feasible']:,} contain q, {c['singular']:,} singular.")]
+                       f"{cone_counts_text(res, all_cones)}.")]
     if res.cones or all_cones:
         small = n <= MATRIX_MAX_N
         header = ["r", "A_r (I_j or -M_j)" if small else "basic y", "det A_r", "rank",
@@ -311,15 +323,34 @@ def text_grid(width: int, height: int) -> np.ndarray:
     return np.vstack([X.ravel(), Y.ravel()])
 
 
+class Glyphs(NamedTuple):
+    """The characters of the cone drawing: rays (horizontal, vertical, rising, falling) and
+    the mark of a region in 2+ cones."""
+
+    horizontal: str
+    vertical: str
+    rising: str
+    falling: str
+    overlap: str
+
+
+#: Box-drawing characters (a UTF-8 terminal or file).
+UNICODE_GLYPHS = Glyphs("─", "│", "╱", "╲", "▒")
+#: Their ASCII stand-ins (an output stream whose encoding lacks the box characters).
+ASCII_GLYPHS = Glyphs("-", "|", "/", "\\", "#")
+
+
 def draw_cones_text(M: Any, q: Any, width: int = 49, height: int = 21,
-                    path: list[dict[str, Any]] | None = None) -> Text:
+                    path: list[dict[str, Any]] | None = None,
+                    glyphs: Glyphs = UNICODE_GLYPHS) -> Text:
     """Character drawing of the four complementary cones and q (directions only).
 
-    Each region shows the number r of the one cone holding it (``▒``: 2+ cones, blank: none);
-    the generators ``I_j`` (labelled ``w_j``) and ``-M_j`` (``z_j``) are rays of unit length;
-    labels never overlap a ray, another label or a region digit (one blank cell each side).
-    ``path`` (from :func:`lcpcli.solvers.trace.lemke.path_points`): Lemke's path
-    ``q + z0 d``, drawn at its directions as ``*``.
+    Each region shows the number r of the one cone holding it (``glyphs.overlap``, ``▒``:
+    2+ cones, blank: none); the generators ``I_j`` (labelled ``w_j``) and ``-M_j`` (``z_j``)
+    are rays of unit length; labels never overlap a ray, another label or a region digit (one
+    blank cell each side).  ``path`` (from :func:`lcpcli.solvers.trace.lemke.path_points`):
+    Lemke's path ``q + z0 d``, drawn at its directions as ``*``.  ``glyphs``:
+    :data:`UNICODE_GLYPHS` or :data:`ASCII_GLYPHS`.
     """
     M = np.asarray(M, dtype=float)
     q = np.asarray(q, dtype=float)
@@ -331,7 +362,7 @@ def draw_cones_text(M: Any, q: Any, width: int = 49, height: int = 21,
     for i in range(height):
         for j in range(width):
             if cover[i, j] >= 2:
-                canvas.put(i, j, "▒", "yellow")
+                canvas.put(i, j, glyphs.overlap, "yellow")
             elif cover[i, j] == 1 and j % 2 == 0:
                 canvas.put(i, j, str(_cone_number(int(which[i, j]))), "dim")
 
@@ -344,8 +375,9 @@ def draw_cones_text(M: Any, q: Any, width: int = 49, height: int = 21,
     for name, u in gens:  # all rays first, then every label on top of a clear margin
         style = "bold cyan" if name.startswith("w") else "bold magenta"
         ang = float(np.degrees(np.arctan2(u[1], u[0]))) % 180.0
-        ray = "─" if ang < 22.5 or ang >= 157.5 else "│" if 67.5 <= ang < 112.5 else (
-            "╱" if ang < 90 else "╲")
+        ray = (glyphs.horizontal if ang < 22.5 or ang >= 157.5
+               else glyphs.vertical if 67.5 <= ang < 112.5
+               else glyphs.rising if ang < 90 else glyphs.falling)
         for t in np.linspace(0.08, 0.92, 40):
             canvas.put(*cell(*(t * u)), ray, style, fix=True)
     canvas.put(*cell(0.0, 0.0), "+", fix=True)
@@ -366,7 +398,7 @@ def draw_cones_text(M: Any, q: Any, width: int = 49, height: int = 21,
     canvas.place_label(r, c, "q", "bold red", right=False)
     text = canvas.text()
     text.append("1-4: the one cone r holding the region   ", style="dim")
-    text.append("▒", style="yellow")
+    text.append(glyphs.overlap, style="yellow")
     text.append(" 2+ cones   blank: no cone   ", style="dim")
     text.append("w1 w2", style="bold cyan")
     text.append(" = I_j,  ", style="dim")

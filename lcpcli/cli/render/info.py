@@ -5,8 +5,11 @@ from __future__ import annotations
 from typing import Any
 
 from rich.console import Group
+from rich.padding import Padding
 from rich.table import Table
 from rich.text import Text
+
+from lcpcli.cli.render.common import fit
 
 APPLIES_STYLE = {"yes": "bold green", "maybe": "yellow", "no": "red"}
 
@@ -41,7 +44,7 @@ def render_info(report: dict[str, Any]) -> Group:
     head = Table.grid(padding=(0, 2))
     head.add_column(style="bold")
     head.add_column()
-    head.add_row("file", str(report.get("file") or ""))
+    head.add_row("file", Text(str(report.get("file") or "")))  # a name, never markup
     head.add_row("problem", report["summary"])
     head.add_row("regime", report["regime"])
     c = report["classification"]
@@ -56,11 +59,16 @@ def render_info(report: dict[str, Any]) -> Group:
                       row["why"], str(row["auto_rank"] or "-"))
     first = report.get("auto_first")
     plan = report["auto_plan"]
-    lines = [f"{i + 1}. {name}: {why}" for i, (name, why) in enumerate(plan)]
-    parts = [head, Text(""), table, Text("")]
+    parts = [fit(head), Text(""), fit(table), Text("")]
     if first:
         parts.append(Text(f"auto's first attempt (before the O(n^3) tests): {first[0]}: "
                           f"{first[1]}"))
-    parts.append(Text("auto would try: " + ("\n  " + "\n  ".join(lines) if lines
-                                            else "nothing")))
+    parts.append(Text("auto would try:" + ("" if plan else " nothing")))
+    if plan:  # numbered, each entry's wrapped lines under its own text
+        steps = Table.grid(padding=(0, 1))
+        steps.add_column(justify="right")
+        steps.add_column()
+        for i, (name, why) in enumerate(plan):
+            steps.add_row(f"{i + 1}.", f"{name}: {why}")
+        parts.append(Padding(fit(steps), (0, 0, 0, 2), expand=False))
     return Group(*parts)

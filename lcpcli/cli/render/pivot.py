@@ -136,15 +136,20 @@ def _decision(step: dict[str, Any], layout: str, has_tableau: bool = True) -> Pa
 
 def _state_heading(step: dict[str, Any], k: int) -> str:
     if k == 0:
-        return ("Step 0: initial tableau (basis " + ", ".join(step["basis"]) +
-                f"; z = 0, {ARTIFICIAL} = 0)")
+        basis = "basis " + ", ".join(step["basis"]) if step["basis"] else EMPTY_BASIS
+        return f"Step 0: initial tableau ({basis}; z = 0, {ARTIFICIAL} = 0)"
     return (f"Step {k}: after pivot {k}: {step['entering']} entered, {step['leaving']} left "
             f"(row {step['row']})")
 
 
+#: The words for the basis of an n = 0 problem.
+EMPTY_BASIS = "empty basis"
+
+
 def _basis_values(step: dict[str, Any]) -> str:
+    """``w1 = 3, z2 = 1``: the basic variables and their values (n = 0: ``empty basis``)."""
     return ", ".join(f"{b} = {fmt(v)}" for b, v in zip(step["basis"], step["q_prime"],
-                                                       strict=True))
+                                                       strict=True)) or EMPTY_BASIS
 
 
 def lemke_pages(trace: list[dict[str, Any]], layout: str = "dictionary") -> list[Page]:
@@ -202,7 +207,10 @@ def principal_pages(trace: list[dict[str, Any]], layout: str = "dictionary") -> 
             else:
                 page.append(Para("The pivot limit stops the method here."))
         pages.append(page)
-    pages.append([Heading("Principal pivots at a glance"), principal_table(trace)])
+    glance: Page = [Heading("Principal pivots at a glance"), principal_table(trace)]
+    glance += [Para(f"Not made: {st['reason']}.") for st in trace
+               if st.get("rule") == "bad_pivot"]
+    pages.append(glance)
     return pages
 
 
@@ -216,18 +224,20 @@ def _index_sets(st: dict[str, Any]) -> str:
 
 
 def principal_table(trace: list[dict[str, Any]]) -> Grid:
-    """One line per principal pivot: row, exchanged pair, pivot element, index set, q'."""
+    """One line per principal pivot made: row, exchanged pair, pivot element, index set, q'
+    (a pivot refused as not positive, ``bad_pivot``, is no line: it was not made)."""
     n = len(trace[0]["basis"]) if trace else 0
     header = ["pivot", "row", "enters", "leaves", "pivot element M'_rr", "alpha (z basic)",
               "q'" if n <= 8 else "min q'"]
     rows = []
     for st in trace:
+        if st.get("rule") == "bad_pivot":
+            continue
         pe = st.get("pivot_element")
         qcol = _vec(st["q_prime"]) if n <= 8 else fmt(min(st["q_prime"], default=0.0))
         rows.append([str(st["pivot"]), "-" if st.get("row") is None else str(st["row"]),
                      st.get("entering") or "-", st.get("leaving") or "-",
-                     "-" if pe is None else fmt(pe["value"]) + (
-                         " (not > 0)" if st.get("rule") == "bad_pivot" else ""),
+                     "-" if pe is None else fmt(pe["value"]),
                      "{" + ", ".join(str(x) for x in st["alpha"]) + "}", qcol])
     return Grid(header, rows, ["r", "r", "l", "l", "r", "l", "l"])
 
@@ -407,7 +417,7 @@ def pivot_pages(items: list[tuple[Any, dict[str, Any] | None]], M: Any, q: Any,
         page.append(_index_table(t))
         page.append(Para(_matrix_text("M^{alpha beta}", t.M_ab)))
         page.append(Para(_matrix_text("M^{alpha-bar beta}", t.M_abar_b)))
-        page.append(Para(f"q^alpha = {_vec(t.q_a)}   q^{{alpha-bar}} = {_vec(t.q_abar)}"))
+        page.append(Para(f"q^alpha = {_vec(t.q_a)},  q^{{alpha-bar}} = {_vec(t.q_abar)}"))
         beta_p = set(t.beta_prime)
         page.append(Grid(["w'", "q'", "from"],
                          [[f"{i + 1}: {t.names((v,))[0]}", fmt(t.q_prime[i]),

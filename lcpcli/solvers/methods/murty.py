@@ -79,7 +79,7 @@ def run(problem: Any, *, tol: float, max_iter: int | None = None,
 
         recorder = Recorder(murty_traced)
         out = _run(problem, tol=tol, max_iter=max_iter, z0=z0, basis=basis, kernel=recorder)
-        out.trace = recorder.trace or []  # q >= 0: no pivot, nothing recorded
+        out.trace = recorder.trace or []  # n = 0: nothing recorded
         return out
     return _run(problem, tol=tol, max_iter=max_iter, z0=z0, basis=basis)
 
@@ -94,6 +94,8 @@ def _run(problem: Any, *, tol: float, max_iter: int | None, z0: np.ndarray | Non
     limit = max_iter or default_max_iter(n)
     start = _start_set(problem, z0, basis)
     if n and np.min(q) >= 0:
+        if kernel is not murty_kernel:  # a trace: its step 0, the basis w that solves it
+            kernel(M, q, limit, PIVOT_TOL, NEG_TOL, np.arange(n, dtype=np.int64))
         return Outcome(np.zeros(n), 0, CONVERGED, "q >= 0: z = 0 solves the problem")
     basic = np.arange(n, dtype=np.int64)
     warm, solved = "", False

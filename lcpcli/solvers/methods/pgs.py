@@ -70,16 +70,15 @@ def run_sor(problem: Any, *, tol: float, omega: float = 1.0, max_iter: int | Non
     """Run projected SOR with relaxation ``omega`` (1 = Gauss-Seidel); see the module docstring.
 
     ``trace=True`` runs the numpy replica :mod:`lcpcli.solvers.trace.pgs` instead of the
-    kernels (same sweeps) and records a sweep table in ``Outcome.trace``.
+    kernels (same sweeps) and records a sweep table of the whole run in ``Outcome.trace``.
     """
     if trace:
-        from lcpcli.solvers.trace import Recorder
-        from lcpcli.solvers.trace.pgs import pgs_traced
+        from lcpcli.solvers.trace.pgs import SweepRecorder
 
-        recorder = Recorder(pgs_traced)
+        recorder = SweepRecorder()
         out = _run_sor(problem, tol=tol, omega=omega, max_iter=max_iter, z0=z0, name=name,
                        kernel=recorder)
-        out.trace = recorder.trace or []  # not applicable: no sweep, nothing recorded
+        out.trace = recorder.trace  # not applicable: no sweep, nothing recorded
         return out
     return _run_sor(problem, tol=tol, omega=omega, max_iter=max_iter, z0=z0, name=name)
 

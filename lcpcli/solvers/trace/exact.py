@@ -179,10 +179,8 @@ def exact_trace(problem: Any, method: str, data: ExactData, *, covering: Any = N
         from lcpcli.solvers.support import start_point
         from lcpcli.solvers.trace.murty import murty_traced
 
-        if n and min(data.q) >= 0:
-            return []  # q >= 0: z = 0, no pivot (as the method)
         basic = np.arange(n, dtype=np.int64)
-        if z0 is not None:
+        if z0 is not None and not (n and min(data.q) >= 0):  # q >= 0: z = 0 (as the method)
             start = start_point(problem, z0)
             basic = np.where(start > 0, basic + n, basic).astype(np.int64)
         *_, trace = murty_traced(data.M, data.q, max_iter or default_max_iter(n), PIVOT_TOL,

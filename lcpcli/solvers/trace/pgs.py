@@ -143,4 +143,32 @@ def pgs_traced(M: Any, q: np.ndarray, diag: np.ndarray, lo: np.ndarray, up: np.n
     return LIMIT, max_iter, err, trace
 
 
-__all__ = ["CONVERGED", "DIVERGED", "FIRST_SWEEPS", "LIMIT", "pgs_traced"]
+class SweepRecorder:
+    """:func:`pgs_traced` standing in for the kernel over a whole run of several calls.
+
+    The method calls its kernel again and again (blocks of sweeps, a tightened target); each
+    call's trace numbers its sweeps from 0.  This keeps one trace for the run: the start
+    (sweep 0 of the first call), the first :data:`FIRST_SWEEPS` sweeps and the last one, each
+    numbered by the sweeps made since the start (the number the method reports).
+    """
+
+    def __init__(self) -> None:
+        self.trace: list[dict[str, Any]] = []
+        self.sweeps = 0  # sweeps made by the earlier calls
+
+    def __call__(self, *args: Any) -> tuple[int, int, float]:
+        # floating-point exceptions as the compiled kernel has them: quiet
+        with np.errstate(all="ignore"):
+            status, done, err, trace = pgs_traced(*args)
+        entries = trace if not self.trace else trace[1:]  # a later call's start: a repeat
+        if self.trace and self.trace[-1]["sweep"] > FIRST_SWEEPS:
+            self.trace.pop()  # the previous call's last sweep is not the run's last
+        for st in entries:
+            st["sweep"] += self.sweeps
+        last = entries[-1:] if entries and entries[-1]["sweep"] > FIRST_SWEEPS else []
+        self.trace += [st for st in entries if st["sweep"] <= FIRST_SWEEPS] + last
+        self.sweeps += int(done)
+        return status, done, err
+
+
+__all__ = ["CONVERGED", "DIVERGED", "FIRST_SWEEPS", "LIMIT", "SweepRecorder", "pgs_traced"]
