@@ -249,25 +249,30 @@ def bimatrix_ray(n: int, seed: int = 3) -> Case:
 
 
 def infeasible_psd(n: int, seed: int = 4) -> Case:
-    """PSD ``M = P S P`` with ``P`` the projector orthogonal to ``y > 0`` and ``q^T y < 0``.
+    """PSD ``M = C S C^T`` with the columns of ``C`` orthogonal to ``y > 0`` and ``q^T y < 0``.
 
     ``M y = 0 = M^T y``, so for every z >= 0, ``y^T (M z + q) = q^T y < 0``: some w_i < 0, no
     feasible point, no solution.  ``y`` is the Farkas certificate (``Case.farkas``).  M is
-    PSD hence copositive-plus, so Lemke's ray also proves it.
+    PSD hence copositive-plus, so Lemke's ray also proves it.  Every entry is a small integer
+    (``y_i`` in {1, 2}, ``C``'s columns ``y_{j+1} e_j - y_j e_{j+1}``, ``S = A A^T + I`` of an
+    integer ``A``), so the data are exactly what they say: singular and infeasible, where a
+    product rounded in floating point would be another matrix.
 
     Ill-posed on purpose: a relative perturbation of M at roundoff level makes it feasible, so a
-    huge z (||z|| ~ 1e14) can pass the scaled certificate (error ~ 1e-16) with w_min ~ -0.1;
-    Siconos' Lemke returns such a z (and reports failure).  :func:`infeasible_robust` is the
-    well-posed counterpart.
+    huge z can pass a certificate that does not bound growth (w_min ~ -0.1); Siconos' Lemke
+    returns such a z (and reports failure).  :func:`infeasible_robust` is the well-posed
+    counterpart.
     """
     rng = np.random.default_rng(seed)
-    y = rng.uniform(0.5, 1.5, n)
-    P = np.eye(n) - np.outer(y, y) / (y @ y)
-    B = rng.standard_normal((n, n))
-    M = P @ (B @ B.T / n + np.eye(n)) @ P
-    M = 0.5 * (M + M.T)
-    q = rng.standard_normal(n)
-    q -= (q @ y + 1.0) / (y @ y) * y  # now q^T y = -1
+    y = rng.integers(1, 3, n).astype(float)
+    y[0] = 1.0
+    C = np.zeros((n, n - 1))
+    for j in range(n - 1):
+        C[j, j], C[j + 1, j] = y[j + 1], -y[j]
+    A = rng.integers(-2, 3, (n - 1, n - 1)).astype(float)
+    M = C @ (A @ A.T + np.eye(n - 1)) @ C.T  # small integers: exact
+    q = rng.integers(-3, 4, n).astype(float)
+    q[0] = -1.0 - float(q[1:] @ y[1:])  # now q^T y = -1 (y_0 = 1)
     return _case(M, q, f"infeasible-psd-{n}",
                  "PSD, q^T y < 0 with M y = 0, y > 0: no feasible z (Farkas)",
                  expected=INFEASIBLE, farkas=y)

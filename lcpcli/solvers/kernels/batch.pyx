@@ -789,10 +789,21 @@ cdef int _certify_basic(const double* M, const double* q, Py_ssize_t n, Py_ssize
             if m == 0:
                 return 0
             _refine(M, q, n, A, idx, piv, m, r, z)
+        _onto_bounds(z, n)
         certify_dense(n, M, n, q, z, 0, NULL, NULL, w, cwork, iwork, state, cert)
         if _passed(cert, tol):
             return 1
     return 0
+
+
+cdef inline void _onto_bounds(double* z, Py_ssize_t n) noexcept nogil:
+    """A basic ``z_i`` the factorisation left below 0 (rounding, e.g. -1e-16) moved onto its
+    bound, as the dispatcher does for one problem (:meth:`lcpcli.core.problem.Problem.inside`)
+    before the certificate, which judges that move anyway."""
+    cdef Py_ssize_t i
+    for i in range(n):
+        if z[i] < 0.0:
+            z[i] = 0.0
 
 
 cdef int _ppt_lemke_one(const double* M, const double* q, Py_ssize_t n,
