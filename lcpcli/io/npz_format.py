@@ -11,8 +11,10 @@ header) are validated first, so a zip bomb or a mislabelled array costs no memor
 from __future__ import annotations
 
 import json
+import lzma
 import math
 import zipfile
+import zlib
 from collections.abc import Callable
 from pathlib import Path
 from typing import IO, Any
@@ -42,8 +44,10 @@ from lcpcli.io.sparse import (
 #: A problem NPZ holds a handful of arrays; more zip entries than this is not one.
 MAX_MEMBERS = 1000
 #: What zipfile raises on a damaged or unsupported archive (NotImplementedError: a compression
-#: method it does not implement); readers turn these into one-line ProblemErrors.
-ZIP_ERRORS = (zipfile.BadZipFile, EOFError, OSError, NotImplementedError, RuntimeError)
+#: method it does not implement; zlib.error, lzma.LZMAError and OSError (bz2): a compressed
+#: member's damaged bytes); readers turn these into one-line ProblemErrors.
+ZIP_ERRORS = (zipfile.BadZipFile, EOFError, OSError, NotImplementedError, RuntimeError,
+              zlib.error, lzma.LZMAError)
 _TEXT_KINDS = "US"
 
 
