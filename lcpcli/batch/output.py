@@ -153,6 +153,35 @@ def read_jsonl(path: Path) -> list[dict[str, Any]]:
     return rows
 
 
+def is_row(obj: Any) -> bool:
+    """Whether ``obj`` (a parsed JSON line) is a result row: an object with ``source`` and
+    ``problem`` (every row lcpcli writes has both)."""
+    return isinstance(obj, dict) and "source" in obj and "problem" in obj
+
+
+def check_own_jsonl(path: Path) -> None:
+    """Refuse (ProblemError) to resume a JSON Lines file that is not a result file of lcpcli:
+    a complete line that is not a row (:func:`is_row`), or a torn last line that cannot be
+    the start of one.  Checked before anything is appended or cut off."""
+    data = read_own_file(path)
+    end = data.rfind(b"\n") + 1
+    for number, line in enumerate(data[:end].splitlines(), 1):
+        if not line.strip():
+            continue
+        try:
+            ok = is_row(json.loads(line))
+        except (ValueError, RecursionError):
+            ok = False
+        if not ok:
+            raise ProblemError(f"cannot be resumed: line {number} is not a result row of "
+                               f"lcpcli (not a result file?); run again without --resume, or "
+                               f"give another --output", str(path))
+    if data[end:].strip() and not data[end:].lstrip().startswith(b"{"):
+        raise ProblemError("cannot be resumed: its last line is neither a result row of lcpcli "
+                           "nor the start of one (not a result file?); run again without "
+                           "--resume, or give another --output", str(path))
+
+
 def _csv_value(col: str, text: str) -> Any:
     if text == "":
         return None if col not in ("source", "problem", "status", "method", "message") else ""
@@ -309,6 +338,8 @@ class _LineWriter(ABC):
                 raise ProblemError(f"cannot be resumed: its first line is not the header "
                                    f"{header.strip()!r} of this lcpcli (an older version's, or "
                                    f"not a result file); run again without --resume", str(path))
+            if not header:  # JSON Lines: every line a row (never cut a foreign file's line)
+                check_own_jsonl(path)
             _truncate_torn_tail(path, self.multiline)
         else:
             _fresh_file(path, header)

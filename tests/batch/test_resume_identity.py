@@ -299,3 +299,36 @@ def test_resume_with_a_new_stack_adds_its_group_by_copy(tmp_path, monkeypatch):
     with h5py.File(out) as f:
         np.testing.assert_allclose(f["a"]["z"][...], solve_many(M, q).z, atol=1e-12)
         np.testing.assert_allclose(f["b"]["z"][...], solve_many(M, -q).z, atol=1e-12)
+
+
+@pytest.mark.parametrize("text", ['hello\n{"a":1}\nworld', '{"a": 1}\n', "[1, 2]\nworld",
+                                  "hello"])
+def test_jsonl_resume_refuses_a_file_that_is_not_a_result_file(cli, tmp_path, text):
+    """A JSON Lines output that is not lcpcli's (a line that is not a row, or a last line
+    that cannot start one): --resume refuses it in one line and leaves it as it was (its
+    last line was cut off, and rows appended to it, exit 0)."""
+    M, q = pd_stack(1, 3)
+    p = tmp_path / "p.json"
+    p.write_text(json.dumps({"M": M[0].tolist(), "q": q[0].tolist()}))
+    out = tmp_path / "notres.jsonl"
+    out.write_text(text)
+    one_line(cli("solve", str(p), "-o", str(out), "--resume"), "cannot be resumed")
+    assert out.read_text() == text
+    stack = tmp_path / "s.h5"
+    write_stack(stack, M, q)
+    one_line(cli("solve", str(stack), "-o", str(out), "--resume"), "cannot be resumed")
+    assert out.read_text() == text
+
+
+def test_jsonl_resume_keeps_cutting_a_torn_row(cli, tmp_path):
+    """An interrupted run's torn last row is still cut off and the batch resumed."""
+    M, q = pd_stack(2, 3)
+    files = problem_files(tmp_path, M, q)
+    out = tmp_path / "r.jsonl"
+    assert cli("solve", files[0], "-o", str(out)).returncode == 0
+    with open(out, "a") as fh:
+        fh.write('{"file": "p1.js')
+    res = cli("solve", *files, "-o", str(out), "--resume", "--json")
+    assert res.returncode == 0, res.stderr
+    assert json.loads(res.stdout.splitlines()[-1])["skipped"] == 1
+    assert len(read_rows(out)) == 2 and out.read_text().endswith("\n")
