@@ -14,6 +14,7 @@ import signal
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import h5py
 import numpy as np
@@ -332,3 +333,55 @@ def test_jsonl_resume_keeps_cutting_a_torn_row(cli, tmp_path):
     assert res.returncode == 0, res.stderr
     assert json.loads(res.stdout.splitlines()[-1])["skipped"] == 1
     assert len(read_rows(out)) == 2 and out.read_text().endswith("\n")
+
+
+def test_hdf5_rows_resume_refuses_damaged_or_foreign_files(cli, tmp_path):
+    """Per-file HDF5 results with a row that is not one (``json`` of '[' * 5000: read as no
+    rows, everything solved again into groups ``p0~2``), a row without source and problem,
+    z of another length, a problem file (M and q at the root, or in a group) or a file that
+    is not HDF5 (replaced by an empty result file): --resume refuses them in one line and
+    never writes into them.  A group whose write was interrupted (no ``json`` yet: the
+    journal has its row) is still skipped."""
+    M, q = pd_stack(2, 3)
+    files = problem_files(tmp_path, M, q)
+    good = tmp_path / "good.h5"
+    assert cli("solve", *files, "-o", str(good)).returncode == 0
+
+    def damaged(name: str, change) -> Path:
+        out = tmp_path / f"{name}.h5"
+        out.write_bytes(good.read_bytes())
+        with h5py.File(out, "r+") as f:
+            change(f)
+        return out
+
+    def set_json(text: str):
+        return lambda f: f["p0"].attrs.__setitem__("json", text)
+
+    def resize_z(f):
+        del f["p0"]["z"]
+        f["p0"]["z"] = np.zeros(5)
+
+    def problem(f):
+        for name in list(f):
+            del f[name]
+        f["M"], f["q"] = M[0], q[0]
+
+    def problem_group(f):
+        for name in list(f):
+            del f[name]
+        g = f.create_group("p0")
+        g["M"], g["q"] = M[0], q[0]
+
+    outs = [damaged("deep", set_json("[" * 5000)), damaged("anon", set_json('{"a": 1}')),
+            damaged("zlen", resize_z), damaged("problem", problem),
+            damaged("problem_group", problem_group)]
+    text = tmp_path / "text.h5"
+    text.write_text("not HDF5\n")
+    for out in [*outs, text]:
+        before = out.read_bytes()
+        one_line(cli("solve", *files, "-o", str(out), "--resume"), "cannot be resumed")
+        assert out.read_bytes() == before, out
+    interrupted = damaged("interrupted", lambda f: f["p1"].attrs.__delitem__("json"))
+    res = cli("solve", *files, "-o", str(interrupted), "--resume", "--json")
+    assert res.returncode == 0, res.stderr
+    assert json.loads(res.stdout.splitlines()[-1])["skipped"] == 1
