@@ -385,3 +385,45 @@ def test_hdf5_rows_resume_refuses_damaged_or_foreign_files(cli, tmp_path):
     res = cli("solve", *files, "-o", str(interrupted), "--resume", "--json")
     assert res.returncode == 0, res.stderr
     assert json.loads(res.stdout.splitlines()[-1])["skipped"] == 1
+
+
+def test_stacked_h5_resume_checks_every_dataset(cli, tmp_path):
+    """A stacked HDF5 result whose datasets were replaced (z of another shape or of strings,
+    iterations of 5 entries, basis of floats, a group for error, names of numbers) or whose
+    attributes are of another type: --resume refuses it in one line (was exit 3: TypeError
+    "Can't broadcast", OSError, ValueError) and leaves it unchanged."""
+    M, q = pd_stack(40, 3)
+    stack = tmp_path / "s.h5"
+    write_stack(stack, M, q, names=[f"p{k}" for k in range(40)])
+    good = tmp_path / "good.h5"
+    assert cli("solve", str(stack), "-o", str(good)).returncode == 0
+
+    def replaced(key: str, value) -> object:
+        def change(g) -> None:
+            del g[key]
+            if value is None:
+                g.create_group(key)
+            else:
+                g[key] = value
+        return change
+
+    changes = {
+        "z_shape": replaced("z", np.zeros((40, 4))),
+        "z_text": replaced("z", np.zeros((40, 3), "S3")),
+        "iterations": replaced("iterations", np.zeros(5, np.int64)),
+        "basis": replaced("basis", np.zeros((40, 3))), "error": replaced("error", None),
+        "residual": replaced("residual", np.zeros(40, "S1")),
+        "names": replaced("names", np.zeros(40)),
+        "chunk_attr": lambda g: g.attrs.__setitem__("chunk", "abc"),
+        "K_attr": lambda g: g.attrs.__setitem__("K", np.zeros(3)),
+    }
+    for name, change in changes.items():
+        out = tmp_path / f"{name}.h5"
+        out.write_bytes(good.read_bytes())
+        with h5py.File(out, "r+") as f:
+            change(f["s"])
+        before = out.read_bytes()
+        one_line(cli("solve", str(stack), "-o", str(out), "--resume"), "cannot be resumed")
+        assert out.read_bytes() == before, name
+    res = cli("solve", str(stack), "-o", str(good), "--resume", "--json")
+    assert res.returncode == 0 and json.loads(res.stdout.splitlines()[-1])["skipped"] == 40
