@@ -9,7 +9,6 @@ with attributes ``format`` (csr/csc/coo) and ``shape`` and datasets ``data`` plu
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Callable
 from pathlib import Path
@@ -18,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from lcpcli.core.errors import ProblemError
-from lcpcli.core.numeric import INDEX_KINDS, REAL_KINDS, check_dtype
+from lcpcli.core.numeric import INDEX_KINDS, REAL_KINDS, check_dtype, json_text
 from lcpcli.core.problem import Problem, check_size
 from lcpcli.io.files import (
     MAX_JSON_DEPTH,
@@ -353,7 +352,7 @@ def write_group(g: Any, problem: Problem) -> None:
     if problem.description:
         g.attrs["description"] = problem.description
     if problem.meta:
-        g.attrs["meta"] = json.dumps(problem.meta)
+        g.attrs["meta"] = json_text(problem.meta)
 
 
 def write(problem: Problem, path: Path) -> None:

@@ -10,7 +10,6 @@ header) are validated first, so a zip bomb or a mislabelled array costs no memor
 
 from __future__ import annotations
 
-import json
 import lzma
 import math
 import zipfile
@@ -22,7 +21,7 @@ from typing import IO, Any
 import numpy as np
 
 from lcpcli.core.errors import ProblemError
-from lcpcli.core.numeric import INDEX_KINDS, REAL_KINDS, check_dtype
+from lcpcli.core.numeric import INDEX_KINDS, REAL_KINDS, check_dtype, json_text
 from lcpcli.core.problem import Problem, check_size
 from lcpcli.io.files import (
     MAX_JSON_DEPTH,
@@ -264,6 +263,6 @@ def write(problem: Problem, path: Path) -> None:
     if problem.description:
         arrays["description"] = np.asarray(problem.description)
     if problem.meta:
-        arrays["meta"] = np.asarray(json.dumps(problem.meta))
+        arrays["meta"] = np.asarray(json_text(problem.meta))
     with open(path, "wb") as fh:
         np.savez(fh, **arrays)
