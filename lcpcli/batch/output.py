@@ -161,6 +161,35 @@ def read_jsonl(path: Path) -> list[dict[str, Any]]:
     return rows
 
 
+def is_row(obj: Any) -> bool:
+    """Whether ``obj`` (a parsed JSON line) is a result row: an object with ``source`` and
+    ``problem`` (every row lcpcli writes has both)."""
+    return isinstance(obj, dict) and "source" in obj and "problem" in obj
+
+
+def check_own_jsonl(path: Path) -> None:
+    """Refuse (ProblemError) to resume a JSON Lines file that is not a result file of lcpcli:
+    a complete line that is not a row (:func:`is_row`), or a torn last line that cannot be
+    the start of one.  Checked before anything is appended or cut off."""
+    data = read_own_file(path)
+    end = data.rfind(b"\n") + 1
+    for number, line in enumerate(data[:end].splitlines(), 1):
+        if not line.strip():
+            continue
+        try:
+            ok = is_row(json.loads(line))
+        except (ValueError, RecursionError):
+            ok = False
+        if not ok:
+            raise ProblemError(f"cannot be resumed: line {number} is not a result row of "
+                               f"lcpcli (not a result file?); run again without --resume, or "
+                               f"give another --output", str(path))
+    if data[end:].strip() and not data[end:].lstrip().startswith(b"{"):
+        raise ProblemError("cannot be resumed: its last line is neither a result row of lcpcli "
+                           "nor the start of one (not a result file?); run again without "
+                           "--resume, or give another --output", str(path))
+
+
 def _csv_value(col: str, text: str) -> Any:
     if text == "":
         return None if col not in ("source", "problem", "status", "method", "message") else ""
@@ -192,8 +221,23 @@ def read_csv(path: Path) -> list[dict[str, Any]]:
     return rows
 
 
+#: What a group of an HDF5 result file may hold when its ``json`` attribute is missing: the
+#: row's write was interrupted (``kill -9``; the journal beside the file has the row).
+_INTERRUPTED_GROUP = frozenset({"z", "w", "certificate"})
+
+
+def _not_ours(what: str, path: Path) -> ForeignObjectError:
+    return ForeignObjectError(f"cannot be resumed: {what} (a damaged or foreign file, not a "
+                              f"result file of lcpcli); run again without --resume, or give "
+                              f"another --output", str(path))
+
+
 def read_hdf5(path: Path) -> list[dict[str, Any]]:
-    """Rows of an HDF5 result file (raises ProblemError when it cannot be read)."""
+    """Rows of an HDF5 result file (raises ProblemError when it cannot be read, and
+    :class:`ForeignObjectError` when it holds anything but result groups: a dataset or a
+    problem at its root, a ``json`` attribute that is not a row, ``z`` or ``w`` that are
+    not vectors of the row's length)."""
+    import h5py
 
     rows = []
     try:
@@ -205,11 +249,25 @@ def read_hdf5(path: Path) -> list[dict[str, Any]]:
         check_hdf5_tree(f, path, datasets=False)  # no link out of the file is followed
         for name in f:
             g = f[name]
+            if not isinstance(g, h5py.Group):
+                raise _not_ours(f"'{name}' is not a result group", path)
             if "json" not in g.attrs:
-                continue
-            row = json.loads(g.attrs["json"])
+                if set(g) <= _INTERRUPTED_GROUP:
+                    continue  # an interrupted write: the journal has the row
+                raise _not_ours(f"group '{name}' holds no result row", path)
+            try:
+                row = json.loads(g.attrs["json"])
+            except (ValueError, TypeError, RecursionError):
+                row = None
+            if not is_row(row):
+                raise _not_ours(f"the row of group '{name}' is not a result row", path)
+            n = row.get("n")
             for key in ("z", "w"):
-                d = g[key]
+                d = g.get(key)
+                if not isinstance(d, h5py.Dataset) or d.shape is None or d.dtype.kind != "f" \
+                        or tuple(d.shape) not in ((0,), (n,)):
+                    raise _not_ours(f"'{name}/{key}' is not a vector of the row's n = {n}",
+                                    path)
                 check_dataset(d, path)  # nor storage out of it
                 row[key] = [float(x) if math.isfinite(x) else None for x in d[()]]
             rows.append(row)
@@ -317,6 +375,8 @@ class _LineWriter(ABC):
                 raise ProblemError(f"cannot be resumed: its first line is not the header "
                                    f"{header.strip()!r} of this lcpcli (an older version's, or "
                                    f"not a result file); run again without --resume", str(path))
+            if not header:  # JSON Lines: every line a row (never cut a foreign file's line)
+                check_own_jsonl(path)
             _truncate_torn_tail(path, self.multiline)
         else:
             _fresh_file(path, header)
@@ -442,9 +502,9 @@ class Hdf5Writer:
         if exists and own_file(jpath) is None:
             try:
                 handle = Hdf5Handle(path, "r")
-            except ProblemError:  # damaged, and no journal to rebuild it from: start afresh
-                self._create_empty(path)
-                return
+            except ProblemError:  # no journal: not an interrupted result file of lcpcli
+                raise _not_ours("not a readable HDF5 file, and no journal beside it",
+                                path) from None
             try:
                 check_hdf5_tree(handle.file, path, datasets=False)
             finally:

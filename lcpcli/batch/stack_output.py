@@ -67,6 +67,7 @@ from lcpcli.batch.records import options_difference
 from lcpcli.core.errors import OptionError, ProblemError
 from lcpcli.core.result import NOT_DONE, STATUS_CODES, status_counts
 from lcpcli.io import stack as io_stack
+from lcpcli.io.hdf5_format import H5_ERRORS
 from lcpcli.io.stack.results import RESULTS_MARK
 from lcpcli.io.writing import (
     Hdf5Handle,
@@ -124,6 +125,33 @@ def _check_status(status: np.ndarray, path: Path) -> None:
     if bad.size:
         raise ProblemError(f"cannot be resumed: its status holds {int(bad[0])}, which is no "
                            f"status code (a damaged or foreign file); {_RERUN}", str(path))
+
+
+def _check_layout(g: Any, info: Any, path: Path) -> None:
+    """ProblemError unless every dataset of the group ``g`` that a resumed batch reads or
+    writes has the shape and the kind of type :meth:`Hdf5StackWriter._create` gives it (from
+    the headers: a damaged or foreign file is refused before anything is read or written)."""
+    import h5py
+
+    expected = {key: (value.dtype.kind, (info.K, *value.shape[1:]))
+                for key, value in _empty_arrays(0, info.n).items()}
+    expected["chunk_digest"] = ("u", (_chunks(info.K, int(g.attrs["chunk"])), DIGEST_BYTES))
+    for key, (kind, shape) in expected.items():
+        d = g.get(key)
+        ok = isinstance(d, h5py.Dataset) and d.shape == shape and (
+            d.dtype.kind == kind or (kind in "iu" and d.dtype.kind in "iu"))
+        if not ok:
+            what = "missing" if d is None else f"of {getattr(d, 'dtype', 'no type')} and " \
+                f"shape {getattr(d, 'shape', None)}"
+            want = "floats" if kind == "f" else "integers"
+            raise ProblemError(f"cannot be resumed: its '{key}' of {info.path} is {what}, not "
+                               f"{want} of shape {shape} (a damaged or foreign file); {_RERUN}",
+                               str(path))
+    names = g.get("names")
+    if names is not None and not (isinstance(names, h5py.Dataset) and names.shape == (info.K,)
+                                  and h5py.check_string_dtype(names.dtype) is not None):
+        raise ProblemError(f"cannot be resumed: its 'names' of {info.path} are not {info.K} "
+                           f"strings (a damaged or foreign file); {_RERUN}", str(path))
 
 
 def _done_mask(status: np.ndarray, digests: np.ndarray, chunk: int) -> np.ndarray:
@@ -317,7 +345,15 @@ class Hdf5StackWriter:
             if g is None:
                 missing.append(info)
                 continue
-            self._check_group(g, info)
+            try:
+                self._check_group(g, info)
+            except ProblemError:
+                raise
+            except H5_ERRORS as exc:  # an attribute of another type, a group for a dataset
+                first = str(exc).splitlines()[0][:100] if str(exc) else type(exc).__name__
+                raise ProblemError(f"cannot be resumed: its results of {info.path} are "
+                                   f"unreadable ({first}): a damaged or foreign file; {_RERUN}",
+                                   str(path)) from None
             self.groups[info.path] = g
             self.chunk_of[info.path] = int(g.attrs["chunk"])
             self.algorithm_of[info.path] = recorded_algorithm(g.attrs.get("digest"), path,
@@ -359,10 +395,12 @@ class Hdf5StackWriter:
                                f"{g.attrs['solve_options']}, not {self.options}: give the same "
                                f"options or {_RERUN}", str(path))
         chunk = int(g.attrs["chunk"])
-        if chunk < 1 or g["chunk_digest"].shape != (_chunks(info.K, chunk), DIGEST_BYTES) \
-                or g["status"].shape != (info.K,):
+        if chunk < 1 or getattr(g["chunk_digest"], "shape", None) != (
+                _chunks(info.K, chunk), DIGEST_BYTES) \
+                or getattr(g["status"], "shape", None) != (info.K,):
             raise ProblemError(f"cannot be resumed: its fingerprint of {info.path} does not "
                                f"fit the input's K = {info.K}; {_RERUN}", str(path))
+        _check_layout(g, info, path)
         _check_status(g["status"][...], path)
 
     def _create(self, f: Any, info: Any, taken: set[str], chunk: int) -> Any:

@@ -21,6 +21,7 @@ Outputs follow the rules of :mod:`lcpcli.io.writing` (the one writing layer).
 from __future__ import annotations
 
 import json
+import math
 import os
 import stat
 import sys
@@ -41,6 +42,11 @@ MAX_JSON_DEPTH = 64
 #: set to its smallest allowed value while a file is parsed).  Any integer of more than 309
 #: digits is beyond float64 anyway and refused by the data rule (:mod:`lcpcli.core.numeric`).
 MAX_JSON_INT_DIGITS = 640
+#: Largest HDF5 chunk read beyond the data it holds, in bytes (64 MiB): HDF5 decompresses
+#: whole chunks, so a 2 x 2 dataset declared in one chunk of 4 GB costs 4 GB and seconds to
+#: read.  A chunk larger than both this and its dataset is refused from the header
+#: (:func:`check_h5_chunks`).
+MAX_H5_CHUNK_BYTES = 64 * 2**20
 
 _KINDS = ((stat.S_ISDIR, "a directory"), (stat.S_ISFIFO, "a FIFO (named pipe)"),
           (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"),
@@ -133,6 +139,25 @@ def _mib(n: int) -> str:
 
 def too_big(size: int, limit: int, what: str) -> ProblemError:
     return ProblemError(f"{what} of {_mib(size)} is over the limit of {_mib(limit)}")
+
+
+def check_h5_chunks(did: Any, label: str) -> None:
+    """ProblemError when the HDF5 dataset ``did`` (an h5py ``DatasetID``) is stored in chunks
+    larger than both its data and :data:`MAX_H5_CHUNK_BYTES`; from the header, nothing read.
+    Every HDF5 dataset a reader reads passes here (:func:`lcpcli.io.hdf5_format.dataset`,
+    :func:`lcpcli.io.writing.check_dataset`)."""
+    import h5py
+
+    plist = did.get_create_plist()
+    if plist.get_layout() != h5py.h5d.CHUNKED:
+        return
+    itemsize = did.get_type().get_size()
+    chunk = math.prod(plist.get_chunk()) * itemsize
+    data = math.prod(did.shape or ()) * itemsize
+    if chunk > max(data, MAX_H5_CHUNK_BYTES):
+        raise ProblemError(f"'{label}' is stored in HDF5 chunks of {_mib(chunk)} for "
+                           f"{_mib(data)} of data (limit: the data's size or "
+                           f"{_mib(MAX_H5_CHUNK_BYTES)}); refused before reading")
 
 
 def read_input_bytes(path: str | os.PathLike[str], limit: int = MAX_TEXT_BYTES,

@@ -9,7 +9,6 @@ with attributes ``format`` (csr/csc/coo) and ``shape`` and datasets ``data`` plu
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Callable
 from pathlib import Path
@@ -18,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from lcpcli.core.errors import ProblemError
-from lcpcli.core.numeric import INDEX_KINDS, REAL_KINDS, check_dtype
+from lcpcli.core.numeric import INDEX_KINDS, REAL_KINDS, check_dtype, json_text
 from lcpcli.core.problem import Problem, check_size
 from lcpcli.io.files import (
     MAX_JSON_DEPTH,
@@ -26,6 +25,7 @@ from lcpcli.io.files import (
     MAX_TEXT_BYTES,
     StackedFile,
     check_depth,
+    check_h5_chunks,
     parse_json,
 )
 from lcpcli.io.sparse import (
@@ -50,7 +50,8 @@ def open_file(path: Path, **kwargs: Any) -> Any:
     alike: :func:`child` follows hard and soft links only (an external or user-defined link is
     refused, never opened), :func:`dataset` refuses data kept in other files (external storage,
     virtual datasets) and checks the type from the header, :func:`read_float` reads a checked
-    dataset (whose shape the caller has checked) as float64.
+    dataset (whose shape the caller has checked) as float64.  :func:`dataset` also refuses chunks
+    far larger than their data (:func:`~lcpcli.io.files.check_h5_chunks`).
     """
     import h5py
 
@@ -192,6 +193,7 @@ def dataset(g: Any, name: str, label: str, kinds: str | None = REAL_KINDS) -> An
     if node.is_virtual or node.id.get_create_plist().get_external_count():
         raise ProblemError(f"'{label}' keeps its data in other files (virtual or external "
                            f"storage); refused")
+    check_h5_chunks(node.id, label)
     if kinds is not None:
         check_dtype(node.dtype, f"'{label}'", kinds=kinds)
     return node
@@ -350,7 +352,7 @@ def write_group(g: Any, problem: Problem) -> None:
     if problem.description:
         g.attrs["description"] = problem.description
     if problem.meta:
-        g.attrs["meta"] = json.dumps(problem.meta)
+        g.attrs["meta"] = json_text(problem.meta)
 
 
 def write(problem: Problem, path: Path) -> None:
@@ -446,6 +448,7 @@ def _read_plain_group(f: Any, name: str) -> Problem | None:
             plist = d.get_create_plist()
             if plist.get_layout() == h5py.h5d.VIRTUAL or plist.get_external_count():
                 return None
+            check_h5_chunks(d, part.decode())
         if part == b"M":
             check_size(*shape)
             n = shape[0]

@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from lcpcli.core.errors import ProblemError
-from lcpcli.core.numeric import real_array, scan_nested
+from lcpcli.core.numeric import json_text, real_array, scan_nested
 from lcpcli.core.problem import Problem, check_size
 from lcpcli.io.files import (
     MAX_TEXT_BYTES,
@@ -194,7 +194,7 @@ def to_dict(problem: Problem) -> dict[str, Any]:
 
 
 def dumps(problem: Problem) -> str:
-    return json.dumps(to_dict(problem))
+    return json_text(to_dict(problem))
 
 
 def write(problem: Problem, path: Path) -> None:

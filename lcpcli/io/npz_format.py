@@ -10,9 +10,10 @@ header) are validated first, so a zip bomb or a mislabelled array costs no memor
 
 from __future__ import annotations
 
-import json
+import lzma
 import math
 import zipfile
+import zlib
 from collections.abc import Callable
 from pathlib import Path
 from typing import IO, Any
@@ -20,7 +21,7 @@ from typing import IO, Any
 import numpy as np
 
 from lcpcli.core.errors import ProblemError
-from lcpcli.core.numeric import INDEX_KINDS, REAL_KINDS, check_dtype
+from lcpcli.core.numeric import INDEX_KINDS, REAL_KINDS, check_dtype, json_text
 from lcpcli.core.problem import Problem, check_size
 from lcpcli.io.files import (
     MAX_JSON_DEPTH,
@@ -42,8 +43,10 @@ from lcpcli.io.sparse import (
 #: A problem NPZ holds a handful of arrays; more zip entries than this is not one.
 MAX_MEMBERS = 1000
 #: What zipfile raises on a damaged or unsupported archive (NotImplementedError: a compression
-#: method it does not implement); readers turn these into one-line ProblemErrors.
-ZIP_ERRORS = (zipfile.BadZipFile, EOFError, OSError, NotImplementedError, RuntimeError)
+#: method it does not implement; zlib.error, lzma.LZMAError and OSError (bz2): a compressed
+#: member's damaged bytes); readers turn these into one-line ProblemErrors.
+ZIP_ERRORS = (zipfile.BadZipFile, EOFError, OSError, NotImplementedError, RuntimeError,
+              zlib.error, lzma.LZMAError)
 _TEXT_KINDS = "US"
 
 
@@ -260,6 +263,6 @@ def write(problem: Problem, path: Path) -> None:
     if problem.description:
         arrays["description"] = np.asarray(problem.description)
     if problem.meta:
-        arrays["meta"] = np.asarray(json.dumps(problem.meta))
+        arrays["meta"] = np.asarray(json_text(problem.meta))
     with open(path, "wb") as fh:
         np.savez(fh, **arrays)

@@ -43,8 +43,12 @@ Based = tuple[np.ndarray, list[str] | None, np.ndarray | None]
 def load_z0(path: str | Path, n: int | None = None) -> np.ndarray:
     """Read a warm-start vector ``z0`` (see the module docstring); 1-D, finite floats; with
     ``n`` (the problem's), one declaring more than n values is refused before anything is
-    decompressed (a shorter one by the solver's check of z0)."""
-    return read_warm_start(path, n=n)[0]
+    decompressed, and one of another length once read (``--z0 FILE: ...``)."""
+    z0 = read_warm_start(path, n=n)[0]
+    if n is not None and z0.shape[0] != n:
+        raise ProblemError(f"has {z0.shape[0]:,} values, the problem has n = {n:,}",
+                           f"--z0 {path}")
+    return z0
 
 
 def read_warm_start(path: str | Path, source: str | None = None, *, n: int | None = None,

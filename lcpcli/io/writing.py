@@ -43,7 +43,7 @@ from pathlib import Path
 from typing import IO, Any
 
 from lcpcli.core.errors import OutputError, ProblemError
-from lcpcli.io.files import file_kind
+from lcpcli.io.files import check_h5_chunks, file_kind
 
 #: The write failures reported as one line (errno -> the reason users read).
 WRITE_ERRORS = {
@@ -679,7 +679,9 @@ def open_hdf5(path: str | os.PathLike[str], mode: str = "w", **kwargs: Any
 
 
 def check_dataset(d: Any, path: str | os.PathLike[str]) -> None:
-    """Refuse a virtual dataset or one stored in another file (rule 5) before it is read."""
+    """Refuse a virtual dataset or one stored in another file (rule 5), or one stored in
+    chunks far larger than its data (:func:`~lcpcli.io.files.check_h5_chunks`), before it is
+    read."""
     dcpl = d.id.get_create_plist()
     import h5py
 
@@ -689,6 +691,10 @@ def check_dataset(d: Any, path: str | os.PathLike[str]) -> None:
         raise ForeignObjectError(f"holds {what} ({d.name}), which lcpcli never writes: refusing "
                                  f"to read or write through it (run again without --resume to "
                                  f"replace the file)", str(path))
+    try:
+        check_h5_chunks(d.id, d.name)
+    except ProblemError as exc:  # lcpcli never writes such chunks: refused, never rebuilt
+        raise ForeignObjectError(str(exc), str(path)) from None
 
 
 def check_hdf5_tree(f: Any, path: str | os.PathLike[str], *, datasets: bool = True) -> None:
@@ -726,6 +732,10 @@ def check_hdf5_tree(f: Any, path: str | os.PathLike[str], *, datasets: bool = Tr
                 bad.append(f"a dataset stored in another file ({name.decode(errors='replace')})")
             if bad:
                 break
+            try:
+                check_h5_chunks(d, name.decode(errors="replace"))
+            except ProblemError as exc:  # lcpcli never writes such chunks
+                raise ForeignObjectError(str(exc), str(path)) from None
     if bad:
         raise ForeignObjectError(f"holds {bad[0]}, which lcpcli never writes: refusing to read or "
                            f"write through it (run again without --resume to replace the "

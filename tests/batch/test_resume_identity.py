@@ -14,6 +14,7 @@ import signal
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import h5py
 import numpy as np
@@ -299,3 +300,130 @@ def test_resume_with_a_new_stack_adds_its_group_by_copy(tmp_path, monkeypatch):
     with h5py.File(out) as f:
         np.testing.assert_allclose(f["a"]["z"][...], solve_many(M, q).z, atol=1e-12)
         np.testing.assert_allclose(f["b"]["z"][...], solve_many(M, -q).z, atol=1e-12)
+
+
+@pytest.mark.parametrize("text", ['hello\n{"a":1}\nworld', '{"a": 1}\n', "[1, 2]\nworld",
+                                  "hello"])
+def test_jsonl_resume_refuses_a_file_that_is_not_a_result_file(cli, tmp_path, text):
+    """A JSON Lines output that is not lcpcli's (a line that is not a row, or a last line
+    that cannot start one): --resume refuses it in one line and leaves it as it was (its
+    last line was cut off, and rows appended to it, exit 0)."""
+    M, q = pd_stack(1, 3)
+    p = tmp_path / "p.json"
+    p.write_text(json.dumps({"M": M[0].tolist(), "q": q[0].tolist()}))
+    out = tmp_path / "notres.jsonl"
+    out.write_text(text)
+    one_line(cli("solve", str(p), "-o", str(out), "--resume"), "cannot be resumed")
+    assert out.read_text() == text
+    stack = tmp_path / "s.h5"
+    write_stack(stack, M, q)
+    one_line(cli("solve", str(stack), "-o", str(out), "--resume"), "cannot be resumed")
+    assert out.read_text() == text
+
+
+def test_jsonl_resume_keeps_cutting_a_torn_row(cli, tmp_path):
+    """An interrupted run's torn last row is still cut off and the batch resumed."""
+    M, q = pd_stack(2, 3)
+    files = problem_files(tmp_path, M, q)
+    out = tmp_path / "r.jsonl"
+    assert cli("solve", files[0], "-o", str(out)).returncode == 0
+    with open(out, "a") as fh:
+        fh.write('{"file": "p1.js')
+    res = cli("solve", *files, "-o", str(out), "--resume", "--json")
+    assert res.returncode == 0, res.stderr
+    assert json.loads(res.stdout.splitlines()[-1])["skipped"] == 1
+    assert len(read_rows(out)) == 2 and out.read_text().endswith("\n")
+
+
+def test_hdf5_rows_resume_refuses_damaged_or_foreign_files(cli, tmp_path):
+    """Per-file HDF5 results with a row that is not one (``json`` of '[' * 5000: read as no
+    rows, everything solved again into groups ``p0~2``), a row without source and problem,
+    z of another length, a problem file (M and q at the root, or in a group) or a file that
+    is not HDF5 (replaced by an empty result file): --resume refuses them in one line and
+    never writes into them.  A group whose write was interrupted (no ``json`` yet: the
+    journal has its row) is still skipped."""
+    M, q = pd_stack(2, 3)
+    files = problem_files(tmp_path, M, q)
+    good = tmp_path / "good.h5"
+    assert cli("solve", *files, "-o", str(good)).returncode == 0
+
+    def damaged(name: str, change) -> Path:
+        out = tmp_path / f"{name}.h5"
+        out.write_bytes(good.read_bytes())
+        with h5py.File(out, "r+") as f:
+            change(f)
+        return out
+
+    def set_json(text: str):
+        return lambda f: f["p0"].attrs.__setitem__("json", text)
+
+    def resize_z(f):
+        del f["p0"]["z"]
+        f["p0"]["z"] = np.zeros(5)
+
+    def problem(f):
+        for name in list(f):
+            del f[name]
+        f["M"], f["q"] = M[0], q[0]
+
+    def problem_group(f):
+        for name in list(f):
+            del f[name]
+        g = f.create_group("p0")
+        g["M"], g["q"] = M[0], q[0]
+
+    outs = [damaged("deep", set_json("[" * 5000)), damaged("anon", set_json('{"a": 1}')),
+            damaged("zlen", resize_z), damaged("problem", problem),
+            damaged("problem_group", problem_group)]
+    text = tmp_path / "text.h5"
+    text.write_text("not HDF5\n")
+    for out in [*outs, text]:
+        before = out.read_bytes()
+        one_line(cli("solve", *files, "-o", str(out), "--resume"), "cannot be resumed")
+        assert out.read_bytes() == before, out
+    interrupted = damaged("interrupted", lambda f: f["p1"].attrs.__delitem__("json"))
+    res = cli("solve", *files, "-o", str(interrupted), "--resume", "--json")
+    assert res.returncode == 0, res.stderr
+    assert json.loads(res.stdout.splitlines()[-1])["skipped"] == 1
+
+
+def test_stacked_h5_resume_checks_every_dataset(cli, tmp_path):
+    """A stacked HDF5 result whose datasets were replaced (z of another shape or of strings,
+    iterations of 5 entries, basis of floats, a group for error, names of numbers) or whose
+    attributes are of another type: --resume refuses it in one line (was exit 3: TypeError
+    "Can't broadcast", OSError, ValueError) and leaves it unchanged."""
+    M, q = pd_stack(40, 3)
+    stack = tmp_path / "s.h5"
+    write_stack(stack, M, q, names=[f"p{k}" for k in range(40)])
+    good = tmp_path / "good.h5"
+    assert cli("solve", str(stack), "-o", str(good)).returncode == 0
+
+    def replaced(key: str, value) -> object:
+        def change(g) -> None:
+            del g[key]
+            if value is None:
+                g.create_group(key)
+            else:
+                g[key] = value
+        return change
+
+    changes = {
+        "z_shape": replaced("z", np.zeros((40, 4))),
+        "z_text": replaced("z", np.zeros((40, 3), "S3")),
+        "iterations": replaced("iterations", np.zeros(5, np.int64)),
+        "basis": replaced("basis", np.zeros((40, 3))), "error": replaced("error", None),
+        "residual": replaced("residual", np.zeros(40, "S1")),
+        "names": replaced("names", np.zeros(40)),
+        "chunk_attr": lambda g: g.attrs.__setitem__("chunk", "abc"),
+        "K_attr": lambda g: g.attrs.__setitem__("K", np.zeros(3)),
+    }
+    for name, change in changes.items():
+        out = tmp_path / f"{name}.h5"
+        out.write_bytes(good.read_bytes())
+        with h5py.File(out, "r+") as f:
+            change(f["s"])
+        before = out.read_bytes()
+        one_line(cli("solve", str(stack), "-o", str(out), "--resume"), "cannot be resumed")
+        assert out.read_bytes() == before, name
+    res = cli("solve", str(stack), "-o", str(good), "--resume", "--json")
+    assert res.returncode == 0 and json.loads(res.stdout.splitlines()[-1])["skipped"] == 40

@@ -161,10 +161,25 @@ BAD_DAT = {
 }
 
 
-def _npz_raw(path: Path, members: dict[str, bytes]) -> None:
-    with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as zf:
+def _npz_raw(path: Path, members: dict[str, bytes],
+             compression: int = zipfile.ZIP_DEFLATED) -> None:
+    with zipfile.ZipFile(path, "w", compression) as zf:
         for name, data in members.items():
             zf.writestr(name, data)
+
+
+def _npz_corrupt(path: Path, arrays: dict[str, np.ndarray], compression: int,
+                 at: int | None = None) -> None:
+    """An NPZ of ``arrays`` compressed by ``compression`` with 20 bytes of its first member's
+    compressed data flipped (at byte ``at`` of the file; default: its middle)."""
+    _npz_raw(path, {f"{k}.npy": _npy_bytes(v) for k, v in arrays.items()}, compression)
+    data = bytearray(path.read_bytes())
+    info = zipfile.ZipFile(path).infolist()[0]
+    start = info.header_offset + 30 + len(info.filename) + info.compress_size // 2 \
+        if at is None else at
+    for i in range(start, start + 20):
+        data[i] ^= 0xA5
+    path.write_bytes(bytes(data))
 
 
 def _npy_bytes(arr: np.ndarray) -> bytes:
@@ -268,6 +283,15 @@ def build_npz(d: Path) -> None:
     _npz_raw(d / "npz_truncated.npz", {"M.npy": _npy_bytes(c)[:-8], "q.npy": _npy_bytes(q)})
     _npz_raw(d / "npz_bad_header.npz", {"M.npy": b"\x93NUMPY\x01\x00\x10\x00{'descr': 'f", "q.npy":
                                         _npy_bytes(q)})
+    for kind, compression in (("deflated", zipfile.ZIP_DEFLATED), ("lzma", zipfile.ZIP_LZMA)):
+        # damaged compressed bytes: the auditor's flip of bytes 75..95, and one mid-stack
+        _npz_corrupt(d / f"npz_corrupt_{kind}.npz", {"M": c, "q": q}, compression, at=75)
+        _npz_corrupt(d / f"npz_corrupt_{kind}_z0.npz", {"z": np.arange(100.0)}, compression,
+                     at=75)
+        rng = np.random.default_rng(1)
+        _npz_corrupt(d / f"npz_corrupt_{kind}_stack.npz",
+                     {"M": np.eye(3) * 3 + rng.random((3000, 3, 3)),
+                      "q": -rng.random((3000, 3))}, compression)
     _npz_raw(d / "npz_many.npz", {f"x{i}.npy": b"" for i in range(5000)})
     small = {k: (_npy_bytes(v), 0) for k, v in (("M.npy", c), ("q.npy", q))}
     _zip_bomb(d / "npz_bomb_q.npz", {"M.npy": small["M.npy"],  # q: 1.2 GB of zeros
@@ -408,6 +432,7 @@ def build(d: Path) -> None:
     (d / "big.json").write_text(json.dumps({"M": (A @ A.T + 300 * np.eye(300)).tolist(),
                                             "q": rng.standard_normal(300).tolist()}))
     (d / "z0_ok.json").write_text("[1, 2]")
+    (d / "z0_three.json").write_text("[1, 2, 3]")
     (d / "z0_deep.json").write_text("[" * 100_000 + "]" * 100_000)
     (d / "z0_nulls.json").write_text('{"z": [null, 1]}')
     (d / "z0_text.json").write_text('["1", "2"]')
@@ -584,6 +609,24 @@ def _npz_cases() -> list[Case]:
              "sparse M: 'indices' has 150,000,000 entries", sub=True, memory=True),
         Case("npz-info-bomb", "memory", ["info", "{d}/npz_bomb_q.npz"], BAD, "q has shape",
              sub=True, memory=True),
+        *[Case(f"npz-corrupt-{kind}-{cmd}", "internal",
+               [cmd, f"{{d}}/npz_corrupt_{kind}.npz", *more], BAD, "not a valid NPZ file")
+          for kind in ("deflated", "lzma")
+          for cmd, more in (("solve", []), ("info", []), ("enumerate", []),
+                            ("pivot", ["-d", "z1"]), ("convert", ["{d}/out_zc.json"]),
+                            ("bench", ["-m", "lemke", "-r", "1", "--no-peers"]))],
+        *[Case(f"npz-corrupt-{kind}-stack-{more[1][-4:]}", "internal",
+               [cmd, f"{{d}}/npz_corrupt_{kind}_stack.npz", *more], BAD,
+               "not a valid NPZ file")
+          for kind in ("deflated", "lzma")
+          for cmd, more in (("solve", ["-o", f"{{d}}/out_zc_{kind}.jsonl"]),
+                            ("solve", ["-o", f"{{d}}/out_zc_{kind}.h5"]))],
+        *[Case(f"npz-corrupt-{kind}-z0-{cmd}", "internal",
+               [*args, "--z0", f"{{d}}/npz_corrupt_{kind}_z0.npz"], BAD,
+               "cannot read a vector")
+          for kind in ("deflated", "lzma")
+          for cmd, args in (("solve", ["solve", "{d}/ok.npz"]),
+                            ("contact", ["contact-matrix", "{d}/scene.json", "--solve"]))],
         Case("npz-convert-complex", "lenient", ["convert", "{d}/npz_complex.npz",
                                                 "{d}/out_c.json"], BAD,
              "M holds complex numbers", absent=("out_c.json",)),
@@ -878,7 +921,10 @@ def _option_cases() -> list[Case]:
         Case("z0-missing", "exit-code", ["solve", ok, "--z0", "{d}/missing.json"], BAD,
              "no such file"),
         Case("z0-length", "exit-code", ["solve", "{d}/three.json", "-m", "pgs", "--z0",
-                                        "{d}/z0_ok.json"], BAD, "warm start z0 has length 2"),
+                                        "{d}/z0_ok.json"], BAD,
+             "--z0 {d}/z0_ok.json: has 2 values, the problem has n = 3"),
+        Case("z0-length-json-long", "exit-code", ["solve", ok, "--z0", "{d}/z0_three.json"],
+             BAD, "--z0 {d}/z0_three.json: has 3 values, the problem has n = 2"),
         Case("batch-jobs-0", "exit-code", ["solve", ok, "{d}/three.json", "-j", "0"], BAD,
              "Invalid value for '--jobs'"),
         Case("batch-timeout-nan", "exit-code", ["solve", ok, "{d}/three.json", "--timeout",

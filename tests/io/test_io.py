@@ -449,3 +449,20 @@ def test_suffix_is_pathlibs(path):
 
     assert suffix(path) == Path(path).suffix
     assert stem(path) == Path(path).stem
+
+
+@pytest.mark.parametrize("ext", ["json", "npz", "h5"])
+def test_non_finite_meta_is_written_as_null(tmp_path, ext):
+    """``meta`` holding NaN and a float beyond the double range (Inf): every format writes
+    them as null (the output rule of lcpcli.core.numeric.json_text), never the NaN/Infinity
+    tokens that are not JSON; converted back to JSON, the text is strict JSON."""
+    src = tmp_path / "m.json"
+    src.write_text('{"M": [[2, 1], [1, 2]], "q": [-5, -6], "meta": {"a": NaN, "b": 1e400}}')
+    out = tmp_path / f"out.{ext}"
+    save(load(src), out)
+    back = tmp_path / "back.json"
+    save(load(out), back)
+    for path in (back, out) if ext == "json" else (back,):
+        text = path.read_text()
+        assert "NaN" not in text and "Infinity" not in text
+        assert json.loads(text)["meta"] == {"a": None, "b": None}

@@ -15,6 +15,7 @@ import json
 import re
 import tracemalloc
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -416,3 +417,72 @@ def test_dense15k_refused_from_the_header(tmp_path: Path, command: str, fmt: str
     assert problems(case, out, tmp_path, {}) == []
     assert f"{limits.DENSE_N_ENV}=15000" in out.stderr
     assert peak < 64 * 2**20  # one dense copy would be 1,716 MiB
+
+
+# ------------------------------------------------------------------------------ HDF5 chunks
+def _chunked(f: Any, name: str, data: np.ndarray | None = None, width: int = 10_000) -> None:
+    """Dataset ``name`` of ``f`` (re)made with ``data`` (default: its own) stored gzip'ed in
+    chunks ``width`` wide along the last axis: chunks far larger than the data."""
+    data = f[name][...] if data is None else data
+    if name in f:
+        del f[name]
+    f.create_dataset(name, data=data, maxshape=(*data.shape[:-1], None),
+                     chunks=(*data.shape[:-1], width), compression="gzip")
+
+
+def test_hdf5_chunk_bombs_refused_from_the_header(tmp_path: Path,
+                                                  monkeypatch: pytest.MonkeyPatch) -> None:
+    """A dataset stored in chunks larger than both its data and MAX_H5_CHUNK_BYTES is refused
+    before HDF5 decompresses a chunk (the audit's 2 x 2 M in chunks of 2 x 260,000,000: 21 s
+    and 4.1 GB for ``info``): problems (root, groups: the batch's fast path), stacks, scenes,
+    stacked results read by --z0 and resumed, per-problem HDF5 results resumed.  The limit is
+    lowered to 64 KiB here so the files stay small (chunks of 160 KB)."""
+    import h5py
+
+    from lcpcli.contact.scene import load_scene, write_scene_hdf5
+    from lcpcli.io import files as io_files
+    from lcpcli.io.hdf5_format import read_many
+
+    words = "is stored in HDF5 chunks of"
+    d = tmp_path
+    (d / "a.json").write_text(json.dumps(PROBLEM))
+    (d / "b.json").write_text(json.dumps(PROBLEM))
+    M, q = np.array(PROBLEM["M"], float), np.array(PROBLEM["q"], float)
+    with h5py.File(d / "p.h5", "w") as f:
+        _chunked(f, "M", M)
+        f["q"] = q
+    with h5py.File(d / "groups.h5", "w") as f:
+        for name in ("p0", "p1"):
+            _chunked(f.create_group(name), "M", M)
+            f[name]["q"] = q
+    with h5py.File(d / "stack.h5", "w") as f:
+        f["M"], f["q"] = np.stack([M] * 4), np.stack([q] * 4)
+    with h5py.File(d / "stackbomb.h5", "w") as f:
+        _chunked(f, "M", np.stack([M] * 4))
+        f["q"] = np.stack([q] * 4)
+    write_scene_hdf5(load_scene(Path(__file__).parents[2] / "samples" / "scene_two_balls.json"),
+                     d / "scene.h5")
+    with h5py.File(d / "scene.h5", "r+") as f:
+        _chunked(f["contacts"], "point")
+    ok_cases = [["solve", "{d}/stack.h5", "-o", "{d}/sres.h5"],
+                ["solve", "{d}/stack.h5", "-o", "{d}/sres2.h5"],
+                ["solve", "{d}/a.json", "{d}/b.json", "-o", "{d}/rows.h5"]]
+    for args in ok_cases:
+        assert run_in_process(Case("x", "lenient", args, 0, None), d).code == 0
+    for name in ("sres.h5", "sres2.h5"):
+        with h5py.File(d / name, "r+") as f:
+            _chunked(f[next(iter(f))], "z")
+    with h5py.File(d / "rows.h5", "r+") as f:
+        _chunked(f[next(iter(f))], "z")
+    monkeypatch.setattr(io_files, "MAX_H5_CHUNK_BYTES", 2**16)
+    _refused(d, ["info", "{d}/p.h5"], f"'M' {words} 160,000 bytes for 32 bytes of data")
+    _refused(d, ["solve", "{d}/p.h5"], f"'M' {words}")
+    _refused(d, ["solve", "{d}/stackbomb.h5", "-o", "{d}/out.jsonl"], f"'M' {words}")
+    _refused(d, ["contact-matrix", "{d}/scene.h5"], f"'contacts/point' {words}")
+    _refused(d, ["solve", "{d}/stack.h5", "--z0", "{d}/sres.h5", "-o", "{d}/o2.jsonl"],
+             words)
+    _refused(d, ["solve", "{d}/stack.h5", "-o", "{d}/sres2.h5", "--resume"], words)
+    _refused(d, ["solve", "{d}/a.json", "{d}/b.json", "-o", "{d}/rows.h5", "--resume"],
+             words)
+    got = dict(read_many(d / "groups.h5", ["p0", "p1"]))
+    assert all(isinstance(e, ProblemError) and words in str(e) for e in got.values())

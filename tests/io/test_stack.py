@@ -418,3 +418,32 @@ def test_direct_reading_equals_cached_reading(tmp_path_factory, K, n, rows, step
             np.testing.assert_array_equal(a.M, M[start:stop])
             np.testing.assert_array_equal(a.q, b.q)
             np.testing.assert_array_equal(a.M, b.M)
+
+
+@pytest.mark.parametrize("compression", [zipfile.ZIP_DEFLATED, zipfile.ZIP_LZMA])
+def test_chunk_read_errors_name_the_file(tmp_path, compression):
+    """A compressed stack damaged or truncated after it was opened: reading a chunk raises a
+    one-line ProblemError that starts with the file (it said ``array 'M' is truncated``
+    alone, or escaped as zlib.error / LZMAError)."""
+    rng = np.random.default_rng(2)
+    path = tmp_path / "s.npz"
+    with zipfile.ZipFile(path, "w", compression) as zf:
+        for key, arr in (("M", np.eye(3) + rng.random((2000, 3, 3))),
+                         ("q", rng.random((2000, 3)))):
+            with zf.open(f"{key}.npy", "w") as fh:
+                np.lib.format.write_array(fh, arr)
+    info = zipfile.ZipFile(path).getinfo("M.npy")
+    middle = info.header_offset + 30 + len(info.filename) + info.compress_size // 2
+    whole = path.read_bytes()
+    data = bytearray(whole)
+    with open_stack(path) as reader:
+        for i in range(middle, middle + 20):
+            data[i] ^= 0xA5
+        path.write_bytes(bytes(data))
+        with pytest.raises(ProblemError, match=f"^{path}: not a valid NPZ file"):
+            reader.read(0, reader.info.K)
+    path.write_bytes(whole)
+    with open_stack(path) as reader, open(path, "r+b") as fh:
+        fh.truncate(middle)
+        with pytest.raises(ProblemError, match=f"^{path}: "):
+            reader.read(0, reader.info.K)

@@ -359,6 +359,8 @@ class StackReader:
 
     def __init__(self, path: str | Path, direct: bool = False, mapped: bool = False) -> None:
         self.path = Path(path)
+        #: The file as given: the ``FILE:`` of the errors of reading its chunks.
+        self.source = str(path)
         self._mapped: MappedStack | None = None
         self._stack = ExitStack()
         try:
@@ -439,7 +441,10 @@ class StackReader:
     def read_names(self, start: int, stop: int) -> list[str] | None:
         """The stored names of problems ``start .. stop-1`` (None when the file has none)."""
         self._check_range(start, stop)
-        return self._src.names(start, stop) if self.info.has_names else None
+        try:
+            return self._src.names(start, stop) if self.info.has_names else None
+        except ProblemError as exc:
+            raise exc.with_source(self.source) from None
 
     def read(self, start: int, stop: int,
              out: tuple[np.ndarray, np.ndarray] | None = None) -> StackChunk:
@@ -461,7 +466,10 @@ class StackReader:
                 spans.append(got[1:])
                 return got[0]
             arr = np.empty(shape) if buffer is None else buffer
-            self._src.rows(key, start, stop, arr)
+            try:
+                self._src.rows(key, start, stop, arr)
+            except ProblemError as exc:  # damaged or truncated data: name the file
+                raise exc.with_source(self.source) from None
             return arr
 
         bufs: list[np.ndarray | None] = [None, None]
