@@ -529,10 +529,11 @@ def search_proof(problem: Any, candidates: Iterable[Any] = (),
             scaling = geometric(problem, False) or scaling
     if scaling is None:
         return None
-    scaled = prove_infeasible(scaling.apply(problem), search=True)
-    if scaled is None:
-        return None
-    return prove_infeasible(problem, [scaling.farkas_back(scaled.y)])
+    with np.errstate(all="ignore"):  # a scaled copy or its vector mapped back may overflow:
+        # a non-finite candidate is skipped, the check decides
+        scaled = prove_infeasible(scaling.apply(problem), search=True)
+        back = None if scaled is None else scaling.farkas_back(scaled.y)
+    return None if back is None else prove_infeasible(problem, [back])
 
 
 def confirm(problem: Any, outcome: Any) -> FarkasCheck | None:

@@ -10,7 +10,8 @@ Everything here is derived from two tables:
   and one fallback row (any M -> method) for a method that declares a ``fallback``.
 
 In a regime the rows are ordered by tier (plain guarantees, then slow ones, then fallbacks),
-cost class (the regime's order), the method's ``preference``, and name; the plan is that list,
+cost class (the regime's order), the method's ``preference``, and name, the exhaustive ones
+(enumeration, small problems only: ``Method.auto_max_n``) last; the plan is that list,
 keeping for each method its first row whose condition holds and dropping methods that cannot
 start (a :class:`~lcpcli.solvers.registry.Requirement` that fails, ``n > max_n``, a sparse M
 too large to densify).  :func:`plan` (auto), :func:`applicability` (``lcpcli info``) and
@@ -84,7 +85,7 @@ def _sparse_low_fill(c: Classifier) -> bool:
 #: of a method that does not converge, or a dense factorisation per Newton step).
 REGIMES: tuple[Regime, ...] = (
     Regime("small", f"dense with n <= {PIVOT_MAX_N:,}, or sparse with n <= {SMALL_SPARSE_N}",
-           _small, (Cost.PIVOTING, Cost.FACTORING, Cost.SWEEPING), True),
+           _small, (Cost.PIVOTING, Cost.FACTORING, Cost.SWEEPING, Cost.EXHAUSTIVE), True),
     Regime("sparse, cheap to factor", f"sparse PSD whose factorisation fills in little "
                                       f"(nnz(L+U)/nnz(S) <= {LOW_FILL:g})",
            _sparse_low_fill, (Cost.FACTORING, Cost.SWEEPING, Cost.PIVOTING), True),
@@ -132,7 +133,8 @@ def rows(kind: str, registry: Mapping[str, Method]) -> list[Row]:
         for g in m.guarantees:
             if g.applies_to(kind):
                 reason = f"{g.when}: {g.claim}" if g.when.props else g.claim
-                assumed = f"{g.claim}, if M is {g.when} (not tested before this first attempt)"
+                assumed = (f"assumed, not tested before this first attempt: if M is {g.when}, "
+                           f"{g.claim}")
                 out.append(Row(g.when, name, reason, 1 if g.slow else 0, m.cost, m.preference,
                                assumed, m))
         if m.fallback is not None:
@@ -144,8 +146,9 @@ def rows(kind: str, registry: Mapping[str, Method]) -> list[Row]:
 def ordered(rows_: Iterable[Row], regime: Regime) -> list[Row]:
     """``rows_`` in the regime's order (rows of a cost class the regime does not try dropped)."""
     keep = [r for r in rows_ if r.cost in regime.order]
-    return sorted(keep, key=lambda r: (r.tier, regime.order.index(r.cost), r.preference,
-                                       r.method))
+    # an exponential method is the last resort whatever its tier
+    return sorted(keep, key=lambda r: (r.cost is Cost.EXHAUSTIVE, r.tier,
+                                       regime.order.index(r.cost), r.preference, r.method))
 
 
 def plannable(m: Method) -> bool:
@@ -275,6 +278,9 @@ def iter_plan(problem: Any, c: Classifier, registry: Mapping[str, Method] | None
         done.add(row.method)
         if cannot_start(row.spec, c, value) is not None:  # type: ignore[arg-type]
             continue
+        if row.spec is not None and row.spec.auto_max_n is not None and \
+                c.report.n > row.spec.auto_max_n:  # a size auto leaves to the user
+            continue
         if row.tier == 2:
             yield Step(row.method, row.reason, False)
         elif holds:
@@ -380,7 +386,9 @@ def markdown(registry: Mapping[str, Method] | None = None) -> str:
             auto = ("never" if not plannable(m) else
                     f"fallback: {m.fallback}" if m.fallback else "only where guaranteed")
         cannot = "; ".join([f"not {r.when} ({r.why})" for r in m.needs]
-                           + ([f"n > {m.max_n}"] if m.max_n is not None else [])) or "-"
+                           + ([f"n > {m.max_n}"] if m.max_n is not None else [])
+                           + ([f"auto: n > {m.auto_max_n}"] if m.auto_max_n is not None
+                              else [])) or "-"
         opts = ", ".join(f"`{o}`" for o in m.options) or "-"
         lines.append(f"| {label} | {kinds} | {guar} | {cannot} | {cost} | {auto} | {opts} |")
     lines += ["", "Regimes (first match wins), the order in which `auto` tries cost "

@@ -123,7 +123,7 @@ class Cost(enum.Enum):
     PIVOTING = "pivoting"      # finite pivoting on a dense matrix, O(n^2) per pivot
     FACTORING = "factoring"    # a few (dense or sparse) factorisations
     SWEEPING = "sweeping"      # many O(nnz) sweeps
-    EXHAUSTIVE = "exhaustive"  # exponential in n (never planned by auto)
+    EXHAUSTIVE = "exhaustive"  # exponential in n (auto: last, small n only)
 
 
 @dataclass(frozen=True)
@@ -136,8 +136,9 @@ class Method:
     ``guarantees`` (per matrix class), ``needs`` (what it cannot start without), ``max_n``
     (the largest n it accepts), ``cost`` and ``preference`` (auto's order: lower first among
     methods of the same cost), ``fallback`` (why auto may try it outside its guarantees;
-    None: never; ``fallback_preference`` orders that row) and ``auto_max_iter`` (the
-    iteration cap auto gives it when the user gave none, so that a fallback fails fast).
+    None: never; ``fallback_preference`` orders that row), ``auto_max_iter`` (the
+    iteration cap auto gives it when the user gave none, so that a fallback fails fast) and
+    ``auto_max_n`` (the largest n auto tries it at; None: ``max_n``).
     ``planner`` marks ``auto`` itself.
     """
 
@@ -165,6 +166,7 @@ class Method:
     #: The preference of the fallback row (default: ``preference``).
     fallback_preference: int | None = None
     auto_max_iter: int | None = None
+    auto_max_n: int | None = None
     #: Prose beyond the guarantees (shown after them in ``lcpcli methods``).
     notes: str = ""
     planner: bool = False

@@ -149,8 +149,8 @@ def test_enum_size_limit_comes_from_its_record():
         M, q = rand_pd(n, 4)
         rep = policy.info_report(Problem.create(M, q))
         row = next(r for r in rep["methods"] if r["method"] == "enum")
-        assert row["applies"] == applies and row["auto_rank"] is None  # exponential: never
-    assert "n > 24" in policy.markdown()
+        assert row["applies"] == applies and row["auto_rank"] is None  # above auto's 12
+    assert "n > 24" in policy.markdown() and "auto: n > 12" in policy.markdown()
 
 
 def test_first_attempt_is_optimistic_and_cheap():
@@ -229,11 +229,16 @@ def test_regimes_order_the_cost_classes():
 
 
 def test_guarantee_rows_come_before_fallbacks_and_slow_ones():
+    """Tiers in order, except the exhaustive rows (the enumeration), which come last
+    whatever their tier, and only in the regime that tries them (small problems)."""
     for regime in policy.REGIMES:
         table = policy.ordered(policy.rows("lcp", methods()), regime)
-        tiers = [row.tier for row in table]
+        polynomial = [row for row in table if row.cost is not Cost.EXHAUSTIVE]
+        tiers = [row.tier for row in polynomial]
         assert tiers == sorted(tiers)
+        assert table[:len(polynomial)] == polynomial
         assert all(row.cost in regime.order for row in table)
+        assert (len(polynomial) < len(table)) == (regime.name == "small")
 
 
 def test_info_json_has_first_attempt_and_plan(cli, samples):

@@ -288,3 +288,26 @@ def test_a_large_sparse_problem_is_proven_without_densifying() -> None:
     proof = prove_infeasible(p, search=True)
     assert proof is not None and np.flatnonzero(proof.y).tolist() == [7]
     assert prove_infeasible(Problem.create(sp.identity(n, format="csr"), -q), search=True) is None
+
+
+@pytest.mark.parametrize("M,q,n_eq,want", [
+    ([[2.0, -2.0], [-1.0, 1.0]], [-2.0, -1.0], 0, "no_solution"),   # a row scaling of the next
+    ([[1.0, -1.0], [-1.0, 1.0]], [-1.0, -1.0], 0, "no_solution"),
+    ([[1.0, -3.0], [-3.0, 3.0]], [-2.0, 3.0], 0, "no_solution"),    # y = (1/2, 1/6)
+    ([[0.0, -1.0], [2.0, -2.0]], [3.0, -2.0], 0, "solved"),         # z = (4, 3), enumeration
+    ([[0.0]], [1.0], 1, "no_solution"),                             # 0 u + 1 = 0
+    ([[1.0, 1.0], [1.0, 1.0]], [1.0, 2.0], 2, "no_solution"),       # inconsistent equalities
+])
+def test_auto_finds_what_a_small_problem_allows(M, q, n_eq, want) -> None:
+    """Where no method's class argument applies, auto still ends with the truth on a small
+    problem: the enumeration (last, n <= 12) finds a solution, the proof search a Farkas
+    vector of the data as given; every proof passes the exact reference."""
+    M, q = np.array(M), np.array(q)
+    r = lcpcli.solve(M, q, n_eq=n_eq) if n_eq else lcpcli.solve(M, q)
+    assert r.status == want, r.message
+    if want == "no_solution":
+        lo = np.zeros(len(q))
+        lo[:n_eq] = -np.inf
+        assert farkas_certifies(M, q, r.info["farkas_y"], lo, np.full(len(q), np.inf))
+    else:
+        assert componentwise_error(M, q, r.z) <= r.certificate.tol

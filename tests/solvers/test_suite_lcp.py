@@ -355,7 +355,7 @@ def test_cli_z0_and_omega(cli, tmp_path, samples):
     bad = tmp_path / "short.json"
     bad.write_text("[1.0, 2.0, 3.0]")
     r = cli("solve", src, "--z0", str(bad))
-    assert r.returncode == 2 and "length" in r.stderr
+    assert r.returncode == 2 and "has 3 values, the problem has n = 2" in r.stderr
 
 
 def test_cli_default_method_is_auto(cli, samples):

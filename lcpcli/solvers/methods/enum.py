@@ -34,6 +34,9 @@ def _max_n(value: Any) -> int:
 
 #: Largest n enumerated unless the ``max_n`` option says otherwise.
 DEFAULT_MAX_N = 24
+#: Largest n at which ``auto`` tries the enumeration, last, when every other method failed
+#: (2^12 = 4,096 cones: about a millisecond).
+AUTO_MAX_N = 12
 
 
 def run(problem: Any, *, tol: float, max_n: int = DEFAULT_MAX_N,
@@ -85,6 +88,8 @@ METHODS = [
                                         "Farkas vector"),),
         max_n=DEFAULT_MAX_N,
         cost=Cost.EXHAUSTIVE,
+        fallback="every complementary cone: the last resort on a small problem",
+        auto_max_n=AUTO_MAX_N,
         kinds=("lcp",),
         options={
             "max_n": Option(_max_n, DEFAULT_MAX_N,
