@@ -109,7 +109,10 @@ def contact_matrix(
         sys.stderr.write(f"lcpcli: note: {note}\n")
     start = basis = None
     if do_solve:
-        check_method(clcp, method, not no_islands)  # before anything is written
+        try:
+            check_method(clcp, method, not no_islands)  # before anything is written
+        except ProblemError as exc:  # a work budget refused the scene's LCP: name the file
+            raise exc.with_source(scene_file) from None
         if z0 is not None:
             start, basis, how = warm_start(z0, clcp.unknowns)
             sys.stderr.write(f"lcpcli: note: {how}\n")
@@ -119,8 +122,11 @@ def contact_matrix(
         save(clcp.problem, output)
     impact = None
     if do_solve:
-        impact = solve(clcp, method, tol=tol, islands=not no_islands, z0=start, basis0=basis,
-                       jobs=jobs)
+        try:
+            impact = solve(clcp, method, tol=tol, islands=not no_islands, z0=start,
+                           basis0=basis, jobs=jobs)
+        except ProblemError as exc:  # a work budget refused an island's LCP: name the file
+            raise exc.with_source(scene_file) from None
         if impulses is not None:
             write_impulses(impulses, clcp.unknowns, impact.result.z, scene.name,
                            impact.result.status, impact.basic)
