@@ -112,11 +112,17 @@ def bench(
             raise OptionError(f"--n {n} is too large for the {suite} suite (limit {limit})")
     method_list = B.resolve_methods(None if methods is None else methods.split(","))
     inputs = list(problems or [])
-    for target in (plot, markdown):  # before any work: never an input, a link or a device
+    # before any work: never an input, a link or a device, never stdout (a file named '-'
+    # was written), and two outputs are two files (lcpcli.io.writing's rule 1)
+    for option, target in (("--plot", plot), ("--markdown", markdown)):
         if target is not None:
             from lcpcli.io import check_output
 
-            check_output(target, inputs=inputs)
+            check_output(target, inputs=inputs, stdout=False, option=option)
+    if plot is not None and markdown is not None:
+        from lcpcli.io.writing import check_distinct
+
+        check_distinct([("--markdown", markdown), ("--plot", plot)])
     if plot is not None:
         from lcpcli.cli.render.bench import plot_available
 

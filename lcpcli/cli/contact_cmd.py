@@ -91,7 +91,7 @@ def contact_matrix(
     inputs = [scene_file, z0] if z0 is not None else [scene_file]
     if impulses is not None:
         check_impulses_path(impulses)
-        check_output(impulses, inputs=inputs, stdout=False)
+        check_output(impulses, inputs=inputs, stdout=False, option="--impulses")
     if output is not None:
         check_output(output, inputs=inputs, stdout=False)
     check_distinct([("--output", output), ("--impulses", impulses)])

@@ -177,18 +177,19 @@ def remove_file(path: str | os.PathLike[str]) -> None:
 
 # ----------------------------------------------------------------------------- checks
 def check_output(target: str | os.PathLike[str], inputs: Iterable[Any] = (), *,
-                 force: bool = True, stdout: bool = True) -> None:
+                 force: bool = True, stdout: bool = True, option: str = "--output") -> None:
     """Refuse an output before any work is done (ProblemError naming ``target``).
 
     Refused: a symbolic link, anything that is not a regular file (directory, device, FIFO,
     socket; whatever ``force`` says), the same file as one of ``inputs`` (compared by device
     and inode, so hard links and other spellings count), a missing folder, and an existing
-    file when ``force`` is false.  ``-`` is stdout: accepted when ``stdout`` is true.
+    file when ``force`` is false.  ``-`` is stdout: accepted when ``stdout`` is true, else
+    refused naming ``option`` (the command-line option that gave it).
     """
     if str(target) == "-":
         if not stdout:
             raise ProblemError("'-' is not a file here: --json prints the result on stdout",
-                               "--output")
+                               option)
         return
     source = str(target)
     try:
