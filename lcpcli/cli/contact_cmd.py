@@ -4,7 +4,6 @@ multi-contact ``M = J W J^T``)."""
 from __future__ import annotations
 
 import sys
-from pathlib import Path
 
 import typer
 
@@ -16,7 +15,7 @@ from lcpcli.solvers import DEFAULT_METHOD
 def contact_matrix(
     scene_file: str = typer.Argument(..., metavar="SCENE",
                                      help="Scene file (.json or .h5/.hdf5), see docs/contact.md."),
-    output: Path = typer.Option(None, "--output", "-o", metavar="OUT",  # noqa: B008
+    output: str = typer.Option(None, "--output", "-o", metavar="OUT",
                                 help="Write the whole-scene LCP (M, q, contact metadata) to OUT "
                                      "(.json, .npz, .h5, .dat; atomically)."),
     do_solve: bool = typer.Option(False, "--solve",
@@ -58,7 +57,7 @@ def contact_matrix(
     z0: str = typer.Option(None, "--z0", metavar="FILE",
                            help="Warm start from previous impulses (--impulses file, "
                                 "contact-matrix --json or lcpcli solve --json output)."),
-    impulses: Path = typer.Option(None, "--impulses", metavar="FILE",  # noqa: B008
+    impulses: str = typer.Option(None, "--impulses", metavar="FILE",
                                   help="With --solve, write the impulses with their unknown "
                                        "names to FILE (.json or .npz) for a later --z0."),
     as_json: bool = typer.Option(False, "--json",
