@@ -615,12 +615,18 @@ def _npz_cases() -> list[Case]:
           for cmd, more in (("solve", []), ("info", []), ("enumerate", []),
                             ("pivot", ["-d", "z1"]), ("convert", ["{d}/out_zc.json"]),
                             ("bench", ["-m", "lemke", "-r", "1", "--no-peers"]))],
-        *[Case(f"npz-corrupt-{kind}-stack-{more[1][-4:]}", "internal",
+        # the first chunk cannot be read: no result file is created (an empty out.jsonl was)
+        *[Case(f"npz-corrupt-{kind}-stack-{more[1][-4:]}", "data-loss",
                [cmd, f"{{d}}/npz_corrupt_{kind}_stack.npz", *more], BAD,
-               "not a valid NPZ file")
+               "not a valid NPZ file", absent=(more[1][len("{d}/"):],))
           for kind in ("deflated", "lzma")
           for cmd, more in (("solve", ["-o", f"{{d}}/out_zc_{kind}.jsonl"]),
-                            ("solve", ["-o", f"{{d}}/out_zc_{kind}.h5"]))],
+                            ("solve", ["-o", f"{{d}}/out_zc_{kind}.h5"]),
+                            ("solve", ["-o", f"{{d}}/out_zc_{kind}.csv"]),
+                            ("solve", ["-o", f"{{d}}/out_zc_{kind}.npz"]))],
+        Case("npz-corrupt-stack-keeps-previous", "data-loss",
+             ["solve", "{d}/npz_corrupt_deflated_stack.npz", "-o", "{d}/existing.jsonl"], BAD,
+             "not a valid NPZ file", protect=("existing.jsonl",)),
         *[Case(f"npz-corrupt-{kind}-z0-{cmd}", "internal",
                [*args, "--z0", f"{{d}}/npz_corrupt_{kind}_z0.npz"], BAD,
                "cannot read a vector")
