@@ -144,6 +144,8 @@ def run_stacks(inputs: list[str], opts: SolveOptions, report: BatchReport, *,
             writer = make() if early is None else _OpeningWriter(
                 make, stack_output.wants_rows(output), early[0], early[1],
                 stack_output.new_algorithm(output))
+            if early is not None:  # made once the first chunk is read: a batch whose first
+                early[2].on_read = writer.start  # read fails leaves no file (nor replaces one)
         if writer is not None and resume:
             for info in infos:
                 if info is not None:
@@ -193,11 +195,15 @@ def run_stacks(inputs: list[str], opts: SolveOptions, report: BatchReport, *,
 
 class _OpeningWriter:
     """The output writer of a batch that resumes nothing, made by ``make()`` in a thread of
-    its own while the first chunks are read and solved; each use waits for it (also when
+    its own once :meth:`start` is called (when the first chunk is read: it is then made while
+    that chunk is solved) or the writer is first used; each use waits for it (also when
     Ctrl-C arrives meanwhile) and raises what making it raised (an unwritable output, a full
-    disk).  ``wants_rows``: the writer's, known from the output's kind; ``first``, ``chunk``,
-    ``algorithm``: the first stack, the chunk it is read in and the digest its chunks are
-    fingerprinted with, which a new file must record (checked)."""
+    disk).  A batch that ends before either (the first chunk cannot be read: a damaged
+    input) never makes it: no output file is created, none is replaced (an empty
+    ``out.jsonl`` was left by a corrupted NPZ, exit 2).  ``wants_rows``: the writer's, known
+    from the output's kind; ``first``, ``chunk``, ``algorithm``: the first stack, the chunk it
+    is read in and the digest its chunks are fingerprinted with, which a new file must record
+    (checked)."""
 
     def __init__(self, make: Callable[[], Any], wants_rows: bool, first: Any,
                  chunk: int, algorithm: str) -> None:
@@ -205,11 +211,20 @@ class _OpeningWriter:
         self.want_algorithm = algorithm
         self.writer: Any = None
         self.error: BaseException | None = None
+        self.go = threading.Event()  # set: make the writer; with ``cancelled``: do not
+        self.cancelled = False
         self.thread = threading.Thread(target=self._run, args=(make,),
                                        name="lcpcli-stack-opener", daemon=True)
         self.thread.start()
 
+    def start(self) -> None:
+        """Have the writer made now (idempotent)."""
+        self.go.set()
+
     def _run(self, make: Callable[[], Any]) -> None:
+        self.go.wait()
+        if self.cancelled:
+            return
         try:
             self.writer = make()
         except BaseException as exc:  # noqa: BLE001 - raised where the writer is used
@@ -235,6 +250,7 @@ class _OpeningWriter:
 
     def get(self) -> Any:
         """The writer, once made."""
+        self.start()
         interrupted = self._wait()
         if self.error is not None:
             raise self.error
@@ -253,7 +269,12 @@ class _OpeningWriter:
 
     def close(self) -> None:
         """Close the writer once made (nothing when making it failed: that error was
-        raised where the writer was used)."""
+        raised where the writer was used; nothing when it was never started: no file)."""
+        if not self.go.is_set():
+            self.cancelled = True
+            self.go.set()
+            self.thread.join()
+            return
         interrupted = self._wait()
         if self.error is None:
             self.writer.close()
@@ -700,6 +721,7 @@ class _LocalParts:
                  started: tuple[_Prefetch, _Buffers] | None = None) -> None:
         self.info, self.opts, self.threads = info, opts, threads
         self.before_solve: Callable[[], None] | None = None
+        self.on_read: Callable[[], None] | None = None  # each chunk, once it is read
         self.in_place = 0  # chunks solved from views of the mapped file
         if started is not None:  # the same reads, begun earlier (:class:`EarlyReads`)
             self.reads, self.buffers = started
@@ -711,6 +733,8 @@ class _LocalParts:
     def __iter__(self) -> Iterator[tuple[Any, ...]]:
         plan = None
         for todo, part, fingerprint, read_s, prev, held in self.reads:
+            if self.on_read is not None:
+                self.on_read()
             if self.before_solve is not None:
                 self.before_solve()
             names, res, plan, solve_s = solve_read(part, self.info, todo, self.opts, plan,

@@ -80,11 +80,11 @@ def bench(
     as_json: bool = typer.Option(False, "--json",
                                  help="One JSON object per line per (problem, method, tol) on "
                                       "stdout, nothing else."),
-    plot: Path = typer.Option(None, "--plot",  # noqa: B008
+    plot: str = typer.Option(None, "--plot", metavar="PATH",
                               help="Write a PNG with the performance profile, the "
                                    "work-precision scatter and time against forward error "
                                    "where z* is known (needs matplotlib: extra 'plot')."),
-    markdown: Path = typer.Option(None, "--markdown",  # noqa: B008
+    markdown: str = typer.Option(None, "--markdown", metavar="PATH",
                                   help="Also write the report as Markdown tables to this file."),
 ) -> int:
     """Benchmark solver methods: time, achieved error and verdict on each problem.
@@ -112,18 +112,22 @@ def bench(
             raise OptionError(f"--n {n} is too large for the {suite} suite (limit {limit})")
     method_list = B.resolve_methods(None if methods is None else methods.split(","))
     inputs = list(problems or [])
-    for target in (plot, markdown):  # before any work: never an input, a link or a device
+    # before any work: never an input, a link or a device, never stdout (a file named '-'
+    # was written), and two outputs are two files (lcpcli.io.writing's rule 1)
+    for option, target in (("--plot", plot), ("--markdown", markdown)):
         if target is not None:
             from lcpcli.io import check_output
 
-            check_output(target, inputs=inputs)
+            check_output(target, inputs=inputs, stdout=False, option=option)
+    if plot is not None and markdown is not None:
+        from lcpcli.io.writing import check_distinct
+
+        check_distinct([("--markdown", markdown), ("--plot", plot)])
     if plot is not None:
         from lcpcli.cli.render.bench import plot_available
 
         if not plot_available():
             raise OptionError("--plot needs matplotlib (pip install 'lcpcli[plot]')")
-        if not plot.parent.is_dir() and str(plot.parent):
-            raise OptionError(f"--plot: folder {plot.parent} does not exist")
     if not problems and suite is None:
         raise OptionError("give problem files or folders, or --suite hard|random|siconos")
     cases = []
@@ -190,7 +194,7 @@ def bench(
     if plot is not None and report.records:
         from lcpcli.cli.render.bench import write_plot
 
-        write_plot(report, plot)
+        write_plot(report, Path(plot))
     for rec in report.defects:
         err.print(f"lcpcli: DEFECT: {rec.method} on {rec.problem}: {rec.defect_reason}")
     for rec in report.errors:

@@ -4,7 +4,6 @@ multi-contact ``M = J W J^T``)."""
 from __future__ import annotations
 
 import sys
-from pathlib import Path
 
 import typer
 
@@ -16,7 +15,7 @@ from lcpcli.solvers import DEFAULT_METHOD
 def contact_matrix(
     scene_file: str = typer.Argument(..., metavar="SCENE",
                                      help="Scene file (.json or .h5/.hdf5), see docs/contact.md."),
-    output: Path = typer.Option(None, "--output", "-o", metavar="OUT",  # noqa: B008
+    output: str = typer.Option(None, "--output", "-o", metavar="OUT",
                                 help="Write the whole-scene LCP (M, q, contact metadata) to OUT "
                                      "(.json, .npz, .h5, .dat; atomically)."),
     do_solve: bool = typer.Option(False, "--solve",
@@ -58,7 +57,7 @@ def contact_matrix(
     z0: str = typer.Option(None, "--z0", metavar="FILE",
                            help="Warm start from previous impulses (--impulses file, "
                                 "contact-matrix --json or lcpcli solve --json output)."),
-    impulses: Path = typer.Option(None, "--impulses", metavar="FILE",  # noqa: B008
+    impulses: str = typer.Option(None, "--impulses", metavar="FILE",
                                   help="With --solve, write the impulses with their unknown "
                                        "names to FILE (.json or .npz) for a later --z0."),
     as_json: bool = typer.Option(False, "--json",
@@ -91,7 +90,7 @@ def contact_matrix(
     inputs = [scene_file, z0] if z0 is not None else [scene_file]
     if impulses is not None:
         check_impulses_path(impulses)
-        check_output(impulses, inputs=inputs, stdout=False)
+        check_output(impulses, inputs=inputs, stdout=False, option="--impulses")
     if output is not None:
         check_output(output, inputs=inputs, stdout=False)
     check_distinct([("--output", output), ("--impulses", impulses)])
@@ -109,7 +108,10 @@ def contact_matrix(
         sys.stderr.write(f"lcpcli: note: {note}\n")
     start = basis = None
     if do_solve:
-        check_method(clcp, method, not no_islands)  # before anything is written
+        try:
+            check_method(clcp, method, not no_islands)  # before anything is written
+        except ProblemError as exc:  # a work budget refused the scene's LCP: name the file
+            raise exc.with_source(scene_file) from None
         if z0 is not None:
             start, basis, how = warm_start(z0, clcp.unknowns)
             sys.stderr.write(f"lcpcli: note: {how}\n")
@@ -119,8 +121,11 @@ def contact_matrix(
         save(clcp.problem, output)
     impact = None
     if do_solve:
-        impact = solve(clcp, method, tol=tol, islands=not no_islands, z0=start, basis0=basis,
-                       jobs=jobs)
+        try:
+            impact = solve(clcp, method, tol=tol, islands=not no_islands, z0=start,
+                           basis0=basis, jobs=jobs)
+        except ProblemError as exc:  # a work budget refused an island's LCP: name the file
+            raise exc.with_source(scene_file) from None
         if impulses is not None:
             write_impulses(impulses, clcp.unknowns, impact.result.z, scene.name,
                            impact.result.status, impact.basic)

@@ -77,9 +77,9 @@ def enumerate_command(
     plot_path = Path(plot) if plot is not None else None
     output_path = Path(output) if output is not None else None
     check_export_options(fmt, output_path, [file], as_json)
-    for target in (output_path, plot_path):  # before any work: never the input or a device
-        if target is not None:
-            check_output(target, inputs=[file], stdout=False)
+    for option, target in (("--output", output), ("--plot", plot)):  # as typed: 'x.json/'
+        if target is not None:  # before any work: never the input or a device
+            check_output(target, inputs=[file], stdout=False, option=option)
     check_distinct([("--output", output_path), ("--plot", plot_path)])
     prob = load(file, problem)
     M = check_problem(prob, max_n)

@@ -26,7 +26,7 @@ def check_format(fmt: str) -> str:
     return value
 
 
-def check_target(output: Path, inputs: list[str]) -> None:
+def check_target(output: str | Path, inputs: list[str]) -> None:
     """Refuse to write the export over an input, a device, a link or a directory
     (:func:`lcpcli.io.check_output`, the one definition of what an output may be)."""
     from lcpcli.io import check_output  # io (numpy) only when an export file is named
@@ -35,7 +35,7 @@ def check_target(output: Path, inputs: list[str]) -> None:
                  stdout=False)
 
 
-def emit(pages: list[Page], *, fmt: str, output: Path | None, inputs: list[str],
+def emit(pages: list[Page], *, fmt: str, output: str | Path | None, inputs: list[str],
          pivot: int | None, numbers: list[int], labels: list[str], step: bool, what: str,
          console: Any, title: str = "") -> bool:
     """Show or write ``pages``; return True when the export went to stdout.
@@ -72,7 +72,7 @@ def emit(pages: list[Page], *, fmt: str, output: Path | None, inputs: list[str],
     return False
 
 
-def check_export_options(fmt: str, output: Path | None, inputs: list[str],
+def check_export_options(fmt: str, output: str | Path | None, inputs: list[str],
                          as_json: bool) -> None:
     """Before any work: an export and ``--json`` cannot share stdout; ``-o`` is no input."""
     if fmt != "text":

@@ -49,7 +49,7 @@ def pivot(
                                    "a terminal every step is printed."),
     fmt: str = typer.Option("text", "--format",
                             help="text, markdown or latex (lecture notes; stdout or -o)."),
-    output: Path = typer.Option(None, "--output", "-o",
+    output: str = typer.Option(None, "--output", "-o", metavar="PATH",
                                 help="Write the markdown/latex export to this file "
                                      "(atomically; never over the input)."),
     problem: str = typer.Option(None, "--problem", "-p",

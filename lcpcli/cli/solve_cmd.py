@@ -54,7 +54,7 @@ def solve(
                                  help="Print one JSON object on stdout and nothing else. "
                                       "Batch: one object per problem per line (with "
                                       "--output: one summary object)."),
-    output: Path = typer.Option(None, "--output", "-o",
+    output: str = typer.Option(None, "--output", "-o", metavar="PATH",
                                 help="Also write the JSON result to this file (atomically). "
                                      "Batch: a .jsonl/.ndjson, .csv or .h5/.hdf5 result "
                                      "file, written incrementally (.npz: stacked inputs)."),
@@ -244,7 +244,7 @@ def _check_layout(layout: str | None) -> str:
     return value
 
 
-def _show_trace(trace: list, fmt: str, layout: str, output: Path | None, file: str,
+def _show_trace(trace: list, fmt: str, layout: str, output: str | None, file: str,
                 pivot_step: int | None, step: bool) -> bool:
     """The trace on the terminal or as an export; True when the export used stdout."""
 

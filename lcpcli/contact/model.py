@@ -266,6 +266,7 @@ def check_method(clcp: ContactLCP, method: str, islands: bool = True) -> None:
 
     spec = method_of(method)
     if not islands or clcp.layout.count <= 1:
+        _check_dense_budget(clcp.problem, spec)
         check_dense_ok(clcp.problem, spec)  # one island: its LCP is the scene's
         if clcp.problem.sparse:
             check_sparse_work(clcp.problem.n, spec)
@@ -274,9 +275,20 @@ def check_method(clcp: ContactLCP, method: str, islands: bool = True) -> None:
     big = int(np.argmax(sizes))
     one = IslandLayout(perm=clcp.layout.unknowns(big), offsets=np.array([0, int(sizes[big])]))
     biggest = island_problems(clcp.problem, one, clcp.storage)[0]
+    _check_dense_budget(biggest, spec)
     check_dense_ok(biggest, spec)
     if biggest.sparse:
         check_sparse_work(biggest.n, spec)
+
+
+def _check_dense_budget(problem: Problem, spec: Any) -> None:
+    """The dense-work budget of ``spec`` on ``problem`` (ProblemError), as the solve checks it,
+    when the method works on a dense M: ``problem``'s M is dense, or the method densifies a
+    sparse one."""
+    from lcpcli.solvers.request import check_dense_work
+
+    if not problem.sparse or not spec.sparse:
+        check_dense_work(problem.n, spec)
 
 
 def check_basis0(clcp: ContactLCP, basis0: Any) -> np.ndarray:

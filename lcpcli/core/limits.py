@@ -105,6 +105,13 @@ def sparse_n_budget() -> int:
     return _budget(SPARSE_N_ENV, SPARSE_N_BUDGET, SPARSE_N_FLOOR, "a sparse factorisation")
 
 
+def within_dense_budget(n: int) -> bool:
+    """Whether dense work on an n x n matrix is within the dense-work budget (one comparison up
+    to :data:`DENSE_N_FLOOR`; the one rule behind :func:`check_dense_work` and the ``auto``
+    storage choices that pick dense only within it)."""
+    return n <= DENSE_N_FLOOR or n <= dense_n_budget()
+
+
 def dense_cost(n: int, cubic: bool = True) -> str:
     """What dense work on an n x n matrix costs, in words: the memory of one copy and, for a
     factorisation or pivoting (``cubic``), about n^3 operations."""
@@ -121,11 +128,9 @@ def check_dense_work(n: int, step: str, *, instead: str = "", cubic: bool = True
     only its memory is named); ``source`` (the file) prefixes the message.  Called before the
     step allocates anything.
     """
-    if n <= DENSE_N_FLOOR:
+    if within_dense_budget(n):
         return
     budget = dense_n_budget()
-    if n <= budget:
-        return
     hint = f", or {instead}" if instead else ""
     raise ProblemError(f"n = {n:,}: {step} ({dense_cost(n, cubic)}): over the dense-work budget "
                        f"n <= {budget:,}; set {DENSE_N_ENV}={n} to run it anyway{hint}", source)

@@ -177,20 +177,27 @@ def remove_file(path: str | os.PathLike[str]) -> None:
 
 # ----------------------------------------------------------------------------- checks
 def check_output(target: str | os.PathLike[str], inputs: Iterable[Any] = (), *,
-                 force: bool = True, stdout: bool = True) -> None:
+                 force: bool = True, stdout: bool = True, option: str = "--output") -> None:
     """Refuse an output before any work is done (ProblemError naming ``target``).
 
     Refused: a symbolic link, anything that is not a regular file (directory, device, FIFO,
-    socket; whatever ``force`` says), the same file as one of ``inputs`` (compared by device
-    and inode, so hard links and other spellings count), a missing folder, and an existing
-    file when ``force`` is false.  ``-`` is stdout: accepted when ``stdout`` is true.
+    socket; whatever ``force`` says), a name that ends in ``/`` (or ``/.``: it names a folder,
+    and ``pathlib`` would drop the slash and write a file of the name without it), the same
+    file as one of ``inputs`` (compared by device and inode, so hard links and other
+    spellings count), a missing folder, and an existing file when ``force`` is false.  ``-``
+    is stdout: accepted when ``stdout`` is true, else refused naming ``option`` (the
+    command-line option that gave it).  Give ``target`` as the user typed it (a ``str``: a
+    ``Path`` has lost its trailing slash already).
     """
     if str(target) == "-":
         if not stdout:
             raise ProblemError("'-' is not a file here: --json prints the result on stdout",
-                               "--output")
+                               option)
         return
     source = str(target)
+    if names_folder(source) and not os.path.isdir(source):  # a directory: refused below
+        raise ProblemError("not a directory: a name ending in '/' names a folder; give the "
+                           "file's name without it", source)
     try:
         st = os.lstat(target)
     except FileNotFoundError:
@@ -221,6 +228,13 @@ def check_output(target: str | os.PathLike[str], inputs: Iterable[Any] = (), *,
                                f"it (choose another output file)", source)
     if not force:
         raise ProblemError("exists already (use --force to overwrite)", source)
+
+
+def names_folder(name: str | os.PathLike[str]) -> bool:
+    """Whether ``name`` as typed names a folder: it ends in a separator or in ``/.``."""
+    raw = os.fspath(name)
+    seps = tuple(c for c in (os.sep, os.altsep) if c)
+    return raw.endswith(seps) or any(raw.endswith(c + ".") for c in seps)
 
 
 def _identity(path: str | os.PathLike[str]) -> tuple[Any, ...]:

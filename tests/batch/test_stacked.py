@@ -416,8 +416,9 @@ def test_reading_into_given_buffers_equals_a_fresh_read(tmp_path):
 
 
 def test_output_that_cannot_be_made_stops_the_early_reader(tmp_path, monkeypatch):
-    """A batch that resumes nothing starts reading before its output file exists; when making
-    that file fails, the error is the batch's and no reader thread is left running."""
+    """A batch that resumes nothing starts reading before its output file exists (the file
+    is made once the first chunk is read, while it is solved); when making that file fails,
+    the error is the batch's and no reader thread is left running."""
     import threading
 
     import lcpcli.batch.stack_output as stack_output
@@ -438,7 +439,7 @@ def test_output_that_cannot_be_made_stops_the_early_reader(tmp_path, monkeypatch
     monkeypatch.setattr(stack_output, "open_stack_writer", fail)
     with pytest.raises(OutputError, match="no space left"):
         run_batch([str(path)], SolveOptions(method="lemke"), output=tmp_path / "r.h5", jobs=2)
-    assert "lcpcli-stack-reader" in running  # it was reading while the file was being made
+    assert "lcpcli-stack-opener" in running  # made in its thread, after the first read
     assert not [t for t in threading.enumerate() if t.name.startswith("lcpcli-stack")]
 
 

@@ -251,6 +251,53 @@ def test_dense_storage_checked_against_the_dense_work_budget(tmp_path: Path) -> 
     assert problems(ok, run_in_process(ok, tmp_path), tmp_path, {}) == []
 
 
+def _one_body(n_contacts: int) -> dict:
+    """The issue's scene: n contacts of one moving body on the ground (M is all ones)."""
+    return {"bodies": [{"name": "g", "static": True},
+                       {"name": "b", "mass": 1, "inertia": [1, 1, 1], "position": [0, 0, 0],
+                        "velocity": [0, 0, -1]}],
+            "contacts": [{"a": "b", "b": "g", "point": [i * 1e-3, 0, 0], "normal": [0, 0, 1]}
+                         for i in range(n_contacts)]}
+
+
+@pytest.mark.parametrize("extra", [[], ["--solve"], ["--solve", "-o", "{d}/out.json"]])
+def test_auto_storage_never_builds_a_dense_m_over_the_budget(tmp_path: Path, extra: list[str]
+                                                              ) -> None:
+    """--storage auto on a filled M over the dense-work budget (n = 12,000 built a dense M of
+    2.3 GB in 9 s; sparse took 5.1 GB): refused before M is assembled, naming the scene file,
+    with or without --solve, and nothing is written."""
+    from lcpcli.core.limits import DENSE_N_ENV
+
+    (tmp_path / "scene.json").write_text(json.dumps(_one_body(150)))
+    case = Case("auto", "memory", ["contact-matrix", "{d}/scene.json", *extra], BAD,
+                "{d}/scene.json: n = 150: --storage auto keeps M dense when a quarter of it or "
+                "more is filled", absent=("out.json",), env={DENSE_N_ENV: "120"})
+    assert problems(case, run_in_process(case, tmp_path), tmp_path, {}) == []
+
+
+def test_auto_storage_goes_sparse_over_the_budget_and_solve_refusals_name_the_scene(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A sparse M over the dense-work budget stays sparse under --storage auto (also per
+    island) and solves with a sparse method; a method that needs the dense M is refused before
+    anything is written, naming the scene file (it named none)."""
+    from lcpcli.contact.assembly import choose_storage
+    from lcpcli.core.limits import DENSE_N_ENV
+
+    (tmp_path / "star.json").write_text(json.dumps(_star(150)))  # one moving body, 150 contacts
+    ok = Case("ok", "lenient", ["contact-matrix", "{d}/star.json", "--storage", "sparse",
+                                "--solve", "-m", "pgs"], 0, None, env={DENSE_N_ENV: "120"})
+    assert problems(ok, run_in_process(ok, tmp_path), tmp_path, {}) == []
+    bad = Case("lemke", "lenient", ["contact-matrix", "{d}/star.json", "--storage", "sparse",
+                                    "--solve", "-m", "lemke", "-o", "{d}/out.json"], BAD,
+               "{d}/star.json: n = 150: method 'lemke", absent=("out.json",),
+               env={DENSE_N_ENV: "120"})
+    assert problems(bad, run_in_process(bad, tmp_path), tmp_path, {}) == []
+    assert choose_storage("auto", 150, 150 * 150) == "dense"
+    monkeypatch.setenv(DENSE_N_ENV, "120")
+    assert choose_storage("auto", 150, 150 * 150) == "sparse"
+    assert choose_storage("auto", 110, 110) == "dense"  # small: dense, whatever the fill
+
+
 def test_every_hdf5_column_reads_as_its_json_twin(tmp_path: Path) -> None:
     """Orientation, body-frame inertia, angular velocity, kinematic flags, name references and
     per-contact parameters: the checked HDF5 reader gives the scene the JSON reader gives."""

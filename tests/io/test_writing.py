@@ -583,6 +583,48 @@ def test_an_output_is_never_an_input_nor_the_other_output(cli, tmp_path):
     assert not x.exists()
 
 
+def test_a_name_ending_in_a_slash_is_refused_by_every_writer(cli, tmp_path):
+    """``-o x.json/`` names a folder: it wrote a regular file x.json (pathlib drops the slash)
+    and replaced an existing one.  check_output refuses it (one line, exit 2) for every
+    writer; ``-o -`` and plain names are unaffected."""
+    p = tmp_path / "p.json"
+    shutil.copy(SAMPLES / "degenerate.json", p)
+    scene = tmp_path / "scene.json"
+    shutil.copy(SAMPLES / "scene_cradle.json", scene)
+    kept = tmp_path / "kept.json"
+    kept.write_text('{"keep": true}\n')
+    reason = "not a directory"
+    cases = [
+        (["solve", str(p), "-o", f"{tmp_path}/x.json/"], "x.json"),
+        (["solve", str(p), "-o", f"{kept}/"], None),
+        (["solve", str(p), "-o", f"{tmp_path}/x.json/."], "x.json"),
+        (["solve", str(p), str(p), "-o", f"{tmp_path}/r.jsonl/"], "r.jsonl"),
+        (["enumerate", str(p), "-o", f"{tmp_path}/e.json/"], "e.json"),
+        (["convert", str(p), f"{tmp_path}/c.json/"], "c.json"),
+        (["bench", str(p), "-m", "lemke", "-r", "1", "--no-peers", "--timeout", "0",
+          "--markdown", f"{tmp_path}/m.md/"], "m.md"),
+        (["contact-matrix", str(scene), "--solve", "--impulses", f"{tmp_path}/i.json/"],
+         "i.json"),
+    ]
+    for args, absent in cases:
+        line = one_line(cli(*args), reason)
+        assert args[-1] in line
+        if absent is not None:
+            assert not (tmp_path / absent).exists(), args
+    assert kept.read_text() == '{"keep": true}\n'
+    with pytest.raises(writing.ProblemError, match="not a directory"):
+        writing.check_output(f"{tmp_path}/y.json/")
+    writing.check_output("-")
+    writing.check_output(tmp_path / "y.json")
+    writing.check_output(str(kept))
+    assert writing.names_folder("a/") and writing.names_folder("a/.")
+    assert not writing.names_folder("a.json") and not writing.names_folder("./a.json")
+    res = cli("convert", str(p), "-")
+    assert res.returncode == 0 and json.loads(res.stdout)
+    res = cli("solve", str(p), "-o", str(tmp_path / "ok.json"))
+    assert res.returncode == 0 and json.loads((tmp_path / "ok.json").read_text())
+
+
 # ----------------------------------------------------------------------------- unstack
 def test_unstack_is_all_or_nothing(cli, tmp_path):
     """NaN in problem 3 of 5: exit 2 and no a.json, b.json, c.json left (nor the folder)."""
