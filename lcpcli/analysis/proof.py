@@ -520,20 +520,21 @@ def search_proof(problem: Any, candidates: Iterable[Any] = (),
     least-squares corrections are not scale-free, the check is."""
     from lcpcli.analysis.scaling import GEOMETRIC_SPREAD, equilibrate, geometric, spread
 
-    found = prove_infeasible(problem, candidates, search=True)
-    if found is not None or problem.n == 0:
-        return found
-    if scaling is None:
-        scaling = equilibrate(problem, False)
-        if spread(problem, scaling) > GEOMETRIC_SPREAD:
-            scaling = geometric(problem, False) or scaling
-    if scaling is None:
-        return None
-    with np.errstate(all="ignore"):  # a scaled copy or its vector mapped back may overflow:
-        # a non-finite candidate is skipped, the check decides
+    # extreme data may overflow a scaled copy, the linear program's or a vector mapped back:
+    # quietly (a non-finite candidate is skipped, the check decides)
+    with np.errstate(all="ignore"):
+        found = prove_infeasible(problem, candidates, search=True)
+        if found is not None or problem.n == 0:
+            return found
+        if scaling is None:
+            scaling = equilibrate(problem, False)
+            if spread(problem, scaling) > GEOMETRIC_SPREAD:
+                scaling = geometric(problem, False) or scaling
+        if scaling is None:
+            return None
         scaled = prove_infeasible(scaling.apply(problem), search=True)
         back = None if scaled is None else scaling.farkas_back(scaled.y)
-    return None if back is None else prove_infeasible(problem, [back])
+        return None if back is None else prove_infeasible(problem, [back])
 
 
 def confirm(problem: Any, outcome: Any) -> FarkasCheck | None:
