@@ -52,6 +52,10 @@ UNIT_ROUNDOFF = 2.0 ** -53
 TINY = 2.0 ** -900
 #: Largest problem for which :func:`prove_infeasible` runs the linear program.
 LP_MAX_N = 3000
+#: Largest problem for which a search without a method's hint (``auto``'s last resort,
+#: :func:`search_proof`) runs it: the dense linear program costs ~0.8 s at n = 500 and ~7 s
+#: at n = 1000 (HiGHS, one core), more than the methods it follows.
+UNHINTED_LP_MAX_N = 500
 
 
 def proof_gamma(n: int) -> float:
@@ -513,8 +517,9 @@ def prove_infeasible(problem: Any, candidates: Iterable[Any] = (), *,
 
 def search_proof(problem: Any, candidates: Iterable[Any] = (),
                  scaling: Any = None) -> FarkasCheck | None:
-    """:func:`prove_infeasible` with its linear program, on the problem as given and, when
-    that finds nothing, on its equilibrated copy (``scaling``, else Ruiz's two-sided scaling,
+    """:func:`prove_infeasible` with its linear program (up to ``n =``
+    :data:`UNHINTED_LP_MAX_N`; above it the candidates alone), on the problem as given and,
+    when that finds nothing, on its equilibrated copy (``scaling``, else Ruiz's two-sided scaling,
     Curtis and Reid's where Ruiz leaves entries far apart), whose vector, mapped back
     (``y = D_r y~``), is checked on the problem as given: the linear program and the
     least-squares corrections are not scale-free, the check is."""
@@ -523,8 +528,8 @@ def search_proof(problem: Any, candidates: Iterable[Any] = (),
     # extreme data may overflow a scaled copy, the linear program's or a vector mapped back:
     # quietly (a non-finite candidate is skipped, the check decides)
     with np.errstate(all="ignore"):
-        found = prove_infeasible(problem, candidates, search=True)
-        if found is not None or problem.n == 0:
+        found = prove_infeasible(problem, candidates, search=problem.n <= UNHINTED_LP_MAX_N)
+        if found is not None or problem.n == 0 or problem.n > UNHINTED_LP_MAX_N:
             return found
         if scaling is None:
             scaling = equilibrate(problem, False)
