@@ -311,3 +311,18 @@ def test_auto_finds_what_a_small_problem_allows(M, q, n_eq, want) -> None:
         assert farkas_certifies(M, q, r.info["farkas_y"], lo, np.full(len(q), np.inf))
     else:
         assert componentwise_error(M, q, r.z) <= r.certificate.tol
+
+
+def test_auto_tries_principal_pivoting_on_a_box_problem_outside_every_class() -> None:
+    """Two box LCPs (indefinite, non-symmetric M, one-sided bounds) with exact solutions that
+    Newton's methods miss: Dantzig's principal pivoting is among auto's fallbacks."""
+    cases = [
+        ([[2.0, -2, 2], [0, 1, -3], [3, 0, -2]], [3.0, -1, -2], [-1.0, -2, -1],
+         [np.inf] * 3, [1.25, 3.625, 0.875]),
+        ([[1.0, 0, 0, -1], [2, 0, -2, 3], [-1, 1, 1, -3], [-2, -2, 1, -2]], [-4.0, -4, -2, 1],
+         [-np.inf, -2, -np.inf, -np.inf], [np.inf, np.inf, 2, 1], [5.0, -2, 2, 1]),
+    ]
+    for M, q, lo, up, z in cases:
+        r = lcpcli.solve(np.array(M), np.array(q), lower=np.array(lo), upper=np.array(up))
+        assert r.status == "solved", r.message
+        np.testing.assert_allclose(r.z, z, rtol=1e-12, atol=1e-12)

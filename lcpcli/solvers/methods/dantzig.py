@@ -271,6 +271,8 @@ METHODS = [
         notes="box bounds, infinite sides and free variables handled",
         cost=Cost.PIVOTING,
         preference=30,
+        fallback="principal pivoting outside its classes (on a box LCP, the pivoting method)",
+        fallback_preference=90,  # after the other fallbacks of its cost class
         kinds=("lcp", "box"),
         options={"max_iter": Option(positive_int, None, "pivot limit (default max(1000, 50 n))"),
                  "basis": Option(basis_option, None, "warm start (LCP): start from this index "
