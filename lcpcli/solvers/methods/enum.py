@@ -55,14 +55,16 @@ def run(problem: Any, *, tol: float, max_n: int = DEFAULT_MAX_N,
         return Outcome(np.zeros(n), res.examined, NUMERICAL,
                        f"no solution found: {why}; nothing is proven", info=info)
     if not res.solutions:
-        searched = (f"none of the 2^{n} = {res.total:,} complementary cones contains q "
-                    f"({res.counts['pruned']:,} excluded by sign tests, "
-                    f"{res.counts['singular']:,} singular)")
-        if res.proof is None:
+        counted = (f"({res.counts['pruned']:,} excluded by sign tests, "
+                   f"{res.counts['singular']:,} singular)")
+        searched = f"none of the 2^{n} = {res.total:,} complementary cones contains q {counted}"
+        if res.proof is None:  # the floating-point tests saw no cone: that proves nothing
             return Outcome(np.zeros(n), res.examined, NUMERICAL,
-                           f"{searched}, but no Farkas vector proves infeasibility (a z >= 0 "
-                           f"with Mz + q >= 0 may exist): a floating-point search proves "
-                           f"nothing", info=info)
+                           f"no complementary cone of the 2^{n} = {res.total:,} was found to "
+                           f"contain q in floating point {counted}, and no Farkas vector "
+                           f"proves infeasibility: a solution may still exist (in an "
+                           f"ill-conditioned cone, with z far larger than the data); nothing "
+                           f"is proven", info=info)
         return Outcome(np.zeros(n), res.examined, INFEASIBLE,
                        f"{searched}; {res.proof.describe()}", proven_infeasible=True,
                        info={**info, "farkas_y": res.proof.y.tolist()})
