@@ -31,6 +31,7 @@ from lcpcli.core.errors import ProblemError
 from lcpcli.core.limits import warm_start_entries
 from lcpcli.core.numeric import REAL_KINDS, check_dtype, real_array
 from lcpcli.core.problem import MAX_N
+from lcpcli.core.text import plural
 from lcpcli.io.files import MAX_TEXT_BYTES, check_input_file, open_input, read_json_file, too_big
 from lcpcli.io.npz_format import MAX_MEMBERS, ZIP_ERRORS, Member, read_npy_header
 
@@ -46,7 +47,7 @@ def load_z0(path: str | Path, n: int | None = None) -> np.ndarray:
     decompressed, and one of another length once read (``--z0 FILE: ...``)."""
     z0 = read_warm_start(path, n=n)[0]
     if n is not None and z0.shape[0] != n:
-        raise ProblemError(f"has {z0.shape[0]:,} values, the problem has n = {n:,}",
+        raise ProblemError(f"has {plural(z0.shape[0], 'value')}, the problem has n = {n:,}",
                            f"--z0 {path}")
     return z0
 
