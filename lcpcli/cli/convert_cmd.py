@@ -59,9 +59,14 @@ def convert(
                                "one of them")
         if problem is not None:
             raise ProblemError("--problem picks one problem; --format writes every problem")
-        stacked.check_output_folder(target)
-        stacked.write_folder(source, target, fmt, force=force)
-        return EXIT_OK
+        if target != "-":
+            stacked.check_output_folder(target)
+            stacked.write_folder(source, target, fmt, force=force)
+            return EXIT_OK
+        if detect_format("", fmt) != "json":
+            raise ProblemError(f"is stdout, which takes JSON only: --format {fmt} writes "
+                               f"files into a folder; give the folder", "-")
+        # '-' with --format json: JSON on stdout, as without --format
     out_fmt = detect_format(target)
     # before reading anything: OUT is never IN (by inode), a link, a device or a directory
     check_output(target, inputs=[source], force=force)

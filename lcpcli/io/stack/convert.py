@@ -248,9 +248,11 @@ def write_folder(source: str | Path, folder: str | Path, fmt: str, *,
 
 def check_output_folder(folder: str | Path) -> None:
     """An output folder: an existing directory (not a link), or missing with an existing
-    parent (ProblemError naming it otherwise)."""
+    parent (ProblemError naming it otherwise; `-`, stdout, is never a folder)."""
 
 
+    if str(folder) == "-":
+        raise ProblemError("is stdout, not a folder: give the folder's name", "-")
     try:
         st = os.lstat(folder)
     except FileNotFoundError:
