@@ -109,7 +109,11 @@ def convert(
             with atomic_path(Path(target)) as tmp:
                 write_many(problems, tmp)
             return EXIT_OK
-    save(load(source, problem), target)
+    prob = load(source, problem)
+    try:
+        save(prob, target)
+    except ProblemError as exc:  # what OUT's format cannot hold: the message names OUT
+        raise exc.with_source(target) from None
     return EXIT_OK
 
 

@@ -240,8 +240,11 @@ def write_folder(source: str | Path, folder: str | Path, fmt: str, *,
         write = _module(kind).write
         for (_label, p), t in zip(source_problems(source), targets, strict=True):
             tmp = staged.add(t)
-            with writing(t):
-                write(p, tmp)
+            try:
+                with writing(t):
+                    write(p, tmp)
+            except ProblemError as exc:  # what the format cannot hold: named by its file
+                raise exc.with_source(str(t)) from None
         staged.commit()
     return len(targets)
 
