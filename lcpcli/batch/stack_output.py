@@ -47,7 +47,6 @@ the ``sha256`` digest of its chunk (chunks of :func:`lcpcli.io.stack.chunk_size`
 
 from __future__ import annotations
 
-import io
 import json
 from pathlib import Path
 from typing import Any
@@ -65,10 +64,13 @@ from lcpcli.batch.output import (
 )
 from lcpcli.batch.records import options_difference
 from lcpcli.core.errors import OptionError, ProblemError
+from lcpcli.core.numeric import REAL_KINDS
 from lcpcli.core.result import NOT_DONE, STATUS_CODES, status_counts
 from lcpcli.io import stack as io_stack
+from lcpcli.io.files import MAX_NAME_BYTES
 from lcpcli.io.hdf5_format import H5_ERRORS
-from lcpcli.io.stack.results import RESULTS_MARK
+from lcpcli.io.npz_format import Member
+from lcpcli.io.stack.results import RESULTS_MARK, read_results, result_members
 from lcpcli.io.writing import (
     Hdf5Handle,
     atomic_file,
@@ -76,7 +78,6 @@ from lcpcli.io.writing import (
     check_hdf5_tree,
     open_hdf5,
     own_file,
-    read_own_file,
     writing,
 )
 
@@ -516,46 +517,68 @@ class NpzStackWriter:
             self._load(path, info)
 
     def _load(self, path: Path, info: Any) -> None:
+        """The results in ``path`` (read through :func:`lcpcli.io.stack.results.result_members`:
+        every member's header checked against K and n before its data is read)."""
         try:
-            with np.load(io.BytesIO(read_own_file(path)), allow_pickle=False) as data:
-                if str(data["source"]) != info.path:
-                    raise ProblemError(f"holds results of {data['source']}, not {info.path}; "
-                                       f"{_RERUN}", str(path))
-                if "basis" not in data.files:
-                    raise ProblemError(f"holds results of {info.path} without their basis "
-                                       f"(written by an older lcpcli); {_RERUN}", str(path))
-                if not {"chunk_digest", "chunk", "solve_options"} <= set(data.files):
-                    raise ProblemError(f"holds results of {info.path} without the fingerprint "
-                                       f"of their input (written by an older lcpcli), so they "
-                                       f"cannot be checked against it; {_RERUN}", str(path))
-                if str(data["solve_options"]) != self.options:
-                    raise ProblemError(f"holds results of {info.path} computed with "
-                                       f"{data['solve_options']}, not {self.options}: give the "
-                                       f"same options or {_RERUN}", str(path))
-                chunk = int(data["chunk"])
-                if chunk < 1 or data["chunk_digest"].shape != \
-                        (_chunks(info.K, chunk), DIGEST_BYTES):
-                    raise ProblemError(f"cannot be resumed: its fingerprint does not fit the "
-                                       f"input's K = {info.K}; {_RERUN}", str(path))
-                self.chunk_size = chunk
-                self.digest = recorded_algorithm(
-                    data["digest"] if "digest" in data.files else None, path, info.path)
-                self.digests = data["chunk_digest"].astype(np.uint8)
-                self.method, self.tol = str(data["method"]), float(data["tol"])
-                for key, value in self.arrays.items():
-                    got = data[key]
-                    if got.shape != value.shape:
-                        raise ProblemError(f"its {key} has shape {got.shape}, the input needs "
-                                           f"{value.shape}; {_RERUN}", str(path))
-                    value[...] = got
-                if self.names is not None and "names" in data:
-                    self.names = [str(x) for x in data["names"].tolist()]
-        except (OSError, KeyError, ValueError, TypeError) as exc:
-            if isinstance(exc, ProblemError):
+            with result_members(path) as members:
+                self._load_members(members, path, info)
+        except ProblemError as exc:
+            if exc.source:
                 raise
-            raise ProblemError(f"cannot be resumed ({str(exc).splitlines()[0][:80]}); "
-                               f"{_RERUN}", str(path)) from None
+            raise ProblemError(f"cannot be resumed ({str(exc)[:160]}); {_RERUN}",
+                               str(path)) from None
         _check_status(self.arrays["status"], path)
+
+    def _load_members(self, members: dict[str, Member], path: Path, info: Any) -> None:
+        def text(key: str) -> str:
+            return members[key].text(key, MAX_NAME_BYTES)
+
+        for key in ("source", "method", "tol"):
+            if key not in members:
+                raise ProblemError(f"has no '{key}'")
+        if text("source") != info.path:
+            raise ProblemError(f"holds results of {text('source')}, not {info.path}; "
+                               f"{_RERUN}", str(path))
+        if "basis" not in members:
+            raise ProblemError(f"holds results of {info.path} without their basis "
+                               f"(written by an older lcpcli); {_RERUN}", str(path))
+        if not {"chunk_digest", "chunk", "solve_options"} <= set(members):
+            raise ProblemError(f"holds results of {info.path} without the fingerprint "
+                               f"of their input (written by an older lcpcli), so they "
+                               f"cannot be checked against it; {_RERUN}", str(path))
+        options = text("solve_options")
+        if options != self.options:
+            raise ProblemError(f"holds results of {info.path} computed with "
+                               f"{options}, not {self.options}: give the "
+                               f"same options or {_RERUN}", str(path))
+        chunk = members["chunk"].scalar_int("chunk")
+        digests = members["chunk_digest"]
+        if chunk < 1 or digests.shape != (_chunks(info.K, chunk), DIGEST_BYTES) \
+                or digests.dtype.kind not in "iu":
+            raise ProblemError(f"cannot be resumed: its fingerprint does not fit the "
+                               f"input's K = {info.K}; {_RERUN}", str(path))
+        self.digest = recorded_algorithm(
+            text("digest") if "digest" in members else None, path, info.path)
+        tol = members["tol"]
+        if tol.size != 1 or tol.dtype.kind not in REAL_KINDS:
+            raise ProblemError(f"'tol' must be one number (got {tol.dtype} of shape "
+                               f"{tol.shape})")
+        names = members.get("names") if self.names is not None else None
+        if names is not None and (names.shape != (info.K,) or names.dtype.kind not in "US"
+                                  or names.dtype.itemsize > 4 * MAX_NAME_BYTES):
+            raise ProblemError(f"its 'names' ({names.dtype}, shape {names.shape}) are not "
+                               f"the names of {info.K:,} problems")
+        arrays = read_results(members, tuple(self.arrays), info.K, info.n)
+        missing = sorted(set(self.arrays) - set(arrays))
+        if missing:
+            raise ProblemError(f"has no '{missing[0]}'")
+        self.chunk_size = chunk
+        self.digests = digests.read().astype(np.uint8)
+        self.method, self.tol = text("method"), float(tol.read().reshape(-1)[0])
+        for key, value in self.arrays.items():
+            value[...] = arrays[key]
+        if names is not None:
+            self.names = [str(x) for x in names.read().tolist()]
 
     def chunk(self, info: Any) -> int:
         return self.chunk_size

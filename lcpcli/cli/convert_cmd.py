@@ -59,9 +59,14 @@ def convert(
                                "one of them")
         if problem is not None:
             raise ProblemError("--problem picks one problem; --format writes every problem")
-        stacked.check_output_folder(target)
-        stacked.write_folder(source, target, fmt, force=force)
-        return EXIT_OK
+        if target != "-":
+            stacked.check_output_folder(target)
+            stacked.write_folder(source, target, fmt, force=force)
+            return EXIT_OK
+        if detect_format("", fmt) != "json":
+            raise ProblemError(f"is stdout, which takes JSON only: --format {fmt} writes "
+                               f"files into a folder; give the folder", "-")
+        # '-' with --format json: JSON on stdout, as without --format
     out_fmt = detect_format(target)
     # before reading anything: OUT is never IN (by inode), a link, a device or a directory
     check_output(target, inputs=[source], force=force)
@@ -104,7 +109,11 @@ def convert(
             with atomic_path(Path(target)) as tmp:
                 write_many(problems, tmp)
             return EXIT_OK
-    save(load(source, problem), target)
+    prob = load(source, problem)
+    try:
+        save(prob, target)
+    except ProblemError as exc:  # what OUT's format cannot hold: the message names OUT
+        raise exc.with_source(target) from None
     return EXIT_OK
 
 

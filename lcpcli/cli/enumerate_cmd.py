@@ -19,7 +19,13 @@ from lcpcli.cli.common import (
     write_json_line,
 )
 from lcpcli.cli.export import EXACT_HELP, check_export_options, check_format, exact_cones
-from lcpcli.core.errors import EXIT_INTERRUPTED, EXIT_NOT_SOLVED, EXIT_SOLVED, OptionError
+from lcpcli.core.errors import (
+    EXIT_INTERRUPTED,
+    EXIT_NOT_SOLVED,
+    EXIT_SOLVED,
+    OptionError,
+    ProblemError,
+)
 
 #: Above this n, ``--all-cones`` is refused for the terminal table.
 ALL_CONES_TABLE_MAX_N = 12
@@ -82,7 +88,10 @@ def enumerate_command(
             check_output(target, inputs=[file], stdout=False, option=option)
     check_distinct([("--output", output_path), ("--plot", plot_path)])
     prob = load(file, problem)
-    M = check_problem(prob, max_n)
+    try:
+        M = check_problem(prob, max_n)
+    except ProblemError as exc:  # a problem enumeration does not take: the message names it
+        raise exc.with_source(file) from None
     n = prob.n
     if lemke_path and n != 2:
         raise OptionError(f"--lemke-path draws in the 2 x 2 cone picture only (n = {n})")

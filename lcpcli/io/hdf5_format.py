@@ -63,6 +63,10 @@ def open_file(path: Path, **kwargs: Any) -> Any:
 
 
 def damaged(exc: BaseException) -> ProblemError:
+    """The one-line error of what h5py raised (:data:`H5_ERRORS`); a ProblemError (a refusal
+    of the reading layer: ProblemError is a ValueError) is returned as it is, whole."""
+    if isinstance(exc, ProblemError):
+        return exc
     first = str(exc).splitlines()[0][:100] if str(exc) else type(exc).__name__
     return ProblemError(f"damaged HDF5 data ({first})")
 

@@ -722,3 +722,84 @@ def test_the_cli_lets_idle_threads_sleep_unless_told_otherwise(monkeypatch, caps
     assert exc.value.code == 0
     assert os.environ["OMP_WAIT_POLICY"] == QUIET_THREADS["OMP_WAIT_POLICY"] == "PASSIVE"
     assert os.environ["OPENBLAS_THREAD_TIMEOUT"] == "9"
+
+
+def _small_npz_results(cli, tmp_path):
+    """A stack of K = 12, n = 3 and its finished .npz results."""
+    M, q = pd_stack(12, 3)
+    path = tmp_path / "small.h5"
+    write_stack(path, M, q)
+    out = tmp_path / "R.npz"
+    assert cli("solve", str(path), "-o", str(out), "--json").returncode == 0
+    with np.load(out) as d:
+        arrays = {k: d[k].copy() for k in d.files}
+    return path, out, arrays
+
+
+def _rezip(out, members: dict[str, bytes], compression: int) -> None:
+    import zipfile
+
+    with zipfile.ZipFile(out, "w", compression) as zf:
+        for key, data in members.items():
+            zf.writestr(f"{key}.npy", data)
+
+
+def _npy(value) -> bytes:
+    import io
+
+    buf = io.BytesIO()
+    np.lib.format.write_array(buf, np.asanyarray(value), allow_pickle=False)
+    return buf.getvalue()
+
+
+def _refused_resume(cli, path, out, match):
+    before = out.read_bytes()
+    res = cli("solve", str(path), "-o", str(out), "--json", "--resume")
+    assert res.returncode == 2, res.stderr
+    lines = res.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"lcpcli: error: {out}: cannot be resumed")
+    assert match in lines[0], lines[0]
+    assert out.read_bytes() == before  # untouched
+
+
+@pytest.mark.parametrize("compression", ["deflate", "lzma"])
+def test_npz_resume_refuses_a_damaged_compressed_member(cli, tmp_path, compression):
+    import zipfile
+
+    path, out, arrays = _small_npz_results(cli, tmp_path)
+    method = {"deflate": zipfile.ZIP_DEFLATED, "lzma": zipfile.ZIP_LZMA}[compression]
+    _rezip(out, {k: _npy(v) for k, v in arrays.items()}, method)
+    with zipfile.ZipFile(out) as zf:
+        info = zf.getinfo("w.npy")
+    raw = bytearray(out.read_bytes())
+    start = info.header_offset + 30 + len(info.filename.encode()) + len(info.extra)
+    for i in range(start + info.compress_size // 2, start + info.compress_size - 2):
+        raw[i] ^= 0x5A  # the member's compressed data damaged (its header intact)
+    out.write_bytes(bytes(raw))
+    _refused_resume(cli, path, out, "not a valid NPZ file")
+
+
+def test_npz_resume_checks_member_headers_before_reading_their_data(cli, tmp_path):
+    import zipfile
+
+    path, out, arrays = _small_npz_results(cli, tmp_path)
+    members = {k: _npy(v) for k, v in arrays.items()}
+    members["z"] = _npy(np.zeros((5000, 3)))  # another K: refused from its header ...
+    _rezip(out, members, zipfile.ZIP_DEFLATED)
+    with zipfile.ZipFile(out) as zf:
+        info = zf.getinfo("z.npy")
+    raw = bytearray(out.read_bytes())
+    start = info.header_offset + 30 + len(info.filename.encode()) + len(info.extra)
+    raw[start + info.compress_size - 4] ^= 0xFF  # ... its data (bad CRC) never decompressed
+    out.write_bytes(bytes(raw))
+    _refused_resume(cli, path, out, "'z' has shape (5000, 3)")
+
+
+def test_npz_resume_refuses_a_member_longer_than_its_header(cli, tmp_path):
+    import zipfile
+
+    path, out, arrays = _small_npz_results(cli, tmp_path)
+    members = {k: _npy(v) for k, v in arrays.items()}
+    members["z"] += b"\0" * 1000
+    _rezip(out, members, zipfile.ZIP_STORED)
+    _refused_resume(cli, path, out, "array 'z' is damaged")

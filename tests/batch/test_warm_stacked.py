@@ -204,3 +204,28 @@ def test_resume_of_a_result_file_without_basis_is_refused(cli, tmp_path, ext):
         with h5py.File(out, "r+") as f:
             del f["s"]["basis"]
     one_line_error(cli("solve", str(path), "-o", str(out), "--resume"), "without their basis")
+
+
+def test_warm_file_refusals_inside_hdf5_keep_their_own_whole_message(cli, tmp_path):
+    """A refusal raised while a stacked .h5 result file is opened (chunks far larger than the
+    data, two stacks) is its own message, whole; never 'damaged HDF5 data (...)'."""
+    M, q = pd_stack(30, 4, seed=7)
+    path = tmp_path / "s.h5"
+    write_stack(path, M, q)
+    good = tmp_path / "good.h5"
+    cli("solve", str(path), "-o", str(good))
+    chunky = tmp_path / "chunky.h5"
+    chunky.write_bytes(good.read_bytes())
+    with h5py.File(chunky, "r+") as f:
+        z = f["s"]["z"][...]
+        del f["s"]["z"]
+        f["s"].create_dataset("z", data=z, maxshape=(None, None), chunks=(2**22, 4))
+    res = cli("solve", str(path), "--z0", str(chunky), "-o", str(tmp_path / "out.h5"))
+    one_line_error(res, "'z' is stored in HDF5 chunks of", "refused before reading")
+    assert "damaged HDF5 data" not in res.stderr
+    two = tmp_path / "two.h5"
+    two.write_bytes(good.read_bytes())
+    with h5py.File(two, "r+") as f:
+        f.copy(f["s"], "t")
+    res = cli("solve", str(path), "--z0", str(two), "-o", str(tmp_path / "out.h5"))
+    one_line_error(res, "holds the results of 2 stacks; --z0 takes the result file of one stack")

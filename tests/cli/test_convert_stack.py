@@ -109,3 +109,22 @@ def test_refused_outputs_and_usage(cli, tmp_path):
                        "--format", "json"), "not a folder")
     one_line_error(cli("convert", str(tmp_path / "s.h5"), str(tmp_path / "o.h5"),
                        "--stack", "--format", "json"), "give one of them")
+
+
+def test_dash_with_format_is_stdout_never_a_folder(cli, tmp_path, samples):
+    """``convert IN - --format json`` prints JSON on stdout, as without --format; a binary
+    --format is refused with one line; no folder named '-' is ever made."""
+    import json
+
+    src = samples / "box_small.json"
+    plain = cli("convert", str(src), "-")
+    res = cli("convert", str(src), "-", "--format", "json", cwd=tmp_path)
+    assert res.returncode == 0, res.stderr
+    assert json.loads(res.stdout) == json.loads(plain.stdout)
+    for fmt in ("npz", "h5", "dat"):
+        res = cli("convert", str(src), "-", "--format", fmt, cwd=tmp_path)
+        assert res.returncode == 2, res.stderr
+        lines = res.stderr.strip().splitlines()
+        assert len(lines) == 1 and lines[0].startswith("lcpcli: error: -: "), res.stderr
+        assert res.stdout == ""
+    assert not (tmp_path / "-").exists()

@@ -240,17 +240,22 @@ def write_folder(source: str | Path, folder: str | Path, fmt: str, *,
         write = _module(kind).write
         for (_label, p), t in zip(source_problems(source), targets, strict=True):
             tmp = staged.add(t)
-            with writing(t):
-                write(p, tmp)
+            try:
+                with writing(t):
+                    write(p, tmp)
+            except ProblemError as exc:  # what the format cannot hold: named by its file
+                raise exc.with_source(str(t)) from None
         staged.commit()
     return len(targets)
 
 
 def check_output_folder(folder: str | Path) -> None:
     """An output folder: an existing directory (not a link), or missing with an existing
-    parent (ProblemError naming it otherwise)."""
+    parent (ProblemError naming it otherwise; `-`, stdout, is never a folder)."""
 
 
+    if str(folder) == "-":
+        raise ProblemError("is stdout, not a folder: give the folder's name", "-")
     try:
         st = os.lstat(folder)
     except FileNotFoundError:

@@ -17,6 +17,8 @@ from __future__ import annotations
 
 import hashlib
 import zipfile
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, NamedTuple
 
@@ -26,7 +28,7 @@ from lcpcli.core.errors import ProblemError
 from lcpcli.core.numeric import INDEX_KINDS, REAL_KINDS
 from lcpcli.core.result import NOT_DONE, STATUS_CODES
 from lcpcli.io.files import check_input_file, open_input
-from lcpcli.io.npz_format import MAX_MEMBERS, ZIP_ERRORS, Member
+from lcpcli.io.npz_format import MAX_MEMBERS, ZIP_ERRORS, Member, zip_error
 
 #: Root attribute that marks an HDF5 file as stacked results of lcpcli.
 RESULTS_MARK = "lcpcli_stacked_results"
@@ -38,6 +40,55 @@ _STATUS_CODES = np.array(sorted({*STATUS_CODES.values(), NOT_DONE}))
 _CHECK_ROWS = 1 << 20
 _NOT_RESULTS = ("is not a stacked result file of lcpcli (what 'lcpcli solve STACK -o "
                 "results.h5' or '.npz' writes)")
+#: The per-problem arrays of a stacked result file: the kinds of data type each may have, and
+#: whether a problem's row holds ``n`` values (shape (K, n)) or one (shape (K,)).
+RESULT_ARRAYS = {"z": (REAL_KINDS, True), "w": (REAL_KINDS, True),
+                 "status": (INDEX_KINDS, False), "iterations": (INDEX_KINDS, False),
+                 "error": (REAL_KINDS, False), "residual": (REAL_KINDS, False),
+                 "basis": (INDEX_KINDS, True)}
+
+
+def check_shapes(shapes: dict[str, tuple[int, ...] | None], K: int, n: int) -> None:
+    """ProblemError unless each per-problem array's shape (None: absent) is what a stack of
+    ``K`` problems of size ``n`` needs (:data:`RESULT_ARRAYS`)."""
+    for key, shape in shapes.items():
+        want = (K, n) if RESULT_ARRAYS[key][1] else (K,)
+        if shape is not None and shape != want:
+            raise ProblemError(f"its '{key}' has shape {shape}; the stack needs "
+                               f"{want} (K = {K:,}, n = {n:,})")
+
+
+@contextmanager
+def result_members(path: str | Path) -> Iterator[dict[str, Member]]:
+    """The ``.npy`` members of a stacked result NPZ by name (at most :data:`MAX_MEMBERS`
+    entries; ``z`` and ``status`` required), each with its header read and checked against
+    its zip entry's size, no data read yet: the caller checks shapes and types
+    (:func:`read_results`) before it reads.  A damaged archive or member, met here or while
+    the caller reads, is a one-line ProblemError (no source: the caller names the file)."""
+    try:
+        with open_input(path, "a stacked result file") as fh, zipfile.ZipFile(fh) as zf:
+            infos = zf.infolist()
+            if len(infos) > MAX_MEMBERS:
+                raise ProblemError(f"holds {len(infos):,} zip entries; {_NOT_RESULTS}")
+            entries = {i.filename[:-4]: i for i in infos if i.filename.endswith(".npy")}
+            if "z" not in entries or "status" not in entries:
+                raise ProblemError(_NOT_RESULTS)
+            yield {key: Member(zf, info, key) for key, info in entries.items()}
+    except ProblemError:
+        raise
+    except (*ZIP_ERRORS, ValueError) as exc:
+        raise zip_error(exc) from None
+
+
+def read_results(members: dict[str, Member], keys: tuple[str, ...], K: int, n: int
+                 ) -> dict[str, np.ndarray]:
+    """The per-problem arrays ``keys`` present in ``members`` (:func:`result_members`), every
+    one's type and shape checked from its header before any is read."""
+    present = {key: members[key] for key in keys if key in members}
+    for key, member in present.items():
+        member.check(f"'{key}'", RESULT_ARRAYS[key][0])
+    check_shapes({key: m.shape for key, m in present.items()}, K, n)
+    return {key: m.read() for key, m in present.items()}
 
 
 class ResultChunk(NamedTuple):
@@ -108,13 +159,6 @@ class StackResultFile:
             raise ProblemError(f"holds results for K = {K}, n = {n}, but the stack has "
                                f"K = {self.K:,}, n = {self.n:,}")
 
-    def _shapes(self, shapes: dict[str, tuple[int, ...] | None]) -> None:
-        want = {"z": (self.K, self.n), "status": (self.K,), "basis": (self.K, self.n)}
-        for key, shape in shapes.items():
-            if shape is not None and shape != want[key]:
-                raise ProblemError(f"its '{key}' has shape {shape}; the stack needs "
-                                   f"{want[key]} (K = {self.K:,}, n = {self.n:,})")
-
     def _open_hdf5(self) -> None:
         import h5py
 
@@ -137,27 +181,16 @@ class StackResultFile:
                        "basis": h5.dataset(g, "basis", "basis", kinds=INDEX_KINDS)}
             if self._d["z"] is None or self._d["status"] is None:
                 raise ProblemError(_NOT_RESULTS)
-            self._shapes({k: None if d is None else tuple(int(x) for x in d.shape)
-                          for k, d in self._d.items()})
+            check_shapes({k: None if d is None else tuple(int(x) for x in d.shape)
+                          for k, d in self._d.items()}, self.K, self.n)
+        except ProblemError:
+            raise
         except h5.H5_ERRORS as exc:
             raise h5.damaged(exc) from None
 
     def _open_npz(self) -> None:
-        with open_input(self.path, "a stacked result file") as fh, zipfile.ZipFile(fh) as zf:
-            infos = zf.infolist()
-            if len(infos) > MAX_MEMBERS:
-                raise ProblemError(f"holds {len(infos):,} zip entries; {_NOT_RESULTS}")
-            entries = {i.filename[:-4]: i for i in infos if i.filename.endswith(".npy")}
-            if "z" not in entries or "status" not in entries:
-                raise ProblemError(_NOT_RESULTS)
-            members = {key: Member(zf, entries[key], key)
-                       for key in ("z", "status", "basis") if key in entries}
-            members["z"].check("'z'", REAL_KINDS)
-            for key in ("status", "basis"):
-                if key in members:
-                    members[key].check(f"'{key}'", INDEX_KINDS)
-            self._shapes({k: m.shape for k, m in members.items()})  # before decompressing
-            self._arrays = {k: m.read() for k, m in members.items()}
+        with result_members(self.path) as members:
+            self._arrays = read_results(members, ("z", "status", "basis"), self.K, self.n)
 
     # ------------------------------------------------------------------------- reading
     def _rows(self, key: str, start: int, stop: int, dtype: Any) -> np.ndarray | None:
