@@ -147,14 +147,20 @@ def test_resume_with_a_warm_file_needs_the_same_file(cli, tmp_path):
     one_line_error(cli("solve", str(second), "-o", str(out), "--resume"), "warm")
 
 
-def test_bad_warm_files_are_one_line_errors(cli, tmp_path):
-    """Wrong K, wrong n, a file that is no stacked result, an external link, bad codes, a
-    per-file input, the output itself: one line, exit 2, no output written."""
+def _solved_stack(cli, tmp_path):
+    """A stack of 30 problems of n = 4 (``s.h5``) and its result file (``good.h5``)."""
     M, q = pd_stack(30, 4, seed=7)
     path = tmp_path / "s.h5"
     write_stack(path, M, q)
     good = tmp_path / "good.h5"
     cli("solve", str(path), "-o", str(good))
+    return path, good
+
+
+def test_bad_warm_files_are_one_line_errors(cli, tmp_path):
+    """Wrong K, wrong n, a file that is no stacked result, an external link, bad codes, a
+    per-file input, the output itself: one line, exit 2, no output written."""
+    path, good = _solved_stack(cli, tmp_path)
     out = tmp_path / "out.h5"
 
     def refused(z0, *words: str) -> None:
@@ -209,11 +215,7 @@ def test_resume_of_a_result_file_without_basis_is_refused(cli, tmp_path, ext):
 def test_warm_file_refusals_inside_hdf5_keep_their_own_whole_message(cli, tmp_path):
     """A refusal raised while a stacked .h5 result file is opened (chunks far larger than the
     data, two stacks) is its own message, whole; never 'damaged HDF5 data (...)'."""
-    M, q = pd_stack(30, 4, seed=7)
-    path = tmp_path / "s.h5"
-    write_stack(path, M, q)
-    good = tmp_path / "good.h5"
-    cli("solve", str(path), "-o", str(good))
+    path, good = _solved_stack(cli, tmp_path)
     chunky = tmp_path / "chunky.h5"
     chunky.write_bytes(good.read_bytes())
     with h5py.File(chunky, "r+") as f:
