@@ -147,7 +147,6 @@ def componentwise_error(M: Any, q: np.ndarray, z: np.ndarray, lo: np.ndarray | N
     n = q.size
     if not np.all(np.isfinite(z)):
         return float("inf")
-    has_data = q != 0
     with np.errstate(all="ignore"):
         w_given = w
         w = M @ z + q if w is None else np.asarray(w, dtype=float)
@@ -160,6 +159,9 @@ def componentwise_error(M: Any, q: np.ndarray, z: np.ndarray, lo: np.ndarray | N
         # the data leave the comfortable range: everything below is a ratio within one row, so
         # each row is computed exactly (rationals) and divided by a power of two near its scale
         M, q, w, terms, a, s = _rows_scaled_exactly(M, q, z, w_given)
+    # an equation carries data where q_i is nonzero in the units its row is judged in (a q_i
+    # below 2^-1074 of its row's scale is 0 there: its growth would be a ratio of roundings)
+    has_data = q != 0
 
     def rel(v: float, si: float) -> float:
         if v == 0:

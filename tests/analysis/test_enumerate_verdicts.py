@@ -31,6 +31,8 @@ def _pair(n: int) -> st.SearchStrategy:
 @given(st.integers(1, 3).flatmap(_pair))
 @example(([1e-300, 1.0, 1e-300, 1e-300, 1e-200, 1e300, 1.0, 5e-324, 1e-300],
           [1e300, 1e300, 1e300]))  # a cone's determinant: divide by zero in LAPACK's det
+@example(([1e300, -1e200, 1e300, 1e300, -1e200, -1e300, 1e300, 1e300, 1e300],
+          [1e-300, 1e-300, -1e300]))  # q_1 = q_2 = 1e-300 against terms of 1e200: no data
 def test_every_listed_solution_is_certified_and_every_proof_checks(data) -> None:
     """... and no numpy warning escapes (the CLI would print each as a warning line), also
     with every cone's details."""
