@@ -183,9 +183,7 @@ class StackResultFile:
                 raise ProblemError(_NOT_RESULTS)
             check_shapes({k: None if d is None else tuple(int(x) for x in d.shape)
                           for k, d in self._d.items()}, self.K, self.n)
-        except ProblemError:
-            raise
-        except h5.H5_ERRORS as exc:
+        except h5.H5_ERRORS as exc:  # a refusal of the reading layer passes through whole
             raise h5.damaged(exc) from None
 
     def _open_npz(self) -> None:
