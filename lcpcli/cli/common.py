@@ -169,19 +169,6 @@ def progress_allowed() -> bool:
     return is_terminal(sys.stderr) and not os.environ.get("NO_COLOR")
 
 
-def stream_encodes(stream: Any, text: str) -> bool:
-    """Whether ``stream``'s encoding can write every character of ``text`` (a stream without
-    an encoding takes str as it is)."""
-    encoding = getattr(stream, "encoding", None)
-    if not encoding:
-        return True
-    try:
-        text.encode(encoding)
-    except (UnicodeEncodeError, LookupError):
-        return False
-    return True
-
-
 def is_terminal(stream: Any) -> bool:
     """Whether ``stream`` is a terminal: the one rule of both consoles and the progress bars,
     without importing rich.  rich's environment overrides first (``TTY_COMPATIBLE`` 1 / 0,

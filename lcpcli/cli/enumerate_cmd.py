@@ -15,7 +15,6 @@ from lcpcli.cli.common import (
     progress_allowed,
     stderr_console,
     stdout_console,
-    stream_encodes,
     write_json_line,
 )
 from lcpcli.cli.export import EXACT_HELP, check_export_options, check_format, exact_cones
@@ -156,16 +155,10 @@ def enumerate_command(
     if as_json:
         write_json_line(payload)
     elif fmt == "text":
-        from lcpcli.cli.render.enumerate import (
-            ASCII_GLYPHS,
-            UNICODE_GLYPHS,
-            draw_cones_text,
-            render_enumeration,
-        )
+        from lcpcli.cli.render.enumerate import draw_cones_text, render_enumeration
 
-        glyphs = UNICODE_GLYPHS if stream_encodes(sys.stdout, "".join(UNICODE_GLYPHS)) \
-            else ASCII_GLYPHS
-        drawing = draw_cones_text(M, prob.q, path=path, glyphs=glyphs) if n == 2 else None
+        # (a stream without the box characters gets ASCII stand-ins: common.StdoutGuard)
+        drawing = draw_cones_text(M, prob.q, path=path) if n == 2 else None
         stdout_console().print(render_enumeration(res, prob, file, all_cones=all_cones,
                                                   covers=covers, drawing=drawing))
     if plot_path is not None and not as_json:

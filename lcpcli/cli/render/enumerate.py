@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from fractions import Fraction
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import Any
 
 import numpy as np
 from rich.console import Group
@@ -323,34 +323,18 @@ def text_grid(width: int, height: int) -> np.ndarray:
     return np.vstack([X.ravel(), Y.ravel()])
 
 
-class Glyphs(NamedTuple):
-    """The characters of the cone drawing: rays (horizontal, vertical, rising, falling) and
-    the mark of a region in 2+ cones."""
-
-    horizontal: str
-    vertical: str
-    rising: str
-    falling: str
-    overlap: str
-
-
-#: Box-drawing characters (a UTF-8 terminal or file).
-UNICODE_GLYPHS = Glyphs("─", "│", "╱", "╲", "▒")
-#: Their ASCII stand-ins (an output stream whose encoding lacks the box characters).
-ASCII_GLYPHS = Glyphs("-", "|", "/", "\\", "#")
 
 
 def draw_cones_text(M: Any, q: Any, width: int = 49, height: int = 21,
-                    path: list[dict[str, Any]] | None = None,
-                    glyphs: Glyphs = UNICODE_GLYPHS) -> Text:
+                    path: list[dict[str, Any]] | None = None) -> Text:
     """Character drawing of the four complementary cones and q (directions only).
 
-    Each region shows the number r of the one cone holding it (``glyphs.overlap``, ``▒``:
-    2+ cones, blank: none); the generators ``I_j`` (labelled ``w_j``) and ``-M_j`` (``z_j``)
-    are rays of unit length; labels never overlap a ray, another label or a region digit (one
-    blank cell each side).  ``path`` (from :func:`lcpcli.solvers.trace.lemke.path_points`):
-    Lemke's path ``q + z0 d``, drawn at its directions as ``*``.  ``glyphs``:
-    :data:`UNICODE_GLYPHS` or :data:`ASCII_GLYPHS`.
+    Each region shows the number r of the one cone holding it (``▒``: 2+ cones, blank: none);
+    the generators ``I_j`` (labelled ``w_j``) and ``-M_j`` (``z_j``) are rays of unit length;
+    labels never overlap a ray, another label or a region digit (one blank cell each side).
+    ``path`` (from :func:`lcpcli.solvers.trace.lemke.path_points`): Lemke's path
+    ``q + z0 d``, drawn at its directions as ``*``.  An output stream without these characters
+    gets ASCII stand-ins (:data:`lcpcli.cli.common.ASCII_STAND_INS`).
     """
     M = np.asarray(M, dtype=float)
     q = np.asarray(q, dtype=float)
@@ -362,7 +346,7 @@ def draw_cones_text(M: Any, q: Any, width: int = 49, height: int = 21,
     for i in range(height):
         for j in range(width):
             if cover[i, j] >= 2:
-                canvas.put(i, j, glyphs.overlap, "yellow")
+                canvas.put(i, j, "▒", "yellow")
             elif cover[i, j] == 1 and j % 2 == 0:
                 canvas.put(i, j, str(_cone_number(int(which[i, j]))), "dim")
 
@@ -375,9 +359,8 @@ def draw_cones_text(M: Any, q: Any, width: int = 49, height: int = 21,
     for name, u in gens:  # all rays first, then every label on top of a clear margin
         style = "bold cyan" if name.startswith("w") else "bold magenta"
         ang = float(np.degrees(np.arctan2(u[1], u[0]))) % 180.0
-        ray = (glyphs.horizontal if ang < 22.5 or ang >= 157.5
-               else glyphs.vertical if 67.5 <= ang < 112.5
-               else glyphs.rising if ang < 90 else glyphs.falling)
+        ray = "─" if ang < 22.5 or ang >= 157.5 else "│" if 67.5 <= ang < 112.5 else (
+            "╱" if ang < 90 else "╲")
         for t in np.linspace(0.08, 0.92, 40):
             canvas.put(*cell(*(t * u)), ray, style, fix=True)
     canvas.put(*cell(0.0, 0.0), "+", fix=True)
@@ -398,7 +381,7 @@ def draw_cones_text(M: Any, q: Any, width: int = 49, height: int = 21,
     canvas.place_label(r, c, "q", "bold red", right=False)
     text = canvas.text()
     text.append("1-4: the one cone r holding the region   ", style="dim")
-    text.append(glyphs.overlap, style="yellow")
+    text.append("▒", style="yellow")
     text.append(" 2+ cones   blank: no cone   ", style="dim")
     text.append("w1 w2", style="bold cyan")
     text.append(" = I_j,  ", style="dim")
