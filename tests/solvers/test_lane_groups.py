@@ -140,37 +140,45 @@ def test_lane_groups_property(emu, n, count, seed, balance):
 
 @pytest.fixture(scope="module")
 def emu_links(tmp_path_factory):
-    return build_harness(tmp_path_factory.mktemp("lanes_links"), ("-DLCP_CERT_LINKS=1",))
+    """The harness with LCP_CERT_LINKS of one and of two words, by that count."""
+    return {k: build_harness(tmp_path_factory.mktemp(f"lanes_links{k}"),
+                             (f"-DLCP_CERT_LINKS={k}",)) for k in (1, 2)}
 
 
-@pytest.mark.parametrize("build", ["shipped", "links"])
+@pytest.mark.parametrize("links", [0, 1, 2])
 @pytest.mark.parametrize("count", [8, 32])
-def test_the_certificate_split_over_lanes(emu, emu_links, build, count):
+def test_the_certificate_split_over_lanes(emu, emu_links, links, count):
     """lcp_certify_warp over lanes against one lane (LCP and box, zeros in z, blocks), as
-    shipped and with LCP_CERT_LINKS (its masks up to n = 32, the shipped propagation above)."""
-    emu = emu_links if build == "links" else emu
+    shipped (links 0) and with LCP_CERT_LINKS' masks (up to n = 32 or 64, the shipped
+    propagation above)."""
+    emu = emu_links[links] if links else emu
     rng = np.random.default_rng(count)
-    for n in (1, 5, 12, 13, 16, 17, 31, 32, 33, 40):
-        M = rng.standard_normal((n, n)) * 10.0 ** rng.integers(-3, 4, (n, 1))
-        M *= rng.integers(0, 2, n)[:, None] == rng.integers(0, 2, n)[None, :]
+    for n in (1, 5, 12, 13, 16, 17, 31, 32, 33, 40, 63, 64, 65):
+        M0 = rng.standard_normal((n, n)) * 10.0 ** rng.integers(-3, 4, (n, 1))
         q = rng.standard_normal(n)
         z = np.where(rng.random(n) < 0.4, 0.0, rng.random(n))
-        for lo, up in ((None, None), (-rng.random(n), rng.random(n))):
-            zz = z if lo is None else np.clip(z, lo, up)
-            ref = stack_c.certify(M, q, zz, lo, up, warp=True)
-            err, res, w = ctypes.c_double(), ctypes.c_double(), np.zeros(n)
-            st_ = emu.emu_certify(n, M, q, zz, None if lo is None else lo.ctypes.data,
-                                  None if up is None else up.ctypes.data, count, w,
-                                  ctypes.byref(err), ctypes.byref(res))
-            assert st_ == ref[0]
-            if st_ == 0:
-                assert (err.value, res.value) == (ref[1], ref[2])
+        # two blocks of rows and columns: at random, and rows or columns by mask word (a
+        # block's columns linked only to rows from 32 on, or the other way round: the second
+        # word of LCP_CERT_LINKS=2, or past its largest n)
+        rand, word = rng.integers(0, 2, (2, n)), (np.arange(n) >= 32).astype(np.int64)
+        for rows, cols in ((rand[0], rand[1]), (rand[0], word), (word, rand[1])):
+            M = M0 * (rows[:, None] == cols[None, :])
+            for lo, up in ((None, None), (-rng.random(n), rng.random(n))):
+                zz = z if lo is None else np.clip(z, lo, up)
+                ref = stack_c.certify(M, q, zz, lo, up, warp=True)
+                err, res, w = ctypes.c_double(), ctypes.c_double(), np.zeros(n)
+                st_ = emu.emu_certify(n, M, q, zz, None if lo is None else lo.ctypes.data,
+                                      None if up is None else up.ctypes.data, count, w,
+                                      ctypes.byref(err), ctypes.byref(res))
+                assert st_ == ref[0]
+                if st_ == 0:
+                    assert (err.value, res.value) == (ref[1], ref[2])
 
 
 #: The header's speed macros as the device sweep builds them (gpu_device_run.sh's VARIANTS),
 #: each with the sizes, kinds and staging whose code paths it changes: n = 12, 16 and 17 about
-#: the 8-lane kernel's sizes, 32 LCP_CERT_LINKS' largest n (33, past it: the shipped code,
-#: test_the_certificate_split_over_lanes); degenerate: ties in the ratio test
+#: the 8-lane kernel's sizes, 32 and 33 about LCP_CERT_LINKS' words (64 and 65, its largest n
+#: and past it: test_the_certificate_split_over_lanes); degenerate: ties in the ratio test
 #: (LCP_RATIO_FUSED's second pass) on problems that are solved; blocks: the certificate's
 #: blocks; staged and not: the certificate's M in the workspace or as given.
 SPEED_CHOICES = [
@@ -182,6 +190,7 @@ SPEED_CHOICES = [
      ("pd", "ties", "scaled"), (True,)),
     (("-DLCP_CERT_LINKS=1",), (1, 12, 16, 17, 32), ("pd", "degenerate", "scaled", "blocks"),
      (True, False)),
+    (("-DLCP_CERT_LINKS=2",), (12, 33, 40), ("pd", "degenerate", "blocks"), (True, False)),
     (("-DLCP_RATIO_FUSED=1",), (1, 2, 12, 16, 17, 40), ("pd", "degenerate", "scaled", "blocks"),
      (True,)),
     (("-DLCP_CERT_LINKS=1", "-DLCP_RATIO_FUSED=1", "-DLCP_PIVOT_ROWS=4"), (12, 17, 40),

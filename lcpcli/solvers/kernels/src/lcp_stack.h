@@ -515,17 +515,21 @@ LCP_COLD int lcp_certify(lcp_ix n, const double *M, const double *q, const doubl
  * label propagation on the row-column graph instead of union-find (either gives each row its
  * block's least member); lane 0 scores the pairs (lcp_cert_finish).  Every lane returns the
  * status; only lane 0's *out is filled.  work, iwork as lcp_certify. */
-/* LCP_CERT_LINKS (an NVRTC/nvcc -D option for a device sweep; speed only, off in the shipped
- * build): for n <= 32 the links of the row-column graph are found once, as bit masks (a
- * 32-bit word a row and a column), by the lane of each column right after its kappa_j (the
- * same test on the same values: |M_ij| / s_i against THETA kappa_j), and the label
- * propagation reads the masks instead of M, z, kappa and 1 / s_i on every pass: M is read
- * three times (w, kappa, the links) instead of twice per pass of the propagation, with no
- * more workspace: the column masks take the half of work's last 2 n that lcp_cert_finish
- * fills later, the row masks (the transpose) take 1 / s_i's n once the links are found.  The
- * same blocks, so the same error bit for bit.  Larger n: the propagation below. */
+/* LCP_CERT_LINKS (an NVRTC/nvcc -D option for a device sweep; speed only, 0 (off) in the
+ * shipped build; 1 or 2: the words of 32 bits a row or column may take, so n <= 32 or
+ * n <= 64): the links of the row-column graph are found once, as bit masks, by the lane of
+ * each column right after its kappa_j (the same test on the same values: |M_ij| / s_i
+ * against THETA kappa_j), and the label propagation reads the masks instead of M, z, kappa
+ * and 1 / s_i on every pass: M is read three times (w, kappa, the links) instead of twice
+ * plus twice per pass, with no more workspace: the column masks take the half of work's last
+ * 2 n that lcp_cert_finish fills later, the row masks (the transpose) take 1 / s_i's n once
+ * the links are found.  The same blocks, so the same error bit for bit.  Larger n: the
+ * propagation below.  (2 raises the registers: ptxas -v, benchmarks/README.md.) */
 #ifndef LCP_CERT_LINKS
 #define LCP_CERT_LINKS 0
+#endif
+#if LCP_CERT_LINKS < 0 || LCP_CERT_LINKS > 2
+#error "LCP_CERT_LINKS: 0, 1 or 2"
 #endif
 #if LCP_CERT_LINKS
 #if defined(__CUDACC_RTC__) || defined(__CUDACC__)
@@ -556,8 +560,10 @@ LCP_FN int lcp_certify_warp(lcp_ix n, const double *M, const double *q, const do
     int bad = 0, changed;
     double wi, ai, t, m, inv, kj, BIG = lcp_big(), SMALL = lcp_small();
 #if LCP_CERT_LINKS
-    /* the link masks (LCP_CERT_LINKS): a word per column, then per row */
-    unsigned bits, *colm = n <= 32 ? (unsigned *)(work + 4 * n) : 0, *rowm = (unsigned *)rinv;
+    /* the link masks (LCP_CERT_LINKS): nw words per column, then per row (1: a constant) */
+    lcp_ix wd, nw = LCP_CERT_LINKS == 1 ? 1 : (n + 31) / 32;
+    unsigned bits, *colm = n <= 32 * LCP_CERT_LINKS ? (unsigned *)(work + 4 * n) : 0;
+    unsigned *rowm = (unsigned *)rinv;
 #endif
     for (j = 0; j < n; j++) { /* every lane: the same answer */
         if (!LCP_ISFINITE(z[j]))
@@ -598,16 +604,17 @@ LCP_FN int lcp_certify_warp(lcp_ix n, const double *M, const double *q, const do
         }
         kappa[j] = kj;
 #if LCP_CERT_LINKS
-        if (colm) { /* column j's links: bit i */
-            bits = 0u;
-            if (z[j] != 0.0)
-                LCP_ROLLED for (i = 0; i < n; i++) {
-                    m = fabs(M[i * n + j]);
-                    if (m != 0.0 && m * rinv[i] >= LCP_THETA * kj)
-                        bits |= 1u << i;
-                }
-            colm[j] = bits;
-        }
+        if (colm) /* column j's links: bit i % 32 of word i / 32 */
+            for (wd = 0; wd < nw; wd++) {
+                bits = 0u;
+                if (z[j] != 0.0)
+                    LCP_ROLLED for (i = 32 * wd; i < n && i < 32 * wd + 32; i++) {
+                        m = fabs(M[i * n + j]);
+                        if (m != 0.0 && m * rinv[i] >= LCP_THETA * kj)
+                            bits |= 1u << (i & 31);
+                    }
+                colm[j * nw + wd] = bits;
+            }
 #endif
     }
     for (i = lane; i < 2 * n; i += lanes)
@@ -615,21 +622,23 @@ LCP_FN int lcp_certify_warp(lcp_ix n, const double *M, const double *q, const do
     LCP_SYNC();
 #if LCP_CERT_LINKS
     if (colm) { /* row i's links (the transpose), over 1 / s_i: every lane has read it */
-        for (i = lane; i < n; i += lanes) {
-            bits = 0u;
-            LCP_ROLLED for (j = 0; j < n; j++)
-                bits |= ((colm[j] >> i) & 1u) << j;
-            rowm[i] = bits;
-        }
+        for (i = lane; i < n; i += lanes)
+            for (wd = 0; wd < nw; wd++) {
+                bits = 0u;
+                LCP_ROLLED for (j = 32 * wd; j < n && j < 32 * wd + 32; j++)
+                    bits |= ((colm[j * nw + (i >> 5)] >> (i & 31)) & 1u) << (j & 31);
+                rowm[i * nw + wd] = bits;
+            }
         do { /* the propagation below, on the masks (rows: their own; columns: after the SYNC) */
             changed = 0;
             for (i = lane; i < n; i += lanes) {
                 best = lab[i];
-                for (bits = rowm[i]; bits; bits &= bits - 1u) {
-                    j = LCP_CTZ(bits);
-                    if (lab[n + j] < best)
-                        best = lab[n + j];
-                }
+                for (wd = 0; wd < nw; wd++)
+                    for (bits = rowm[i * nw + wd]; bits; bits &= bits - 1u) {
+                        j = 32 * wd + LCP_CTZ(bits);
+                        if (lab[n + j] < best)
+                            best = lab[n + j];
+                    }
                 if (best < lab[i]) {
                     lab[i] = best;
                     changed = 1;
@@ -638,11 +647,12 @@ LCP_FN int lcp_certify_warp(lcp_ix n, const double *M, const double *q, const do
             LCP_SYNC();
             for (j = lane; j < n; j += lanes) {
                 best = lab[n + j];
-                for (bits = colm[j]; bits; bits &= bits - 1u) {
-                    i = LCP_CTZ(bits);
-                    if (lab[i] < best)
-                        best = lab[i];
-                }
+                for (wd = 0; wd < nw; wd++)
+                    for (bits = colm[j * nw + wd]; bits; bits &= bits - 1u) {
+                        i = 32 * wd + LCP_CTZ(bits);
+                        if (lab[i] < best)
+                            best = lab[i];
+                    }
                 if (best < lab[n + j]) {
                     lab[n + j] = best;
                     changed = 1;
