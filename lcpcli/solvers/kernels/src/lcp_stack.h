@@ -510,11 +510,6 @@ LCP_COLD int lcp_certify(lcp_ix n, const double *M, const double *q, const doubl
     return lcp_cert_finish(n, q, z, lo, up, w, work, parent, anchor, out);
 }
 
-/* lcp_certify split over the lanes (the warp kernel): the same error, bit for bit.  Rows of
- * passes 1-2 go to the lanes (each row's sums in lcp_certify's order); the blocks are found by
- * label propagation on the row-column graph instead of union-find (either gives each row its
- * block's least member); lane 0 scores the pairs (lcp_cert_finish).  Every lane returns the
- * status; only lane 0's *out is filled.  work, iwork as lcp_certify. */
 /* LCP_CERT_LINKS (an NVRTC/nvcc -D option for a device sweep; speed only, 0 (off) in the
  * shipped build; 1 or 2: the words of 32 bits a row or column may take, so n <= 32 or
  * n <= 64): the links of the row-column graph are found once, as bit masks, by the lane of
@@ -549,6 +544,11 @@ LCP_FN int lcp_ctz(unsigned b)
 #define LCP_CTZ(b) lcp_ctz(b)
 #endif
 #endif
+/* lcp_certify split over the lanes (the warp kernel): the same error, bit for bit.  Rows of
+ * passes 1-2 go to the lanes (each row's sums in lcp_certify's order); the blocks are found by
+ * label propagation on the row-column graph instead of union-find (either gives each row its
+ * block's least member); lane 0 scores the pairs (lcp_cert_finish).  Every lane returns the
+ * status; only lane 0's *out is filled.  work, iwork as lcp_certify. */
 LCP_FN int lcp_certify_warp(lcp_ix n, const double *M, const double *q, const double *z,
                             const double *lo, const double *up, double *w, double *work,
                             lcp_ix *iwork, lcp_cert *out, lcp_ix lane, lcp_ix lanes)
