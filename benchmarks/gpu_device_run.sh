@@ -10,7 +10,9 @@
 #         [TESTS=1] [SANITIZE=1] [VARIANTS="copy8:-DLCP_COPY_BATCH=8 rows4:-DLCP_PIVOT_ROWS=4"] \
 #         bash benchmarks/gpu_device_run.sh
 # VARIANTS: NAME:OPTIONS pairs (options comma-separated -D macros of lcp_stack.h's speed
-# choices), each built beside the others and swept at n = 12 and 50 in the same run.
+# choices), each built beside the others and swept at n = 12 and 50 in the same run, its
+# outputs checked bit for bit against the first ROWS build's (same_as_against).  Cubins are
+# built for the register budgets in BLOCKS only (ptxas -v logs: $OUT/run.tar.gz's ptxas_*).
 # Everything but the last lines printed goes to $OUT/run.tar.gz.
 set -u
 OUT=${OUT:-/tmp/lcpcli-gpu}
@@ -26,8 +28,8 @@ SM=$(nvidia-smi --query-gpu=compute_cap --format=csv,noheader | head -1 | tr -d 
 build_cubins() {  # $1: header, $2: folder, $3...: extra nvcc options; one nvcc per budget
     local h=$1 d=$2; shift 2
     mkdir -p "$d"
-    for mb in 1 2 3 4; do
-        nvcc -cubin -arch="sm_$SM" --fmad=false -std=c++11 -DLCP_WARP_MIN_BLOCKS=$mb "$@" -x cu \
+    for mb in $(echo "${BLOCKS:-1,2,3,4}" | tr ',' ' '); do
+        nvcc -cubin -arch="sm_$SM" --fmad=false -std=c++11 -Xptxas -v -DLCP_WARP_MIN_BLOCKS=$mb "$@" -x cu \
             -o "$d/mb$mb.cubin" "$h" > "$d/mb$mb.log" 2>&1 &
     done
 }
@@ -57,14 +59,17 @@ SETS=""; for rows in $ROWS; do SETS="$SETS rows$rows"; done
 [ -d "$CUB/base" ] && SETS="$SETS base"
 for v in ${VARIANTS:-}; do SETS="$SETS v_${v%%:*}"; done
 first=1
+FIRSTSET=""
 for set in $SETS; do
     if [ $first = 1 ]; then
+        FIRSTSET=$set
         timeout 200 $PY benchmarks/gpu_sweep.py --cubins "$CUB/$set" --blocks "${BLOCKS:-1,2,3,4}" \
             ${WARPS:+--warps "$WARPS"} \
             --out "$R/gpu_sweep_$set.json" --table-out "$R/warp_table.json" 2>&1 \
             | grep -v '"min_blocks": [0-9], "lanes"' | tail -6 | cut -c1-400
     else
         timeout 100 $PY benchmarks/gpu_sweep.py --cubins "$CUB/$set" --sizes 12,50 --blocks "${BLOCKS:-1,2,3,4}" \
+            --against "$R/gpu_sweep_$FIRSTSET.json" \
             --out "$R/gpu_sweep_$set.json" 2>&1 | grep '"best"' | cut -c1-400
     fi
     first=0
@@ -105,6 +110,8 @@ wait
 if [ -s "$R/sanitize.txt" ]; then
     grep -ci "hazard\|error" "$R/sanitize.txt"; grep -i "summary\|same" "$R/sanitize.txt" | head -12
 fi
-cp "$CUB"/*/mb1.log "$R/" 2>/dev/null
+for f in "$CUB"/*/mb*.log; do  # ptxas -v: registers and spills of every build
+    [ -f "$f" ] && cp "$f" "$R/ptxas_$(basename "$(dirname "$f")")_$(basename "$f")"
+done
 tar czf "$OUT/run.tar.gz" -C "$OUT" r && rm -rf "$R"
 echo "all: $(( $(date +%s) - t0 )) s"

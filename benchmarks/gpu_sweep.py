@@ -18,6 +18,9 @@ residency; not a table column: the table is made from the shipped value's rows,
 
 Every combination must give the first one's z, w, code, pivots, error and residual bit for
 bit (``same``), and the first one the CPU's status, z and pivots on a sample (``cpu``).
+``digest`` (SHA-256 of the first one's outputs, per size) lets another build be checked
+against this one bit for bit: ``--against EARLIER.json`` records ``same_as_against`` per
+size (``gpu_device_run.sh`` checks each of its ``VARIANTS`` against the shipped build so).
 ``--cubins DIR``: modules built ahead with nvcc (``mb1.cubin`` ... ``mb4.cubin``: the
 current ``lcp_stack.h`` with ``-DLCP_WARP_MIN_BLOCKS=k``), so that the sweep does not wait on
 NVRTC; without it each budget is compiled by NVRTC as the package does.
@@ -28,6 +31,7 @@ build (``gpu_device_run.sh``'s ``BASELINE``).
 from __future__ import annotations
 
 import argparse
+import hashlib
 import itertools
 import json
 import sys
@@ -62,6 +66,25 @@ def timed(cp, fn, repeat: int) -> float:  # noqa: ANN001
     return best
 
 
+def digest(outputs: dict) -> str:
+    """SHA-256 of a run's outputs (:data:`KEYS`, in that order, as host arrays)."""
+    h = hashlib.sha256()
+    for k in KEYS:
+        h.update(np.ascontiguousarray(outputs[k]).tobytes())
+    return h.hexdigest()
+
+
+def against(path: Path | None) -> dict[tuple[int, int], str]:
+    """The first combination's :func:`digest` per (n, K) of an earlier sweep's JSON."""
+    if path is None:
+        return {}
+    if not path.exists():  # the reference sweep failed: nothing to compare (said so)
+        print(json.dumps({"against": str(path), "missing": True}), flush=True)
+        return {}
+    cases = json.loads(path.read_text())["cases"]
+    return {(c["n"], c["K"]): c["digest"] for c in cases if "digest" in c}
+
+
 def sweep(n: int, K: int, args: argparse.Namespace) -> dict:
     import cupy as cp
 
@@ -94,6 +117,9 @@ def sweep(n: int, K: int, args: argparse.Namespace) -> dict:
                "certified": certified}
         if first is None:
             first = {k: o[k].get() for k in KEYS}
+            out["digest"] = digest(first)
+            if (n, K) in args.against:
+                out["same_as_against"] = out["digest"] == args.against[(n, K)]
             idx = np.random.default_rng(1).choice(K, min(args.sample, K), replace=False)
             host = lcpcli.solve_many(M[idx], q[idx], "lemke")
             ok = first["code"][idx] == KERNEL_SOLVED
@@ -134,10 +160,14 @@ def main() -> None:
     ap.add_argument("--sample", type=int, default=20_000)
     ap.add_argument("--scale", type=float, default=1.0, help="multiply every K by this")
     ap.add_argument("--cubins", type=Path, default=None)
+    ap.add_argument("--against", type=Path, default=None,
+                    help="an earlier sweep's JSON: its first combination's outputs (digest) "
+                         "must be this one's, bit for bit, at every size both swept")
     ap.add_argument("--table-out", type=Path, default=None,
                     help="the WARP_TABLE the best rows make (JSON), for bench_gpu.py --table")
     args = ap.parse_args()
     args.blocks = [int(b) for b in args.blocks.split(",")]
+    args.against = against(args.against)
     args.warps = [cuda.WARPS_PER_BLOCK] if args.warps is None else \
         [int(w) for w in args.warps.split(",")]
     import cupy as cp
@@ -153,7 +183,8 @@ def main() -> None:
         t = time.perf_counter()
         cases.append(sweep(n, max(1, int(STACKS.get(n, 100_000) * args.scale)), args))
         cases[-1]["seconds"] = time.perf_counter() - t
-        print(json.dumps({"n": n, "best": cases[-1].get("best")}), flush=True)
+        print(json.dumps({"n": n, "same_as_against": cases[-1].get("same_as_against"),
+                          "best": cases[-1].get("best")}), flush=True)
     rows = [[c["n"], c["best"]["lanes"], c["best"]["stage"], c["best"]["min_blocks"]]
             for c in cases if c.get("best")]
     if rows:

@@ -78,8 +78,20 @@ def lanes(emu, M, q, stage, count, balance=(4, 8, 12)):
 def stack(kind, K, n, seed):
     """pd: random positive definite plus a skew part; ties: small integers (degenerate ratio
     tests: the lexicographic tie-break); scaled: rows and columns 2^+-30 apart (equilibrated
-    first); general: Gaussian (rays and iteration limits: handed back)."""
+    first); general: Gaussian (rays and iteration limits: handed back); blocks: pd with the
+    rows and columns in up to four blocks and no term across them (the certificate's blocks),
+    some of them at 2^-20; degenerate: B B^T + I with B of -1, 0, 1 and q of -1 and 0 (solved,
+    with ratio tests where several rows block at ratio 0)."""
     rng = np.random.default_rng(seed)
+    if kind == "degenerate":
+        B = rng.integers(-1, 2, (K, n, n)).astype(float)
+        return B @ B.transpose(0, 2, 1) + np.eye(n), -rng.integers(0, 2, (K, n)).astype(float)
+    if kind == "blocks":
+        M, q = stack("pd", K, n, seed + 1)
+        part = rng.integers(0, 4, (K, n))
+        M = M * (part[:, :, None] == part[:, None, :])
+        M *= np.where(part == 3, 2.0 ** -20, 1.0)[:, :, None]
+        return M, q
     if kind == "ties":
         M = rng.integers(-2, 3, (K, n, n)).astype(float) + 3 * np.eye(n)
         return M, rng.integers(-2, 2, (K, n)).astype(float)
@@ -126,39 +138,80 @@ def test_lane_groups_property(emu, n, count, seed, balance):
         np.testing.assert_array_equal(a, b)
 
 
+@pytest.fixture(scope="module")
+def emu_links(tmp_path_factory):
+    """The harness with LCP_CERT_LINKS of one and of two words, by that count."""
+    return {k: build_harness(tmp_path_factory.mktemp(f"lanes_links{k}"),
+                             (f"-DLCP_CERT_LINKS={k}",)) for k in (1, 2)}
+
+
+@pytest.mark.parametrize("links", [0, 1, 2])
 @pytest.mark.parametrize("count", [8, 32])
-def test_the_certificate_split_over_lanes(emu, count):
-    """lcp_certify_warp over lanes against one lane (LCP and box, zeros in z, blocks)."""
+def test_the_certificate_split_over_lanes(emu, emu_links, links, count):
+    """lcp_certify_warp over lanes against one lane (LCP and box, zeros in z, blocks), as
+    shipped (links 0) and with LCP_CERT_LINKS' masks (up to n = 32 or 64, the shipped
+    propagation above)."""
+    emu = emu_links[links] if links else emu
     rng = np.random.default_rng(count)
-    for n in (1, 5, 13, 33):
-        M = rng.standard_normal((n, n)) * 10.0 ** rng.integers(-3, 4, (n, 1))
-        M *= rng.integers(0, 2, n)[:, None] == rng.integers(0, 2, n)[None, :]
+    for n in (1, 5, 12, 13, 16, 17, 31, 32, 33, 40, 63, 64, 65):
+        M0 = rng.standard_normal((n, n)) * 10.0 ** rng.integers(-3, 4, (n, 1))
         q = rng.standard_normal(n)
         z = np.where(rng.random(n) < 0.4, 0.0, rng.random(n))
-        for lo, up in ((None, None), (-rng.random(n), rng.random(n))):
-            zz = z if lo is None else np.clip(z, lo, up)
-            ref = stack_c.certify(M, q, zz, lo, up, warp=True)
-            err, res, w = ctypes.c_double(), ctypes.c_double(), np.zeros(n)
-            st_ = emu.emu_certify(n, M, q, zz, None if lo is None else lo.ctypes.data,
-                                  None if up is None else up.ctypes.data, count, w,
-                                  ctypes.byref(err), ctypes.byref(res))
-            assert st_ == ref[0]
-            if st_ == 0:
-                assert (err.value, res.value) == (ref[1], ref[2])
+        # two blocks of rows and columns: at random, and rows or columns by mask word (a
+        # block's columns linked only to rows from 32 on, or the other way round: the second
+        # word of LCP_CERT_LINKS=2, or past its largest n)
+        rand, word = rng.integers(0, 2, (2, n)), (np.arange(n) >= 32).astype(np.int64)
+        for rows, cols in ((rand[0], rand[1]), (rand[0], word), (word, rand[1])):
+            M = M0 * (rows[:, None] == cols[None, :])
+            for lo, up in ((None, None), (-rng.random(n), rng.random(n))):
+                zz = z if lo is None else np.clip(z, lo, up)
+                ref = stack_c.certify(M, q, zz, lo, up, warp=True)
+                err, res, w = ctypes.c_double(), ctypes.c_double(), np.zeros(n)
+                st_ = emu.emu_certify(n, M, q, zz, None if lo is None else lo.ctypes.data,
+                                      None if up is None else up.ctypes.data, count, w,
+                                      ctypes.byref(err), ctypes.byref(res))
+                assert st_ == ref[0]
+                if st_ == 0:
+                    assert (err.value, res.value) == (ref[1], ref[2])
 
 
-@pytest.mark.parametrize("defines", [("-DLCP_PIVOT_ROWS=1", "-DLCP_COPY_BATCH=1"),
-                                     ("-DLCP_PIVOT_ROWS=4", "-DLCP_COPY_BATCH=8"),
-                                     ("-DLCP_PIVOT_ROWS=16", "-DLCP_COPY_BATCH=2")])
-def test_the_speed_choices_change_no_answer(tmp_path, defines):
-    """The header's speed macros (pivot row blocks, the copy's batch: the device sweep's
-    VARIANTS) give the one-lane answers of the shipped build bit for bit, over lanes."""
+#: The header's speed macros as the device sweep builds them (gpu_device_run.sh's VARIANTS),
+#: each with the sizes, kinds and staging whose code paths it changes: n = 12, 16 and 17 about
+#: the 8-lane kernel's sizes, 32 and 33 about LCP_CERT_LINKS' words (64 and 65, its largest n
+#: and past it: test_the_certificate_split_over_lanes); degenerate: ties in the ratio test
+#: (LCP_RATIO_FUSED's second pass) on problems that are solved; blocks: the certificate's
+#: blocks; staged and not: the certificate's M in the workspace or as given.
+SPEED_CHOICES = [
+    (("-DLCP_PIVOT_ROWS=1", "-DLCP_COPY_BATCH=1"), (1, 5, 12, 23, 40), ("pd", "ties", "scaled"),
+     (True,)),
+    (("-DLCP_PIVOT_ROWS=4", "-DLCP_COPY_BATCH=8"), (1, 5, 12, 23, 40), ("pd", "ties", "scaled"),
+     (True,)),
+    (("-DLCP_PIVOT_ROWS=16", "-DLCP_COPY_BATCH=2"), (1, 5, 12, 23, 40),
+     ("pd", "ties", "scaled"), (True,)),
+    (("-DLCP_CERT_LINKS=1",), (1, 12, 16, 17, 32), ("pd", "degenerate", "scaled", "blocks"),
+     (True, False)),
+    (("-DLCP_CERT_LINKS=2",), (12, 33, 40), ("pd", "degenerate", "blocks"), (True, False)),
+    (("-DLCP_RATIO_FUSED=1",), (1, 2, 12, 16, 17, 40), ("pd", "degenerate", "scaled", "blocks"),
+     (True,)),
+    (("-DLCP_CERT_LINKS=1", "-DLCP_RATIO_FUSED=1", "-DLCP_PIVOT_ROWS=4"), (12, 17, 40),
+     ("pd", "degenerate", "blocks"), (False,)),
+]
+
+
+@pytest.mark.parametrize(("defines", "sizes", "kinds", "stages"), SPEED_CHOICES,
+                         ids=[" ".join(c[0]) for c in SPEED_CHOICES])
+def test_the_speed_choices_change_no_answer(tmp_path, defines, sizes, kinds, stages):
+    """The header's speed macros (pivot row blocks, the copy's batch, the certificate's link
+    masks, the fused ratio test: the device sweep's VARIANTS) give the one-lane answers of the
+    shipped build bit for bit, over 8 and 32 lanes."""
     so = build_harness(tmp_path, defines)
-    for kind in ("pd", "ties", "scaled"):
-        for n in (1, 5, 12, 23, 40):
+    for kind in kinds:
+        for n in sizes:
             M, q = stack(kind, 3, n, seed=n)
-            ref = one_lane(M, q, True)
-            for count in (8, 32):
-                got = lanes(so, M, q, True, count)
-                for a, b in zip(got, ref, strict=True):
-                    np.testing.assert_array_equal(a, b, err_msg=f"{defines} {kind} n={n}")
+            for stage in stages:
+                ref = one_lane(M, q, stage)
+                for count in (8, 32):
+                    got = lanes(so, M, q, stage, count)
+                    for a, b in zip(got, ref, strict=True):
+                        np.testing.assert_array_equal(
+                            a, b, err_msg=f"{defines} {kind} n={n} stage={stage}")

@@ -37,6 +37,9 @@
 #define LCP_NAN __longlong_as_double(0x7ff8000000000000LL)
 #define LCP_ISFINITE(x) isfinite(x)
 #define LCP_UNROLL _Pragma("unroll")
+/* a loop kept rolled (the speed variants' loops: unrolled, they raised the kernel's registers
+ * and spills, ptxas -v) */
+#define LCP_ROLLED _Pragma("unroll 1")
 #define LCP_AXPY(y, x, a, n)                                                                 \
     do {                                                                                     \
         for (lcp_ix j_ = 0; j_ < (n); j_++)                                                 \
@@ -54,6 +57,7 @@
 #else
 #define LCP_UNROLL
 #endif
+#define LCP_ROLLED
 #define LCP_FN static inline
 #define LCP_RESTRICT restrict
 #define LCP_COLD static inline
@@ -506,6 +510,40 @@ LCP_COLD int lcp_certify(lcp_ix n, const double *M, const double *q, const doubl
     return lcp_cert_finish(n, q, z, lo, up, w, work, parent, anchor, out);
 }
 
+/* LCP_CERT_LINKS (an NVRTC/nvcc -D option for a device sweep; speed only, 0 (off) in the
+ * shipped build; 1 or 2: the words of 32 bits a row or column may take, so n <= 32 or
+ * n <= 64): the links of the row-column graph are found once, as bit masks, by the lane of
+ * each column right after its kappa_j (the same test on the same values: |M_ij| / s_i
+ * against THETA kappa_j), and the label propagation reads the masks instead of M, z, kappa
+ * and 1 / s_i on every pass: M is read three times (w, kappa, the links) instead of twice
+ * plus twice per pass, with no more workspace: the column masks take the half of work's last
+ * 2 n that lcp_cert_finish fills later, the row masks (the transpose) take 1 / s_i's n once
+ * the links are found.  The same blocks, so the same error bit for bit.  Larger n: the
+ * propagation below.  (2 raises the registers: ptxas -v, benchmarks/README.md.) */
+#ifndef LCP_CERT_LINKS
+#define LCP_CERT_LINKS 0
+#endif
+#if LCP_CERT_LINKS < 0 || LCP_CERT_LINKS > 2
+#error "LCP_CERT_LINKS: 0, 1 or 2"
+#endif
+#if LCP_CERT_LINKS
+#if defined(__CUDACC_RTC__) || defined(__CUDACC__)
+#define LCP_CTZ(b) (__ffs((int)(b)) - 1)
+#elif defined(__GNUC__)
+#define LCP_CTZ(b) __builtin_ctz(b)
+#else
+LCP_FN int lcp_ctz(unsigned b)
+{
+    int k = 0;
+    while (!(b & 1u)) {
+        b >>= 1;
+        k += 1;
+    }
+    return k;
+}
+#define LCP_CTZ(b) lcp_ctz(b)
+#endif
+#endif
 /* lcp_certify split over the lanes (the warp kernel): the same error, bit for bit.  Rows of
  * passes 1-2 go to the lanes (each row's sums in lcp_certify's order); the blocks are found by
  * label propagation on the row-column graph instead of union-find (either gives each row its
@@ -521,6 +559,12 @@ LCP_FN int lcp_certify_warp(lcp_ix n, const double *M, const double *q, const do
     lcp_ix i, j, best;
     int bad = 0, changed;
     double wi, ai, t, m, inv, kj, BIG = lcp_big(), SMALL = lcp_small();
+#if LCP_CERT_LINKS
+    /* the link masks (LCP_CERT_LINKS): nw words per column, then per row (1: a constant) */
+    lcp_ix wd, nw = LCP_CERT_LINKS == 1 ? 1 : (n + 31) / 32;
+    unsigned bits, *colm = n <= 32 * LCP_CERT_LINKS ? (unsigned *)(work + 4 * n) : 0;
+    unsigned *rowm = (unsigned *)rinv;
+#endif
     for (j = 0; j < n; j++) { /* every lane: the same answer */
         if (!LCP_ISFINITE(z[j]))
             return lcp_cert_fail(out, 1);
@@ -559,10 +603,65 @@ LCP_FN int lcp_certify_warp(lcp_ix n, const double *M, const double *q, const do
                 kj = LCP_INF;
         }
         kappa[j] = kj;
+#if LCP_CERT_LINKS
+        if (colm) /* column j's links: bit i % 32 of word i / 32 */
+            for (wd = 0; wd < nw; wd++) {
+                bits = 0u;
+                if (z[j] != 0.0)
+                    LCP_ROLLED for (i = 32 * wd; i < n && i < 32 * wd + 32; i++) {
+                        m = fabs(M[i * n + j]);
+                        if (m != 0.0 && m * rinv[i] >= LCP_THETA * kj)
+                            bits |= 1u << (i & 31);
+                    }
+                colm[j * nw + wd] = bits;
+            }
+#endif
     }
     for (i = lane; i < 2 * n; i += lanes)
         lab[i] = i;
     LCP_SYNC();
+#if LCP_CERT_LINKS
+    if (colm) { /* row i's links (the transpose), over 1 / s_i: every lane has read it */
+        for (i = lane; i < n; i += lanes)
+            for (wd = 0; wd < nw; wd++) {
+                bits = 0u;
+                LCP_ROLLED for (j = 32 * wd; j < n && j < 32 * wd + 32; j++)
+                    bits |= ((colm[j * nw + (i >> 5)] >> (i & 31)) & 1u) << (j & 31);
+                rowm[i * nw + wd] = bits;
+            }
+        do { /* the propagation below, on the masks (rows: their own; columns: after the SYNC) */
+            changed = 0;
+            for (i = lane; i < n; i += lanes) {
+                best = lab[i];
+                for (wd = 0; wd < nw; wd++)
+                    for (bits = rowm[i * nw + wd]; bits; bits &= bits - 1u) {
+                        j = 32 * wd + LCP_CTZ(bits);
+                        if (lab[n + j] < best)
+                            best = lab[n + j];
+                    }
+                if (best < lab[i]) {
+                    lab[i] = best;
+                    changed = 1;
+                }
+            }
+            LCP_SYNC();
+            for (j = lane; j < n; j += lanes) {
+                best = lab[n + j];
+                for (wd = 0; wd < nw; wd++)
+                    for (bits = colm[j * nw + wd]; bits; bits &= bits - 1u) {
+                        i = 32 * wd + LCP_CTZ(bits);
+                        if (lab[i] < best)
+                            best = lab[i];
+                    }
+                if (best < lab[n + j]) {
+                    lab[n + j] = best;
+                    changed = 1;
+                }
+            }
+            LCP_SYNC();
+        } while (LCP_ANY(changed));
+    } else
+#endif
     /* blocks: rows i and columns n + j linked where z_j != 0 and |M_ij| / s_i >= THETA kappa_j;
      * labels fall to the least vertex of each connected part */
     do {
@@ -1035,6 +1134,35 @@ LCP_FN lcp_ix lcp_initial_row_lanes(const double *q, const double *d, lcp_ix n,
     return lcp_lanes_imax(r, lanes);
 }
 
+/* LCP_RATIO_FUSED (an NVRTC/nvcc -D option for a device sweep; speed only, off in the
+ * shipped build): the minimum ratio and its row in one reduction, the lanes' other rows in the
+ * tie band by one vote; only when another row ties (a degenerate step) are the ratios
+ * computed again and the tied rows counted as below.  A step with one blocking row (the
+ * common case) then takes one chain of shuffles of (ratio, row) and a vote instead of a
+ * minimum, a second pass over the rows (a division each) and a three-way reduction. */
+#ifndef LCP_RATIO_FUSED
+#define LCP_RATIO_FUSED 0
+#endif
+#if LCP_RATIO_FUSED
+/* (x, k): the least x of the group and, among equal ones, the largest k: the same on every
+ * lane whatever the order (the operands are never NaN) */
+LCP_FN void lcp_lanes_argmin(double *x, lcp_ix *k, lcp_ix lanes)
+{
+    double a = *x, u;
+    lcp_ix b = *k, v, o;
+    for (o = lanes >> 1; o > 0; o >>= 1) {
+        u = LCP_SHFL(a, o);
+        v = LCP_SHFL(b, o);
+        if (u < a || (u == a && v > b)) {
+            a = u;
+            b = v;
+        }
+    }
+    *x = a;
+    *k = b;
+}
+#endif
+
 /* lcp_leaving_row split over the lanes: the maxima, the minimum ratio and the tied rows by
  * reductions (the values lcp_leaving_row's loops compute); when more than one row ties and
  * z0 is not among them (a degenerate step), lane 0 breaks the tie with lcp_leaving_row's
@@ -1057,6 +1185,37 @@ LCP_FN lcp_ix lcp_leaving_row_lanes(lcp_ix n, lcp_ix m, const double *T, const d
     lcp_lanes_max2(&cmax, &qmax, lanes);
     ptol = piv_tol * cmax;
     ztol = LCP_DEGENERATE_RTOL * qmax;
+#if LCP_RATIO_FUSED
+    {
+        /* the lane's least ratio (its row) and second least; then the group's least and its
+         * row; a row other than that one in the band [tmin, tmin + tie_tol tmin] is a tie */
+        double t2 = LCP_INF, gmin;
+        lcp_ix grow;
+        LCP_ROLLED for (i = lane; i < n; i += lanes) {
+            a = col[i];
+            if (a < -ptol) {
+                v = qb[i] > ztol ? qb[i] : 0.0;
+                t = v / (-a);
+                if (t < tmin) {
+                    t2 = tmin;
+                    tmin = t;
+                    one = i;
+                } else if (t < t2) {
+                    t2 = t;
+                }
+            }
+        }
+        gmin = tmin;
+        grow = one;
+        lcp_lanes_argmin(&gmin, &grow, lanes);
+        if (gmin == LCP_INF)
+            return -1;
+        if (!LCP_ANY((one == grow ? t2 : tmin) <= gmin + tie_tol * gmin))
+            return grow; /* the only row in the band (z0's or not: lcp_leaving_row's answer) */
+        tmin = gmin;
+        one = -1;
+    }
+#else
     for (i = lane; i < n; i += lanes) {
         a = col[i];
         if (a < -ptol) {
@@ -1069,6 +1228,7 @@ LCP_FN lcp_ix lcp_leaving_row_lanes(lcp_ix n, lcp_ix m, const double *T, const d
     tmin = lcp_lanes_min(tmin, lanes);
     if (tmin == LCP_INF)
         return -1;
+#endif
     for (i = lane; i < n; i += lanes) {
         a = col[i];
         if (a < -ptol) {
