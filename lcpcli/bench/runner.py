@@ -347,6 +347,7 @@ def run_bench(cases: list[Case], methods: list[str], tols: Iterable[float] = DEF
 
     A method that does not handle a problem's kind (e.g. an LCP-only method on an MLCP) is
     skipped and listed in ``report.skipped``.  ``on_record`` is called as each row completes.
+    Problems are told apart by name: a name already taken is renamed (:func:`unique_names`).
     """
     from lcpcli.solvers.registry import get_method
 
@@ -355,6 +356,7 @@ def run_bench(cases: list[Case], methods: list[str], tols: Iterable[float] = DEF
         raise OptionError("give at least one tolerance")
     if repeat < 0:
         raise OptionError("--repeat must be >= 0")
+    unique_names(cases)
     report = BenchReport(records=[], methods=list(methods), tols=tols,
                          problems=[(c.name, c.n, c.problem.kind, c.expected) for c in cases],
                          peers={p.family: p.version for p in peers or []},
@@ -391,6 +393,20 @@ def run_bench(cases: list[Case], methods: list[str], tols: Iterable[float] = DEF
                     if on_record:
                         on_record(rec)
     return report
+
+
+def unique_names(cases: list[Case]) -> None:
+    """Rename in place every problem whose name an earlier case already has to ``name (k)``
+    (k = 2, 3, ...): every per-problem figure (table rows, the failure penalty, the
+    performance profile, peer ratios) is keyed by the name, so two problems called ``p`` (two
+    files ``a/p.json``, ``b/p.dat``, or a suite case and the same file) must not share one."""
+    taken: set[str] = set()
+    for case in cases:
+        name, k = case.problem.name, 1
+        while case.problem.name in taken:
+            k += 1
+            case.problem.name = f"{name} ({k})"
+        taken.add(case.problem.name)
 
 
 def _kinds(method: str, get_method: Callable[[str], Any]) -> tuple[tuple[str, ...], int | None]:

@@ -447,3 +447,19 @@ def test_bench_cli_refuses_a_tolerance_a_solve_refuses(tmp_path, cli):
     got = cli("bench", str(problem), "--tol", "0.5")
     assert got.returncode == 2 and got.stdout == ""
     assert got.stderr.count("\n") == 1 and "tolerance must lie in" in got.stderr
+
+
+def test_problems_with_one_name_keep_their_own_rows() -> None:
+    """Two problems called ``p`` (two files ``a/p.json`` and ``b/p.dat``) are two rows: the
+    per-problem figures are keyed by name, so the second is renamed ``p (2)``; neither row
+    shows the other's result, and the profile counts both problems."""
+    from lcpcli.core.problem import Problem
+
+    solvable, ray = suites.kostreva(), suites.bimatrix_cps()  # lemke: ok, then Lemke's ray
+    cases = [suites.Case(Problem.create(c.problem.dense_M(), c.problem.q, name="p"))
+             for c in (solvable, ray)]
+    rep = bench.run_bench(cases, ["lemke-tableau"], repeat=0)
+    assert [p for p, *_ in rep.problems] == ["p", "p (2)"]
+    by = {r.problem: r for r in rep.records}
+    assert by["p"].success and not by["p (2)"].success
+    assert bench.performance_profile(rep)["ratios"]["lemke-tableau"] == [1.0, None]
