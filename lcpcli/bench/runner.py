@@ -81,6 +81,9 @@ class Record:
     peer: str | None = None
     claimed: bool | None = None
     message: str = ""
+    #: Wall seconds after which the run was killed (status ``timeout``), else None: its own
+    #: time is at least this, which the failure penalty of :func:`charged_time` respects.
+    killed_after: float | None = None
 
     def to_json(self) -> dict[str, Any]:
         """The ``--json`` line (non-finite numbers become null)."""
@@ -291,7 +294,8 @@ def run_isolated(case: Case, method: str, tol: float, *, timeout: float,
     prob = case.problem
     success, defect, reason, _ = judge(case, status, None, tol)
     return Record(prob.name, prob.n, method, status, None, None, None, case.expected, defect, tol,
-                  prob.kind, success, reason, message=message)
+                  prob.kind, success, reason, message=message,
+                  killed_after=timeout if status == TIMEOUT else None)
 
 
 def _child(conn: Any, case: Case, method: str, tol: float, repeat: int, budget: float,
@@ -322,6 +326,8 @@ def run_peer(case: Case, peer: Any, tol: float, *, repeat: int = DEFAULT_REPEAT,
         if z is not None and z.shape == (prob.n,):
             cert = certify(prob, z, tol)
             status = Status.SOLVED if cert.passed else Status.UNSOLVED
+        elif run.killed_after is not None:
+            status = TIMEOUT
         elif run.seconds is None:
             status = ERROR
         success, _, reason, cert = judge(case, status, z, tol)
@@ -331,7 +337,8 @@ def run_peer(case: Case, peer: Any, tol: float, *, repeat: int = DEFAULT_REPEAT,
             expected=case.expected, defect=False, tol=tol, kind=prob.kind, success=success,
             defect_reason=reason,
             residual=None if cert is None else cert.residual, z_error=_z_error(case, z),
-            repeats=run.repeats, peer=peer.family, claimed=run.claimed, message=run.message))
+            repeats=run.repeats, peer=peer.family, claimed=run.claimed, message=run.message,
+            killed_after=run.killed_after))
     return out
 
 
@@ -438,8 +445,13 @@ def _slowest(records: list[Record]) -> dict[tuple[str, float], float]:
 
 
 def charged_time(r: Record, slowest: dict[tuple[str, float], float]) -> float:
-    """The time a record counts for in the shifted geometric mean (failures penalised)."""
+    """The time a record counts for in the shifted geometric mean (failures penalised).
+
+    A failure counts :data:`PENALTY` times the slowest time on its problem, never less than its
+    own time; a run killed by the timeout took at least ``killed_after`` seconds."""
     own = r.seconds if r.seconds is not None and math.isfinite(r.seconds) else 0.0
+    if r.killed_after is not None:
+        own = max(own, r.killed_after)
     if r.success:
         return own
     return max(own, PENALTY * slowest.get((r.problem, r.tol), own))

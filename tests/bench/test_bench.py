@@ -463,3 +463,36 @@ def test_problems_with_one_name_keep_their_own_rows() -> None:
     by = {r.problem: r for r in rep.records}
     assert by["p"].success and not by["p (2)"].success
     assert bench.performance_profile(rep)["ratios"]["lemke-tableau"] == [1.0, None]
+
+
+def test_a_timeout_is_charged_at_least_the_time_it_ran() -> None:
+    """docs/bench.md: a failure is charged 10x the slowest time on its problem, never less than
+    its own; a run killed after the timeout ran at least that long (its ``seconds`` is null)."""
+    R = bench.Record
+    recs = [R("p", 2, "a", "solved", 1e-3, 1, 0.0, "solvable", False, 1e-8, success=True),
+            R("p", 2, "b", "timeout", None, None, None, "solvable", False, 1e-8,
+              killed_after=60.0)]
+    rep = bench.BenchReport(recs, ["a", "b"], [1e-8], [("p", 2, "lcp", "solvable")])
+    summ = {s.method: s for s in bench.summarize(rep)}
+    assert summ["b"].sgm_seconds == pytest.approx(60.0)
+    rec = bench.run_bench([suites.kostreva()], ["sleepy"], repeat=0, solve_fn=_sleepy,
+                          timeout=0.5).records[0]
+    assert rec.status == "timeout" and rec.killed_after == 0.5
+    assert rec.to_json()["killed_after"] == 0.5
+
+
+def test_a_peer_killed_by_the_timeout_is_a_timeout(tmp_path, monkeypatch) -> None:
+    """A Siconos worker that outlives its limit gives status ``timeout`` (as our own methods
+    get), not ``error``; an interpreter that hangs stands in for a hanging solver."""
+    from lcpcli.bench import peers
+
+    hang = tmp_path / "hang.sh"
+    hang.write_text("#!/bin/sh\nexec sleep 30\n")
+    hang.chmod(0o755)
+    monkeypatch.setenv("LCPCLI_SICONOS_PYTHON", str(hang))
+    peer = peers.Peer("siconos", ["siconos-lemke"], peers.run_siconos)
+    case = suites.kostreva()
+    recs = bench.run_peer(case, peer, 1e-8, repeat=0, timeout=0.5)
+    assert [r.method for r in recs] == list(peers.SICONOS_SOLVERS)
+    for rec in recs:  # the batch is killed, then each solver alone after 0.5 s
+        assert rec.status == "timeout" and rec.killed_after == 0.5 and not rec.success
