@@ -8,12 +8,14 @@ Conventions (all stated once here; ``docs/bench.md`` repeats them for users):
   from :func:`lcpcli.api.solve` (no file loading, no certification; nothing is compiled at run
   time).  When the warm-up alone exceeds ``budget`` there are no timed runs and its time is
   used (``repeats = 0``).
-* **Success** means the right outcome: ``solved`` on a problem expected ``solvable`` (or of
-  unknown outcome), ``no_solution`` on one expected ``infeasible``.
+* **Success** means the right outcome: ``solved`` on a problem expected ``solvable``,
+  ``no_solution`` on one expected ``infeasible``, either on one of unknown outcome.
 * **Defect** (must never happen; exit code 1): a method claims ``solved`` but the certificate
   recomputed here from the problem and the returned z fails; or it claims ``no_solution`` on a
-  problem known to be solvable; or the suite says ``infeasible`` but a certified solution came
-  back (then the suite is wrong).  ``unsolved`` is never a defect: it is an honest failure.
+  problem known to be solvable, or without a Farkas vector (``info["farkas_y"]``) that passes
+  :func:`lcpcli.analysis.proof.check_farkas` re-run here on the problem; or the suite says
+  ``infeasible`` but a certified solution came back (then the suite is wrong).  ``unsolved``
+  is never a defect: it is an honest failure.
 * **Shifted geometric mean** of times: ``exp(mean(log(t + s))) - s`` with shift ``s = 10 ms``
   over the problems a method was run on; a failure counts as :data:`PENALTY` times the slowest
   time any method (peers included) took on that problem, and never less than its own time.
@@ -159,11 +161,13 @@ def cases_from_paths(paths: Iterable[str]) -> list[Case]:
 
 
 # ---------------------------------------------------------------------- verdicts
-def judge(case: Case, status: str, z: np.ndarray | None, tol: float) -> tuple[bool, bool, str,
-                                                                                 Any]:
-    """(success, defect, reason, certificate) for a claimed ``status`` and returned ``z``.
+def judge(case: Case, status: str, z: np.ndarray | None, tol: float,
+          farkas: Any = None) -> tuple[bool, bool, str, Any]:
+    """(success, defect, reason, certificate) for a claimed ``status``, returned ``z`` and, for
+    ``no_solution``, the Farkas vector ``farkas`` behind it (``Result.info["farkas_y"]``).
 
-    The certificate is recomputed here from the problem and z, trusting nothing the method said.
+    The certificate and the Farkas check are recomputed here from the problem, trusting nothing
+    the method said.
     """
     cert = None
     if z is not None and np.asarray(z).shape == (case.n,):
@@ -177,6 +181,9 @@ def judge(case: Case, status: str, z: np.ndarray | None, tol: float) -> tuple[bo
     elif status == Status.NO_SOLUTION and case.expected == SOLVABLE:
         defect = True
         reason = "claimed no_solution on a problem known to be solvable"
+    elif status == Status.NO_SOLUTION and (why := _farkas_fails(case, farkas)):
+        defect = True
+        reason = f"claimed no_solution but {why}"
     elif case.expected == INFEASIBLE and passed and status == Status.SOLVED:
         defect = True
         reason = ("claimed solved on a problem proven infeasible: the certified error "
@@ -184,9 +191,25 @@ def judge(case: Case, status: str, z: np.ndarray | None, tol: float) -> tuple[bo
                   f"{float(np.max(np.abs(z))):.2g} (residual {cert.residual:.2g})")
     if case.expected == INFEASIBLE:
         success = status == Status.NO_SOLUTION and not defect
-    else:
+    elif case.expected == SOLVABLE:
         success = status == Status.SOLVED and passed
+    else:  # unknown outcome: a certified solution or a re-checked proof
+        success = (status == Status.SOLVED and passed) or (status == Status.NO_SOLUTION
+                                                           and not defect)
     return success, defect, reason, cert
+
+
+def _farkas_fails(case: Case, farkas: Any) -> str:
+    """Why ``farkas`` does not prove ``case`` infeasible ("" when it does), by
+    :func:`lcpcli.analysis.proof.check_farkas` on the problem as given."""
+    from lcpcli.analysis.proof import check_farkas
+
+    if farkas is None:
+        return "it gave no Farkas vector"
+    lo, up = case.problem.bounds()
+    got = check_farkas(case.problem.M, case.problem.q, lo, up,
+                       np.asarray(farkas, dtype=np.float64))
+    return "" if got.passed else f"its Farkas vector fails the check ({got.reason})"
 
 
 def _z_error(case: Case, z: np.ndarray | None) -> float | None:
@@ -250,7 +273,8 @@ def run_one(case: Case, method: str, tol: float, *, repeat: int = DEFAULT_REPEAT
             if total > budget:
                 break
     seconds = statistics.median(times) if times else float(first.seconds)
-    success, defect, reason, cert = judge(case, first.status, first.z, tol)
+    farkas = first.info.get("farkas_y") if first.status == Status.NO_SOLUTION else None
+    success, defect, reason, cert = judge(case, first.status, first.z, tol, farkas)
     return Record(
         problem=prob.name, n=prob.n, method=method, status=first.status, seconds=seconds,
         iterations=int(first.iterations), error=None if cert is None else cert.error,

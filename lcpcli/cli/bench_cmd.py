@@ -90,7 +90,8 @@ def bench(
     """Benchmark solver methods: time, achieved error and verdict on each problem.
 
     Every answer is re-certified; a method that claims 'solved' with a failing certificate, or
-    'no_solution' on a problem known to be solvable, is a DEFECT. Exit codes: 0 no defect and
+    'no_solution' on a problem known to be solvable or without a Farkas vector that passes the
+    proof check, is a DEFECT. Exit codes: 0 no defect and
     no error; 1 at least one defect; 2 bad usage or bad input; 3 a method raised or its
     process died (an internal error; the rows say which).
     """

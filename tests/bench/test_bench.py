@@ -268,6 +268,34 @@ def test_defect_detection_with_lying_methods() -> None:
     assert not rep.defects and rep.records[0].success
 
 
+def _claims_no_solution(farkas):
+    """A solve function that claims ``no_solution`` with ``farkas`` as its proof (None: none)."""
+
+    def fake(problem, method, tol=1e-8):
+        z = np.zeros(problem.n)
+        info = {} if farkas is None else {"farkas_y": list(farkas)}
+        return Result(status="no_solution", method=method, z=z, w=problem.w(z), iterations=1,
+                      seconds=1e-4, certificate=certify(problem, z, tol), message="fake",
+                      termination="ray_termination", info=info)
+
+    return fake
+
+
+@pytest.mark.parametrize("expected", ["unknown", "infeasible"])
+def test_a_no_solution_claim_is_rechecked_whatever_the_expectation(expected) -> None:
+    """The bench re-checks a no_solution's Farkas vector as it re-certifies a solved z: a claim
+    with no vector, or a wrong one, is a DEFECT also on a user file (expected unknown) or an
+    infeasible case; a true proof on a file of unknown outcome is the right outcome."""
+    case = suites.infeasible_psd(6)
+    case.expected = expected
+    wrong = -case.farkas  # y <= 0: fails the sign rule
+    for farkas, defect in ((None, True), (wrong, True), (case.farkas, False)):
+        rec = bench.run_one(case, "liar", 1e-8, repeat=0, solve_fn=_claims_no_solution(farkas))
+        assert rec.status == "no_solution" and rec.defect is defect, (farkas, rec)
+        assert rec.success is not defect
+        assert ("Farkas" in rec.defect_reason) is defect
+
+
 def _sleepy(problem, method, tol=1e-8):
     """A solve function that hangs (module level: isolated runs pickle it to a child)."""
     import time
