@@ -5,9 +5,10 @@ Conventions (all stated once here; ``docs/bench.md`` repeats them for users):
 * **Timing.**  Each (problem, method, tol) is solved once untimed (the warm-up; its answer is
   the one certified), then up to ``repeat`` more times, stopping early once the timed runs add up
   to ``budget`` seconds; ``seconds`` is the median of the timed runs, each the method's own time
-  from :func:`lcpcli.api.solve` (no file loading, no certification; nothing is compiled at run
-  time).  When the warm-up alone exceeds ``budget`` there are no timed runs and its time is
-  used (``repeats = 0``).
+  from :func:`lcpcli.api.solve`: the dispatcher's run, which includes the certificate of the
+  answer (no file loading, no request checks; nothing is compiled at run time).  A peer's time
+  is its solver call alone, which certifies nothing.  When the warm-up alone exceeds
+  ``budget`` there are no timed runs and its time is used (``repeats = 0``).
 * **Success** means the right outcome: ``solved`` on a problem expected ``solvable``,
   ``no_solution`` on one expected ``infeasible``, either on one of unknown outcome.
 * **Defect** (must never happen; exit code 1): a method claims ``solved`` but the certificate

@@ -558,3 +558,26 @@ def test_a_peer_killed_by_the_timeout_is_a_timeout(tmp_path, monkeypatch) -> Non
     assert [r.method for r in recs] == list(peers.SICONOS_SOLVERS)
     for rec in recs:  # the batch is killed, then each solver alone after 0.5 s
         assert rec.status == "timeout" and rec.killed_after == 0.5 and not rec.success
+
+
+def test_the_timing_line_says_what_is_timed(monkeypatch) -> None:
+    """Our methods' time includes the dispatcher's certificate of the answer (a peer's solver
+    call certifies nothing): the report's header must say so, not "no certification"."""
+    import time
+
+    from lcpcli.cli.render.bench import header
+    from lcpcli.solvers import pipeline
+
+    certified = pipeline.certified
+
+    def slow_certified(*args, **kwargs):
+        time.sleep(0.05)
+        return certified(*args, **kwargs)
+
+    monkeypatch.setattr(pipeline, "certified", slow_certified)
+    rec = bench.run_one(suites.murty_lemke(4), "pgs", 1e-8, repeat=0)
+    assert rec.seconds >= 0.05  # the certificate's time is in `seconds`
+    rep = bench.BenchReport([rec], ["pgs"], [1e-8], [("murty-lemke-4", 4, "lcp", "solvable")])
+    grid = header(rep, "t")
+    timing = next(str(c) for c in grid.columns[1].cells if "warm-up" in str(c))
+    assert "no certification" not in timing and "includes the certificate" in timing
