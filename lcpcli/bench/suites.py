@@ -530,8 +530,11 @@ def siconos_suite(n: int | None = None, seed: int = 0) -> list[Case]:
 
     ``n`` (when positive) skips problems larger than n.  Raises OptionError if the data folder
     is missing.  Expectations: every file is solvable except ``lcp_Pang_isolated_sol_perturbed``
-    (row 1 of M <= 0 with q_1 < 0: no feasible point).
+    (row 1 of M <= 0 with q_1 < 0: no feasible point).  A known solution is ``unique`` (so the
+    forward error is measured against it) when M is a P-matrix, decided by
+    :func:`lcpcli.analysis.classify.is_p_matrix_exact` (n <= its ``EXACT_P_MAX_N``).
     """
+    from lcpcli.analysis.classify import EXACT_P_MAX_N, is_p_matrix_exact
     from lcpcli.io import load
 
     root = siconos_root()
@@ -549,11 +552,13 @@ def siconos_suite(n: int | None = None, seed: int = 0) -> list[Case]:
         if n and prob.n > n:
             continue
         sol = SICONOS_SOLUTIONS.get(f.stem.removesuffix("_block"))
+        unique = (sol is not None and prob.kind == "lcp" and prob.n <= EXACT_P_MAX_N
+                  and is_p_matrix_exact(prob.dense_M()))
         cases.append(Case(
             problem=prob,
             expected=INFEASIBLE if f.stem in SICONOS_INFEASIBLE else SOLVABLE,
             note=f"Siconos test data {f.parent.name}/{f.name}",
-            solution=None if sol is None else np.asarray(sol, dtype=float),
+            solution=None if sol is None else np.asarray(sol, dtype=float), unique=unique,
             source=str(f)))
     return cases
 

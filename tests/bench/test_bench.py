@@ -240,6 +240,25 @@ def test_siconos_suite_expectations(siconos_data) -> None:
             assert certify(c.problem, c.solution, 1e-9).passed, c.name
 
 
+def test_siconos_known_solutions_of_p_matrices_give_a_forward_error(siconos_data) -> None:
+    """The README's solutions of the P-matrix files (deudeu, trivial, ortiz, exp_murty*) are
+    the only ones, so the forward error is measured against them; the singular files' are not
+    claimed unique."""
+    from references import brute_force_solutions
+
+    cases = {c.name: c for c in suites.siconos_suite(10)}
+    unique = sorted(name for name, c in cases.items() if c.unique)
+    assert set(unique) == {"lcp_deudeu", "lcp_deudeu_block", "lcp_exp_murty", "lcp_exp_murty2",
+                           "lcp_ortiz", "lcp_ortiz_block", "lcp_trivial", "lcp_trivial_block"}
+    for name in unique:
+        c = cases[name]
+        (only,) = brute_force_solutions(c.problem.dense_M(), c.problem.q)
+        assert np.allclose(only, c.solution, rtol=1e-15, atol=0), name
+        rec = bench.run_one(c, "lemke-tableau", 1e-8, repeat=0)
+        assert rec.success and rec.z_error is not None and rec.z_error < 1e-14, name
+    assert not cases["lcp_inf_sol_perturbed"].unique  # singular M
+
+
 # ---------------------------------------------------------------------- runner verdicts
 def _fake_solve(behaviour: str):
     """A solve function that lies (or not) in a chosen way."""
