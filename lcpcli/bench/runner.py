@@ -21,7 +21,8 @@ Conventions (all stated once here; ``docs/bench.md`` repeats them for users):
   over the problems a method was run on; a failure counts as :data:`PENALTY` times the slowest
   time any method (peers included) took on that problem, and never less than its own time.
 * **Performance profile** (Dolan and More 2002): over the problems every compared method was
-  run on, ``r[p, s] = t[p, s] / min_s t[p, s]`` with failures infinite;
+  run on, ``r[p, s] = t[p, s] / min_s t[p, s]`` with failures infinite (times floored at the
+  clock's resolution :data:`TIME_FLOOR`);
   ``rho_s(tau) = fraction of problems with r[p, s] <= tau``.
 * **Errors** are the certificate's error (:mod:`lcpcli.core.certificate`); ``z_error`` is the
   forward error ``||z - z*||_inf / max(1, ||z*||_inf)`` when the case has a unique known z*.
@@ -31,6 +32,7 @@ from __future__ import annotations
 
 import math
 import statistics
+import time
 from collections.abc import Callable, Iterable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -46,6 +48,9 @@ from lcpcli.solvers.kernels import process_context
 
 #: Shift of the shifted geometric mean, in seconds.
 SHIFT = 0.010
+#: The clock's resolution: a time below it (0.0) counts as this in ratios of times
+#: (performance profile, peer ratios), which need positive times.
+TIME_FLOOR = time.get_clock_info("perf_counter").resolution
 #: A failure counts as this many times the slowest time on its problem.
 PENALTY = 10.0
 #: Default tolerances, repeats and time budget per (problem, method, tol).
@@ -555,14 +560,14 @@ def performance_profile(report: BenchReport, tol: float | None = None,
     problems = [p for p, *_ in report.problems if all((p, m) in by for m in methods)]
     ratios: dict[str, list[float]] = {m: [] for m in methods}
     for p in problems:
-        t = {m: (by[p, m].seconds if by[p, m].success and by[p, m].seconds is not None
-                 else math.inf) for m in methods}
+        t = {m: (max(by[p, m].seconds, TIME_FLOOR) if by[p, m].success
+                 and by[p, m].seconds is not None else math.inf) for m in methods}
         best = min(t.values())
         for m in methods:
             if math.isinf(best) or math.isinf(t[m]):
                 ratios[m].append(math.inf)
             else:
-                ratios[m].append(t[m] / best if best > 0 else 1.0)
+                ratios[m].append(t[m] / best)
     taus = sorted({1.0} | {x for rs in ratios.values() for x in rs if math.isfinite(x)})
     rho = {m: [sum(x <= tau for x in ratios[m]) / len(problems) if problems else 0.0
                for tau in taus] for m in methods}
@@ -575,9 +580,10 @@ def peer_ratios(report: BenchReport, tol: float | None = None) -> list[dict[str,
     """For each (own method, peer solver): geometric mean of ``t_own / t_peer`` over the problems
     both solved at ``tol``, with the count; ratio < 1 means ours is faster."""
     tol = report.tols[0] if tol is None else tol
-    recs = [r for r in report.records if r.tol == tol and r.success and r.seconds]
-    own = {(r.problem, r.method): r.seconds for r in recs if r.peer is None}
-    peer = {(r.problem, r.method): r.seconds for r in recs if r.peer is not None}
+    recs = [r for r in report.records if r.tol == tol and r.success and r.seconds is not None]
+    own = {(r.problem, r.method): max(r.seconds, TIME_FLOOR) for r in recs if r.peer is None}
+    peer = {(r.problem, r.method): max(r.seconds, TIME_FLOOR) for r in recs
+            if r.peer is not None}
     peer_names = sorted({m for _, m in peer})
     out = []
     for m in report.methods:

@@ -600,3 +600,20 @@ def test_the_timing_line_says_what_is_timed(monkeypatch) -> None:
     grid = header(rep, "t")
     timing = next(str(c) for c in grid.columns[1].cells if "warm-up" in str(c))
     assert "no certification" not in timing and "includes the certificate" in timing
+
+
+def test_a_zero_time_does_not_make_every_method_best() -> None:
+    """Dolan-More ratios need positive times: a 0.0 (below the clock's resolution) is floored
+    there, so a method 1 ms slower on that problem gets a ratio far above 1 (it was 1.0), and
+    the problem is not dropped from the peer ratios."""
+    R = bench.Record
+    recs = [R("p", 2, "a", "solved", 0.0, 1, 0.0, "solvable", False, 1e-8, success=True),
+            R("p", 2, "b", "solved", 1e-3, 1, 0.0, "solvable", False, 1e-8, success=True),
+            R("p", 2, "c", "solved", 1e-3, 1, 0.0, "solvable", False, 1e-8, success=True,
+              peer="x")]
+    rep = bench.BenchReport(recs, ["a", "b"], [1e-8], [("p", 2, "lcp", "solvable")])
+    prof = bench.performance_profile(rep)
+    assert prof["ratios"]["a"] == [1.0] and prof["ratios"]["b"][0] > 1e3
+    assert prof["rho"]["b"][0] == 0.0  # not within tau = 1 of the best
+    (a_vs_c,) = [d for d in bench.peer_ratios(rep) if d["method"] == "a"]
+    assert a_vs_c["problems"] == 1 and a_vs_c["geomean_ratio"] < 1e-3
