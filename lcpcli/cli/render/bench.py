@@ -317,7 +317,11 @@ def markdown_report(report: BenchReport, title: str) -> str:
                    f"{sci(s.median_error)} | {sci(s.worst_error)} | {sci(s.median_z_error)} | "
                    f"{sci(s.worst_z_error)} | {s.defects} |")
     out += ["", "fwd error: ||z - z*||_inf / max(1, ||z*||_inf) over the solved runs on problems "
-                "with a unique known z* (the certified error bounds the backward error only)."]
+                "with a unique known z* (the certified error bounds the backward error only). "
+                "sgm ms is over the runs counted in `success`: rows with different counts are "
+                "over different problems (a peer runs LCPs only; a method skips the kinds and "
+                "sizes it does not handle); the performance profile keeps the problems every "
+                "method ran on."]
     ratios = peer_ratios(report)
     if ratios:
         out += ["", "| method | peer | problems both solved | geomean time ratio ours/peer "
