@@ -386,8 +386,6 @@ def run_bench(cases: list[Case], methods: list[str], tols: Iterable[float] = DEF
     skipped and listed in ``report.skipped``.  ``on_record`` is called as each row completes.
     Problems are told apart by name: a name already taken is renamed (:func:`unique_names`).
     """
-    from lcpcli.solvers.registry import get_method
-
     tols = [validate_tol(t) for t in tols]  # the one rule on a tolerance, as for a solve
     if not tols:
         raise OptionError("give at least one tolerance")
@@ -401,12 +399,9 @@ def run_bench(cases: list[Case], methods: list[str], tols: Iterable[float] = DEF
     for case in cases:
         for tol in tols:
             for method in methods:
-                kinds, max_n = _kinds(method, get_method)
-                if case.problem.kind not in kinds or (max_n is not None and case.n > max_n):
+                why = skip_reason(case, method)
+                if why:
                     if tol == tols[0]:
-                        why = (f"{method} does not handle {case.problem.kind.upper()}"
-                               if case.problem.kind not in kinds else
-                               f"n = {case.n} is above {method}'s limit max_n = {max_n}")
                         report.skipped.append((case.name, method, why))
                     continue
                 if timeout:
@@ -446,14 +441,22 @@ def unique_names(cases: list[Case]) -> None:
         taken.add(case.problem.name)
 
 
-def _kinds(method: str, get_method: Callable[[str], Any]) -> tuple[tuple[str, ...], int | None]:
-    """The problem kinds a method handles and its ``max_n`` (all kinds and no limit for a name
-    not in the registry)."""
+def skip_reason(case: Case, method: str) -> str:
+    """Why :func:`run_bench` skips ``method`` on ``case`` ("" when it runs it): a problem kind
+    the method does not handle, or a size above its ``max_n`` (a name not in the registry
+    handles everything)."""
+    from lcpcli.solvers.registry import get_method
+
     try:
         spec = get_method(method)
     except OptionError:
-        return ("lcp", "mlcp", "box"), None
-    return tuple(spec.kinds), spec.max_n
+        return ""
+    kind = case.problem.kind
+    if kind not in spec.kinds:
+        return f"{method} does not handle {kind.upper()}"
+    if spec.max_n is not None and case.n > spec.max_n:
+        return f"n = {case.n} is above {method}'s limit max_n = {spec.max_n}"
+    return ""
 
 
 # ---------------------------------------------------------------------- statistics

@@ -617,3 +617,14 @@ def test_a_zero_time_does_not_make_every_method_best() -> None:
     assert prof["rho"]["b"][0] == 0.0  # not within tau = 1 of the best
     (a_vs_c,) = [d for d in bench.peer_ratios(rep) if d["method"] == "a"]
     assert a_vs_c["problems"] == 1 and a_vs_c["geomean_ratio"] < 1e-3
+
+
+def test_the_announced_run_count_is_the_runs_made() -> None:
+    """"lcpcli: bench: N runs" (and "interrupted after k of N") counts what run_bench runs: a
+    method above its max_n is skipped there, so it is not counted (enum: max_n 24)."""
+    from lcpcli.cli.bench_cmd import _Tracker
+
+    cases = [suites.kostreva(), suites.illcond_pd(28, 1e2)]
+    rep = bench.run_bench(cases, ["enum"], repeat=0)
+    tracker = _Tracker(cases, ["enum"], [1e-8], [], None)
+    assert tracker.total == len(rep.records) == 1 and len(rep.skipped) == 1
