@@ -53,6 +53,8 @@ class PeerRun:
     iterations: int | None
     repeats: int
     message: str = ""
+    #: Wall seconds after which the worker was killed (a timeout), else None.
+    killed_after: float | None = None
 
 
 @dataclass
@@ -163,13 +165,14 @@ def _siconos_batch(problem: Any, tol: float, repeat: int, budget: float,
     with tempfile.TemporaryDirectory(prefix="lcpcli_peer_") as tmp:
         path = Path(tmp) / "p.npz"
         np.savez(path, M=np.asarray(problem.dense_M(), dtype=float), q=problem.q)
+        killed: float | None = None
         try:
             proc = subprocess.run([_siconos_python(), str(WORKER), str(path), json.dumps(req)],
                                   capture_output=True, text=True, timeout=limit)
             stdout, why = proc.stdout, f"exit code {proc.returncode}"
         except subprocess.TimeoutExpired as exc:
             stdout = exc.stdout.decode() if isinstance(exc.stdout, bytes) else (exc.stdout or "")
-            why = f"timeout after {limit:g} s"
+            why, killed = f"timeout after {limit:g} s", limit
     got: dict[str, PeerRun] = {}
     for line in stdout.splitlines():
         if not line.startswith(MARK):
@@ -182,7 +185,8 @@ def _siconos_batch(problem: Any, tol: float, repeat: int, budget: float,
         got[d["name"]] = PeerRun(z, d["info"] == 0, float(d["seconds"]), d.get("iterations"),
                                  int(d["repeats"]), f"Siconos info = {d['info']}")
     for name in names:
-        got.setdefault(name, PeerRun(None, False, None, None, 0, f"worker died ({why})"))
+        got.setdefault(name, PeerRun(None, False, None, None, 0, f"worker died ({why})",
+                                     killed_after=killed))
     return got
 
 

@@ -5,20 +5,24 @@ Conventions (all stated once here; ``docs/bench.md`` repeats them for users):
 * **Timing.**  Each (problem, method, tol) is solved once untimed (the warm-up; its answer is
   the one certified), then up to ``repeat`` more times, stopping early once the timed runs add up
   to ``budget`` seconds; ``seconds`` is the median of the timed runs, each the method's own time
-  from :func:`lcpcli.api.solve` (no file loading, no certification; nothing is compiled at run
-  time).  When the warm-up alone exceeds ``budget`` there are no timed runs and its time is
-  used (``repeats = 0``).
-* **Success** means the right outcome: ``solved`` on a problem expected ``solvable`` (or of
-  unknown outcome), ``no_solution`` on one expected ``infeasible``.
+  from :func:`lcpcli.api.solve`: the dispatcher's run, which includes the certificate of the
+  answer (no file loading, no request checks; nothing is compiled at run time).  A peer's time
+  is its solver call alone, which certifies nothing.  When the warm-up alone exceeds
+  ``budget`` there are no timed runs and its time is used (``repeats = 0``).
+* **Success** means the right outcome: ``solved`` on a problem expected ``solvable``,
+  ``no_solution`` on one expected ``infeasible``, either on one of unknown outcome.
 * **Defect** (must never happen; exit code 1): a method claims ``solved`` but the certificate
   recomputed here from the problem and the returned z fails; or it claims ``no_solution`` on a
-  problem known to be solvable; or the suite says ``infeasible`` but a certified solution came
-  back (then the suite is wrong).  ``unsolved`` is never a defect: it is an honest failure.
+  problem known to be solvable, or without a Farkas vector (``info["farkas_y"]``) that passes
+  :func:`lcpcli.analysis.proof.check_farkas` re-run here on the problem; or the suite says
+  ``infeasible`` but a certified solution came back (then the suite is wrong).  ``unsolved``
+  is never a defect: it is an honest failure.
 * **Shifted geometric mean** of times: ``exp(mean(log(t + s))) - s`` with shift ``s = 10 ms``
   over the problems a method was run on; a failure counts as :data:`PENALTY` times the slowest
   time any method (peers included) took on that problem, and never less than its own time.
 * **Performance profile** (Dolan and More 2002): over the problems every compared method was
-  run on, ``r[p, s] = t[p, s] / min_s t[p, s]`` with failures infinite;
+  run on, ``r[p, s] = t[p, s] / min_s t[p, s]`` with failures infinite (times floored at the
+  clock's resolution :data:`TIME_FLOOR`);
   ``rho_s(tau) = fraction of problems with r[p, s] <= tau``.
 * **Errors** are the certificate's error (:mod:`lcpcli.core.certificate`); ``z_error`` is the
   forward error ``||z - z*||_inf / max(1, ||z*||_inf)`` when the case has a unique known z*.
@@ -28,6 +32,7 @@ from __future__ import annotations
 
 import math
 import statistics
+import time
 from collections.abc import Callable, Iterable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -43,6 +48,9 @@ from lcpcli.solvers.kernels import process_context
 
 #: Shift of the shifted geometric mean, in seconds.
 SHIFT = 0.010
+#: The clock's resolution: a time below it (0.0) counts as this in ratios of times
+#: (performance profile, peer ratios), which need positive times.
+TIME_FLOOR = time.get_clock_info("perf_counter").resolution
 #: A failure counts as this many times the slowest time on its problem.
 PENALTY = 10.0
 #: Default tolerances, repeats and time budget per (problem, method, tol).
@@ -81,6 +89,9 @@ class Record:
     peer: str | None = None
     claimed: bool | None = None
     message: str = ""
+    #: Wall seconds after which the run was killed (status ``timeout``), else None: its own
+    #: time is at least this, which the failure penalty of :func:`charged_time` respects.
+    killed_after: float | None = None
 
     def to_json(self) -> dict[str, Any]:
         """The ``--json`` line (non-finite numbers become null)."""
@@ -156,11 +167,13 @@ def cases_from_paths(paths: Iterable[str]) -> list[Case]:
 
 
 # ---------------------------------------------------------------------- verdicts
-def judge(case: Case, status: str, z: np.ndarray | None, tol: float) -> tuple[bool, bool, str,
-                                                                                 Any]:
-    """(success, defect, reason, certificate) for a claimed ``status`` and returned ``z``.
+def judge(case: Case, status: str, z: np.ndarray | None, tol: float,
+          farkas: Any = None) -> tuple[bool, bool, str, Any]:
+    """(success, defect, reason, certificate) for a claimed ``status``, returned ``z`` and, for
+    ``no_solution``, the Farkas vector ``farkas`` behind it (``Result.info["farkas_y"]``).
 
-    The certificate is recomputed here from the problem and z, trusting nothing the method said.
+    The certificate and the Farkas check are recomputed here from the problem, trusting nothing
+    the method said.
     """
     cert = None
     if z is not None and np.asarray(z).shape == (case.n,):
@@ -174,6 +187,9 @@ def judge(case: Case, status: str, z: np.ndarray | None, tol: float) -> tuple[bo
     elif status == Status.NO_SOLUTION and case.expected == SOLVABLE:
         defect = True
         reason = "claimed no_solution on a problem known to be solvable"
+    elif status == Status.NO_SOLUTION and (why := _farkas_fails(case, farkas)):
+        defect = True
+        reason = f"claimed no_solution but {why}"
     elif case.expected == INFEASIBLE and passed and status == Status.SOLVED:
         defect = True
         reason = ("claimed solved on a problem proven infeasible: the certified error "
@@ -181,9 +197,25 @@ def judge(case: Case, status: str, z: np.ndarray | None, tol: float) -> tuple[bo
                   f"{float(np.max(np.abs(z))):.2g} (residual {cert.residual:.2g})")
     if case.expected == INFEASIBLE:
         success = status == Status.NO_SOLUTION and not defect
-    else:
+    elif case.expected == SOLVABLE:
         success = status == Status.SOLVED and passed
+    else:  # unknown outcome: a certified solution or a re-checked proof
+        success = (status == Status.SOLVED and passed) or (status == Status.NO_SOLUTION
+                                                           and not defect)
     return success, defect, reason, cert
+
+
+def _farkas_fails(case: Case, farkas: Any) -> str:
+    """Why ``farkas`` does not prove ``case`` infeasible ("" when it does), by
+    :func:`lcpcli.analysis.proof.check_farkas` on the problem as given."""
+    from lcpcli.analysis.proof import check_farkas
+
+    if farkas is None:
+        return "it gave no Farkas vector"
+    lo, up = case.problem.bounds()
+    got = check_farkas(case.problem.M, case.problem.q, lo, up,
+                       np.asarray(farkas, dtype=np.float64))
+    return "" if got.passed else f"its Farkas vector fails the check ({got.reason})"
 
 
 def _z_error(case: Case, z: np.ndarray | None) -> float | None:
@@ -247,7 +279,8 @@ def run_one(case: Case, method: str, tol: float, *, repeat: int = DEFAULT_REPEAT
             if total > budget:
                 break
     seconds = statistics.median(times) if times else float(first.seconds)
-    success, defect, reason, cert = judge(case, first.status, first.z, tol)
+    farkas = first.info.get("farkas_y") if first.status == Status.NO_SOLUTION else None
+    success, defect, reason, cert = judge(case, first.status, first.z, tol, farkas)
     return Record(
         problem=prob.name, n=prob.n, method=method, status=first.status, seconds=seconds,
         iterations=int(first.iterations), error=None if cert is None else cert.error,
@@ -291,7 +324,8 @@ def run_isolated(case: Case, method: str, tol: float, *, timeout: float,
     prob = case.problem
     success, defect, reason, _ = judge(case, status, None, tol)
     return Record(prob.name, prob.n, method, status, None, None, None, case.expected, defect, tol,
-                  prob.kind, success, reason, message=message)
+                  prob.kind, success, reason, message=message,
+                  killed_after=timeout if status == TIMEOUT else None)
 
 
 def _child(conn: Any, case: Case, method: str, tol: float, repeat: int, budget: float,
@@ -322,6 +356,8 @@ def run_peer(case: Case, peer: Any, tol: float, *, repeat: int = DEFAULT_REPEAT,
         if z is not None and z.shape == (prob.n,):
             cert = certify(prob, z, tol)
             status = Status.SOLVED if cert.passed else Status.UNSOLVED
+        elif run.killed_after is not None:
+            status = TIMEOUT
         elif run.seconds is None:
             status = ERROR
         success, _, reason, cert = judge(case, status, z, tol)
@@ -331,7 +367,8 @@ def run_peer(case: Case, peer: Any, tol: float, *, repeat: int = DEFAULT_REPEAT,
             expected=case.expected, defect=False, tol=tol, kind=prob.kind, success=success,
             defect_reason=reason,
             residual=None if cert is None else cert.residual, z_error=_z_error(case, z),
-            repeats=run.repeats, peer=peer.family, claimed=run.claimed, message=run.message))
+            repeats=run.repeats, peer=peer.family, claimed=run.claimed, message=run.message,
+            killed_after=run.killed_after))
     return out
 
 
@@ -347,14 +384,14 @@ def run_bench(cases: list[Case], methods: list[str], tols: Iterable[float] = DEF
 
     A method that does not handle a problem's kind (e.g. an LCP-only method on an MLCP) is
     skipped and listed in ``report.skipped``.  ``on_record`` is called as each row completes.
+    Problems are told apart by name: a name already taken is renamed (:func:`unique_names`).
     """
-    from lcpcli.solvers.registry import get_method
-
     tols = [validate_tol(t) for t in tols]  # the one rule on a tolerance, as for a solve
     if not tols:
         raise OptionError("give at least one tolerance")
     if repeat < 0:
         raise OptionError("--repeat must be >= 0")
+    unique_names(cases)
     report = BenchReport(records=[], methods=list(methods), tols=tols,
                          problems=[(c.name, c.n, c.problem.kind, c.expected) for c in cases],
                          peers={p.family: p.version for p in peers or []},
@@ -362,12 +399,9 @@ def run_bench(cases: list[Case], methods: list[str], tols: Iterable[float] = DEF
     for case in cases:
         for tol in tols:
             for method in methods:
-                kinds, max_n = _kinds(method, get_method)
-                if case.problem.kind not in kinds or (max_n is not None and case.n > max_n):
+                why = skip_reason(case, method)
+                if why:
                     if tol == tols[0]:
-                        why = (f"{method} does not handle {case.problem.kind.upper()}"
-                               if case.problem.kind not in kinds else
-                               f"n = {case.n} is above {method}'s limit max_n = {max_n}")
                         report.skipped.append((case.name, method, why))
                     continue
                 if timeout:
@@ -393,14 +427,36 @@ def run_bench(cases: list[Case], methods: list[str], tols: Iterable[float] = DEF
     return report
 
 
-def _kinds(method: str, get_method: Callable[[str], Any]) -> tuple[tuple[str, ...], int | None]:
-    """The problem kinds a method handles and its ``max_n`` (all kinds and no limit for a name
-    not in the registry)."""
+def unique_names(cases: list[Case]) -> None:
+    """Rename in place every problem whose name an earlier case already has to ``name (k)``
+    (k = 2, 3, ...): every per-problem figure (table rows, the failure penalty, the
+    performance profile, peer ratios) is keyed by the name, so two problems called ``p`` (two
+    files ``a/p.json``, ``b/p.dat``, or a suite case and the same file) must not share one."""
+    taken: set[str] = set()
+    for case in cases:
+        name, k = case.problem.name, 1
+        while case.problem.name in taken:
+            k += 1
+            case.problem.name = f"{name} ({k})"
+        taken.add(case.problem.name)
+
+
+def skip_reason(case: Case, method: str) -> str:
+    """Why :func:`run_bench` skips ``method`` on ``case`` ("" when it runs it): a problem kind
+    the method does not handle, or a size above its ``max_n`` (a name not in the registry
+    handles everything)."""
+    from lcpcli.solvers.registry import get_method
+
     try:
         spec = get_method(method)
     except OptionError:
-        return ("lcp", "mlcp", "box"), None
-    return tuple(spec.kinds), spec.max_n
+        return ""
+    kind = case.problem.kind
+    if kind not in spec.kinds:
+        return f"{method} does not handle {kind.upper()}"
+    if spec.max_n is not None and case.n > spec.max_n:
+        return f"n = {case.n} is above {method}'s limit max_n = {spec.max_n}"
+    return ""
 
 
 # ---------------------------------------------------------------------- statistics
@@ -422,8 +478,13 @@ def _slowest(records: list[Record]) -> dict[tuple[str, float], float]:
 
 
 def charged_time(r: Record, slowest: dict[tuple[str, float], float]) -> float:
-    """The time a record counts for in the shifted geometric mean (failures penalised)."""
+    """The time a record counts for in the shifted geometric mean (failures penalised).
+
+    A failure counts :data:`PENALTY` times the slowest time on its problem, never less than its
+    own time; a run killed by the timeout took at least ``killed_after`` seconds."""
     own = r.seconds if r.seconds is not None and math.isfinite(r.seconds) else 0.0
+    if r.killed_after is not None:
+        own = max(own, r.killed_after)
     if r.success:
         return own
     return max(own, PENALTY * slowest.get((r.problem, r.tol), own))
@@ -502,14 +563,14 @@ def performance_profile(report: BenchReport, tol: float | None = None,
     problems = [p for p, *_ in report.problems if all((p, m) in by for m in methods)]
     ratios: dict[str, list[float]] = {m: [] for m in methods}
     for p in problems:
-        t = {m: (by[p, m].seconds if by[p, m].success and by[p, m].seconds is not None
-                 else math.inf) for m in methods}
+        t = {m: (max(by[p, m].seconds, TIME_FLOOR) if by[p, m].success
+                 and by[p, m].seconds is not None else math.inf) for m in methods}
         best = min(t.values())
         for m in methods:
             if math.isinf(best) or math.isinf(t[m]):
                 ratios[m].append(math.inf)
             else:
-                ratios[m].append(t[m] / best if best > 0 else 1.0)
+                ratios[m].append(t[m] / best)
     taus = sorted({1.0} | {x for rs in ratios.values() for x in rs if math.isfinite(x)})
     rho = {m: [sum(x <= tau for x in ratios[m]) / len(problems) if problems else 0.0
                for tau in taus] for m in methods}
@@ -522,9 +583,10 @@ def peer_ratios(report: BenchReport, tol: float | None = None) -> list[dict[str,
     """For each (own method, peer solver): geometric mean of ``t_own / t_peer`` over the problems
     both solved at ``tol``, with the count; ratio < 1 means ours is faster."""
     tol = report.tols[0] if tol is None else tol
-    recs = [r for r in report.records if r.tol == tol and r.success and r.seconds]
-    own = {(r.problem, r.method): r.seconds for r in recs if r.peer is None}
-    peer = {(r.problem, r.method): r.seconds for r in recs if r.peer is not None}
+    recs = [r for r in report.records if r.tol == tol and r.success and r.seconds is not None]
+    own = {(r.problem, r.method): max(r.seconds, TIME_FLOOR) for r in recs if r.peer is None}
+    peer = {(r.problem, r.method): max(r.seconds, TIME_FLOOR) for r in recs
+            if r.peer is not None}
     peer_names = sorted({m for _, m in peer})
     out = []
     for m in report.methods:

@@ -64,6 +64,42 @@ class Case:
         return self.problem.n
 
 
+def solution_of_stored_data(M: np.ndarray, q: np.ndarray, z: np.ndarray,
+                            max_steps: int = 10) -> np.ndarray:
+    """The planted ``z`` made a solution of the data as stored, to about an ulp.
+
+    A planted ``q = w - M z`` is rounded, so the exact solution of the stored ``(M, q)`` lies
+    about ``cond(M) eps`` from ``z`` (2e-10 at cond 1e12, n = 32): a forward error measured
+    against ``z`` would show the suite's rounding, not the method's.  On the support ``S`` of
+    ``z`` this solves ``M_SS z_S = -q_S`` by iterative refinement (Wilkinson), each residual
+    ``M_SS z_S + q_S`` the exact value rounded once (the exactly rounded dot products of
+    :mod:`lcpcli.analysis.proof`); it converges while ``cond(M_SS) eps < 1``.  The caller keeps
+    the strict complementarity margins (``z_S >= 0.5``, ``w >= 0.5`` off ``S``), far above
+    the change.
+    """
+    from lcpcli.analysis.proof import _exact_dots  # the one exactly rounded dot product
+
+    S = np.flatnonzero(z > 0)
+    if S.size == 0:
+        return z
+    A = np.asarray(M, dtype=float)[np.ix_(S, S)]
+    b = np.asarray(q, dtype=float)[S]
+    ext = np.vstack([A.T, b[None, :]])  # (ext^T [x; 1])_i = (A x + b)_i
+    cols = np.arange(S.size)
+    x = np.asarray(z, dtype=float)[S].copy()
+    for _ in range(max_steps):
+        y = np.append(x, 1.0)
+        e = int(np.frexp(np.max(np.abs(y)))[1])  # max |y 2^-e| < 1, scaled exactly
+        r = np.ldexp(_exact_dots(ext, np.ldexp(y, -e), cols), e)
+        d = np.linalg.solve(A, -r)
+        x = x + d
+        if np.max(np.abs(d)) <= np.finfo(float).eps * np.max(np.abs(x)):
+            break
+    out = np.array(z, dtype=float)
+    out[S] = x
+    return out
+
+
 def _case(M: Any, q: Any, name: str, note: str, **kw: Any) -> Case:
     prob = Problem.create(M, q, name=name, description=note)
     return Case(problem=prob, note=note, **kw)
@@ -187,7 +223,8 @@ def illcond_pd(n: int, cond: float, seed: int = 2) -> Case:
     """Symmetric PD ``M = Q diag(logspace(0, -log10 cond)) Q^T`` with a planted unique solution.
 
     Half of the planted z* is positive (w* = 0 there), the other half zero (w* > 0): strict
-    complementarity, so the solution is unique and the forward error can be measured.
+    complementarity, so the solution is unique and the forward error can be measured; z* is
+    then the solution of the stored data (:func:`solution_of_stored_data`).
     """
     rng = np.random.default_rng(seed)
     Q, _ = np.linalg.qr(rng.standard_normal((n, n)))
@@ -203,7 +240,7 @@ def illcond_pd(n: int, cond: float, seed: int = 2) -> Case:
     q = w - M @ z
     return _case(M, q, f"illcond-pd-{n}-1e{int(round(np.log10(cond)))}",
                  f"symmetric PD, cond {cond:.0e}, planted strictly complementary solution",
-                 solution=z, unique=True, facts={"cond": cond})
+                 solution=solution_of_stored_data(M, q, z), unique=True, facts={"cond": cond})
 
 
 def bimatrix_cps() -> Case:
@@ -375,8 +412,8 @@ def random_pd(n: int, seed: int) -> Case:
     K = rng.standard_normal((n, n))
     M = B @ B.T / n + 0.1 * np.eye(n) + 0.5 * (K - K.T) / np.sqrt(n)
     z, q = _plant(M, rng)
-    return _case(M, q, f"random-pd-{n}", "nonsymmetric PD, planted solution", solution=z,
-                 unique=True)
+    return _case(M, q, f"random-pd-{n}", "nonsymmetric PD, planted solution",
+                 solution=solution_of_stored_data(M, q, z), unique=True)
 
 
 def random_psd(n: int, seed: int) -> Case:
@@ -397,7 +434,7 @@ def random_p(n: int, seed: int) -> Case:
     np.fill_diagonal(M, 1.01 * np.abs(M).sum(axis=1) + 0.1)
     z, q = _plant(M, rng)
     return _case(M, q, f"random-p-{n}", "diagonally dominant nonsymmetric P-matrix, planted",
-                 solution=z, unique=True)
+                 solution=solution_of_stored_data(M, q, z), unique=True)
 
 
 def random_contact(n: int, seed: int) -> Case:
@@ -493,8 +530,11 @@ def siconos_suite(n: int | None = None, seed: int = 0) -> list[Case]:
 
     ``n`` (when positive) skips problems larger than n.  Raises OptionError if the data folder
     is missing.  Expectations: every file is solvable except ``lcp_Pang_isolated_sol_perturbed``
-    (row 1 of M <= 0 with q_1 < 0: no feasible point).
+    (row 1 of M <= 0 with q_1 < 0: no feasible point).  A known solution is ``unique`` (so the
+    forward error is measured against it) when M is a P-matrix, decided by
+    :func:`lcpcli.analysis.classify.is_p_matrix_exact` (n <= its ``EXACT_P_MAX_N``).
     """
+    from lcpcli.analysis.classify import EXACT_P_MAX_N, is_p_matrix_exact
     from lcpcli.io import load
 
     root = siconos_root()
@@ -512,11 +552,13 @@ def siconos_suite(n: int | None = None, seed: int = 0) -> list[Case]:
         if n and prob.n > n:
             continue
         sol = SICONOS_SOLUTIONS.get(f.stem.removesuffix("_block"))
+        unique = (sol is not None and prob.kind == "lcp" and prob.n <= EXACT_P_MAX_N
+                  and is_p_matrix_exact(prob.dense_M()))
         cases.append(Case(
             problem=prob,
             expected=INFEASIBLE if f.stem in SICONOS_INFEASIBLE else SOLVABLE,
             note=f"Siconos test data {f.parent.name}/{f.name}",
-            solution=None if sol is None else np.asarray(sol, dtype=float),
+            solution=None if sol is None else np.asarray(sol, dtype=float), unique=unique,
             source=str(f)))
     return cases
 

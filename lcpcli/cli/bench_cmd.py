@@ -90,7 +90,8 @@ def bench(
     """Benchmark solver methods: time, achieved error and verdict on each problem.
 
     Every answer is re-certified; a method that claims 'solved' with a failing certificate, or
-    'no_solution' on a problem known to be solvable, is a DEFECT. Exit codes: 0 no defect and
+    'no_solution' on a problem known to be solvable or without a Farkas vector that passes the
+    proof check, is a DEFECT. Exit codes: 0 no defect and
     no error; 1 at least one defect; 2 bad usage or bad input; 3 a method raised or its
     process died (an internal error; the rows say which).
     """
@@ -209,16 +210,12 @@ class _Tracker:
 
     def __init__(self, cases: list[Any], methods: list[str], tols: list[float],
                  peers: list[Any], console: Any) -> None:
-        from lcpcli.solvers.registry import get_method
+        from lcpcli.bench.runner import skip_reason
 
-        kinds = {m: get_method(m).kinds for m in methods}
-        per_kind: dict[str, int] = {}
-        for c in cases:
-            k = c.problem.kind
-            if k not in per_kind:
-                per_kind[k] = sum(k in ks for ks in kinds.values()) \
-                    + sum(k in p.kinds for p in peers)
-        self.total = len(tols) * sum(per_kind[c.problem.kind] for c in cases)
+        # the runs run_bench makes: its own skip rule (kind, max_n), peers by kind
+        self.total = len(tols) * sum(
+            sum(not skip_reason(c, m) for m in methods)
+            + sum(c.problem.kind in p.kinds for p in peers) for c in cases)
         self.done = 0
         self.console = console
         self._seen_peer: set[tuple[str, float, str]] = set()

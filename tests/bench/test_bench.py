@@ -118,6 +118,40 @@ def test_planted_and_known_solutions_certify() -> None:
             assert np.allclose(r.z, c.solution, atol=1e-8 * max(1, c.solution.max())), c.name
 
 
+def exact_support_solution(M: np.ndarray, q: np.ndarray, support: np.ndarray) -> np.ndarray:
+    """The exact solution of ``M_SS z_S = -q_S`` for the stored doubles (Gaussian elimination
+    in rationals), rounded once to doubles; 0 off the support."""
+    from fractions import Fraction
+
+    S = support.tolist()
+    k = len(S)
+    A = [[Fraction(float(M[i, j])) for j in S] + [-Fraction(float(q[i]))] for i in S]
+    for c in range(k):
+        p = next(r for r in range(c, k) if A[r][c] != 0)
+        A[c], A[p] = A[p], A[c]
+        for r in range(k):
+            if r != c and A[r][c] != 0:
+                f = A[r][c] / A[c][c]
+                A[r] = [a - f * b for a, b in zip(A[r], A[c], strict=True)]
+    z = np.zeros(q.size)
+    z[support] = [float(A[i][k] / A[i][i]) for i in range(k)]
+    return z
+
+
+@pytest.mark.parametrize("case", [suites.illcond_pd(12, 1e12, 2), suites.illcond_pd(8, 1e8, 7),
+                                  suites.random_pd(10, 0), suites.random_p(10, 2)],
+                         ids=lambda c: c.name)
+def test_a_planted_unique_solution_is_the_solution_of_the_stored_data(case) -> None:
+    """The forward error is measured against z*: z* must be the exact solution of the (M, q)
+    as stored, not the planted vector whose q = w - M z* was rounded (at cond 1e12, n = 12,
+    that one lies 8.7e-12 from the exact solution; 2e-10 at n = 32), to within an ulp."""
+    M, q, z = case.problem.dense_M(), case.problem.q, case.solution
+    exact = exact_support_solution(M, q, np.flatnonzero(z > 0))
+    assert np.all(np.abs(z - exact) <= np.spacing(np.abs(exact))), case.name
+    w = M @ z + q
+    assert z.min() >= 0 and w[z == 0].min() >= 0.5, case.name  # still strictly complementary
+
+
 def test_unique_solutions_are_the_only_ones_small_cases() -> None:
     for c in (suites.kostreva(), suites.newton_min_cycle(3), suites.murty_lemke(4)):
         sols = suites.enumerate_solutions(c.problem.dense_M(), c.problem.q)
@@ -206,6 +240,25 @@ def test_siconos_suite_expectations(siconos_data) -> None:
             assert certify(c.problem, c.solution, 1e-9).passed, c.name
 
 
+def test_siconos_known_solutions_of_p_matrices_give_a_forward_error(siconos_data) -> None:
+    """The README's solutions of the P-matrix files (deudeu, trivial, ortiz, exp_murty*) are
+    the only ones, so the forward error is measured against them; the singular files' are not
+    claimed unique."""
+    from references import brute_force_solutions
+
+    cases = {c.name: c for c in suites.siconos_suite(10)}
+    unique = sorted(name for name, c in cases.items() if c.unique)
+    assert set(unique) == {"lcp_deudeu", "lcp_deudeu_block", "lcp_exp_murty", "lcp_exp_murty2",
+                           "lcp_ortiz", "lcp_ortiz_block", "lcp_trivial", "lcp_trivial_block"}
+    for name in unique:
+        c = cases[name]
+        (only,) = brute_force_solutions(c.problem.dense_M(), c.problem.q)
+        assert np.allclose(only, c.solution, rtol=1e-15, atol=0), name
+        rec = bench.run_one(c, "lemke-tableau", 1e-8, repeat=0)
+        assert rec.success and rec.z_error is not None and rec.z_error < 1e-14, name
+    assert not cases["lcp_inf_sol_perturbed"].unique  # singular M
+
+
 # ---------------------------------------------------------------------- runner verdicts
 def _fake_solve(behaviour: str):
     """A solve function that lies (or not) in a chosen way."""
@@ -232,6 +285,34 @@ def test_defect_detection_with_lying_methods() -> None:
         assert bool(rep.defects) is defect
     rep = bench.run_bench([case], ["lemke-tableau"], repeat=1)
     assert not rep.defects and rep.records[0].success
+
+
+def _claims_no_solution(farkas):
+    """A solve function that claims ``no_solution`` with ``farkas`` as its proof (None: none)."""
+
+    def fake(problem, method, tol=1e-8):
+        z = np.zeros(problem.n)
+        info = {} if farkas is None else {"farkas_y": list(farkas)}
+        return Result(status="no_solution", method=method, z=z, w=problem.w(z), iterations=1,
+                      seconds=1e-4, certificate=certify(problem, z, tol), message="fake",
+                      termination="ray_termination", info=info)
+
+    return fake
+
+
+@pytest.mark.parametrize("expected", ["unknown", "infeasible"])
+def test_a_no_solution_claim_is_rechecked_whatever_the_expectation(expected) -> None:
+    """The bench re-checks a no_solution's Farkas vector as it re-certifies a solved z: a claim
+    with no vector, or a wrong one, is a DEFECT also on a user file (expected unknown) or an
+    infeasible case; a true proof on a file of unknown outcome is the right outcome."""
+    case = suites.infeasible_psd(6)
+    case.expected = expected
+    wrong = -case.farkas  # y <= 0: fails the sign rule
+    for farkas, defect in ((None, True), (wrong, True), (case.farkas, False)):
+        rec = bench.run_one(case, "liar", 1e-8, repeat=0, solve_fn=_claims_no_solution(farkas))
+        assert rec.status == "no_solution" and rec.defect is defect, (farkas, rec)
+        assert rec.success is not defect
+        assert ("Farkas" in rec.defect_reason) is defect
 
 
 def _sleepy(problem, method, tol=1e-8):
@@ -447,3 +528,103 @@ def test_bench_cli_refuses_a_tolerance_a_solve_refuses(tmp_path, cli):
     got = cli("bench", str(problem), "--tol", "0.5")
     assert got.returncode == 2 and got.stdout == ""
     assert got.stderr.count("\n") == 1 and "tolerance must lie in" in got.stderr
+
+
+def test_problems_with_one_name_keep_their_own_rows() -> None:
+    """Two problems called ``p`` (two files ``a/p.json`` and ``b/p.dat``) are two rows: the
+    per-problem figures are keyed by name, so the second is renamed ``p (2)``; neither row
+    shows the other's result, and the profile counts both problems."""
+    from lcpcli.core.problem import Problem
+
+    solvable, ray = suites.kostreva(), suites.bimatrix_cps()  # lemke: ok, then Lemke's ray
+    cases = [suites.Case(Problem.create(c.problem.dense_M(), c.problem.q, name="p"))
+             for c in (solvable, ray)]
+    rep = bench.run_bench(cases, ["lemke-tableau"], repeat=0)
+    assert [p for p, *_ in rep.problems] == ["p", "p (2)"]
+    by = {r.problem: r for r in rep.records}
+    assert by["p"].success and not by["p (2)"].success
+    assert bench.performance_profile(rep)["ratios"]["lemke-tableau"] == [1.0, None]
+
+
+def test_a_timeout_is_charged_at_least_the_time_it_ran() -> None:
+    """docs/bench.md: a failure is charged 10x the slowest time on its problem, never less than
+    its own; a run killed after the timeout ran at least that long (its ``seconds`` is null)."""
+    R = bench.Record
+    recs = [R("p", 2, "a", "solved", 1e-3, 1, 0.0, "solvable", False, 1e-8, success=True),
+            R("p", 2, "b", "timeout", None, None, None, "solvable", False, 1e-8,
+              killed_after=60.0)]
+    rep = bench.BenchReport(recs, ["a", "b"], [1e-8], [("p", 2, "lcp", "solvable")])
+    summ = {s.method: s for s in bench.summarize(rep)}
+    assert summ["b"].sgm_seconds == pytest.approx(60.0)
+    rec = bench.run_bench([suites.kostreva()], ["sleepy"], repeat=0, solve_fn=_sleepy,
+                          timeout=0.5).records[0]
+    assert rec.status == "timeout" and rec.killed_after == 0.5
+    assert rec.to_json()["killed_after"] == 0.5
+
+
+def test_a_peer_killed_by_the_timeout_is_a_timeout(tmp_path, monkeypatch) -> None:
+    """A Siconos worker that outlives its limit gives status ``timeout`` (as our own methods
+    get), not ``error``; an interpreter that hangs stands in for a hanging solver."""
+    from lcpcli.bench import peers
+
+    hang = tmp_path / "hang.sh"
+    hang.write_text("#!/bin/sh\nexec sleep 30\n")
+    hang.chmod(0o755)
+    monkeypatch.setenv("LCPCLI_SICONOS_PYTHON", str(hang))
+    peer = peers.Peer("siconos", ["siconos-lemke"], peers.run_siconos)
+    case = suites.kostreva()
+    recs = bench.run_peer(case, peer, 1e-8, repeat=0, timeout=0.5)
+    assert [r.method for r in recs] == list(peers.SICONOS_SOLVERS)
+    for rec in recs:  # the batch is killed, then each solver alone after 0.5 s
+        assert rec.status == "timeout" and rec.killed_after == 0.5 and not rec.success
+
+
+def test_the_timing_line_says_what_is_timed(monkeypatch) -> None:
+    """Our methods' time includes the dispatcher's certificate of the answer (a peer's solver
+    call certifies nothing): the report's header must say so, not "no certification"."""
+    import time
+
+    from lcpcli.cli.render.bench import header
+    from lcpcli.solvers import pipeline
+
+    certified = pipeline.certified
+
+    def slow_certified(*args, **kwargs):
+        time.sleep(0.05)
+        return certified(*args, **kwargs)
+
+    monkeypatch.setattr(pipeline, "certified", slow_certified)
+    rec = bench.run_one(suites.murty_lemke(4), "pgs", 1e-8, repeat=0)
+    assert rec.seconds >= 0.05  # the certificate's time is in `seconds`
+    rep = bench.BenchReport([rec], ["pgs"], [1e-8], [("murty-lemke-4", 4, "lcp", "solvable")])
+    grid = header(rep, "t")
+    timing = next(str(c) for c in grid.columns[1].cells if "warm-up" in str(c))
+    assert "no certification" not in timing and "includes the certificate" in timing
+
+
+def test_a_zero_time_does_not_make_every_method_best() -> None:
+    """Dolan-More ratios need positive times: a 0.0 (below the clock's resolution) is floored
+    there, so a method 1 ms slower on that problem gets a ratio far above 1 (it was 1.0), and
+    the problem is not dropped from the peer ratios."""
+    R = bench.Record
+    recs = [R("p", 2, "a", "solved", 0.0, 1, 0.0, "solvable", False, 1e-8, success=True),
+            R("p", 2, "b", "solved", 1e-3, 1, 0.0, "solvable", False, 1e-8, success=True),
+            R("p", 2, "c", "solved", 1e-3, 1, 0.0, "solvable", False, 1e-8, success=True,
+              peer="x")]
+    rep = bench.BenchReport(recs, ["a", "b"], [1e-8], [("p", 2, "lcp", "solvable")])
+    prof = bench.performance_profile(rep)
+    assert prof["ratios"]["a"] == [1.0] and prof["ratios"]["b"][0] > 1e3
+    assert prof["rho"]["b"][0] == 0.0  # not within tau = 1 of the best
+    (a_vs_c,) = [d for d in bench.peer_ratios(rep) if d["method"] == "a"]
+    assert a_vs_c["problems"] == 1 and a_vs_c["geomean_ratio"] < 1e-3
+
+
+def test_the_announced_run_count_is_the_runs_made() -> None:
+    """"lcpcli: bench: N runs" (and "interrupted after k of N") counts what run_bench runs: a
+    method above its max_n is skipped there, so it is not counted (enum: max_n 24)."""
+    from lcpcli.cli.bench_cmd import _Tracker
+
+    cases = [suites.kostreva(), suites.illcond_pd(28, 1e2)]
+    rep = bench.run_bench(cases, ["enum"], repeat=0)
+    tracker = _Tracker(cases, ["enum"], [1e-8], [], None)
+    assert tracker.total == len(rep.records) == 1 and len(rep.skipped) == 1
