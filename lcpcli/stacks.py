@@ -187,6 +187,11 @@ def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None =
         run_spec, kernel_options = _batched_method(spec, kind, options, M, q, lower, upper)
     else:
         run_spec = None if plan.kernel_method is None else get_method(plan.kernel_method)
+        if run_spec is not None and kind not in run_spec.batch.kinds:
+            # a plan of another stack: its kernel would ignore these bounds or equations
+            raise OptionError(f"plan= runs the batched kernel of '{run_spec.name}', which "
+                              f"does not handle {kind.upper()} problems: make the plan with "
+                              f"this stack's bounds and n_eq (plan_stack(M, q, ...))")
         kernel_options = plan.kernel_options
     bases = warmed = None  # warm: the cpu Lemke kernel starts from each basis; else one by one
     if rows is not None:

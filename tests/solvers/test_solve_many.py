@@ -158,6 +158,25 @@ def test_auto_routes_by_a_sample_and_the_plan_can_be_reused():
         solve_many(M, q, method="pgs", plan=plan)
 
 
+@pytest.mark.parametrize("kind", [{"upper": np.full(3, 0.1)}, {"n_eq": 1}])
+def test_a_plan_of_an_lcp_stack_never_certifies_a_box_or_mlcp_stack(kind):
+    """auto's plan of an LCP stack runs Lemke's LCP kernel, which knows no bounds and no
+    equations: given with a box or MLCP stack it is refused, never used (it answered the
+    LCP's z = (0, 1/2, 1/2) as 'solved', above the upper bound 0.1 / with w_0 = 1 on an
+    equation row)."""
+    M, q = np.tile(np.eye(3) * 2, (9, 1, 1)), np.tile([1.0, -1.0, -1.0], (9, 1))
+    plan = plan_stack(M, -np.ones((9, 3)))
+    assert plan.kernel_method == "lemke-revised"
+    with pytest.raises(OptionError, match="plan"):
+        solve_many(M, q, plan=plan, **kind)
+    res = solve_many(M, q, plan=plan_stack(M, q, **kind), **kind)  # its own plan: solved
+    assert res.solved.all()
+    lo = np.zeros(3) if "upper" in kind else np.array([-np.inf, 0.0, 0.0])
+    up = kind.get("upper", np.full(3, np.inf))
+    for k in range(9):
+        assert componentwise_error(M[k], q[k], res.z[k], lo, up) <= res.tol
+
+
 def test_a_backend_that_certifies_nothing_still_gives_honest_results():
     """The backend interface: a kernel handing everything back costs speed, not verdicts."""
 
