@@ -62,6 +62,7 @@ def plan_stack(M: Any, q: Any, method: str | None = None, *, lower: Any = None,
     """The :class:`StackPlan` of :func:`solve_many` for this stack (same arguments)."""
     M, q, lower, upper, n_eq, spec, kind = _check_stack(M, q, method, lower, upper, n_eq,
                                                         options)
+    lower, upper = _kernel_bounds(lower, upper)[:2]
     run_spec, kernel_options = _batched_method(spec, kind, options, M, q, lower, upper)
     return StackPlan(spec.name, None if run_spec is None else run_spec.name, kernel_options)
 
@@ -183,8 +184,10 @@ def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None =
     methods_of: dict[int, str] = {}
     results: dict[int, Result] = {}
     rows = _warm_rows(warm, K, n)
+    k_lower, k_upper, bad = _kernel_bounds(lower, upper)
     if plan is None:
-        run_spec, kernel_options = _batched_method(spec, kind, options, M, q, lower, upper)
+        run_spec, kernel_options = _batched_method(spec, kind, options, M, q, k_lower,
+                                                   k_upper)
     else:
         run_spec = None if plan.kernel_method is None else get_method(plan.kernel_method)
         if run_spec is not None and kind not in run_spec.batch.kinds:
@@ -223,13 +226,20 @@ def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None =
             bases, warmed = lemke_warm(M, q, bases, tol=tol, options=kernel_options, out=out,
                                        threads=threads, scaling=run_spec.scaling)
         else:
-            kernel(M, q, lower, upper, tol=tol, options=kernel_options, out=out,
+            kernel(M, q, k_lower, k_upper, tol=tol, options=kernel_options, out=out,
                    threads=threads, scaling=run_spec.scaling)
         z, w, iterations, error, residual = out.z, out.w, out.iterations, out.error, \
             out.residual
         status = np.where(out.code == KERNEL_SOLVED, codes[Status.SOLVED],
                           codes[Status.UNSOLVED]).astype(np.int8)
         retry = np.flatnonzero(out.code != KERNEL_SOLVED)
+        if bad.size:  # bad bounds: the kernel solved a stand-in; refused below
+            retry = np.union1d(retry, bad)
+            for extra, empty in ((out.cert, np.nan), (out.pivot_basis, -1)):
+                if extra is not None:
+                    extra[bad] = empty
+            if warmed is not None:
+                warmed[bad] = False
     else:
         z, w = np.full((K, n), np.nan), np.full((K, n), np.nan)
         status = np.full(K, codes[Status.UNSOLVED], np.int8)
@@ -246,6 +256,8 @@ def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None =
                 raise ProblemError(f"problem {k} of the stack: {exc}") from None
             status[k], error[k], iterations[k] = codes[Status.ERROR], np.inf, 0
             z[k], w[k], residual[k] = np.nan, np.nan, np.nan
+            if bases is not None:
+                bases[k] = -1
             messages[k] = str(exc)
             continue
         try:
@@ -447,16 +459,17 @@ def _stack_array(a: Any, ndim: int, label: str) -> np.ndarray:
 
 def _stack_bounds(lower: Any, upper: Any, K: int,
                   n: int) -> tuple[np.ndarray | None, np.ndarray | None]:
-    """Bounds of shape (n,) or (K, n) as (K, n) arrays, checked by the rules of one problem's
-    (:func:`lcpcli.core.problem.check_bounds`; a missing one by the one-sided bounds rule,
-    :func:`lcpcli.core.problem.default_bound`)."""
+    """Bounds of shape (n,) or (K, n) as (K, n) arrays (a missing one by the one-sided bounds
+    rule, :func:`lcpcli.core.problem.default_bound`).  Shared bounds are checked here by the
+    rules of one problem's (:func:`lcpcli.core.problem.check_bounds`); per-problem ones are
+    checked problem by problem (:func:`_kernel_bounds`)."""
 
     if lower is None and upper is None:
         return None, None
-    out = []
+    given = []
     for value, label in ((lower, "lower"), (upper, "upper")):
         if value is None:
-            out.append(default_bound(label, (K, n)))
+            given.append(default_bound(label, n))
             continue
         arr = np.asarray(value)
         check_dtype(arr.dtype, label)
@@ -464,10 +477,29 @@ def _stack_bounds(lower: Any, upper: Any, K: int,
         if arr.shape not in ((n,), (K, n)):
             raise ProblemError(f"{label} of a stack must have shape ({n},) or ({K}, {n}), "
                                f"got {arr.shape}")
-        out.append(np.ascontiguousarray(np.broadcast_to(arr, (K, n))))
-    lo, up = out
-    check_bounds(lo, up)
+        given.append(arr)
+    if given[0].ndim == 1 and given[1].ndim == 1:  # shared bounds: the whole stack's data
+        check_bounds(*given)
+    lo, up = (np.ascontiguousarray(np.broadcast_to(arr, (K, n))) for arr in given)
     return lo, up
+
+
+def _kernel_bounds(lower: np.ndarray | None, upper: np.ndarray | None
+                   ) -> tuple[np.ndarray | None, np.ndarray | None, np.ndarray]:
+    """``(lower, upper, bad)``: the problems (rows) of per-problem bounds that break the rules
+    of :func:`lcpcli.core.problem.check_bounds` (NaN, ``lower = inf``, ``upper = -inf``,
+    ``lower > upper``) as ``bad`` indices, and bounds for the kernels and the sampling with
+    those rows replaced by the LCP's ``[0, inf)``.  A bad problem is refused on its own
+    (``on_error``), as one with NaN in M or q, by the one-problem rules: the caller keeps the
+    given bounds for that."""
+    if lower is None:
+        return lower, upper, np.zeros(0, np.int64)
+    bad = np.flatnonzero((np.isnan(lower) | np.isnan(upper) | (lower == np.inf)
+                          | (upper == -np.inf) | (lower > upper)).any(axis=1))
+    if bad.size:
+        lower, upper = lower.copy(), upper.copy()
+        lower[bad], upper[bad] = 0.0, np.inf
+    return lower, upper, bad
 
 
 def _batched_method(spec: Method, kind: str, options: dict[str, Any], M: np.ndarray,

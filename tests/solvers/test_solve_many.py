@@ -158,6 +158,30 @@ def test_auto_routes_by_a_sample_and_the_plan_can_be_reused():
         solve_many(M, q, method="pgs", plan=plan)
 
 
+@pytest.mark.parametrize("method", ["pgs", "auto", "newton"])
+def test_a_problem_with_bad_bounds_is_refused_on_its_own(method):
+    """Per-problem bounds are problem data: on_error="mark" marks the problem whose bounds
+    break the rules (NaN, lower > upper) and solves the others; "raise" names it.  Shared
+    bounds are the whole stack's and raise as before."""
+    M, q = np.tile(np.eye(3) * 2, (6, 1, 1)), -np.ones((6, 3))
+    lower, upper = np.zeros((6, 3)), np.ones((6, 3))
+    upper[2, 0] = np.nan
+    lower[4, 1] = 5.0
+    res = solve_many(M, q, method, lower=lower, upper=upper, on_error="mark",
+                     record_basis=True, certificates=True)
+    assert res.statuses()[2] == "error" and res.message(2) == "upper contains NaN"
+    assert res.statuses()[4] == "error" and "lower > upper" in res.message(4)
+    assert res.counts() == {"solved": 4, "error": 2}
+    assert np.isnan(res.z[[2, 4]]).all() and (res.basis[[2, 4]] == -1).all()
+    if res.certificates is not None:
+        assert np.isnan(res.certificates[[2, 4]]).all()
+    assert_honest(M, q, res, lower, upper)
+    with pytest.raises(ProblemError, match="problem 2 of the stack: upper contains NaN"):
+        solve_many(M, q, method, lower=lower, upper=upper)
+    with pytest.raises(ProblemError, match="upper contains NaN"):
+        solve_many(M, q, method, upper=upper[2], on_error="mark")
+
+
 @pytest.mark.parametrize("kind", [{"upper": np.full(3, 0.1)}, {"n_eq": 1}])
 def test_a_plan_of_an_lcp_stack_never_certifies_a_box_or_mlcp_stack(kind):
     """auto's plan of an LCP stack runs Lemke's LCP kernel, which knows no bounds and no
