@@ -15,7 +15,7 @@ import numpy as np
 
 from lcpcli.core.certificate import AT_LOWER, AT_UPPER, BETWEEN, certify, check
 from lcpcli.core.errors import OptionError
-from lcpcli.core.tolerances import POLISHED
+from lcpcli.core.tolerances import POLISHED, TINY_Z
 
 
 def preload_linalg(problem: Any, options: Any = None) -> None:
@@ -97,8 +97,10 @@ def refine(problem: Any, z: np.ndarray, rounds: int = 4, basis: list[int] | None
 
     The certificate names each pair's state (at a bound, or between with ``w_i = 0``).  The first
     candidate only snaps the variables at bounds exactly onto them (rounding noise such as a
-    tangent impulse of 1e-32 in a friction-cone row whose other terms are zero); then the
-    variables at bounds are fixed and the others solve ``M_BB z_B = -(q_B + M_BN z_N)``
+    tangent impulse of 1e-32 in a friction-cone row whose other terms are zero); the second
+    sets the entries at rounding level (``TINY_Z ||z||_inf``, where 0 is inside their box) to
+    0, as the batched Lemke kernel does; then the variables at bounds are fixed and the
+    others solve ``M_BB z_B = -(q_B + M_BN z_N)``
     (dense LU with one refinement step, sparse LU, least squares when singular).  Signs are then
     repaired (a basic ``z_i`` outside its box goes to the bound; a fixed one whose ``w_i`` has the
     wrong sign becomes basic) for a few rounds, and the candidate with the smallest certified
@@ -130,6 +132,18 @@ def _refine(problem: Any, z: np.ndarray, rounds: int, basis: list[int] | None,
         err = certify(problem, snapped).error
         if err < best_err:
             best, best_err = snapped, err
+    if best is not None and best_err <= good_enough:
+        return best, best_err
+    # then z with its rounding-level entries at 0 (degenerate basic z's, which a tableau
+    # leaves exactly 0: a row made only of such terms reads w_i / s_i ~ 1), as the batched
+    # Lemke kernel and the warm starts try it (TINY_Z)
+    tiny = (z != 0.0) & (np.abs(z) <= TINY_Z * float(np.max(np.abs(z), initial=0.0))) \
+        & (lo <= 0.0) & (up >= 0.0)
+    if tiny.any():
+        zeroed = np.where(tiny, 0.0, best if best is not None else z)
+        err = certify(problem, zeroed).error
+        if err < best_err:
+            best, best_err = zeroed, err
     if best is not None and best_err <= good_enough:
         return best, best_err
     if basis is not None:
