@@ -292,6 +292,22 @@ def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None =
     return out_res
 
 
+def _basic_row(problem: Problem, warm: Any) -> np.ndarray:
+    """One problem's warm start (checked by :func:`lcpcli.solvers.warm.check_warm`) as a row
+    of :func:`solve_many`'s ``warm``: 1 where ``z_i`` is basic, else 0; NaN (cold) for None or
+    a Result without a basis.  A Result or a basis in letters gives its basic pairs (the
+    ``F`` states, :func:`lcpcli.solvers.warm.warm_basis`, as :func:`solve` takes them);
+    booleans and points their nonzero entries."""
+    from lcpcli.core.certificate import BETWEEN
+    from lcpcli.solvers.warm import warm_basis
+
+    if warm is None or (isinstance(warm, Result) and warm.basis is None):
+        return np.full(problem.n, np.nan)
+    if isinstance(warm, (Result, str)):
+        return (warm_basis(problem, warm) == BETWEEN).astype(np.float64)
+    return np.asarray(warm, dtype=bool).astype(np.float64)
+
+
 def _warm_rows(warm: Any, K: int, n: int) -> np.ndarray | None:
     """The (K, n) warm-start rows of :func:`solve_many` (points, or booleans: bases)."""
     if warm is None:
@@ -299,6 +315,11 @@ def _warm_rows(warm: Any, K: int, n: int) -> np.ndarray | None:
     rows = np.asarray(warm.z if isinstance(warm, StackResult) else warm)
     if rows.shape != (K, n):
         raise OptionError(f"warm start of a stack must have shape ({K}, {n}), got {rows.shape}")
+    if rows.dtype.kind != "b":  # points: real numbers only (booleans are bases)
+        try:
+            check_dtype(rows.dtype, "warm start of a stack")
+        except ProblemError as exc:
+            raise OptionError(str(exc)) from None
     return rows
 
 
@@ -352,9 +373,19 @@ def solve_each(problems: list[Problem], method: str | None = None, *, tol: float
     basis, booleans, or None: cold), as ``solve_many(warm=)`` and ``solve(warm=)`` take them;
     ``info["warm"]`` then says whether the warm start gave the answer.
     """
+    from lcpcli.solvers.warm import check_warm
+
     out: list[Result | None] = [None] * len(problems)
+    if warms is not None and len(warms) != len(problems):
+        raise OptionError(f"warms= needs one warm start (or None) per problem: "
+                          f"{len(warms)} for {len(problems)} problems")
     groups: dict[int, list[int]] = {}
     for i, p in enumerate(problems):
+        if not isinstance(p, Problem):
+            raise TypeError(f"solve_each takes Problems (lcpcli.Problem.create(M, q)); item {i} "
+                            f"is a {type(p).__name__}")
+        if warms is not None and warms[i] is not None:
+            check_warm(p, warms[i])
         if p.kind == "lcp" and not p.sparse:
             groups.setdefault(p.n, []).append(i)
     for idx in groups.values():
@@ -363,9 +394,7 @@ def solve_each(problems: list[Problem], method: str | None = None, *, tol: float
         warm = None
         if warms is not None and any(warms[i] is not None for i in idx):
             # rows as points: 1 where z_i is basic, NaN for a problem without one (cold)
-            warm = np.stack([np.asarray(warms[i], dtype=bool).astype(np.float64)
-                             if warms[i] is not None else np.full(problems[i].n, np.nan)
-                             for i in idx])
+            warm = np.stack([_basic_row(problems[i], warms[i]) for i in idx])
         res = solve_many(_stacked([problems[i].M for i in idx]),
                          np.stack([problems[i].q for i in idx]), method, tol=tol,
                          threads=threads, warm=warm, certificates=True, pivot_basis=True,

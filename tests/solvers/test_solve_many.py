@@ -158,6 +158,30 @@ def test_auto_routes_by_a_sample_and_the_plan_can_be_reused():
         solve_many(M, q, method="pgs", plan=plan)
 
 
+def test_warm_rows_and_solve_each_arguments_are_checked():
+    """A stack's warm rows hold real numbers or booleans (text raised numpy's UFuncTypeError,
+    complex rows were taken); solve_each checks warms= against the problems (a short list
+    raised IndexError) and takes every warm form solve takes (a Result, letters: refused with
+    a shape error) and Problems only (a tuple: AttributeError)."""
+    M, q = pd_stack(9, 4, seed=5)
+    for rows in (np.full((9, 4), "1"), np.ones((9, 4), complex)):
+        with pytest.raises(OptionError, match="warm start of a stack holds"):
+            solve_many(M, q, "lemke", warm=rows)
+    problems = [lcpcli.Problem.create(M[k], q[k]) for k in range(9)]
+    prev = [lcpcli.solve(p, "lemke") for p in problems]
+    with pytest.raises(OptionError, match="one warm start"):
+        lcpcli.solve_each(problems, "lemke", warms=prev[:3])
+    with pytest.raises(TypeError, match="item 0 is a tuple"):
+        lcpcli.solve_each([(M[k], q[k]) for k in range(9)], "lemke")
+    with pytest.raises(OptionError, match="one letter per pair"):
+        lcpcli.solve_each(problems, "lemke", warms=["FXLL"] * 9)
+    letters = ["".join("LUF"[c] for c in r.basis) for r in prev]
+    for warms in (prev, letters, [r.z_basic for r in prev]):
+        out = lcpcli.solve_each(problems, "lemke", warms=warms)
+        assert all(r.solved and r.info["warm"] for r in out)
+        assert all(np.array_equal(r.z_basic, p.z_basic) for r, p in zip(out, prev, strict=True))
+
+
 @pytest.mark.parametrize("method", ["pgs", "auto", "newton"])
 def test_a_problem_with_bad_bounds_is_refused_on_its_own(method):
     """Per-problem bounds are problem data: on_error="mark" marks the problem whose bounds

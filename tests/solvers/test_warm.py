@@ -199,6 +199,32 @@ def test_warm_basis_forms_and_errors() -> None:
         lcpcli.solve(p, warm=np.ones(5))
 
 
+@pytest.mark.parametrize("method", ["auto", "bpp", "pgs", "newton", "murty", "lemke"])
+@pytest.mark.parametrize("given", [
+    {"warm": "FXF"},                               # a letter outside 'LUF'
+    {"warm": np.array([1 + 1j, 0, 1])},            # complex
+    {"warm": ["1", "0", "1"]},                     # text
+    {"z0": np.array([1 + 1j, 0, 1])},
+    {"z0": ["1", "0", "1"]},
+    {"z0": np.array([True, False, True])},         # booleans are no point
+    {"covering": [1 + 0j, 1, 1]},
+])
+def test_warm_starts_and_vectors_follow_the_data_rule_for_every_method(method, given) -> None:
+    """README: the data rule of M and q applies to warm starts too, whatever the method does
+    with them: auto below n = 200 ignored an unknown basis letter ('FXF' solved, bpp refused
+    it), and z0= / covering= took complex numbers (imaginary part dropped), text and
+    booleans."""
+    M, q = 2 * np.eye(3), -np.ones(3)
+    key = next(iter(given))
+    if key in ("z0", "covering"):
+        from lcpcli.solvers.registry import get_method
+
+        if key not in get_method(method).options:
+            pytest.skip(f"{method} takes no {key}")
+    with pytest.raises(OptionError):
+        lcpcli.solve(M, q, method, **given)
+
+
 def test_iterative_methods_take_the_warm_point() -> None:
     M, q = _pd(20, 4), np.random.default_rng(4).standard_normal(20)
     prev = lcpcli.solve(M, q)
