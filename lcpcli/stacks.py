@@ -15,7 +15,7 @@ import numpy as np
 from lcpcli.analysis.classify import Classifier
 from lcpcli.api import check_dense_work, solve
 from lcpcli.core import _certificate
-from lcpcli.core.certificate import check, from_row, scored
+from lcpcli.core.certificate import BETWEEN, check, from_row, scored
 from lcpcli.core.errors import LcpError, OptionError, ProblemError
 from lcpcli.core.numeric import check_dtype
 from lcpcli.core.problem import (
@@ -298,7 +298,6 @@ def _basic_row(problem: Problem, warm: Any) -> np.ndarray:
     a Result without a basis.  A Result or a basis in letters gives its basic pairs (the
     ``F`` states, :func:`lcpcli.solvers.warm.warm_basis`, as :func:`solve` takes them);
     booleans and points their nonzero entries."""
-    from lcpcli.core.certificate import BETWEEN
     from lcpcli.solvers.warm import warm_basis
 
     if warm is None or (isinstance(warm, Result) and warm.basis is None):
