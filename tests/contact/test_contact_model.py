@@ -541,6 +541,24 @@ def test_warm_start_by_name_when_the_scene_changes(tmp_path) -> None:
         warm_start(plain, ["n[a]", "n[b]", "n[c]"])
 
 
+@pytest.mark.parametrize("z0,words", [
+    ("nan", "the warm start z0 contains NaN or Inf"),
+    ("short", "the warm start z0 has 3 values but the contact LCP has 4"),
+    ("bool", "the warm start z0 holds booleans"),
+    ("complex", "the warm start z0 holds complex numbers"),
+])
+def test_library_warm_start_follows_the_data_rule_in_library_words(z0, words) -> None:
+    """contact.solve(z0=...) in a library call: the data rule of M and q (booleans were taken
+    as impulses 0/1, complex numbers cast), and messages that name z0, not the CLI's --z0."""
+    clcp = build(load_scene(SAMPLES / "scene_cube_on_plane.json"))
+    n = clcp.problem.n
+    given = {"nan": np.full(n, np.nan), "short": np.zeros(n - 1),
+             "bool": np.zeros(n, bool), "complex": np.zeros(n, complex)}[z0]
+    with pytest.raises(OptionError) as err:
+        solve(clcp, z0=given)
+    assert str(err.value).startswith(words) and "--z0" not in str(err.value)
+
+
 def test_bad_warm_start_and_new_options_exit_2(tmp_path, capsys) -> None:
     path = str(SAMPLES / "scene_two_balls.json")
     short = tmp_path / "short.json"
