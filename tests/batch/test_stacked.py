@@ -129,6 +129,20 @@ def test_nan_problem_is_an_error_row_and_the_rest_is_solved(cli, tmp_path):
     assert "NaN" in s["summary"]["errors"][0]["message"]
 
 
+def test_error_rows_of_a_stack_have_the_documented_shape(cli, tmp_path):
+    """docs/batch.md: a row without a solution has n null and empty z and w; a stacked
+    input's error row had z = w = [null, null, null, null]."""
+    M, q = pd_stack(6, 4)
+    M[1, 0, 0] = np.nan
+    path = tmp_path / "bad.h5"
+    write_stack(path, M, q)
+    res = cli("solve", str(path), "--json")
+    rows = {r["index"]: r for r in map(json.loads, res.stdout.splitlines())}
+    assert rows[1]["status"] == "error" and rows[1]["n"] is None
+    assert rows[1]["z"] == [] and rows[1]["w"] == [] and rows[1]["basis"] is None
+    assert rows[0]["status"] == "solved" and len(rows[0]["z"]) == 4
+
+
 @pytest.mark.parametrize("bad,message", [("nan", "upper contains NaN"),
                                          ("crossed", "lower > upper")])
 def test_a_bad_per_problem_bound_is_an_error_row_and_the_rest_is_solved(cli, tmp_path, bad,
