@@ -262,18 +262,37 @@ def _solve_peeling_singletons(A: Any, b: np.ndarray, sparse: bool) -> np.ndarray
     return x
 
 
+def sparse_lu(A: Any) -> Any | None:
+    """SuperLU's factorization of the square sparse ``A`` (``scipy.sparse.linalg.splu``), or
+    None when ``A`` is singular: exactly (SuperLU's RuntimeError) or structurally (a row or a
+    column without a nonzero entry, refused before SuperLU sees it: on such matrices its
+    column ordering can call BLAS with invalid arguments, which OpenBLAS reports on stdout,
+    where ``--json`` prints its one object)."""
+    import scipy.sparse.linalg as spla  # scipy is imported on first use (start-up budget)
+
+    A = A.tocsc()
+    n = A.shape[0]
+    stored = A.data != 0.0
+    cols = np.repeat(np.arange(n), np.diff(A.indptr))[stored]
+    if np.unique(cols).size < n or np.unique(A.indices[stored]).size < n:
+        return None
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            return spla.splu(A)
+    except RuntimeError:  # exactly singular
+        return None
+
+
 def _sparse_solve(A: Any, b: np.ndarray) -> np.ndarray:
     """``A x = b`` by sparse LU with one refinement step; least squares when singular."""
     import scipy.sparse.linalg as spla  # scipy is imported on first use (start-up budget)
 
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            lu = spla.splu(A.tocsc())
-            x = lu.solve(b)
-            return x + lu.solve(b - A @ x)
-    except RuntimeError:  # exactly singular
+    lu = sparse_lu(A)
+    if lu is None:
         return spla.lsqr(A, b, atol=1e-15, btol=1e-15, iter_lim=10 * b.shape[0])[0]
+    x = lu.solve(b)
+    return x + lu.solve(b - A @ x)
 
 
 def _dense_solve(A: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -625,3 +625,36 @@ def test_bad_new_keys(key: str, value, word: str) -> None:
 def test_to_json_without_solve_has_islands_but_no_per_island() -> None:
     d = to_json(build(load_scene(SAMPLES / "scene_conveyor.json")))
     assert d["islands"]["count"] == 2 and "per_island" not in d["islands"]
+
+
+def test_newton_on_structurally_singular_jacobians_writes_nothing(capfd) -> None:
+    """Newton on the whole-scene LCP of 12 box stacks meets Jacobians with empty columns;
+    SuperLU's column ordering then called BLAS with invalid arguments, and OpenBLAS wrote
+    '** On entry to DTRSV parameter number 6 had an illegal value' (172 lines) on stdout,
+    under `lcpcli solve --json`'s one object.  Such a matrix is singular: no LU is tried
+    (lcpcli.solvers.support.sparse_lu), and Newton takes its Levenberg-Marquardt step."""
+    import lcpcli
+
+    clcp = build(box_stacks(12, seed=1), friction=4)
+    assert clcp.problem.sparse
+    capfd.readouterr()
+    r = lcpcli.solve(clcp.problem, "newton")
+    out, err = capfd.readouterr()
+    assert "illegal value" not in out and "illegal value" not in err
+    assert r.status in ("solved", "unsolved")
+
+
+def test_sparse_lu_refuses_singular_matrices() -> None:
+    """sparse_lu: None for a structurally singular matrix (an empty column, a column holding
+    only an explicit zero) and an exactly singular one; the factorization otherwise."""
+    import scipy.sparse as sp
+
+    from lcpcli.solvers.support import sparse_lu
+
+    empty_column = sp.csc_matrix(np.array([[1.0, 0.0], [2.0, 0.0]]))
+    explicit_zero = sp.csc_matrix((np.array([1.0, 0.0]), np.array([0, 1]), np.array([0, 1, 2])))
+    singular = sp.csc_matrix(np.array([[1.0, 2.0], [2.0, 4.0]]))
+    assert sparse_lu(empty_column) is None and sparse_lu(explicit_zero) is None
+    assert sparse_lu(singular) is None
+    lu = sparse_lu(sp.csc_matrix(np.array([[2.0, 1.0], [1.0, 3.0]])))
+    assert np.allclose(lu.solve(np.array([3.0, 4.0])), [1.0, 1.0])
