@@ -225,6 +225,25 @@ def test_warm_starts_and_vectors_follow_the_data_rule_for_every_method(method, g
         lcpcli.solve(M, q, method, **given)
 
 
+@pytest.mark.parametrize("method", ["pgs", "auto", "bpp", "lemke", "newton"])
+def test_a_previous_result_that_is_not_finite_starts_cold(method) -> None:
+    """A loop that hands on every previous Result: PGS diverging on a non-symmetric M leaves
+    z with inf, which has no basis and is no point; the next solve runs cold (as solve_many's
+    rows with NaN) instead of raising 'warm start z0 contains NaN or Inf'."""
+    A = np.array([[1.73352959, 0.34781037, -0.94141329],
+                  [0.90704896, 0.01765561, -0.61521853],
+                  [-0.63350893, -0.99343179, 0.04811898]])
+    q = np.array([1.06881669, -0.3250521, 0.42082413])
+    prev = lcpcli.solve(A, q, "pgs")
+    assert not np.all(np.isfinite(prev.z)) and prev.basis is None
+    warm, cold = lcpcli.solve(A, q, method, warm=prev), lcpcli.solve(A, q, method)
+    assert warm.status == cold.status
+    assert np.array_equal(warm.z, cold.z, equal_nan=True)
+    assert "not finite: solved cold" in warm.message
+    with pytest.raises(OptionError, match="length 3"):
+        lcpcli.solve(2 * np.eye(2), -np.ones(2), method, warm=prev)
+
+
 def test_iterative_methods_take_the_warm_point() -> None:
     M, q = _pd(20, 4), np.random.default_rng(4).standard_normal(20)
     prev = lcpcli.solve(M, q)
