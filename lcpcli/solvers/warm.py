@@ -160,7 +160,8 @@ def warm_start(problem: Any, warm: Any, tol: float,
     """
     states = warm_basis(problem, warm)
     F = states == BETWEEN
-    factors = warm.factors if isinstance(warm, Result) else None
+    factors = warm.factors.fork() if isinstance(warm, Result) and warm.factors is not None \
+        else None  # the Result's own stay as they are: the same answer for every later use
     if method.startswith("lemke") and problem.kind == "lcp" and not problem.sparse:
         M = np.ascontiguousarray(problem.dense_M(), dtype=np.float64)
         q = np.ascontiguousarray(problem.q, dtype=np.float64)
