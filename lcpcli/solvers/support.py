@@ -272,9 +272,11 @@ def sparse_lu(A: Any) -> Any | None:
 
     A = A.tocsc()
     n = A.shape[0]
-    stored = A.data != 0.0
-    cols = np.repeat(np.arange(n), np.diff(A.indptr))[stored]
-    if np.unique(cols).size < n or np.unique(A.indices[stored]).size < n:
+    stored = A.data != 0.0  # O(nnz) scatters, no sort: this runs once per Newton step
+    hit_rows, hit_cols = np.zeros(n, bool), np.zeros(n, bool)
+    hit_rows[A.indices[stored]] = True
+    hit_cols[np.repeat(np.arange(n), np.diff(A.indptr))[stored]] = True
+    if not (hit_rows.all() and hit_cols.all()):
         return None
     try:
         with warnings.catch_warnings():
