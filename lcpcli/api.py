@@ -97,6 +97,13 @@ def _solve_warm(request: Request, warm: Any, options: dict[str, Any]) -> Result:
 
     problem, spec, tol, opts = request.problem, request.spec, request.tol, request.given
     check_warm(problem, warm)
+    if isinstance(warm, Result) and not np.all(np.isfinite(warm.z)):
+        # a result that is not finite (a diverged run) holds no basis and no point: cold, as
+        # solve_many's rows with NaN (a loop may hand on every previous result)
+        start = perf_counter()
+        outcome = run_method(spec, problem, tol, opts)
+        outcome.message += " (the warm start's z is not finite: solved cold)"
+        return certify_outcome(problem, outcome, spec.name, perf_counter() - start, tol)
     own = takes_basis(spec, problem, opts)
     start_opts = None
     if own:  # the method's own pivots from the basis (Murty, Dantzig); basis= wins

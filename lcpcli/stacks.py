@@ -15,7 +15,7 @@ import numpy as np
 from lcpcli.analysis.classify import Classifier
 from lcpcli.api import check_dense_work, solve
 from lcpcli.core import _certificate
-from lcpcli.core.certificate import check, from_row, scored
+from lcpcli.core.certificate import BETWEEN, check, from_row, scored
 from lcpcli.core.errors import LcpError, OptionError, ProblemError
 from lcpcli.core.numeric import check_dtype
 from lcpcli.core.problem import (
@@ -62,6 +62,7 @@ def plan_stack(M: Any, q: Any, method: str | None = None, *, lower: Any = None,
     """The :class:`StackPlan` of :func:`solve_many` for this stack (same arguments)."""
     M, q, lower, upper, n_eq, spec, kind = _check_stack(M, q, method, lower, upper, n_eq,
                                                         options)
+    lower, upper = _kernel_bounds(lower, upper)[:2]
     run_spec, kernel_options = _batched_method(spec, kind, options, M, q, lower, upper)
     return StackPlan(spec.name, None if run_spec is None else run_spec.name, kernel_options)
 
@@ -183,10 +184,17 @@ def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None =
     methods_of: dict[int, str] = {}
     results: dict[int, Result] = {}
     rows = _warm_rows(warm, K, n)
+    k_lower, k_upper, bad = _kernel_bounds(lower, upper)
     if plan is None:
-        run_spec, kernel_options = _batched_method(spec, kind, options, M, q, lower, upper)
+        run_spec, kernel_options = _batched_method(spec, kind, options, M, q, k_lower,
+                                                   k_upper)
     else:
         run_spec = None if plan.kernel_method is None else get_method(plan.kernel_method)
+        if run_spec is not None and kind not in run_spec.batch.kinds:
+            # a plan of another stack: its kernel would ignore these bounds or equations
+            raise OptionError(f"plan= runs the batched kernel of '{run_spec.name}', which "
+                              f"does not handle {kind.upper()} problems: make the plan with "
+                              f"this stack's bounds and n_eq (plan_stack(M, q, ...))")
         kernel_options = plan.kernel_options
     bases = warmed = None  # warm: the cpu Lemke kernel starts from each basis; else one by one
     if rows is not None:
@@ -218,13 +226,20 @@ def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None =
             bases, warmed = lemke_warm(M, q, bases, tol=tol, options=kernel_options, out=out,
                                        threads=threads, scaling=run_spec.scaling)
         else:
-            kernel(M, q, lower, upper, tol=tol, options=kernel_options, out=out,
+            kernel(M, q, k_lower, k_upper, tol=tol, options=kernel_options, out=out,
                    threads=threads, scaling=run_spec.scaling)
         z, w, iterations, error, residual = out.z, out.w, out.iterations, out.error, \
             out.residual
         status = np.where(out.code == KERNEL_SOLVED, codes[Status.SOLVED],
                           codes[Status.UNSOLVED]).astype(np.int8)
         retry = np.flatnonzero(out.code != KERNEL_SOLVED)
+        if bad.size:  # bad bounds: the kernel solved a stand-in; refused below
+            retry = np.union1d(retry, bad)
+            for extra, empty in ((out.cert, np.nan), (out.pivot_basis, -1)):
+                if extra is not None:
+                    extra[bad] = empty
+            if warmed is not None:
+                warmed[bad] = False
     else:
         z, w = np.full((K, n), np.nan), np.full((K, n), np.nan)
         status = np.full(K, codes[Status.UNSOLVED], np.int8)
@@ -241,6 +256,8 @@ def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None =
                 raise ProblemError(f"problem {k} of the stack: {exc}") from None
             status[k], error[k], iterations[k] = codes[Status.ERROR], np.inf, 0
             z[k], w[k], residual[k] = np.nan, np.nan, np.nan
+            if bases is not None:
+                bases[k] = -1
             messages[k] = str(exc)
             continue
         try:
@@ -275,6 +292,21 @@ def solve_many(M: Any, q: Any, method: str | None = None, *, tol: float | None =
     return out_res
 
 
+def _basic_row(problem: Problem, warm: Any) -> np.ndarray:
+    """One problem's warm start (checked by :func:`lcpcli.solvers.warm.check_warm`) as a row
+    of :func:`solve_many`'s ``warm``: 1 where ``z_i`` is basic, else 0; NaN (cold) for None or
+    a Result without a basis.  A Result or a basis in letters gives its basic pairs (the
+    ``F`` states, :func:`lcpcli.solvers.warm.warm_basis`, as :func:`solve` takes them);
+    booleans and points their nonzero entries."""
+    from lcpcli.solvers.warm import warm_basis
+
+    if warm is None or (isinstance(warm, Result) and warm.basis is None):
+        return np.full(problem.n, np.nan)
+    if isinstance(warm, (Result, str)):
+        return (warm_basis(problem, warm) == BETWEEN).astype(np.float64)
+    return np.asarray(warm, dtype=bool).astype(np.float64)
+
+
 def _warm_rows(warm: Any, K: int, n: int) -> np.ndarray | None:
     """The (K, n) warm-start rows of :func:`solve_many` (points, or booleans: bases)."""
     if warm is None:
@@ -282,6 +314,11 @@ def _warm_rows(warm: Any, K: int, n: int) -> np.ndarray | None:
     rows = np.asarray(warm.z if isinstance(warm, StackResult) else warm)
     if rows.shape != (K, n):
         raise OptionError(f"warm start of a stack must have shape ({K}, {n}), got {rows.shape}")
+    if rows.dtype.kind != "b":  # points: real numbers only (booleans are bases)
+        try:
+            check_dtype(rows.dtype, "warm start of a stack")
+        except ProblemError as exc:
+            raise OptionError(str(exc)) from None
     return rows
 
 
@@ -335,9 +372,19 @@ def solve_each(problems: list[Problem], method: str | None = None, *, tol: float
     basis, booleans, or None: cold), as ``solve_many(warm=)`` and ``solve(warm=)`` take them;
     ``info["warm"]`` then says whether the warm start gave the answer.
     """
+    from lcpcli.solvers.warm import check_warm
+
     out: list[Result | None] = [None] * len(problems)
+    if warms is not None and len(warms) != len(problems):
+        raise OptionError(f"warms= needs one warm start (or None) per problem: "
+                          f"{len(warms)} for {len(problems)} problems")
     groups: dict[int, list[int]] = {}
     for i, p in enumerate(problems):
+        if not isinstance(p, Problem):
+            raise TypeError(f"solve_each takes Problems (lcpcli.Problem.create(M, q)); item {i} "
+                            f"is a {type(p).__name__}")
+        if warms is not None and warms[i] is not None:
+            check_warm(p, warms[i])
         if p.kind == "lcp" and not p.sparse:
             groups.setdefault(p.n, []).append(i)
     for idx in groups.values():
@@ -346,9 +393,7 @@ def solve_each(problems: list[Problem], method: str | None = None, *, tol: float
         warm = None
         if warms is not None and any(warms[i] is not None for i in idx):
             # rows as points: 1 where z_i is basic, NaN for a problem without one (cold)
-            warm = np.stack([np.asarray(warms[i], dtype=bool).astype(np.float64)
-                             if warms[i] is not None else np.full(problems[i].n, np.nan)
-                             for i in idx])
+            warm = np.stack([_basic_row(problems[i], warms[i]) for i in idx])
         res = solve_many(_stacked([problems[i].M for i in idx]),
                          np.stack([problems[i].q for i in idx]), method, tol=tol,
                          threads=threads, warm=warm, certificates=True, pivot_basis=True,
@@ -442,16 +487,17 @@ def _stack_array(a: Any, ndim: int, label: str) -> np.ndarray:
 
 def _stack_bounds(lower: Any, upper: Any, K: int,
                   n: int) -> tuple[np.ndarray | None, np.ndarray | None]:
-    """Bounds of shape (n,) or (K, n) as (K, n) arrays, checked by the rules of one problem's
-    (:func:`lcpcli.core.problem.check_bounds`; a missing one by the one-sided bounds rule,
-    :func:`lcpcli.core.problem.default_bound`)."""
+    """Bounds of shape (n,) or (K, n) as (K, n) arrays (a missing one by the one-sided bounds
+    rule, :func:`lcpcli.core.problem.default_bound`).  Shared bounds are checked here by the
+    rules of one problem's (:func:`lcpcli.core.problem.check_bounds`); per-problem ones are
+    checked problem by problem (:func:`_kernel_bounds`)."""
 
     if lower is None and upper is None:
         return None, None
-    out = []
+    given = []
     for value, label in ((lower, "lower"), (upper, "upper")):
         if value is None:
-            out.append(default_bound(label, (K, n)))
+            given.append(default_bound(label, n))
             continue
         arr = np.asarray(value)
         check_dtype(arr.dtype, label)
@@ -459,10 +505,29 @@ def _stack_bounds(lower: Any, upper: Any, K: int,
         if arr.shape not in ((n,), (K, n)):
             raise ProblemError(f"{label} of a stack must have shape ({n},) or ({K}, {n}), "
                                f"got {arr.shape}")
-        out.append(np.ascontiguousarray(np.broadcast_to(arr, (K, n))))
-    lo, up = out
-    check_bounds(lo, up)
+        given.append(arr)
+    if given[0].ndim == 1 and given[1].ndim == 1:  # shared bounds: the whole stack's data
+        check_bounds(*given)
+    lo, up = (np.ascontiguousarray(np.broadcast_to(arr, (K, n))) for arr in given)
     return lo, up
+
+
+def _kernel_bounds(lower: np.ndarray | None, upper: np.ndarray | None
+                   ) -> tuple[np.ndarray | None, np.ndarray | None, np.ndarray]:
+    """``(lower, upper, bad)``: the problems (rows) of per-problem bounds that break the rules
+    of :func:`lcpcli.core.problem.check_bounds` (NaN, ``lower = inf``, ``upper = -inf``,
+    ``lower > upper``) as ``bad`` indices, and bounds for the kernels and the sampling with
+    those rows replaced by the LCP's ``[0, inf)``.  A bad problem is refused on its own
+    (``on_error``), as one with NaN in M or q, by the one-problem rules: the caller keeps the
+    given bounds for that."""
+    if lower is None:
+        return lower, upper, np.zeros(0, np.int64)
+    bad = np.flatnonzero((np.isnan(lower) | np.isnan(upper) | (lower == np.inf)
+                          | (upper == -np.inf) | (lower > upper)).any(axis=1))
+    if bad.size:
+        lower, upper = lower.copy(), upper.copy()
+        lower[bad], upper[bad] = 0.0, np.inf
+    return lower, upper, bad
 
 
 def _batched_method(spec: Method, kind: str, options: dict[str, Any], M: np.ndarray,

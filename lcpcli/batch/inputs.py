@@ -10,7 +10,7 @@ from typing import Any
 
 from lcpcli.batch.records import Task, error_row
 from lcpcli.core.errors import ProblemError
-from lcpcli.io import PROBLEM_EXTENSIONS, detect_format, list_problems
+from lcpcli.io import PROBLEM_EXTENSIONS, input_format, list_problems
 from lcpcli.io.files import check_input_file
 
 #: Characters that make an argument a glob pattern (when no file has that name).
@@ -44,7 +44,7 @@ def expand_inputs(inputs: Iterable[str], *, recursive: bool = False,
             return
         seen.add(path)
         try:
-            fmt = detect_format(path)
+            fmt = input_format(path)
             st = check_input_file(path)
         except ProblemError as exc:
             errors.append(error_row(path, Path(path).stem, str(exc.with_source(path))))

@@ -54,11 +54,12 @@ def result_rows(source: str, stem: str, positions: np.ndarray, names: list[str] 
     for i, k in enumerate(positions.tolist()):
         err, resid = float(res.error[i]), float(res.residual[i])
         status = STATUS_OF_CODE[int(res.status[i])]
+        bad = status == "error"  # no solution at all: n null, z and w empty (as per-file rows)
         rows.append({
             "file": source, "status": status, "method": res.method_of(i),
-            "n": n if status != "error" else None,
-            "z": [x if np.isfinite(x) else None for x in res.z[i].tolist()],
-            "w": [x if np.isfinite(x) else None for x in res.w[i].tolist()],
+            "n": None if bad else n,
+            "z": [] if bad else [x if np.isfinite(x) else None for x in res.z[i].tolist()],
+            "w": [] if bad else [x if np.isfinite(x) else None for x in res.w[i].tolist()],
             "iterations": int(res.iterations[i]), "seconds": per,
             "residual": resid if np.isfinite(resid) else None,
             "error": err if np.isfinite(err) else None,

@@ -46,6 +46,7 @@ def convert(
         atomic_path,
         check_output,
         detect_format,
+        input_format,
         list_problems,
         load,
         save,
@@ -84,7 +85,10 @@ def convert(
     if src_dir and Path(source).suffix.lower() not in PROBLEM_EXTENSIONS:
         raise ProblemError("is a folder: add --stack to write its problems as one stacked "
                            "file", source)
-    in_fmt = detect_format(source)
+    try:
+        in_fmt = input_format(source)
+    except ProblemError as exc:
+        raise exc.with_source(source) from None
     if source != "-" and problem is None and in_fmt in ("hdf5", "npz") \
             and stacked.is_stack(source):
         if out_fmt == "hdf5":

@@ -40,6 +40,7 @@ from lcpcli.contact.planar import plane_normal
 from lcpcli.contact.scene import Scene, check_coupling, check_nonnegative, per_contact
 from lcpcli.core.errors import OptionError, ProblemError
 from lcpcli.core.limits import check_dense_work
+from lcpcli.core.numeric import real_array
 from lcpcli.core.problem import Problem, is_sparse
 from lcpcli.core.result import CONVERGED, NO_SOLUTION, NUMERICAL, SOLVED, Outcome
 from lcpcli.solvers import DEFAULT_METHOD
@@ -302,14 +303,18 @@ def check_basis0(clcp: ContactLCP, basis0: Any) -> np.ndarray:
 
 
 def check_z0(clcp: ContactLCP, z0: Any) -> np.ndarray:
-    """The warm start as a vector of the LCP's length (OptionError otherwise)."""
-    z = np.asarray(z0, dtype=np.float64).ravel()
+    """The warm start as a vector of the LCP's length, of real numbers (the data rule of
+    :func:`lcpcli.core.numeric.real_array`; OptionError otherwise)."""
+    try:
+        z = real_array(z0, "the warm start z0").ravel()
+    except ProblemError as exc:
+        raise OptionError(str(exc)) from None
     if z.shape[0] != clcp.problem.n:
-        raise OptionError(f"--z0 has {z.shape[0]} values but the contact LCP has "
+        raise OptionError(f"the warm start z0 has {z.shape[0]} values but the contact LCP has "
                           f"{clcp.problem.n} unknowns ({', '.join(clcp.unknowns[:3])}"
                           f"{', ...' if clcp.problem.n > 3 else ''})")
     if not np.all(np.isfinite(z)):
-        raise OptionError("--z0 contains NaN or Inf")
+        raise OptionError("the warm start z0 contains NaN or Inf")
     return z
 
 

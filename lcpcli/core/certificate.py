@@ -149,7 +149,9 @@ def check(problem: Any, z: Any, tol: float = DEFAULT_TOL, *,
                                       problem.n_eq, lo, up, w, state)
     if out[0] == 2:
         out, w = _rescaled_check(problem, z, state)
-    elif out[0] == 1:
+    if out[0] == 1 and not np.all(np.isfinite(z)):
+        # a z_j not finite: seen first, or only on the rescaled copy when other entries of z
+        # took the rescaled path (z = (4e306, 5e307, inf)), which left w and state unwritten
         _unscored(problem, z, w, state)
     return from_kernel(out, tol), w
 

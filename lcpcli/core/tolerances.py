@@ -21,8 +21,9 @@ TIE_TOL = 1e-9
 POLISHED = 1e-12
 #: Entries of z at or below this fraction of ``||z||_inf`` are at rounding level: degenerate
 #: basic values that a tableau leaves exactly 0 (a row made only of such terms reads
-#: ``w_i / s_i ~ 1``); the warm starts and the batched Lemke kernel also try an answer with them
-#: set to 0, and the certificate decides.
+#: ``w_i / s_i ~ 1``); the warm starts, the batched Lemke kernel and the active-set polish
+#: (:func:`lcpcli.solvers.support.refine`) also try an answer with them set to 0, and the
+#: certificate decides.
 TINY_Z = 1e-14
 #: Relative pivot tolerance of the P-matrix tests (:mod:`lcpcli.analysis.classify`): a pivot
 #: ``det(K_{I+j}) / det(K_I)`` of the depth-first principal-minor search, or a 2 x 2 minor

@@ -114,6 +114,18 @@ def detect_format(path: str | os.PathLike[str], fmt: str | None = None) -> str:
     return FORMATS[ext]
 
 
+def input_format(path: str | os.PathLike[str], fmt: str | None = None) -> str:
+    """:func:`detect_format` of a file to read: a name without an extension that does not
+    exist (``nonexist/``, a folder mistyped) is "no such file" (ProblemError), not "unknown
+    file type (none)"."""
+    try:
+        return detect_format(path, fmt)
+    except ProblemError:
+        if not fmt and not suffix(path) and str(path) != "-" and not os.path.lexists(path):
+            check_input_file(path)  # raises: no such file
+        raise
+
+
 def _module(fmt: str) -> Any:
     if fmt == "json":
         from lcpcli.io import json_format as mod
@@ -141,7 +153,7 @@ def load(path: str | os.PathLike[str], problem: str | None = None, *,
     """
     source = str(path)
     try:
-        kind = detect_format(path, fmt)
+        kind = input_format(path, fmt)
         if problem is not None and kind not in ("hdf5", "npz"):
             raise ProblemError("--problem applies to HDF5 files and stacked files only")
         if source == "-":

@@ -14,16 +14,19 @@ import numpy as np
 from lcpcli.core.certificate import AT_LOWER, AT_UPPER, BETWEEN
 from lcpcli.core.errors import OptionError
 from lcpcli.core.limits import MAX_ITER
+from lcpcli.core.numeric import real_array
 from lcpcli.core.result import BASIS_LETTERS, Result
 
 
 def vector_option(value: Any) -> np.ndarray | None:
-    """A float vector from a list/array or a string ``'1,2 3'`` (None stays None)."""
+    """A float vector from a list/array (real numbers only: the data rule of
+    :func:`lcpcli.core.numeric.real_array`, as for M and q) or a string ``'1,2 3'`` (None
+    stays None)."""
     if value is None:
         return None
     if isinstance(value, str):
         value = [float(x) for x in value.replace(",", " ").split()]
-    arr = np.asarray(value, dtype=np.float64).ravel()
+    arr = real_array(value, "the vector").ravel()
     if not np.all(np.isfinite(arr)):
         raise ValueError("contains NaN or Inf")
     return arr

@@ -15,7 +15,7 @@ import numpy as np
 
 from lcpcli.core.certificate import AT_LOWER, AT_UPPER, BETWEEN, certify, check
 from lcpcli.core.errors import OptionError
-from lcpcli.core.tolerances import POLISHED
+from lcpcli.core.tolerances import POLISHED, TINY_Z
 
 
 def preload_linalg(problem: Any, options: Any = None) -> None:
@@ -97,8 +97,10 @@ def refine(problem: Any, z: np.ndarray, rounds: int = 4, basis: list[int] | None
 
     The certificate names each pair's state (at a bound, or between with ``w_i = 0``).  The first
     candidate only snaps the variables at bounds exactly onto them (rounding noise such as a
-    tangent impulse of 1e-32 in a friction-cone row whose other terms are zero); then the
-    variables at bounds are fixed and the others solve ``M_BB z_B = -(q_B + M_BN z_N)``
+    tangent impulse of 1e-32 in a friction-cone row whose other terms are zero); the second
+    sets the entries at rounding level (``TINY_Z ||z||_inf``, where 0 is inside their box) to
+    0, as the batched Lemke kernel does; then the variables at bounds are fixed and the
+    others solve ``M_BB z_B = -(q_B + M_BN z_N)``
     (dense LU with one refinement step, sparse LU, least squares when singular).  Signs are then
     repaired (a basic ``z_i`` outside its box goes to the bound; a fixed one whose ``w_i`` has the
     wrong sign becomes basic) for a few rounds, and the candidate with the smallest certified
@@ -130,6 +132,18 @@ def _refine(problem: Any, z: np.ndarray, rounds: int, basis: list[int] | None,
         err = certify(problem, snapped).error
         if err < best_err:
             best, best_err = snapped, err
+    if best is not None and best_err <= good_enough:
+        return best, best_err
+    # then z with its rounding-level entries at 0 (degenerate basic z's, which a tableau
+    # leaves exactly 0: a row made only of such terms reads w_i / s_i ~ 1), as the batched
+    # Lemke kernel and the warm starts try it (TINY_Z)
+    tiny = (z != 0.0) & (np.abs(z) <= TINY_Z * float(np.max(np.abs(z), initial=0.0))) \
+        & (lo <= 0.0) & (up >= 0.0)
+    if tiny.any():
+        zeroed = np.where(tiny, 0.0, best if best is not None else z)
+        err = certify(problem, zeroed).error
+        if err < best_err:
+            best, best_err = zeroed, err
     if best is not None and best_err <= good_enough:
         return best, best_err
     if basis is not None:
@@ -248,18 +262,39 @@ def _solve_peeling_singletons(A: Any, b: np.ndarray, sparse: bool) -> np.ndarray
     return x
 
 
+def sparse_lu(A: Any) -> Any | None:
+    """SuperLU's factorization of the square sparse ``A`` (``scipy.sparse.linalg.splu``), or
+    None when ``A`` is singular: exactly (SuperLU's RuntimeError) or structurally (a row or a
+    column without a nonzero entry, refused before SuperLU sees it: on such matrices its
+    column ordering can call BLAS with invalid arguments, which OpenBLAS reports on stdout,
+    where ``--json`` prints its one object)."""
+    import scipy.sparse.linalg as spla  # scipy is imported on first use (start-up budget)
+
+    A = A.tocsc()
+    n = A.shape[0]
+    stored = A.data != 0.0  # O(nnz) scatters, no sort: this runs once per Newton step
+    hit_rows, hit_cols = np.zeros(n, bool), np.zeros(n, bool)
+    hit_rows[A.indices[stored]] = True
+    hit_cols[np.repeat(np.arange(n), np.diff(A.indptr))[stored]] = True
+    if not (hit_rows.all() and hit_cols.all()):
+        return None
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            return spla.splu(A)
+    except RuntimeError:  # exactly singular
+        return None
+
+
 def _sparse_solve(A: Any, b: np.ndarray) -> np.ndarray:
     """``A x = b`` by sparse LU with one refinement step; least squares when singular."""
     import scipy.sparse.linalg as spla  # scipy is imported on first use (start-up budget)
 
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            lu = spla.splu(A.tocsc())
-            x = lu.solve(b)
-            return x + lu.solve(b - A @ x)
-    except RuntimeError:  # exactly singular
+    lu = sparse_lu(A)
+    if lu is None:
         return spla.lsqr(A, b, atol=1e-15, btol=1e-15, iter_lim=10 * b.shape[0])[0]
+    x = lu.solve(b)
+    return x + lu.solve(b - A @ x)
 
 
 def _dense_solve(A: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -31,7 +31,8 @@ from typing import Any
 import numpy as np
 
 from lcpcli.core.certificate import AT_LOWER, AT_UPPER, BETWEEN, check
-from lcpcli.core.errors import OptionError
+from lcpcli.core.errors import OptionError, ProblemError
+from lcpcli.core.numeric import real_array
 from lcpcli.core.result import BASIS_LETTERS, CONVERGED, Outcome, Result
 from lcpcli.core.text import plural
 from lcpcli.solvers.methods import bpp, lemke_warm
@@ -75,7 +76,16 @@ def uses_warm_basis(spec: Method, problem: Any,
 
 
 def check_warm(problem: Any, warm: Any) -> None:
-    """OptionError unless ``warm`` (a Result, a basis or a point) has one entry per pair."""
+    """OptionError unless ``warm`` (a Result, a basis or a point) has one entry per pair, a
+    basis's letters are those of :data:`BASIS_LETTERS` and a point holds real numbers only (the
+    data rule of :func:`lcpcli.core.numeric.real_array`), whatever the method does with it."""
+    if isinstance(warm, str):
+        _check_letters(warm)
+    elif warm_point_given(warm):
+        try:
+            real_array(warm, "warm start z0")
+        except ProblemError as exc:
+            raise OptionError(str(exc)) from None
     size = warm.n if isinstance(warm, Result) else len(warm) if isinstance(warm, str) \
         else np.size(warm)
     if size != problem.n:
@@ -83,6 +93,14 @@ def check_warm(problem: Any, warm: Any) -> None:
             else "result"
         raise OptionError(f"warm start {what} has length {size}, the problem has n = "
                           f"{problem.n}")
+
+
+def _check_letters(basis: str) -> None:
+    """OptionError unless every letter of ``basis`` is one of :data:`BASIS_LETTERS`."""
+    unknown = set(basis) - set(BASIS_LETTERS)
+    if unknown:
+        raise OptionError(f"a basis is one letter per pair from {BASIS_LETTERS!r}, got "
+                          f"{''.join(sorted(unknown))!r}")
 
 
 def warm_point_given(warm: Any) -> bool:
@@ -110,10 +128,7 @@ def warm_basis(problem: Any, warm: Any) -> np.ndarray:
     if isinstance(warm, Result) and warm.basis is not None:
         states = np.asarray(warm.basis, dtype=np.int8)
     elif isinstance(warm, str):
-        unknown = set(warm) - set(BASIS_LETTERS)
-        if unknown:
-            raise OptionError(f"a basis is one letter per pair from {BASIS_LETTERS!r}, got "
-                              f"{''.join(sorted(unknown))!r}")
+        _check_letters(warm)
         states = np.array([BASIS_LETTERS.index(c) for c in warm], dtype=np.int8)
     elif not isinstance(warm, Result) and np.asarray(warm).dtype.kind == "b":
         states = np.where(np.asarray(warm).ravel(), BETWEEN, AT_LOWER).astype(np.int8)
@@ -145,7 +160,8 @@ def warm_start(problem: Any, warm: Any, tol: float,
     """
     states = warm_basis(problem, warm)
     F = states == BETWEEN
-    factors = warm.factors if isinstance(warm, Result) else None
+    factors = warm.factors.fork() if isinstance(warm, Result) and warm.factors is not None \
+        else None  # the Result's own stay as they are: the same answer for every later use
     if method.startswith("lemke") and problem.kind == "lcp" and not problem.sparse:
         M = np.ascontiguousarray(problem.dense_M(), dtype=np.float64)
         q = np.ascontiguousarray(problem.q, dtype=np.float64)

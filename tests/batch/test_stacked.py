@@ -129,6 +129,47 @@ def test_nan_problem_is_an_error_row_and_the_rest_is_solved(cli, tmp_path):
     assert "NaN" in s["summary"]["errors"][0]["message"]
 
 
+def test_error_rows_of_a_stack_have_the_documented_shape(cli, tmp_path):
+    """docs/batch.md: a row without a solution has n null and empty z and w; a stacked
+    input's error row had z = w = [null, null, null, null]."""
+    M, q = pd_stack(6, 4)
+    M[1, 0, 0] = np.nan
+    path = tmp_path / "bad.h5"
+    write_stack(path, M, q)
+    res = cli("solve", str(path), "--json")
+    rows = {r["index"]: r for r in map(json.loads, res.stdout.splitlines())}
+    assert rows[1]["status"] == "error" and rows[1]["n"] is None
+    assert rows[1]["z"] == [] and rows[1]["w"] == [] and rows[1]["basis"] is None
+    assert rows[0]["status"] == "solved" and len(rows[0]["z"]) == 4
+
+
+@pytest.mark.parametrize("bad,message", [("nan", "upper contains NaN"),
+                                         ("crossed", "lower > upper")])
+def test_a_bad_per_problem_bound_is_an_error_row_and_the_rest_is_solved(cli, tmp_path, bad,
+                                                                        message):
+    """Per-problem bounds (K, n) are problem data: one problem's NaN bound or crossed bounds
+    refuse that problem alone, as a NaN in its M does (the whole stack ended in one line,
+    exit 2, no result file)."""
+    M, q = pd_stack(20, 4)
+    lower, upper = np.zeros((20, 4)), np.ones((20, 4))
+    if bad == "nan":
+        upper[5, 2] = np.nan
+    else:
+        lower[5, 1] = 2.0
+    path = tmp_path / "box.h5"
+    write_stack(path, M, q, lower=lower, upper=upper)
+    out = tmp_path / "r.h5"
+    res = cli("solve", str(path), "--json", "-o", str(out))
+    assert res.returncode == 2
+    s = summary(res)
+    assert s["summary"]["counts"] == {"error": 1, "solved": 19}
+    assert message in s["summary"]["errors"][0]["message"]
+    with h5py.File(out) as f:
+        group = f[next(iter(f))]
+        status = group["status"][:]
+    assert status[5] == STATUS_CODES["error"] and (np.delete(status, 5) == 0).all()
+
+
 @pytest.mark.parametrize("extra,match", [
     (["--timeout", "5"], "--timeout"),
     # --scheduler applies to stacks (tests/batch/test_dask_stacks.py): here none listens

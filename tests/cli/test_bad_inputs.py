@@ -790,6 +790,17 @@ def _file_kind_cases() -> list[Case]:
                                                "--json"], BAD, "no such file", rows=True),
         Case("unknown-ext", "exit-code", ["solve", "{d}/stdout_link.txt"], BAD,
              "unknown file type .txt"),
+        # a missing name without a problem extension is missing, not of an unknown type
+        Case("missing-folder", "exit-code", ["solve", "{d}/no_such_dir/"], BAD,
+             "no such file"),
+        Case("missing-folder-in-batch", "exit-code", ["solve", "{d}/no_such_dir/",
+                                                      "{d}/ok.json", "--json"], BAD,
+             "no such file", rows=True),
+        Case("missing-folder-info", "exit-code", ["info", "{d}/no_such_dir/"], BAD,
+             "no such file"),
+        Case("missing-folder-convert", "exit-code", ["convert", "{d}/no_such_dir/",
+                                                     "{d}/o.json"], BAD,
+             "no such file", absent=("o.json",)),
     ]
     return cases
 

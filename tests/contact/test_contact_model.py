@@ -541,6 +541,24 @@ def test_warm_start_by_name_when_the_scene_changes(tmp_path) -> None:
         warm_start(plain, ["n[a]", "n[b]", "n[c]"])
 
 
+@pytest.mark.parametrize("z0,words", [
+    ("nan", "the warm start z0 contains NaN or Inf"),
+    ("short", "the warm start z0 has 3 values but the contact LCP has 4"),
+    ("bool", "the warm start z0 holds booleans"),
+    ("complex", "the warm start z0 holds complex numbers"),
+])
+def test_library_warm_start_follows_the_data_rule_in_library_words(z0, words) -> None:
+    """contact.solve(z0=...) in a library call: the data rule of M and q (booleans were taken
+    as impulses 0/1, complex numbers cast), and messages that name z0, not the CLI's --z0."""
+    clcp = build(load_scene(SAMPLES / "scene_cube_on_plane.json"))
+    n = clcp.problem.n
+    given = {"nan": np.full(n, np.nan), "short": np.zeros(n - 1),
+             "bool": np.zeros(n, bool), "complex": np.zeros(n, complex)}[z0]
+    with pytest.raises(OptionError) as err:
+        solve(clcp, z0=given)
+    assert str(err.value).startswith(words) and "--z0" not in str(err.value)
+
+
 def test_bad_warm_start_and_new_options_exit_2(tmp_path, capsys) -> None:
     path = str(SAMPLES / "scene_two_balls.json")
     short = tmp_path / "short.json"
@@ -607,3 +625,36 @@ def test_bad_new_keys(key: str, value, word: str) -> None:
 def test_to_json_without_solve_has_islands_but_no_per_island() -> None:
     d = to_json(build(load_scene(SAMPLES / "scene_conveyor.json")))
     assert d["islands"]["count"] == 2 and "per_island" not in d["islands"]
+
+
+def test_newton_on_structurally_singular_jacobians_writes_nothing(capfd) -> None:
+    """Newton on the whole-scene LCP of 12 box stacks meets Jacobians with empty columns;
+    SuperLU's column ordering then called BLAS with invalid arguments, and OpenBLAS wrote
+    '** On entry to DTRSV parameter number 6 had an illegal value' (172 lines) on stdout,
+    under `lcpcli solve --json`'s one object.  Such a matrix is singular: no LU is tried
+    (lcpcli.solvers.support.sparse_lu), and Newton takes its Levenberg-Marquardt step."""
+    import lcpcli
+
+    clcp = build(box_stacks(12, seed=1), friction=4)
+    assert clcp.problem.sparse
+    capfd.readouterr()
+    r = lcpcli.solve(clcp.problem, "newton")
+    out, err = capfd.readouterr()
+    assert "illegal value" not in out and "illegal value" not in err
+    assert r.status in ("solved", "unsolved")
+
+
+def test_sparse_lu_refuses_singular_matrices() -> None:
+    """sparse_lu: None for a structurally singular matrix (an empty column, a column holding
+    only an explicit zero) and an exactly singular one; the factorization otherwise."""
+    import scipy.sparse as sp
+
+    from lcpcli.solvers.support import sparse_lu
+
+    empty_column = sp.csc_matrix(np.array([[1.0, 0.0], [2.0, 0.0]]))
+    explicit_zero = sp.csc_matrix((np.array([1.0, 0.0]), np.array([0, 1]), np.array([0, 1, 2])))
+    singular = sp.csc_matrix(np.array([[1.0, 2.0], [2.0, 4.0]]))
+    assert sparse_lu(empty_column) is None and sparse_lu(explicit_zero) is None
+    assert sparse_lu(singular) is None
+    lu = sparse_lu(sp.csc_matrix(np.array([[2.0, 1.0], [1.0, 3.0]])))
+    assert np.allclose(lu.solve(np.array([3.0, 4.0])), [1.0, 1.0])

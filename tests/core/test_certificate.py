@@ -363,3 +363,27 @@ def test_no_pair_state_for_a_z_that_is_not_finite() -> None:
     states = np.full(3, 77, np.int8)
     assert check(p, np.array([1.0, 0.0, 2.0]), state=states)[0].passed
     assert states.tolist() == [2, 0, 2]
+
+
+def test_no_pair_state_when_an_infinite_z_j_meets_huge_finite_ones() -> None:
+    """A diverged PGS run leaves z = (3.8e306, 5.3e307, inf): the huge entries sent the check
+    down the rescaled path, where the inf stopped the kernel, and that path left ``state`` and
+    ``w`` unwritten: Result.basis was uninitialised memory ('LLL' in --json, codes such as -32
+    in the array) and w finite (0.031, 0.0026, 0.0) for an infinite z.  Now as above:
+    NO_STATE throughout and ``w = M z + q`` over the stored nonzeros."""
+    import lcpcli
+    from lcpcli.core.certificate import NO_STATE
+
+    M = np.array([[1.73352959, 0.34781037, -0.94141329],
+                  [0.90704896, 0.01765561, -0.61521853],
+                  [-0.63350893, -0.99343179, 0.04811898]])
+    q = np.array([1.06881669, -0.3250521, 0.42082413])
+    z = np.array([3.8e306, 5.3e307, np.inf])
+    for data in (M, sp.csr_matrix(M)):
+        states = np.full(3, 77, np.int8)
+        cert, w = check(Problem.create(data, q), z, state=states)
+        assert not cert.passed and np.all(states == NO_STATE)
+        assert not np.any(np.isfinite(w))  # every row touches the infinite z_3
+    r = lcpcli.solve(M, q, "pgs")
+    assert not np.all(np.isfinite(r.z))
+    assert r.basis is None and r.to_dict()["basis"] is None and not np.any(np.isfinite(r.w))

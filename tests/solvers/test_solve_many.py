@@ -158,6 +158,73 @@ def test_auto_routes_by_a_sample_and_the_plan_can_be_reused():
         solve_many(M, q, method="pgs", plan=plan)
 
 
+def test_warm_rows_and_solve_each_arguments_are_checked():
+    """A stack's warm rows hold real numbers or booleans (text raised numpy's UFuncTypeError,
+    complex rows were taken); solve_each checks warms= against the problems (a short list
+    raised IndexError) and takes every warm form solve takes (a Result, letters: refused with
+    a shape error) and Problems only (a tuple: AttributeError)."""
+    M, q = pd_stack(9, 4, seed=5)
+    for rows in (np.full((9, 4), "1"), np.ones((9, 4), complex)):
+        with pytest.raises(OptionError, match="warm start of a stack holds"):
+            solve_many(M, q, "lemke", warm=rows)
+    problems = [lcpcli.Problem.create(M[k], q[k]) for k in range(9)]
+    prev = [lcpcli.solve(p, "lemke") for p in problems]
+    with pytest.raises(OptionError, match="one warm start"):
+        lcpcli.solve_each(problems, "lemke", warms=prev[:3])
+    with pytest.raises(TypeError, match="item 0 is a tuple"):
+        lcpcli.solve_each([(M[k], q[k]) for k in range(9)], "lemke")
+    with pytest.raises(OptionError, match="one letter per pair"):
+        lcpcli.solve_each(problems, "lemke", warms=["FXLL"] * 9)
+    letters = ["".join("LUF"[c] for c in r.basis) for r in prev]
+    for warms in (prev, letters, [r.z_basic for r in prev]):
+        out = lcpcli.solve_each(problems, "lemke", warms=warms)
+        assert all(r.solved and r.info["warm"] for r in out)
+        assert all(np.array_equal(r.z_basic, p.z_basic) for r, p in zip(out, prev, strict=True))
+
+
+@pytest.mark.parametrize("method", ["pgs", "auto", "newton"])
+def test_a_problem_with_bad_bounds_is_refused_on_its_own(method):
+    """Per-problem bounds are problem data: on_error="mark" marks the problem whose bounds
+    break the rules (NaN, lower > upper) and solves the others; "raise" names it.  Shared
+    bounds are the whole stack's and raise as before."""
+    M, q = np.tile(np.eye(3) * 2, (6, 1, 1)), -np.ones((6, 3))
+    lower, upper = np.zeros((6, 3)), np.ones((6, 3))
+    upper[2, 0] = np.nan
+    lower[4, 1] = 5.0
+    res = solve_many(M, q, method, lower=lower, upper=upper, on_error="mark",
+                     record_basis=True, certificates=True)
+    assert res.statuses()[2] == "error" and res.message(2) == "upper contains NaN"
+    assert res.statuses()[4] == "error" and "lower > upper" in res.message(4)
+    assert res.counts() == {"solved": 4, "error": 2}
+    assert np.isnan(res.z[[2, 4]]).all() and (res.basis[[2, 4]] == -1).all()
+    if res.certificates is not None:
+        assert np.isnan(res.certificates[[2, 4]]).all()
+    assert_honest(M, q, res, lower, upper)
+    with pytest.raises(ProblemError, match="problem 2 of the stack: upper contains NaN"):
+        solve_many(M, q, method, lower=lower, upper=upper)
+    with pytest.raises(ProblemError, match="upper contains NaN"):
+        solve_many(M, q, method, upper=upper[2], on_error="mark")
+
+
+@pytest.mark.parametrize("kind", [{"upper": np.full(3, 0.1)}, {"n_eq": 1}])
+def test_a_plan_of_an_lcp_stack_never_certifies_a_box_or_mlcp_stack(kind):
+    """auto's plan of an LCP stack runs Lemke's LCP kernel, which knows no bounds and no
+    equations: given with a box or MLCP stack it is refused, never used (it answered the
+    LCP's z = (0, 1/2, 1/2) as 'solved', above the upper bound 0.1 / with w_0 = 1 on an
+    equation row)."""
+    M, q = np.tile(np.eye(3) * 2, (9, 1, 1)), np.tile([1.0, -1.0, -1.0], (9, 1))
+    plan = plan_stack(M, -np.ones((9, 3)))
+    assert plan.kernel_method == "lemke-revised"
+    with pytest.raises(OptionError, match="plan"):
+        solve_many(M, q, plan=plan, **kind)
+    res = solve_many(M, q, plan=plan_stack(M, q, **kind), **kind)  # its own plan: solved
+    assert res.solved.all()
+    lo = np.zeros(3) if "upper" in kind else np.array([-np.inf, 0.0, 0.0])
+    up = kind.get("upper", np.full(3, np.inf))
+    for k in range(9):
+        assert componentwise_error(M[k], q[k], res.z[k], lo, up) <= res.tol
+
+
 def test_a_backend_that_certifies_nothing_still_gives_honest_results():
     """The backend interface: a kernel handing everything back costs speed, not verdicts."""
 

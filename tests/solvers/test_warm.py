@@ -199,6 +199,75 @@ def test_warm_basis_forms_and_errors() -> None:
         lcpcli.solve(p, warm=np.ones(5))
 
 
+@pytest.mark.parametrize("method", ["auto", "bpp", "pgs", "newton", "murty", "lemke"])
+@pytest.mark.parametrize("given", [
+    {"warm": "FXF"},                               # a letter outside 'LUF'
+    {"warm": np.array([1 + 1j, 0, 1])},            # complex
+    {"warm": ["1", "0", "1"]},                     # text
+    {"z0": np.array([1 + 1j, 0, 1])},
+    {"z0": ["1", "0", "1"]},
+    {"z0": np.array([True, False, True])},         # booleans are no point
+    {"covering": [1 + 0j, 1, 1]},
+])
+def test_warm_starts_and_vectors_follow_the_data_rule_for_every_method(method, given) -> None:
+    """README: the data rule of M and q applies to warm starts too, whatever the method does
+    with them: auto below n = 200 ignored an unknown basis letter ('FXF' solved, bpp refused
+    it), and z0= / covering= took complex numbers (imaginary part dropped), text and
+    booleans."""
+    M, q = 2 * np.eye(3), -np.ones(3)
+    key = next(iter(given))
+    if key in ("z0", "covering"):
+        from lcpcli.solvers.registry import get_method
+
+        if key not in get_method(method).options:
+            pytest.skip(f"{method} takes no {key}")
+    with pytest.raises(OptionError):
+        lcpcli.solve(M, q, method, **given)
+
+
+@pytest.mark.parametrize("method", ["pgs", "auto", "bpp", "lemke", "newton"])
+def test_a_previous_result_that_is_not_finite_starts_cold(method) -> None:
+    """A loop that hands on every previous Result: PGS diverging on a non-symmetric M leaves
+    z with inf, which has no basis and is no point; the next solve runs cold (as solve_many's
+    rows with NaN) instead of raising 'warm start z0 contains NaN or Inf'."""
+    A = np.array([[1.73352959, 0.34781037, -0.94141329],
+                  [0.90704896, 0.01765561, -0.61521853],
+                  [-0.63350893, -0.99343179, 0.04811898]])
+    q = np.array([1.06881669, -0.3250521, 0.42082413])
+    prev = lcpcli.solve(A, q, "pgs")
+    assert not np.all(np.isfinite(prev.z)) and prev.basis is None
+    warm, cold = lcpcli.solve(A, q, method, warm=prev), lcpcli.solve(A, q, method)
+    assert warm.status == cold.status
+    assert np.array_equal(warm.z, cold.z, equal_nan=True)
+    assert "not finite: solved cold" in warm.message
+    with pytest.raises(OptionError, match="length 3"):
+        lcpcli.solve(2 * np.eye(2), -np.ones(2), method, warm=prev)
+
+
+@pytest.mark.parametrize("method", ["bpp", "lemke"])
+def test_one_warm_result_gives_the_same_bits_in_any_order_and_thread(method) -> None:
+    """A Result's kept factors (Result.factors) were updated in place by every warm solve
+    that used them: several solves from one previous Result (a sweep of scenarios from one
+    state) gave z bits that depended on which ran before (2 of 12 differed between two
+    orders), and threads sharing it saw each other's q (9 of 32 warm starts failed and ran
+    cold).  Each use now starts from the Result's own state."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    n = 300
+    rng = np.random.default_rng(2)
+    M, q = _pd(n, 2), rng.standard_normal(n)
+    prev = lcpcli.solve(M, q, method, warm=lcpcli.solve(M, q, method))
+    assert prev.factors is not None
+    qs = [q + 0.02 * rng.standard_normal(n) for _ in range(12)]
+    forward = [lcpcli.solve(M, x, method, warm=prev) for x in qs]
+    backward = [lcpcli.solve(M, x, method, warm=prev) for x in reversed(qs)][::-1]
+    with ThreadPoolExecutor(4) as pool:
+        threaded = list(pool.map(lambda x: lcpcli.solve(M, x, method, warm=prev), qs))
+    for a, b, c in zip(forward, backward, threaded, strict=True):
+        assert a.solved and "did not end certified" not in c.message
+        assert a.z.tobytes() == b.z.tobytes() == c.z.tobytes()
+
+
 def test_iterative_methods_take_the_warm_point() -> None:
     M, q = _pd(20, 4), np.random.default_rng(4).standard_normal(20)
     prev = lcpcli.solve(M, q)

@@ -29,6 +29,7 @@ solves otherwise); a sparse M is densified.  ``z0`` starts from the basis ``{i: 
 
 from __future__ import annotations
 
+import copy
 import warnings
 from typing import Any
 
@@ -112,6 +113,16 @@ class Blocks:
         self._columns: dict[int, np.ndarray] = {}  # pair -> its solved border column
         self._schur: tuple[bytes, Any, np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None \
             = None
+
+    def fork(self) -> Blocks:
+        """A copy for one more solve (:func:`lcpcli.solvers.warm.warm_start` takes one from a
+        Result): the factors, the solved border columns and the Schur complement's LU are
+        shared, never changed in place; what a solve changes (``q``, the last basis's
+        solution, a refactorisation, new columns) is the copy's own.  So a Result's blocks
+        give the same answer whatever solves used them before, in this thread or another."""
+        twin = copy.copy(self)
+        twin._columns = dict(self._columns)
+        return twin
 
     def reuse(self, M: np.ndarray, q: np.ndarray) -> bool:
         """Take the new ``q`` of a problem with the same M (True), keeping the factors of the

@@ -47,7 +47,14 @@ from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, NUMERICAL, STALLED, O
 from lcpcli.core.text import plural
 from lcpcli.solvers.options import positive_int, vector_option
 from lcpcli.solvers.registry import Cost, Guarantee, Method, Option, when
-from lcpcli.solvers.support import StallWatch, certified_error, preload_linalg, refine, start_point
+from lcpcli.solvers.support import (
+    StallWatch,
+    certified_error,
+    preload_linalg,
+    refine,
+    sparse_lu,
+    start_point,
+)
 
 DEFAULT_MAX_ITER = 200
 #: Stagnation: stop (termination ``stalled``) when the best merit fell by less than
@@ -146,16 +153,11 @@ def _newton_direction(M: Any, sparse: bool, a: np.ndarray, b: np.ndarray,
     n = phi.shape[0]
     if sparse:
         import scipy.sparse as sp  # scipy is imported on first use (start-up budget)
-        import scipy.sparse.linalg as spla
 
-        H = (sp.diags(b) @ M + sp.diags(a)).tocsc()
-        try:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")
-                lu = spla.splu(H)
-                d = lu.solve(-phi)
-        except RuntimeError:
+        lu = sparse_lu(sp.diags(b) @ M + sp.diags(a))
+        if lu is None:
             return None
+        d = lu.solve(-phi)
     else:
         from scipy.linalg.lapack import dgesv  # LAPACK directly: one call, no wrappers
 
