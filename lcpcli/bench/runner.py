@@ -20,10 +20,11 @@ Conventions (all stated once here; ``docs/bench.md`` repeats them for users):
 * **Shifted geometric mean** of times: ``exp(mean(log(t + s))) - s`` with shift ``s = 10 ms``
   over the problems a method was run on; a failure counts as :data:`PENALTY` times the slowest
   time any method (peers included) took on that problem, and never less than its own time.
-* **Performance profile** (Dolan and More 2002): over the problems every compared method was
-  run on, ``r[p, s] = t[p, s] / min_s t[p, s]`` with failures infinite (times floored at the
-  clock's resolution :data:`TIME_FLOOR`);
-  ``rho_s(tau) = fraction of problems with r[p, s] <= tau``.
+* **Performance profile** (Dolan and More 2002): the methods and peers run on at least one
+  problem, over the problems at least one of them was run on,
+  ``r[p, s] = t[p, s] / min_s t[p, s]`` with failures infinite (a problem a method was not run
+  on, of another kind or above its size limit, is a failure; times floored at the clock's
+  resolution :data:`TIME_FLOOR`); ``rho_s(tau) = fraction of problems with r[p, s] <= tau``.
 * **Errors** are the certificate's error (:mod:`lcpcli.core.certificate`); ``z_error`` is the
   forward error ``||z - z*||_inf / max(1, ||z*||_inf)`` when the case has a unique known z*.
 """
@@ -554,16 +555,20 @@ def performance_profile(report: BenchReport, tol: float | None = None,
 
     Returns ``{"tol", "problems": [...], "tau": [...], "rho": {method: [...]},
     "ratios": {method: [...]}}``; ``tau`` holds 1 and every finite ratio that occurs, so the
-    profile is exact as a step function.  Problems are those every method was run on.
+    profile is exact as a step function.  Methods are those run on at least one problem at
+    ``tol`` (a method of another kind than every problem is left out), problems those at least
+    one of them was run on; a problem a method was not run on (another kind, above its size
+    limit) counts as one it did not solve, as in Dolan and More's profiles.
     """
     tol = report.tols[0] if tol is None else tol
-    methods = methods or report.all_methods()
     by: dict[tuple[str, str], Record] = {(r.problem, r.method): r for r in report.records
                                          if r.tol == tol}
-    problems = [p for p, *_ in report.problems if all((p, m) in by for m in methods)]
+    ran = {m for _, m in by}
+    methods = [m for m in (methods or report.all_methods()) if m in ran]
+    problems = [p for p, *_ in report.problems if any((p, m) in by for m in methods)]
     ratios: dict[str, list[float]] = {m: [] for m in methods}
     for p in problems:
-        t = {m: (max(by[p, m].seconds, TIME_FLOOR) if by[p, m].success
+        t = {m: (max(by[p, m].seconds, TIME_FLOOR) if (p, m) in by and by[p, m].success
                  and by[p, m].seconds is not None else math.inf) for m in methods}
         best = min(t.values())
         for m in methods:

@@ -372,6 +372,33 @@ def test_statistics_shifted_geomean_and_profile() -> None:
     assert summ["a"].successes == 1 and summ["b"].successes == 2
 
 
+
+def test_the_profile_keeps_every_problem_and_leaves_out_methods_that_ran_on_none() -> None:
+    """``lcpcli bench --suite hard`` runs every registered method: the MLCP methods run on no
+    LCP and enum skips n > 24, and the profile (then over the problems *every* method ran on)
+    had 0 problems.  Now a method run on no problem is left out, and a problem a method was
+    not run on counts as one it did not solve."""
+    R = bench.Record
+    recs = [R("p1", 2, "a", "solved", 1.0, 1, 0.0, "solvable", False, 1e-8, success=True),
+            R("p1", 2, "c", "solved", 2.0, 1, 0.0, "solvable", False, 1e-8, success=True),
+            R("p2", 40, "a", "solved", 3.0, 1, 0.0, "solvable", False, 1e-8, success=True)]
+    rep = bench.BenchReport(recs, ["a", "c", "mlcp-only"], [1e-8],
+                            [("p1", 2, "lcp", "solvable"), ("p2", 40, "lcp", "solvable")])
+    prof = bench.performance_profile(rep)
+    assert prof["problems"] == ["p1", "p2"]
+    assert prof["ratios"] == {"a": [1.0, 1.0], "c": [2.0, None]}  # c was not run on p2
+    assert prof["rho"]["a"][0] == 1.0 and prof["rho"]["c"] == [0.0, 0.5]
+
+
+def test_the_default_bench_of_a_suite_draws_a_profile() -> None:
+    """Every registered method on LCPs (the MLCP methods run on none of them): the profile is
+    over the suite's problems, not empty."""
+    cases = [suites.kostreva(), suites.cube_contact(4)]
+    rep = bench.run_bench(cases, bench.resolve_methods(None), repeat=0)
+    prof = bench.performance_profile(rep)
+    assert prof["problems"] == [c.problem.name for c in cases]
+    assert "mlcp-lemke" not in prof["ratios"] and prof["rho"]["auto"][-1] == 1.0
+
 # ---------------------------------------------------------------------- CLI
 REQUIRED = {"problem": str, "n": int, "method": str, "status": str, "seconds": float,
             "iterations": int, "error": float, "expected": str, "defect": bool}

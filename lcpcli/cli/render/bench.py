@@ -320,8 +320,8 @@ def markdown_report(report: BenchReport, title: str) -> str:
                 "with a unique known z* (the certified error bounds the backward error only). "
                 "sgm ms is over the runs counted in `success`: rows with different counts are "
                 "over different problems (a peer runs LCPs only; a method skips the kinds and "
-                "sizes it does not handle); the performance profile keeps the problems every "
-                "method ran on."]
+                "sizes it does not handle); the performance profile counts a problem a method "
+                "did not run as one it did not solve (methods that ran on none are left out)."]
     ratios = peer_ratios(report)
     if ratios:
         out += ["", "| method | peer | problems both solved | geomean time ratio ours/peer "
