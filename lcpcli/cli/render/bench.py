@@ -261,17 +261,21 @@ def write_plot(report: BenchReport, path: Path) -> None:
     from lcpcli.io import atomic_path
 
     prof = performance_profile(report)
-    fig, (ax1, ax2, ax3) = plt.subplots(1, 3, figsize=(17, 4.8))
+    fig, (ax1, ax2, ax3) = plt.subplots(1, 3, figsize=(19, 4.8))
+    # one colour per method or peer in all three panels (up to 20 apart); peers dashed / x
+    names = report.all_methods()
+    peers = {r.method for r in report.records if r.peer is not None}
+    colour = {m: plt.get_cmap("tab20")(i % 20) for i, m in enumerate(names)}
     taus = prof["tau"]
     top = max(taus[-1] * 1.5, 2.0)
     for m, rho in prof["rho"].items():
-        ax1.step(taus + [top], rho + [rho[-1]], where="post", label=m)
+        ax1.step(taus + [top], rho + [rho[-1]], where="post", label=m, color=colour[m],
+                 ls="--" if m in peers else "-")
     ax1.set_xscale("log")
     ax1.set_ylim(0, 1.02)
     ax1.set_xlabel("tau (time / best time)")
     ax1.set_ylabel("fraction of problems")
     ax1.set_title(f"performance profile, tol {prof['tol']:g}, {len(prof['problems'])} problems")
-    ax1.legend(fontsize=8, loc="lower right")
     pts = work_precision(report)
     floor = 1e-18
     for key, ax in (("error", ax2), ("z_error", ax3)):
@@ -280,7 +284,8 @@ def write_plot(report: BenchReport, path: Path) -> None:
                    and (key == "error" or p["success"])]
             if sel:
                 ax.scatter([p["seconds"] for p in sel], [max(p[key], floor) for p in sel],
-                           s=14, alpha=0.7, label=m)
+                           s=14, alpha=0.7, label=m, color=colour[m],
+                           marker="x" if m in peers else "o")
         ax.set_xscale("log")
         ax.set_yscale("log")
         ax.set_xlabel("seconds (median; ours include the certificate)")
@@ -288,13 +293,14 @@ def write_plot(report: BenchReport, path: Path) -> None:
         ax2.axhline(t, color="grey", lw=0.6, ls="--")
     ax2.set_ylabel(f"certified error (floored at {floor:g})")
     ax2.set_title("work-precision (all runs; dashed: tolerances)")
-    ax2.legend(fontsize=8, loc="upper right")
     known = sum(1 for p in pts if p["z_error"] is not None and p["success"])
     ax3.set_ylabel(f"forward error ||z - z*|| / max(1, ||z*||) (floored at {floor:g})")
     ax3.set_title(f"speed against forward error (z* known: {known} solved runs)")
-    if known:
-        ax3.legend(fontsize=8, loc="upper right")
-    fig.tight_layout()
+    handles = {h.get_label(): h for ax in (ax3, ax2, ax1)
+               for h in ax.get_legend_handles_labels()[0]}
+    fig.legend([handles[m] for m in names if m in handles],
+               [m for m in names if m in handles], fontsize=8, loc="center right")
+    fig.tight_layout(rect=(0, 0, 0.89, 1))
     with atomic_path(Path(path)) as tmp:
         fig.savefig(tmp, format="png", dpi=110)
     plt.close(fig)
