@@ -20,6 +20,7 @@ from lcpcli.core.errors import LcpError, OptionError, ProblemError
 from lcpcli.core.numeric import check_dtype
 from lcpcli.core.problem import (
     Problem,
+    broken_bounds,
     check_bounds,
     check_n_eq,
     check_size,
@@ -515,15 +516,13 @@ def _stack_bounds(lower: Any, upper: Any, K: int,
 def _kernel_bounds(lower: np.ndarray | None, upper: np.ndarray | None
                    ) -> tuple[np.ndarray | None, np.ndarray | None, np.ndarray]:
     """``(lower, upper, bad)``: the problems (rows) of per-problem bounds that break the rules
-    of :func:`lcpcli.core.problem.check_bounds` (NaN, ``lower = inf``, ``upper = -inf``,
-    ``lower > upper``) as ``bad`` indices, and bounds for the kernels and the sampling with
-    those rows replaced by the LCP's ``[0, inf)``.  A bad problem is refused on its own
+    (:func:`lcpcli.core.problem.broken_bounds`) as ``bad`` indices, and bounds for the kernels
+    and the sampling with those rows replaced by the LCP's ``[0, inf)``.  A bad problem is refused on its own
     (``on_error``), as one with NaN in M or q, by the one-problem rules: the caller keeps the
     given bounds for that."""
     if lower is None:
         return lower, upper, np.zeros(0, np.int64)
-    bad = np.flatnonzero((np.isnan(lower) | np.isnan(upper) | (lower == np.inf)
-                          | (upper == -np.inf) | (lower > upper)).any(axis=1))
+    bad = np.flatnonzero(broken_bounds(lower, upper).any(axis=1))
     if bad.size:
         lower, upper = lower.copy(), upper.copy()
         lower[bad], upper[bad] = 0.0, np.inf

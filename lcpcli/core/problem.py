@@ -83,10 +83,21 @@ def check_n_eq(n_eq: Any, n: int, *, bounded: bool = False) -> int:
     return int(n_eq)
 
 
+def broken_bounds(lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
+    """Where the rules on box bounds fail, entry by entry (booleans of the bounds' shape): NaN,
+    ``lower = inf``, ``upper = -inf`` or ``lower > upper``.  The one definition of the rules;
+    :func:`check_bounds` says which one failed."""
+    return (np.isnan(lower) | np.isnan(upper) | (lower == np.inf) | (upper == -np.inf)
+            | (lower > upper))
+
+
 def check_bounds(lower: np.ndarray, upper: np.ndarray) -> None:
-    """The rules on box bounds, for one problem (shape (n,)) or a stack ((K, n)): no NaN,
-    ``lower < inf``, ``upper > -inf``, ``lower <= upper`` (ProblemError naming the first
-    offending index, 1-based, and for a stack the 0-based problem)."""
+    """The rules on box bounds (:func:`broken_bounds`), for one problem (shape (n,)) or a
+    stack ((K, n)): no NaN, ``lower < inf``, ``upper > -inf``, ``lower <= upper``
+    (ProblemError naming the first offending index, 1-based, and for a stack the 0-based
+    problem)."""
+    if not broken_bounds(lower, upper).any():
+        return
     for vec, label in ((lower, "lower"), (upper, "upper")):
         if np.isnan(vec).any():
             raise ProblemError(f"{label} contains NaN")
