@@ -517,9 +517,9 @@ def _kernel_bounds(lower: np.ndarray | None, upper: np.ndarray | None
                    ) -> tuple[np.ndarray | None, np.ndarray | None, np.ndarray]:
     """``(lower, upper, bad)``: the problems (rows) of per-problem bounds that break the rules
     (:func:`lcpcli.core.problem.broken_bounds`) as ``bad`` indices, and bounds for the kernels
-    and the sampling with those rows replaced by the LCP's ``[0, inf)``.  A bad problem is refused on its own
-    (``on_error``), as one with NaN in M or q, by the one-problem rules: the caller keeps the
-    given bounds for that."""
+    and the sampling with those rows replaced by the LCP's ``[0, inf)``.  A bad problem is
+    refused on its own (``on_error``), as one with NaN in M or q, by the one-problem rules:
+    the caller keeps the given bounds for that."""
     if lower is None:
         return lower, upper, np.zeros(0, np.int64)
     bad = np.flatnonzero(broken_bounds(lower, upper).any(axis=1))
