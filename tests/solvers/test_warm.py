@@ -414,3 +414,27 @@ def test_warm_on_psd_matrices_keeps_the_cold_verdict(seed: int) -> None:
     r = lcpcli.solve(M, q, warm=rng.random(n) < 0.5)
     assert r.status == cold.status == "solved"
     assert r.method in ("bpp", "auto")
+
+
+@pytest.mark.parametrize("method", ["bpp", "auto", "lemke"])
+def test_a_warm_result_of_an_m_changed_in_place_starts_from_its_basis(method: str) -> None:
+    """A simulation loop that updates one M array in place and hands on the previous Result:
+    the Result's kept factors were made from the old contents of that same array, so they are
+    not reused (their answer failed the certificate and the step ran cold, 143-147 pivots);
+    the step starts from the Result's basis, factored afresh."""
+    rng = np.random.default_rng(21)
+    n = 300  # auto warm-starts from n = 200 on
+    A = rng.normal(size=(n, n)) / np.sqrt(n)
+    M0 = A @ A.T + np.eye(n)
+    q = rng.normal(size=n)
+    M = M0.copy()
+    prev = lcpcli.solve(M, q, "bpp")
+    prev = lcpcli.solve(M, q, "bpp", warm=prev)  # a warm result: it keeps its factors
+    assert prev.factors is not None
+    B = rng.normal(size=(n, n)) / np.sqrt(n) * 0.3
+    M[...] = M0 + B @ B.T  # the next step, in the same buffer
+    res = lcpcli.solve(M, q, method, warm=prev)
+    cold = lcpcli.solve(M.copy(), q, method)
+    assert res.status == "solved" and "cold" not in res.message
+    assert "warm start" in res.message and res.iterations <= 8
+    np.testing.assert_allclose(res.z, cold.z, atol=1e-9)

@@ -82,6 +82,14 @@ def factor_block(A: np.ndarray, symmetric: bool) -> Any:
     return lambda b: lu_solve(lu, b, trans=1, check_finite=False)
 
 
+def _probe(M: np.ndarray) -> np.ndarray:
+    """A copy of the entries of ``M`` that :meth:`Blocks.reuse` compares to tell an M changed
+    in place: its diagonal and a grid of at most 17 x 17 entries (O(n), against O(n^2) to
+    compare or copy all of M)."""
+    step = max(1, M.shape[0] // 16)
+    return np.concatenate([M.diagonal(), M[::step, ::step].ravel()])
+
+
 class Blocks:
     """Basic solutions of the bases of one LCP, with one factorisation shared by nearby bases.
 
@@ -104,6 +112,7 @@ class Blocks:
 
     def __init__(self, M: np.ndarray, q: np.ndarray, symmetric: bool) -> None:
         self.M, self.q, self.symmetric = M, q, symmetric
+        self._probe = _probe(M)  # M is held by reference: a caller may change it in place
         self.F0: np.ndarray | None = None
         self.solve0: Any = None
         self.x0 = np.zeros(0)
@@ -126,7 +135,12 @@ class Blocks:
 
     def reuse(self, M: np.ndarray, q: np.ndarray) -> bool:
         """Take the new ``q`` of a problem with the same M (True), keeping the factors of the
-        last basis; False (nothing changed) when M differs."""
+        last basis; False (nothing changed) when M differs, or when the M these factors were
+        made from has changed in place at its probe (:func:`_probe`: a simulation loop that
+        updates one M array; a change the probe misses gives factors whose answer fails the
+        certificate, and the solve goes on cold)."""
+        if not np.array_equal(_probe(self.M), self._probe):
+            return False
         if M is not self.M and (M.shape != self.M.shape or not np.array_equal(M, self.M)):
             return False
         self.q = q
