@@ -34,6 +34,7 @@ from __future__ import annotations
 import math
 import statistics
 import time
+import warnings
 from collections.abc import Callable, Iterable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -44,7 +45,9 @@ import numpy as np
 from lcpcli.bench.suites import INFEASIBLE, SOLVABLE, Case
 from lcpcli.core.certificate import certify, validate_tol
 from lcpcli.core.errors import OptionError, ProblemError
+from lcpcli.core.limits import CostNote
 from lcpcli.core.result import Status
+from lcpcli.core.text import one_line_warnings
 from lcpcli.solvers.kernels import process_context
 
 #: Shift of the shifted geometric mean, in seconds.
@@ -259,7 +262,16 @@ def resolve_methods(names: Iterable[str] | None) -> list[str]:
 
 def run_one(case: Case, method: str, tol: float, *, repeat: int = DEFAULT_REPEAT,
             budget: float = DEFAULT_BUDGET, solve_fn: SolveFn | None = None) -> Record:
-    """Benchmark ``method`` on ``case`` at ``tol`` (warm-up, timed repeats, verdict)."""
+    """Benchmark ``method`` on ``case`` at ``tol`` (warm-up, timed repeats, verdict).  The
+    cost notes of the runs (:class:`lcpcli.core.limits.CostNote`: an enumeration of 2^24
+    cones, once per run and repeat) are not shown: the bench announces its own work."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", CostNote)
+        return _run_one(case, method, tol, repeat=repeat, budget=budget, solve_fn=solve_fn)
+
+
+def _run_one(case: Case, method: str, tol: float, *, repeat: int, budget: float,
+             solve_fn: SolveFn | None) -> Record:
     solve_fn = solve_fn or _default_solve()
     prob = case.problem
     try:
@@ -331,6 +343,7 @@ def run_isolated(case: Case, method: str, tol: float, *, timeout: float,
 
 def _child(conn: Any, case: Case, method: str, tol: float, repeat: int, budget: float,
            solve_fn: SolveFn | None) -> None:
+    one_line_warnings()  # a warning of a run: one 'lcpcli: warning:' line, as in the CLI
     try:
         try:
             rec = run_one(case, method, tol, repeat=repeat, budget=budget, solve_fn=solve_fn)

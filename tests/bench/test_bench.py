@@ -655,3 +655,21 @@ def test_the_announced_run_count_is_the_runs_made() -> None:
     rep = bench.run_bench(cases, ["enum"], repeat=0)
     tracker = _Tracker(cases, ["enum"], [1e-8], [], None)
     assert tracker.total == len(rep.records) == 1 and len(rep.skipped) == 1
+
+
+def test_a_run_announces_no_cost_note() -> None:
+    """The bench announces its own work (runs and time); the enumeration's note before 2^20
+    cones is not printed once per run and repeat (six lines on the hard suite, in Python's
+    'lcpcli:0: CostNote:' form from the child processes)."""
+    import warnings
+
+    from lcpcli.core.limits import ENUM_ANNOUNCE_N
+    from lcpcli.core.problem import Problem
+
+    n = ENUM_ANNOUNCE_N
+    case = suites.Case(Problem.create(2.0 * np.eye(n), -np.ones(n), name="diag"))
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        rec = bench.run_one(case, "enum", 1e-8, repeat=1)
+    assert rec.success
+    assert not [w for w in seen if "cones" in str(w.message)]
