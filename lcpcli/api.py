@@ -97,25 +97,21 @@ def _solve_warm(request: Request, warm: Any, options: dict[str, Any]) -> Result:
 
     problem, spec, tol, opts = request.problem, request.spec, request.tol, request.given
     check_warm(problem, warm)
-    if isinstance(warm, Result) and not np.all(np.isfinite(warm.z)):
-        # a result that is not finite (a diverged run) holds no basis and no point: cold, as
-        # solve_many's rows with NaN (a loop may hand on every previous result)
-        start = perf_counter()
-        outcome = run_method(spec, problem, tol, opts)
-        outcome.message += " (the warm start's z is not finite: solved cold)"
-        return certify_outcome(problem, outcome, spec.name, perf_counter() - start, tol)
-    own = takes_basis(spec, problem, opts)
+    # a result that is not finite (a diverged run) holds no basis and no point: cold, as
+    # solve_many's rows with NaN (a loop may hand on every previous result)
+    diverged = isinstance(warm, Result) and not np.all(np.isfinite(warm.z))
+    own = not diverged and takes_basis(spec, problem, opts)
     start_opts = None
     if own:  # the method's own pivots from the basis (Murty, Dantzig); basis= wins
         start_opts = opts if opts.get("basis") is not None else \
             spec.parse_options({**options, "basis": warm_basis(problem, warm)})
         if spec.preload is not None:
             spec.preload(problem, start_opts)
-    elif "z0" in spec.options and opts.get("z0") is None:  # a cold run starts from z0
+    elif not diverged and "z0" in spec.options and opts.get("z0") is None:  # from z0
         z0 = warm_point(problem, warm)
         if z0 is not None:
             opts = spec.parse_options({**options, "z0": z0})
-    bpp_first = not own and uses_warm_basis(spec, problem, opts)
+    bpp_first = not diverged and not own and uses_warm_basis(spec, problem, opts)
     if bpp_first:
         preload_linalg(problem)  # BPP factorises the basic block
     start = perf_counter()
@@ -139,7 +135,9 @@ def _solve_warm(request: Request, warm: Any, options: dict[str, Any]) -> Result:
                 return res
             note = f"its answer failed the certificate (error {res.error:.2g})"
     outcome = run_method(spec, problem, tol, opts)
-    if note:
+    if diverged:
+        outcome.message += " (the warm start's z is not finite: solved cold)"
+    elif note:
         outcome.message += (f" (warm start from the given basis did not end certified: "
                             f"{note}; solved cold)")
     return certify_outcome(problem, outcome, spec.name, perf_counter() - start, tol)
