@@ -324,6 +324,8 @@ def _rescaled_check(problem: Any, z: np.ndarray,
         up = np.where(np.isfinite(problem.upper), np.clip(up, -big, big), up)
     ws = np.empty(n)
     out = _certificate.certify_arrays(marg, qs, zs, problem.n_eq, lo, up, ws, state)
+    if out[0] == 1:  # a z_j not finite: the kernel wrote nothing to ws (check() fills it)
+        return out, ws
     with np.errstate(over="ignore"):
         w = np.ldexp(ws, rexp.astype(np.int32))
     res = list(out)

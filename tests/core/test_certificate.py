@@ -387,3 +387,32 @@ def test_no_pair_state_when_an_infinite_z_j_meets_huge_finite_ones() -> None:
     r = lcpcli.solve(M, q, "pgs")
     assert not np.all(np.isfinite(r.z))
     assert r.basis is None and r.to_dict()["basis"] is None and not np.any(np.isfinite(r.w))
+
+
+def test_an_infinite_z_j_on_the_rescaled_path_reads_no_unwritten_memory(monkeypatch) -> None:
+    """The rescaled path mapped the kernel's ``w`` back with ``ldexp`` also when the kernel had
+    stopped at an infinite ``z_j`` and written nothing: uninitialised memory, which held a
+    signalling NaN now and then (a CI run: 'invalid value encountered in ldexp' from
+    ``enumerate --all-cones`` on a cone with z = (0, 1e300, inf), not reproducible).  Here every
+    new float64 array starts as signalling NaNs: no warning, and w as :func:`check` documents."""
+    import warnings
+
+    empty = np.empty
+    snan = np.array([0x7FF0000000000001], dtype=np.uint64).view(np.float64)[0]
+
+    def poisoned(*args, **kwargs):
+        out = empty(*args, **kwargs)
+        if out.dtype == np.float64:
+            out.view(np.uint64)[...] = snan.view(np.uint64)
+        return out
+
+    M = np.array([[0.0, 1.0, 1e-300], [-1e300, 1e300, -1e200], [-1e300, 0.0, 1e-200]])
+    q = np.array([-1e300, 1.0, 0.0])
+    z = np.array([0.0, 1e300, np.inf])
+    monkeypatch.setattr(np, "empty", poisoned)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        cert, w = check(Problem.create(M, q), z)
+    assert not cert.passed
+    # M z + q over the stored nonzeros: 1e300 + 1e-300 inf, 1e300^2 - 1e200 inf, 1e-200 inf
+    assert w[0] == np.inf and np.isnan(w[1]) and w[2] == np.inf
