@@ -22,7 +22,9 @@ attempts alike, and certifies the answer (see "Dispatcher" below).  Conventions:
 3. **Polish**: when a method says it converged but its answer fails the certificate,
    :func:`lcpcli.solvers.support.refine` re-solves the method's final basis (when it reports
    one) or the active set the certificate names (with sign repair); the better answer is kept.
-   A method that gave up is not polished (its leftover is not an answer to refine).  The
+   A method that gave up is not polished (its leftover is not an answer to refine), except a
+   Lemke ray whose artificial variable ended at rounding level (``RAY_AT_ROUNDING``): its
+   point solves the problem up to a change of q below rounding.  The
    verdict is always the certificate's (and a no_solution's proof is checked by the caller,
    :func:`lcpcli.analysis.proof.confirm`).
 
@@ -51,8 +53,8 @@ from lcpcli.analysis.scaling import (
 from lcpcli.core.certificate import Certificate, check
 from lcpcli.core.numeric import float64_array
 from lcpcli.core.problem import Problem
-from lcpcli.core.result import CONVERGED, Outcome
-from lcpcli.solvers.support import refine
+from lcpcli.core.result import CONVERGED, RAY, Outcome
+from lcpcli.solvers.support import RAY_AT_ROUNDING, refine
 
 #: Options in the units of z and of w, scaled with the problem.
 Z_OPTIONS = ("z0",)
@@ -147,7 +149,8 @@ def _geometric(spec: Any, problem: Problem, tol: float, options: dict[str, Any],
 def _polish(problem: Problem, out: Outcome, tol: float) -> bool:
     """Step 3 of the module docstring on ``out``, in place; whether its answer passes the
     certificate (``out.checked`` is then set for the caller to reuse)."""
-    if out.termination != CONVERGED:
+    ray = out.termination == RAY and bool(out.info.get(RAY_AT_ROUNDING))
+    if out.termination != CONVERGED and not ray:
         return False
     cert = certified(problem, out, tol)[0]
     z = out.z
@@ -160,6 +163,8 @@ def _polish(problem: Problem, out: Outcome, tol: float) -> bool:
         out.message += (f"; active-set polish: certified error {cert.error:.2g} -> "
                         f"{polished[1]:.2g}")
         out.info["polished"] = True
+        if ray and out.checked[0].passed:
+            out.termination = CONVERGED  # the ray's point, polished, is the answer
         return out.checked[0].passed
     return False
 

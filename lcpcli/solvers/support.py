@@ -91,6 +91,12 @@ class StallWatch:
         return False
 
 
+#: ``Outcome.info`` key of a Lemke ray whose artificial variable ``z0`` ended at rounding level
+#: (``<= TINY_Z max |q|``, :func:`lcpcli.solvers.methods.lemke.ray_outcome`): its point is
+#: polished as a converged answer's is and the certificate decides (pipeline, step 3).
+RAY_AT_ROUNDING = "ray_at_rounding_level"
+
+
 def refine(problem: Any, z: np.ndarray, rounds: int = 4, basis: list[int] | None = None,
            good_enough: float = POLISHED) -> tuple[np.ndarray, float] | None:
     """Polish ``z`` by re-solving the equations its active set implies; None if nothing better.

@@ -27,7 +27,7 @@ from lcpcli.analysis.proof import preload_proof_search, prove_infeasible
 from lcpcli.core.errors import OptionError
 from lcpcli.core.result import CONVERGED, ITERATION_LIMIT, RAY, Outcome
 from lcpcli.core.text import plural
-from lcpcli.core.tolerances import PIVOT_TOL, TIE_TOL
+from lcpcli.core.tolerances import PIVOT_TOL, TIE_TOL, TINY_Z
 from lcpcli.solvers.kernels.dense import bind_numpy_lapack
 from lcpcli.solvers.kernels.lemke import (
     MAX_ITER,
@@ -39,7 +39,7 @@ from lcpcli.solvers.kernels.lemke import (
 )
 from lcpcli.solvers.options import bool_option, positive_int, vector_option
 from lcpcli.solvers.registry import BatchSpec, Cost, Guarantee, Method, Option, when
-from lcpcli.solvers.support import preload_linalg, timed_imports
+from lcpcli.solvers.support import RAY_AT_ROUNDING, preload_linalg, timed_imports
 
 #: Empty pivot record (the kernel records nothing).
 NO_RECORD = np.zeros((0, 3), dtype=np.int64)
@@ -148,7 +148,15 @@ def ray_outcome(problem: Any, M: np.ndarray, q: np.ndarray, z: np.ndarray, pivot
     if proof is not None:
         return Outcome(z, pivots, RAY, f"{base}; {proof.describe()}", proven_infeasible=True,
                        info={"farkas_y": proof.y.tolist()}, import_seconds=imported)
-    hint = {"ray": ray_dz.tolist()}  # a proof candidate for a later search (auto's)
+    hint: dict[str, Any] = {"ray": ray_dz.tolist()}  # a proof candidate (auto's search)
+    if 0.0 <= z0 <= TINY_Z * float(np.max(np.abs(q), initial=0.0)):
+        # the artificial variable at rounding level: z solves the problem with q + z0 d, a
+        # change of q below its rounding; the dispatcher polishes it and the certificate
+        # decides (contact LCPs of resting boxes end so: z0 = 1.4e-17, max |q| = 0.15)
+        hint[RAY_AT_ROUNDING] = True
+        return Outcome(z, pivots, RAY,
+                       f"{base}, at rounding level: its point is the candidate answer",
+                       info=hint, import_seconds=imported)
     if psd:
         return Outcome(z, pivots, RAY,
                        f"{base}; M is positive semidefinite (copositive-plus), where the ray "

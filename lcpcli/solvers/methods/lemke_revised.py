@@ -44,6 +44,7 @@ from lcpcli.solvers.methods.lemke import (
 from lcpcli.solvers.methods.lemke import run as run_tableau
 from lcpcli.solvers.options import bool_option, positive_int, vector_option
 from lcpcli.solvers.registry import BatchSpec, Cost, Method, Option
+from lcpcli.solvers.support import RAY_AT_ROUNDING
 
 
 def _refactor_every(value: Any) -> int:
@@ -112,7 +113,8 @@ def run(problem: Any, *, tol: float, covering: np.ndarray | None = None,
     # ray at z0 ~ 1e-13 where the tableau reaches the solution): the tableau method follows the
     # same pivot rule with O(n^2) rank-one updates of the whole tableau; let it decide
     again = run_tableau(problem, tol=tol, covering=covering, max_iter=max_iter)
-    if again.termination == CONVERGED or again.proven_infeasible:
+    if again.termination == CONVERGED or again.proven_infeasible \
+            or again.info.get(RAY_AT_ROUNDING):
         again.message = f"{out.message}; rerun as lemke-tableau: {again.message}"
         again.iterations += out.iterations
         again.info.update(info)

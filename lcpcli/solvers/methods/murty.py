@@ -247,6 +247,13 @@ METHODS = [
         notes="others: may stop on a non-positive pivot",
         cost=Cost.PIVOTING,
         preference=40,
+        # contact LCPs of resting box stacks (redundant contacts, rank 42 of 72, zero diagonal
+        # friction rows) that Lemke's paths end on rays or drift on: Murty certified 3 of the 4
+        # islands of 8,000 that no other method did (benchmarks/README.md)
+        fallback="least-index principal pivoting outside the P-matrices (may stop on a "
+                 "non-positive pivot)",
+        fallback_preference=95,  # after the other fallbacks of its cost class (dantzig's 90)
+        auto_max_n=200,  # up to 100 n pivots of O(n^2) each where it fails: under a second
         kinds=("lcp",),
         options={
             "max_iter": Option(positive_int, None, "pivot limit (default max(1000, 100 n))"),
