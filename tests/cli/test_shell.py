@@ -258,9 +258,11 @@ TABLE_COMMANDS = [
 
 def _words(text):
     """The words of an output, escape codes and rules aside, numbers of the timing kind left
-    out (times and rates differ from run to run)."""
+    out (times and rates differ from run to run, and so does the rate's plural: '(1
+    problem/s)' in a slow run, '(12 problems/s)' in another)."""
     text = BOX.sub(" ", re.sub(r"\x1b\[[0-9;]*m", "", text))
-    return {w for w in text.split() if not re.fullmatch(r"\(?[0-9.]+(ms|s|us)?", w)}
+    return {w for w in text.split()
+            if not re.fullmatch(r"\(?[0-9.]+(ms|s|us)?|problems?/s\)?", w)}
 
 
 @pytest.mark.parametrize("args", TABLE_COMMANDS, ids=lambda a: " ".join(a[:3]))
