@@ -104,6 +104,26 @@ def _print_root_help() -> None:
         sys.stderr.write(ctx.get_help() + "\n")
 
 
+def _writable(stream: object) -> bool:
+    """Whether ``stream`` can be written: not None (what Python makes of a standard stream
+    closed at start), and when it has a descriptor, one open for writing (not closed since,
+    not open for reading only).  A stream without one (a test's StringIO) can."""
+    if stream is None:
+        return False
+    try:
+        fd = stream.fileno()  # type: ignore[attr-defined]
+    except (AttributeError, OSError, ValueError):
+        return True
+    try:
+        import fcntl  # POSIX (a built-in module: no start-up cost)
+    except ImportError:
+        return True
+    try:
+        return fcntl.fcntl(fd, fcntl.F_GETFL) & os.O_ACCMODE in (os.O_WRONLY, os.O_RDWR)
+    except OSError:
+        return False
+
+
 def _silence_stdout() -> None:
     """After a broken pipe: send what is still buffered for stdout to /dev/null, so the
     interpreter's final flush cannot fail (and print a traceback) on the closed pipe."""
@@ -132,6 +152,8 @@ def main(argv: list[str] | None = None) -> None:
     :func:`lcpcli.cli.common.pending_exit`).
     """
     args = sys.argv[1:] if argv is None else list(argv)
+    if not _writable(sys.stderr):  # 2>&-: no line can be shown, the exit code still tells
+        sys.stderr = open(os.devnull, "w")  # noqa: SIM115 - for the life of the process
     for name, value in QUIET_THREADS.items():  # before numpy and the kernels load
         os.environ.setdefault(name, value)
     one_line_warnings()
@@ -143,6 +165,7 @@ def main(argv: list[str] | None = None) -> None:
     sys.stdout = common.StdoutGuard(stdout)  # type: ignore[assignment]
     try:
         code = app(args=args, standalone_mode=False, prog_name="lcpcli")
+        sys.stdout.flush()  # a standard output that cannot take it fails here, as one line
     except click_exc.UsageError as exc:
         hint = f" (see '{exc.ctx.command_path} --help')" if exc.ctx else ""
         error_line(f"{exc.format_message()}{hint}")
@@ -185,8 +208,9 @@ def main(argv: list[str] | None = None) -> None:
             code = EXIT_INTERNAL
     finally:
         sys.stdout = stdout
-    try:
-        sys.stdout.flush()
-    except BrokenPipeError:  # the reader left after the last write
-        _silence_stdout()
+    if stdout is not None:
+        try:
+            stdout.flush()
+        except OSError:  # the reader left after the last write, or a failure reported above
+            _silence_stdout()
     sys.exit(code if isinstance(code, int) else EXIT_OK)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import copy
+import errno
 import os
 import signal
 import sys
@@ -19,6 +20,7 @@ from lcpcli.core.errors import (
     EXIT_OK,
     EXIT_SOLVED,
     OptionError,
+    OutputError,
 )
 from lcpcli.core.text import option_name, plural
 
@@ -44,15 +46,25 @@ ASCII_STAND_INS = str.maketrans({
 })
 
 
+def stdout_not_open() -> OutputError:
+    """The one error of a standard output that cannot be written at all: closed (``>&-``,
+    where Python's ``sys.stdout`` is None) or open for reading only (``1</dev/null``)."""
+    return OutputError("standard output", "not open for writing (closed, as by '>&-')")
+
+
 class StdoutGuard:
-    """sys.stdout as the commands see it: a broken pipe raises :class:`PipeClosed`, and text
-    the stream's encoding cannot write (``PYTHONIOENCODING=ascii``, a legacy code page) is
-    written with :data:`ASCII_STAND_INS` and replacement characters instead of failing."""
+    """sys.stdout as the commands see it: a broken pipe raises :class:`PipeClosed`; a
+    standard output that is not open for writing (``>&-``: ``stream`` None; ``EBADF``) raises
+    :func:`stdout_not_open` (one line, exit 2, as a full disk does); text the stream's
+    encoding cannot write (``PYTHONIOENCODING=ascii``, a legacy code page) is written with
+    :data:`ASCII_STAND_INS` and replacement characters instead of failing."""
 
     def __init__(self, stream: Any) -> None:
         self._stream = stream
 
     def write(self, text: str) -> int:
+        if self._stream is None:
+            raise stdout_not_open()
         try:
             try:
                 return self._stream.write(text)
@@ -63,14 +75,29 @@ class StdoutGuard:
                 return len(text)
         except BrokenPipeError:
             raise PipeClosed() from None
+        except OSError as exc:
+            if exc.errno == errno.EBADF:
+                raise stdout_not_open() from None
+            raise
 
     def flush(self) -> None:
+        if self._stream is None:
+            return
         try:
             self._stream.flush()
         except BrokenPipeError:
             raise PipeClosed() from None
+        except OSError as exc:
+            if exc.errno == errno.EBADF:
+                raise stdout_not_open() from None
+            raise
+
+    def isatty(self) -> bool:
+        return self._stream is not None and self._stream.isatty()
 
     def __getattr__(self, name: str) -> Any:
+        if self._stream is None:
+            raise AttributeError(name)
         return getattr(self._stream, name)
 
 
