@@ -101,6 +101,14 @@ class StdoutGuard:
         return getattr(self._stream, name)
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, turned into an interrupt so that the output file is closed cleanly."""
+
+
+def on_sigterm(signum: int, frame: Any) -> None:
+    raise Terminated()
+
+
 def pending_exit(code: int | None = None) -> int:
     """Record (with ``code``) or read the exit code the finished work has earned.
 
@@ -252,6 +260,7 @@ def write_json_line(obj: Any) -> None:
         sys.stdout.flush()
 
 
-__all__ = ["EXIT_BAD_INPUT", "MethodListCommand", "PipeClosed", "StdoutGuard", "duration",
-           "exit_code_for", "is_terminal", "parse_key_values", "pending_exit", "plural",
-           "progress_allowed", "stderr_console", "stdout_console", "write_json_line"]
+__all__ = ["EXIT_BAD_INPUT", "MethodListCommand", "PipeClosed", "StdoutGuard", "Terminated",
+           "duration", "exit_code_for", "is_terminal", "on_sigterm", "parse_key_values",
+           "pending_exit", "plural", "progress_allowed", "stderr_console", "stdout_console",
+           "write_json_line"]
