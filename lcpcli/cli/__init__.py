@@ -27,6 +27,7 @@ from lcpcli.core.errors import (
     EXIT_INTERNAL,
     EXIT_INTERRUPTED,
     EXIT_OK,
+    EXIT_TERMINATED,
     LcpError,
 )
 from lcpcli.core.text import one_line_warnings
@@ -163,6 +164,7 @@ def main(argv: list[str] | None = None) -> None:
         sys.exit(EXIT_BAD_INPUT)
     stdout = sys.stdout
     sys.stdout = common.StdoutGuard(stdout)  # type: ignore[assignment]
+    held = common.catch_sigterm()  # SIGTERM ends a command as Ctrl-C does: cleanly
     try:
         code = app(args=args, standalone_mode=False, prog_name="lcpcli")
         sys.stdout.flush()  # a standard output that cannot take it fails here, as one line
@@ -174,13 +176,11 @@ def main(argv: list[str] | None = None) -> None:
         error_line(exc.format_message())
         code = EXIT_BAD_INPUT
     except typer.Abort:
-        error_line("interrupted")
         code = EXIT_INTERRUPTED
     except LcpError as exc:
         error_line(str(exc))
         code = EXIT_BAD_INPUT
-    except KeyboardInterrupt:
-        error_line("interrupted")
+    except KeyboardInterrupt:  # (typer returns 130 for one raised inside a command)
         code = EXIT_INTERRUPTED
     except MemoryError:
         # valid data whose work does not fit this machine: the budgets of lcpcli.core.limits
@@ -208,6 +208,12 @@ def main(argv: list[str] | None = None) -> None:
             code = EXIT_INTERNAL
     finally:
         sys.stdout = stdout
+        common.release_sigterm(held)
+    if code in (EXIT_INTERRUPTED, EXIT_TERMINATED):  # Ctrl-C or SIGTERM: 130 or 143
+        code = common.stopped_code()
+        if not common.stop_said():  # the command's cleanup ran; nothing more to say
+            sys.stderr.write("lcpcli: terminated\n" if code == EXIT_TERMINATED
+                             else "lcpcli: interrupted\n")
     if stdout is not None:
         try:
             stdout.flush()

@@ -23,6 +23,7 @@ from lcpcli.cli.common import (
     pending_exit,
     plural,
     progress_allowed,
+    say_stopped,
     stderr_console,
     stdout_console,
     write_json_line,
@@ -189,7 +190,7 @@ def run_batch_command(files: list[str], *, method: str, tol: float | None,
             if output is not None else ""
         if kept:
             where = f"; {output} is kept as it was (a new batch replaces it only when complete)"
-        sys.stderr.write(f"lcpcli: {what}{done}{where}\n")
+        say_stopped(f"lcpcli: {what}{done}{where}")
         return EXIT_TERMINATED if isinstance(exc, Terminated) else EXIT_INTERRUPTED
     finally:
         if progress is not None:

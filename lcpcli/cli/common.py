@@ -16,9 +16,11 @@ import typer.core
 
 from lcpcli.core.errors import (
     EXIT_BAD_INPUT,
+    EXIT_INTERRUPTED,
     EXIT_NOT_SOLVED,
     EXIT_OK,
     EXIT_SOLVED,
+    EXIT_TERMINATED,
     OptionError,
     OutputError,
 )
@@ -102,11 +104,81 @@ class StdoutGuard:
 
 
 class Terminated(KeyboardInterrupt):
-    """SIGTERM, turned into an interrupt so that the output file is closed cleanly."""
+    """SIGTERM, turned into an interrupt so that what is being written is closed cleanly (a
+    batch's output) or removed (the temporary file of an atomic output), as after Ctrl-C."""
+
+
+#: How a command was stopped: ``signal`` SIGTERM once :func:`on_sigterm` ran (else an
+#: interrupt is Ctrl-C), ``said`` once the command said so itself (:func:`say_stopped`);
+#: ``hook``: the ``sys.unraisablehook`` that :func:`catch_sigterm` replaced.
+_STOPPED: dict[str, Any] = {"signal": None, "said": False, "hook": None}
 
 
 def on_sigterm(signum: int, frame: Any) -> None:
+    _STOPPED["signal"] = signal.SIGTERM
     raise Terminated()
+
+
+def catch_sigterm() -> Any:
+    """Have SIGTERM (``kill``, ``timeout``, a job scheduler) stop a command as Ctrl-C does:
+    every command then ends through its cleanup (no temporary file left beside an output)
+    with exit code 143.  Only in the main thread, and only where SIGTERM has its default
+    action (an ignored one stays ignored).  An interrupt that Python can only ignore is
+    delivered again (:func:`_redeliver`).  Returns what :func:`release_sigterm` restores
+    (None: nothing changed)."""
+    _STOPPED["signal"], _STOPPED["said"] = None, False
+    if threading.current_thread() is not threading.main_thread() \
+            or signal.getsignal(signal.SIGTERM) != signal.SIG_DFL:
+        return None
+    hook = _STOPPED["hook"] = sys.unraisablehook
+    sys.unraisablehook = _redeliver
+    return signal.signal(signal.SIGTERM, on_sigterm), hook
+
+
+def release_sigterm(held: Any) -> None:
+    """Undo :func:`catch_sigterm` (``held``: what it returned)."""
+    if held is not None:
+        signal.signal(signal.SIGTERM, held[0])
+        sys.unraisablehook = held[1]
+
+
+#: How long after an ignored interrupt its signal is sent again (:func:`_redeliver`).
+REDELIVER_SECONDS = 0.01
+
+
+def _redeliver(unraisable: Any) -> None:
+    """``sys.unraisablehook`` while a command runs: an interrupt raised where Python can only
+    ignore it (the signal handler ran inside a weak reference's callback or a ``__del__``:
+    "Exception ignored in ..."; h5py's object registry is one) is not lost: its signal is
+    sent to this process again, and the handler raises it where the command can stop (a
+    SIGTERM was swallowed so, and the command ran on to its end with exit code 0)."""
+    exc = unraisable.exc_value
+    if isinstance(exc, KeyboardInterrupt):
+        # from another thread, a moment later: sent from here, the handler would run (and
+        # be ignored) inside this hook again
+        again = threading.Timer(REDELIVER_SECONDS, os.kill, (os.getpid(), signal.SIGTERM
+                                if isinstance(exc, Terminated) else signal.SIGINT))
+        again.daemon = True
+        again.start()
+        return
+    (_STOPPED.get("hook") or sys.__unraisablehook__)(unraisable)
+
+
+def say_stopped(text: str) -> None:
+    """A stopped command's own line on stderr (what it finished): ``lcpcli.cli.main`` then
+    adds none."""
+    sys.stderr.write(text + "\n")
+    _STOPPED["said"] = True
+
+
+def stopped_code() -> int:
+    """The exit code of a command stopped by a signal: 143 after SIGTERM, 130 after Ctrl-C."""
+    return EXIT_TERMINATED if _STOPPED["signal"] == signal.SIGTERM else EXIT_INTERRUPTED
+
+
+def stop_said() -> bool:
+    """Whether the stopped command said so itself (:func:`say_stopped`)."""
+    return bool(_STOPPED["said"])
 
 
 def pending_exit(code: int | None = None) -> int:
@@ -261,6 +333,7 @@ def write_json_line(obj: Any) -> None:
 
 
 __all__ = ["EXIT_BAD_INPUT", "MethodListCommand", "PipeClosed", "StdoutGuard", "Terminated",
-           "duration", "exit_code_for", "is_terminal", "on_sigterm", "parse_key_values",
-           "pending_exit", "plural", "progress_allowed", "stderr_console", "stdout_console",
-           "write_json_line"]
+           "catch_sigterm", "duration", "exit_code_for", "is_terminal", "on_sigterm",
+           "parse_key_values", "pending_exit", "plural", "progress_allowed", "release_sigterm",
+           "say_stopped",
+           "stderr_console", "stdout_console", "stop_said", "stopped_code", "write_json_line"]

@@ -60,3 +60,70 @@ def test_closed_stdin_for_dash_is_one_line_and_exit_2():
     r = sh("LCPCLI solve - <&-")
     assert r.returncode == 2 and r.stdout == ""
     one_error_line(r.stderr, "-: standard input is not open")
+
+
+#: A CLI run in a subprocess whose atomic writer, right before it renames its temporary
+#: file over the output (``lcpcli.io.writing._commit``), sends ``SIG`` to its own process;
+#: with ``SWALLOWED`` the handler runs inside a weak reference's callback, where Python can
+#: only ignore what it raises, and the writer then waits for the signal to come back.
+SELF_SIGNAL = """
+import os, signal, sys, time, weakref
+import lcpcli.io.writing as writing
+from lcpcli.cli import main
+
+SIG, SWALLOWED = getattr(signal, sys.argv[1]), sys.argv[2] == "swallowed"
+real = writing._commit
+
+
+class Thing:
+    pass
+
+
+def spin():
+    for _ in range(1000):  # the handler runs at one of these steps
+        pass
+
+
+def on_collect(ref):
+    os.kill(os.getpid(), SIG)
+    spin()
+
+
+def commit(fd, tmp, target):
+    if SWALLOWED:
+        thing = Thing()
+        ref = weakref.ref(thing, on_collect)
+        del thing  # on_collect runs now, and the interrupt raised inside it is ignored
+        for _ in range(30000):  # until it comes back (a lost one commits after 30 s)
+            time.sleep(0.001)
+    else:
+        os.kill(os.getpid(), SIG)
+        spin()
+    return real(fd, tmp, target)
+
+
+writing._commit = commit
+main(sys.argv[3:])
+"""
+
+
+@pytest.mark.parametrize(("sig", "code", "word"), [("SIGTERM", 143, "terminated"),
+                                                    ("SIGINT", 130, "interrupted")])
+@pytest.mark.parametrize("where", ["plain", "swallowed"])
+def test_signal_while_an_output_is_written_leaves_the_previous_file(tmp_path, sig, code, word,
+                                                                   where):
+    """SIGTERM (``kill``, ``timeout``, a job scheduler) stops a one-file output as Ctrl-C
+    does: exit 143, one line, the previous output byte for byte, no temporary file (SIGTERM
+    killed the process, exit -15, and left ``.out.json.XXXXXXXX.tmp`` beside it).  An
+    interrupt raised where Python ignores it (a weak reference's callback) is delivered
+    again, not lost (it was: the command ran on and exited 0)."""
+    out = tmp_path / "out.json"
+    out.write_text("previous\n")
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    env.pop("LCPCLI_DEBUG", None)
+    r = subprocess.run([sys.executable, "-c", SELF_SIGNAL, sig, where, "solve", str(SAMPLE),
+                        "-o", str(out)], env=env, capture_output=True, text=True, timeout=120)
+    assert r.returncode == code, r.stderr
+    assert r.stderr == f"lcpcli: {word}\n"
+    assert out.read_text() == "previous\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out.json"]
