@@ -7,7 +7,12 @@ and the kernels), nor more than it has chunks of work.
 
 from __future__ import annotations
 
+import os
+import shlex
+import subprocess
+import sys
 import warnings
+from pathlib import Path
 
 import numpy as np
 
@@ -16,6 +21,8 @@ from lcpcli.batch.records import SolveOptions
 from lcpcli.batch.run import run_batch
 from lcpcli.core.problem import Problem
 from lcpcli.io import save
+
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def test_jobs_beyond_the_cores_start_at_most_the_limit(tmp_path, monkeypatch):
@@ -58,3 +65,30 @@ def test_jobs_within_the_limit_say_nothing(tmp_path):
         report = run_batch([str(tmp_path / "a.json")], SolveOptions(), jobs=1)
     assert report.exit_code == 0
     assert not [w for w in caught if "--jobs" in str(w.message)]
+
+
+def test_a_deleted_current_folder_is_one_line_and_exit_2(tmp_path):
+    """Worker processes start in their parent's folder: run from a folder deleted meanwhile
+    (a cron job's, a removed build folder), ``--jobs 2`` was an internal error (exit 3:
+    multiprocessing's FileNotFoundError); now one line, exit 2.  ``--jobs 1`` needs no
+    folder and solves."""
+    for name in ("a", "b"):
+        save(Problem.create(np.eye(2), -np.ones(2)), tmp_path / f"{name}.json")
+    gone = tmp_path / "gone"
+    gone.mkdir()
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    env.pop("LCPCLI_DEBUG", None)
+    files = f"{shlex.quote(str(tmp_path / 'a.json'))} {shlex.quote(str(tmp_path / 'b.json'))}"
+
+    def run(jobs: int) -> subprocess.CompletedProcess[str]:
+        script = (f"cd {shlex.quote(str(gone))} && rmdir {shlex.quote(str(gone))} && "
+                  f"exec {shlex.quote(sys.executable)} -m lcpcli solve {files} -j {jobs} -q")
+        gone.mkdir(exist_ok=True)
+        return subprocess.run(["sh", "-c", script], env=env, capture_output=True, text=True,
+                              timeout=120)
+
+    r = run(2)
+    assert r.returncode == 2, r.stderr
+    assert r.stderr.startswith("lcpcli: error: the current folder no longer exists")
+    assert len(r.stderr.splitlines()) == 1
+    assert run(1).returncode == 0
