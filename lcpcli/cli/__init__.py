@@ -155,12 +155,15 @@ def main(argv: list[str] | None = None) -> None:
     args = sys.argv[1:] if argv is None else list(argv)
     if not _writable(sys.stderr):  # 2>&-: no line can be shown, the exit code still tells
         sys.stderr = open(os.devnull, "w")  # noqa: SIM115 - for the life of the process
+    stderr = sys.stderr
+    sys.stderr = common.StderrGuard(stderr)  # type: ignore[assignment]
     for name, value in QUIET_THREADS.items():  # before numpy and the kernels load
         os.environ.setdefault(name, value)
     one_line_warnings()
     common.pending_exit(EXIT_OK)
     if not args:
         _print_root_help()
+        sys.stderr = stderr
         sys.exit(EXIT_BAD_INPUT)
     stdout = sys.stdout
     sys.stdout = common.StdoutGuard(stdout)  # type: ignore[assignment]
@@ -219,4 +222,5 @@ def main(argv: list[str] | None = None) -> None:
             stdout.flush()
         except OSError:  # the reader left after the last write, or a failure reported above
             _silence_stdout()
+    sys.stderr = stderr
     sys.exit(code if isinstance(code, int) else EXIT_OK)

@@ -181,6 +181,43 @@ def stop_said() -> bool:
     return bool(_STOPPED["said"])
 
 
+class StderrGuard:
+    """sys.stderr as the commands see it: when its reader went away (a broken pipe: ``2>&1 |
+    head -1``, a log collector that stopped) or its descriptor cannot be written, the
+    diagnostics are lost, never the work or its exit code (a note on a broken stderr stopped
+    ``solve -m enum`` with exit 1): the failed line and every later one are dropped, and
+    the descriptor is pointed at the null device so that no later flush fails."""
+
+    def __init__(self, stream: Any) -> None:
+        self._stream = stream
+        self._lost = False
+
+    def write(self, text: str) -> int:
+        if not self._lost:
+            try:
+                return self._stream.write(text)
+            except OSError:
+                self._lose()
+        return len(text)
+
+    def flush(self) -> None:
+        if not self._lost:
+            try:
+                self._stream.flush()
+            except OSError:
+                self._lose()
+
+    def _lose(self) -> None:
+        self._lost = True
+        with contextlib.suppress(OSError, ValueError, AttributeError):
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, self._stream.fileno())
+            os.close(devnull)
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._stream, name)
+
+
 def pending_exit(code: int | None = None) -> int:
     """Record (with ``code``) or read the exit code the finished work has earned.
 
@@ -332,7 +369,8 @@ def write_json_line(obj: Any) -> None:
         sys.stdout.flush()
 
 
-__all__ = ["EXIT_BAD_INPUT", "MethodListCommand", "PipeClosed", "StdoutGuard", "Terminated",
+__all__ = ["EXIT_BAD_INPUT", "MethodListCommand", "PipeClosed", "StderrGuard", "StdoutGuard",
+           "Terminated",
            "catch_sigterm", "duration", "exit_code_for", "is_terminal", "on_sigterm",
            "parse_key_values", "pending_exit", "plural", "progress_allowed", "release_sigterm",
            "say_stopped",

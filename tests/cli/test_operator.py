@@ -127,3 +127,39 @@ def test_signal_while_an_output_is_written_leaves_the_previous_file(tmp_path, si
     assert r.stderr == f"lcpcli: {word}\n"
     assert out.read_text() == "previous\n"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out.json"]
+
+
+def run_with_broken_stderr(*args: str) -> tuple[int, str]:
+    """``lcpcli ARGS`` whose stderr is a pipe whose reader is gone before the first byte:
+    the exit code and stdout."""
+    read_end, write_end = os.pipe()
+    os.close(read_end)
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    env.pop("LCPCLI_DEBUG", None)
+    try:
+        r = subprocess.run([sys.executable, "-m", "lcpcli", *args], stderr=write_end,
+                           stdout=subprocess.PIPE, text=True, env=env, cwd=ROOT, timeout=120)
+    finally:
+        os.close(write_end)
+    return r.returncode, r.stdout
+
+
+def test_a_broken_stderr_loses_the_lines_never_the_work(tmp_path):
+    """A reader of stderr that went away (``2>&1 | head -1``, a stopped log collector)
+    loses the diagnostics, not the work nor its exit code: a note on stderr stopped the
+    solve (exit 1, nothing on stdout), a bad input exited 1 instead of 2."""
+    import json
+
+    import numpy as np
+
+    from lcpcli.core.problem import Problem
+    from lcpcli.io import save
+
+    rng = np.random.default_rng(5)
+    A = rng.standard_normal((20, 20))
+    save(Problem.create(A @ A.T + 20 * np.eye(20), rng.standard_normal(20)), tmp_path / "p.json")
+    # -m enum from n = 20 on announces its cost on stderr first
+    code, out = run_with_broken_stderr("solve", str(tmp_path / "p.json"), "-m", "enum", "--json")
+    assert code == 0 and json.loads(out)["status"] == "solved"
+    assert run_with_broken_stderr("solve", str(tmp_path / "missing.json"))[0] == 2
+    assert run_with_broken_stderr()[0] == 2  # bare lcpcli: the help goes to stderr
