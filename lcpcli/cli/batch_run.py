@@ -187,7 +187,9 @@ def run_batch_command(files: list[str], *, method: str, tol: float | None,
         done = f" after {plural(state['done'], 'problem')} of {state['total']:,}" \
             if state["total"] else ""
         where = f"; finished results are in {output}: run again with --resume to go on" \
-            if output is not None else ""
+            if output is not None and os.path.lexists(output) else ""
+        if output is not None and not where:  # stopped before the file was made
+            where = f"; nothing was written to {output}"
         if kept:
             where = f"; {output} is kept as it was (a new batch replaces it only when complete)"
         say_stopped(f"lcpcli: {what}{done}{where}")

@@ -163,3 +163,23 @@ def test_a_broken_stderr_loses_the_lines_never_the_work(tmp_path):
     assert code == 0 and json.loads(out)["status"] == "solved"
     assert run_with_broken_stderr("solve", str(tmp_path / "missing.json"))[0] == 2
     assert run_with_broken_stderr()[0] == 2  # bare lcpcli: the help goes to stderr
+
+
+def test_a_batch_stopped_before_its_output_exists_does_not_point_at_it(tmp_path, monkeypatch,
+                                                                        capsys):
+    """Ctrl-C before the result file was made: the line said "finished results are in
+    r.jsonl: run again with --resume" about a file that did not exist."""
+    import lcpcli.batch.run
+    from lcpcli.cli import main
+
+    def stopped(*args, **kwargs):  # type: ignore[no-untyped-def]
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(lcpcli.batch.run, "run_batch", stopped)
+    out = tmp_path / "r.jsonl"
+    with pytest.raises(SystemExit) as exc:
+        main(["solve", str(SAMPLE), str(SAMPLE.parent / "degenerate.json"), "-o", str(out)])
+    err = capsys.readouterr().err
+    assert exc.value.code == 130
+    assert err == f"lcpcli: interrupted; nothing was written to {out}\n"
+    assert not out.exists()
