@@ -22,6 +22,7 @@ from typing import Any
 from lcpcli.batch import worker
 from lcpcli.batch.records import SolveOptions, Task, error_row, timeout_row
 from lcpcli.core.text import one_line_warnings
+from lcpcli.solvers.batched import default_threads
 from lcpcli.solvers.kernels import process_context
 
 
@@ -178,6 +179,19 @@ class _Worker:
         self.conn.close()
 
 
+#: Most worker processes per core that a batch starts, whatever ``--jobs`` asks: each is an
+#: interpreter with numpy and the kernels loaded (about 20 MB), and solving, which is CPU work,
+#: gains nothing from more processes than cores (``-j 100000`` started one process per
+#: problem until the machine's memory was gone).
+MAX_WORKERS_PER_CORE = 4
+
+
+def worker_limit() -> int:
+    """The most worker processes a batch starts: :data:`MAX_WORKERS_PER_CORE` per core this
+    process may run on (:func:`lcpcli.solvers.batched.default_threads`)."""
+    return MAX_WORKERS_PER_CORE * default_threads()
+
+
 #: Modules the forkserver imports once, so that every worker starts with them loaded.
 PRELOAD = ("lcpcli.batch.worker", "lcpcli.api", "lcpcli.io")
 
@@ -220,7 +234,9 @@ def early_workers(opts: SolveOptions, jobs: int, timeout: float | None,
     started: list[_Worker] = []
     if jobs > 1 or timeout:
         ctx = _mp_context()
-        started = [_Worker(ctx, opts) for _ in range(jobs)]
+        # the chunks are not known yet: at most one process per core now, the rest (up to
+        # worker_limit and one per chunk) by iter_local_groups
+        started = [_Worker(ctx, opts) for _ in range(min(jobs, default_threads()))]
     try:
         yield started
     finally:
@@ -256,7 +272,7 @@ def iter_local_groups(tasks: list[Task], opts: SolveOptions, *, jobs: int = 1,
     pending: deque[tuple[int, list[Task], int]] = deque(
         (cid, chunk, group) for cid, chunk in enumerate(make_chunks(tasks, jobs)))
     next_id = len(pending)
-    n_workers = max(1, min(jobs, len(pending)))
+    n_workers = max(1, min(jobs, len(pending), worker_limit()))
     workers: list[_Worker] = []
     try:
         while started and len(workers) < n_workers:

@@ -8,13 +8,14 @@ import os
 import signal
 import threading
 import time
+import warnings
 from collections.abc import Callable, Iterable, Iterator
 from typing import Any
 
 from lcpcli.batch import output as batch_output
 from lcpcli.batch.cluster import iter_dask
 from lcpcli.batch.inputs import expand_inputs
-from lcpcli.batch.pool import early_workers, iter_local_groups
+from lcpcli.batch.pool import MAX_WORKERS_PER_CORE, early_workers, iter_local_groups, worker_limit
 from lcpcli.batch.records import SolveOptions, key, options_difference
 from lcpcli.batch.report import BatchReport, BatchStats, Tally
 from lcpcli.batch.worker import prepare_method
@@ -136,6 +137,9 @@ def _run_batch(inputs: list[str], opts: SolveOptions, *, recursive: bool, jobs: 
         raise OptionError(f"--output {output}: an .npz result file is written for stacked "
                           f"inputs only (see docs/batch.md); use {batch_output.suffixes()}")
     prepare_method(canonical)
+    if scheduler is None and jobs > worker_limit():
+        warnings.warn(f"--jobs {jobs}: at most {worker_limit()} worker processes are started "
+                      f"({MAX_WORKERS_PER_CORE} per core: more only cost memory)", stacklevel=2)
     with contextlib.ExitStack() as held:
         # local workers start while the inputs are listed (a few tenths of a second)
         started = [] if scheduler is not None else \

@@ -115,6 +115,7 @@ def run_stacks(inputs: list[str], opts: SolveOptions, report: BatchReport, *,
     if scheduler is not None:  # Dask workers copy their chunks: the chunks for copies
         infos = [None if i is None else replace(i, in_place=False) for i in infos]
     report.total = sum(i.K for i in infos if i is not None) + infos.count(None)
+    per_problem = one_at_a_time(opts.method)
     warm, warm_digest = _open_warm(opts, infos, scheduler)
     writer = None
     early: tuple[Any, int, _LocalParts] | None = None  # the first stack, read from now on
@@ -122,7 +123,8 @@ def run_stacks(inputs: list[str], opts: SolveOptions, report: BatchReport, *,
         first = next((i for i in infos if i is not None), None)
         if first is not None and scheduler is None and not resume:
             # nothing is resumed: the first chunks are read while the output file is made
-            chunk = stack_output.new_chunk(output, first.n, threads, first.in_place)
+            chunk = stack_output.new_chunk(output, first.n, threads, first.in_place,
+                                           per_problem)
             digest = None if output is None else stack_output.new_algorithm(output)
             started = None
             if early_reads is not None:
@@ -138,7 +140,7 @@ def run_stacks(inputs: list[str], opts: SolveOptions, report: BatchReport, *,
                 return stack_output.open_stack_writer(
                     output, [i for i in infos if i is not None], resume=resume,
                     options=stack_output.options_fingerprint(opts, warm_digest),
-                    threads=threads)
+                    threads=threads, per_problem=per_problem)
 
             # resuming nothing, the file is made in a thread while the first chunks are read
             # and solved (making it is mostly waiting for the disk: fsync, rename)
@@ -182,7 +184,7 @@ def run_stacks(inputs: list[str], opts: SolveOptions, report: BatchReport, *,
             _run_one(path, info, opts, report, tally, stats, writer, done_masks[path],
                      threads=threads,
                      chunk=chunk if chunk is not None else
-                     stack_output.batch_chunk(info.n, threads, info.in_place),
+                     stack_output.batch_chunk(info.n, threads, info.in_place, per_problem),
                      on_progress=on_progress, on_row=on_row, write=write,
                      scheduler=scheduler, warm=warm, parts=parts, memory=memory)
     finally:
@@ -192,6 +194,17 @@ def run_stacks(inputs: list[str], opts: SolveOptions, report: BatchReport, *,
             warm.close()
         if writer is not None:
             write(writer.close)
+
+
+def one_at_a_time(method: str) -> bool:
+    """Whether the named method solves a stack one problem at a time (it has no batched
+    kernel, :attr:`lcpcli.solvers.registry.Method.batch`): its chunks are then at most
+    :data:`lcpcli.batch.stack_output.PER_PROBLEM_CHUNK` problems.  ``auto`` plans on the
+    first chunk, after the chunk is chosen: False."""
+    from lcpcli.solvers.request import method_of
+
+    spec = method_of(method)
+    return spec.name != "auto" and spec.batch is None
 
 
 class _OpeningWriter:

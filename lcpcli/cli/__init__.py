@@ -27,6 +27,7 @@ from lcpcli.core.errors import (
     EXIT_INTERNAL,
     EXIT_INTERRUPTED,
     EXIT_OK,
+    EXIT_TERMINATED,
     LcpError,
 )
 from lcpcli.core.text import one_line_warnings
@@ -104,6 +105,26 @@ def _print_root_help() -> None:
         sys.stderr.write(ctx.get_help() + "\n")
 
 
+def _writable(stream: object) -> bool:
+    """Whether ``stream`` can be written: not None (what Python makes of a standard stream
+    closed at start), and when it has a descriptor, one open for writing (not closed since,
+    not open for reading only).  A stream without one (a test's StringIO) can."""
+    if stream is None:
+        return False
+    try:
+        fd = stream.fileno()  # type: ignore[attr-defined]
+    except (AttributeError, OSError, ValueError):
+        return True
+    try:
+        import fcntl  # POSIX (a built-in module: no start-up cost)
+    except ImportError:
+        return True
+    try:
+        return fcntl.fcntl(fd, fcntl.F_GETFL) & os.O_ACCMODE in (os.O_WRONLY, os.O_RDWR)
+    except OSError:
+        return False
+
+
 def _silence_stdout() -> None:
     """After a broken pipe: send what is still buffered for stdout to /dev/null, so the
     interpreter's final flush cannot fail (and print a traceback) on the closed pipe."""
@@ -132,17 +153,24 @@ def main(argv: list[str] | None = None) -> None:
     :func:`lcpcli.cli.common.pending_exit`).
     """
     args = sys.argv[1:] if argv is None else list(argv)
+    if not _writable(sys.stderr):  # 2>&-: no line can be shown, the exit code still tells
+        sys.stderr = open(os.devnull, "w")  # noqa: SIM115 - for the life of the process
+    stderr = sys.stderr
+    sys.stderr = common.StderrGuard(stderr)  # type: ignore[assignment]
     for name, value in QUIET_THREADS.items():  # before numpy and the kernels load
         os.environ.setdefault(name, value)
     one_line_warnings()
     common.pending_exit(EXIT_OK)
     if not args:
         _print_root_help()
+        sys.stderr = stderr
         sys.exit(EXIT_BAD_INPUT)
     stdout = sys.stdout
     sys.stdout = common.StdoutGuard(stdout)  # type: ignore[assignment]
+    held = common.catch_sigterm()  # SIGTERM ends a command as Ctrl-C does: cleanly
     try:
         code = app(args=args, standalone_mode=False, prog_name="lcpcli")
+        sys.stdout.flush()  # a standard output that cannot take it fails here, as one line
     except click_exc.UsageError as exc:
         hint = f" (see '{exc.ctx.command_path} --help')" if exc.ctx else ""
         error_line(f"{exc.format_message()}{hint}")
@@ -151,13 +179,11 @@ def main(argv: list[str] | None = None) -> None:
         error_line(exc.format_message())
         code = EXIT_BAD_INPUT
     except typer.Abort:
-        error_line("interrupted")
         code = EXIT_INTERRUPTED
     except LcpError as exc:
         error_line(str(exc))
         code = EXIT_BAD_INPUT
-    except KeyboardInterrupt:
-        error_line("interrupted")
+    except KeyboardInterrupt:  # (typer returns 130 for one raised inside a command)
         code = EXIT_INTERRUPTED
     except MemoryError:
         # valid data whose work does not fit this machine: the budgets of lcpcli.core.limits
@@ -185,8 +211,16 @@ def main(argv: list[str] | None = None) -> None:
             code = EXIT_INTERNAL
     finally:
         sys.stdout = stdout
-    try:
-        sys.stdout.flush()
-    except BrokenPipeError:  # the reader left after the last write
-        _silence_stdout()
+        common.release_sigterm(held)
+    if code in (EXIT_INTERRUPTED, EXIT_TERMINATED):  # Ctrl-C or SIGTERM: 130 or 143
+        code = common.stopped_code()
+        if not common.stop_said():  # the command's cleanup ran; nothing more to say
+            sys.stderr.write("lcpcli: terminated\n" if code == EXIT_TERMINATED
+                             else "lcpcli: interrupted\n")
+    if stdout is not None:
+        try:
+            stdout.flush()
+        except OSError:  # the reader left after the last write, or a failure reported above
+            _silence_stdout()
+    sys.stderr = stderr
     sys.exit(code if isinstance(code, int) else EXIT_OK)

@@ -17,10 +17,13 @@ from pathlib import Path
 from typing import Any
 
 from lcpcli.cli.common import (
+    Terminated,
     duration,
+    on_sigterm,
     pending_exit,
     plural,
     progress_allowed,
+    say_stopped,
     stderr_console,
     stdout_console,
     write_json_line,
@@ -90,14 +93,6 @@ def _holds_several_problems(path: str) -> bool:
             and len(list_problems(path)) > 1
     except ProblemError:
         return False
-
-
-class _Terminated(KeyboardInterrupt):
-    """SIGTERM, turned into an interrupt so that the output file is closed cleanly."""
-
-
-def _on_sigterm(signum: int, frame: Any) -> None:
-    raise _Terminated()
 
 
 def run_batch_command(files: list[str], *, method: str, tol: float | None,
@@ -174,7 +169,7 @@ def run_batch_command(files: list[str], *, method: str, tol: float | None,
         from lcpcli.cli.render.batch import make_progress
 
         progress = make_progress(stderr_console())
-    old_term = signal.signal(signal.SIGTERM, _on_sigterm) \
+    old_term = signal.signal(signal.SIGTERM, on_sigterm) \
         if _main_thread() else None
     report = None
     try:
@@ -188,15 +183,17 @@ def run_batch_command(files: list[str], *, method: str, tol: float | None,
     except KeyboardInterrupt as exc:
         if progress is not None:
             progress.stop()
-        what = "terminated" if isinstance(exc, _Terminated) else "interrupted"
+        what = "terminated" if isinstance(exc, Terminated) else "interrupted"
         done = f" after {plural(state['done'], 'problem')} of {state['total']:,}" \
             if state["total"] else ""
         where = f"; finished results are in {output}: run again with --resume to go on" \
-            if output is not None else ""
+            if output is not None and os.path.lexists(output) else ""
+        if output is not None and not where:  # stopped before the file was made
+            where = f"; nothing was written to {output}"
         if kept:
             where = f"; {output} is kept as it was (a new batch replaces it only when complete)"
-        sys.stderr.write(f"lcpcli: {what}{done}{where}\n")
-        return EXIT_TERMINATED if isinstance(exc, _Terminated) else EXIT_INTERRUPTED
+        say_stopped(f"lcpcli: {what}{done}{where}")
+        return EXIT_TERMINATED if isinstance(exc, Terminated) else EXIT_INTERRUPTED
     finally:
         if progress is not None:
             progress.stop()

@@ -16,6 +16,7 @@ from lcpcli.cli.common import (
     pending_exit,
     plural,
     progress_allowed,
+    say_stopped,
     stderr_console,
     stdout_console,
     write_json_line,
@@ -177,8 +178,8 @@ def bench(
                                peers={p.family: p.version for p in found},
                                missing_peers=dict(missing))
         title += f" (interrupted after {tracker.done:,} of {tracker.total:,} runs)"
-        sys.stderr.write(f"lcpcli: interrupted after {tracker.done:,} of {tracker.total:,} "
-                         f"runs; the report below covers those\n")
+        say_stopped(f"lcpcli: interrupted after {tracker.done:,} of {tracker.total:,} runs; "
+                    f"the report below covers those")
 
     code = pending_exit(EXIT_INTERRUPTED if interrupted else EXIT_NOT_SOLVED if report.defects
                         else EXIT_INTERNAL if report.errors else EXIT_OK)

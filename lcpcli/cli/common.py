@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import copy
+import errno
 import os
 import signal
 import sys
@@ -15,10 +16,13 @@ import typer.core
 
 from lcpcli.core.errors import (
     EXIT_BAD_INPUT,
+    EXIT_INTERRUPTED,
     EXIT_NOT_SOLVED,
     EXIT_OK,
     EXIT_SOLVED,
+    EXIT_TERMINATED,
     OptionError,
+    OutputError,
 )
 from lcpcli.core.text import option_name, plural
 
@@ -44,15 +48,25 @@ ASCII_STAND_INS = str.maketrans({
 })
 
 
+def stdout_not_open() -> OutputError:
+    """The one error of a standard output that cannot be written at all: closed (``>&-``,
+    where Python's ``sys.stdout`` is None) or open for reading only (``1</dev/null``)."""
+    return OutputError("standard output", "not open for writing (closed, as by '>&-')")
+
+
 class StdoutGuard:
-    """sys.stdout as the commands see it: a broken pipe raises :class:`PipeClosed`, and text
-    the stream's encoding cannot write (``PYTHONIOENCODING=ascii``, a legacy code page) is
-    written with :data:`ASCII_STAND_INS` and replacement characters instead of failing."""
+    """sys.stdout as the commands see it: a broken pipe raises :class:`PipeClosed`; a
+    standard output that is not open for writing (``>&-``: ``stream`` None; ``EBADF``) raises
+    :func:`stdout_not_open` (one line, exit 2, as a full disk does); text the stream's
+    encoding cannot write (``PYTHONIOENCODING=ascii``, a legacy code page) is written with
+    :data:`ASCII_STAND_INS` and replacement characters instead of failing."""
 
     def __init__(self, stream: Any) -> None:
         self._stream = stream
 
     def write(self, text: str) -> int:
+        if self._stream is None:
+            raise stdout_not_open()
         try:
             try:
                 return self._stream.write(text)
@@ -63,12 +77,142 @@ class StdoutGuard:
                 return len(text)
         except BrokenPipeError:
             raise PipeClosed() from None
+        except OSError as exc:
+            if exc.errno == errno.EBADF:
+                raise stdout_not_open() from None
+            raise
 
     def flush(self) -> None:
+        if self._stream is None:
+            return
         try:
             self._stream.flush()
         except BrokenPipeError:
             raise PipeClosed() from None
+        except OSError as exc:
+            if exc.errno == errno.EBADF:
+                raise stdout_not_open() from None
+            raise
+
+    def isatty(self) -> bool:
+        return self._stream is not None and self._stream.isatty()
+
+    def __getattr__(self, name: str) -> Any:
+        if self._stream is None:
+            raise AttributeError(name)
+        return getattr(self._stream, name)
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, turned into an interrupt so that what is being written is closed cleanly (a
+    batch's output) or removed (the temporary file of an atomic output), as after Ctrl-C."""
+
+
+#: How a command was stopped: ``signal`` SIGTERM once :func:`on_sigterm` ran (else an
+#: interrupt is Ctrl-C), ``said`` once the command said so itself (:func:`say_stopped`);
+#: ``hook``: the ``sys.unraisablehook`` that :func:`catch_sigterm` replaced.
+_STOPPED: dict[str, Any] = {"signal": None, "said": False, "hook": None}
+
+
+def on_sigterm(signum: int, frame: Any) -> None:
+    _STOPPED["signal"] = signal.SIGTERM
+    raise Terminated()
+
+
+def catch_sigterm() -> Any:
+    """Have SIGTERM (``kill``, ``timeout``, a job scheduler) stop a command as Ctrl-C does:
+    every command then ends through its cleanup (no temporary file left beside an output)
+    with exit code 143.  Only in the main thread, and only where SIGTERM has its default
+    action (an ignored one stays ignored).  An interrupt that Python can only ignore is
+    delivered again (:func:`_redeliver`).  Returns what :func:`release_sigterm` restores
+    (None: nothing changed)."""
+    _STOPPED["signal"], _STOPPED["said"] = None, False
+    if threading.current_thread() is not threading.main_thread() \
+            or signal.getsignal(signal.SIGTERM) != signal.SIG_DFL:
+        return None
+    hook = _STOPPED["hook"] = sys.unraisablehook
+    sys.unraisablehook = _redeliver
+    return signal.signal(signal.SIGTERM, on_sigterm), hook
+
+
+def release_sigterm(held: Any) -> None:
+    """Undo :func:`catch_sigterm` (``held``: what it returned)."""
+    if held is not None:
+        signal.signal(signal.SIGTERM, held[0])
+        sys.unraisablehook = held[1]
+
+
+#: How long after an ignored interrupt its signal is sent again (:func:`_redeliver`).
+REDELIVER_SECONDS = 0.01
+
+
+def _redeliver(unraisable: Any) -> None:
+    """``sys.unraisablehook`` while a command runs: an interrupt raised where Python can only
+    ignore it (the signal handler ran inside a weak reference's callback or a ``__del__``:
+    "Exception ignored in ..."; h5py's object registry is one) is not lost: its signal is
+    sent to this process again, and the handler raises it where the command can stop (a
+    SIGTERM was swallowed so, and the command ran on to its end with exit code 0)."""
+    exc = unraisable.exc_value
+    if isinstance(exc, KeyboardInterrupt):
+        # from another thread, a moment later: sent from here, the handler would run (and
+        # be ignored) inside this hook again
+        again = threading.Timer(REDELIVER_SECONDS, os.kill, (os.getpid(), signal.SIGTERM
+                                if isinstance(exc, Terminated) else signal.SIGINT))
+        again.daemon = True
+        again.start()
+        return
+    (_STOPPED.get("hook") or sys.__unraisablehook__)(unraisable)
+
+
+def say_stopped(text: str) -> None:
+    """A stopped command's own line on stderr (what it finished): ``lcpcli.cli.main`` then
+    adds none."""
+    sys.stderr.write(text + "\n")
+    _STOPPED["said"] = True
+
+
+def stopped_code() -> int:
+    """The exit code of a command stopped by a signal: 143 after SIGTERM, 130 after Ctrl-C."""
+    return EXIT_TERMINATED if _STOPPED["signal"] == signal.SIGTERM else EXIT_INTERRUPTED
+
+
+def stop_said() -> bool:
+    """Whether the stopped command said so itself (:func:`say_stopped`)."""
+    return bool(_STOPPED["said"])
+
+
+class StderrGuard:
+    """sys.stderr as the commands see it: when its reader went away (a broken pipe: ``2>&1 |
+    head -1``, a log collector that stopped) or its descriptor cannot be written, the
+    diagnostics are lost, never the work or its exit code (a note on a broken stderr stopped
+    ``solve -m enum`` with exit 1): the failed line and every later one are dropped, and
+    the descriptor is pointed at the null device so that no later flush fails."""
+
+    def __init__(self, stream: Any) -> None:
+        self._stream = stream
+        self._lost = False
+
+    def write(self, text: str) -> int:
+        if not self._lost:
+            try:
+                return self._stream.write(text)
+            except OSError:
+                self._lose()
+        return len(text)
+
+    def flush(self) -> None:
+        if not self._lost:
+            try:
+                self._stream.flush()
+            except OSError:
+                self._lose()
+
+    def _lose(self) -> None:
+        self._lost = True
+        with contextlib.suppress(OSError, ValueError, AttributeError):
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, self._stream.fileno())
+            os.close(devnull)
 
     def __getattr__(self, name: str) -> Any:
         return getattr(self._stream, name)
@@ -225,6 +369,9 @@ def write_json_line(obj: Any) -> None:
         sys.stdout.flush()
 
 
-__all__ = ["EXIT_BAD_INPUT", "MethodListCommand", "PipeClosed", "StdoutGuard", "duration",
-           "exit_code_for", "is_terminal", "parse_key_values", "pending_exit", "plural",
-           "progress_allowed", "stderr_console", "stdout_console", "write_json_line"]
+__all__ = ["EXIT_BAD_INPUT", "MethodListCommand", "PipeClosed", "StderrGuard", "StdoutGuard",
+           "Terminated",
+           "catch_sigterm", "duration", "exit_code_for", "is_terminal", "on_sigterm",
+           "parse_key_values", "pending_exit", "plural", "progress_allowed", "release_sigterm",
+           "say_stopped",
+           "stderr_console", "stdout_console", "stop_said", "stopped_code", "write_json_line"]

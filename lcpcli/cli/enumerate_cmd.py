@@ -13,6 +13,7 @@ from lcpcli.cli.common import (
     duration,
     pending_exit,
     progress_allowed,
+    say_stopped,
     stderr_console,
     stdout_console,
     write_json_line,
@@ -118,10 +119,10 @@ def enumerate_command(
         with tracker:
             res = enumerate_cones(prob, all_cones=all_cones, max_n=max_n, progress=tracker.update)
     except KeyboardInterrupt:
-        sys.stderr.write(f"lcpcli: interrupted after {tracker.done:,} of {1 << n:,} cones "
-                         f"({100 * tracker.done / (1 << n):.2g} %); no verdict: every cone "
-                         f"must be visited to list all solutions or prove there is none (for "
-                         f"one solution use 'lcpcli solve')\n")
+        say_stopped(f"lcpcli: interrupted after {tracker.done:,} of {1 << n:,} cones "
+                    f"({100 * tracker.done / (1 << n):.2g} %); no verdict: every cone must be "
+                    f"visited to list all solutions or prove there is none (for one solution "
+                    f"use 'lcpcli solve')")
         return EXIT_INTERRUPTED
     code = pending_exit(EXIT_SOLVED if res.solutions else EXIT_NOT_SOLVED)
     covers = covers_plane(M) if n == 2 else None

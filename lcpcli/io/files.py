@@ -194,7 +194,11 @@ def read_input_bytes(path: str | os.PathLike[str], limit: int = MAX_TEXT_BYTES,
 
 def read_stdin_bytes(limit: int = MAX_TEXT_BYTES) -> bytes:
     """At most ``limit`` bytes of stdin (more is refused, not silently cut; a file redirected
-    to stdin is measured before it is read)."""
+    to stdin is measured before it is read).  A standard input that is not open (``<&-``:
+    Python's ``sys.stdin`` is None) or cannot be read is a ProblemError naming ``-``."""
+    if sys.stdin is None:
+        raise ProblemError("standard input is not open (closed, as by '<&-'): give the "
+                           "problem on stdin, or a file", "-")
     stream = getattr(sys.stdin, "buffer", None)
     try:
         st = os.fstat(sys.stdin.fileno())
@@ -202,7 +206,11 @@ def read_stdin_bytes(limit: int = MAX_TEXT_BYTES) -> bytes:
         st = None
     if st is not None and stat.S_ISREG(st.st_mode) and st.st_size > limit:
         raise too_big(st.st_size, limit, "stdin")
-    data = stream.read(limit + 1) if stream is not None else sys.stdin.read(limit + 1).encode()
+    try:
+        data = stream.read(limit + 1) if stream is not None \
+            else sys.stdin.read(limit + 1).encode()
+    except OSError as exc:  # open for writing only, a terminal that went away, ...
+        raise ProblemError(f"cannot read standard input ({exc.strerror or exc})", "-") from None
     if len(data) > limit:
         raise too_big(len(data), limit, "stdin")
     return data

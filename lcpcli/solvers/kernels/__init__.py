@@ -10,7 +10,10 @@ platform has it, else ``spawn``), never with a bare ``fork``.
 
 from __future__ import annotations
 
+import os
 from typing import Any
+
+from lcpcli.core.errors import LcpError
 
 
 def process_context(preload: tuple[str, ...] = ()) -> Any:
@@ -18,9 +21,19 @@ def process_context(preload: tuple[str, ...] = ()) -> Any:
 
     ``forkserver`` (POSIX): workers fork from a clean server process that never ran a kernel;
     ``preload`` names modules the server imports once (so each worker starts with them loaded;
-    it applies only when the server is started).  Elsewhere ``spawn``.
+    it applies only when the server is started).  Elsewhere ``spawn``.  A current folder
+    that no longer exists is an :class:`~lcpcli.core.errors.LcpError` (one line): a worker
+    starts in its parent's folder, and multiprocessing fails on it with a bare
+    FileNotFoundError.
     """
     import multiprocessing as mp
+
+    try:
+        os.getcwd()
+    except FileNotFoundError:
+        raise LcpError("the current folder no longer exists (it was deleted): worker processes "
+                       "cannot start in it; change to a folder that exists (cd) and run again"
+                       ) from None
 
     if "forkserver" in mp.get_all_start_methods():
         ctx = mp.get_context("forkserver")
