@@ -88,11 +88,10 @@ def driving_step(t: PivotTransform, Maug: np.ndarray, *, piv_tol: float = PIVOT_
                                    f"Lemke's feasible bases: no ratio test (only {ARTIFICIAL} "
                                    f"entering from such a basis is Lemke's first pivot)")})
             return out
-        if col.dtype == object:  # fractions: a zero entry has no ratio (+inf, never the max)
-            ratios = np.array([qp[i] / col[i] if col[i] != 0 else np.inf
-                               for i in range(t.n)], dtype=object)
-        else:
-            ratios = qp / col
+        # only the eligible rows (q'_i < 0, where c_i > 0) have a ratio; the others are +inf,
+        # never the max (a row with q'_i = c_i = 0 made 0/0 = NaN, no row tied: exit 3)
+        ratios = np.array([qp[i] / col[i] if qp[i] < 0 else np.inf for i in range(t.n)],
+                          dtype=object if col.dtype == object else np.float64)
         best = np.min(ratios)
         tied = np.flatnonzero(ratios <= best + tie_tol * abs(best))
         r = int(tied[-1])
