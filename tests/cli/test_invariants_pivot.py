@@ -3,7 +3,10 @@ boundary (docs/pivot.md): for every problem and every basis, the principal pivot
 of Dai & Drumwright that the CLI prints (``--json --full``) equals an independent exact one
 (:func:`references.principal_pivot_exact`: Gauss-Jordan on ``[I, -Maug] x = q`` in rationals),
 the library gives the same numbers, and a basis that is exactly singular is refused with one
-line and exit 2.  Bad tuples (out of range, 0-based names, duplicates, wrong counts,
+line and exit 2.  Data scaled by powers of two per row and column (to ``2^+-1000`` and
+subnormals: Cottle-Pang-Stone 2.3, principal pivoting does not depend on units) give the
+transform scaled the same way, or ``beyond double precision`` (exit 2) only where an entry of
+it leaves the double range.  Bad tuples (out of range, 0-based names, duplicates, wrong counts,
 a driving variable that is dependent) are one line, exit 2; nothing exits 3.
 """
 
@@ -16,10 +19,11 @@ from fractions import Fraction
 from pathlib import Path
 
 import numpy as np
+import pytest
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 from invariants import cli, one_line_error, strict_json
-from references import principal_pivot_exact
+from references import pivot_variable, principal_pivot_exact
 
 from lcpcli.analysis.pivoting import parse_tuple, parse_var, principal_pivot
 from lcpcli.core.errors import ProblemError
@@ -30,6 +34,7 @@ SETTINGS = settings(max_examples=40, deadline=None,
 #: Relative accuracy asked of the transform on small integer data (n <= 5, entries <= 5:
 #: condition numbers stay far below 1e6).
 RTOL = 1e-9
+TINY = 2.0 ** -1070
 
 
 @dataclass
@@ -193,6 +198,117 @@ def test_pivot_equals_exact_transform(tmp_path: Path, case: PivotCase) -> None:
                         driving=None if case.driving is None else parse_var(case.driving, n),
                         full=True, any_basis=case.any_basis)
     assert t.q_prime.tolist() == doc["q_prime"] and t.full.tolist() == doc["M_prime"]
+
+
+@st.composite
+def scalings(draw: st.DrawFn, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Exponents of the rows (n) and of the columns (n + 1, the artificial one included) that
+    keep the integer data exact (entries below 2^3, so ``r_i + c_j`` in ``[-1071, 1020]``)."""
+    rng = np.random.default_rng(draw(st.integers(0, 2**32 - 1)))
+    mode = draw(st.sampled_from(["global", "rows_cols", "rows", "cols"]))
+    r = np.zeros(n, dtype=np.int64)
+    c = np.zeros(n + 1, dtype=np.int64)
+    if mode == "global":
+        r[:] = int(rng.integers(-1071, 1021))
+    elif mode == "rows":
+        r = rng.integers(-1000, 1001, n)
+    elif mode == "cols":
+        c = rng.integers(-1000, 1001, n + 1)
+    else:
+        r, c = rng.integers(-500, 501, n), rng.integers(-500, 501, n + 1)
+    return r, c
+
+
+@SETTINGS
+@given(case=pivot_cases(max_n=4), data=st.data())
+def test_pivot_scaled_data(tmp_path: Path, case: PivotCase, data: st.DataObject) -> None:
+    """``w~ = D1 w``, ``z~ = D2^-1 z``: the transform of ``D1 Maug D2, D1 q`` is the exact
+    one scaled by the same powers of two (variable ``w_i`` by ``2^r_i``, ``z_j`` by
+    ``2^-c_j``); exit 2 ('beyond double precision') only where an entry of it, or the
+    rounding error of its column in its units, leaves the range; never 'singular' on a basis
+    of the unscaled data, never exit 3."""
+    check_scaled(tmp_path, case, *data.draw(scalings(case.n)))
+
+
+def _basis_case(M: list, d: list, q: list, dependent: str) -> PivotCase:
+    n = len(q)
+    dep = dependent.split(",")
+    return PivotCase(np.array(M, dtype=float), np.array(q, dtype=float), np.array(d, dtype=float),
+                     "file", dep, [v for v in names(n) if v not in dep], False, None, False,
+                     {v: v for v in names(n)})
+
+
+@pytest.mark.parametrize("case,r,c", [
+    # the row-then-column equilibration of M^{alpha beta} lost an entry below 2^-1074: q' was
+    # (.., -9, ..) for (.., -7, ..)
+    (_basis_case([[0, 4, 0], [-4, 1, 2], [-4, 0, -1]], [1, 1, 1], [2, 2, -5], "z0,w3,z1"),
+     [0, 0, 0], [702, 274, 22, -461]),
+    # D_r b underflowed for a column in units far from the rows' (the z0 column of M' was 0)
+    (_basis_case([[-4, 2, -3], [-2, 4, -3], [1, -2, -1]], [1, 1, 1], [5, -3, 3], "z3,z2,z1"),
+     [0, 0, 0], [702, 274, 22, -461]),
+    # entries of 1e-205 beside 0.75 after the quick equilibration: a basis called singular
+    (_basis_case([[3, -4, -3], [-2, -3, 3], [3, 1, -4]], [1, 0, -1], [-4, -2, -1], "z3,z0,z2"),
+     [-27, 12, 255], [451, -466, -356, 323]),
+])
+def test_pivot_scaled_regressions(tmp_path: Path, case: PivotCase, r: list, c: list) -> None:
+    check_scaled(tmp_path, case, np.array(r), np.array(c))
+
+
+def check_scaled(tmp_path: Path, case: PivotCase, r: np.ndarray, c: np.ndarray) -> None:
+    """The property of :func:`test_pivot_scaled_data` for row exponents ``r`` and column
+    exponents ``c`` (the artificial column's last)."""
+    n = case.n
+    Ms = np.ldexp(case.Maug, (r[:, None] + c[None, :]).astype(np.int32)) if n else case.Maug
+    qs = np.ldexp(case.q, r.astype(np.int32))
+    case.where = "file"
+    path = write(case, tmp_path, Ms, qs)
+    code, out, err = cli(*case.args(path))
+    assert code in (0, 2), err
+    ref = principal_pivot_exact(case.Maug, case.q, case.dependent, case.independent)
+    if ref is None:
+        one_line_error(code, err)
+        return
+
+    def exp(v: str) -> int:  # the variable's scale: w_i by 2^r_i, z_j by 2^-c_j
+        kind, j = pivot_variable(v, n)
+        return int(r[j]) if kind == "w" else -int(c[j])
+
+    qp, Mp = ref
+    qs_ex = [x * Fraction(2) ** exp(v) for x, v in zip(qp, case.dependent, strict=True)]
+    Ms_ex = [[Mp[k][m] * Fraction(2) ** (exp(case.dependent[k]) - exp(case.independent[m]))
+              for m in range(n + 1)] for k in range(n)]
+    top = max([abs(x) for x in qs_ex] + [abs(x) for row in Ms_ex for x in row], default=0)
+    # the size of each entry's column in the entry's units (an exact 0 is computed as a
+    # rounding error of that size): what floating point has to represent
+    q_top = max([Fraction(1)] + [abs(x) for x in qp])
+    col_top = [max([Fraction(1)] + [abs(Mp[i][m]) for i in range(n)]) for m in range(n + 1)]
+    sizes = [Fraction(2) ** exp(case.dependent[k]) * max(
+        [q_top] + [col_top[m] / Fraction(2) ** exp(case.independent[m]) for m in range(n + 1)])
+        for k in range(n)]
+    if code == 2:
+        one_line_error(code, err)
+        assert "beyond double precision" in err, err
+        assert max(sizes, default=0) >= Fraction(2) ** 990, \
+            f"refused, but the largest entry is {float(top):g}"
+        return
+    assert top < Fraction(2) ** 1024, "an entry beyond the double range was printed"
+    doc = strict_json(out)
+    rowsum = np.sum(np.abs(Ms), axis=1) if n else np.zeros(0)
+
+    def slack(k: int) -> Fraction:  # absolute error from underflow (subnormal intermediates)
+        kind, j = pivot_variable(case.dependent[k], n)
+        return Fraction(TINY) * (1 + (Fraction(float(rowsum[j])) if kind == "w" else 16))
+
+    for k in range(n):
+        unit = Fraction(2) ** exp(case.dependent[k])
+        bound = Fraction(RTOL) * unit * q_top + slack(k)
+        assert abs(Fraction(doc["q_prime"][k]) - qs_ex[k]) <= bound, \
+            ("q'", k, doc["q_prime"][k], float(qs_ex[k]))
+        for m in range(n + 1):
+            unit_m = unit / Fraction(2) ** exp(case.independent[m])
+            bound = Fraction(RTOL) * unit_m * col_top[m] + slack(k)
+            assert abs(Fraction(doc["M_prime"][k][m]) - Ms_ex[k][m]) <= bound, \
+                ("M'", k, m, doc["M_prime"][k][m], float(Ms_ex[k][m]))
 
 
 # ---------------------------------------------------------------------------- invalid tuples
