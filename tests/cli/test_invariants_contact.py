@@ -25,7 +25,7 @@ from invariants import cli, one_line_error, strict_json
 from lcpcli.contact import build, load_scene
 from lcpcli.io import load
 
-SETTINGS = settings(max_examples=25, deadline=None,
+SETTINGS = settings(max_examples=60, deadline=None,
                     suppress_health_check=[HealthCheck.too_slow,
                                            HealthCheck.function_scoped_fixture])
 

@@ -25,7 +25,7 @@ import lcpcli
 from lcpcli.io import load, save
 from lcpcli.io.json_format import read_text
 
-SETTINGS = settings(max_examples=40, deadline=None,
+SETTINGS = settings(max_examples=100, deadline=None,
                     suppress_health_check=[HealthCheck.too_slow,
                                            HealthCheck.function_scoped_fixture])
 #: Values at the ends of the double range, planted among the generated data.

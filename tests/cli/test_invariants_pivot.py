@@ -28,7 +28,7 @@ from references import pivot_variable, principal_pivot_exact
 from lcpcli.analysis.pivoting import parse_tuple, parse_var, principal_pivot
 from lcpcli.core.errors import ProblemError
 
-SETTINGS = settings(max_examples=40, deadline=None,
+SETTINGS = settings(max_examples=100, deadline=None,
                     suppress_health_check=[HealthCheck.too_slow,
                                            HealthCheck.function_scoped_fixture])
 #: Relative accuracy asked of the transform on small integer data (n <= 5, entries <= 5:
