@@ -339,11 +339,15 @@ def _equilibrate(A: np.ndarray, own_units: bool = False
         r = np.where(nz, E - c[None, :], 0.0).sum(axis=1) / rows
         c = np.where(nz, E - r[:, None], 0.0).sum(axis=0) / cols
     r, c = np.round(r).astype(np.int64), np.round(c).astype(np.int64)
-    A1 = ldexp_exact(A, -(r[:, None] + c[None, :]))
-    er = binary_exponents(np.max(np.abs(A1), axis=1))
-    A1 = np.ldexp(A1, -er[:, None])
-    ec = binary_exponents(np.max(np.abs(A1), axis=0))
-    return r + er, c + ec, np.ldexp(A1, -ec[None, :])
+    # each row's largest entry to [1/2, 1) in exponent arithmetic first (data that are not of
+    # the form D1 A0 D2 may leave the fit far off the range: ldexp must not overflow)
+    F = np.where(nz, E - r[:, None] - c[None, :], -np.inf)
+    top = np.max(F, axis=1)
+    r = r + np.where(np.isfinite(top), top, 0).astype(np.int64)
+    with np.errstate(under="ignore"):  # entries far below their row's largest: 0
+        A1 = ldexp_exact(A, -(r[:, None] + c[None, :]))
+        ec = binary_exponents(np.max(np.abs(A1), axis=0))
+        return r, c + ec, np.ldexp(A1, -ec[None, :])
 
 
 def _rcond(lu: Any, A: np.ndarray) -> float:

@@ -369,3 +369,54 @@ def test_pivot_library_refuses_singular_block_as_problem_error() -> None:
         raise AssertionError("a singular M^{alpha beta} was accepted")
     assert math.isfinite(float(principal_pivot(Maug, np.array([-1.0, -1.0]),
                                                parse_tuple("z1,w2", 2)).q_prime[0]))
+
+
+#: Entries at the ends of the double range (subnormal, 2^+-1000, the largest double, -0.0).
+EXTREMES = (0.0, -0.0, 5e-324, -5e-324, 1e-310, 2.0 ** -1000, 2.0 ** 1000,
+            -1.7976931348623157e308, 1.7976931348623157e308, 1.0, -1.0, 3.0)
+
+
+@st.composite
+def extreme_pivots(draw: st.DrawFn) -> tuple[list, list, list[str], str]:
+    """``(M, q, dependent, driving)``: entries from :data:`EXTREMES`, a complementary basis
+    and a driving variable among the others."""
+    n = draw(st.integers(1, 4))
+    entries = st.sampled_from(EXTREMES)
+    M = draw(st.lists(st.lists(entries, min_size=n, max_size=n), min_size=n, max_size=n))
+    q = draw(st.lists(entries, min_size=n, max_size=n))
+    dependent = [f"{draw(st.sampled_from(['w', 'z']))}{i}" for i in range(1, n + 1)]
+    return M, q, dependent, draw(st.sampled_from([v for v in names(n) if v not in dependent]))
+
+
+@SETTINGS
+@example(data=([[-1.0]], [1.7976931348623157e308], ["w1"], "z1"),
+         extra=["--json", "--full"])  # the ratio q'/c overflowed: a numpy warning on stderr
+@example(data=([[1e-310]], [-1.0], ["w1"], "z0"), extra=["--follow", "--json"])
+@example(data=([[1e-310, 0.0, 1.0, -1.0],
+                [9.332636185032189e-302, -5e-324, 1.0715086071862673e301, 1.0],
+                [-0.0, 1.7976931348623157e308, -0.0, 3.0],
+                [-5e-324, -1.0, 5e-324, 1.0715086071862673e301]],
+               [-5e-324, -1.7976931348623157e308, -0.0, 1.7976931348623157e308],
+               ["w1", "z2", "z3", "z4"], "w3"),
+         extra=["--json", "--full"])  # the block's own units overflowed in ldexp (a warning)
+@given(data=extreme_pivots(),
+       extra=st.sampled_from([["--json", "--full"], ["--follow", "--json"], ["--full"],
+                              ["--format", "latex"]]))
+def test_pivot_extreme_data_never_exit_3(tmp_path: Path, data: tuple, extra: list[str]) -> None:
+    """Data at the ends of the double range, every basis and driving variable, every output:
+    exit 0 (strict JSON) or one line and exit 2 ('singular', 'beyond double precision'),
+    never exit 3 and never a numpy warning on stderr."""
+    M, q, dependent, driving = data
+    n = len(M)
+    path = tmp_path / f"p{np.random.default_rng().integers(1 << 40)}.json"
+    path.write_text(json.dumps({"M": M, "q": q}))
+    if "--follow" in extra:
+        dependent, driving = [f"w{i}" for i in range(1, n + 1)], "z0"
+    code, out, err = cli("pivot", path, "-d", ",".join(dependent), "--driving", driving, *extra)
+    assert "warning" not in err, err
+    if code == 2:
+        one_line_error(code, err)
+        return
+    assert code == 0, err
+    if "--json" in extra:
+        strict_json(out)

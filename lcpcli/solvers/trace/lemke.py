@@ -89,9 +89,15 @@ def ratio_test(col: np.ndarray, qb: np.ndarray, basis: list[str], entering: str,
     ztol = ZERO_Q * qmax
     elig = np.flatnonzero(col < -ptol)
     v = np.where(qb[elig] > ztol, qb[elig], qb[elig] * 0)  # a zero of the data's type
-    t = v / (-col[elig])
+    with np.errstate(over="ignore"):  # a ratio past the double range is inf: it blocks last
+        t = v / (-col[elig])
     tmin = np.min(t) if elig.size else None
-    tied_mask = t <= tmin + tie_tol * tmin if elig.size else np.zeros(0, dtype=bool)
+    if not elig.size:
+        tied_mask = np.zeros(0, dtype=bool)
+    elif tmin == np.inf:  # every ratio is past the range: they tie
+        tied_mask = t == np.inf
+    else:  # t <= tmin (1 + tie_tol), which overflowed for a tmin near the largest double
+        tied_mask = t - tmin <= tie_tol * tmin
     tied = [int(i) for i in elig[tied_mask]]
     ratio = dict(zip(elig.tolist(), t.tolist(), strict=True))
     rows = []

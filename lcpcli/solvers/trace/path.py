@@ -90,10 +90,12 @@ def driving_step(t: PivotTransform, Maug: np.ndarray, *, piv_tol: float = PIVOT_
             return out
         # only the eligible rows (q'_i < 0, where c_i > 0) have a ratio; the others are +inf,
         # never the max (a row with q'_i = c_i = 0 made 0/0 = NaN, no row tied: exit 3)
-        ratios = np.array([qp[i] / col[i] if qp[i] < 0 else np.inf for i in range(t.n)],
-                          dtype=object if col.dtype == object else np.float64)
+        with np.errstate(over="ignore"):  # a ratio past the double range is -inf
+            ratios = np.array([qp[i] / col[i] if qp[i] < 0 else np.inf for i in range(t.n)],
+                              dtype=object if col.dtype == object else np.float64)
         best = np.min(ratios)
-        tied = np.flatnonzero(ratios <= best + tie_tol * abs(best))
+        tied = np.flatnonzero(ratios == best if best == -np.inf
+                              else ratios - best <= tie_tol * abs(best))
         r = int(tied[-1])
         rows = [{"row": i + 1, "basic": names[i], "q": scalar(qp[i]), "column": scalar(col[i]),
                  "ratio": scalar(-ratios[i]) if qp[i] < 0 else None,
