@@ -399,6 +399,8 @@ def extreme_pivots(draw: st.DrawFn) -> tuple[list, list, list[str], str]:
                [-5e-324, -1.7976931348623157e308, -0.0, 1.7976931348623157e308],
                ["w1", "z2", "z3", "z4"], "w3"),
          extra=["--json", "--full"])  # the block's own units overflowed in ldexp (a warning)
+@example(data=([[-5e-324, 0.0], [-5e-324, 0.0]], [0.0, 0.0], ["w1", "w2"], "z1"),
+         extra=["--full"])  # lexicographic keys B^-1 / 5e-324 overflowed (a warning)
 @given(data=extreme_pivots(),
        extra=st.sampled_from([["--json", "--full"], ["--follow", "--json"], ["--full"],
                               ["--format", "latex"]]))

@@ -143,10 +143,13 @@ def lexicographic(tied: list[int], col: np.ndarray, binv_row: Callable[[int], np
     compared = []
     decided = -1
     for k in range(n):
-        keys = [scalar(full[i][k] / -col[i]) for i in cand]
+        with np.errstate(over="ignore"):  # a pivot entry of 5e-324: keys past the range, inf
+            keys = [scalar(full[i][k] / -col[i]) for i in cand]
         kmin = min(keys)
         kmax = max(abs(x) for x in keys)
-        kept = [i for i, x in zip(cand, keys, strict=True) if x <= kmin + LEX_TOL * max(kmax, unit)]
+        # the minimum itself is always kept (an infinite kmin made the bound NaN)
+        kept = [i for i, x in zip(cand, keys, strict=True)
+                if x == kmin or x <= kmin + LEX_TOL * max(kmax, unit)]
         compared.append({"column": k + 1, "variable": f"w{k + 1}",
                          "rows": [i + 1 for i in cand], "keys": keys,
                          "kept": [i + 1 for i in kept]})
@@ -154,9 +157,11 @@ def lexicographic(tied: list[int], col: np.ndarray, binv_row: Callable[[int], np
         if len(cand) == 1:
             decided = k
             break
+    with np.errstate(over="ignore"):
+        keyed = {i: (full[i] / -col[i]).tolist() for i in tied}
     record = {
         "rows": [{"row": i + 1, "basic": basis[i], "pivot_entry": scalar(-col[i]),
-                  "binv_row": full[i].tolist(), "key": (full[i] / -col[i]).tolist()}
+                  "binv_row": full[i].tolist(), "key": keyed[i]}
                  for i in tied],
         "compared": compared,
         "decided_by": f"w{decided + 1}" if decided >= 0 else None,
