@@ -401,6 +401,10 @@ def extreme_pivots(draw: st.DrawFn) -> tuple[list, list, list[str], str]:
          extra=["--json", "--full"])  # the block's own units overflowed in ldexp (a warning)
 @example(data=([[-5e-324, 0.0], [-5e-324, 0.0]], [0.0, 0.0], ["w1", "w2"], "z1"),
          extra=["--full"])  # lexicographic keys B^-1 / 5e-324 overflowed (a warning)
+@example(data=([[0.0, 0.0, 0.0, 0.0], [0.0, 0.0, 1.0715086071862673e301, 0.0],
+                [0.0, 0.0, -1.0, 0.0], [0.0, 0.0, 1.7976931348623157e308, 0.0]],
+               [0.0, 0.0, 0.0, 0.0], ["w1", "w2", "z3", "w4"], "w3"),
+         extra=["--json", "--full"])  # NaN keys (B^-1 overflowed): no row kept, exit 3
 @given(data=extreme_pivots(),
        extra=st.sampled_from([["--json", "--full"], ["--follow", "--json"], ["--full"],
                               ["--format", "latex"]]))

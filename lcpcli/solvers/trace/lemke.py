@@ -150,6 +150,8 @@ def lexicographic(tied: list[int], col: np.ndarray, binv_row: Callable[[int], np
         # the minimum itself is always kept (an infinite kmin made the bound NaN)
         kept = [i for i, x in zip(cand, keys, strict=True)
                 if x == kmin or x <= kmin + LEX_TOL * max(kmax, unit)]
+        if not kept:  # NaN keys (B^-1 past the double range) compare to nothing: still tied
+            break
         compared.append({"column": k + 1, "variable": f"w{k + 1}",
                          "rows": [i + 1 for i in cand], "keys": keys,
                          "kept": [i + 1 for i in kept]})
