@@ -288,6 +288,15 @@ class _Factor:
             return ldexp_exact(y, s - self.ec)
 
 
+def inverse(A: np.ndarray) -> np.ndarray:
+    """``A^-1`` of a square matrix through the equilibrated LU of :class:`_Factor` (whether it
+    is singular, and its entries, do not depend on the units of the rows and columns; an
+    entry past the double range is inf); ProblemError when ``A`` is singular."""
+    m = A.shape[0]
+    f = _Factor(np.asarray(A, dtype=np.float64))
+    return np.column_stack([f.solve(e) for e in np.eye(m)]) if m else np.zeros((0, 0))
+
+
 #: Sweeps of alternating means that smooth the spanning-tree scaling of :func:`_equilibrate`.
 LOG_SCALING_SWEEPS = 10
 

@@ -405,6 +405,11 @@ def extreme_pivots(draw: st.DrawFn) -> tuple[list, list, list[str], str]:
                 [0.0, 0.0, -1.0, 0.0], [0.0, 0.0, 1.7976931348623157e308, 0.0]],
                [0.0, 0.0, 0.0, 0.0], ["w1", "w2", "z3", "w4"], "w3"),
          extra=["--json", "--full"])  # NaN keys (B^-1 overflowed): no row kept, exit 3
+@example(data=([[9.332636185032189e-302, 0.0, 0.0, 0.0],
+                [1.0715086071862673e301, -1.7976931348623157e308, 0.0, 0.0],
+                [0.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 0.0]],
+               [0.0, 0.0, 0.0, 0.0], ["z1", "z2", "w3", "w4"], "z0"),
+         extra=["--json", "--full"])  # np.linalg.inv called this basis singular: exit 3
 @given(data=extreme_pivots(),
        extra=st.sampled_from([["--json", "--full"], ["--follow", "--json"], ["--full"],
                               ["--format", "latex"]]))

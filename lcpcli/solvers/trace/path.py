@@ -30,6 +30,8 @@ from lcpcli.analysis.pivoting import (
     principal_pivot,
     var_name,
 )
+from lcpcli.analysis.pivoting import inverse as float_inverse  # B^-1 in its own units
+from lcpcli.core.errors import ProblemError
 from lcpcli.core.tolerances import PIVOT_TOL, TIE_TOL
 from lcpcli.solvers.trace.lemke import (
     initial_formula,
@@ -58,7 +60,10 @@ def basis_inverse(Maug: np.ndarray, dependent: tuple[Var, ...]) -> np.ndarray:
         from lcpcli.solvers.trace.exact import inverse
 
         return inverse(np.column_stack(cols))
-    return np.linalg.inv(np.column_stack(cols))
+    try:  # in the block's own units (np.linalg.inv called a basis of 9e-302 and 1.8e308
+        return float_inverse(np.column_stack(cols))  # singular: exit 3)
+    except ProblemError:  # singular in floating point: no key compares (the rows stay tied)
+        return np.full((n, n), np.nan)
 
 
 def driving_step(t: PivotTransform, Maug: np.ndarray, *, piv_tol: float = PIVOT_TOL,
