@@ -29,8 +29,12 @@ independently; the certificate is invariant under these scalings.
 
 from __future__ import annotations
 
+import contextlib
+import io
 import json
 import math
+import sys
+import warnings
 from dataclasses import dataclass, field
 from fractions import Fraction
 from typing import Any
@@ -38,6 +42,8 @@ from typing import Any
 import numpy as np
 from hypothesis import strategies as st
 from references import componentwise_error
+
+from lcpcli.cli import main
 
 #: Classes whose problems have a solution by construction.
 SOLVABLE = ("pd", "p", "psd", "copositive", "degenerate", "qpos", "subnormal")
@@ -338,3 +344,28 @@ def check_verdict(case: Case, status: str, message: str, method: str,
     y = farkas_vector(info or {})
     assert y is None or farkas_ok(case, y), \
         f"no_solution whose Farkas vector fails the check ({method}): {message}"
+
+
+# ---------------------------------------------------------------------------- the CLI in-process
+def cli(*args: str, stdin: str | None = None) -> tuple[int, str, str]:
+    """``lcpcli ARGS`` in this process: (exit code, stdout, stderr)."""
+    out, err = io.StringIO(), io.StringIO()
+    saved = sys.stdin, warnings.showwarning
+    if stdin is not None:
+        sys.stdin = io.TextIOWrapper(io.BytesIO(stdin.encode()), encoding="utf-8")
+    try:
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+            try:
+                main([str(a) for a in args])
+                code = 0
+            except SystemExit as exc:
+                code = int(exc.code or 0)
+    finally:
+        sys.stdin, warnings.showwarning = saved
+    return code, out.getvalue(), err.getvalue()
+
+
+def one_line_error(code: int, err: str) -> None:
+    assert code == 2, (code, err)
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("lcpcli: error: "), err

@@ -300,3 +300,62 @@ def farkas_certifies(M: Any, q: np.ndarray, y: Any, lo: np.ndarray | None = None
         ends = [g * Fraction(float(b)) for b in (lo[i], up[i]) if np.isfinite(b)]
         total += max(ends) if ends else Fraction(0)
     return total < 0
+
+
+def _exact_inverse(A: list[list[Fraction]]) -> list[list[Fraction]] | None:
+    """The inverse of a square matrix of rationals by Gauss-Jordan elimination (None when
+    singular)."""
+    m = len(A)
+    T = [list(row) + [Fraction(int(i == k)) for k in range(m)] for i, row in enumerate(A)]
+    for c in range(m):
+        p = next((r for r in range(c, m) if T[r][c] != 0), None)
+        if p is None:
+            return None
+        T[c], T[p] = T[p], T[c]
+        piv = T[c][c]
+        T[c] = [x / piv for x in T[c]]
+        for r in range(m):
+            if r != c and T[r][c] != 0:
+                f = T[r][c]
+                T[r] = [x - f * y for x, y in zip(T[r], T[c], strict=True)]
+    return [row[m:] for row in T]
+
+
+def pivot_variable(name: str, n: int) -> tuple[str, int]:
+    """``("w", i)`` or ``("z", j)`` (0-based; the artificial variable ``z0`` is ``("z", n)``)
+    of a canonical 1-based name ``w1..wn``, ``z1..zn``, ``z0``."""
+    kind, idx = name[0], int(name[1:])
+    if kind == "z" and idx in (0, n + 1):
+        return ("z", n)
+    return (kind, idx - 1)
+
+
+def principal_pivot_exact(Maug: Any, q: Any, dependent: list[str], independent: list[str]
+                          ) -> tuple[list[Fraction], list[list[Fraction]]] | None:
+    """The pivoted system ``w' = q' + M' z'`` of ``w = q + Maug z`` (``Maug`` n x (n+1), its
+    last column the artificial variable ``z0``), exactly, by Gauss-Jordan on the whole system
+    written as ``A x = q`` with ``A = [I, -Maug]`` and ``x = (w, z)`` (Cottle-Pang-Stone 2.3,
+    principal pivoting as a change of basis): ``x_D = A_D^-1 q - A_D^-1 A_I x_I``.  Independent
+    of Dai & Drumwright's index sets.  Names are canonical and 1-based; returns ``(q', M')``
+    (rows in ``dependent`` order, columns of ``M'`` in ``independent`` order), or None when
+    ``A_D`` is singular (the tuples are not a basis)."""
+    n = len(q)
+    Mf = [[Fraction(float(Maug[i][j])) for j in range(n + 1)] for i in range(n)]
+
+    def column(name: str) -> list[Fraction]:
+        kind, j = pivot_variable(name, n)
+        if kind == "w":
+            return [Fraction(int(i == j)) for i in range(n)]
+        return [-Mf[i][j] for i in range(n)]
+
+    cols = [column(v) for v in dependent]
+    inv = _exact_inverse([[cols[k][i] for k in range(n)] for i in range(n)])
+    if inv is None:
+        return None
+
+    def apply(b: list[Fraction]) -> list[Fraction]:
+        return [sum((inv[i][k] * b[k] for k in range(n)), Fraction(0)) for i in range(n)]
+
+    qp = apply([Fraction(float(x)) for x in q])
+    Mp_cols = [apply([-x for x in column(v)]) for v in independent]
+    return qp, [[Mp_cols[c][r] for c in range(len(independent))] for r in range(n)]

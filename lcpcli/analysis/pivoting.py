@@ -234,47 +234,129 @@ class PivotTransform:
 class _Factor:
     """LU factorisation of the square block ``M^{alpha beta}`` (m may be 0).
 
-    The block is first equilibrated by exact powers of two (``D_r A D_c`` with every row, then
-    every column, of largest entry in ``[1/2, 1)``), so that whether it is singular does not
-    depend on the units of the data: ``[[1e300, 1], [1e-300, 1e-300]]`` and ``diag(5e-324, 1)``
-    are bases (Cottle-Pang-Stone 2.3: principal pivoting is invariant under positive row and
-    column scaling).  Solves map back exactly: ``x = D_c (D_r A D_c)^-1 D_r b``.
+    The block is first equilibrated by exact powers of two (:func:`_equilibrate`), so that
+    whether it is singular does not depend on the units of the data: ``[[1e300, 1], [1e-300,
+    1e-300]]`` and ``diag(5e-324, 1)`` are bases (Cottle-Pang-Stone 2.3: principal pivoting is
+    invariant under positive row and column scaling).  Solves map back exactly:
+    ``x = D_c (D_r A D_c)^-1 D_r b``.
     """
 
     def __init__(self, A: np.ndarray) -> None:
         self.m = A.shape[0]
         if self.m == 0:
             return
-        import scipy.linalg as sla  # scipy is imported on first use (start-up budget)
-
         if not np.all(np.isfinite(A)):
             raise ProblemError("M^{alpha beta} contains NaN or Inf")
-        self.er = binary_exponents(np.max(np.abs(A), axis=1))
-        As = np.ldexp(A, -self.er[:, None])
-        self.ec = binary_exponents(np.max(np.abs(As), axis=0))
-        As = np.ldexp(As, -self.ec[None, :])
+        refusal = None
+        for own_units in (False, True):  # the quick scaling, then the block's own units
+            self.er, self.ec, As = _equilibrate(A, own_units=own_units)
+            refusal = self._factor(As)
+            if refusal is None:
+                return
+        raise refusal
+
+    def _factor(self, As: np.ndarray) -> ProblemError | None:
+        """LU of the equilibrated block; the refusal when it is singular (None if not)."""
+        import scipy.linalg as sla  # scipy is imported on first use (start-up budget)
+
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             self.lu = sla.lu_factor(As, check_finite=False)
         diag = np.abs(np.diag(self.lu[0]))
         scale = max(float(np.max(np.abs(As))), np.finfo(float).tiny)
         if diag.min() <= RCOND_MIN * scale * self.m:
-            raise ProblemError("M^{alpha beta} is singular: these tuples are not a basis "
-                               "(no pivoted system exists)")
+            return ProblemError("M^{alpha beta} is singular: these tuples are not a basis "
+                                "(no pivoted system exists)")
         rcond = _rcond(self.lu, As)
         if rcond < RCOND_MIN:
-            raise ProblemError(f"M^{{alpha beta}} is singular to working precision "
-                               f"(rcond {rcond:.1e}): these tuples are not a basis")
+            return ProblemError(f"M^{{alpha beta}} is singular to working precision "
+                                f"(rcond {rcond:.1e}): these tuples are not a basis")
+        return None
 
     def solve(self, b: np.ndarray) -> np.ndarray:
+        """``A^-1 b``; ``b`` is brought to its own unit ``2^s`` first (a column of the data
+        in units far from the rows' would underflow in ``D_r b``: ``2^-461`` against rows in
+        ``2^705``), and ``2^s`` is put back with ``D_c``."""
         if self.m == 0:
             return np.zeros(0)
         import scipy.linalg as sla  # scipy is imported on first use (start-up budget)
 
+        b = np.asarray(b, dtype=np.float64)
+        s = int(binary_exponents(np.max(np.abs(b))))
         with np.errstate(over="ignore", under="ignore"):  # x beyond the double range: Inf
-            y = sla.lu_solve(self.lu, ldexp_exact(np.asarray(b, dtype=np.float64), -self.er),
-                             check_finite=False)
-            return ldexp_exact(y, -self.ec)
+            y = sla.lu_solve(self.lu, ldexp_exact(b, -(self.er + s)), check_finite=False)
+            return ldexp_exact(y, s - self.ec)
+
+
+def inverse(A: np.ndarray) -> np.ndarray:
+    """``A^-1`` of a square matrix through the equilibrated LU of :class:`_Factor` (whether it
+    is singular, and its entries, do not depend on the units of the rows and columns; an
+    entry past the double range is inf); ProblemError when ``A`` is singular."""
+    m = A.shape[0]
+    f = _Factor(np.asarray(A, dtype=np.float64))
+    return np.column_stack([f.solve(e) for e in np.eye(m)]) if m else np.zeros((0, 0))
+
+
+#: Sweeps of alternating means that smooth the spanning-tree scaling of :func:`_equilibrate`.
+LOG_SCALING_SWEEPS = 10
+
+
+def _equilibrate(A: np.ndarray, own_units: bool = False
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(e_r, e_c, D_r A D_c)`` with ``D_r = 2^-e_r``, ``D_c = 2^-e_c`` (exact).
+
+    Every row, then every column, is scaled to a largest entry in ``[1/2, 1)``.  When the
+    units of the rows and columns spread wider than the double range, that loses entries (a
+    row's largest entry in one column pushes the entries of another column below ``2^-1074``:
+    ``[[0, 2^-461], [-2^704, 2^-461]]`` became ``[[0, 1/2], [-1/2, 0]]`` and the transform was
+    wrong, ``q' = -9`` for ``-7``) or leaves them far below the others (``1e-205`` against
+    ``0.75``: a basis refused as singular).  Then (also with ``own_units``, which
+    :class:`_Factor` asks for before it calls a block singular) the block is first brought to
+    units of its own: the
+    exponents ``r_i + c_j`` fit ``log2 |A_ij|`` on the nonzero entries, along a spanning tree of
+    their graph (exact for data ``D1 A0 D2`` with powers of two ``D1``, ``D2``), smoothed by a
+    few least-squares sweeps; the row and column steps follow, on entries that no longer
+    underflow."""
+    er = binary_exponents(np.max(np.abs(A), axis=1))
+    As = np.ldexp(A, -er[:, None])
+    ec = binary_exponents(np.max(np.abs(As), axis=0))
+    As = np.ldexp(As, -ec[None, :])
+    nz = A != 0
+    if not own_units and not np.any(nz & (np.abs(As) < np.finfo(np.float64).tiny)):
+        return er, ec, As
+    m = A.shape[0]
+    E = np.where(nz, binary_exponents(A), 0).astype(np.float64)
+    r, c = np.zeros(m), np.zeros(m)
+    seen_r, seen_c = np.zeros(m, dtype=bool), np.zeros(m, dtype=bool)
+    for start in range(m):  # breadth-first over the bipartite graph of the nonzero entries
+        if seen_r[start]:
+            continue
+        seen_r[start] = True
+        queue: list[tuple[str, int]] = [("r", start)]
+        while queue:
+            kind, k = queue.pop()
+            if kind == "r":
+                for j in np.flatnonzero(nz[k] & ~seen_c):
+                    seen_c[j], c[j] = True, E[k, j] - r[k]
+                    queue.append(("c", int(j)))
+            else:
+                for i in np.flatnonzero(nz[:, k] & ~seen_r):
+                    seen_r[i], r[i] = True, E[i, k] - c[k]
+                    queue.append(("r", int(i)))
+    rows, cols = np.maximum(nz.sum(axis=1), 1), np.maximum(nz.sum(axis=0), 1)
+    for _ in range(LOG_SCALING_SWEEPS):
+        r = np.where(nz, E - c[None, :], 0.0).sum(axis=1) / rows
+        c = np.where(nz, E - r[:, None], 0.0).sum(axis=0) / cols
+    r, c = np.round(r).astype(np.int64), np.round(c).astype(np.int64)
+    # each row's largest entry to [1/2, 1) in exponent arithmetic first (data that are not of
+    # the form D1 A0 D2 may leave the fit far off the range: ldexp must not overflow)
+    F = np.where(nz, E - r[:, None] - c[None, :], -np.inf)
+    top = np.max(F, axis=1)
+    r = r + np.where(np.isfinite(top), top, 0).astype(np.int64)
+    with np.errstate(under="ignore"):  # entries far below their row's largest: 0
+        A1 = ldexp_exact(A, -(r[:, None] + c[None, :]))
+        ec = binary_exponents(np.max(np.abs(A1), axis=0))
+        return r, c + ec, np.ldexp(A1, -ec[None, :])
 
 
 def _rcond(lu: Any, A: np.ndarray) -> float:

@@ -97,16 +97,12 @@ def contact_matrix(
     scene = load_scene(scene_file)
     names = [nm.strip() for item in kinematic or [] for nm in item.split(",") if nm.strip()]
     scene = with_kinematic(scene, names)
-    for w in scene.warnings:
-        sys.stderr.write(f"lcpcli: warning: {scene_file}: {w}\n")
     try:
         clcp = build(scene, friction=friction, storage=storage, restitution_threshold=threshold,
                      softness=softness, planar=not no_planar)
     except ProblemError as exc:  # a size or work budget refused the scene's LCP: name the file
         raise exc.with_source(scene_file) from None
-    for note in clcp.notes:
-        sys.stderr.write(f"lcpcli: note: {note}\n")
-    start = basis = None
+    start = basis = how = None
     if do_solve:
         try:
             check_method(clcp, method, not no_islands)  # before anything is written
@@ -114,7 +110,12 @@ def contact_matrix(
             raise exc.with_source(scene_file) from None
         if z0 is not None:
             start, basis, how = warm_start(z0, clcp.unknowns)
-            sys.stderr.write(f"lcpcli: note: {how}\n")
+    # the scene and its options are valid: now its warnings and notes (a refusal above is
+    # one line on stderr, with no warning about the scene before it)
+    for w in scene.warnings:
+        sys.stderr.write(f"lcpcli: warning: {scene_file}: {w}\n")
+    for note in [*clcp.notes, *([how] if how is not None else [])]:
+        sys.stderr.write(f"lcpcli: note: {note}\n")
     if output is not None:
         from lcpcli.io import save
 

@@ -64,6 +64,26 @@ class StackedFile(ProblemError):
                          "lcpcli.io.load")
 
 
+
+def stored_text(value: str, label: str, fmt: str) -> bytes:
+    """A problem's ``name`` or ``description`` as NPZ and HDF5 store it: UTF-8 of at most
+    :data:`MAX_NAME_BYTES` (what their readers accept), without NUL (HDF5 strings cannot hold
+    one; NPZ strings drop a trailing one).  ProblemError otherwise, before anything is written:
+    such a text (JSON holds any) was written and then refused when read back (over 1 MiB), or
+    was an internal error (HDF5, a NUL or a lone surrogate)."""
+    if "\x00" in value:
+        raise ProblemError(f"the {label} holds a NUL character, which {fmt} cannot store "
+                           f"(write .json)")
+    try:
+        data = value.encode("utf-8")
+    except UnicodeEncodeError:
+        raise ProblemError(f"the {label} is not valid Unicode (a lone surrogate), which {fmt} "
+                           f"cannot store as UTF-8 (write .json)") from None
+    if len(data) > MAX_NAME_BYTES:
+        raise ProblemError(f"the {label} is {len(data):,} bytes of UTF-8; {fmt} holds at most "
+                           f"{MAX_NAME_BYTES:,} (write .json)")
+    return data
+
 def file_kind(mode: int) -> str:
     """``"a directory"``, ``"a FIFO (named pipe)"``, ... for a non-regular ``st_mode``."""
     for test, name in _KINDS:

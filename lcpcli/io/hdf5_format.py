@@ -27,6 +27,7 @@ from lcpcli.io.files import (
     check_depth,
     check_h5_chunks,
     parse_json,
+    stored_text,
 )
 from lcpcli.io.sparse import (
     check_part_sizes,
@@ -351,10 +352,10 @@ def write_group(g: Any, problem: Problem) -> None:
         g.create_dataset("upper", data=problem.upper)
     if problem.n_eq:
         g.attrs["n_eq"] = problem.n_eq
-    if problem.name:
-        g.attrs["name"] = problem.name
-    if problem.description:
-        g.attrs["description"] = problem.description
+    for label in ("name", "description"):
+        if getattr(problem, label):
+            stored_text(getattr(problem, label), label, "HDF5")
+            g.attrs[label] = getattr(problem, label)
     if problem.meta:
         g.attrs["meta"] = json_text(problem.meta)
 

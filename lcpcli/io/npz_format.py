@@ -31,6 +31,7 @@ from lcpcli.io.files import (
     check_depth,
     open_input,
     parse_json,
+    stored_text,
 )
 from lcpcli.io.sparse import (
     check_part_sizes,
@@ -258,10 +259,9 @@ def write(problem: Problem, path: Path) -> None:
     if problem.lower is not None:
         arrays["lower"] = problem.lower
         arrays["upper"] = problem.upper
-    if problem.name:
-        arrays["name"] = np.asarray(problem.name)
-    if problem.description:
-        arrays["description"] = np.asarray(problem.description)
+    for label in ("name", "description"):  # UTF-8 bytes: the reader's limit is in bytes
+        if getattr(problem, label):
+            arrays[label] = np.asarray(stored_text(getattr(problem, label), label, "NPZ"))
     if problem.meta:
         arrays["meta"] = np.asarray(json_text(problem.meta))
     with open(path, "wb") as fh:

@@ -11,13 +11,10 @@ with one line on stderr.
 
 from __future__ import annotations
 
-import contextlib
 import csv
 import io
 import json
 import re
-import sys
-import warnings
 from pathlib import Path
 
 import numpy as np
@@ -29,11 +26,12 @@ from invariants import (
     cases,
     check_solved,
     check_verdict,
+    cli,
+    one_line_error,
     strict_json,
 )
 
 import lcpcli
-from lcpcli.cli import main
 
 METHODS = {kind: [name for name, m in lcpcli.methods().items() if kind in m.kinds]
            for kind in ("lcp", "box", "mlcp")}
@@ -42,24 +40,6 @@ NON_FINITE = re.compile(r"(?<![\w])-?(inf|nan)(?![\w])", re.IGNORECASE)
 SETTINGS = settings(max_examples=30, deadline=None,
                     suppress_health_check=[HealthCheck.too_slow,
                                            HealthCheck.function_scoped_fixture])
-
-
-def cli(*args: str, stdin: str | None = None) -> tuple[int, str, str]:
-    """``lcpcli ARGS`` in this process: (exit code, stdout, stderr)."""
-    out, err = io.StringIO(), io.StringIO()
-    saved = sys.stdin, warnings.showwarning
-    if stdin is not None:
-        sys.stdin = io.TextIOWrapper(io.BytesIO(stdin.encode()), encoding="utf-8")
-    try:
-        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-            try:
-                main([str(a) for a in args])
-                code = 0
-            except SystemExit as exc:
-                code = int(exc.code or 0)
-    finally:
-        sys.stdin, warnings.showwarning = saved
-    return code, out.getvalue(), err.getvalue()
 
 
 def write_problem(case: Case, folder: Path, fmt: str) -> tuple[str, str | None]:
@@ -81,12 +61,6 @@ def assert_verdict(case: Case, code: int, row: dict, method: str) -> None:
     if status == "solved":
         check_solved(case, row["z"], row["certificate"]["tol"])
     check_verdict(case, status, row["message"], method, row.get("info"))
-
-
-def one_line_error(code: int, err: str) -> None:
-    assert code == 2, (code, err)
-    lines = err.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("lcpcli: error: "), err
 
 
 # ---------------------------------------------------------------------------- solve

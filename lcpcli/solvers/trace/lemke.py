@@ -89,9 +89,15 @@ def ratio_test(col: np.ndarray, qb: np.ndarray, basis: list[str], entering: str,
     ztol = ZERO_Q * qmax
     elig = np.flatnonzero(col < -ptol)
     v = np.where(qb[elig] > ztol, qb[elig], qb[elig] * 0)  # a zero of the data's type
-    t = v / (-col[elig])
+    with np.errstate(over="ignore"):  # a ratio past the double range is inf: it blocks last
+        t = v / (-col[elig])
     tmin = np.min(t) if elig.size else None
-    tied_mask = t <= tmin + tie_tol * tmin if elig.size else np.zeros(0, dtype=bool)
+    if not elig.size:
+        tied_mask = np.zeros(0, dtype=bool)
+    elif tmin == np.inf:  # every ratio is past the range: they tie
+        tied_mask = t == np.inf
+    else:  # t <= tmin (1 + tie_tol), which overflowed for a tmin near the largest double
+        tied_mask = t - tmin <= tie_tol * tmin
     tied = [int(i) for i in elig[tied_mask]]
     ratio = dict(zip(elig.tolist(), t.tolist(), strict=True))
     rows = []
@@ -137,10 +143,15 @@ def lexicographic(tied: list[int], col: np.ndarray, binv_row: Callable[[int], np
     compared = []
     decided = -1
     for k in range(n):
-        keys = [scalar(full[i][k] / -col[i]) for i in cand]
+        with np.errstate(over="ignore"):  # a pivot entry of 5e-324: keys past the range, inf
+            keys = [scalar(full[i][k] / -col[i]) for i in cand]
         kmin = min(keys)
         kmax = max(abs(x) for x in keys)
-        kept = [i for i, x in zip(cand, keys, strict=True) if x <= kmin + LEX_TOL * max(kmax, unit)]
+        # the minimum itself is always kept (an infinite kmin made the bound NaN)
+        kept = [i for i, x in zip(cand, keys, strict=True)
+                if x == kmin or x <= kmin + LEX_TOL * max(kmax, unit)]
+        if not kept:  # NaN keys (B^-1 past the double range) compare to nothing: still tied
+            break
         compared.append({"column": k + 1, "variable": f"w{k + 1}",
                          "rows": [i + 1 for i in cand], "keys": keys,
                          "kept": [i + 1 for i in kept]})
@@ -148,9 +159,11 @@ def lexicographic(tied: list[int], col: np.ndarray, binv_row: Callable[[int], np
         if len(cand) == 1:
             decided = k
             break
+    with np.errstate(over="ignore"):
+        keyed = {i: (full[i] / -col[i]).tolist() for i in tied}
     record = {
         "rows": [{"row": i + 1, "basic": basis[i], "pivot_entry": scalar(-col[i]),
-                  "binv_row": full[i].tolist(), "key": (full[i] / -col[i]).tolist()}
+                  "binv_row": full[i].tolist(), "key": keyed[i]}
                  for i in tied],
         "compared": compared,
         "decided_by": f"w{decided + 1}" if decided >= 0 else None,

@@ -30,6 +30,8 @@ from lcpcli.analysis.pivoting import (
     principal_pivot,
     var_name,
 )
+from lcpcli.analysis.pivoting import inverse as float_inverse  # B^-1 in its own units
+from lcpcli.core.errors import ProblemError
 from lcpcli.core.tolerances import PIVOT_TOL, TIE_TOL
 from lcpcli.solvers.trace.lemke import (
     initial_formula,
@@ -58,7 +60,10 @@ def basis_inverse(Maug: np.ndarray, dependent: tuple[Var, ...]) -> np.ndarray:
         from lcpcli.solvers.trace.exact import inverse
 
         return inverse(np.column_stack(cols))
-    return np.linalg.inv(np.column_stack(cols))
+    try:  # in the block's own units (np.linalg.inv called a basis of 9e-302 and 1.8e308
+        return float_inverse(np.column_stack(cols))  # singular: exit 3)
+    except ProblemError:  # singular in floating point: no key compares (the rows stay tied)
+        return np.full((n, n), np.nan)
 
 
 def driving_step(t: PivotTransform, Maug: np.ndarray, *, piv_tol: float = PIVOT_TOL,
@@ -88,13 +93,14 @@ def driving_step(t: PivotTransform, Maug: np.ndarray, *, piv_tol: float = PIVOT_
                                    f"Lemke's feasible bases: no ratio test (only {ARTIFICIAL} "
                                    f"entering from such a basis is Lemke's first pivot)")})
             return out
-        if col.dtype == object:  # fractions: a zero entry has no ratio (+inf, never the max)
-            ratios = np.array([qp[i] / col[i] if col[i] != 0 else np.inf
-                               for i in range(t.n)], dtype=object)
-        else:
-            ratios = qp / col
+        # only the eligible rows (q'_i < 0, where c_i > 0) have a ratio; the others are +inf,
+        # never the max (a row with q'_i = c_i = 0 made 0/0 = NaN, no row tied: exit 3)
+        with np.errstate(over="ignore"):  # a ratio past the double range is -inf
+            ratios = np.array([qp[i] / col[i] if qp[i] < 0 else np.inf for i in range(t.n)],
+                              dtype=object if col.dtype == object else np.float64)
         best = np.min(ratios)
-        tied = np.flatnonzero(ratios <= best + tie_tol * abs(best))
+        tied = np.flatnonzero(ratios == best if best == -np.inf
+                              else ratios - best <= tie_tol * abs(best))
         r = int(tied[-1])
         rows = [{"row": i + 1, "basic": names[i], "q": scalar(qp[i]), "column": scalar(col[i]),
                  "ratio": scalar(-ratios[i]) if qp[i] < 0 else None,
