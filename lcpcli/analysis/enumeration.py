@@ -356,9 +356,16 @@ def enumerate_cones(problem: Any, *, stop_at_first: bool = False, all_cones: boo
     if scaling is not None:
         _unscale(found, scaling, problem, tol)
     _rescue(found, problem, tol)
-    if found.verdict == NONE:
-        found.proof = search_proof(problem, scaling=scaling) if scaling is not None else \
+    # no cone holds q, or the cones that seemed to hold it in floating point hold no point
+    # that passes the certificate (rows scaled 2^80, 2^270 and columns 2^-115, 2^-323 put q
+    # "inside" two cones of an infeasible 2 x 2 problem): a Farkas vector that passes its
+    # exact check decides
+    if found.verdict == NONE or (not found.solutions and found.verdict in (UNCERTIFIED,
+                                                                          UNKNOWN)):
+        proof = search_proof(problem, scaling=scaling) if scaling is not None else \
             prove_infeasible(problem, search=True)
+        if proof is not None:
+            found.proof, found.verdict = proof, NONE
     return found
 
 

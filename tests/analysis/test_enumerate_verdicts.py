@@ -75,3 +75,27 @@ def test_the_cone_drawing_takes_data_near_the_float64_range(cli) -> None:
         out = cli("enumerate", "-", "--all-cones", stdin=json.dumps({"M": M, "q": q}))
         assert out.returncode in (0, 1), out.stderr
         assert "warning" not in out.stderr, out.stderr
+
+
+@settings(max_examples=150, deadline=None)
+@given(st.integers(1, 3).flatmap(lambda n: st.tuples(
+    st.lists(st.integers(-4, 4), min_size=n * n, max_size=n * n),
+    st.lists(st.integers(-4, 4), min_size=n, max_size=n),
+    st.lists(st.integers(-500, 500), min_size=n, max_size=n),
+    st.lists(st.integers(-500, 500), min_size=n, max_size=n))))
+@example(([0, 3, -1, 0], [2, -3], [80, 270], [-115, -323]))
+def test_the_verdict_does_not_change_under_power_of_two_scalings(data) -> None:
+    """Rows scaled by 2^r_i and columns by 2^c_j (exact): the same status, and a no_solution
+    comes with a proof that passes the exact reference.  The example: q 'seemed' to lie in two
+    cones of the scaled copy of an infeasible problem, whose points fail the certificate, and
+    the verdict was 'uncertified' (unsolved) with no proof search."""
+    flat, q, r, c = data
+    n = len(q)
+    M, q = np.array(flat, dtype=float).reshape(n, n), np.array(q, dtype=float)
+    Ms = np.ldexp(np.ldexp(M, np.array(r)[:, None]), np.array(c)[None, :])
+    qs = np.ldexp(q, np.array(r))
+    plain, scaled = enumerate_cones(Problem.create(M, q)), enumerate_cones(Problem.create(Ms, qs))
+    assert scaled.status == plain.status, (plain.verdict, scaled.verdict)
+    if scaled.status == "no_solution":
+        with np.errstate(all="ignore"):
+            assert farkas_certifies(Ms, qs, scaled.proof.y)

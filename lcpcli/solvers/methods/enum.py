@@ -58,6 +58,11 @@ def run(problem: Any, *, tol: float, max_n: int = DEFAULT_MAX_N,
         counted = (f"({res.counts['pruned']:,} excluded by sign tests, "
                    f"{res.counts['singular']:,} singular)")
         searched = f"none of the 2^{n} = {res.total:,} complementary cones contains q {counted}"
+        seemed = res.counts["uncertified"] + res.counts["singular_unresolved"]
+        if seemed:
+            searched = (f"no point of the 2^{n} = {res.total:,} complementary cones passes the "
+                        f"certificate (q seemed to lie in {plural(seemed, 'cone')} in "
+                        f"floating point)")
         if res.proof is None:  # the floating-point tests saw no cone: that proves nothing
             return Outcome(np.zeros(n), res.examined, NUMERICAL,
                            f"no complementary cone of the 2^{n} = {res.total:,} was found to "
