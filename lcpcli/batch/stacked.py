@@ -115,7 +115,7 @@ def run_stacks(inputs: list[str], opts: SolveOptions, report: BatchReport, *,
     if scheduler is not None:  # Dask workers copy their chunks: the chunks for copies
         infos = [None if i is None else replace(i, in_place=False) for i in infos]
     report.total = sum(i.K for i in infos if i is not None) + infos.count(None)
-    per_problem = one_at_a_time(opts.method)
+    per_problem = any(one_at_a_time(opts.method, stack_kind(i)) for i in infos if i is not None)
     warm, warm_digest = _open_warm(opts, infos, scheduler)
     writer = None
     early: tuple[Any, int, _LocalParts] | None = None  # the first stack, read from now on
@@ -196,15 +196,28 @@ def run_stacks(inputs: list[str], opts: SolveOptions, report: BatchReport, *,
             write(writer.close)
 
 
-def one_at_a_time(method: str) -> bool:
-    """Whether the named method solves a stack one problem at a time (it has no batched
-    kernel, :attr:`lcpcli.solvers.registry.Method.batch`): its chunks are then at most
-    :data:`lcpcli.batch.stack_output.PER_PROBLEM_CHUNK` problems.  ``auto`` plans on the
-    first chunk, after the chunk is chosen: False."""
+def stack_kind(info: Any) -> str:
+    """The kind of the problems of a stack (:attr:`lcpcli.core.problem.Problem.kind`'s names):
+    ``"mlcp"`` with ``n_eq > 0``, ``"box"`` with stored bounds, else ``"lcp"``."""
+    from lcpcli.core.problem import problem_kind
+
+    return problem_kind(info.n_eq, info.bounds is not None)
+
+
+def one_at_a_time(method: str, kind: str = "lcp") -> bool:
+    """Whether the named method solves a stack of ``kind`` one problem at a time (it has no
+    batched kernel for that kind, :attr:`lcpcli.solvers.registry.Method.batch`): its chunks
+    are then at most :data:`lcpcli.batch.stack_output.PER_PROBLEM_CHUNK` problems.  ``auto``
+    plans on the first chunk, after the chunk is chosen: one at a time when no method has a
+    batched kernel for ``kind`` (MLCP stacks), else not known yet: False."""
+    from lcpcli.solvers.registry import methods
     from lcpcli.solvers.request import method_of
 
     spec = method_of(method)
-    return spec.name != "auto" and spec.batch is None
+    if spec.name == "auto":
+        return not any(m.batch is not None and kind in m.batch.kinds
+                       for m in methods().values())
+    return spec.batch is None or kind not in spec.batch.kinds
 
 
 class _OpeningWriter:

@@ -146,3 +146,29 @@ def test_a_stack_with_a_batched_kernel_keeps_its_large_chunks(tmp_path):
     assert not one_at_a_time("auto")  # planned on the first chunk, after the chunk is chosen
     assert stack_output.batch_chunk(12, 2, per_problem=True) == stack_output.PER_PROBLEM_CHUNK
     assert stack_output.batch_chunk(12, 2) > stack_output.PER_PROBLEM_CHUNK
+
+
+def test_a_stack_of_a_kind_no_batched_kernel_handles_gets_small_chunks(tmp_path, monkeypatch):
+    """The kind counts too: an MLCP stack has no batched kernel (every method, auto included,
+    solves it one problem at a time), a box stack only the sweeping ones; such stacks got the
+    large chunks (the ops audit: Ctrl-C kept nothing of a whole chunk)."""
+    import h5py
+
+    from lcpcli.batch import stack_output
+    from lcpcli.batch.stacked import one_at_a_time
+    from lcpcli.io.stack import write_stack
+
+    assert one_at_a_time("auto", "mlcp") and one_at_a_time("lemke", "mlcp")
+    assert one_at_a_time("lemke", "box") and not one_at_a_time("pgs", "box")
+    assert not one_at_a_time("auto", "box") and not one_at_a_time("auto", "lcp")
+    monkeypatch.setattr(stack_output, "PER_PROBLEM_CHUNK", 8)
+    rng = np.random.default_rng(12)
+    K, n = 21, 5
+    A = rng.standard_normal((K, n, n))
+    write_stack(tmp_path / "m.h5", A @ A.transpose(0, 2, 1) + n * np.eye(n),
+                rng.standard_normal((K, n)), n_eq=2)
+    out = tmp_path / "r.h5"
+    run_batch([str(tmp_path / "m.h5")], SolveOptions(method="auto"), jobs=1, output=str(out))
+    with h5py.File(out) as f:
+        assert int(f["m"].attrs["chunk"]) == 8
+        assert (f["m"]["status"][...] == 0).all()
