@@ -314,3 +314,18 @@ def test_one_terminal_rule_for_both_consoles_and_the_progress_bars(monkeypatch, 
     assert common.stdout_console().is_terminal is expected
     assert common.stderr_console().is_terminal is expected
     assert common.progress_allowed() is expected
+
+
+def test_a_name_with_a_newline_stays_on_its_row(cli, tmp_path, samples):
+    """A file name holding a newline or an escape split its table row ('a' on one line,
+    'b.json' on the next) or sent a control sequence: names are shown with such characters
+    escaped, in the batch table and in the one-problem table."""
+    for name in ("a\nb.json", "c\x1b[31md.json"):
+        (tmp_path / name).write_bytes((samples / "seed004.json").read_bytes())
+    out = cli("solve", "a\nb.json", "c\x1b[31md.json", cwd=tmp_path)
+    assert out.returncode == 0, out.stderr
+    assert "a\\nb.json" in out.stdout and "c\\x1b[31md.json" in out.stdout
+    assert "\x1b" not in out.stdout and not any(
+        line.strip().startswith("b.json") for line in out.stdout.splitlines())
+    one = cli("solve", "a\nb.json", cwd=tmp_path)
+    assert one.returncode == 0 and "a\\nb.json : seed004" in one.stdout

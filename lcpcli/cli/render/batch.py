@@ -18,6 +18,7 @@ from rich.table import Table
 from rich.text import Text
 
 from lcpcli.cli.render.common import STATUS_STYLE as COMMON_STATUS_STYLE
+from lcpcli.cli.render.common import shown_name
 from lcpcli.core.result import Status
 from lcpcli.core.text import plural
 
@@ -40,8 +41,8 @@ def make_progress(console: Any) -> Progress:
 
 
 def _where(source: str, problem: str) -> str:
-
-    return source if Path(source).stem == problem else f"{source} : {problem}"
+    """The file, and the problem's name when it is not the file's stem (:func:`shown_name`)."""
+    return shown_name(source if Path(source).stem == problem else f"{source} : {problem}")
 
 
 def problems_table(rows: list[dict[str, Any]]) -> Table:

@@ -26,6 +26,15 @@ STATUS_STYLE = {Status.SOLVED: "bold green", Status.NO_SOLUTION: "bold yellow",
 MAX_ROWS = 40
 
 
+def shown_name(text: str) -> str:
+    """A file or problem name as a table shows it: characters that are not printable (a
+    newline in a file name, a tab, an escape) written as Python escapes (``a\\nb.json``), so
+    that a name never splits a row or sends a terminal control sequence."""
+    if text.isprintable():
+        return text
+    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)
+
+
 def fmt(x: Any) -> str:
     """Compact number: 6 significant digits; an exact trace's fraction as ``p/q`` (``4/3``)."""
     if isinstance(x, Fraction):
@@ -191,7 +200,8 @@ def render_result(result: Any, problem: Any, file: str | None = None,
     head.add_column(style="bold")
     head.add_column()
     # user text (file names, messages) is never read as rich markup
-    head.add_row("problem", Text(f"{file or ''}{' : ' + problem.name if problem.name else ''}"))
+    head.add_row("problem", Text(shown_name(f"{file or ''}"
+                                            f"{' : ' + problem.name if problem.name else ''}")))
     head.add_row("size", problem.summary())
     head.add_row("method", result.method)
     head.add_row("status", Text(result.status, style=STATUS_STYLE.get(result.status, "")))
