@@ -33,6 +33,7 @@ import numpy as np
 from lcpcli.batch.records import SolveOptions, error_row
 from lcpcli.batch.report import BatchReport, BatchStats, Tally
 from lcpcli.core.errors import OptionError, ProblemError
+from lcpcli.core.problem import problem_kind
 from lcpcli.core.result import STATUS_CODES, STATUS_OF_CODE, StackResult, Status, basis_text
 
 
@@ -199,8 +200,6 @@ def run_stacks(inputs: list[str], opts: SolveOptions, report: BatchReport, *,
 def stack_kind(info: Any) -> str:
     """The kind of the problems of a stack (:attr:`lcpcli.core.problem.Problem.kind`'s names):
     ``"mlcp"`` with ``n_eq > 0``, ``"box"`` with stored bounds, else ``"lcp"``."""
-    from lcpcli.core.problem import problem_kind
-
     return problem_kind(info.n_eq, info.bounds is not None)
 
 

@@ -162,12 +162,11 @@ def point_speed_scale(scene: Scene, velocity: np.ndarray | None = None,
         return 0.0
     v = scene.velocity if velocity is None else velocity
     w = scene.omega if omega is None else omega
-    best = 0.0
-    for bodies in (scene.contact_a, scene.contact_b):
-        r = np.linalg.norm(scene.point - scene.position[bodies], axis=1)
-        speed = np.linalg.norm(v[bodies], axis=1) + np.linalg.norm(w[bodies], axis=1) * r
-        best = max(best, float(np.max(speed)), key=lambda x: (x != x, x))  # NaN wins
-    return best
+    bodies = np.concatenate([scene.contact_a, scene.contact_b])
+    r = np.linalg.norm(np.concatenate([scene.point, scene.point]) - scene.position[bodies],
+                       axis=1)
+    return float(np.max(np.linalg.norm(v[bodies], axis=1)
+                        + np.linalg.norm(w[bodies], axis=1) * r))  # NaN propagates
 
 
 def _side_blocks(scene: Scene, bodies: np.ndarray, points: np.ndarray, dirs: np.ndarray,

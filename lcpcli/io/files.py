@@ -64,7 +64,6 @@ class StackedFile(ProblemError):
                          "lcpcli.io.load")
 
 
-
 def stored_text(value: str, label: str, fmt: str) -> bytes:
     """A problem's ``name`` or ``description`` as NPZ and HDF5 store it: UTF-8 of at most
     :data:`MAX_NAME_BYTES` (what their readers accept), without NUL (HDF5 strings cannot hold
@@ -83,6 +82,7 @@ def stored_text(value: str, label: str, fmt: str) -> bytes:
         raise ProblemError(f"the {label} is {len(data):,} bytes of UTF-8; {fmt} holds at most "
                            f"{MAX_NAME_BYTES:,} (write .json)")
     return data
+
 
 def file_kind(mode: int) -> str:
     """``"a directory"``, ``"a FIFO (named pipe)"``, ... for a non-regular ``st_mode``."""
