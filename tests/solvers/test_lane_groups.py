@@ -191,7 +191,8 @@ SPEED_CHOICES = [
     (("-DLCP_CERT_LINKS=1",), (1, 12, 16, 17, 32), ("pd", "degenerate", "scaled", "blocks"),
      (True, False)),
     (("-DLCP_CERT_LINKS=2",), (12, 33, 40), ("pd", "degenerate", "blocks"), (True, False)),
-    (("-DLCP_RATIO_FUSED=1",), (1, 2, 12, 16, 17, 40), ("pd", "degenerate", "scaled", "blocks"),
+    ((), (1, 2, 12, 16, 17, 40), ("pd", "degenerate", "scaled", "blocks"), (True,)),
+    (("-DLCP_RATIO_FUSED=0",), (1, 2, 12, 16, 17, 40), ("pd", "degenerate", "scaled", "blocks"),
      (True,)),
     (("-DLCP_CERT_LINKS=1", "-DLCP_RATIO_FUSED=1", "-DLCP_PIVOT_ROWS=4"), (12, 17, 40),
      ("pd", "degenerate", "blocks"), (False,)),
@@ -199,7 +200,7 @@ SPEED_CHOICES = [
 
 
 @pytest.mark.parametrize(("defines", "sizes", "kinds", "stages"), SPEED_CHOICES,
-                         ids=[" ".join(c[0]) for c in SPEED_CHOICES])
+                         ids=[" ".join(c[0]) or "shipped" for c in SPEED_CHOICES])
 def test_the_speed_choices_change_no_answer(tmp_path, defines, sizes, kinds, stages):
     """The header's speed macros (pivot row blocks, the copy's batch, the certificate's link
     masks, the fused ratio test: the device sweep's VARIANTS) give the one-lane answers of the

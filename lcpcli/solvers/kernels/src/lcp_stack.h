@@ -511,7 +511,8 @@ LCP_COLD int lcp_certify(lcp_ix n, const double *M, const double *q, const doubl
 }
 
 /* LCP_CERT_LINKS (an NVRTC/nvcc -D option for a device sweep; speed only, 0 (off) in the
- * shipped build; 1 or 2: the words of 32 bits a row or column may take, so n <= 32 or
+ * shipped build: on an H200, 2026-11-28, it gained nothing at n = 12 and cost 4-6 % at
+ * n = 50 beside the fused ratio test; 1 or 2: the words of 32 bits a row or column may take, so n <= 32 or
  * n <= 64): the links of the row-column graph are found once, as bit masks, by the lane of
  * each column right after its kappa_j (the same test on the same values: |M_ij| / s_i
  * against THETA kappa_j), and the label propagation reads the masks instead of M, z, kappa
@@ -1134,14 +1135,15 @@ LCP_FN lcp_ix lcp_initial_row_lanes(const double *q, const double *d, lcp_ix n,
     return lcp_lanes_imax(r, lanes);
 }
 
-/* LCP_RATIO_FUSED (an NVRTC/nvcc -D option for a device sweep; speed only, off in the
- * shipped build): the minimum ratio and its row in one reduction, the lanes' other rows in the
+/* LCP_RATIO_FUSED (speed only, on in the shipped build since the H200 sweeps of 2026-11-28:
+ * 2-4 % more certified problems/s at n = 12, 5-6 % at n = 50, outputs bit for bit those of
+ * LCP_RATIO_FUSED=0, the earlier form, kept as a -D option for a device sweep): the minimum ratio and its row in one reduction, the lanes' other rows in the
  * tie band by one vote; only when another row ties (a degenerate step) are the ratios
  * computed again and the tied rows counted as below.  A step with one blocking row (the
  * common case) then takes one chain of shuffles of (ratio, row) and a vote instead of a
  * minimum, a second pass over the rows (a division each) and a three-way reduction. */
 #ifndef LCP_RATIO_FUSED
-#define LCP_RATIO_FUSED 0
+#define LCP_RATIO_FUSED 1
 #endif
 #if LCP_RATIO_FUSED
 /* (x, k): the least x of the group and, among equal ones, the largest k: the same on every
