@@ -17,9 +17,9 @@ from pathlib import Path
 import numpy as np
 import scipy.sparse as sp
 
+from lcpcli.core.problem import Problem
 from lcpcli.io import save
 from lcpcli.io.hdf5_format import write_many
-from lcpcli.core.problem import Problem
 
 HERE = Path(__file__).resolve().parent
 
