@@ -10,10 +10,14 @@
 #include <thread>
 #include <vector>
 
+// Thrown in every lane once the group is broken: the lanes stop where they are (a lane that
+// went on with another lane's pivot row would index out of bounds) and the run reports -1.
+struct emu_diverged {};
+
 // A barrier of the group's threads that gives up after 10 s: lanes whose control flow diverged
 // (a reduction that left them with different values) would wait for each other for ever on a
-// device; here the barrier breaks, every later collective returns at once, and the run reports
-// the divergence instead of hanging the test.
+// device; here the barrier breaks, every lane stops at its next collective (emu_diverged), and
+// the run reports the divergence instead of hanging or crashing the test.
 struct emu_barrier {
     std::mutex mu;
     std::condition_variable cv;
@@ -24,7 +28,7 @@ struct emu_barrier {
     {
         std::unique_lock<std::mutex> lock(mu);
         if (broken)
-            return;
+            throw emu_diverged();
         unsigned long gen = generation;
         if (++count == size) {
             count = 0;
@@ -33,10 +37,15 @@ struct emu_barrier {
             return;
         }
         if (!cv.wait_for(lock, std::chrono::seconds(10),
-                         [&] { return generation != gen || broken; })) {
-            broken = true;
-            cv.notify_all();
-        }
+                         [&] { return generation != gen || broken; }))
+            breaks();
+        if (broken)
+            throw emu_diverged();
+    }
+    void breaks()  // with mu held
+    {
+        broken = true;
+        cv.notify_all();
     }
 };
 
@@ -70,7 +79,29 @@ template <class T> static T lcp_emu_shfl(T x, long long o)
     emu_bar.wait();
     std::memcpy(&y, emu_slot[emu_lane ^ (int)o], sizeof(T));
     emu_bar.wait();
-    return emu_bar.broken ? x : y;
+    return y;
+}
+
+// LCP_UNIFORM: every lane compares its value with every other lane's; a difference breaks the
+// group (each lane sees the same slots, so all of them stop here).
+static void lcp_emu_uniform(long long x)
+{
+    bool same = true;
+    std::memcpy(emu_slot[emu_lane], &x, sizeof x);
+    emu_bar.wait();
+    for (int i = 0; i < emu_lanes; i++) {
+        long long v;
+        std::memcpy(&v, emu_slot[i], sizeof v);
+        same = same && v == x;
+    }
+    emu_bar.wait();
+    if (!same) {
+        {
+            std::lock_guard<std::mutex> lock(emu_bar.mu);
+            emu_bar.breaks();
+        }
+        throw emu_diverged();
+    }
 }
 
 static int lcp_emu_any(int p)
@@ -84,7 +115,7 @@ static int lcp_emu_any(int p)
         any |= v != 0;
     }
     emu_bar.wait();
-    return emu_bar.broken ? 0 : any;
+    return any;
 }
 
 #define LCP_EMULATE_LANES 1
@@ -108,11 +139,14 @@ extern "C" int emu_lemke_stack(long long K, long long n, const double *M, const 
         pool.emplace_back([&, t]() {
             emu_lane = t;
             double *sh = work.data();
-            for (long long k = 0; k < K; k++)
-                lcp_lemke_group(n, M + k * n * n, q + k * n, d, max_iter, piv_tol, tie_tol, tol,
-                                polished, balanced, q_balanced, max_rounds, stage, sh, sh + fast,
-                                z + k * n, w + k * n, code + k, iters + k, err + k, res + k, t,
-                                lanes);
+            try {
+                for (long long k = 0; k < K; k++)
+                    lcp_lemke_group(n, M + k * n * n, q + k * n, d, max_iter, piv_tol, tie_tol,
+                                    tol, polished, balanced, q_balanced, max_rounds, stage, sh,
+                                    sh + fast, z + k * n, w + k * n, code + k, iters + k,
+                                    err + k, res + k, t, lanes);
+            } catch (const emu_diverged &) {
+            }
         });
     for (auto &th : pool)
         th.join();
@@ -134,10 +168,13 @@ extern "C" int emu_certify(long long n, const double *M, const double *q, const 
     for (int t = 0; t < lanes; t++)
         pool.emplace_back([&, t]() {
             emu_lane = t;
-            int st = lcp_certify_warp(n, M, q, z, lo, up, w, work.data(), iwork.data(), &out, t,
-                                      lanes);
-            if (t == 0)
-                status = st;
+            try {
+                int st = lcp_certify_warp(n, M, q, z, lo, up, w, work.data(), iwork.data(), &out,
+                                          t, lanes);
+                if (t == 0)
+                    status = st;
+            } catch (const emu_diverged &) {
+            }
         });
     for (auto &th : pool)
         th.join();

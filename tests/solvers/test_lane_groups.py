@@ -12,6 +12,7 @@ from __future__ import annotations
 import ctypes
 import shutil
 import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -216,3 +217,42 @@ def test_the_speed_choices_change_no_answer(tmp_path, defines, sizes, kinds, sta
                     for a, b in zip(got, ref, strict=True):
                         np.testing.assert_array_equal(
                             a, b, err_msg=f"{defines} {kind} n={n} stage={stage}")
+
+
+def test_lanes_that_disagree_on_the_pivot_row_are_reported_not_crashed(tmp_path):
+    """A planted defect (lane 1 pivots on the row above the others') stops the group at the
+    next LCP_UNIFORM check: the run returns -1 (the assertion in ``lanes``), it neither writes
+    out of bounds nor hangs.  Run in a child process, so that a crash fails this test only."""
+    src = tmp_path / "kernels" / "src"
+    shutil.copytree(SRC, src)
+    for h in SRC.parent.glob("*.h"):  # the headers lcp_stack.h includes from its parent
+        shutil.copy(h, src.parent)
+    header = src / "lcp_stack.h"
+    text = header.read_text()
+    check = "        LCP_UNIFORM(r);\n        if (r < 0) {\n            status = LCP_RAY;"
+    assert text.count(check) == 1
+    header.write_text(text.replace(check, "        r -= (lane == 1 && r > 0);\n" + check))
+    lib = tmp_path / "liblanes.so"
+    subprocess.run([CXX, "-std=c++20", "-O1", "-shared", "-fPIC", "-pthread",
+                    "-Drestrict=__restrict__", f"-I{src}", str(HARNESS), "-o", str(lib)],
+                   check=True, capture_output=True, text=True)
+    child = f"""
+import ctypes, sys
+import numpy as np
+sys.path.insert(0, {str(Path(__file__).parent)!r})
+import test_lane_groups as t
+so = ctypes.CDLL({str(lib)!r})
+ll, dbl, i32 = ctypes.c_longlong, ctypes.c_double, ctypes.c_int
+so.emu_lemke_stack.argtypes = [ll, ll, t.F64, t.F64, ctypes.c_void_p, ll, dbl, dbl, dbl, dbl,
+                               i32, i32, i32, i32, i32, t.F64, t.F64, t.I8, t.I64, t.F64, t.F64]
+for seed in range(6):  # seed 0 wrote out of bounds (a bus error) before LCP_UNIFORM
+    M, q = t.stack("pd", 2, 12, seed=seed)
+    try:
+        t.lanes(so, M, q, True, 8)
+    except AssertionError as e:
+        print("reported:", e)
+"""
+    run = subprocess.run([sys.executable, "-c", child], capture_output=True, text=True,
+                         timeout=120)
+    assert run.returncode == 0, run.stderr[-2000:]
+    assert run.stdout.count("reported: the lanes of a group diverged") == 6, run.stdout

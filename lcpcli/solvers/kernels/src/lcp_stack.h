@@ -112,6 +112,19 @@ static __device__ __forceinline__ unsigned lcp_group_mask(int lanes)
 #define LCP_ANY(p) (p)
 #define LCP_SHFL(x, o) (x) /* never reached: lanes == 1 on the CPU */
 #endif
+/* LCP_UNIFORM(x): x must be the same on every lane of the group (a pivot row every lane
+ * indexes with).  A check of the lane harness only (lcp_emu_uniform: the lanes stop and the
+ * run reports the divergence, instead of pivoting on different rows and writing out of
+ * bounds); nothing on the device and the CPU. */
+#ifdef LCP_EMULATE_LANES
+#define LCP_UNIFORM(x)                                                                       \
+    do {                                                                                     \
+        if (lanes > 1)                                                                       \
+            lcp_emu_uniform((long long)(x));                                                 \
+    } while (0)
+#else
+#define LCP_UNIFORM(x) ((void)0)
+#endif
 
 /* Reductions over the lanes of a group (every lane gets the result; one lane: the value
  * itself).  Min and max by comparison, as the serial loops compute them: the same value
@@ -1289,6 +1302,7 @@ LCP_FN int lcp_lemke(lcp_ix n, const double *M, const double *q, const double *d
     } else {
         r = lcp_initial_row(q, d, n, tie_tol);
     }
+    LCP_UNIFORM(r);
     LCP_SYNC();
     *pivots_out = 0;
     if (r < 0)
@@ -1319,6 +1333,7 @@ LCP_FN int lcp_lemke(lcp_ix n, const double *M, const double *q, const double *d
                                       tie_tol, ctl + 1, lane, lanes);
         else
             r = lcp_leaving_row(n, m, T, qb, col, keys, basic, where, cand, piv_tol, tie_tol);
+        LCP_UNIFORM(r);
         if (r < 0) {
             status = LCP_RAY;
             break;
