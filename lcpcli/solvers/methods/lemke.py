@@ -9,6 +9,15 @@ copositive-plus matrix its direction is a Farkas vector in exact arithmetic); th
 ``no_solution`` only when a vector ``y >= 0`` with ``M^T y <= 0`` and ``q^T y < 0`` passes the
 componentwise check of :mod:`lcpcli.analysis.proof`, else ``unsolved``.
 
+Degenerate data: when the path with ``d`` all ones ends on a ray that is neither a proof nor at
+rounding level and no covering vector was given, the method runs once more with a generic
+covering vector (:func:`generic_covering`).  Any ``d > 0`` is a valid covering vector (Cottle,
+Pang and Stone, The Linear Complementarity Problem, 4.4), and a generic one separates the exact
+ties that symmetric data make in the first ratio tests (the four corners of a box resting on
+another: equal q_i), where floating point can only resolve the lexicographic rule up to rounding
+and the path can go astray: a friction-cone island of a stack of boxes (n = 72, M singular)
+ended on a ray at z0 = 3.8e-13 with ``d`` all ones and was solved with the generic ``d``.
+
 Cost: O(n^2) per pivot (rank-one tableau update in the compiled kernel
 :mod:`lcpcli.solvers.kernels.lemke`).  The final basis is
 re-solved with a dense LU factorisation (one step of refinement) so the answer is accurate to
@@ -60,6 +69,23 @@ def covering_vector(n: int, covering: np.ndarray | None) -> np.ndarray | None:
     return d
 
 
+#: The step of :func:`generic_covering`'s sequence: the golden ratio's fractional part.
+GOLDEN_STEP = 0.6180339887498949
+
+
+def generic_covering(n: int) -> np.ndarray:
+    """A fixed covering vector without ties, ``d_i = 1 + frac((i + 1) phi)`` (values in [1, 2),
+    no two equal; the same for every run, so the retry is reproducible)."""
+    return 1.0 + np.modf(np.arange(1, n + 1) * GOLDEN_STEP)[0]
+
+
+def astray(out: Outcome) -> bool:
+    """Whether ``out`` is a Lemke ray that neither proves infeasibility nor sits at rounding
+    level: the case the generic covering vector is tried for."""
+    return out.termination == RAY and not out.proven_infeasible \
+        and not out.info.get(RAY_AT_ROUNDING)
+
+
 def batch_params(n: int, options: Mapping[str, Any]) -> dict[str, Any]:
     """The batched ``lemke`` kernel's parameters (:attr:`BatchSpec.params`): the covering
     vector (None: all ones) and the pivot limit (default :func:`default_max_iter`)."""
@@ -94,7 +120,30 @@ def run(problem: Any, *, tol: float, covering: np.ndarray | None = None,
         return out
     # kernel and final polish in one compiled call
     status, z, pivots, basis, ray_dz, z0 = lemke_solve(M, q, d, limit, PIVOT_TOL, TIE_TOL)
-    return finish(problem, M, q, status, z, pivots, basis, ray_dz, z0, limit)
+    out = finish(problem, M, q, status, z, pivots, basis, ray_dz, z0, limit)
+    if d is not None or not astray(out):
+        return out
+    return retry_generic(problem, M, q, limit, out)
+
+
+def retry_generic(problem: Any, M: np.ndarray, q: np.ndarray, limit: int,
+                  out: Outcome) -> Outcome:
+    """The module docstring's retry of an astray ray ``out`` (``d`` all ones) with
+    :func:`generic_covering`: its outcome when it converges, proves infeasibility or ends at
+    rounding level, else ``out`` (noting the retry); pivots and import time of both runs."""
+    status, z, pivots, basis, ray_dz, z0 = lemke_solve(M, q, generic_covering(problem.n),
+                                                       limit, PIVOT_TOL, TIE_TOL)
+    again = finish(problem, M, q, status, z, pivots, basis, ray_dz, z0, limit)
+    again.iterations += out.iterations
+    again.import_seconds += out.import_seconds
+    if again.termination == CONVERGED or not astray(again) and again.termination == RAY:
+        again.message = f"{out.message}; with a generic covering vector: {again.message}"
+        again.info["covering"] = "generic"
+        return again
+    out.iterations = again.iterations
+    out.import_seconds = again.import_seconds
+    out.message += f"; a generic covering vector: {again.message.split(';')[0]}"
+    return out
 
 
 def finish(problem: Any, M: np.ndarray, q: np.ndarray, status: int, z: np.ndarray, pivots: int,
