@@ -233,6 +233,14 @@ METHODS = [
         guarantees=GUARANTEES,
         cost=Cost.PIVOTING,
         preference=20,  # after lemke-revised, which is faster (benchmarks/bench_lemke.py)
+        # contact islands of resting box stacks (n = 72, singular M) on which the revised
+        # method's updated inverse drifts to a basis whose answer no polish certifies
+        # (error 2.09) while the tableau's rank-one updates reach the solution
+        fallback="the whole tableau updated where the revised method's inverse drifts "
+                 "(a ray then proves nothing)",
+        fallback_preference=96,  # after murty's 95: the revised method reruns the tableau
+        # itself on its unproven rays, so auto gets here after a drifted answer
+        auto_max_n=200,  # up to 100 n pivots of O(n^2) each where it fails: under a second
         kinds=("lcp",),
         options={
             "covering": Option(vector_option, None, "covering vector d > 0 (default all ones)"),
