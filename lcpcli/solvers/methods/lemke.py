@@ -130,18 +130,18 @@ def retry_generic(problem: Any, M: np.ndarray, q: np.ndarray, limit: int,
                   out: Outcome) -> Outcome:
     """The module docstring's retry of an astray ray ``out`` (``d`` all ones) with
     :func:`generic_covering`: its outcome when it converges, proves infeasibility or ends at
-    rounding level, else ``out`` (noting the retry); pivots and import time of both runs."""
+    rounding level (with the pivots of both runs), else ``out``, noting the retry (its pivots
+    those of the path it reports, as without the retry)."""
     status, z, pivots, basis, ray_dz, z0 = lemke_solve(M, q, generic_covering(problem.n),
                                                        limit, PIVOT_TOL, TIE_TOL)
     again = finish(problem, M, q, status, z, pivots, basis, ray_dz, z0, limit)
-    again.iterations += out.iterations
-    again.import_seconds += out.import_seconds
+    out.import_seconds += again.import_seconds
     if again.termination == CONVERGED or not astray(again) and again.termination == RAY:
         again.message = f"{out.message}; with a generic covering vector: {again.message}"
         again.info["covering"] = "generic"
+        again.iterations += out.iterations
+        again.import_seconds = out.import_seconds
         return again
-    out.iterations = again.iterations
-    out.import_seconds = again.import_seconds
     out.message += f"; a generic covering vector: {again.message.split(';')[0]}"
     return out
 
