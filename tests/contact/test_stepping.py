@@ -164,6 +164,8 @@ def test_an_island_whose_lemke_path_goes_astray_is_solved_with_a_generic_coverin
         assert componentwise_error(M, q, res.z) <= res.certificate.tol
     res = lcpcli.solve(M, q, "lemke-tableau")
     assert "with a generic covering vector" in res.message
+    traced = lcpcli.solve(M, q, "lemke-tableau", trace=True)  # the same verdict as untraced
+    assert traced.status == "solved" and np.array_equal(traced.z, res.z), traced.message
     given = lcpcli.solve(M, q, "lemke-tableau", covering=np.ones(len(q)))
     assert given.status == "unsolved" and "generic" not in given.message
     # the next island that failed once that one was solved (the same run, step 24): the

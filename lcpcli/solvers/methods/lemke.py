@@ -116,6 +116,10 @@ def run(problem: Any, *, tol: float, covering: np.ndarray | None = None,
             z = polish(M, q, z, basic)
         out = finish(problem, M, q, status, z, int(pivots), basic_z(basic, n), ray_dz,
                      float(z0), limit)
+        if d is None and astray(out):  # the verdict is the method's: the retry, untraced
+            out = retry_generic(problem, M, q, limit, out)
+            if out.info.get("covering") == "generic":
+                out.message += " (the trace shows the first path, d all ones)"
         out.trace = recorder.trace
         return out
     # kernel and final polish in one compiled call
