@@ -146,6 +146,16 @@ def list_problems(path: Path) -> list[str]:
             raise damaged(exc) from None
 
 
+def group_names(path: Path) -> list[str]:
+    """The problems' group names; empty when the problem sits at the root (one problem, named
+    by its ``name`` attribute or the file's stem) or the file is a stack."""
+    with open_file(path) as f:
+        try:
+            return [] if _is_problem(f) else _problem_groups(f)
+        except H5_ERRORS as exc:
+            raise damaged(exc) from None
+
+
 def read(path: Path, problem: str | None = None, check_dense: DenseCheck = None) -> Problem:
     """One problem (``problem``: a group name); a stack raises
     :class:`~lcpcli.io.files.StackedFile` (``lcpcli.io.load`` reads it with

@@ -12,7 +12,7 @@ import numpy as np
 
 from lcpcli.core.errors import ProblemError
 from lcpcli.core.problem import Problem
-from lcpcli.io import PROBLEM_EXTENSIONS, _module, check_output, detect_format, list_problems, load
+from lcpcli.io import PROBLEM_EXTENSIONS, _module, check_output, detect_format, load
 from lcpcli.io.files import file_kind
 from lcpcli.io.stack.layout import _stack_format, chunk_size
 from lcpcli.io.stack.readers import is_stack, iter_problems, list_names, open_stack
@@ -46,9 +46,9 @@ def _folder_files(folder: Path) -> list[Path]:
 
 def source_problems(source: str | Path) -> Iterator[tuple[str, Problem]]:
     """``(label, problem)`` for every problem of ``source``, streamed: a folder (its problem
-    files, sorted, names = file stems), a stack (the naming rule), a multi-group HDF5 file
-    (names = group names) or a one-problem file (name = its stem).  ``label`` says where the
-    problem comes from (used in messages)."""
+    files, sorted, names = file stems), a stack (the naming rule), an HDF5 file of groups
+    (names = group names, one group or more) or a one-problem file (name = its stem).
+    ``label`` says where the problem comes from (used in messages)."""
 
     path = Path(source)
     if str(source) != "-" and path.is_dir():
@@ -62,8 +62,10 @@ def source_problems(source: str | Path) -> Iterator[tuple[str, Problem]]:
             yield f"{source} ({p.name})", p
         return
     if str(source) != "-" and detect_format(source) == "hdf5":
-        names = list_problems(source)
-        if len(names) > 1:
+        from lcpcli.io.hdf5_format import group_names
+
+        names = group_names(path)
+        if names:
             from lcpcli.io.hdf5_format import read_many
 
             for name, item in read_many(path, names):
@@ -201,8 +203,13 @@ def source_names(source: str | Path) -> list[str]:
             return list_names(source)
         except ProblemError as exc:
             raise exc.with_source(str(source)) from None
-    names = list_problems(source)
-    return names if len(names) > 1 else [path.stem]
+    if str(source) != "-" and detect_format(source) == "hdf5":
+        from lcpcli.io.hdf5_format import group_names
+
+        names = group_names(path)
+        if names:
+            return names
+    return [path.stem]
 
 
 def write_folder(source: str | Path, folder: str | Path, fmt: str, *,
