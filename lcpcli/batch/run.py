@@ -19,19 +19,21 @@ from lcpcli.batch.pool import MAX_WORKERS_PER_CORE, early_workers, iter_local_gr
 from lcpcli.batch.records import SolveOptions, key, options_difference
 from lcpcli.batch.report import BatchReport, BatchStats, Tally
 from lcpcli.batch.worker import prepare_method
-from lcpcli.core.errors import OptionError, ProblemError
+from lcpcli.core.errors import STOP_SIGNALS, OptionError, ProblemError
 from lcpcli.io import check_output, output_lock
 
 
 @contextlib.contextmanager
 def signals_deferred() -> Iterator[None]:
-    """Hold SIGINT and SIGTERM while a result is being written (delivered right after).
+    """Hold the stop signals (SIGINT, SIGTERM, SIGHUP: :data:`STOP_SIGNALS`) while a result is
+    being written (delivered right after; an ignored one stays ignored).
 
-    A write is then never cut in the middle by Ctrl-C or ``kill``: the journal line and the
-    HDF5 group of a row are written together or not at all.  The holding is done at the
-    Python level (the handlers are swapped for one that only records the signal): blocking
-    the signals in the main thread is not enough, because the kernel then delivers them to
-    another thread (BLAS, OpenMP) and Python still runs the handler in the main thread.
+    A write is then never cut in the middle by Ctrl-C, ``kill`` or a closed terminal: the
+    journal line and the HDF5 group of a row are written together or not at all.  The
+    holding is done at the Python level (the handlers are swapped for one that only records
+    the signal): blocking the signals in the main thread is not enough, because the kernel
+    then delivers them to another thread (BLAS, OpenMP) and Python still runs the handler in
+    the main thread.
     """
     if threading.current_thread() is not threading.main_thread():
         yield
@@ -41,7 +43,7 @@ def signals_deferred() -> Iterator[None]:
     def hold(signum: int, frame: Any) -> None:
         pending.append(signum)
 
-    held = (signal.SIGINT, signal.SIGTERM)
+    held = [sig for sig in STOP_SIGNALS if signal.getsignal(sig) != signal.SIG_IGN]
     old = {sig: signal.signal(sig, hold) for sig in held}
     try:
         yield
@@ -52,7 +54,7 @@ def signals_deferred() -> Iterator[None]:
             sig = pending[0]
             handler = old[sig]
             if callable(handler):
-                handler(sig, None)  # e.g. KeyboardInterrupt, or the batch's SIGTERM handler
+                handler(sig, None)  # e.g. KeyboardInterrupt, or the CLI's SIGTERM handler
             elif handler in (signal.SIG_DFL, None):
                 os.kill(os.getpid(), sig)  # the default action, now that the write is done
 

@@ -12,17 +12,16 @@ where none), ``basis`` (K, n) int8 (each problem's final basis, the codes of
 yet, or an ``error`` problem; what ``solve STACK --z0 THIS_FILE`` starts from), ``names`` (K,)
 when the input has names, and the input's fingerprint (below).
 Each chunk's data are written and flushed, then its digest and ``status``, and flushed again,
-before the next chunk's results are written (one writer thread writes the chunks in order while
-the next chunk is solved and the one after it read: :mod:`lcpcli.batch.stacked`); Ctrl-C /
-SIGTERM close the file cleanly, so ``--resume`` finds every finished chunk. The file is created
-complete (every group and dataset) in a temporary file renamed over the output, so a full disk
-at the start leaves the previous file as it was; a full disk later leaves a resumable file
-(``status`` -1 marks what is not done) and one line ``PATH: no space left on device (...)``,
-exit 2. The datasets are allocated in full when the file is created (``ALLOC_TIME_EARLY``), so
-writing a chunk changes data only, never HDF5's metadata: a ``kill -9`` leaves a readable file
-whose ``status`` says which problems finished (a chunk cut in the middle has ``status`` -1 and
-is solved again). A file that is still unreadable is refused by ``--resume`` with a message (run
-again without it).
+before the next chunk's results are written (one writer thread writes the chunks in order while the
+next chunk is solved and the one after it read: :mod:`lcpcli.batch.stacked`); Ctrl-C, SIGTERM or
+SIGHUP close the file cleanly, so ``--resume`` finds every finished chunk. The file is created
+complete (every group and dataset) in a temporary file renamed over the output, so a full disk at
+the start leaves the previous file as it was; a full disk later leaves a resumable file (``status``
+-1 marks what is not done) and one line ``PATH: no space left on device (...)``, exit 2. The
+datasets are allocated in full when the file is created (``ALLOC_TIME_EARLY``), so writing a chunk
+changes data only, never HDF5's metadata: a ``kill -9`` leaves a readable file whose ``status``
+says which problems finished (a chunk cut in the middle has ``status`` -1 and is solved again). A
+file that is still unreadable is refused by ``--resume`` with a message (run again without it).
 
 **Fingerprint** (``--resume`` never keeps results of other data): each group records
 ``chunk`` (problems per chunk), ``chunk_digest`` (chunks, 16) uint8, the digest of each
@@ -37,8 +36,8 @@ when its chunk's digest is recorded.
 
 **NPZ** (``results.npz``, one input stack): the same arrays at the top level plus ``source``
 (and ``digest``, as the attribute);
-held in memory and written atomically when the batch ends (also on Ctrl-C / SIGTERM), so the
-file on disk is always complete; ``--resume`` starts from it.
+held in memory and written atomically when the batch ends (also on Ctrl-C / SIGTERM / SIGHUP),
+so the file on disk is always complete; ``--resume`` starts from it.
 
 **Rows** (``.jsonl``/``.csv``): one row per problem, see :mod:`lcpcli.batch.stacked`; the
 row's ``index`` is the position in the stack, which ``--resume`` uses, and its ``input_hash``

@@ -108,15 +108,17 @@ main(sys.argv[3:])
 
 
 @pytest.mark.parametrize(("sig", "code", "word"), [("SIGTERM", 143, "terminated"),
-                                                    ("SIGINT", 130, "interrupted")])
+                                                    ("SIGINT", 130, "interrupted"),
+                                                    ("SIGHUP", 129, "hung up")])
 @pytest.mark.parametrize("where", ["plain", "swallowed"])
 def test_signal_while_an_output_is_written_leaves_the_previous_file(tmp_path, sig, code, word,
                                                                    where):
-    """SIGTERM (``kill``, ``timeout``, a job scheduler) stops a one-file output as Ctrl-C
-    does: exit 143, one line, the previous output byte for byte, no temporary file (SIGTERM
-    killed the process, exit -15, and left ``.out.json.XXXXXXXX.tmp`` beside it).  An
-    interrupt raised where Python ignores it (a weak reference's callback) is delivered
-    again, not lost (it was: the command ran on and exited 0)."""
+    """SIGTERM (``kill``, ``timeout``, a job scheduler) and SIGHUP (the terminal closed)
+    stop a one-file output as Ctrl-C does: exit 143 or 129, one line, the previous output
+    byte for byte, no temporary file (each killed the process, exit -15 or -1, and left
+    ``.out.json.XXXXXXXX.tmp`` beside it).  An interrupt raised where Python ignores it (a
+    weak reference's callback) is delivered again, not lost (it was: the command ran on and
+    exited 0)."""
     out = tmp_path / "out.json"
     out.write_text("previous\n")
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
@@ -127,6 +129,48 @@ def test_signal_while_an_output_is_written_leaves_the_previous_file(tmp_path, si
     assert r.stderr == f"lcpcli: {word}\n"
     assert out.read_text() == "previous\n"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out.json"]
+
+
+@pytest.mark.parametrize("ext", ["npz", "h5"])
+def test_sighup_while_a_stack_is_converted_leaves_the_previous_file(tmp_path, ext):
+    """``lcpcli convert many.h5 out.npz --stack`` hung up as it replaces its output: exit
+    129, one line, the previous output byte for byte and no temporary file beside it."""
+    import numpy as np
+
+    from lcpcli.core.problem import Problem
+    from lcpcli.io.hdf5_format import write_many
+
+    many, out = tmp_path / "in" / "many.h5", tmp_path / "out" / f"out.{ext}"
+    many.parent.mkdir(), out.parent.mkdir()
+    write_many([Problem.create(np.eye(2) * (k + 1), [-1.0, k], name=f"p{k}") for k in range(5)],
+               many)
+    out.write_bytes(b"previous\n")
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    env.pop("LCPCLI_DEBUG", None)
+    r = subprocess.run([sys.executable, "-c", SELF_SIGNAL, "SIGHUP", "plain", "convert",
+                        str(many), str(out), "--stack", "--force"],
+                       env=env, capture_output=True, text=True, timeout=120)
+    assert r.returncode == 129, r.stderr
+    assert r.stderr == "lcpcli: hung up\n"
+    assert out.read_bytes() == b"previous\n"
+    assert sorted(p.name for p in out.parent.iterdir()) == [out.name]
+
+
+def test_nohup_keeps_a_command_running_after_sighup(tmp_path):
+    """Started with SIGHUP ignored (``nohup lcpcli ...``), a command keeps ignoring it: the
+    output is written and the exit code is the work's (0)."""
+    import signal
+
+    out = tmp_path / "out.json"
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    env.pop("LCPCLI_DEBUG", None)
+    r = subprocess.run([sys.executable, "-c", SELF_SIGNAL, "SIGHUP", "plain", "solve",
+                        str(SAMPLE), "-o", str(out)], env=env, capture_output=True, text=True,
+                       timeout=120, preexec_fn=lambda: signal.signal(signal.SIGHUP,
+                                                                     signal.SIG_IGN))
+    assert r.returncode == 0 and r.stderr == "", r.stderr
+    assert '"status": "solved"' in out.read_text()
+    assert sorted(p.name for p in tmp_path.iterdir()) == [out.name]
 
 
 def run_with_broken_stderr(*args: str) -> tuple[int, str]:
