@@ -323,7 +323,10 @@ def _console_class() -> Any:
     tables are drawn with rules only on a terminal without ``NO_COLOR``: elsewhere (a pipe, a
     file, ``NO_COLOR``) the same rows come as plain columns (two spaces apart, no box
     characters), every table at any depth (rich renders nested renderables through
-    :meth:`render`)."""
+    :meth:`render`).  A terminal that cannot draw boxes (``TERM=dumb`` or ``unknown``, as
+    Emacs' shell sets it: rich's ``is_dumb_terminal``, which also turns colour and styles
+    off) is rendered for as an ASCII-only stream: rich's own substitutes, ASCII rules
+    (``+--+``, ``|``: ``box.ASCII``) and ``-`` bars, in the same widths."""
     from rich.console import Console  # rich only where something is rendered (start-up)
     from rich.table import Table
 
@@ -331,6 +334,13 @@ def _console_class() -> Any:
         def on_broken_pipe(self) -> None:
             self.quiet = True
             raise PipeClosed()
+
+        @property
+        def options(self) -> Any:
+            options = super().options
+            if self.is_dumb_terminal:
+                options.encoding = "ascii"  # what ConsoleOptions.ascii_only reads
+            return options
 
         def render(self, renderable: Any, options: Any = None) -> Any:
             if isinstance(renderable, Table) and renderable.box is not None \

@@ -227,3 +227,72 @@ def test_a_batch_stopped_before_its_output_exists_does_not_point_at_it(tmp_path,
     assert exc.value.code == 130
     assert err == f"lcpcli: interrupted; nothing was written to {out}\n"
     assert not out.exists()
+
+
+def on_a_terminal(args: list[str], term: str) -> str:
+    """``lcpcli ARGS`` on a pseudo-terminal (100 columns) with ``TERM=term``: what it wrote
+    there, CR LF as LF."""
+    import pty
+    import select
+
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "COLUMNS": "100", "LINES": "60", "TERM": term}
+    for name in ("NO_COLOR", "FORCE_COLOR", "FORCE_TERMINAL", "TTY_COMPATIBLE", "LCPCLI_DEBUG"):
+        env.pop(name, None)
+    pid, fd = pty.fork()
+    if pid == 0:  # child: the CLI on the terminal
+        os.execvpe(sys.executable, [sys.executable, "-m", "lcpcli", *args], env)
+    out = b""
+    try:
+        while select.select([fd], [], [], 120)[0]:
+            try:
+                chunk = os.read(fd, 65536)
+            except OSError:  # the child closed the terminal
+                break
+            if not chunk:
+                break
+            out += chunk
+    finally:
+        os.close(fd)
+        os.waitpid(pid, 0)
+    return out.decode().replace("\r\n", "\n")
+
+
+@pytest.mark.skipif(not hasattr(os, "openpty") or sys.platform == "win32", reason="POSIX pty")
+@pytest.mark.parametrize("args", [["solve", str(SAMPLE)], ["methods"],
+                                  ["solve", str(SAMPLE), str(SAMPLE.parent / "degenerate.json")],
+                                  ["info", str(SAMPLE)]])
+def test_a_dumb_terminal_gets_ascii_rules_and_nothing_else_changes(args):
+    """``TERM=dumb`` (Emacs' shell, a terminal that cannot draw boxes): tables are ruled with
+    ASCII (``+--+``, ``|``), no escape sequence (colour, bold) is written, and every line is
+    the one a capable terminal gets with its box characters and styles taken out (the table
+    was drawn with ``┏━┳`` and ``│`` there too); a batch's progress bar is drawn with ``-``
+    (it is shown once, at its end: rich draws no live display on a dumb terminal)."""
+    import re
+
+    dumb, xterm = on_a_terminal(args, "dumb"), on_a_terminal(args, "xterm-256color")
+    assert dumb.isascii() and "\x1b" not in dumb, dumb
+    assert "+--" in dumb and "|" in dumb
+    assert "━" in xterm and "\x1b[" in xterm  # the same run on a terminal that draws them
+    plain = re.sub(r"\x1b\[[0-9;?]*[A-Za-z]", "", xterm)  # styles, and the live display's moves
+
+    def masked(text: str) -> list[str]:  # timings vary from run to run
+        lines = [re.sub(r"\d", "0", line) for line in text.splitlines()]
+        bar = [i for i, line in enumerate(lines) if line.startswith("solving ")]
+        if bar:  # what follows the progress bar (after it, rich's end of a live display)
+            lines = lines[bar[-1] + 1:]
+            while lines and not lines[0]:
+                lines.pop(0)
+        return lines
+
+    rules = str.maketrans({"┃": "|", "│": "|", "━": "-"})  # and the joints are ASCII's own
+    wanted = [line.translate(rules) for line in masked(plain)]
+    got = masked(dumb)
+    if "solving " in dumb:
+        assert re.search(r"^solving -{10,} 2/2 solved 2 ", dumb, re.M), dumb
+    assert len(got) == len(wanted)
+    for mine, theirs in zip(got, wanted, strict=True):
+        if not set(theirs) <= set("|- ") and not any(c.isalnum() for c in theirs):
+            # a rule (┏━┳━┓, ┡━╇━┩, └─┴─┘): ASCII's edges and joints
+            assert len(mine) == len(theirs) and set(mine) <= set("+-|"), (mine, theirs)
+        else:
+            assert mine == theirs
