@@ -16,7 +16,13 @@ from lcpcli.batch import output as batch_output
 from lcpcli.batch.cluster import iter_dask
 from lcpcli.batch.inputs import expand_inputs
 from lcpcli.batch.pool import MAX_WORKERS_PER_CORE, early_workers, iter_local_groups, worker_limit
-from lcpcli.batch.records import SolveOptions, key, options_difference
+from lcpcli.batch.records import (
+    SolveOptions,
+    key,
+    no_fingerprints,
+    other_data,
+    other_settings,
+)
 from lcpcli.batch.report import BatchReport, BatchStats, Tally
 from lcpcli.batch.worker import prepare_method
 from lcpcli.core.errors import STOP_SIGNALS, OptionError, ProblemError
@@ -222,19 +228,13 @@ def _check_fingerprint(row: dict[str, Any], now: str | None, options: str, outpu
     with other solve options (``options``: this run's fingerprint of them), or from a row
     without these fingerprints (written by an older lcpcli)."""
     INPUT_HASH, SOLVE_OPTIONS = batch_output.INPUT_HASH, batch_output.SOLVE_OPTIONS
+    source = str(row.get("source"))
     if INPUT_HASH not in row or SOLVE_OPTIONS not in row:
-        raise ProblemError("holds results without the fingerprint of their inputs and solve "
-                           "options (written by an older lcpcli), so they cannot be checked "
-                           "against them: run again without --resume", str(output))
+        raise no_fingerprints(output, source)
     if row[INPUT_HASH] != now:
-        raise ProblemError(f"holds results of {row.get('source')} computed from other content "
-                           f"than the file has now: run again without --resume, or give "
-                           f"another --output", str(output))
+        raise other_data(output, source)
     if row[SOLVE_OPTIONS] != options:
-        raise ProblemError(f"holds results of {row.get('source')} computed with other "
-                           f"settings: {options_difference(str(row[SOLVE_OPTIONS]), options)}; "
-                           f"give the same settings, or run again without --resume",
-                           str(output))
+        raise other_settings(output, source, str(row[SOLVE_OPTIONS]), options)
 
 
 def _identity(path: str | os.PathLike[str]) -> tuple[int, int] | None:
