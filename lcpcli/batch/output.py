@@ -5,7 +5,7 @@ The format follows the extension: ``.jsonl``/``.ndjson`` (one row per line, the 
 or ``.h5``/``.hdf5`` (one group per problem with datasets ``z`` and ``w``; see
 :class:`Hdf5Writer`).
 
-Crash safety (Ctrl-C, SIGTERM, ``kill -9``):
+Crash safety (Ctrl-C, SIGTERM, SIGHUP, ``kill -9``):
 
 * JSONL and CSV are append-only text with one record per physical line.  Each row is written
   and flushed to the operating system as soon as it arrives (so ``kill -9`` of the process
@@ -16,10 +16,10 @@ Crash safety (Ctrl-C, SIGTERM, ``kill -9``):
 * HDF5 is not safe to kill in the middle of a write, so ``results.h5`` is written together
   with a journal ``results.h5.journal`` (JSON Lines, as above).  Rows go to the journal first,
   then into the HDF5 file, which is flushed every :data:`FSYNC_SECONDS`.  A clean finish
-  (including Ctrl-C and SIGTERM, which are caught) closes the HDF5 file and deletes the journal.
-  After a ``kill -9`` the journal remains; ``--resume`` (and :func:`read_rows`) merge it, and if
-  the HDF5 file was damaged mid-write it is rebuilt from what is readable plus the journal,
-  atomically.
+  (including Ctrl-C, SIGTERM and SIGHUP, which are caught) closes the HDF5 file and deletes
+  the journal.  After a ``kill -9`` the journal remains; ``--resume`` (and
+  :func:`read_rows`) merge it, and if the HDF5 file was damaged mid-write it is rebuilt from
+  what is readable plus the journal, atomically.
 
 A new run (without ``--resume``) over an existing result file writes its rows to a temporary
 file beside it and replaces the file only when the batch is complete (:class:`ReplacingWriter`):

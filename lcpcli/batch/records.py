@@ -13,6 +13,7 @@ import json
 from dataclasses import dataclass, field
 from typing import Any
 
+from lcpcli.core.errors import ProblemError
 from lcpcli.core.result import Status, Termination
 from lcpcli.solvers import DEFAULT_METHOD
 
@@ -89,3 +90,39 @@ def options_difference(recorded: str, now: str) -> str:
 
 def _setting(value: Any) -> str:
     return "the default" if value is None else repr(value)
+
+
+#: The advice of a refused ``--resume`` (the result file is left as it was).
+RERUN = "run again without --resume"
+
+
+def resume_refused(output: Any, source: str, why: str, advice: str = RERUN) -> ProblemError:
+    """The one form of a ``--resume`` refused because the result file ``output`` holds
+    results of ``source`` that this run cannot keep, for per-file and stacked batches alike:
+    ``OUTPUT: holds results of SOURCE WHY; ADVICE`` (the reasons: :func:`other_settings`,
+    :func:`other_data`, :func:`no_fingerprints`)."""
+    return ProblemError(f"holds results of {source} {why}; {advice}", str(output))
+
+
+def other_settings(output: Any, source: str, recorded: str, now: str) -> ProblemError:
+    """``--resume`` with other solve settings than ``output``'s results of ``source`` were
+    computed with (fingerprints ``recorded`` and ``now``), naming what differs."""
+    return resume_refused(output, source, f"computed with other settings: "
+                          f"{options_difference(recorded, now)}", f"give the same settings, "
+                          f"or {RERUN}")
+
+
+def other_data(output: Any, source: str, which: str = "") -> ProblemError:
+    """``--resume`` where ``source`` no longer holds the data ``output``'s results were
+    computed from (``which``: the problems that differ, when known)."""
+    return resume_refused(output, source, f"computed from other data: {source} has changed "
+                          f"since{f' ({which})' if which else ''}",
+                          f"{RERUN}, or give another --output")
+
+
+def no_fingerprints(output: Any, source: str) -> ProblemError:
+    """``--resume`` of results without the fingerprints of their input and solve settings
+    (written by an older lcpcli)."""
+    return resume_refused(output, source, "without the fingerprints of their input and solve "
+                          "settings (written by an older lcpcli), so they cannot be checked "
+                          "against them")

@@ -16,22 +16,30 @@ from lcpcli.batch import output as batch_output
 from lcpcli.batch.cluster import iter_dask
 from lcpcli.batch.inputs import expand_inputs
 from lcpcli.batch.pool import MAX_WORKERS_PER_CORE, early_workers, iter_local_groups, worker_limit
-from lcpcli.batch.records import SolveOptions, key, options_difference
+from lcpcli.batch.records import (
+    SolveOptions,
+    key,
+    no_fingerprints,
+    other_data,
+    other_settings,
+)
 from lcpcli.batch.report import BatchReport, BatchStats, Tally
 from lcpcli.batch.worker import prepare_method
-from lcpcli.core.errors import OptionError, ProblemError
+from lcpcli.core.errors import STOP_SIGNALS, OptionError, ProblemError
 from lcpcli.io import check_output, output_lock
 
 
 @contextlib.contextmanager
 def signals_deferred() -> Iterator[None]:
-    """Hold SIGINT and SIGTERM while a result is being written (delivered right after).
+    """Hold the stop signals (SIGINT, SIGTERM, SIGHUP: :data:`STOP_SIGNALS`) while a result is
+    being written (delivered right after; an ignored one stays ignored).
 
-    A write is then never cut in the middle by Ctrl-C or ``kill``: the journal line and the
-    HDF5 group of a row are written together or not at all.  The holding is done at the
-    Python level (the handlers are swapped for one that only records the signal): blocking
-    the signals in the main thread is not enough, because the kernel then delivers them to
-    another thread (BLAS, OpenMP) and Python still runs the handler in the main thread.
+    A write is then never cut in the middle by Ctrl-C, ``kill`` or a closed terminal: the
+    journal line and the HDF5 group of a row are written together or not at all.  The
+    holding is done at the Python level (the handlers are swapped for one that only records
+    the signal): blocking the signals in the main thread is not enough, because the kernel
+    then delivers them to another thread (BLAS, OpenMP) and Python still runs the handler in
+    the main thread.
     """
     if threading.current_thread() is not threading.main_thread():
         yield
@@ -41,7 +49,7 @@ def signals_deferred() -> Iterator[None]:
     def hold(signum: int, frame: Any) -> None:
         pending.append(signum)
 
-    held = (signal.SIGINT, signal.SIGTERM)
+    held = [sig for sig in STOP_SIGNALS if signal.getsignal(sig) != signal.SIG_IGN]
     old = {sig: signal.signal(sig, hold) for sig in held}
     try:
         yield
@@ -52,7 +60,7 @@ def signals_deferred() -> Iterator[None]:
             sig = pending[0]
             handler = old[sig]
             if callable(handler):
-                handler(sig, None)  # e.g. KeyboardInterrupt, or the batch's SIGTERM handler
+                handler(sig, None)  # e.g. KeyboardInterrupt, or the CLI's SIGTERM handler
             elif handler in (signal.SIG_DFL, None):
                 os.kill(os.getpid(), sig)  # the default action, now that the write is done
 
@@ -220,19 +228,13 @@ def _check_fingerprint(row: dict[str, Any], now: str | None, options: str, outpu
     with other solve options (``options``: this run's fingerprint of them), or from a row
     without these fingerprints (written by an older lcpcli)."""
     INPUT_HASH, SOLVE_OPTIONS = batch_output.INPUT_HASH, batch_output.SOLVE_OPTIONS
+    source = str(row.get("source"))
     if INPUT_HASH not in row or SOLVE_OPTIONS not in row:
-        raise ProblemError("holds results without the fingerprint of their inputs and solve "
-                           "options (written by an older lcpcli), so they cannot be checked "
-                           "against them: run again without --resume", str(output))
+        raise no_fingerprints(output, source)
     if row[INPUT_HASH] != now:
-        raise ProblemError(f"holds results of {row.get('source')} computed from other content "
-                           f"than the file has now: run again without --resume, or give "
-                           f"another --output", str(output))
+        raise other_data(output, source)
     if row[SOLVE_OPTIONS] != options:
-        raise ProblemError(f"holds results of {row.get('source')} computed with other "
-                           f"settings: {options_difference(str(row[SOLVE_OPTIONS]), options)}; "
-                           f"give the same settings, or run again without --resume",
-                           str(output))
+        raise other_settings(output, source, str(row[SOLVE_OPTIONS]), options)
 
 
 def _identity(path: str | os.PathLike[str]) -> tuple[int, int] | None:

@@ -12,17 +12,16 @@ where none), ``basis`` (K, n) int8 (each problem's final basis, the codes of
 yet, or an ``error`` problem; what ``solve STACK --z0 THIS_FILE`` starts from), ``names`` (K,)
 when the input has names, and the input's fingerprint (below).
 Each chunk's data are written and flushed, then its digest and ``status``, and flushed again,
-before the next chunk's results are written (one writer thread writes the chunks in order while
-the next chunk is solved and the one after it read: :mod:`lcpcli.batch.stacked`); Ctrl-C /
-SIGTERM close the file cleanly, so ``--resume`` finds every finished chunk. The file is created
-complete (every group and dataset) in a temporary file renamed over the output, so a full disk
-at the start leaves the previous file as it was; a full disk later leaves a resumable file
-(``status`` -1 marks what is not done) and one line ``PATH: no space left on device (...)``,
-exit 2. The datasets are allocated in full when the file is created (``ALLOC_TIME_EARLY``), so
-writing a chunk changes data only, never HDF5's metadata: a ``kill -9`` leaves a readable file
-whose ``status`` says which problems finished (a chunk cut in the middle has ``status`` -1 and
-is solved again). A file that is still unreadable is refused by ``--resume`` with a message (run
-again without it).
+before the next chunk's results are written (one writer thread writes the chunks in order while the
+next chunk is solved and the one after it read: :mod:`lcpcli.batch.stacked`); Ctrl-C, SIGTERM or
+SIGHUP close the file cleanly, so ``--resume`` finds every finished chunk. The file is created
+complete (every group and dataset) in a temporary file renamed over the output, so a full disk at
+the start leaves the previous file as it was; a full disk later leaves a resumable file (``status``
+-1 marks what is not done) and one line ``PATH: no space left on device (...)``, exit 2. The
+datasets are allocated in full when the file is created (``ALLOC_TIME_EARLY``), so writing a chunk
+changes data only, never HDF5's metadata: a ``kill -9`` leaves a readable file whose ``status``
+says which problems finished (a chunk cut in the middle has ``status`` -1 and is solved again). A
+file that is still unreadable is refused by ``--resume`` with a message (run again without it).
 
 **Fingerprint** (``--resume`` never keeps results of other data): each group records
 ``chunk`` (problems per chunk), ``chunk_digest`` (chunks, 16) uint8, the digest of each
@@ -37,8 +36,8 @@ when its chunk's digest is recorded.
 
 **NPZ** (``results.npz``, one input stack): the same arrays at the top level plus ``source``
 (and ``digest``, as the attribute);
-held in memory and written atomically when the batch ends (also on Ctrl-C / SIGTERM), so the
-file on disk is always complete; ``--resume`` starts from it.
+held in memory and written atomically when the batch ends (also on Ctrl-C / SIGTERM / SIGHUP),
+so the file on disk is always complete; ``--resume`` starts from it.
 
 **Rows** (``.jsonl``/``.csv``): one row per problem, see :mod:`lcpcli.batch.stacked`; the
 row's ``index`` is the position in the stack, which ``--resume`` uses, and its ``input_hash``
@@ -62,7 +61,7 @@ from lcpcli.batch.output import (
     hdf5_text,
     output_kind,
 )
-from lcpcli.batch.records import options_difference
+from lcpcli.batch.records import RERUN, no_fingerprints, other_settings
 from lcpcli.core.errors import OptionError, ProblemError
 from lcpcli.core.numeric import REAL_KINDS
 from lcpcli.core.result import NOT_DONE, STATUS_CODES, status_counts
@@ -89,7 +88,6 @@ NO_BASIS = -1
 #: What a write failure leaves in a stacked result file (the message says it).
 KEPT = "the finished problems are kept (status -1 marks the others): free space, then run " \
        "again with --resume"
-_RERUN = "run again without --resume"
 
 
 def chunk_digest(part: Any, algorithm: str) -> bytes:
@@ -125,7 +123,7 @@ def _check_status(status: np.ndarray, path: Path) -> None:
     bad = status[~np.isin(status, codes)]
     if bad.size:
         raise ProblemError(f"cannot be resumed: its status holds {int(bad[0])}, which is no "
-                           f"status code (a damaged or foreign file); {_RERUN}", str(path))
+                           f"status code (a damaged or foreign file); {RERUN}", str(path))
 
 
 def _check_layout(g: Any, info: Any, path: Path) -> None:
@@ -146,13 +144,13 @@ def _check_layout(g: Any, info: Any, path: Path) -> None:
                 f"shape {getattr(d, 'shape', None)}"
             want = "floats" if kind == "f" else "integers"
             raise ProblemError(f"cannot be resumed: its '{key}' of {info.path} is {what}, not "
-                               f"{want} of shape {shape} (a damaged or foreign file); {_RERUN}",
+                               f"{want} of shape {shape} (a damaged or foreign file); {RERUN}",
                                str(path))
     names = g.get("names")
     if names is not None and not (isinstance(names, h5py.Dataset) and names.shape == (info.K,)
                                   and h5py.check_string_dtype(names.dtype) is not None):
         raise ProblemError(f"cannot be resumed: its 'names' of {info.path} are not {info.K} "
-                           f"strings (a damaged or foreign file); {_RERUN}", str(path))
+                           f"strings (a damaged or foreign file); {RERUN}", str(path))
 
 
 def _done_mask(status: np.ndarray, digests: np.ndarray, chunk: int) -> np.ndarray:
@@ -325,7 +323,7 @@ class Hdf5StackWriter:
             self.h5 = Hdf5Handle(path, "r+", **NO_CHUNK_CACHE)
         except ProblemError as exc:
             raise ProblemError(f"cannot be resumed: {str(exc).removeprefix(f'{path}: ')} "
-                               f"(interrupted by kill -9?); {_RERUN}", str(path)) from None
+                               f"(interrupted by kill -9?); {RERUN}", str(path)) from None
         self.file = self.h5.file
         try:
             missing = self._open_groups(infos)
@@ -367,7 +365,7 @@ class Hdf5StackWriter:
             except H5_ERRORS as exc:  # an attribute of another type, a group for a dataset
                 first = str(exc).splitlines()[0][:100] if str(exc) else type(exc).__name__
                 raise ProblemError(f"cannot be resumed: its results of {info.path} are "
-                                   f"unreadable ({first}): a damaged or foreign file; {_RERUN}",
+                                   f"unreadable ({first}): a damaged or foreign file; {RERUN}",
                                    str(path)) from None
             self.groups[info.path] = g
             self.chunk_of[info.path] = int(g.attrs["chunk"])
@@ -397,24 +395,20 @@ class Hdf5StackWriter:
         if (int(g.attrs["K"]), int(g.attrs["n"])) != (info.K, info.n):
             raise ProblemError(f"holds results of {info.path} for K = {int(g.attrs['K'])}, "
                                f"n = {int(g.attrs['n'])}, but the input now has K = {info.K}, "
-                               f"n = {info.n}; {_RERUN}", str(path))
+                               f"n = {info.n}; {RERUN}", str(path))
         if "basis" not in g:
             raise ProblemError(f"holds results of {info.path} without their basis (written "
-                               f"by an older lcpcli); {_RERUN}", str(path))
+                               f"by an older lcpcli); {RERUN}", str(path))
         if "chunk_digest" not in g or "chunk" not in g.attrs or "solve_options" not in g.attrs:
-            raise ProblemError(f"holds results of {info.path} without the fingerprint of "
-                               f"their input (written by an older lcpcli), so they cannot be "
-                               f"checked against it; {_RERUN}", str(path))
+            raise no_fingerprints(path, info.path)
         if str(g.attrs["solve_options"]) != self.options:
-            raise ProblemError(f"holds results of {info.path} computed with "
-                               f"{g.attrs['solve_options']}, not {self.options}: give the same "
-                               f"options or {_RERUN}", str(path))
+            raise other_settings(path, info.path, str(g.attrs["solve_options"]), self.options)
         chunk = int(g.attrs["chunk"])
         if chunk < 1 or getattr(g["chunk_digest"], "shape", None) != (
                 _chunks(info.K, chunk), DIGEST_BYTES) \
                 or getattr(g["status"], "shape", None) != (info.K,):
             raise ProblemError(f"cannot be resumed: its fingerprint of {info.path} does not "
-                               f"fit the input's K = {info.K}; {_RERUN}", str(path))
+                               f"fit the input's K = {info.K}; {RERUN}", str(path))
         _check_layout(g, info, path)
         _check_status(g["status"][...], path)
 
@@ -539,7 +533,7 @@ class NpzStackWriter:
         except ProblemError as exc:
             if exc.source:
                 raise
-            raise ProblemError(f"cannot be resumed ({str(exc)[:160]}); {_RERUN}",
+            raise ProblemError(f"cannot be resumed ({str(exc)[:160]}); {RERUN}",
                                str(path)) from None
         _check_status(self.arrays["status"], path)
 
@@ -552,25 +546,21 @@ class NpzStackWriter:
                 raise ProblemError(f"has no '{key}'")
         if text("source") != info.path:
             raise ProblemError(f"holds results of {text('source')}, not {info.path}; "
-                               f"{_RERUN}", str(path))
+                               f"{RERUN}", str(path))
         if "basis" not in members:
             raise ProblemError(f"holds results of {info.path} without their basis "
-                               f"(written by an older lcpcli); {_RERUN}", str(path))
+                               f"(written by an older lcpcli); {RERUN}", str(path))
         if not {"chunk_digest", "chunk", "solve_options"} <= set(members):
-            raise ProblemError(f"holds results of {info.path} without the fingerprint "
-                               f"of their input (written by an older lcpcli), so they "
-                               f"cannot be checked against it; {_RERUN}", str(path))
+            raise no_fingerprints(path, info.path)
         options = text("solve_options")
         if options != self.options:
-            raise ProblemError(f"holds results of {info.path} computed with "
-                               f"{options}, not {self.options}: give the "
-                               f"same options or {_RERUN}", str(path))
+            raise other_settings(path, info.path, options, self.options)
         chunk = members["chunk"].scalar_int("chunk")
         digests = members["chunk_digest"]
         if chunk < 1 or digests.shape != (_chunks(info.K, chunk), DIGEST_BYTES) \
                 or digests.dtype.kind not in "iu":
             raise ProblemError(f"cannot be resumed: its fingerprint does not fit the "
-                               f"input's K = {info.K}; {_RERUN}", str(path))
+                               f"input's K = {info.K}; {RERUN}", str(path))
         self.digest = recorded_algorithm(
             text("digest") if "digest" in members else None, path, info.path)
         tol = members["tol"]
@@ -665,15 +655,10 @@ class RowStackWriter:
         chunk, out = self.chunk(info), {}
         for row in self._rows(info):
             if INPUT_HASH not in row or output.SOLVE_OPTIONS not in row:
-                raise ProblemError(f"holds results of {info.path} without the fingerprints of "
-                                   f"their input and solve options (written by an older "
-                                   f"lcpcli), so they cannot be checked against them; {_RERUN}",
-                                   str(self.path))
+                raise no_fingerprints(self.path, info.path)
             if str(row[output.SOLVE_OPTIONS]) != self.options:
-                was = str(row[output.SOLVE_OPTIONS])
-                raise ProblemError(f"holds results of {info.path} computed with other "
-                                   f"settings: {options_difference(was, self.options)}; give "
-                                   f"the same settings, or {_RERUN}", str(self.path))
+                raise other_settings(self.path, info.path, str(row[output.SOLVE_OPTIONS]),
+                                     self.options)
             try:
                 digest = bytes.fromhex(str(row[INPUT_HASH]))
             except ValueError:
@@ -682,7 +667,7 @@ class RowStackWriter:
             if len(digest) != DIGEST_BYTES or out.setdefault(c, digest) != digest:
                 raise ProblemError(f"cannot be resumed: the fingerprints of {info.path}'s "
                                    f"problems {c * chunk}.. disagree (a damaged file); "
-                                   f"{_RERUN}", str(self.path))
+                                   f"{RERUN}", str(self.path))
         return out
 
     def done(self, info: Any) -> np.ndarray:

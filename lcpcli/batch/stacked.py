@@ -30,7 +30,7 @@ from typing import Any
 
 import numpy as np
 
-from lcpcli.batch.records import SolveOptions, error_row
+from lcpcli.batch.records import SolveOptions, error_row, other_data
 from lcpcli.batch.report import BatchReport, BatchStats, Tally
 from lcpcli.core.errors import OptionError, ProblemError
 from lcpcli.core.problem import problem_kind
@@ -359,10 +359,8 @@ def _check_identity(info: Any, writer: Any, output: Any) -> None:
         for c, want in sorted(recorded.items()):
             start, stop = c * chunk, min(info.K, (c + 1) * chunk)
             if chunk_digest(reader.read(start, stop), algorithm) != want:
-                raise ProblemError(f"holds results computed from other data than {info.path} "
-                                   f"has now (problems {start:,} to {stop - 1:,} differ): run "
-                                   f"again without --resume, or give another --output",
-                                   str(output))
+                raise other_data(output, info.path,
+                                 f"problems {start:,} to {stop - 1:,} differ")
 
 
 def solve_part(reader: Any, info: Any, start: int, stop: int, todo: np.ndarray,

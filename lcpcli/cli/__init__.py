@@ -9,6 +9,7 @@ that ``lcpcli --help`` stays fast.  Errors become one line on stderr and an exit
 * 2  bad usage or bad input (malformed or missing file, wrong shapes, NaN/Inf, unknown option),
      or an output that cannot be written (``PATH: no space left on device``, permission denied)
 * 3  internal error (a bug: please report it; ``LCPCLI_DEBUG=1`` shows the traceback)
+* 129, 130, 143  hung up (SIGHUP), interrupted (Ctrl-C), terminated (SIGTERM): stopped cleanly
 """
 
 from __future__ import annotations
@@ -27,7 +28,7 @@ from lcpcli.core.errors import (
     EXIT_INTERNAL,
     EXIT_INTERRUPTED,
     EXIT_OK,
-    EXIT_TERMINATED,
+    STOP_SIGNALS,
     LcpError,
 )
 from lcpcli.core.text import one_line_warnings
@@ -167,7 +168,7 @@ def main(argv: list[str] | None = None) -> None:
         sys.exit(EXIT_BAD_INPUT)
     stdout = sys.stdout
     sys.stdout = common.StdoutGuard(stdout)  # type: ignore[assignment]
-    held = common.catch_sigterm()  # SIGTERM ends a command as Ctrl-C does: cleanly
+    held = common.catch_stop_signals()  # SIGTERM, SIGHUP end a command as Ctrl-C does: cleanly
     try:
         code = app(args=args, standalone_mode=False, prog_name="lcpcli")
         sys.stdout.flush()  # a standard output that cannot take it fails here, as one line
@@ -211,12 +212,11 @@ def main(argv: list[str] | None = None) -> None:
             code = EXIT_INTERNAL
     finally:
         sys.stdout = stdout
-        common.release_sigterm(held)
-    if code in (EXIT_INTERRUPTED, EXIT_TERMINATED):  # Ctrl-C or SIGTERM: 130 or 143
+        common.release_stop_signals(held)
+    if code in STOP_SIGNALS.values():  # Ctrl-C, SIGTERM or SIGHUP: 130, 143 or 129
         code = common.stopped_code()
         if not common.stop_said():  # the command's cleanup ran; nothing more to say
-            sys.stderr.write("lcpcli: terminated\n" if code == EXIT_TERMINATED
-                             else "lcpcli: interrupted\n")
+            sys.stderr.write(f"lcpcli: {common.stopped_word()}\n")
     if stdout is not None:
         try:
             stdout.flush()

@@ -9,7 +9,6 @@
 from __future__ import annotations
 
 import os
-import signal
 import sys
 import threading
 import time
@@ -17,18 +16,20 @@ from pathlib import Path
 from typing import Any
 
 from lcpcli.cli.common import (
-    Terminated,
     duration,
-    on_sigterm,
+    install_stop_handlers,
     pending_exit,
     plural,
     progress_allowed,
+    restore_handlers,
     say_stopped,
     stderr_console,
     stdout_console,
+    stopped_code,
+    stopped_word,
     write_json_line,
 )
-from lcpcli.core.errors import EXIT_INTERRUPTED, EXIT_TERMINATED, OptionError, ProblemError
+from lcpcli.core.errors import OptionError, ProblemError
 
 #: Up to this many problems, the batch summary lists every problem with its status.
 FEW_PROBLEMS = 20
@@ -100,7 +101,8 @@ def run_batch_command(files: list[str], *, method: str, tol: float | None,
                       output: Any, recursive: bool, jobs: int | None, resume: bool,
                       timeout: float | None, quiet: bool, scheduler: str | None,
                       warm: str | None = None) -> int:
-    """Run the batch, show progress and the summary; return the exit code (0/1/2, 130, 143)."""
+    """Run the batch, show progress and the summary; return the exit code (0/1/2; 129, 130
+    or 143 when stopped)."""
     from lcpcli.batch.records import SolveOptions
     from lcpcli.batch.run import run_batch
     from lcpcli.core.result import Status  # imports numpy: not at --help time
@@ -169,8 +171,7 @@ def run_batch_command(files: list[str], *, method: str, tol: float | None,
         from lcpcli.cli.render.batch import make_progress
 
         progress = make_progress(stderr_console())
-    old_term = signal.signal(signal.SIGTERM, on_sigterm) \
-        if _main_thread() else None
+    installed = install_stop_handlers() if _main_thread() else []  # (main: already there)
     report = None
     try:
         if progress is not None:
@@ -183,7 +184,7 @@ def run_batch_command(files: list[str], *, method: str, tol: float | None,
     except KeyboardInterrupt as exc:
         if progress is not None:
             progress.stop()
-        what = "terminated" if isinstance(exc, Terminated) else "interrupted"
+        what = stopped_word(exc)
         done = f" after {plural(state['done'], 'problem')} of {state['total']:,}" \
             if state["total"] else ""
         where = f"; finished results are in {output}: run again with --resume to go on" \
@@ -193,12 +194,11 @@ def run_batch_command(files: list[str], *, method: str, tol: float | None,
         if kept:
             where = f"; {output} is kept as it was (a new batch replaces it only when complete)"
         say_stopped(f"lcpcli: {what}{done}{where}")
-        return EXIT_TERMINATED if isinstance(exc, Terminated) else EXIT_INTERRUPTED
+        return stopped_code(exc)
     finally:
         if progress is not None:
             progress.stop()
-        if old_term is not None:
-            signal.signal(signal.SIGTERM, old_term)
+        restore_handlers(installed)
     code = pending_exit(report.exit_code)
     if as_json:
         if not stream_rows:

@@ -19,6 +19,7 @@ from lcpcli.cli.common import (
     say_stopped,
     stderr_console,
     stdout_console,
+    stopped_word,
     write_json_line,
 )
 from lcpcli.core.errors import (
@@ -170,15 +171,15 @@ def bench(
             report = B.run_bench(cases, method_list, tols, repeat=repeat, budget=budget,
                                  peers=found, missing_peers=missing, timeout=timeout or None,
                                  on_record=on_record)
-    except KeyboardInterrupt:
-        interrupted = True
+    except KeyboardInterrupt as exc:
+        interrupted, word = True, stopped_word(exc)
         report = B.BenchReport(records=records, methods=list(method_list), tols=tols,
                                problems=[(c.name, c.n, c.problem.kind, c.expected)
                                          for c in cases],
                                peers={p.family: p.version for p in found},
                                missing_peers=dict(missing))
-        title += f" (interrupted after {tracker.done:,} of {tracker.total:,} runs)"
-        say_stopped(f"lcpcli: interrupted after {tracker.done:,} of {tracker.total:,} runs; "
+        title += f" ({word} after {tracker.done:,} of {tracker.total:,} runs)"
+        say_stopped(f"lcpcli: {word} after {tracker.done:,} of {tracker.total:,} runs; "
                     f"the report below covers those")
 
     code = pending_exit(EXIT_INTERRUPTED if interrupted else EXIT_NOT_SOLVED if report.defects

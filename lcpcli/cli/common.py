@@ -16,11 +16,10 @@ import typer.core
 
 from lcpcli.core.errors import (
     EXIT_BAD_INPUT,
-    EXIT_INTERRUPTED,
     EXIT_NOT_SOLVED,
     EXIT_OK,
     EXIT_SOLVED,
-    EXIT_TERMINATED,
+    STOP_SIGNALS,
     OptionError,
     OutputError,
 )
@@ -104,41 +103,71 @@ class StdoutGuard:
 
 
 class Terminated(KeyboardInterrupt):
-    """SIGTERM, turned into an interrupt so that what is being written is closed cleanly (a
-    batch's output) or removed (the temporary file of an atomic output), as after Ctrl-C."""
+    """SIGTERM or SIGHUP (``signum``), turned into an interrupt so that what is being written
+    is closed cleanly (a batch's output) or removed (the temporary file of an atomic output),
+    as after Ctrl-C."""
+
+    def __init__(self, signum: int = signal.SIGTERM) -> None:
+        super().__init__()
+        self.signum = signum
 
 
-#: How a command was stopped: ``signal`` SIGTERM once :func:`on_sigterm` ran (else an
-#: interrupt is Ctrl-C), ``said`` once the command said so itself (:func:`say_stopped`);
-#: ``hook``: the ``sys.unraisablehook`` that :func:`catch_sigterm` replaced.
+#: The signals :func:`catch_stop_signals` turns into :class:`Terminated` (Ctrl-C is Python's
+#: own KeyboardInterrupt): every stop signal of :data:`STOP_SIGNALS` but SIGINT.
+CAUGHT_SIGNALS = tuple(sig for sig in STOP_SIGNALS if sig != signal.SIGINT)
+
+#: The word of a stopped command's line (``lcpcli: terminated``), by signal.
+STOP_WORDS = {signal.SIGINT: "interrupted", signal.SIGTERM: "terminated",
+              **({signal.SIGHUP: "hung up"} if hasattr(signal, "SIGHUP") else {})}
+
+#: How a command was stopped: ``signal`` SIGTERM or SIGHUP once :func:`on_stop_signal` ran
+#: (else an interrupt is Ctrl-C), ``said`` once the command said so itself
+#: (:func:`say_stopped`); ``hook``: the ``sys.unraisablehook`` that
+#: :func:`catch_stop_signals` replaced.
 _STOPPED: dict[str, Any] = {"signal": None, "said": False, "hook": None}
 
 
-def on_sigterm(signum: int, frame: Any) -> None:
-    _STOPPED["signal"] = signal.SIGTERM
-    raise Terminated()
+def on_stop_signal(signum: int, frame: Any) -> None:
+    _STOPPED["signal"] = signum
+    raise Terminated(signum)
 
 
-def catch_sigterm() -> Any:
-    """Have SIGTERM (``kill``, ``timeout``, a job scheduler) stop a command as Ctrl-C does:
-    every command then ends through its cleanup (no temporary file left beside an output)
-    with exit code 143.  Only in the main thread, and only where SIGTERM has its default
-    action (an ignored one stays ignored).  An interrupt that Python can only ignore is
-    delivered again (:func:`_redeliver`).  Returns what :func:`release_sigterm` restores
-    (None: nothing changed)."""
+def install_stop_handlers() -> list[tuple[int, Any]]:
+    """:func:`on_stop_signal` for each of :data:`CAUGHT_SIGNALS` that has its default action
+    (an ignored one stays ignored: ``nohup lcpcli ...`` runs on after the terminal closed),
+    in the main thread only; returns the ``(signal, previous handler)`` pairs that
+    :func:`restore_handlers` puts back."""
+    if threading.current_thread() is not threading.main_thread():
+        return []
+    return [(sig, signal.signal(sig, on_stop_signal)) for sig in CAUGHT_SIGNALS
+            if signal.getsignal(sig) == signal.SIG_DFL]
+
+
+def restore_handlers(installed: list[tuple[int, Any]]) -> None:
+    """Undo :func:`install_stop_handlers` (``installed``: what it returned)."""
+    for sig, handler in installed:
+        signal.signal(sig, handler)
+
+
+def catch_stop_signals() -> Any:
+    """Have SIGTERM (``kill``, ``timeout``, a job scheduler) and SIGHUP (the terminal closed)
+    stop a command as Ctrl-C does: every command then ends through its cleanup (no temporary
+    file left beside an output) with exit code 143 or 129 (:func:`install_stop_handlers`:
+    the main thread only, an ignored signal stays ignored).  An interrupt that Python can
+    only ignore is delivered again (:func:`_redeliver`).  Returns what
+    :func:`release_stop_signals` restores (None: nothing changed)."""
     _STOPPED["signal"], _STOPPED["said"] = None, False
-    if threading.current_thread() is not threading.main_thread() \
-            or signal.getsignal(signal.SIGTERM) != signal.SIG_DFL:
+    if threading.current_thread() is not threading.main_thread():
         return None
     hook = _STOPPED["hook"] = sys.unraisablehook
     sys.unraisablehook = _redeliver
-    return signal.signal(signal.SIGTERM, on_sigterm), hook
+    return install_stop_handlers(), hook
 
 
-def release_sigterm(held: Any) -> None:
-    """Undo :func:`catch_sigterm` (``held``: what it returned)."""
+def release_stop_signals(held: Any) -> None:
+    """Undo :func:`catch_stop_signals` (``held``: what it returned)."""
     if held is not None:
-        signal.signal(signal.SIGTERM, held[0])
+        restore_handlers(held[0])
         sys.unraisablehook = held[1]
 
 
@@ -156,7 +185,7 @@ def _redeliver(unraisable: Any) -> None:
     if isinstance(exc, KeyboardInterrupt):
         # from another thread, a moment later: sent from here, the handler would run (and
         # be ignored) inside this hook again
-        again = threading.Timer(REDELIVER_SECONDS, os.kill, (os.getpid(), signal.SIGTERM
+        again = threading.Timer(REDELIVER_SECONDS, os.kill, (os.getpid(), exc.signum
                                 if isinstance(exc, Terminated) else signal.SIGINT))
         again.daemon = True
         again.start()
@@ -171,9 +200,24 @@ def say_stopped(text: str) -> None:
     _STOPPED["said"] = True
 
 
-def stopped_code() -> int:
-    """The exit code of a command stopped by a signal: 143 after SIGTERM, 130 after Ctrl-C."""
-    return EXIT_TERMINATED if _STOPPED["signal"] == signal.SIGTERM else EXIT_INTERRUPTED
+def stopped_signal(exc: BaseException | None = None) -> int:
+    """The signal that stopped the command: ``exc``'s (a :class:`Terminated`), else the one
+    :func:`on_stop_signal` recorded, else SIGINT (Ctrl-C)."""
+    if isinstance(exc, Terminated):
+        return exc.signum
+    return _STOPPED["signal"] or signal.SIGINT
+
+
+def stopped_code(exc: BaseException | None = None) -> int:
+    """The exit code of a command stopped by a signal (:data:`STOP_SIGNALS`): 143 after
+    SIGTERM, 129 after SIGHUP, 130 after Ctrl-C (``exc``: as :func:`stopped_signal`)."""
+    return STOP_SIGNALS[stopped_signal(exc)]
+
+
+def stopped_word(exc: BaseException | None = None) -> str:
+    """``terminated``, ``hung up`` or ``interrupted``: the word of the stopped command's line
+    (``exc``: as :func:`stopped_signal`)."""
+    return STOP_WORDS[stopped_signal(exc)]
 
 
 def stop_said() -> bool:
@@ -279,7 +323,10 @@ def _console_class() -> Any:
     tables are drawn with rules only on a terminal without ``NO_COLOR``: elsewhere (a pipe, a
     file, ``NO_COLOR``) the same rows come as plain columns (two spaces apart, no box
     characters), every table at any depth (rich renders nested renderables through
-    :meth:`render`)."""
+    :meth:`render`).  A terminal that cannot draw boxes (``TERM=dumb`` or ``unknown``, as
+    Emacs' shell sets it: rich's ``is_dumb_terminal``, which also turns colour and styles
+    off) is rendered for as an ASCII-only stream: rich's own substitutes, ASCII rules
+    (``+--+``, ``|``: ``box.ASCII``) and ``-`` bars, in the same widths."""
     from rich.console import Console  # rich only where something is rendered (start-up)
     from rich.table import Table
 
@@ -287,6 +334,13 @@ def _console_class() -> Any:
         def on_broken_pipe(self) -> None:
             self.quiet = True
             raise PipeClosed()
+
+        @property
+        def options(self) -> Any:
+            options = super().options
+            if self.is_dumb_terminal:
+                options.encoding = "ascii"  # what ConsoleOptions.ascii_only reads
+            return options
 
         def render(self, renderable: Any, options: Any = None) -> Any:
             if isinstance(renderable, Table) and renderable.box is not None \
@@ -344,13 +398,14 @@ def exit_code_for(statuses: list[str]) -> int:
 
 @contextlib.contextmanager
 def signals_deferred() -> Iterator[None]:
-    """Hold SIGINT and SIGTERM back while the block runs (main thread, where the platform
-    can): a Ctrl-C arriving mid-write is delivered after it, so a line is written whole."""
+    """Hold the stop signals (:data:`STOP_SIGNALS`) back while the block runs (main thread,
+    where the platform can): a Ctrl-C arriving mid-write is delivered after it, so a line is
+    written whole."""
     block = getattr(signal, "pthread_sigmask", None)
     if block is None or threading.current_thread() is not threading.main_thread():
         yield
         return
-    old = block(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
+    old = block(signal.SIG_BLOCK, set(STOP_SIGNALS))
     try:
         yield
     finally:
@@ -371,7 +426,8 @@ def write_json_line(obj: Any) -> None:
 
 __all__ = ["EXIT_BAD_INPUT", "MethodListCommand", "PipeClosed", "StderrGuard", "StdoutGuard",
            "Terminated",
-           "catch_sigterm", "duration", "exit_code_for", "is_terminal", "on_sigterm",
-           "parse_key_values", "pending_exit", "plural", "progress_allowed", "release_sigterm",
-           "say_stopped",
-           "stderr_console", "stdout_console", "stop_said", "stopped_code", "write_json_line"]
+           "catch_stop_signals", "duration", "exit_code_for", "install_stop_handlers",
+           "is_terminal", "on_stop_signal", "parse_key_values", "pending_exit", "plural",
+           "progress_allowed", "release_stop_signals", "restore_handlers", "say_stopped",
+           "stderr_console", "stdout_console", "stop_said", "stopped_code", "stopped_signal",
+           "stopped_word", "write_json_line"]

@@ -16,6 +16,7 @@ from lcpcli.cli.common import (
     say_stopped,
     stderr_console,
     stdout_console,
+    stopped_word,
     write_json_line,
 )
 from lcpcli.cli.export import EXACT_HELP, check_export_options, check_format, exact_cones
@@ -118,8 +119,8 @@ def enumerate_command(
     try:
         with tracker:
             res = enumerate_cones(prob, all_cones=all_cones, max_n=max_n, progress=tracker.update)
-    except KeyboardInterrupt:
-        say_stopped(f"lcpcli: interrupted after {tracker.done:,} of {1 << n:,} cones "
+    except KeyboardInterrupt as exc:
+        say_stopped(f"lcpcli: {stopped_word(exc)} after {tracker.done:,} of {1 << n:,} cones "
                     f"({100 * tracker.done / (1 << n):.2g} %); no verdict: every cone must be "
                     f"visited to list all solutions or prove there is none (for one solution "
                     f"use 'lcpcli solve')")

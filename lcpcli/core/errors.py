@@ -7,18 +7,32 @@ Exit codes (documented in ``lcpcli --help`` and the README):
 * 2 - bad usage or bad input (malformed file, wrong shapes, NaN/Inf, unknown option, ...), and
   an output that cannot be written (:class:`OutputError`: disk full, permission denied, ...);
 * 3 - internal error (a bug);
-* 130 - interrupted (Ctrl-C); 143 - terminated (SIGTERM; a batch closes its output first).
+* 129 - hung up (SIGHUP: the terminal closed; under ``nohup`` it is ignored and the command
+  runs on); 130 - interrupted (Ctrl-C); 143 - terminated (SIGTERM).  Each stops a command
+  cleanly (a batch closes its output first, an atomic output removes its temporary file):
+  :data:`STOP_SIGNALS`.
 """
 
 from __future__ import annotations
+
+import signal
 
 EXIT_OK = 0
 EXIT_SOLVED = EXIT_OK  # the same code, named for commands with a verdict
 EXIT_NOT_SOLVED = 1
 EXIT_BAD_INPUT = 2
 EXIT_INTERNAL = 3
+EXIT_HANGUP = 129
 EXIT_INTERRUPTED = 130
 EXIT_TERMINATED = 143
+
+#: The signals that stop a command as Ctrl-C does, each with its exit code (128 + its number,
+#: as a shell reports a process it killed); SIGHUP only where the platform has it.
+STOP_SIGNALS: dict[int, int] = {
+    signal.SIGINT: EXIT_INTERRUPTED,
+    signal.SIGTERM: EXIT_TERMINATED,
+    **({signal.SIGHUP: EXIT_HANGUP} if hasattr(signal, "SIGHUP") else {}),
+}
 
 
 class LcpError(Exception):

@@ -98,13 +98,17 @@ def test_results_without_fingerprint_are_refused(cli, tmp_path):
     with h5py.File(out, "a") as f:
         del f["s"]["chunk_digest"]
         del f["s"].attrs["solve_options"]
-    one_line(cli("solve", str(stack), "-o", str(out), "--resume"), "without --resume")
+    older = ("without the fingerprints of their input and solve settings (written by an older "
+             "lcpcli), so they cannot be checked against them; run again without --resume")
+    one_line(cli("solve", str(stack), "-o", str(out), "--resume"),
+             f"{out}: holds results of {stack} {older}")
     rows = tmp_path / "r.jsonl"
     assert cli("solve", str(stack), "-o", str(rows)).returncode == 0
     lines = [json.loads(x) for x in rows.read_text().splitlines()]
     rows.write_text("".join(json.dumps({k: v for k, v in r.items() if k != "input_hash"}) + "\n"
                             for r in lines))
-    one_line(cli("solve", str(stack), "-o", str(rows), "--resume"), "older lcpcli")
+    one_line(cli("solve", str(stack), "-o", str(rows), "--resume"),
+             f"{rows}: holds results of {stack} {older}")
     p = tmp_path / "p.json"
     p.write_text(json.dumps({"M": M[0].tolist(), "q": q[0].tolist()}))
     old_csv = tmp_path / "old.csv"
@@ -128,7 +132,8 @@ def test_per_file_batch_resume_checks_each_input(cli, tmp_path):
     (tmp_path / "p1.json").write_text(json.dumps({"M": M[1].tolist(), "q": (-q[1]).tolist()}))
     for ext in ("jsonl", "csv", "h5"):
         one_line(cli("solve", *files, "-o", str(tmp_path / f"r.{ext}"), "--resume"),
-                 "computed from other content")
+                 f"holds results of {files[1]} computed from other data: {files[1]} has "
+                 f"changed since; run again without --resume, or give another --output")
 
 
 @pytest.mark.parametrize("ext", ["jsonl", "csv", "h5"])
@@ -161,6 +166,39 @@ def test_per_file_batch_resume_checks_the_settings(cli, tmp_path, ext):
         '{"method": "lemke-revised", "options": {"max_iter": 50}, "tol": null}'}
 
 
+@pytest.mark.parametrize(("kind", "ext"), [("stack", "h5"), ("stack", "npz"), ("stack", "jsonl"),
+                                         ("stack", "csv"), ("files", "jsonl"), ("files", "csv"),
+                                         ("files", "h5")])
+def test_a_refused_resume_reads_the_same_for_stacks_and_problem_files(cli, tmp_path, kind,
+                                                                       ext):
+    """Other settings and other data are refused in one wording, the result file first, for
+    a stacked and a per-file batch alike (a stacked .h5/.npz said "computed with {raw JSON},
+    not {raw JSON}: give the same options", a stack's other data "holds results computed from
+    other data than s.h5 has now", a problem file's "of p0.json computed from other content
+    than the file has now")."""
+    M, q = pd_stack(3, 4)
+    stack = tmp_path / "s.h5"
+    write_stack(stack, M, q)
+    inputs = [str(stack)] if kind == "stack" else problem_files(tmp_path, M, q)
+    source = inputs[0]
+    out = tmp_path / f"r.{ext}"
+    assert cli("solve", *inputs, "-o", str(out), "-j", "1").returncode == 0
+    one_line(cli("solve", *inputs, "-o", str(out), "--resume", "-m", "pgs"),
+             f"lcpcli: error: {out}: holds results of {source} computed with other settings: "
+             f"method was 'auto', now 'pgs'; give the same settings, or run again without "
+             f"--resume")
+    if kind == "stack":
+        write_stack(stack, M, -q)
+        which = " (problems 0 to 2 differ)"
+    else:
+        Path(source).write_text(json.dumps({"M": M[0].tolist(), "q": (-q[0]).tolist()}))
+        which = ""
+    one_line(cli("solve", *inputs, "-o", str(out), "--resume"),
+             f"lcpcli: error: {out}: holds results of {source} computed from other data: "
+             f"{source} has changed since{which}; run again without --resume, or give another "
+             f"--output")
+
+
 def test_per_file_rows_without_solve_options_are_refused(cli, tmp_path):
     """Rows of an older lcpcli (input_hash but no solve_options): refused, run without --resume."""
     p = tmp_path / "p.json"
@@ -171,7 +209,9 @@ def test_per_file_rows_without_solve_options_are_refused(cli, tmp_path):
     rows = [json.loads(x) for x in out.read_text().splitlines()]
     out.write_text("".join(json.dumps({k: v for k, v in r.items() if k != "solve_options"})
                            + "\n" for r in rows))
-    one_line(cli("solve", str(p), "-o", str(out), "--resume"), "older lcpcli")
+    one_line(cli("solve", str(p), "-o", str(out), "--resume"),
+             f"lcpcli: error: {out}: holds results of {p} without the fingerprints of their "
+             f"input and solve settings (written by an older lcpcli)")
 
 
 def test_status_77_is_one_line(cli, tmp_path):

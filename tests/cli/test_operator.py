@@ -108,15 +108,17 @@ main(sys.argv[3:])
 
 
 @pytest.mark.parametrize(("sig", "code", "word"), [("SIGTERM", 143, "terminated"),
-                                                    ("SIGINT", 130, "interrupted")])
+                                                    ("SIGINT", 130, "interrupted"),
+                                                    ("SIGHUP", 129, "hung up")])
 @pytest.mark.parametrize("where", ["plain", "swallowed"])
 def test_signal_while_an_output_is_written_leaves_the_previous_file(tmp_path, sig, code, word,
                                                                    where):
-    """SIGTERM (``kill``, ``timeout``, a job scheduler) stops a one-file output as Ctrl-C
-    does: exit 143, one line, the previous output byte for byte, no temporary file (SIGTERM
-    killed the process, exit -15, and left ``.out.json.XXXXXXXX.tmp`` beside it).  An
-    interrupt raised where Python ignores it (a weak reference's callback) is delivered
-    again, not lost (it was: the command ran on and exited 0)."""
+    """SIGTERM (``kill``, ``timeout``, a job scheduler) and SIGHUP (the terminal closed)
+    stop a one-file output as Ctrl-C does: exit 143 or 129, one line, the previous output
+    byte for byte, no temporary file (each killed the process, exit -15 or -1, and left
+    ``.out.json.XXXXXXXX.tmp`` beside it).  An interrupt raised where Python ignores it (a
+    weak reference's callback) is delivered again, not lost (it was: the command ran on and
+    exited 0)."""
     out = tmp_path / "out.json"
     out.write_text("previous\n")
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
@@ -127,6 +129,48 @@ def test_signal_while_an_output_is_written_leaves_the_previous_file(tmp_path, si
     assert r.stderr == f"lcpcli: {word}\n"
     assert out.read_text() == "previous\n"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out.json"]
+
+
+@pytest.mark.parametrize("ext", ["npz", "h5"])
+def test_sighup_while_a_stack_is_converted_leaves_the_previous_file(tmp_path, ext):
+    """``lcpcli convert many.h5 out.npz --stack`` hung up as it replaces its output: exit
+    129, one line, the previous output byte for byte and no temporary file beside it."""
+    import numpy as np
+
+    from lcpcli.core.problem import Problem
+    from lcpcli.io.hdf5_format import write_many
+
+    many, out = tmp_path / "in" / "many.h5", tmp_path / "out" / f"out.{ext}"
+    many.parent.mkdir(), out.parent.mkdir()
+    write_many([Problem.create(np.eye(2) * (k + 1), [-1.0, k], name=f"p{k}") for k in range(5)],
+               many)
+    out.write_bytes(b"previous\n")
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    env.pop("LCPCLI_DEBUG", None)
+    r = subprocess.run([sys.executable, "-c", SELF_SIGNAL, "SIGHUP", "plain", "convert",
+                        str(many), str(out), "--stack", "--force"],
+                       env=env, capture_output=True, text=True, timeout=120)
+    assert r.returncode == 129, r.stderr
+    assert r.stderr == "lcpcli: hung up\n"
+    assert out.read_bytes() == b"previous\n"
+    assert sorted(p.name for p in out.parent.iterdir()) == [out.name]
+
+
+def test_nohup_keeps_a_command_running_after_sighup(tmp_path):
+    """Started with SIGHUP ignored (``nohup lcpcli ...``), a command keeps ignoring it: the
+    output is written and the exit code is the work's (0)."""
+    import signal
+
+    out = tmp_path / "out.json"
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    env.pop("LCPCLI_DEBUG", None)
+    r = subprocess.run([sys.executable, "-c", SELF_SIGNAL, "SIGHUP", "plain", "solve",
+                        str(SAMPLE), "-o", str(out)], env=env, capture_output=True, text=True,
+                       timeout=120, preexec_fn=lambda: signal.signal(signal.SIGHUP,
+                                                                     signal.SIG_IGN))
+    assert r.returncode == 0 and r.stderr == "", r.stderr
+    assert '"status": "solved"' in out.read_text()
+    assert sorted(p.name for p in tmp_path.iterdir()) == [out.name]
 
 
 def run_with_broken_stderr(*args: str) -> tuple[int, str]:
@@ -183,3 +227,72 @@ def test_a_batch_stopped_before_its_output_exists_does_not_point_at_it(tmp_path,
     assert exc.value.code == 130
     assert err == f"lcpcli: interrupted; nothing was written to {out}\n"
     assert not out.exists()
+
+
+def on_a_terminal(args: list[str], term: str) -> str:
+    """``lcpcli ARGS`` on a pseudo-terminal (100 columns) with ``TERM=term``: what it wrote
+    there, CR LF as LF."""
+    import pty
+    import select
+
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "COLUMNS": "100", "LINES": "60", "TERM": term}
+    for name in ("NO_COLOR", "FORCE_COLOR", "FORCE_TERMINAL", "TTY_COMPATIBLE", "LCPCLI_DEBUG"):
+        env.pop(name, None)
+    pid, fd = pty.fork()
+    if pid == 0:  # child: the CLI on the terminal
+        os.execvpe(sys.executable, [sys.executable, "-m", "lcpcli", *args], env)
+    out = b""
+    try:
+        while select.select([fd], [], [], 120)[0]:
+            try:
+                chunk = os.read(fd, 65536)
+            except OSError:  # the child closed the terminal
+                break
+            if not chunk:
+                break
+            out += chunk
+    finally:
+        os.close(fd)
+        os.waitpid(pid, 0)
+    return out.decode().replace("\r\n", "\n")
+
+
+@pytest.mark.skipif(not hasattr(os, "openpty") or sys.platform == "win32", reason="POSIX pty")
+@pytest.mark.parametrize("args", [["solve", str(SAMPLE)], ["methods"],
+                                  ["solve", str(SAMPLE), str(SAMPLE.parent / "degenerate.json")],
+                                  ["info", str(SAMPLE)]])
+def test_a_dumb_terminal_gets_ascii_rules_and_nothing_else_changes(args):
+    """``TERM=dumb`` (Emacs' shell, a terminal that cannot draw boxes): tables are ruled with
+    ASCII (``+--+``, ``|``), no escape sequence (colour, bold) is written, and every line is
+    the one a capable terminal gets with its box characters and styles taken out (the table
+    was drawn with ``┏━┳`` and ``│`` there too); a batch's progress bar is drawn with ``-``
+    (it is shown once, at its end: rich draws no live display on a dumb terminal)."""
+    import re
+
+    dumb, xterm = on_a_terminal(args, "dumb"), on_a_terminal(args, "xterm-256color")
+    assert dumb.isascii() and "\x1b" not in dumb, dumb
+    assert "+--" in dumb and "|" in dumb
+    assert "━" in xterm and "\x1b[" in xterm  # the same run on a terminal that draws them
+    plain = re.sub(r"\x1b\[[0-9;?]*[A-Za-z]", "", xterm)  # styles, and the live display's moves
+
+    def masked(text: str) -> list[str]:  # timings vary from run to run
+        lines = [re.sub(r"\d", "0", line) for line in text.splitlines()]
+        bar = [i for i, line in enumerate(lines) if line.startswith("solving ")]
+        if bar:  # what follows the progress bar (after it, rich's end of a live display)
+            lines = lines[bar[-1] + 1:]
+            while lines and not lines[0]:
+                lines.pop(0)
+        return lines
+
+    rules = str.maketrans({"┃": "|", "│": "|", "━": "-"})  # and the joints are ASCII's own
+    wanted = [line.translate(rules) for line in masked(plain)]
+    got = masked(dumb)
+    if "solving " in dumb:
+        assert re.search(r"^solving -{10,} 2/2 solved 2 ", dumb, re.M), dumb
+    assert len(got) == len(wanted)
+    for mine, theirs in zip(got, wanted, strict=True):
+        if not set(theirs) <= set("|- ") and not any(c.isalnum() for c in theirs):
+            # a rule (┏━┳━┓, ┡━╇━┩, └─┴─┘): ASCII's edges and joints
+            assert len(mine) == len(theirs) and set(mine) <= set("+-|"), (mine, theirs)
+        else:
+            assert mine == theirs

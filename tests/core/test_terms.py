@@ -30,7 +30,13 @@ def test_every_exit_code_is_defined_once_and_documented():
     codes = {name: getattr(errors, name) for name in dir(errors) if name.startswith("EXIT_")}
     assert codes["EXIT_SOLVED"] == codes["EXIT_OK"] == 0
     assert (codes["EXIT_NOT_SOLVED"], codes["EXIT_BAD_INPUT"], codes["EXIT_INTERNAL"],
-            codes["EXIT_INTERRUPTED"], codes["EXIT_TERMINATED"]) == (1, 2, 3, 130, 143)
+            codes["EXIT_HANGUP"], codes["EXIT_INTERRUPTED"],
+            codes["EXIT_TERMINATED"]) == (1, 2, 3, 129, 130, 143)
+    # a signal's exit code is 128 + its number, as a shell reports a process it killed
+    assert all(code == 128 + sig for sig, code in errors.STOP_SIGNALS.items())
+    assert set(errors.STOP_SIGNALS.values()) == {129, 130, 143}
+    readme = (ROOT / "README.md").read_text()
+    assert "| 129 / 130 / 143 |" in readme
     doc = errors.__doc__ or ""
     for value in set(codes.values()):
         assert re.search(rf"\b{value}\b", doc), value
