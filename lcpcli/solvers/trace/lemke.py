@@ -212,7 +212,8 @@ def lemke_traced(M: np.ndarray, q: np.ndarray, d: np.ndarray, max_iter: int, piv
         cols = np.where(loc < 0, -loc - 1, 0)
         return np.where(loc >= 0, (loc == i).astype(np.int64).astype(kind), -T[i, cols])
 
-    trivial = bool(n == 0 or np.min(q / d) >= 0)
+    with np.errstate(over="ignore"):
+        trivial = bool(n == 0 or np.min(q / d) >= 0)
     start = {"kind": "lemke", "pivot": 0, "entering": None, "leaving": None, "row": None,
              "entering_reason": None, "pivot_element": None, "ratio_test": None,
              "candidates": [], "lexicographic": None, "rule": "start",
@@ -235,13 +236,16 @@ def lemke_traced(M: np.ndarray, q: np.ndarray, d: np.ndarray, max_iter: int, piv
         step.update(state(nxt))
         trace.append(step)
 
-    ratios = q / d
+    with np.errstate(over="ignore"):  # q_i / d_i past the double range is -inf: most negative
+        ratios = q / d
     best = min(0, np.min(ratios)) if n else 0
     if best >= 0:
         return TRIVIAL, z, 0, basic, ray_dz, 0.0, 0.0, trace
-    r = int(np.flatnonzero(ratios <= best + tie_tol * abs(best))[-1])
+    # ties within tie_tol |best|; a best of -inf ties the rows that are -inf (best + tie_tol
+    # |best| is NaN there, so no row tied: IndexError, exit 3)
+    tied0 = ratios == best if best == -np.inf else ratios <= best + tie_tol * abs(best)
+    r = int(np.flatnonzero(tied0)[-1])
     entering, c, leaving = nz, n, int(basic[r])
-    tied0 = ratios <= best + tie_tol * abs(best)
     rows0 = [{"row": i + 1, "basic": name(basic[i]), "q": scalar(q[i]), "column": scalar(d[i]),
               "ratio": scalar(-ratios[i]) if q[i] < 0 else None, "eligible": bool(q[i] < 0),
               "tied": bool(tied0[i]) and int(np.sum(tied0)) > 1,
