@@ -33,6 +33,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import pytest
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 from invariants import cli, one_line_error, strict_json
@@ -333,3 +334,121 @@ def test_trace_bad_input_one_line(tmp_path: Path, case: TraceCase, how: str) -> 
     code, out, err = cli("solve", path, "--trace", *args)
     one_line_error(code, err)
     assert out == "", out
+
+
+# ---------------------------------------------------------------------------- pivot --follow
+def on_lemke_path(dependent: list[str], driving: str) -> bool:
+    """Whether ``driving`` entering from ``dependent`` is a step of Lemke's path: ``z0`` from
+    a complementary basis (Lemke's first pivot), else, from a basis holding ``z0``, one of the
+    pair with neither variable dependent."""
+    if "z0" not in dependent:
+        return driving == "z0"
+    pair = ("w" if driving[0] == "z" else "z") + driving[1:]
+    return driving != "z0" and pair not in dependent
+
+
+@st.composite
+def follow_starts(draw: st.DrawFn) -> tuple[np.ndarray, np.ndarray, list[str], str, bool]:
+    """``(M, q, dependent, driving, any_basis)``: small integers, a complementary or almost
+    complementary basis (or, with ``any_basis``, one holding a pair) and an independent
+    driving variable."""
+    n = draw(st.integers(1, 3))
+    rng = np.random.default_rng(draw(st.integers(0, 2**32 - 1)))
+    M = rng.integers(-3, 4, (n, n)).astype(np.float64)
+    q = rng.integers(-3, 4, n).astype(np.float64)
+    dep = [("z" if rng.random() < 0.5 else "w") + str(i) for i in range(1, n + 1)]
+    kind = draw(st.sampled_from(["start", "complementary", "almost", "pair"]))
+    if kind == "start":
+        dep = [f"w{i}" for i in range(1, n + 1)]
+    elif kind == "almost":
+        dep[int(rng.integers(0, n))] = "z0"
+    elif kind == "pair" and n >= 2:
+        i = int(rng.integers(1, n + 1))
+        dep = [f"w{i}", f"z{i}", *[v for v in dep if v[1:] != str(i)]][:n]
+    names = [f"w{i}" for i in range(1, n + 1)] + [f"z{i}" for i in range(1, n + 1)] + ["z0"]
+    rest = [v for v in names if v not in dep]
+    driving = "z0" if kind == "start" and draw(st.booleans()) else draw(st.sampled_from(rest))
+    pair = any(f"w{i}" in dep and f"z{i}" in dep for i in range(1, n + 1))
+    return M, q, dep, driving, pair
+
+
+@SETTINGS
+@given(start=follow_starts())
+def test_follow_from_any_start(tmp_path: Path, start: tuple) -> None:
+    """``pivot --follow`` from a start on Lemke's path: exit 0 (or one line, exit 2, for a
+    singular basis), every basis (almost) complementary, ``z0`` in every one but the last
+    after ``z0`` left; from ``w1..wn`` with ``z0`` driving, the bases of ``solve --trace``.
+    From any other start: one line, exit 2, that says which ``--driving`` Lemke's path needs,
+    never "driving variable ... is not independent" (which the complementary rule gave when
+    it named a variable that had just entered)."""
+    M, q, dep, driving, pair = start
+    n = len(q)
+    path = tmp_path / f"f{np.random.default_rng().integers(1 << 40)}.json"
+    path.write_text(json.dumps({"M": M.tolist(), "q": q.tolist()}))
+    code, out, err = cli("pivot", path, "-d", ",".join(dep), "--driving", driving, "--follow",
+                         "--json", *(["--any-basis"] if pair else []))
+    assert "is not independent" not in err, err
+    if not pair and not on_lemke_path(dep, driving):
+        one_line_error(code, err)
+        assert "--follow follows Lemke's path" in err and "give --driving" in err, err
+        return
+    if code == 2:
+        one_line_error(code, err)
+        assert "singular" in err or "--follow:" in err and pair, err
+        return
+    assert code == 0, err
+    doc = strict_json(out)
+    steps = doc.get("steps", [doc])
+    for k, s in enumerate(steps):
+        d = s["dependent"]
+        assert len(d) == n
+        if pair:
+            continue
+        assert not any(f"w{i}" in d and f"z{i}" in d for i in range(1, n + 1)), (k, d)
+        if 0 < k < len(steps) - 1:
+            assert "z0" in d, (k, d)
+    if dep == [f"w{i}" for i in range(1, n + 1)] and driving == "z0" and min(q) < 0:
+        code, out, err = cli("solve", path, "-m", "lemke-tableau", "--trace", "--json")
+        trace = [s["basis"] for s in strict_json(out)["trace"] if s["rule"] != "ray"]
+        assert [s["dependent"] for s in steps] == trace
+
+
+@pytest.mark.parametrize("M,q,args,before", [
+    # w1 blocks z1 at once: the complementary rule named z1 again
+    ([[-1, 0], [0, 1]], [1, 1], ["-d", "w1,w2", "--driving", "z1"],
+     "driving variable z1 is not independent"),
+    # w2 blocks z1: the next basis held w1 and z1
+    ([[1, 0], [-1, 1]], [1, 1], ["-d", "w1,w2", "--driving", "z1"],
+     "dependent tuple holds both w1 and z1"),
+    # z2's complement w2 is dependent beside z0: z0 blocks, the final basis held w2 and z2
+    ([[1, 2], [-2, 1]], [-1, 0], ["-d", "z0,w2", "--driving", "z2"],
+     "dependent tuple holds both w2 and z2"),
+    # ... or w2 blocks and the rule named z2 again
+    ([[-2, 0], [2, -2]], [-1, 0], ["-d", "z0,w2", "--driving", "z2"],
+     "driving variable z2 is not independent"),
+])
+def test_follow_off_lemkes_path_says_which_driving(tmp_path: Path, M: list, q: list,
+                                                   args: list, before: str) -> None:
+    """The start of --follow is judged before any pivot: one line naming the --driving that
+    Lemke's path takes (the messages before were about later bases the user never gave)."""
+    path = tmp_path / "p.json"
+    path.write_text(json.dumps({"M": M, "q": q}))
+    code, out, err = cli("pivot", path, *args, "--follow")
+    one_line_error(code, err)
+    assert before not in err and out == ""
+    assert "--follow follows Lemke's path" in err, err
+    assert ("give --driving z0" if "z0" not in args[1] else "give --driving w1 or --driving z1") \
+        in err, err
+
+
+def test_follow_any_basis_rule_names_a_dependent_variable(tmp_path: Path) -> None:
+    """From a start holding a pair (--any-basis) the complementary rule can name a dependent
+    variable: the message says so in Lemke's terms (it was "driving variable w1 is not
+    independent")."""
+    path = tmp_path / "p.json"
+    path.write_text(json.dumps({"M": [[0, 1], [3, 2]], "q": [1, 0]}))
+    code, out, err = cli("pivot", path, "-d", "w1,z1", "--any-basis", "--driving", "z0",
+                         "--follow")
+    one_line_error(code, err)
+    assert "is not independent" not in err
+    assert "at step 0 z1 left" in err and "w1 would enter next" in err, err

@@ -165,6 +165,41 @@ def canonical_independent(dependent: tuple[Var, ...], n: int) -> tuple[Var, ...]
     return tuple(v for v in all_vars(n) if v not in dep)
 
 
+def off_lemke_path(dependent: tuple[Var, ...], driving: Var, n: int) -> str | None:
+    """Why ``driving`` entering from the basis ``dependent`` is no step of Lemke's path (one
+    line, in the user's terms, with what to give instead); None when it is one.
+
+    Lemke's path runs through almost complementary bases: ``z0`` and one variable of each pair
+    but one, whose two variables are both independent; one of them has just left and the
+    other enters (the complementary rule).  It starts from a complementary basis (one variable
+    of every pair, no ``z0``; ``w1..wn`` in the method) with ``z0`` entering.  A driving
+    variable whose complement is dependent brings the basis back to a complementary one
+    (when its complement blocks, the rule would make it enter again: it was "not
+    independent") or to one holding a pair (``w_i`` and ``z_i`` both dependent).  Tuples that
+    hold a pair (``--any-basis``) are not judged here.
+    """
+    art = ("z", n)
+    names = ", ".join(var_name(v, n) for v in dependent)
+    drv = var_name(driving, n)
+    dep = set(dependent)
+    if any(("w", i) in dep and ("z", i) in dep for i in range(n)):
+        return None
+    single = f"(--driving {drv} without --follow shows this one ratio test)"
+    if art not in dep:
+        if driving == art:
+            return None
+        return (f"--follow follows Lemke's path, which from a basis without {ARTIFICIAL} "
+                f"({names}) starts with {ARTIFICIAL} entering (Lemke's first pivot), not "
+                f"{drv}: give --driving {ARTIFICIAL} {single}")
+    free = [i for i in range(n) if ("w", i) not in dep and ("z", i) not in dep]
+    if driving[1] in free and driving != art:
+        return None
+    pair = " or ".join(f"--driving {var_name((k, i), n)}" for i in free for k in "wz")
+    return (f"--follow follows Lemke's path, on which the variable entering a basis with "
+            f"{ARTIFICIAL} ({names}) is one of the pair with neither variable dependent (one "
+            f"of them just left, the other enters), not {drv}: give {pair} {single}")
+
+
 def follow(Maug: np.ndarray, q: np.ndarray, dependent: tuple[Var, ...],
            independent: tuple[Var, ...] | None, driving: Var, *, full: bool = False,
            any_basis: bool = False, max_steps: int = FOLLOW_MAX_STEPS
@@ -178,7 +213,18 @@ def follow(Maug: np.ndarray, q: np.ndarray, dependent: tuple[Var, ...],
     n = q.shape[0]
     out = []
     dep, ind, drv = tuple(dependent), independent, driving
+    if driving not in dep and (why := off_lemke_path(dep, driving, n)) is not None:
+        raise ProblemError(why)
     for _ in range(max_steps):
+        if out and drv in dep:  # from a start holding a pair (--any-basis) the rule can name
+            # a dependent variable (it said "driving variable z1 is not independent")
+            names = ", ".join(var_name(v, n) for v in dep)
+            raise ProblemError(
+                f"--follow: at step {len(out) - 1} {out[-1][1]['blocking']} left, and by the "
+                f"complementary rule its complement {var_name(drv, n)} would enter next, but "
+                f"it is dependent in the new basis ({names}): this path is not Lemke's, whose "
+                f"bases hold {ARTIFICIAL} and one variable of every other pair (start from "
+                f"w1..w{n} with --driving {ARTIFICIAL})")
         t = principal_pivot(Maug, q, dep, ind, driving=drv, full=full, any_basis=any_basis)
         step = driving_step(t, Maug)
         out.append((t, step))
