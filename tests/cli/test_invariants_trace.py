@@ -407,7 +407,7 @@ def test_follow_from_any_start(tmp_path: Path, start: tuple) -> None:
         assert not any(f"w{i}" in d and f"z{i}" in d for i in range(1, n + 1)), (k, d)
         if 0 < k < len(steps) - 1:
             assert "z0" in d, (k, d)
-    if dep == [f"w{i}" for i in range(1, n + 1)] and driving == "z0" and min(q) < 0:
+    if dep == [f"w{i}" for i in range(1, n + 1)] and driving == "z0":
         code, out, err = cli("solve", path, "-m", "lemke-tableau", "--trace", "--json")
         trace = [s["basis"] for s in strict_json(out)["trace"] if s["rule"] != "ray"]
         assert [s["dependent"] for s in steps] == trace
@@ -452,3 +452,17 @@ def test_follow_any_basis_rule_names_a_dependent_variable(tmp_path: Path) -> Non
     one_line_error(code, err)
     assert "is not independent" not in err
     assert "at step 0 z1 left" in err and "w1 would enter next" in err, err
+
+
+def test_driving_z0_from_a_solution_is_no_ray(tmp_path: Path) -> None:
+    """``q' >= 0`` on a complementary basis solves the LCP: with ``z0`` driving, Lemke's method
+    makes no pivot (rule ``solution``, as ``solve --trace`` says for ``q >= 0``); it was a
+    "secondary ray" when no entry of z0's column was negative."""
+    path = tmp_path / "p.json"
+    path.write_text(json.dumps({"M": [[2, 1], [1, 2]], "q": [1, 0]}))
+    for extra in ([], ["--follow"]):
+        code, out, err = cli("pivot", path, "-d", "w1,w2", "--driving", "z0", "--json", *extra)
+        assert code == 0, err
+        test = strict_json(out)["ratio_test"]
+        assert test["rule"] == "solution" and test["blocking"] is None, test
+        assert "solves the LCP" in test["reason"] and "ray" not in test["reason"]

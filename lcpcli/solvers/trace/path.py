@@ -116,6 +116,16 @@ def driving_step(t: PivotTransform, Maug: np.ndarray, *, piv_tol: float = PIVOT_
                                f"{r + 1} has the most negative q'_i / c_i" +
                                (f" ({tied.size} rows tie, the last one wins)"
                                 if tied.size > 1 else ""))})
+    elif drv == ARTIFICIAL and complementary(t.dependent, t.n):
+        # q' >= 0 on a complementary basis: it solves the LCP, Lemke's method makes no pivot
+        # (the test on z0's column said "secondary ray" when no entry was negative)
+        out.update({"formula": None, "formula_murty": None, "rows": [], "min_ratio": None,
+                    "rule": "solution",
+                    "reason": (f"q' >= 0 on a complementary basis: it solves the LCP (each "
+                               f"dependent variable equals its q', the others are 0), so "
+                               f"Lemke's method makes no pivot and {ARTIFICIAL} does not "
+                               f"enter")})
+        return out
     else:
         test = ratio_test(col, qp, names, drv, piv_tol, tie_tol)
         cand = test["tied_rows"]
@@ -157,6 +167,11 @@ def driving_step(t: PivotTransform, Maug: np.ndarray, *, piv_tol: float = PIVOT_
         out["reason"] += (f": {blocking} leaves; by the complementary rule {nxt} enters at "
                           f"the next Lemke step")
     return out
+
+
+def complementary(dependent: tuple[Var, ...], n: int) -> bool:
+    """Whether the basis holds one variable of every pair (no ``z0``, no pair twice)."""
+    return len({v[1] for v in dependent if v != ("z", n)}) == n
 
 
 def canonical_independent(dependent: tuple[Var, ...], n: int) -> tuple[Var, ...]:
