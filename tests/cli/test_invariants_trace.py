@@ -241,6 +241,15 @@ def check_solved(case: TraceCase, doc: dict) -> None:
                                                                      0.0], [0.0, -2.0, 1e-310]]),
                         np.array([1e-310, -1.0, -1.7976931348623157e308]), None, "lemke",
                         "json"))
+# q' = inf after the first pivot: ztol = 1e-13 max q' = inf, and the replica's zero of the
+# data's type, 0 * q', was NaN: no row tied, a ray where the kernel pivots three times
+@example(case=TraceCase(
+    "extreme", np.array([[1.0715086071862673e301, -1.7976931348623157e308, 1e-310, 0.0],
+                         [1.0715086071862673e301, 0.0, -5e-324, -1.0],
+                         [9.332636185032189e-302, -1.7976931348623157e308, 3.0, 5e-324],
+                         [-1.0, 1.0, 1e-310, -5e-324]]),
+    np.array([-5e-324, 9.332636185032189e-302, -1.7976931348623157e308, 9.332636185032189e-302]),
+    np.array([2.0, 1.7976931348623157e308, 3.0, 1.7976931348623157e308]), "lemke-tableau", "json"))
 @given(case=trace_cases())
 def test_trace_is_a_lemke_path(tmp_path: Path, case: TraceCase) -> None:
     """Exit 0 or 1 with the status's code, parseable output of every format, a Lemke path

@@ -15,6 +15,7 @@ Variable codes as in the kernel: ``0..n-1`` = ``w1..wn``, ``n..2n-1`` = ``z1..zn
 from __future__ import annotations
 
 from collections.abc import Callable
+from fractions import Fraction
 from typing import Any
 
 import numpy as np
@@ -88,7 +89,10 @@ def ratio_test(col: np.ndarray, qb: np.ndarray, basis: list[str], entering: str,
     qmax = max(0.0, float(np.max(qb))) if qb.size else 0.0
     ztol = ZERO_Q * qmax
     elig = np.flatnonzero(col < -ptol)
-    v = np.where(qb[elig] > ztol, qb[elig], qb[elig] * 0)  # a zero of the data's type
+    # q' below ztol counts as a zero of the data's type (0 * q' was NaN for a q' of inf, when
+    # ztol = 1e-13 max q' is inf too: no row tied, a false ray; the kernel takes 0.0)
+    zero = Fraction(0) if qb.dtype == object else 0.0
+    v = np.where(qb[elig] > ztol, qb[elig], zero)
     with np.errstate(over="ignore"):  # a ratio past the double range is inf: it blocks last
         t = v / (-col[elig])
     tmin = np.min(t) if elig.size else None
