@@ -8,11 +8,14 @@ tolerances as the method) to ``q'`` and the driving column ``M'_driving`` of the
 would enter next by the complementary rule.  :func:`follow` repeats this from basis to basis:
 the blocking variable's slot of ``w'`` gets the driving variable, its complement drives next,
 until ``z0`` leaves (the final basis is the last item), no row blocks (a ray), or
-``max_steps``.
+``max_steps``; its start must be a step of Lemke's path (:func:`off_lemke_path` says why
+not).
 
 When ``q'`` has negative entries the basis is not one of Lemke's feasible bases; with ``z0``
 driving, the method's first pivot applies (``z0`` rises to ``max(-q'_i / c_i)``; the most
 negative ratio leaves, ties to the last row), otherwise the test is refused with a reason.
+With ``q' >= 0`` on a complementary basis and ``z0`` driving, the basis solves the LCP: no
+test (rule ``solution``), as the method makes no pivot.
 """
 
 from __future__ import annotations
