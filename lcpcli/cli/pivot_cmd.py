@@ -31,7 +31,10 @@ def pivot(
                                            "Repeat once per --dependent."),
     follow: bool = typer.Option(False, "--follow",
                                 help="From the (one) basis and --driving, follow Lemke's rule "
-                                     "basis by basis until z0 leaves or a ray."),
+                                     "basis by basis until z0 leaves or a ray. The start must "
+                                     "be on Lemke's path: w1..wn (any basis without z0) with "
+                                     "--driving z0, or a basis with z0 and a variable of the "
+                                     "pair with neither dependent."),
     covering: str = typer.Option(None, "--covering",
                                  help="Artificial column when M has n columns, e.g. '1,2,1' "
                                       "[default: all ones]."),

@@ -114,7 +114,10 @@ cdef Py_ssize_t initial_row(const double* q, const double* d, Py_ssize_t n,
     if best >= 0.0:
         return -1
     for i in range(n):
-        if q[i] / d[i] <= best + tie_tol * fabs(best):
+        v = q[i] / d[i]
+        # a ratio past the double range is -inf, the most negative: the -inf rows tie (the
+        # bound best + tie_tol |best| is NaN there: no row, and 'q >= 0' was reported)
+        if v == best if best == -INFINITY else v <= best + tie_tol * fabs(best):
             r = i
     return r
 
@@ -133,6 +136,7 @@ cdef Py_ssize_t ratio_candidates(const double* col, const double* qb, const int6
     """
     cdef Py_ssize_t i, nc = 0
     cdef double a, v, t, cmax = 0.0, qmax = 0.0, ptol, ztol, tmin = INFINITY
+    cdef bint blocks = False
     for i in range(n):
         a = fabs(col[i])
         if a > cmax:
@@ -148,10 +152,11 @@ cdef Py_ssize_t ratio_candidates(const double* col, const double* qb, const int6
         if a < -ptol:
             v = qb[i] if qb[i] > ztol else 0.0
             t = v / (-a)
+            blocks = True
             if t < tmin:
                 tmin = t
-    if tmin == INFINITY:
-        return 0
+    if not blocks:  # no row falls: a ray (a ratio past the double range is inf and blocks
+        return 0    # last; every ratio inf: those rows tie, as in the trace's replica)
     for i in range(n):
         a = col[i]
         if a < -ptol:

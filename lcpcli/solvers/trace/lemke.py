@@ -15,6 +15,7 @@ Variable codes as in the kernel: ``0..n-1`` = ``w1..wn``, ``n..2n-1`` = ``z1..zn
 from __future__ import annotations
 
 from collections.abc import Callable
+from fractions import Fraction
 from typing import Any
 
 import numpy as np
@@ -88,7 +89,10 @@ def ratio_test(col: np.ndarray, qb: np.ndarray, basis: list[str], entering: str,
     qmax = max(0.0, float(np.max(qb))) if qb.size else 0.0
     ztol = ZERO_Q * qmax
     elig = np.flatnonzero(col < -ptol)
-    v = np.where(qb[elig] > ztol, qb[elig], qb[elig] * 0)  # a zero of the data's type
+    # q' below ztol counts as a zero of the data's type (0 * q' was NaN for a q' of inf, when
+    # ztol = 1e-13 max q' is inf too: no row tied, a false ray; the kernel takes 0.0)
+    zero = Fraction(0) if qb.dtype == object else 0.0
+    v = np.where(qb[elig] > ztol, qb[elig], zero)
     with np.errstate(over="ignore"):  # a ratio past the double range is inf: it blocks last
         t = v / (-col[elig])
     tmin = np.min(t) if elig.size else None
@@ -212,7 +216,8 @@ def lemke_traced(M: np.ndarray, q: np.ndarray, d: np.ndarray, max_iter: int, piv
         cols = np.where(loc < 0, -loc - 1, 0)
         return np.where(loc >= 0, (loc == i).astype(np.int64).astype(kind), -T[i, cols])
 
-    trivial = bool(n == 0 or np.min(q / d) >= 0)
+    with np.errstate(over="ignore"):
+        trivial = bool(n == 0 or np.min(q / d) >= 0)
     start = {"kind": "lemke", "pivot": 0, "entering": None, "leaving": None, "row": None,
              "entering_reason": None, "pivot_element": None, "ratio_test": None,
              "candidates": [], "lexicographic": None, "rule": "start",
@@ -235,13 +240,16 @@ def lemke_traced(M: np.ndarray, q: np.ndarray, d: np.ndarray, max_iter: int, piv
         step.update(state(nxt))
         trace.append(step)
 
-    ratios = q / d
+    with np.errstate(over="ignore"):  # q_i / d_i past the double range is -inf: most negative
+        ratios = q / d
     best = min(0, np.min(ratios)) if n else 0
     if best >= 0:
         return TRIVIAL, z, 0, basic, ray_dz, 0.0, 0.0, trace
-    r = int(np.flatnonzero(ratios <= best + tie_tol * abs(best))[-1])
+    # ties within tie_tol |best|; a best of -inf ties the rows that are -inf (best + tie_tol
+    # |best| is NaN there, so no row tied: IndexError, exit 3)
+    tied0 = ratios == best if best == -np.inf else ratios <= best + tie_tol * abs(best)
+    r = int(np.flatnonzero(tied0)[-1])
     entering, c, leaving = nz, n, int(basic[r])
-    tied0 = ratios <= best + tie_tol * abs(best)
     rows0 = [{"row": i + 1, "basic": name(basic[i]), "q": scalar(q[i]), "column": scalar(d[i]),
               "ratio": scalar(-ratios[i]) if q[i] < 0 else None, "eligible": bool(q[i] < 0),
               "tied": bool(tied0[i]) and int(np.sum(tied0)) > 1,

@@ -8,11 +8,14 @@ tolerances as the method) to ``q'`` and the driving column ``M'_driving`` of the
 would enter next by the complementary rule.  :func:`follow` repeats this from basis to basis:
 the blocking variable's slot of ``w'`` gets the driving variable, its complement drives next,
 until ``z0`` leaves (the final basis is the last item), no row blocks (a ray), or
-``max_steps``.
+``max_steps``; its start must be a step of Lemke's path (:func:`off_lemke_path` says why
+not).
 
 When ``q'`` has negative entries the basis is not one of Lemke's feasible bases; with ``z0``
 driving, the method's first pivot applies (``z0`` rises to ``max(-q'_i / c_i)``; the most
 negative ratio leaves, ties to the last row), otherwise the test is refused with a reason.
+With ``q' >= 0`` on a complementary basis and ``z0`` driving, the basis solves the LCP: no
+test (rule ``solution``), as the method makes no pivot.
 """
 
 from __future__ import annotations
@@ -116,6 +119,16 @@ def driving_step(t: PivotTransform, Maug: np.ndarray, *, piv_tol: float = PIVOT_
                                f"{r + 1} has the most negative q'_i / c_i" +
                                (f" ({tied.size} rows tie, the last one wins)"
                                 if tied.size > 1 else ""))})
+    elif drv == ARTIFICIAL and complementary(t.dependent, t.n):
+        # q' >= 0 on a complementary basis: it solves the LCP, Lemke's method makes no pivot
+        # (the test on z0's column said "secondary ray" when no entry was negative)
+        out.update({"formula": None, "formula_murty": None, "rows": [], "min_ratio": None,
+                    "rule": "solution",
+                    "reason": (f"q' >= 0 on a complementary basis: it solves the LCP (each "
+                               f"dependent variable equals its q', the others are 0), so "
+                               f"Lemke's method makes no pivot and {ARTIFICIAL} does not "
+                               f"enter")})
+        return out
     else:
         test = ratio_test(col, qp, names, drv, piv_tol, tie_tol)
         cand = test["tied_rows"]
@@ -159,10 +172,50 @@ def driving_step(t: PivotTransform, Maug: np.ndarray, *, piv_tol: float = PIVOT_
     return out
 
 
+def complementary(dependent: tuple[Var, ...], n: int) -> bool:
+    """Whether the basis holds one variable of every pair (no ``z0``, no pair twice)."""
+    return len({v[1] for v in dependent if v != ("z", n)}) == n
+
+
 def canonical_independent(dependent: tuple[Var, ...], n: int) -> tuple[Var, ...]:
     """The variables not in ``dependent``, in the original order ``w1..wn, z1..zn, z0``."""
     dep = set(dependent)
     return tuple(v for v in all_vars(n) if v not in dep)
+
+
+def off_lemke_path(dependent: tuple[Var, ...], driving: Var, n: int) -> str | None:
+    """Why ``driving`` entering from the basis ``dependent`` is no step of Lemke's path (one
+    line, in the user's terms, with what to give instead); None when it is one.
+
+    Lemke's path runs through almost complementary bases: ``z0`` and one variable of each pair
+    but one, whose two variables are both independent; one of them has just left and the
+    other enters (the complementary rule).  It starts from a complementary basis (one variable
+    of every pair, no ``z0``; ``w1..wn`` in the method) with ``z0`` entering.  A driving
+    variable whose complement is dependent brings the basis back to a complementary one
+    (when its complement blocks, the rule would make it enter again: it was "not
+    independent") or to one holding a pair (``w_i`` and ``z_i`` both dependent).  Tuples that
+    hold a pair (``--any-basis``) are not judged here.
+    """
+    art = ("z", n)
+    names = ", ".join(var_name(v, n) for v in dependent)
+    drv = var_name(driving, n)
+    dep = set(dependent)
+    if any(("w", i) in dep and ("z", i) in dep for i in range(n)):
+        return None
+    single = f"(--driving {drv} without --follow shows this one ratio test)"
+    if art not in dep:
+        if driving == art:
+            return None
+        return (f"--follow follows Lemke's path, which from a basis without {ARTIFICIAL} "
+                f"({names}) starts with {ARTIFICIAL} entering (Lemke's first pivot), not "
+                f"{drv}: give --driving {ARTIFICIAL} {single}")
+    free = [i for i in range(n) if ("w", i) not in dep and ("z", i) not in dep]
+    if driving[1] in free and driving != art:
+        return None
+    pair = " or ".join(f"--driving {var_name((k, i), n)}" for i in free for k in "wz")
+    return (f"--follow follows Lemke's path, on which the variable entering a basis with "
+            f"{ARTIFICIAL} ({names}) is one of the pair with neither variable dependent (one "
+            f"of them just left, the other enters), not {drv}: give {pair} {single}")
 
 
 def follow(Maug: np.ndarray, q: np.ndarray, dependent: tuple[Var, ...],
@@ -178,7 +231,18 @@ def follow(Maug: np.ndarray, q: np.ndarray, dependent: tuple[Var, ...],
     n = q.shape[0]
     out = []
     dep, ind, drv = tuple(dependent), independent, driving
+    if driving not in dep and (why := off_lemke_path(dep, driving, n)) is not None:
+        raise ProblemError(why)
     for _ in range(max_steps):
+        if out and drv in dep:  # from a start holding a pair (--any-basis) the rule can name
+            # a dependent variable (it said "driving variable z1 is not independent")
+            names = ", ".join(var_name(v, n) for v in dep)
+            raise ProblemError(
+                f"--follow: at step {len(out) - 1} {out[-1][1]['blocking']} left, and by the "
+                f"complementary rule its complement {var_name(drv, n)} would enter next, but "
+                f"it is dependent in the new basis ({names}): this path is not Lemke's, whose "
+                f"bases hold {ARTIFICIAL} and one variable of every other pair (start from "
+                f"w1..w{n} with --driving {ARTIFICIAL})")
         t = principal_pivot(Maug, q, dep, ind, driving=drv, full=full, any_basis=any_basis)
         step = driving_step(t, Maug)
         out.append((t, step))
