@@ -116,18 +116,17 @@ def run(problem: Any, *, tol: float, covering: np.ndarray | None = None,
             z = polish(M, q, z, basic)
         out = finish(problem, M, q, status, z, int(pivots), basic_z(basic, n), ray_dz,
                      float(z0), limit)
-        if d is None and astray(out):  # the verdict is the method's: the retry, untraced
-            out = retry_generic(problem, M, q, limit, out)
-            if out.info.get("covering") == "generic":
-                out.message += " (the trace shows the first path, d all ones)"
         out.trace = recorder.trace
-        return out
-    # kernel and final polish in one compiled call
-    status, z, pivots, basis, ray_dz, z0 = lemke_solve(M, q, d, limit, PIVOT_TOL, TIE_TOL)
-    out = finish(problem, M, q, status, z, pivots, basis, ray_dz, z0, limit)
+    else:  # kernel and final polish in one compiled call
+        status, z, pivots, basis, ray_dz, z0 = lemke_solve(M, q, d, limit, PIVOT_TOL, TIE_TOL)
+        out = finish(problem, M, q, status, z, pivots, basis, ray_dz, z0, limit)
     if d is not None or not astray(out):
         return out
-    return retry_generic(problem, M, q, limit, out)
+    again = retry_generic(problem, M, q, limit, out)  # traced or not: the same verdict
+    if trace and again is not out:
+        again.message += " (the trace shows the first path, d all ones)"
+        again.trace = out.trace
+    return again
 
 
 def retry_generic(problem: Any, M: np.ndarray, q: np.ndarray, limit: int,
@@ -140,7 +139,7 @@ def retry_generic(problem: Any, M: np.ndarray, q: np.ndarray, limit: int,
                                                        limit, PIVOT_TOL, TIE_TOL)
     again = finish(problem, M, q, status, z, pivots, basis, ray_dz, z0, limit)
     out.import_seconds += again.import_seconds
-    if again.termination == CONVERGED or not astray(again) and again.termination == RAY:
+    if again.termination == CONVERGED or (again.termination == RAY and not astray(again)):
         again.message = f"{out.message}; with a generic covering vector: {again.message}"
         again.info["covering"] = "generic"
         again.iterations += out.iterations
