@@ -46,7 +46,7 @@ def pivot(
                                     "(w - M z - d z0 = q)."),
     pivot_step: int = typer.Option(None, "--pivot", metavar="K", min=0,
                                    help="Show step K of the sequence alone (0 = the first "
-                                        "basis)."),
+                                        "basis; also with --json)."),
     step: bool = typer.Option(False, "--step",
                               help="One basis per screen, keys n(ext)/b(ack)/q(uit); without "
                                    "a terminal every step is printed."),
@@ -107,9 +107,13 @@ def pivot(
                                 any_basis=any_basis)
             items.append((t, driving_step(t, Maug) if drv is not None else None))
     if as_json:
+        shown = items
+        if pivot_step is not None:  # step K alone, as the printed sequence shows it
+            from lcpcli.cli.stepper import pick
 
+            shown = pick(items, pivot_step, list(range(len(items))), "this sequence")
         objs = []
-        for t, st in items:
+        for t, st in shown:
             obj = t.to_dict()
             obj["ratio_test"] = st
             objs.append(obj)

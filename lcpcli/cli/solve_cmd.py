@@ -88,8 +88,9 @@ def solve(
                                     "[default: "
                                     "dictionary]. Implies --trace."),
     pivot_step: int = typer.Option(None, "--pivot", metavar="K", min=0,
-                                   help="Trace: show step K alone (0 = the initial tableau). "
-                                        "Implies --trace."),
+                                   help="Trace: show step K alone (0 = the initial tableau; with "
+                                        "--json the trace list holds it alone). Implies "
+                                        "--trace."),
     step: bool = typer.Option(False, "--step",
                               help="Trace: one step per screen, keys n(ext)/b(ack)/q(uit); "
                                    "without a terminal every step is printed. Implies "
@@ -182,6 +183,10 @@ def solve(
     if output is not None and fmt == "text":
         write_atomic_text(output, json_text(payload) + "\n")
     if as_json:
+        if pivot_step is not None and payload.get("trace") is not None:
+            from lcpcli.cli.render.pivot import step_entries
+
+            payload["trace"] = step_entries(payload["trace"], pivot_step)
         write_json_line(payload)
         if result.trace is not None and fmt != "text":
             _show_trace(result.trace, fmt, layout, output, file, pivot_step, False)

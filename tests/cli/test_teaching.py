@@ -71,6 +71,32 @@ def test_pivot_k_alone(cli, samples):
     assert bad.returncode == 2 and "steps 0..5" in bad.stderr and bad.stdout == ""
 
 
+def test_pivot_k_alone_in_json(cli, samples, tmp_path):
+    """``--pivot K --json``: the JSON holds step K alone (it held every step, --pivot was
+    ignored); the last state's step with the ray decision after it; out of range: exit 2."""
+    full = json.loads(cli("solve", str(samples / "seed000.json"), "--trace", "--json").stdout)
+    one = cli("solve", str(samples / "seed000.json"), "--pivot", "3", "--json")
+    assert one.returncode == 0, one.stderr
+    got = json.loads(one.stdout)
+    assert got["trace"] == [full["trace"][3]] and got["z"] == full["z"]
+    bad = cli("solve", str(samples / "seed000.json"), "--pivot", "9", "--json")
+    assert bad.returncode == 2 and "steps 0..5" in bad.stderr and bad.stdout == ""
+    ray = tmp_path / "ray.json"
+    ray.write_text('{"M": [[-1, 0], [0, -1]], "q": [-1, -1]}')
+    last = json.loads(cli("solve", str(ray), "-m", "lemke", "--pivot", "1", "--json").stdout)
+    assert [s["rule"] for s in last["trace"]] == ["initial", "ray"]
+    sweeps = json.loads(cli("solve", str(samples / "seed004.json"), "-m", "pgs", "--pivot", "2",
+                            "--json").stdout)
+    assert [s["sweep"] for s in sweeps["trace"]] == [2]
+    seq = [str(samples / "seed004.json"), "-d", "w1,w2", "--driving", "z0", "--follow"]
+    steps = json.loads(cli("pivot", *seq, "--json").stdout)["steps"]
+    alone = cli("pivot", *seq, "--json", "--pivot", "1")
+    assert alone.returncode == 0 and json.loads(alone.stdout)["dependent"] == \
+        steps[1]["dependent"], alone.stderr
+    bad = cli("pivot", *seq, "--json", "--pivot", "7")
+    assert bad.returncode == 2 and "steps 0..3" in bad.stderr and bad.stdout == ""
+
+
 def test_degenerate_lexicographic_tie_break_is_shown(cli, samples):
     p = cli("solve", str(samples / "degenerate_lex.json"), "--pivot", "1", "--layout", "murty",
             env=TEXT)

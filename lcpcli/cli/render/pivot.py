@@ -362,6 +362,19 @@ def step_numbers(trace: list[dict[str, Any]]) -> list[int]:
     return list(range(_state_count(trace)))
 
 
+def step_entries(trace: list[dict[str, Any]], k: int) -> list[dict[str, Any]]:
+    """``--pivot K`` with ``--json``: the trace entries of page ``K`` of :func:`step_pages`
+    (the last state's page with the decision that made no pivot after it, a ray); exit 2 with
+    the valid numbers otherwise, as for the printed trace."""
+    from lcpcli.cli.stepper import pick
+
+    numbers = step_numbers(trace)
+    entries = pick(trace, k, numbers, "this trace")
+    if trace_kind(trace) not in ("sweep", "dantzig") and k == numbers[-1]:
+        entries += trace[k + 1:]
+    return entries
+
+
 def step_labels(trace: list[dict[str, Any]]) -> list[str]:
     """Names of the pages of :func:`step_pages` on the ``--step`` screen."""
     word = "sweep" if trace_kind(trace) == "sweep" else "step"
