@@ -165,6 +165,10 @@ def solve(
 
         opts["z0"] = load_z0(z0, n=prob.n)
     if trace and method == "auto":
+        from lcpcli.solvers.registry import get_method
+
+        # auto's own options first (--covering is Lemke's: refused as without --trace)
+        get_method("auto").parse_options({k: v for k, v in opts.items() if k != "trace"})
         method = _traced_auto(prob.kind)
     try:
         warm = opts.pop("z0", None)  # lcpcli.solve's warm start (the basis of z0)

@@ -540,3 +540,14 @@ def test_traces_of_data_at_the_ends_of_the_float64_range(cli, extra):
             out = cli(*args, stdin=json.dumps(doc))
             assert out.returncode in (0, 1), out.stderr
             assert "warning" not in out.stderr, (args, out.stderr)
+
+
+def test_auto_refuses_lemkes_options_with_trace_as_without(cli, samples):
+    """``--trace`` runs auto's traced method (Lemke), but the options are still auto's:
+    ``--covering`` was accepted with ``--trace`` and refused without it."""
+    seed = str(samples / "seed004.json")
+    plain = cli("solve", seed, "--covering", "1,2")
+    traced = cli("solve", seed, "--covering", "1,2", "--trace")
+    assert plain.returncode == traced.returncode == 2
+    assert traced.stderr == plain.stderr and "no option 'covering'" in plain.stderr
+    assert cli("solve", seed, "-m", "lemke", "--covering", "1,2", "--trace").returncode == 0
