@@ -416,3 +416,32 @@ def test_an_infinite_z_j_on_the_rescaled_path_reads_no_unwritten_memory(monkeypa
     assert not cert.passed
     # M z + q over the stored nonzeros: 1e300 + 1e-300 inf, 1e300^2 - 1e200 inf, 1e-200 inf
     assert w[0] == np.inf and np.isnan(w[1]) and w[2] == np.inf
+
+
+def test_a_bound_past_the_range_of_the_rescaled_units_is_not_near() -> None:
+    """The rescaled path (data whose products leave the safe range) scales column j by the
+    exponent of z_j; a bound far beyond z_j then overflows there.  It was clipped to the
+    largest double, and a move to it looked small: with z_3 = 1.1e-318 (w_3 < 0, bounds
+    [-0, 4]) the certificate scored pair 3 'at the upper bound' with error 2^-33 and passed
+    what the reference scores 0.11 (found by the API property test: a false 'solved' of
+    newton on a box LCP)."""
+    M = np.array([[0.0, 1.7e243, 5.1e243, 1.7e243, 3.4e243, 0.0],
+                  [5.3e36, 5.3e36, 5.3e36, 2.7e36, 2.7e36, 0.0],
+                  [4.4e99, 0.0, 6.6e99, 2.2e99, 0.0, 8.7e99],
+                  [0.0, 1.38178697e-76, 0.0, 0.0, 5.52714788e-76, 1.38178697e-76],
+                  [6.6e122, 9.9e122, 9.9e122, 9.9e122, 0.0, 9.9e122],
+                  [3.6e134, 7.3e134, 7.3e134, 1.1e135, 1.5e135, 3.6e134]])
+    q = np.array([-3.4e243, -1.9e37, -1.3e100, -6.90893484e-76, -4.3e123, -4.0e135])
+    lo = np.array([-3.0, -0.0, -0.0, -0.0, -0.0, -2.0])
+    up = np.array([4.0, 3.0, 3.0, 4.0, 5.0, 4.0])
+    z = np.array([4.0, -0.0, -0.0, 1.106994e-318, -0.0, 4.0])
+    p = Problem.create(M, q, lower=lo, upper=up)
+    cert = certify(p, z)
+    ref = componentwise_error(M, q, z, lo, up)
+    assert ref > 0.01 and not cert.passed
+    assert cert.error == pytest.approx(ref, rel=1e-6)
+    # the same with a bound at a finite but huge distance on the other side: still not near
+    z_far = z.copy()
+    z_far[3] = 5e-324
+    assert not certify(Problem.create(M, q, lower=lo, upper=np.where(up == 4.0, 1e300, up)),
+                       z_far).passed
