@@ -44,6 +44,16 @@ def _folder_files(folder: Path) -> list[Path]:
     return files
 
 
+def _hdf5_groups(source: str | Path) -> list[str]:
+    """The group names of an HDF5 file of groups (one or more); empty for anything else (a
+    problem at an HDF5 file's root, another format, stdin)."""
+    if str(source) == "-" or detect_format(source) != "hdf5":
+        return []
+    from lcpcli.io.hdf5_format import group_names
+
+    return group_names(Path(source))
+
+
 def source_problems(source: str | Path) -> Iterator[tuple[str, Problem]]:
     """``(label, problem)`` for every problem of ``source``, streamed: a folder (its problem
     files, sorted, names = file stems), a stack (the naming rule), an HDF5 file of groups
@@ -61,19 +71,16 @@ def source_problems(source: str | Path) -> Iterator[tuple[str, Problem]]:
         for p in iter_problems(source):
             yield f"{source} ({p.name})", p
         return
-    if str(source) != "-" and detect_format(source) == "hdf5":
-        from lcpcli.io.hdf5_format import group_names
+    names = _hdf5_groups(source)
+    if names:
+        from lcpcli.io.hdf5_format import read_many
 
-        names = group_names(path)
-        if names:
-            from lcpcli.io.hdf5_format import read_many
-
-            for name, item in read_many(path, names):
-                if isinstance(item, ProblemError):
-                    raise item.with_source(f"{source} ({name})")
-                item.name = name
-                yield f"{source} ({name})", item
-            return
+        for name, item in read_many(path, names):
+            if isinstance(item, ProblemError):
+                raise item.with_source(f"{source} ({name})")
+            item.name = name
+            yield f"{source} ({name})", item
+        return
     p = load(source)
     p.name = path.stem if str(source) != "-" else (p.name or "stdin")
     yield str(source), p
@@ -203,13 +210,7 @@ def source_names(source: str | Path) -> list[str]:
             return list_names(source)
         except ProblemError as exc:
             raise exc.with_source(str(source)) from None
-    if str(source) != "-" and detect_format(source) == "hdf5":
-        from lcpcli.io.hdf5_format import group_names
-
-        names = group_names(path)
-        if names:
-            return names
-    return [path.stem]
+    return _hdf5_groups(source) or [path.stem]
 
 
 def write_folder(source: str | Path, folder: str | Path, fmt: str, *,
