@@ -32,12 +32,18 @@ I64 = np.ctypeslib.ndpointer(np.int64, flags="C_CONTIGUOUS")
 I8 = np.ctypeslib.ndpointer(np.int8, flags="C_CONTIGUOUS")
 
 
-def build_harness(folder, defines=()):
-    """The lane harness compiled with the header's ``-D`` speed choices ``defines``."""
+def build_harness(folder, defines=(), src=SRC):
+    """The lane harness compiled with the header's ``-D`` speed choices ``defines`` (``src``:
+    the folder of lcp_stack.h), loaded."""
     lib = folder / "liblanes.so"
     subprocess.run([CXX, "-std=c++20", "-O1", "-shared", "-fPIC", "-pthread",
-                    "-Drestrict=__restrict__", *defines, f"-I{SRC}", str(HARNESS), "-o",
+                    "-Drestrict=__restrict__", *defines, f"-I{src}", str(HARNESS), "-o",
                     str(lib)], check=True, capture_output=True, text=True)
+    return load_harness(lib)
+
+
+def load_harness(lib):
+    """A built lane harness with its functions' argument types."""
     so = ctypes.CDLL(str(lib))
     ll, dbl, i32 = ctypes.c_longlong, ctypes.c_double, ctypes.c_int
     so.emu_lemke_stack.argtypes = [ll, ll, F64, F64, ctypes.c_void_p, ll, dbl, dbl, dbl, dbl,
@@ -232,19 +238,12 @@ def test_lanes_that_disagree_on_the_pivot_row_are_reported_not_crashed(tmp_path)
     check = "        LCP_UNIFORM(r);\n        if (r < 0) {\n            status = LCP_RAY;"
     assert text.count(check) == 1
     header.write_text(text.replace(check, "        r -= (lane == 1 && r > 0);\n" + check))
-    lib = tmp_path / "liblanes.so"
-    subprocess.run([CXX, "-std=c++20", "-O1", "-shared", "-fPIC", "-pthread",
-                    "-Drestrict=__restrict__", f"-I{src}", str(HARNESS), "-o", str(lib)],
-                   check=True, capture_output=True, text=True)
+    build_harness(tmp_path, src=src)  # built here, run in the child
     child = f"""
-import ctypes, sys
-import numpy as np
+import sys
 sys.path.insert(0, {str(Path(__file__).parent)!r})
 import test_lane_groups as t
-so = ctypes.CDLL({str(lib)!r})
-ll, dbl, i32 = ctypes.c_longlong, ctypes.c_double, ctypes.c_int
-so.emu_lemke_stack.argtypes = [ll, ll, t.F64, t.F64, ctypes.c_void_p, ll, dbl, dbl, dbl, dbl,
-                               i32, i32, i32, i32, i32, t.F64, t.F64, t.I8, t.I64, t.F64, t.F64]
+so = t.load_harness({str(tmp_path / "liblanes.so")!r})
 for seed in range(6):  # seed 0 wrote out of bounds (a bus error) before LCP_UNIFORM
     M, q = t.stack("pd", 2, 12, seed=seed)
     try:
